@@ -1,0 +1,10 @@
+//! Analyses built on the protocol: one operating point, frequency responses over a sweep, and
+//! the operating-frequency selection.
+
+pub mod response;
+pub mod selection;
+pub mod sweep;
+
+pub use response::{ResponseSample, SimSettings, evaluate_point};
+pub use selection::{Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, select};
+pub use sweep::Sweep;

@@ -1,0 +1,86 @@
+//! One operating point of a frequency response: the protocol run from rest at `(gap, Ω/ω)`.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ParamError, check_range};
+use crate::integrate::{Simulator, StepSettings};
+use crate::model::{RigParams, SwitchBands};
+use crate::observe::{Observer, PointResult, Protocol, Regime, run_protocol};
+use crate::real::Real;
+
+/// Accepted frequency ratios `Ω/ω`.
+pub const OMEGA_RATIO_RANGE: (f64, f64) = (0.05, 50.0);
+
+/// Every numerical setting of a simulation (switch-model bands, steps, protocol).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimSettings {
+    /// Switch-model band widths.
+    pub bands: SwitchBands,
+    /// Fixed-step settings.
+    pub steps: StepSettings,
+    /// Canonical protocol.
+    pub protocol: Protocol,
+}
+
+impl SimSettings {
+    /// The convergence reference of the issue: steps and sub-steps `factor`× finer and both
+    /// bands `factor`× narrower.
+    pub fn refined(&self, factor: u32) -> Self {
+        SimSettings {
+            bands: self.bands.scaled(1.0 / f64::from(factor)),
+            steps: self.steps.refined(factor),
+            protocol: self.protocol,
+        }
+    }
+}
+
+/// Runs the canonical protocol at `gap_m` (m) and `omega_ratio` (`Ω/ω`) from rest at phase 0,
+/// in the float type `T`, reporting to `obs`.
+///
+/// # Errors
+/// [`ParamError`] for invalid parameters, gap, settings, or `omega_ratio` outside
+/// [`OMEGA_RATIO_RANGE`].
+pub fn evaluate_point_observed<T: Real, O: Observer<T>>(
+    params: &RigParams,
+    gap_m: f64,
+    omega_ratio: f64,
+    settings: &SimSettings,
+    obs: &mut O,
+) -> Result<PointResult, ParamError> {
+    check_range("omega_ratio", omega_ratio, OMEGA_RATIO_RANGE.0, OMEGA_RATIO_RANGE.1)?;
+    let omega_exc = omega_ratio * params.omega_n();
+    let mut sim = Simulator::<T>::new(params, gap_m, omega_exc, &settings.bands, &settings.steps)?;
+    run_protocol(&mut sim, &settings.protocol, params.weight_n(), obs)
+}
+
+/// [`evaluate_point_observed`] without an observer.
+///
+/// # Errors
+/// As [`evaluate_point_observed`].
+pub fn evaluate_point<T: Real>(
+    params: &RigParams,
+    gap_m: f64,
+    omega_ratio: f64,
+    settings: &SimSettings,
+) -> Result<PointResult, ParamError> {
+    evaluate_point_observed::<T, ()>(params, gap_m, omega_ratio, settings, &mut ())
+}
+
+/// The compact result a selection needs per frequency: regime and `F_i/mg`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResponseSample {
+    /// Impact regime.
+    pub regime: Regime,
+    /// Maximum impact force over the window, `F_i/mg`.
+    pub impact_force_mg: f32,
+}
+
+impl From<&PointResult> for ResponseSample {
+    fn from(r: &PointResult) -> Self {
+        ResponseSample {
+            regime: r.regime,
+            impact_force_mg: r.impact_force_mg as f32,
+        }
+    }
+}

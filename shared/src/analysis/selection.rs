@@ -1,0 +1,366 @@
+//! Operating-frequency selection (the rig's main job).
+//!
+//! For a rig and gap, given the frequency response at the nominal gap and at the perturbed gaps
+//! ([`perturbed_gaps`]) over the same `Ω/ω` sweep, choose the frequency that maximises `F_i/mg`
+//! among the points that are robustly `z = 1/1`: every grid point within `±freq_margin_pct` of
+//! the candidate frequency (widened outward to the next grid points, so the check is
+//! conservative) is `1/1` at the nominal gap **and** at `gap ± gap_margin_mm`. A window that
+//! leaves the sweep cannot be verified and disqualifies the point.
+//!
+//! Pure function of the responses: the host computes them in parallel, the MCU in sequence;
+//! both call [`select`].
+
+use core::fmt;
+
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+use super::response::ResponseSample;
+use super::sweep::Sweep;
+use crate::error::{ParamError, check_range};
+use crate::model::RigParams;
+use crate::observe::Regime;
+
+/// Most `1/1` bands reported.
+pub const MAX_BANDS: usize = 8;
+
+/// What the selection must guarantee.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SelectionSpec {
+    /// Frequency-ratio sweep `Ω/ω` searched (default 0.5:5.0:0.01).
+    pub omega_ratio: Sweep,
+    /// Required robustness in frequency, ± % of the chosen frequency (default 5).
+    pub freq_margin_pct: f64,
+    /// Required robustness in gap, ± mm (default 0.1; the lower side is clipped at 0 mm).
+    pub gap_margin_mm: f64,
+}
+
+impl Default for SelectionSpec {
+    fn default() -> Self {
+        SelectionSpec {
+            omega_ratio: Sweep {
+                lo: 0.5,
+                hi: 5.0,
+                step: 0.01,
+            },
+            freq_margin_pct: 5.0,
+            gap_margin_mm: 0.1,
+        }
+    }
+}
+
+impl SelectionSpec {
+    /// Checks the spec.
+    ///
+    /// # Errors
+    /// [`ParamError`] naming `omega_ratio`, `freq_margin_pct` (0..=50) or `gap_margin_mm` (0..=10).
+    pub fn validate(&self) -> Result<(), ParamError> {
+        Sweep::new("omega_ratio", self.omega_ratio.lo, self.omega_ratio.hi, self.omega_ratio.step)?;
+        check_range("freq_margin_pct", self.freq_margin_pct, 0.0, 50.0)?;
+        check_range("gap_margin_mm", self.gap_margin_mm, 0.0, 10.0)?;
+        Ok(())
+    }
+}
+
+/// The gaps (m) besides the nominal one at which the response must also be computed:
+/// `gap − margin` (clipped at 0 and dropped if it equals the nominal gap) and `gap + margin`.
+pub fn perturbed_gaps(gap_m: f64, gap_margin_mm: f64) -> Vec<f64, 2> {
+    let margin = gap_margin_mm * 1e-3;
+    let mut out = Vec::new();
+    if margin > 0.0 {
+        let lo = (gap_m - margin).max(0.0);
+        if lo < gap_m {
+            let _ = out.push(lo);
+        }
+        let _ = out.push(gap_m + margin);
+    }
+    out
+}
+
+/// One point of the sweep.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Candidate {
+    /// Index in the sweep.
+    pub index: usize,
+    /// `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Excitation frequency, Hz.
+    pub freq_hz: f64,
+    /// Regime at the nominal gap.
+    pub regime: Regime,
+    /// Predicted maximum impact force, `F_i/mg`.
+    pub impact_force_mg: f64,
+}
+
+/// The chosen operating point and its guarantees.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Selection {
+    /// The chosen point (`z = 1/1`).
+    pub best: Candidate,
+    /// Edges of the `1/1` band holding it (first and last `1/1` grid points), `Ω/ω`.
+    pub band_ratio: [f64; 2],
+    /// The same in Hz.
+    pub band_hz: [f64; 2],
+    /// Distance from the chosen frequency to the nearer band edge, % of the chosen frequency.
+    pub margin_freq_pct: f64,
+    /// Gap robustness verified, ± mm (lower side clipped at 0).
+    pub margin_gap_mm: f64,
+    /// Lowest `F_i/mg` over the robustness box (±freq margin × the checked gaps).
+    pub worst_impact_force_mg: f64,
+    /// Grid points that passed the robustness check.
+    pub robust_points: usize,
+    /// Every `1/1` band at the nominal gap, `Ω/ω` edges (at most [`MAX_BANDS`]).
+    pub bands_ratio: Vec<[f64; 2], MAX_BANDS>,
+    /// For information: the strongest point of any other periodic impacting regime.
+    pub other_best: Option<Candidate>,
+}
+
+/// Why no operating point could be chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SelectionError {
+    /// A response does not have one sample per sweep point.
+    LengthMismatch {
+        /// Sweep points.
+        expected: usize,
+        /// Samples given.
+        got: usize,
+    },
+    /// No `1/1` point at all at the nominal gap.
+    NoOneToOneBand,
+    /// `1/1` exists but no point is robust to the margins; the strongest `1/1` point is given.
+    NoRobustPoint {
+        /// Strongest `1/1` point (not robust).
+        strongest: Candidate,
+    },
+    /// Invalid spec.
+    Param(ParamError),
+}
+
+impl fmt::Display for SelectionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SelectionError::LengthMismatch { expected, got } => {
+                write!(f, "response has {got} samples, the sweep has {expected}")
+            }
+            SelectionError::NoOneToOneBand => f.write_str("no z = 1/1 point in the swept frequency range"),
+            SelectionError::NoRobustPoint { strongest } => write!(
+                f,
+                "no z = 1/1 point is robust to the required margins; strongest 1/1 point: {:.3} Hz (Ω/ω = {:.3}), F_i/mg = {:.2}",
+                strongest.freq_hz, strongest.omega_ratio, strongest.impact_force_mg
+            ),
+            SelectionError::Param(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl core::error::Error for SelectionError {}
+
+impl From<ParamError> for SelectionError {
+    fn from(e: ParamError) -> Self {
+        SelectionError::Param(e)
+    }
+}
+
+/// Chooses the operating frequency. `nominal` is the response at the nominal gap and
+/// `perturbed` the responses at [`perturbed_gaps`], all over `spec.omega_ratio`.
+///
+/// # Errors
+/// [`SelectionError`]: mismatched lengths, no `1/1` point, or no robust `1/1` point.
+pub fn select(
+    params: &RigParams,
+    spec: &SelectionSpec,
+    nominal: &[ResponseSample],
+    perturbed: &[&[ResponseSample]],
+) -> Result<Selection, SelectionError> {
+    spec.validate()?;
+    let sweep = spec.omega_ratio;
+    let n = sweep.len();
+    for r in core::iter::once(nominal).chain(perturbed.iter().copied()) {
+        if r.len() != n {
+            return Err(SelectionError::LengthMismatch {
+                expected: n,
+                got: r.len(),
+            });
+        }
+    }
+    let one_one = |j: usize| nominal[j].regime == Regime::ONE_ONE;
+    let robust_at = |j: usize| one_one(j) && perturbed.iter().all(|r| r[j].regime == Regime::ONE_ONE);
+    let candidate = |j: usize| {
+        let r = sweep.value(j);
+        Candidate {
+            index: j,
+            omega_ratio: r,
+            freq_hz: params.freq_hz_from_ratio(r),
+            regime: nominal[j].regime,
+            impact_force_mg: f64::from(nominal[j].impact_force_mg),
+        }
+    };
+
+    let p = spec.freq_margin_pct / 100.0;
+    let eps = 1e-9 * sweep.step;
+    let mut best: Option<(usize, usize, usize)> = None; // (index, box lo, box hi)
+    let mut strongest: Option<usize> = None;
+    let mut robust_points = 0;
+    for i in (0..n).filter(|&i| one_one(i)) {
+        if strongest.is_none_or(|s| nominal[i].impact_force_mg > nominal[s].impact_force_mg) {
+            strongest = Some(i);
+        }
+        let r = sweep.value(i);
+        let (lo, hi) = (r * (1.0 - p), r * (1.0 + p));
+        if lo < sweep.lo - eps || hi > sweep.value(n - 1) + eps {
+            continue;
+        }
+        let j_lo = libm::floor((lo - sweep.lo) / sweep.step + 1e-9).max(0.0) as usize;
+        let j_hi = (libm::ceil((hi - sweep.lo) / sweep.step - 1e-9) as usize).min(n - 1);
+        if (j_lo..=j_hi).all(robust_at) {
+            robust_points += 1;
+            if best.is_none_or(|(b, _, _)| nominal[i].impact_force_mg > nominal[b].impact_force_mg) {
+                best = Some((i, j_lo, j_hi));
+            }
+        }
+    }
+    let Some(strongest) = strongest else {
+        return Err(SelectionError::NoOneToOneBand);
+    };
+    let Some((i, j_lo, j_hi)) = best else {
+        return Err(SelectionError::NoRobustPoint {
+            strongest: candidate(strongest),
+        });
+    };
+
+    // Band at the nominal gap around the chosen point.
+    let mut b_lo = i;
+    while b_lo > 0 && one_one(b_lo - 1) {
+        b_lo -= 1;
+    }
+    let mut b_hi = i;
+    while b_hi + 1 < n && one_one(b_hi + 1) {
+        b_hi += 1;
+    }
+    let (r, r_lo, r_hi) = (sweep.value(i), sweep.value(b_lo), sweep.value(b_hi));
+    let margin_freq_pct = (r - r_lo).min(r_hi - r) / r * 100.0;
+
+    let worst = (j_lo..=j_hi)
+        .flat_map(|j| core::iter::once(nominal[j]).chain(perturbed.iter().map(move |resp| resp[j])))
+        .map(|s| f64::from(s.impact_force_mg))
+        .fold(f64::INFINITY, f64::min);
+
+    let mut bands_ratio = Vec::new();
+    let mut j = 0;
+    while j < n {
+        if one_one(j) {
+            let start = j;
+            while j + 1 < n && one_one(j + 1) {
+                j += 1;
+            }
+            let _ = bands_ratio.push([sweep.value(start), sweep.value(j)]);
+        }
+        j += 1;
+    }
+
+    let other_best = (0..n)
+        .filter(|&j| matches!(nominal[j].regime, Regime::Periodic { .. }) && !one_one(j))
+        .max_by(|&a, &b| nominal[a].impact_force_mg.total_cmp(&nominal[b].impact_force_mg))
+        .map(candidate);
+
+    let gaps_checked = !perturbed.is_empty();
+    Ok(Selection {
+        best: candidate(i),
+        band_ratio: [r_lo, r_hi],
+        band_hz: [params.freq_hz_from_ratio(r_lo), params.freq_hz_from_ratio(r_hi)],
+        margin_freq_pct,
+        margin_gap_mm: if gaps_checked { spec.gap_margin_mm } else { 0.0 },
+        worst_impact_force_mg: worst,
+        robust_points,
+        bands_ratio,
+        other_best,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::RigId;
+
+    fn s(regime: Regime, f: f32) -> ResponseSample {
+        ResponseSample {
+            regime,
+            impact_force_mg: f,
+        }
+    }
+
+    fn spec() -> SelectionSpec {
+        SelectionSpec {
+            omega_ratio: Sweep::new("omega_ratio", 1.0, 2.99, 0.01).unwrap(),
+            freq_margin_pct: 5.0,
+            gap_margin_mm: 0.1,
+        }
+    }
+
+    #[test]
+    fn picks_the_strongest_robust_point_not_the_band_edge() {
+        let p = RigId::Wires.preset();
+        let sp = spec();
+        let n = sp.omega_ratio.len();
+        // 1/1 on ratios [1.20, 2.00]; force grows with frequency, 1/2 above with a larger force.
+        let nominal: std::vec::Vec<_> = (0..n)
+            .map(|j| {
+                let r = sp.omega_ratio.value(j);
+                if (1.2 - 1e-9..=2.0 + 1e-9).contains(&r) {
+                    s(Regime::ONE_ONE, r as f32)
+                } else if r > 2.0 {
+                    s(Regime::Periodic { p: 1, q: 2 }, 5.0)
+                } else {
+                    s(Regime::NoImpact, 0.0)
+                }
+            })
+            .collect();
+        let sel = select(&p, &sp, &nominal, &[&nominal]).unwrap();
+        // r (1 + 0.05) must stay ≤ 2.00 with the next grid point included: r ≤ 1.90.
+        assert!((sel.best.omega_ratio - 1.90).abs() < 1e-9, "{:?}", sel.best);
+        assert!((sel.band_ratio[0] - 1.2).abs() < 1e-9 && (sel.band_ratio[1] - 2.0).abs() < 1e-9);
+        assert!(sel.margin_freq_pct >= 5.0);
+        assert!((sel.worst_impact_force_mg - 1.80).abs() < 1e-6);
+        assert_eq!(sel.other_best.unwrap().regime, Regime::Periodic { p: 1, q: 2 });
+        // A perturbed gap whose band ends at 1.7 moves the choice down to 1.61.
+        let shifted: std::vec::Vec<_> = nominal
+            .iter()
+            .enumerate()
+            .map(|(j, x)| if sp.omega_ratio.value(j) > 1.7 + 1e-9 { s(Regime::Irregular, 0.0) } else { *x })
+            .collect();
+        let sel2 = select(&p, &sp, &nominal, &[&shifted]).unwrap();
+        assert!((sel2.best.omega_ratio - 1.61).abs() < 1e-9, "{:?}", sel2.best);
+    }
+
+    #[test]
+    fn reports_when_nothing_is_robust() {
+        let p = RigId::Wires.preset();
+        let sp = spec();
+        let n = sp.omega_ratio.len();
+        let narrow: std::vec::Vec<_> = (0..n)
+            .map(|j| {
+                let r = sp.omega_ratio.value(j);
+                if (1.5..1.55).contains(&r) { s(Regime::ONE_ONE, 2.0) } else { s(Regime::NoImpact, 0.0) }
+            })
+            .collect();
+        assert!(matches!(
+            select(&p, &sp, &narrow, &[]),
+            Err(SelectionError::NoRobustPoint { .. })
+        ));
+        let none = std::vec![s(Regime::NoImpact, 0.0); n];
+        assert_eq!(select(&p, &sp, &none, &[]), Err(SelectionError::NoOneToOneBand));
+        assert!(matches!(
+            select(&p, &sp, &none[..3], &[]),
+            Err(SelectionError::LengthMismatch { .. })
+        ));
+    }
+
+    #[test]
+    fn perturbed_gaps_clip_at_zero() {
+        assert_eq!(perturbed_gaps(0.0, 0.1).as_slice(), &[1e-4]);
+        let g = perturbed_gaps(1e-3, 0.1);
+        assert!((g[0] - 0.9e-3).abs() < 1e-12 && (g[1] - 1.1e-3).abs() < 1e-12);
+        assert!(perturbed_gaps(1e-3, 0.0).is_empty());
+    }
+}

@@ -1,0 +1,109 @@
+//! Typed errors of the `shared` crate. No function of this crate panics on bad input:
+//! it returns one of these, naming the field and the allowed range.
+
+use core::fmt;
+
+/// A parameter failed validation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ParamError {
+    /// The value is NaN or infinite.
+    NotFinite {
+        /// Field name as it appears in the parameter structs / TOML (`mass_kg`, ...).
+        field: &'static str,
+    },
+    /// The value lies outside `[min, max]` (bounds in the field's own unit).
+    OutOfRange {
+        /// Field name.
+        field: &'static str,
+        /// Offending value.
+        value: f64,
+        /// Smallest allowed value.
+        min: f64,
+        /// Largest allowed value.
+        max: f64,
+    },
+    /// An integer setting outside `[min, max]`.
+    CountOutOfRange {
+        /// Field name.
+        field: &'static str,
+        /// Offending value.
+        value: u32,
+        /// Smallest allowed value.
+        min: u32,
+        /// Largest allowed value.
+        max: u32,
+    },
+    /// A sweep/range given with `lo > hi`, a non-positive step, or too many points.
+    BadRange {
+        /// Field name.
+        field: &'static str,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ParamError::NotFinite { field } => {
+                write!(f, "`{field}` must be a finite number (got NaN or infinity)")
+            }
+            ParamError::OutOfRange {
+                field,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "`{field}` = {value} is out of range: allowed {min} ..= {max}"
+            ),
+            ParamError::CountOutOfRange {
+                field,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "`{field}` = {value} is out of range: allowed {min} ..= {max}"
+            ),
+            ParamError::BadRange { field, reason } => write!(f, "`{field}`: {reason}"),
+        }
+    }
+}
+
+impl core::error::Error for ParamError {}
+
+/// Checks that `value` is finite and in `[min, max]`.
+///
+/// # Errors
+/// [`ParamError::NotFinite`] or [`ParamError::OutOfRange`] naming `field`.
+pub fn check_range(field: &'static str, value: f64, min: f64, max: f64) -> Result<f64, ParamError> {
+    if !value.is_finite() {
+        return Err(ParamError::NotFinite { field });
+    }
+    if value < min || value > max {
+        return Err(ParamError::OutOfRange {
+            field,
+            value,
+            min,
+            max,
+        });
+    }
+    Ok(value)
+}
+
+/// Checks an integer setting against `[min, max]`.
+///
+/// # Errors
+/// [`ParamError::CountOutOfRange`] naming `field`.
+pub fn check_count(field: &'static str, value: u32, min: u32, max: u32) -> Result<u32, ParamError> {
+    if value < min || value > max {
+        return Err(ParamError::CountOutOfRange {
+            field,
+            value,
+            min,
+            max,
+        });
+    }
+    Ok(value)
+}

@@ -1,0 +1,24 @@
+//! The vibro-impact hammer of the thesis (chapter 3) as a `no_std`, allocation-free library that
+//! runs the same way on the rig's STM32F407 (f32) and on the desktop (f32 or f64).
+//!
+//! Data flows one way, and the modules follow it:
+//! rig parameters → [`model`] (contact law + suspension + switch model) → [`integrate`]
+//! (fixed-step RK4) → [`observe`] (impacts, Poincaré section, regime, canonical protocol) →
+//! [`analysis`] (frequency response, operating-frequency selection).
+//!
+//! Physics: `MODEL.md` of the project's shared folder; equation numbers are the thesis'.
+#![cfg_attr(not(test), no_std)]
+#![deny(missing_docs)]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod analysis;
+pub mod error;
+pub mod integrate;
+pub mod model;
+pub mod observe;
+pub mod real;
+
+pub use error::ParamError;
+pub use real::Real;

@@ -1,0 +1,432 @@
+//! The four contact laws of the thesis, Eq. (3-2)–(3-5), for penetration `δ > 0`.
+//!
+//! Each law splits into an elastic part and a dissipative part; the switch model's band
+//! `Σ_α` keeps only the dissipative part (Eq. 3-28).
+
+use core::fmt;
+use core::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{ParamError, check_range};
+use crate::real::Real;
+
+/// Contact law with its parameters (SI units; `k_i` in N/m^n).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ContactLaw {
+    /// Hertz, Eq. (3-2): `F = k δ^n`. Conservative (restitution 1).
+    Hertz {
+        /// `k_i`, N/m^n.
+        stiffness: f64,
+        /// `n` (dimensionless, 1..3; 1.5 for Hertzian spheres).
+        exponent: f64,
+    },
+    /// Spring–dashpot (Kelvin–Voigt), Eq. (3-3): `F = k δ + c δ̇`. Identified for the rig (Table 3.1).
+    SpringDashpot {
+        /// `k_i`, N/m (Table 3.1: 5.5e6).
+        stiffness_n_m: f64,
+        /// `c_i`, N s/m (Table 3.1: 1.2e3).
+        damping_n_s_m: f64,
+    },
+    /// Hunt–Crossley, Eq. (3-4): `F = k δ^n (1 + λ δ̇)`.
+    HuntCrossley {
+        /// `k_i`, N/m^n.
+        stiffness: f64,
+        /// `n`.
+        exponent: f64,
+        /// `λ_i = c_i / k_i`, s/m.
+        lambda_s_m: f64,
+    },
+    /// Lankarani–Nikravesh, Eq. (3-5): `F = k δ^n [1 + 3(1 − e²)/4 · δ̇/δ̇⁻]`, `δ̇⁻` the approach speed.
+    LankaraniNikravesh {
+        /// `k_i`, N/m^n.
+        stiffness: f64,
+        /// `n`.
+        exponent: f64,
+        /// Coefficient of restitution `e` (0..1].
+        restitution: f64,
+    },
+}
+
+/// The law's name alone, for `--law`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ContactLawKind {
+    /// See [`ContactLaw::Hertz`].
+    Hertz,
+    /// See [`ContactLaw::SpringDashpot`].
+    SpringDashpot,
+    /// See [`ContactLaw::HuntCrossley`].
+    HuntCrossley,
+    /// See [`ContactLaw::LankaraniNikravesh`].
+    LankaraniNikravesh,
+}
+
+impl ContactLawKind {
+    /// All laws.
+    pub const ALL: [ContactLawKind; 4] = [
+        ContactLawKind::Hertz,
+        ContactLawKind::SpringDashpot,
+        ContactLawKind::HuntCrossley,
+        ContactLawKind::LankaraniNikravesh,
+    ];
+    /// Command-line name.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ContactLawKind::Hertz => "hertz",
+            ContactLawKind::SpringDashpot => "spring-dashpot",
+            ContactLawKind::HuntCrossley => "hunt-crossley",
+            ContactLawKind::LankaraniNikravesh => "lankarani-nikravesh",
+        }
+    }
+}
+
+impl fmt::Display for ContactLawKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Error of [`ContactLawKind::from_str`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnknownLaw;
+
+impl fmt::Display for UnknownLaw {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(
+            "unknown contact law: expected one of hertz, spring-dashpot, hunt-crossley, lankarani-nikravesh",
+        )
+    }
+}
+
+impl FromStr for ContactLawKind {
+    type Err = UnknownLaw;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or(UnknownLaw)
+    }
+}
+
+/// Hertz-type stiffness of the thesis' Fig. 3.3 illustration (Hunt–Crossley), N/m^1.6.
+pub const FIG_3_3_STIFFNESS: f64 = 2.1e8;
+/// Hertz-type exponent of the thesis' Fig. 3.3 illustration.
+pub const FIG_3_3_EXPONENT: f64 = 1.6;
+/// Hunt–Crossley `λ_i` of the thesis' Fig. 3.3 illustration, s/m.
+pub const FIG_3_3_LAMBDA_S_M: f64 = 0.6;
+
+impl ContactLaw {
+    /// The law identified on the rig: spring–dashpot, `k_i = 5.5e6 N/m`, `c_i = 1.2e3 N s/m` (Table 3.1).
+    pub const fn identified() -> Self {
+        ContactLaw::SpringDashpot {
+            stiffness_n_m: 5.5e6,
+            damping_n_s_m: 1.2e3,
+        }
+    }
+
+    /// Default parameters for each law. Only the spring–dashpot law was identified on the rig
+    /// (Table 3.1); the power laws take the thesis' Fig. 3.3 values (`k_i = 2.1e8 N/m^1.6`,
+    /// `n = 1.6`, `λ_i = 0.6 s/m`), and Lankarani–Nikravesh takes `e` = 0.317, the restitution
+    /// of the identified spring–dashpot law (see [`spring_dashpot_restitution`]).
+    pub fn preset(kind: ContactLawKind) -> Self {
+        match kind {
+            ContactLawKind::SpringDashpot => Self::identified(),
+            ContactLawKind::Hertz => ContactLaw::Hertz {
+                stiffness: FIG_3_3_STIFFNESS,
+                exponent: FIG_3_3_EXPONENT,
+            },
+            ContactLawKind::HuntCrossley => ContactLaw::HuntCrossley {
+                stiffness: FIG_3_3_STIFFNESS,
+                exponent: FIG_3_3_EXPONENT,
+                lambda_s_m: FIG_3_3_LAMBDA_S_M,
+            },
+            ContactLawKind::LankaraniNikravesh => ContactLaw::LankaraniNikravesh {
+                stiffness: FIG_3_3_STIFFNESS,
+                exponent: FIG_3_3_EXPONENT,
+                restitution: 0.317,
+            },
+        }
+    }
+
+    /// Which law this is.
+    pub const fn kind(&self) -> ContactLawKind {
+        match self {
+            ContactLaw::Hertz { .. } => ContactLawKind::Hertz,
+            ContactLaw::SpringDashpot { .. } => ContactLawKind::SpringDashpot,
+            ContactLaw::HuntCrossley { .. } => ContactLawKind::HuntCrossley,
+            ContactLaw::LankaraniNikravesh { .. } => ContactLawKind::LankaraniNikravesh,
+        }
+    }
+
+    /// Checks the law's parameters.
+    ///
+    /// # Errors
+    /// A [`ParamError`] naming the field (`contact.<law>.<field>`) and its allowed range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        match *self {
+            ContactLaw::Hertz {
+                stiffness,
+                exponent,
+            } => {
+                check_range("contact.hertz.stiffness", stiffness, 1.0, 1e15)?;
+                check_range("contact.hertz.exponent", exponent, 1.0, 3.0)?;
+            }
+            ContactLaw::SpringDashpot {
+                stiffness_n_m,
+                damping_n_s_m,
+            } => {
+                check_range("contact.spring-dashpot.stiffness_n_m", stiffness_n_m, 1.0, 1e12)?;
+                check_range("contact.spring-dashpot.damping_n_s_m", damping_n_s_m, 0.0, 1e8)?;
+            }
+            ContactLaw::HuntCrossley {
+                stiffness,
+                exponent,
+                lambda_s_m,
+            } => {
+                check_range("contact.hunt-crossley.stiffness", stiffness, 1.0, 1e15)?;
+                check_range("contact.hunt-crossley.exponent", exponent, 1.0, 3.0)?;
+                check_range("contact.hunt-crossley.lambda_s_m", lambda_s_m, 0.0, 1e3)?;
+            }
+            ContactLaw::LankaraniNikravesh {
+                stiffness,
+                exponent,
+                restitution,
+            } => {
+                check_range("contact.lankarani-nikravesh.stiffness", stiffness, 1.0, 1e15)?;
+                check_range("contact.lankarani-nikravesh.exponent", exponent, 1.0, 3.0)?;
+                check_range("contact.lankarani-nikravesh.restitution", restitution, 0.01, 1.0)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Estimated contact angular frequency `ω_c` (rad/s) of a mass `m` striking at
+    /// `impact_speed` (m/s): `sqrt(k/m)` for the linear law; for the power laws the tangent
+    /// stiffness `n k δ_m^(n−1)` at the Hertzian maximum penetration
+    /// `δ_m = ((n+1) m v² / 2k)^(1/(n+1))`. Sets the integrator's contact sub-step.
+    pub fn contact_omega(&self, mass_kg: f64, impact_speed: f64) -> f64 {
+        let (k, n) = match *self {
+            ContactLaw::SpringDashpot { stiffness_n_m, .. } => return libm::sqrt(stiffness_n_m / mass_kg),
+            ContactLaw::Hertz {
+                stiffness,
+                exponent,
+            }
+            | ContactLaw::HuntCrossley {
+                stiffness,
+                exponent,
+                ..
+            }
+            | ContactLaw::LankaraniNikravesh {
+                stiffness,
+                exponent,
+                ..
+            } => (stiffness, exponent),
+        };
+        let dm = libm::pow((n + 1.0) * mass_kg * impact_speed * impact_speed / (2.0 * k), 1.0 / (n + 1.0));
+        libm::sqrt(n * k * libm::pow(dm, n - 1.0) / mass_kg)
+    }
+
+    /// The law in the float type `T`, ready for the integrator.
+    pub fn compile<T: Real>(&self) -> LawCoeffs<T> {
+        let c = T::from_f64;
+        match *self {
+            ContactLaw::Hertz {
+                stiffness,
+                exponent,
+            } => LawCoeffs::Power {
+                k: c(stiffness),
+                n: c(exponent),
+                dissipation: PowerDissipation::None,
+            },
+            ContactLaw::SpringDashpot {
+                stiffness_n_m,
+                damping_n_s_m,
+            } => LawCoeffs::Linear {
+                k: c(stiffness_n_m),
+                c: c(damping_n_s_m),
+            },
+            ContactLaw::HuntCrossley {
+                stiffness,
+                exponent,
+                lambda_s_m,
+            } => LawCoeffs::Power {
+                k: c(stiffness),
+                n: c(exponent),
+                dissipation: PowerDissipation::HuntCrossley { lambda: c(lambda_s_m) },
+            },
+            ContactLaw::LankaraniNikravesh {
+                stiffness,
+                exponent,
+                restitution,
+            } => LawCoeffs::Power {
+                k: c(stiffness),
+                n: c(exponent),
+                dissipation: PowerDissipation::LankaraniNikravesh {
+                    coef: c(0.75 * (1.0 - restitution * restitution)),
+                },
+            },
+        }
+    }
+}
+
+/// Closed-form coefficient of restitution of one spring–dashpot impact of a free mass `m` on a
+/// fixed stop, with the force-vanish exit (`h_β`: contact ends when `k δ + c δ̇ = 0`, while
+/// `δ > 0`). Independent of the impact speed.
+///
+/// Derivation (underdamped, `ζ = c / (2 sqrt(k m)) < 1`, `ω_n = sqrt(k/m)`, `ω_d = ω_n sqrt(1−ζ²)`):
+/// from `δ(0) = 0`, `δ̇(0) = v`: `δ = (v/ω_d) e^{−ζω_n t} sin ω_d t`,
+/// `δ̇ = v e^{−ζω_n t} (cos ω_d t − (ζω_n/ω_d) sin ω_d t)`. The force
+/// `F = k δ + c δ̇ = v e^{−ζω_n t} [c cos ω_d t + ((k − c ζ ω_n)/ω_d) sin ω_d t]` vanishes first at
+/// `tan(ω_d t_c) = −c ω_d / (k − c ζ ω_n)`, i.e. `ω_d t_c = π − atan2(2ζ sqrt(1−ζ²), 1 − 2ζ²)`.
+/// Then `e = −δ̇(t_c)/v`. Returns `(e, t_c)` (s), or `None` for `ζ ≥ 1` or bad input.
+///
+/// For Table 3.1 with `m = 0.298 kg`: `ζ = 0.469`, `t_c ≈ 0.57 ms`, `e ≈ 0.317` (MODEL.md).
+pub fn spring_dashpot_restitution(stiffness_n_m: f64, damping_n_s_m: f64, mass_kg: f64) -> Option<(f64, f64)> {
+    if !(stiffness_n_m > 0.0 && mass_kg > 0.0 && damping_n_s_m >= 0.0) {
+        return None;
+    }
+    let wn = libm::sqrt(stiffness_n_m / mass_kg);
+    let zeta = damping_n_s_m / (2.0 * libm::sqrt(stiffness_n_m * mass_kg));
+    if zeta >= 1.0 {
+        return None;
+    }
+    let s = libm::sqrt(1.0 - zeta * zeta);
+    let wd = wn * s;
+    let phase = core::f64::consts::PI - libm::atan2(2.0 * zeta * s, 1.0 - 2.0 * zeta * zeta);
+    let tc = phase / wd;
+    let decay = libm::exp(-zeta * wn * tc);
+    let rate = decay * (libm::cos(phase) - zeta / s * libm::sin(phase));
+    Some((-rate, tc))
+}
+
+/// How a power law dissipates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PowerDissipation<T> {
+    /// Hertz: none.
+    None,
+    /// Hunt–Crossley: `k δ^n λ δ̇`.
+    HuntCrossley {
+        /// `λ_i`, s/m.
+        lambda: T,
+    },
+    /// Lankarani–Nikravesh: `k δ^n · coef · δ̇/δ̇⁻`, `coef = 3(1 − e²)/4`.
+    LankaraniNikravesh {
+        /// `3(1 − e²)/4`.
+        coef: T,
+    },
+}
+
+/// A contact law compiled to the float type `T`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LawCoeffs<T> {
+    /// `F = k δ + c δ̇` (also evaluated for `δ ≤ 0`, as the indicator `h_β` needs).
+    Linear {
+        /// `k_i`, N/m.
+        k: T,
+        /// `c_i`, N s/m.
+        c: T,
+    },
+    /// `F = k δ^n (1 + dissipation)`; both parts are 0 for `δ ≤ 0`.
+    Power {
+        /// `k_i`, N/m^n.
+        k: T,
+        /// `n`.
+        n: T,
+        /// The dissipative factor.
+        dissipation: PowerDissipation<T>,
+    },
+}
+
+impl<T: Real> LawCoeffs<T> {
+    /// `(elastic, dissipative)` parts of the contact force, N, at penetration `delta` (m),
+    /// rate `delta_dot` (m/s) and approach speed `approach_speed` (m/s, > 0; used by
+    /// Lankarani–Nikravesh only). Their sum is the indicator `h_β` (Eq. 3-20).
+    #[inline(always)]
+    pub fn parts(&self, delta: T, delta_dot: T, approach_speed: T) -> (T, T) {
+        match *self {
+            LawCoeffs::Linear { k, c } => (k * delta, c * delta_dot),
+            LawCoeffs::Power { k, n, dissipation } => {
+                if delta <= T::zero() {
+                    return (T::zero(), T::zero());
+                }
+                let elastic = k * delta.powf(n);
+                let dissipative = match dissipation {
+                    PowerDissipation::None => T::zero(),
+                    PowerDissipation::HuntCrossley { lambda } => elastic * lambda * delta_dot,
+                    PowerDissipation::LankaraniNikravesh { coef } => {
+                        elastic * coef * delta_dot / approach_speed
+                    }
+                };
+                (elastic, dissipative)
+            }
+        }
+    }
+}
+
+impl<T: Real> LawCoeffs<T> {
+    /// The law's force formula continued past the switching surfaces (the indicator `h_β`
+    /// without any switching): power laws use `sign(δ)|δ|^n` so that the force crosses 0 where
+    /// contact is lost. Used only to locate the end of a contact inside a step.
+    #[inline]
+    pub fn unswitched_force(&self, delta: T, delta_dot: T, approach_speed: T) -> T {
+        match *self {
+            LawCoeffs::Linear { .. } => {
+                let (e, d) = self.parts(delta, delta_dot, approach_speed);
+                e + d
+            }
+            LawCoeffs::Power { .. } => {
+                let (e, d) = self.parts(delta.abs(), delta_dot, approach_speed);
+                if delta < T::zero() { -(e + d) } else { e + d }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closed_form_restitution_of_table_3_1() {
+        // MODEL.md: ζ = 0.469, contact time ≈ 0.57 ms, e ≈ 0.317 (not exp(-πζ/√(1-ζ²)) ≈ 0.19).
+        let (e, tc) = spring_dashpot_restitution(5.5e6, 1.2e3, 0.298).unwrap();
+        assert!((e - 0.317).abs() < 0.002, "e = {e}");
+        assert!((tc - 0.57e-3).abs() < 0.01e-3, "t_c = {tc}");
+        // Undamped limit: a full half-oscillation, e = 1, t_c = π/ω_n.
+        let (e0, tc0) = spring_dashpot_restitution(1e6, 0.0, 1.0).unwrap();
+        assert!((e0 - 1.0).abs() < 1e-12);
+        assert!((tc0 - core::f64::consts::PI / 1e3).abs() < 1e-12);
+        assert!(spring_dashpot_restitution(1e6, 1e4, 1.0).is_none());
+    }
+
+    #[test]
+    fn laws_parse_and_validate() {
+        for k in ContactLawKind::ALL {
+            assert_eq!(k.name().parse::<ContactLawKind>(), Ok(k));
+            let law = ContactLaw::preset(k);
+            assert_eq!(law.kind(), k);
+            law.validate().unwrap();
+        }
+        let bad = ContactLaw::HuntCrossley {
+            stiffness: 1e8,
+            exponent: 0.5,
+            lambda_s_m: 0.6,
+        };
+        assert!(matches!(
+            bad.validate(),
+            Err(ParamError::OutOfRange { field: "contact.hunt-crossley.exponent", .. })
+        ));
+    }
+
+    #[test]
+    fn power_law_parts() {
+        let law = ContactLaw::preset(ContactLawKind::HuntCrossley).compile::<f64>();
+        let (e, d) = law.parts(1e-5, 0.1, 0.1);
+        let expect = 2.1e8 * libm::pow(1e-5, 1.6);
+        assert!((e - expect).abs() < 1e-9 * expect);
+        assert!((d - expect * 0.6 * 0.1).abs() < 1e-9 * expect);
+        assert_eq!(law.parts(-1e-6, 0.1, 0.1), (0.0, 0.0));
+    }
+}

@@ -1,0 +1,294 @@
+//! A rig compiled for one gap and one excitation frequency: the switch-model vector field
+//! `ẋ = f(x, t)` in the float type `T`.
+//!
+//! - Wires (generalised coordinate `θ`), Eq. (3-26)–(3-29):
+//!   `θ̈ = (A0 Ω²/l) cos θ sin Ωt − (g/l) sin θ − F_i/(m l)`, with `u = l sin θ`, `δ̇ = l θ̇ cos θ`.
+//!   The contact force enters as `−F_i l` in the moment balance exactly as the thesis writes it.
+//! - Beam springs (coordinate `u = x − y`), Eq. (3-36)–(3-39) rewritten relative to the cart:
+//!   `ü = −(c/m) u̇ − (k/m) u − (k/m) u³ − F_i/m + A0 Ω² sin Ωt`, `k = m ω²`, `c = 2ζ m ω`.
+//!
+//! Sign convention (MODEL.md): the impact surface is at `u = gap` on the `+u` side;
+//! `δ = u − gap`; `F_i ≥ 0` pushes the hammer back toward `−u`.
+
+use nalgebra::Vector2;
+
+use super::rig::{RigParams, Suspension};
+use super::switch::{Region, SwitchBands, SwitchModel};
+use crate::error::{ParamError, check_range};
+use crate::real::Real;
+
+/// Largest accepted gap, m (the wire pendulum additionally needs `gap < l/2`).
+pub const MAX_GAP_M: f64 = 0.05;
+/// Accepted excitation angular frequencies `Ω`, rad/s.
+pub const OMEGA_EXC_RANGE: (f64, f64) = (1e-2, 1e4);
+
+/// The suspension's coefficients in `T`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Body<T> {
+    /// Embarked pendulum, state `(θ, θ̇)`.
+    Wires {
+        /// `l`, m.
+        length: T,
+        /// `g/l`, 1/s².
+        g_over_l: T,
+        /// `A0 Ω²/l`, 1/s².
+        a0w2_over_l: T,
+        /// `1/(m l)`, 1/(kg m).
+        inv_ml: T,
+    },
+    /// Beam springs, state `(u, u̇)`.
+    Beam {
+        /// `k/m = ω²`, 1/s².
+        k_over_m: T,
+        /// `c/m = 2ζω`, 1/s.
+        c_over_m: T,
+        /// `A0 Ω²`, m/s².
+        a0w2: T,
+        /// `1/m`, 1/kg.
+        inv_m: T,
+    },
+}
+
+/// Which vector field to evaluate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FieldMode {
+    /// Leine's switch model (the physics).
+    Switch,
+    /// Free flight `f−` whatever the state (locating arrivals).
+    Free,
+    /// Contact `f+` with the law continued past `h_β = 0` (locating departures).
+    Contact,
+}
+
+/// One evaluation of the vector field.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FieldEval<T> {
+    /// `ẋ` (for wires `(θ̇, θ̈)`, for beams `(u̇, ü)`).
+    pub dx: Vector2<T>,
+    /// Contact force `F_i`, N.
+    pub force: T,
+    /// Region of the switch model.
+    pub region: Region,
+    /// Penetration `δ = u − gap`, m.
+    pub delta: T,
+    /// Penetration rate `δ̇`, m/s.
+    pub delta_dot: T,
+}
+
+/// A rig at one gap and one excitation frequency, in the float type `T`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hammer<T> {
+    /// Suspension coefficients.
+    pub body: Body<T>,
+    /// Contact law with the switch-model bands.
+    pub switch: SwitchModel<T>,
+    /// Gap, m.
+    pub gap: T,
+    /// Excitation angular frequency `Ω`, rad/s (kept in f64 for phase bookkeeping).
+    pub omega_exc: f64,
+    /// Cart amplitude `A0`, m.
+    pub amplitude: T,
+}
+
+impl<T: Real> Hammer<T> {
+    /// Compiles `params` for `gap_m` (m, ≥ 0) and excitation angular frequency `omega_exc` (rad/s).
+    ///
+    /// # Errors
+    /// [`ParamError`] for invalid rig parameters, bands, a gap outside `0 ..= 0.05 m`
+    /// (wires: `< l/2`), or `Ω` outside [`OMEGA_EXC_RANGE`].
+    pub fn new(
+        params: &RigParams,
+        gap_m: f64,
+        omega_exc: f64,
+        bands: &SwitchBands,
+    ) -> Result<Self, ParamError> {
+        params.validate()?;
+        bands.validate()?;
+        let max_gap = match params.suspension {
+            Suspension::Wires { length_m } => MAX_GAP_M.min(0.25 * length_m),
+            Suspension::Beam { .. } => MAX_GAP_M,
+        };
+        check_range("gap_m", gap_m, 0.0, max_gap)?;
+        check_range("omega_exc", omega_exc, OMEGA_EXC_RANGE.0, OMEGA_EXC_RANGE.1)?;
+        let c = T::from_f64;
+        let m = params.mass_kg;
+        let a0w2 = params.amplitude_m * omega_exc * omega_exc;
+        let body = match params.suspension {
+            Suspension::Wires { length_m } => Body::Wires {
+                length: c(length_m),
+                g_over_l: c(params.gravity_m_s2 / length_m),
+                a0w2_over_l: c(a0w2 / length_m),
+                inv_ml: c(1.0 / (m * length_m)),
+            },
+            Suspension::Beam { damping_ratio, .. } => {
+                let w = params.omega_n();
+                Body::Beam {
+                    k_over_m: c(w * w),
+                    c_over_m: c(2.0 * damping_ratio * w),
+                    a0w2: c(a0w2),
+                    inv_m: c(1.0 / m),
+                }
+            }
+        };
+        Ok(Hammer {
+            body,
+            switch: SwitchModel::new(params.contact.compile(), bands),
+            gap: c(gap_m),
+            omega_exc,
+            amplitude: c(params.amplitude_m),
+        })
+    }
+
+    /// The switch-model field at state `x`, with `sin_phase = sin(Ω t)` and the current
+    /// impact's approach speed (m/s, Lankarani–Nikravesh only).
+    #[inline(always)]
+    pub fn field(&self, x: &Vector2<T>, sin_phase: T, approach_speed: T) -> FieldEval<T> {
+        self.field_in(FieldMode::Switch, x, sin_phase, approach_speed)
+    }
+
+    /// The field in a given [`FieldMode`].
+    #[inline(always)]
+    pub fn field_in(&self, mode: FieldMode, x: &Vector2<T>, sin_phase: T, approach_speed: T) -> FieldEval<T> {
+        let (delta, delta_dot, st, ct) = self.kinematics(x);
+        let (force, region) = match mode {
+            FieldMode::Switch => self.switch.force(delta, delta_dot, approach_speed),
+            FieldMode::Free => (T::zero(), Region::Free),
+            FieldMode::Contact => (
+                self.switch.law.unswitched_force(delta, delta_dot, approach_speed),
+                Region::Contact,
+            ),
+        };
+        let acc = match self.body {
+            Body::Wires {
+                g_over_l,
+                a0w2_over_l,
+                inv_ml,
+                ..
+            } => a0w2_over_l * ct * sin_phase - g_over_l * st - force * inv_ml,
+            Body::Beam {
+                k_over_m,
+                c_over_m,
+                a0w2,
+                inv_m,
+            } => {
+                let u = x[0];
+                -c_over_m * x[1] - k_over_m * (u + u * u * u) - force * inv_m + a0w2 * sin_phase
+            }
+        };
+        FieldEval {
+            dx: Vector2::new(x[1], acc),
+            force,
+            region,
+            delta,
+            delta_dot,
+        }
+    }
+
+    /// `(δ, δ̇, sin θ, cos θ)` of state `x` (beams: `sin θ`, `cos θ` unused, returned as 0, 1).
+    #[inline(always)]
+    fn kinematics(&self, x: &Vector2<T>) -> (T, T, T, T) {
+        match self.body {
+            Body::Wires { length, .. } => {
+                let (st, ct) = (x[0].sin(), x[0].cos());
+                (length * st - self.gap, length * x[1] * ct, st, ct)
+            }
+            Body::Beam { .. } => (x[0] - self.gap, x[1], T::zero(), T::from_f64(1.0)),
+        }
+    }
+
+    /// Relative displacement and velocity `(u, u̇)` (m, m/s) of state `x`.
+    #[inline(always)]
+    pub fn relative(&self, x: &Vector2<T>) -> (T, T) {
+        match self.body {
+            Body::Wires { length, .. } => (length * x[0].sin(), length * x[1] * x[0].cos()),
+            Body::Beam { .. } => (x[0], x[1]),
+        }
+    }
+
+    /// Penetration `δ = u − gap` and its rate `δ̇ = u̇` of state `x`, m and m/s.
+    #[inline(always)]
+    pub fn penetration(&self, x: &Vector2<T>) -> (T, T) {
+        let (u, du) = self.relative(x);
+        (u - self.gap, du)
+    }
+
+    /// The state with relative displacement `u_m` (m) and velocity `du_m_s` (m/s).
+    ///
+    /// # Errors
+    /// [`ParamError`] if either is not finite, or (wires) `|u| ≥ l/2`.
+    pub fn state_from_relative(&self, u_m: f64, du_m_s: f64) -> Result<Vector2<T>, ParamError> {
+        match self.body {
+            Body::Wires { length, .. } => {
+                let l = length.to_f64();
+                check_range("u0_m", u_m, -0.5 * l, 0.5 * l)?;
+                check_range("v0_m_s", du_m_s, -1e3, 1e3)?;
+                let theta = libm::asin(u_m / l);
+                Ok(Vector2::new(
+                    T::from_f64(theta),
+                    T::from_f64(du_m_s / (l * libm::cos(theta))),
+                ))
+            }
+            Body::Beam { .. } => {
+                check_range("u0_m", u_m, -1.0, 1.0)?;
+                check_range("v0_m_s", du_m_s, -1e3, 1e3)?;
+                Ok(Vector2::new(T::from_f64(u_m), T::from_f64(du_m_s)))
+            }
+        }
+    }
+
+    /// A bound on the magnitude of the free-flight acceleration of `δ` beyond its value at the
+    /// step start, m/s²: the excitation amplitude `A0 Ω²` plus gravity/spring terms over a
+    /// stroke of `A0 + |u|`. Used to decide conservatively whether a step can reach contact.
+    #[inline(always)]
+    pub fn free_accel_margin(&self, u: T) -> T {
+        match self.body {
+            Body::Wires {
+                length,
+                g_over_l,
+                a0w2_over_l,
+                ..
+            } => length * (a0w2_over_l + g_over_l) + g_over_l * (self.amplitude + u.abs()),
+            Body::Beam { k_over_m, a0w2, .. } => a0w2 + k_over_m * (self.amplitude + u.abs()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::RigId;
+
+    #[test]
+    fn rejects_bad_gap_and_frequency() {
+        let p = RigId::Wires.preset();
+        let b = SwitchBands::default();
+        assert!(matches!(
+            Hammer::<f32>::new(&p, -1e-4, 10.0, &b),
+            Err(ParamError::OutOfRange { field: "gap_m", .. })
+        ));
+        assert!(matches!(
+            Hammer::<f32>::new(&p, 0.0, f64::NAN, &b),
+            Err(ParamError::NotFinite { field: "omega_exc" })
+        ));
+        assert!(Hammer::<f32>::new(&p, 1e-3, 10.0, &b).is_ok());
+    }
+
+    #[test]
+    fn pendulum_field_matches_eq_3_26() {
+        let p = RigId::Wires.preset();
+        let w = 2.0 * 11.0;
+        let h = Hammer::<f64>::new(&p, 2e-3, w, &SwitchBands::default()).unwrap();
+        let x = Vector2::new(0.01, 0.2);
+        let s = 0.3;
+        let e = h.field(&x, s, 0.1);
+        let expect = 0.89e-3 * w * w / 0.075 * libm::cos(0.01) * s - 9.81 / 0.075 * libm::sin(0.01);
+        assert_eq!(e.region, Region::Free);
+        assert!((e.dx[1] - expect).abs() < 1e-12);
+        assert_eq!(e.dx[0], 0.2);
+        let (u, du) = h.relative(&x);
+        assert!((u - 0.075 * libm::sin(0.01)).abs() < 1e-15);
+        assert!((du - 0.075 * 0.2 * libm::cos(0.01)).abs() < 1e-15);
+        let back = h.state_from_relative(u, du).unwrap();
+        assert!((back - x).norm() < 1e-12);
+    }
+}

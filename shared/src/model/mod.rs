@@ -1,0 +1,17 @@
+//! The model: rig parameters → contact law + suspension → the switch-model vector field.
+//!
+//! - [`rig`]: the identified rig parameters (thesis Tables 3.1–3.3) as serde structs with presets.
+//! - [`contact`]: the four contact laws, Eq. (3-2)–(3-5).
+//! - [`switch`]: Leine's switch model with the indicator functions `h_α`, `h_β`, Eq. (3-19)–(3-29).
+//! - [`hammer`]: a rig compiled for one gap and excitation frequency: the right-hand side of
+//!   Eq. (3-25)–(3-29) (wires) and (3-36)–(3-39) (beam springs) in the float type `T`.
+
+pub mod contact;
+pub mod hammer;
+pub mod rig;
+pub mod switch;
+
+pub use contact::{ContactLaw, ContactLawKind};
+pub use hammer::Hammer;
+pub use rig::{RigId, RigParams, Suspension};
+pub use switch::{Region, SwitchBands};

@@ -1,0 +1,249 @@
+//! Rig parameters (SI units) and the thesis' identified presets.
+//!
+//! Source: thesis Table 3.1 (impact law), Table 3.2 (hammer on wires), Table 3.3 (hammer on
+//! beam springs). All fields are SI; the unit is part of every field name.
+
+use core::fmt;
+use core::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use super::contact::ContactLaw;
+use crate::error::{ParamError, check_range};
+
+/// Standard gravity used by the thesis, m/s².
+pub const GRAVITY_M_S2: f64 = 9.81;
+
+/// The four rigs of the thesis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RigId {
+    /// Hammer on wires: an embarked pendulum, Eq. (3-15)–(3-18), Table 3.2.
+    Wires,
+    /// Hammer on beam springs, couplings distance 170 mm (4.50 Hz), Table 3.3.
+    Beam170,
+    /// Hammer on beam springs, couplings distance 150 mm (5.25 Hz), Table 3.3.
+    Beam150,
+    /// Hammer on beam springs, couplings distance 135 mm (6.50 Hz), Table 3.3.
+    Beam135,
+}
+
+impl RigId {
+    /// All rigs, in the order of the thesis.
+    pub const ALL: [RigId; 4] = [RigId::Wires, RigId::Beam170, RigId::Beam150, RigId::Beam135];
+
+    /// Command-line name (`wires`, `beam-170`, ...).
+    pub const fn name(self) -> &'static str {
+        match self {
+            RigId::Wires => "wires",
+            RigId::Beam170 => "beam-170",
+            RigId::Beam150 => "beam-150",
+            RigId::Beam135 => "beam-135",
+        }
+    }
+
+    /// The thesis' identified parameters for this rig, with the identified spring–dashpot law
+    /// (Table 3.1).
+    pub fn preset(self) -> RigParams {
+        let suspension = match self {
+            RigId::Wires => Suspension::Wires { length_m: 0.075 },
+            RigId::Beam170 => Suspension::Beam {
+                natural_freq_hz: 4.50,
+                damping_ratio: 0.004,
+            },
+            RigId::Beam150 => Suspension::Beam {
+                natural_freq_hz: 5.25,
+                damping_ratio: 0.004,
+            },
+            RigId::Beam135 => Suspension::Beam {
+                natural_freq_hz: 6.50,
+                damping_ratio: 0.004,
+            },
+        };
+        RigParams {
+            mass_kg: 0.298,
+            cart_mass_kg: 5.38,
+            amplitude_m: 0.89e-3,
+            gravity_m_s2: GRAVITY_M_S2,
+            suspension,
+            contact: ContactLaw::identified(),
+        }
+    }
+}
+
+impl fmt::Display for RigId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Error of [`RigId::from_str`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnknownRig;
+
+impl fmt::Display for UnknownRig {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("unknown rig: expected one of wires, beam-170, beam-150, beam-135")
+    }
+}
+
+impl FromStr for RigId {
+    type Err = UnknownRig;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        RigId::ALL
+            .into_iter()
+            .find(|r| r.name() == s)
+            .ok_or(UnknownRig)
+    }
+}
+
+/// How the hammer hangs on the cart.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+pub enum Suspension {
+    /// Embarked pendulum of length `l`, Eq. (3-15)–(3-18): `ω = sqrt(g/l)`, no structural damping.
+    Wires {
+        /// Pendulum (wire) length `l`, m. Table 3.2: 0.075.
+        length_m: f64,
+    },
+    /// Base-excited oscillator, Eq. (3-30)–(3-34): `k = m ω²`, `c = 2 ζ m ω`, cubic term `k u³`.
+    Beam {
+        /// Identified natural frequency `ω/2π`, Hz. Table 3.3: 4.50 / 5.25 / 6.50.
+        natural_freq_hz: f64,
+        /// Viscous damping ratio `ζ`. Table 3.3: 0.004.
+        damping_ratio: f64,
+    },
+}
+
+/// Everything that defines a rig, in SI units. Validated by [`RigParams::validate`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigParams {
+    /// Hammer mass `m`, kg (Table 3.2: 0.298).
+    pub mass_kg: f64,
+    /// Cart mass `M`, kg (Table 3.2: 5.38). Informational: the cart motion is prescribed.
+    pub cart_mass_kg: f64,
+    /// Cart displacement amplitude `A0`, m (Table 3.2: 0.89e-3).
+    pub amplitude_m: f64,
+    /// Gravity `g`, m/s² (9.81).
+    pub gravity_m_s2: f64,
+    /// Hammer suspension.
+    pub suspension: Suspension,
+    /// Contact law and its parameters.
+    pub contact: ContactLaw,
+}
+
+impl RigParams {
+    /// Checks every field against its physical range.
+    ///
+    /// # Errors
+    /// The first offending field, as a [`ParamError`] naming it and its allowed range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        check_range("mass_kg", self.mass_kg, 1e-6, 1e3)?;
+        check_range("cart_mass_kg", self.cart_mass_kg, 0.0, 1e6)?;
+        check_range("amplitude_m", self.amplitude_m, 1e-7, 0.1)?;
+        check_range("gravity_m_s2", self.gravity_m_s2, 0.1, 100.0)?;
+        match self.suspension {
+            Suspension::Wires { length_m } => {
+                check_range("suspension.wires.length_m", length_m, 1e-3, 10.0)?;
+                // The pendulum must be able to reach the surface: A0 and gaps are ≪ l.
+                if self.amplitude_m >= 0.5 * length_m {
+                    return Err(ParamError::OutOfRange {
+                        field: "amplitude_m",
+                        value: self.amplitude_m,
+                        min: 1e-7,
+                        max: 0.5 * length_m,
+                    });
+                }
+            }
+            Suspension::Beam {
+                natural_freq_hz,
+                damping_ratio,
+            } => {
+                check_range("suspension.beam.natural_freq_hz", natural_freq_hz, 0.01, 1e3)?;
+                check_range("suspension.beam.damping_ratio", damping_ratio, 0.0, 2.0)?;
+            }
+        }
+        self.contact.validate()
+    }
+
+    /// Natural angular frequency `ω` of the free hammer, rad/s (wires: `sqrt(g/l)`; beams:
+    /// `2π f_n`, Table 3.3).
+    pub fn omega_n(&self) -> f64 {
+        match self.suspension {
+            Suspension::Wires { length_m } => libm::sqrt(self.gravity_m_s2 / length_m),
+            Suspension::Beam {
+                natural_freq_hz, ..
+            } => 2.0 * core::f64::consts::PI * natural_freq_hz,
+        }
+    }
+
+    /// Natural frequency `ω/2π`, Hz.
+    pub fn natural_freq_hz(&self) -> f64 {
+        self.omega_n() / (2.0 * core::f64::consts::PI)
+    }
+
+    /// Hammer weight `m g`, N: the unit of the non-dimensional impact force `F_i/mg`.
+    pub fn weight_n(&self) -> f64 {
+        self.mass_kg * self.gravity_m_s2
+    }
+
+    /// Excitation frequency in Hz for a frequency ratio `Ω/ω`.
+    pub fn freq_hz_from_ratio(&self, omega_ratio: f64) -> f64 {
+        omega_ratio * self.natural_freq_hz()
+    }
+
+    /// Frequency ratio `Ω/ω` for an excitation frequency in Hz.
+    pub fn ratio_from_freq_hz(&self, freq_hz: f64) -> f64 {
+        freq_hz / self.natural_freq_hz()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_rig_natural_frequency_is_table_3_2() {
+        // sqrt(9.81 / 0.075) / 2π = 1.8203 Hz; Table 3.2 reports 1.82 Hz.
+        let f = RigId::Wires.preset().natural_freq_hz();
+        assert!((f - 1.8203).abs() < 1e-3, "{f}");
+    }
+
+    #[test]
+    fn beam_damping_matches_table_3_3_coefficients() {
+        // Table 3.3 lists c = 0.06 / 0.08 / 0.09 N s/m: 2 ζ m ω = 0.067 / 0.079 / 0.097 to two decimals.
+        for (rig, c_table) in [
+            (RigId::Beam170, 0.06),
+            (RigId::Beam150, 0.08),
+            (RigId::Beam135, 0.09),
+        ] {
+            let p = rig.preset();
+            let Suspension::Beam { damping_ratio, .. } = p.suspension else {
+                panic!("beam preset")
+            };
+            let c = 2.0 * damping_ratio * p.mass_kg * p.omega_n();
+            assert!((c - c_table).abs() < 0.01, "{rig}: c = {c}");
+        }
+    }
+
+    #[test]
+    fn presets_validate_and_bad_values_are_named() {
+        for r in RigId::ALL {
+            r.preset().validate().unwrap();
+            assert_eq!(r.name().parse::<RigId>(), Ok(r));
+        }
+        let mut p = RigId::Wires.preset();
+        p.mass_kg = -1.0;
+        match p.validate() {
+            Err(ParamError::OutOfRange { field, .. }) => assert_eq!(field, "mass_kg"),
+            e => panic!("{e:?}"),
+        }
+        p.mass_kg = f64::NAN;
+        assert_eq!(
+            p.validate(),
+            Err(ParamError::NotFinite { field: "mass_kg" })
+        );
+        assert!("beam-171".parse::<RigId>().is_err());
+    }
+}

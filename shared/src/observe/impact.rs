@@ -1,0 +1,107 @@
+//! Impact detection (MODEL.md "Contact region").
+//!
+//! An impact begins at an arrival through `δ = 0` (`δ` goes from `≤ 0` to `> 0`). Its episode
+//! lasts until the hammer has clearly left the surface (`δ < −η_δ`), so re-contacts while
+//! `δ` stays above `−η_δ` (slow separations, the end of a chattering sequence) continue the same
+//! impact. The peak force is the maximum of `F_i` over the whole episode.
+
+use crate::real::Real;
+
+/// What one sample did to the impact bookkeeping.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ImpactEvent<T> {
+    /// A new impact began (arrival through `δ = 0`).
+    Arrival,
+    /// The episode ended; its peak contact force, N.
+    End {
+        /// `max F_i` over the episode, N.
+        peak_n: T,
+    },
+}
+
+/// Tracks impact episodes from a stream of `(δ, F_i)` samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImpactTracker<T> {
+    eta_delta: T,
+    prev_delta: T,
+    in_episode: bool,
+    peak: T,
+}
+
+impl<T: Real> ImpactTracker<T> {
+    /// A tracker whose previous sample had penetration `initial_delta` (m); `eta_delta` (m) is
+    /// the switch model's `η_δ`.
+    pub fn new(eta_delta: T, initial_delta: T) -> Self {
+        ImpactTracker {
+            eta_delta,
+            prev_delta: initial_delta,
+            in_episode: false,
+            peak: T::zero(),
+        }
+    }
+
+    /// Feeds one sample: penetration `delta` (m) and contact force `force` (N).
+    #[inline(always)]
+    pub fn update(&mut self, delta: T, force: T) -> Option<ImpactEvent<T>> {
+        let zero = T::zero();
+        let prev = self.prev_delta;
+        self.prev_delta = delta;
+        if self.in_episode {
+            self.peak = self.peak.max_of(force);
+            if delta < -self.eta_delta {
+                self.in_episode = false;
+                return Some(ImpactEvent::End { peak_n: self.peak });
+            }
+            None
+        } else if prev <= zero && delta > zero {
+            self.in_episode = true;
+            self.peak = force;
+            Some(ImpactEvent::Arrival)
+        } else {
+            None
+        }
+    }
+
+    /// Whether an impact episode is in progress.
+    pub fn in_episode(&self) -> bool {
+        self.in_episode
+    }
+
+    /// Peak force of the episode in progress so far, N.
+    pub fn current_peak(&self) -> Option<T> {
+        self.in_episode.then_some(self.peak)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recontacts_continue_the_impact_and_peaks_include_them() {
+        let mut t = ImpactTracker::<f64>::new(1e-8, -1e-3);
+        let trace = [
+            (-1e-4, 0.0),
+            (1e-6, 20.0), // arrival
+            (3e-6, 35.0),
+            (1e-9, 0.0), // force vanished, δ > 0
+            (2e-6, 40.0), // re-contact: same impact, larger peak
+            (-5e-9, 0.0), // inside the band: still the same episode
+            (1e-7, 3.0),
+            (-1e-6, 0.0), // gone
+            (-1e-5, 0.0),
+            (1e-6, 9.0), // a new arrival
+            (-1e-6, 0.0),
+        ];
+        let events: Vec<_> = trace.iter().filter_map(|&(d, f)| t.update(d, f)).collect();
+        assert_eq!(
+            events,
+            vec![
+                ImpactEvent::Arrival,
+                ImpactEvent::End { peak_n: 40.0 },
+                ImpactEvent::Arrival,
+                ImpactEvent::End { peak_n: 9.0 },
+            ]
+        );
+    }
+}

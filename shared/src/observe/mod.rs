@@ -1,0 +1,13 @@
+//! Observables of a simulation: impacts and their peak forces, the stroboscopic Poincaré
+//! section, the impact regime `z = p/q`, and the canonical protocol that produces them
+//! (MODEL.md "Observables", "Canonical protocol").
+
+pub mod impact;
+pub mod poincare;
+pub mod protocol;
+pub mod regime;
+
+pub use impact::{ImpactEvent, ImpactTracker};
+pub use poincare::StroboPoint;
+pub use protocol::{Observer, PointResult, Protocol, run_protocol};
+pub use regime::Regime;

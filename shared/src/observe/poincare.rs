@@ -1,0 +1,97 @@
+//! The stroboscopic Poincaré section: the state sampled at `t = kT` (excitation phase 0).
+
+use heapless::HistoryBuf;
+
+use crate::real::Real;
+
+/// One point of the Poincaré section: relative displacement and velocity.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StroboPoint<T> {
+    /// `u`, m.
+    pub u: T,
+    /// `u̇`, m/s.
+    pub du: T,
+}
+
+impl<T: Real> StroboPoint<T> {
+    /// Scaled distance `max(|Δu|/u_scale, |Δu̇|/v_scale)` (the protocol uses `A0` and `A0 Ω`).
+    #[inline(always)]
+    pub fn distance(&self, other: &Self, u_scale: T, v_scale: T) -> T {
+        ((self.u - other.u).abs() / u_scale).max_of((self.du - other.du).abs() / v_scale)
+    }
+}
+
+/// Length of the section history kept for steady-state detection: `4 × 16` periods.
+pub const HISTORY: usize = 64;
+
+/// The last [`HISTORY`] Poincaré points.
+#[derive(Debug, Clone)]
+pub struct SectionHistory<T: Copy> {
+    buf: HistoryBuf<StroboPoint<T>, HISTORY>,
+}
+
+impl<T: Real> Default for SectionHistory<T> {
+    fn default() -> Self {
+        SectionHistory {
+            buf: HistoryBuf::new(),
+        }
+    }
+}
+
+impl<T: Real> SectionHistory<T> {
+    /// Appends a point (dropping the oldest when full).
+    pub fn push(&mut self, p: StroboPoint<T>) {
+        self.buf.write(p);
+    }
+
+    /// Number of points held.
+    pub fn len(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// Whether no point is held.
+    pub fn is_empty(&self) -> bool {
+        self.buf.is_empty()
+    }
+
+    /// The `j`-th most recent point (`j = 0` is the newest).
+    pub fn back(&self, j: usize) -> Option<&StroboPoint<T>> {
+        if j >= self.buf.len() {
+            return None;
+        }
+        let recent = self.buf.recent_index()?;
+        let idx = (recent + HISTORY - j) % HISTORY;
+        self.buf.as_slice().get(idx)
+    }
+
+    /// The smallest period `q ≤ max_q` with which the last `cycles` cycles of `q` repeat the
+    /// preceding ones: `dist(s_{k−j}, s_{k−j−q}) ≤ tol` for `j = 0 .. cycles·q`.
+    pub fn repeating_period(&self, max_q: usize, cycles: usize, tol: T, u_scale: T, v_scale: T) -> Option<usize> {
+        (1..=max_q).find(|&q| {
+            let need = (cycles + 1) * q;
+            need <= self.len()
+                && (0..cycles * q).all(|j| match (self.back(j), self.back(j + q)) {
+                    (Some(a), Some(b)) => a.distance(b, u_scale, v_scale) <= tol,
+                    _ => false,
+                })
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_the_smallest_repeating_period() {
+        let mut h = SectionHistory::<f64>::default();
+        for k in 0..100 {
+            let v = [1.0, 2.0, 3.0][k % 3];
+            h.push(StroboPoint { u: v, du: 0.0 });
+        }
+        assert_eq!(h.back(0).unwrap().u, [1.0, 2.0, 3.0][99 % 3]);
+        assert_eq!(h.repeating_period(16, 3, 1e-9, 1.0, 1.0), Some(3));
+        h.push(StroboPoint { u: 7.0, du: 0.0 });
+        assert_eq!(h.repeating_period(16, 3, 1e-9, 1.0, 1.0), None);
+    }
+}
