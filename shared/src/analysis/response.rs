@@ -48,7 +48,12 @@ pub fn evaluate_point_observed<T: Real, O: Observer<T>>(
     settings: &SimSettings,
     obs: &mut O,
 ) -> Result<PointResult, ParamError> {
-    check_range("omega_ratio", omega_ratio, OMEGA_RATIO_RANGE.0, OMEGA_RATIO_RANGE.1)?;
+    check_range(
+        "omega_ratio",
+        omega_ratio,
+        OMEGA_RATIO_RANGE.0,
+        OMEGA_RATIO_RANGE.1,
+    )?;
     let omega_exc = omega_ratio * params.omega_n();
     let mut sim = Simulator::<T>::new(params, gap_m, omega_exc, &settings.bands, &settings.steps)?;
     run_protocol(&mut sim, &settings.protocol, params.weight_n(), obs)

@@ -56,7 +56,12 @@ impl SelectionSpec {
     /// # Errors
     /// [`ParamError`] naming `omega_ratio`, `freq_margin_pct` (0..=50) or `gap_margin_mm` (0..=10).
     pub fn validate(&self) -> Result<(), ParamError> {
-        Sweep::new("omega_ratio", self.omega_ratio.lo, self.omega_ratio.hi, self.omega_ratio.step)?;
+        Sweep::new(
+            "omega_ratio",
+            self.omega_ratio.lo,
+            self.omega_ratio.hi,
+            self.omega_ratio.step,
+        )?;
         check_range("freq_margin_pct", self.freq_margin_pct, 0.0, 50.0)?;
         check_range("gap_margin_mm", self.gap_margin_mm, 0.0, 10.0)?;
         Ok(())
@@ -143,7 +148,9 @@ impl fmt::Display for SelectionError {
             SelectionError::LengthMismatch { expected, got } => {
                 write!(f, "response has {got} samples, the sweep has {expected}")
             }
-            SelectionError::NoOneToOneBand => f.write_str("no z = 1/1 point in the swept frequency range"),
+            SelectionError::NoOneToOneBand => {
+                f.write_str("no z = 1/1 point in the swept frequency range")
+            }
             SelectionError::NoRobustPoint { strongest } => write!(
                 f,
                 "no z = 1/1 point is robust to the required margins; strongest 1/1 point: {:.3} Hz (Ω/ω = {:.3}), F_i/mg = {:.2}",
@@ -185,7 +192,8 @@ pub fn select(
         }
     }
     let one_one = |j: usize| nominal[j].regime == Regime::ONE_ONE;
-    let robust_at = |j: usize| one_one(j) && perturbed.iter().all(|r| r[j].regime == Regime::ONE_ONE);
+    let robust_at =
+        |j: usize| one_one(j) && perturbed.iter().all(|r| r[j].regime == Regime::ONE_ONE);
     let candidate = |j: usize| {
         let r = sweep.value(j);
         Candidate {
@@ -215,7 +223,8 @@ pub fn select(
         let j_hi = (libm::ceil((hi - sweep.lo) / sweep.step - 1e-9) as usize).min(n - 1);
         if (j_lo..=j_hi).all(robust_at) {
             robust_points += 1;
-            if best.is_none_or(|(b, _, _)| nominal[i].impact_force_mg > nominal[b].impact_force_mg) {
+            if best.is_none_or(|(b, _, _)| nominal[i].impact_force_mg > nominal[b].impact_force_mg)
+            {
                 best = Some((i, j_lo, j_hi));
             }
         }
@@ -261,16 +270,27 @@ pub fn select(
 
     let other_best = (0..n)
         .filter(|&j| matches!(nominal[j].regime, Regime::Periodic { .. }) && !one_one(j))
-        .max_by(|&a, &b| nominal[a].impact_force_mg.total_cmp(&nominal[b].impact_force_mg))
+        .max_by(|&a, &b| {
+            nominal[a]
+                .impact_force_mg
+                .total_cmp(&nominal[b].impact_force_mg)
+        })
         .map(candidate);
 
     let gaps_checked = !perturbed.is_empty();
     Ok(Selection {
         best: candidate(i),
         band_ratio: [r_lo, r_hi],
-        band_hz: [params.freq_hz_from_ratio(r_lo), params.freq_hz_from_ratio(r_hi)],
+        band_hz: [
+            params.freq_hz_from_ratio(r_lo),
+            params.freq_hz_from_ratio(r_hi),
+        ],
         margin_freq_pct,
-        margin_gap_mm: if gaps_checked { spec.gap_margin_mm } else { 0.0 },
+        margin_gap_mm: if gaps_checked {
+            spec.gap_margin_mm
+        } else {
+            0.0
+        },
         worst_impact_force_mg: worst,
         robust_points,
         bands_ratio,
@@ -322,15 +342,28 @@ mod tests {
         assert!((sel.band_ratio[0] - 1.2).abs() < 1e-9 && (sel.band_ratio[1] - 2.0).abs() < 1e-9);
         assert!(sel.margin_freq_pct >= 5.0);
         assert!((sel.worst_impact_force_mg - 1.80).abs() < 1e-6);
-        assert_eq!(sel.other_best.unwrap().regime, Regime::Periodic { p: 1, q: 2 });
+        assert_eq!(
+            sel.other_best.unwrap().regime,
+            Regime::Periodic { p: 1, q: 2 }
+        );
         // A perturbed gap whose band ends at 1.7 moves the choice down to 1.61.
         let shifted: std::vec::Vec<_> = nominal
             .iter()
             .enumerate()
-            .map(|(j, x)| if sp.omega_ratio.value(j) > 1.7 + 1e-9 { s(Regime::Irregular, 0.0) } else { *x })
+            .map(|(j, x)| {
+                if sp.omega_ratio.value(j) > 1.7 + 1e-9 {
+                    s(Regime::Irregular, 0.0)
+                } else {
+                    *x
+                }
+            })
             .collect();
         let sel2 = select(&p, &sp, &nominal, &[&shifted]).unwrap();
-        assert!((sel2.best.omega_ratio - 1.61).abs() < 1e-9, "{:?}", sel2.best);
+        assert!(
+            (sel2.best.omega_ratio - 1.61).abs() < 1e-9,
+            "{:?}",
+            sel2.best
+        );
     }
 
     #[test]
@@ -341,7 +374,11 @@ mod tests {
         let narrow: std::vec::Vec<_> = (0..n)
             .map(|j| {
                 let r = sp.omega_ratio.value(j);
-                if (1.5..1.55).contains(&r) { s(Regime::ONE_ONE, 2.0) } else { s(Regime::NoImpact, 0.0) }
+                if (1.5..1.55).contains(&r) {
+                    s(Regime::ONE_ONE, 2.0)
+                } else {
+                    s(Regime::NoImpact, 0.0)
+                }
             })
             .collect();
         assert!(matches!(
@@ -349,7 +386,10 @@ mod tests {
             Err(SelectionError::NoRobustPoint { .. })
         ));
         let none = std::vec![s(Regime::NoImpact, 0.0); n];
-        assert_eq!(select(&p, &sp, &none, &[]), Err(SelectionError::NoOneToOneBand));
+        assert_eq!(
+            select(&p, &sp, &none, &[]),
+            Err(SelectionError::NoOneToOneBand)
+        );
         assert!(matches!(
             select(&p, &sp, &none[..3], &[]),
             Err(SelectionError::LengthMismatch { .. })

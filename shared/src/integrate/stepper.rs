@@ -138,7 +138,12 @@ impl<T: Real> Simulator<T> {
             .contact_omega(params.mass_kg, SUBSTEP_REFERENCE_SPEED_M_S);
         let h_c = core::f64::consts::PI / omega_c / f64::from(steps.substeps_per_contact);
         let m_f = libm::ceil(h / h_c);
-        check_range("substeps", m_f, 1.0, (MAX_PHASE_DENOMINATOR / (2 * u64::from(n))) as f64)?;
+        check_range(
+            "substeps",
+            m_f,
+            1.0,
+            (MAX_PHASE_DENOMINATOR / (2 * u64::from(n))) as f64,
+        )?;
         let m = m_f as u32;
         let two_pi = 2.0 * core::f64::consts::PI;
         let x = Vector2::new(T::zero(), T::zero());
@@ -300,7 +305,11 @@ impl<T: Real> Simulator<T> {
             self.approach_speed = start.delta_dot.max_of(self.min_approach);
         }
         let v_in = self.approach_speed;
-        let mode = if touching { FieldMode::Contact } else { FieldMode::Free };
+        let mode = if touching {
+            FieldMode::Contact
+        } else {
+            FieldMode::Free
+        };
         let k1 = hammer.field_in(mode, &self.x, self.sin_at(j, T::zero()), v_in);
         let trial = rk4_step(&self.x, &k1.dx, self.h_sub, s_mid, s_end, |y, s| {
             hammer.field_in(mode, y, s, v_in).dx

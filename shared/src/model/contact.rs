@@ -177,8 +177,18 @@ impl ContactLaw {
                 stiffness_n_m,
                 damping_n_s_m,
             } => {
-                check_range("contact.spring-dashpot.stiffness_n_m", stiffness_n_m, 1.0, 1e12)?;
-                check_range("contact.spring-dashpot.damping_n_s_m", damping_n_s_m, 0.0, 1e8)?;
+                check_range(
+                    "contact.spring-dashpot.stiffness_n_m",
+                    stiffness_n_m,
+                    1.0,
+                    1e12,
+                )?;
+                check_range(
+                    "contact.spring-dashpot.damping_n_s_m",
+                    damping_n_s_m,
+                    0.0,
+                    1e8,
+                )?;
             }
             ContactLaw::HuntCrossley {
                 stiffness,
@@ -194,9 +204,19 @@ impl ContactLaw {
                 exponent,
                 restitution,
             } => {
-                check_range("contact.lankarani-nikravesh.stiffness", stiffness, 1.0, 1e15)?;
+                check_range(
+                    "contact.lankarani-nikravesh.stiffness",
+                    stiffness,
+                    1.0,
+                    1e15,
+                )?;
                 check_range("contact.lankarani-nikravesh.exponent", exponent, 1.0, 3.0)?;
-                check_range("contact.lankarani-nikravesh.restitution", restitution, 0.01, 1.0)?;
+                check_range(
+                    "contact.lankarani-nikravesh.restitution",
+                    restitution,
+                    0.01,
+                    1.0,
+                )?;
             }
         }
         Ok(())
@@ -208,7 +228,9 @@ impl ContactLaw {
     /// `δ_m = ((n+1) m v² / 2k)^(1/(n+1))`. Sets the integrator's contact sub-step.
     pub fn contact_omega(&self, mass_kg: f64, impact_speed: f64) -> f64 {
         let (k, n) = match *self {
-            ContactLaw::SpringDashpot { stiffness_n_m, .. } => return libm::sqrt(stiffness_n_m / mass_kg),
+            ContactLaw::SpringDashpot { stiffness_n_m, .. } => {
+                return libm::sqrt(stiffness_n_m / mass_kg);
+            }
             ContactLaw::Hertz {
                 stiffness,
                 exponent,
@@ -224,7 +246,10 @@ impl ContactLaw {
                 ..
             } => (stiffness, exponent),
         };
-        let dm = libm::pow((n + 1.0) * mass_kg * impact_speed * impact_speed / (2.0 * k), 1.0 / (n + 1.0));
+        let dm = libm::pow(
+            (n + 1.0) * mass_kg * impact_speed * impact_speed / (2.0 * k),
+            1.0 / (n + 1.0),
+        );
         libm::sqrt(n * k * libm::pow(dm, n - 1.0) / mass_kg)
     }
 
@@ -254,7 +279,9 @@ impl ContactLaw {
             } => LawCoeffs::Power {
                 k: c(stiffness),
                 n: c(exponent),
-                dissipation: PowerDissipation::HuntCrossley { lambda: c(lambda_s_m) },
+                dissipation: PowerDissipation::HuntCrossley {
+                    lambda: c(lambda_s_m),
+                },
             },
             ContactLaw::LankaraniNikravesh {
                 stiffness,
@@ -283,7 +310,11 @@ impl ContactLaw {
 /// Then `e = −δ̇(t_c)/v`. Returns `(e, t_c)` (s), or `None` for `ζ ≥ 1` or bad input.
 ///
 /// For Table 3.1 with `m = 0.298 kg`: `ζ = 0.469`, `t_c ≈ 0.57 ms`, `e ≈ 0.317` (MODEL.md).
-pub fn spring_dashpot_restitution(stiffness_n_m: f64, damping_n_s_m: f64, mass_kg: f64) -> Option<(f64, f64)> {
+pub fn spring_dashpot_restitution(
+    stiffness_n_m: f64,
+    damping_n_s_m: f64,
+    mass_kg: f64,
+) -> Option<(f64, f64)> {
     if !(stiffness_n_m > 0.0 && mass_kg > 0.0 && damping_n_s_m >= 0.0) {
         return None;
     }
@@ -416,7 +447,10 @@ mod tests {
         };
         assert!(matches!(
             bad.validate(),
-            Err(ParamError::OutOfRange { field: "contact.hunt-crossley.exponent", .. })
+            Err(ParamError::OutOfRange {
+                field: "contact.hunt-crossley.exponent",
+                ..
+            })
         ));
     }
 

@@ -148,13 +148,21 @@ impl<T: Real> Hammer<T> {
 
     /// The field in a given [`FieldMode`].
     #[inline(always)]
-    pub fn field_in(&self, mode: FieldMode, x: &Vector2<T>, sin_phase: T, approach_speed: T) -> FieldEval<T> {
+    pub fn field_in(
+        &self,
+        mode: FieldMode,
+        x: &Vector2<T>,
+        sin_phase: T,
+        approach_speed: T,
+    ) -> FieldEval<T> {
         let (delta, delta_dot, st, ct) = self.kinematics(x);
         let (force, region) = match mode {
             FieldMode::Switch => self.switch.force(delta, delta_dot, approach_speed),
             FieldMode::Free => (T::zero(), Region::Free),
             FieldMode::Contact => (
-                self.switch.law.unswitched_force(delta, delta_dot, approach_speed),
+                self.switch
+                    .law
+                    .unswitched_force(delta, delta_dot, approach_speed),
                 Region::Contact,
             ),
         };

@@ -160,7 +160,12 @@ impl RigParams {
                 natural_freq_hz,
                 damping_ratio,
             } => {
-                check_range("suspension.beam.natural_freq_hz", natural_freq_hz, 0.01, 1e3)?;
+                check_range(
+                    "suspension.beam.natural_freq_hz",
+                    natural_freq_hz,
+                    0.01,
+                    1e3,
+                )?;
                 check_range("suspension.beam.damping_ratio", damping_ratio, 0.0, 2.0)?;
             }
         }

@@ -164,7 +164,10 @@ mod tests {
         };
         assert!(matches!(
             bad.validate(),
-            Err(ParamError::OutOfRange { field: "eta_delta_m", .. })
+            Err(ParamError::OutOfRange {
+                field: "eta_delta_m",
+                ..
+            })
         ));
     }
 }

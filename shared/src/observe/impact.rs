@@ -84,7 +84,7 @@ mod tests {
             (-1e-4, 0.0),
             (1e-6, 20.0), // arrival
             (3e-6, 35.0),
-            (1e-9, 0.0), // force vanished, δ > 0
+            (1e-9, 0.0),  // force vanished, δ > 0
             (2e-6, 40.0), // re-contact: same impact, larger peak
             (-5e-9, 0.0), // inside the band: still the same episode
             (1e-7, 3.0),

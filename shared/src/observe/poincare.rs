@@ -66,7 +66,14 @@ impl<T: Real> SectionHistory<T> {
 
     /// The smallest period `q ≤ max_q` with which the last `cycles` cycles of `q` repeat the
     /// preceding ones: `dist(s_{k−j}, s_{k−j−q}) ≤ tol` for `j = 0 .. cycles·q`.
-    pub fn repeating_period(&self, max_q: usize, cycles: usize, tol: T, u_scale: T, v_scale: T) -> Option<usize> {
+    pub fn repeating_period(
+        &self,
+        max_q: usize,
+        cycles: usize,
+        tol: T,
+        u_scale: T,
+        v_scale: T,
+    ) -> Option<usize> {
         (1..=max_q).find(|&q| {
             let need = (cycles + 1) * q;
             need <= self.len()

@@ -60,9 +60,19 @@ impl Protocol {
     /// [`ParamError`] naming the field: `max_q` 1..=16, `steady_cycles` 1..=3 (the history holds
     /// 64 = 4·16 periods), `observe_periods` `2·max_q ..= 256`, tolerances in `1e-9 ..= 1`.
     pub fn validate(&self) -> Result<(), ParamError> {
-        check_count("max_transient_periods", self.max_transient_periods, 0, 1_000_000)?;
+        check_count(
+            "max_transient_periods",
+            self.max_transient_periods,
+            0,
+            1_000_000,
+        )?;
         check_count("max_q", self.max_q, 1, 16)?;
-        check_count("steady_cycles", self.steady_cycles, 1, (HISTORY as u32 / self.max_q) - 1)?;
+        check_count(
+            "steady_cycles",
+            self.steady_cycles,
+            1,
+            (HISTORY as u32 / self.max_q) - 1,
+        )?;
         check_count(
             "observe_periods",
             self.observe_periods,

@@ -91,7 +91,8 @@ pub fn classify<T: Real>(
     }
     for q in 1..=max_q.min(n / 2) {
         let periodic = (q..n).all(|j| {
-            impacts[j] == impacts[j - q] && section[j].distance(&section[j - q], u_scale, v_scale) <= tol
+            impacts[j] == impacts[j - q]
+                && section[j].distance(&section[j - q], u_scale, v_scale) <= tol
         });
         if periodic {
             let p: u32 = impacts[n - q..n].iter().map(|&c| u32::from(c)).sum();
@@ -167,6 +168,9 @@ mod tests {
                 du: 0.0,
             })
             .collect();
-        assert_eq!(classify(&noisy, &imp, 16, 1e-6, 1.0, 1.0), Regime::Irregular);
+        assert_eq!(
+            classify(&noisy, &imp, 16, 1e-6, 1.0, 1.0),
+            Regime::Irregular
+        );
     }
 }

@@ -1,0 +1,88 @@
+//! Command-line interface (clap). Every command shares [`RigOpts`].
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use shared::model::{ContactLawKind, RigId};
+
+use crate::commands;
+
+/// Float type of the simulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    /// Single precision: the MCU's arithmetic (default).
+    #[default]
+    F32,
+    /// Double precision (reference).
+    F64,
+}
+
+/// The vibro-impact hammer of the thesis on the desktop: operating-frequency selection,
+/// frequency responses, time series and batch evaluation, from the same `shared` code as the
+/// rig's firmware.
+#[derive(Debug, Parser)]
+#[command(name = "host-sim", version, about, long_about = None)]
+pub struct Cli {
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Options that pick the rig and the numerics.
+#[derive(Debug, Clone, Args)]
+pub struct RigOpts {
+    /// Rig: hammer on wires, or on beam springs with 170/150/135 mm couplings distance.
+    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    pub rig: RigId,
+    /// Contact law (default: the identified spring–dashpot of Table 3.1).
+    #[arg(long, value_parser = parse_law)]
+    pub law: Option<ContactLawKind>,
+    /// TOML file overriding any parameter: tables [rig], [settings], [selection].
+    #[arg(long, value_name = "FILE.toml")]
+    pub config: Option<PathBuf>,
+    /// Float type of the simulation.
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    pub precision: Precision,
+}
+
+fn parse_rig(s: &str) -> Result<RigId, String> {
+    s.parse().map_err(|e| format!("{e}"))
+}
+
+fn parse_law(s: &str) -> Result<ContactLawKind, String> {
+    s.parse().map_err(|e| format!("{e}"))
+}
+
+/// The commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Pick the shaker operating frequency: the strongest z = 1/1 point that stays 1/1 for
+    /// ±5 % in frequency and ±0.1 mm in gap (the main job).
+    Select(commands::select::SelectArgs),
+    /// Frequency response: max F_i/mg and regime per frequency, from rest (canonical protocol).
+    Response(commands::response::ResponseArgs),
+    /// Time series of one operating point: u, u̇, absolute x, F_i, Poincaré points.
+    Simulate(commands::simulate::SimulateArgs),
+    /// Batch evaluation of (gap_mm, omega_ratio) points from a CSV, in parallel.
+    Points(commands::points::PointsArgs),
+}
+
+/// Runs the CLI; errors are printed as `error: …` with a non-zero exit status.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Select(a) => commands::select::run(&a),
+        Command::Response(a) => commands::response::run(&a),
+        Command::Simulate(a) => commands::simulate::run(&a),
+        Command::Points(a) => commands::points::run(&a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

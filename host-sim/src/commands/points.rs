@@ -1,0 +1,118 @@
+//! `host-sim points`: batch evaluation of `(gap_mm, omega_ratio)` rows in parallel.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use serde::{Deserialize, Serialize};
+use shared::analysis::response::OMEGA_RATIO_RANGE;
+use shared::error::check_range;
+
+use crate::cli::RigOpts;
+use crate::config::{Setup, gap_m_from_mm};
+use crate::output::{Outputs, write_csv};
+use crate::runner::{OperatingPoint, evaluate_all};
+
+/// Arguments of `points`.
+#[derive(Debug, Args)]
+pub struct PointsArgs {
+    /// Rig and numerics.
+    #[command(flatten)]
+    pub rig: RigOpts,
+    /// Input CSV with header columns `gap_mm` and `omega_ratio` (other columns are ignored).
+    #[arg(long)]
+    pub input: PathBuf,
+    /// Output CSV: gap_mm, omega_ratio, freq_hz, regime, impacts, impact_force_mg.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Deserialize)]
+struct InRow {
+    gap_mm: f64,
+    omega_ratio: f64,
+}
+
+/// One output row.
+#[derive(Debug, Serialize)]
+pub struct OutRow {
+    /// Gap, mm.
+    pub gap_mm: f64,
+    /// `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Hz.
+    pub freq_hz: f64,
+    /// Regime.
+    pub regime: String,
+    /// Impacts in the observation window.
+    pub impacts: u32,
+    /// Max `F_i/mg` over the window.
+    pub impact_force_mg: f64,
+}
+
+/// Reads and validates the input points.
+///
+/// # Errors
+/// Unreadable file, missing columns, unparsable or out-of-range values (row number named).
+pub fn read_points(path: &PathBuf) -> Result<Vec<(f64, f64)>> {
+    let mut rdr = csv::Reader::from_path(path)
+        .with_context(|| format!("cannot read --input {}", path.display()))?;
+    let mut out = Vec::new();
+    for (i, rec) in rdr.deserialize::<InRow>().enumerate() {
+        let line = i + 2;
+        let r = rec.with_context(|| {
+            format!(
+                "{} line {line}: expected numeric columns gap_mm, omega_ratio",
+                path.display()
+            )
+        })?;
+        gap_m_from_mm("gap_mm", r.gap_mm)
+            .with_context(|| format!("{} line {line}", path.display()))?;
+        check_range(
+            "omega_ratio",
+            r.omega_ratio,
+            OMEGA_RATIO_RANGE.0,
+            OMEGA_RATIO_RANGE.1,
+        )
+        .with_context(|| format!("{} line {line}", path.display()))?;
+        out.push((r.gap_mm, r.omega_ratio));
+    }
+    if out.is_empty() {
+        bail!(
+            "{}: no points (need a header `gap_mm,omega_ratio` and at least one row)",
+            path.display()
+        );
+    }
+    Ok(out)
+}
+
+/// Runs `points`.
+///
+/// # Errors
+/// Bad input or I/O failure; the output appears only when every point succeeded.
+pub fn run(a: &PointsArgs) -> Result<()> {
+    let setup = Setup::from_opts(&a.rig)?;
+    let pts = read_points(&a.input)?;
+    let ops: Vec<OperatingPoint> = pts
+        .iter()
+        .map(|&(g, r)| OperatingPoint {
+            gap_m: g * 1e-3,
+            omega_ratio: r,
+        })
+        .collect();
+    let results = evaluate_all(&setup, &ops, "points")?;
+    let rows = pts.iter().zip(&results).map(|(&(g, r), res)| OutRow {
+        gap_mm: g,
+        omega_ratio: r,
+        freq_hz: setup.params.freq_hz_from_ratio(r),
+        regime: res.regime.to_string(),
+        impacts: res.impacts,
+        impact_force_mg: res.impact_force_mg,
+    });
+    let mut outputs = Outputs::new();
+    let tmp = outputs.reserve(&a.out)?;
+    write_csv(&tmp, rows)?;
+    outputs.commit()?;
+    eprintln!("{} points → {}", pts.len(), a.out.display());
+    Ok(())
+}

@@ -1,0 +1,78 @@
+//! Output files that appear whole or not at all: every file is written to a temporary file in
+//! the target's folder and renamed into place only when the command has succeeded.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use tempfile::NamedTempFile;
+
+/// Pending output files, committed together.
+#[derive(Debug, Default)]
+pub struct Outputs {
+    pending: Vec<(NamedTempFile, PathBuf)>,
+}
+
+impl Outputs {
+    /// A new, empty set.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Reserves a temporary file for `target` (same folder, same extension) and returns its path.
+    ///
+    /// # Errors
+    /// The folder does not exist or is not writable.
+    pub fn reserve(&mut self, target: &Path) -> Result<PathBuf> {
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let suffix = target
+            .extension()
+            .map(|e| format!(".{}", e.to_string_lossy()))
+            .unwrap_or_default();
+        let tmp = tempfile::Builder::new()
+            .prefix(".host-sim-")
+            .suffix(&suffix)
+            .tempfile_in(&dir)
+            .with_context(|| {
+                format!(
+                    "cannot write {} (folder {})",
+                    target.display(),
+                    dir.display()
+                )
+            })?;
+        let path = tmp.path().to_path_buf();
+        self.pending.push((tmp, target.to_path_buf()));
+        Ok(path)
+    }
+
+    /// Renames every reserved file into place.
+    ///
+    /// # Errors
+    /// A rename failed.
+    pub fn commit(self) -> Result<()> {
+        for (tmp, target) in self.pending {
+            tmp.persist(&target)
+                .with_context(|| format!("cannot move the output into {}", target.display()))?;
+        }
+        Ok(())
+    }
+}
+
+/// Writes `rows` as CSV (header from the row type) to `path`.
+///
+/// # Errors
+/// I/O or serialisation failure.
+pub fn write_csv<R: serde::Serialize>(
+    path: &Path,
+    rows: impl IntoIterator<Item = R>,
+) -> Result<()> {
+    let mut w = csv::Writer::from_path(path)
+        .with_context(|| format!("cannot create {}", path.display()))?;
+    for r in rows {
+        w.serialize(r)?;
+    }
+    w.flush()?;
+    Ok(())
+}
