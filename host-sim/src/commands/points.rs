@@ -15,6 +15,7 @@ use crate::runner::{OperatingPoint, evaluate_all};
 
 /// Arguments of `points`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct PointsArgs {
     /// Rig and numerics.
     #[command(flatten)]

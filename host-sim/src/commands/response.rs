@@ -17,6 +17,7 @@ use crate::runner::{OperatingPoint, evaluate_all};
 
 /// Arguments of `response`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct ResponseArgs {
     /// Rig and numerics.
     #[command(flatten)]

@@ -15,6 +15,7 @@ use crate::plot::Highlight;
 
 /// Arguments of `select`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SelectArgs {
     /// Rig and numerics.
     #[command(flatten)]

@@ -18,6 +18,7 @@ use crate::plot::{self, TsPoint};
 
 /// Arguments of `simulate`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SimulateArgs {
     /// Rig and numerics.
     #[command(flatten)]

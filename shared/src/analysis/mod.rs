@@ -6,5 +6,7 @@ pub mod selection;
 pub mod sweep;
 
 pub use response::{ResponseSample, SimSettings, evaluate_point};
-pub use selection::{Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, select};
+pub use selection::{
+    Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, select, select_sequential,
+};
 pub use sweep::Sweep;

@@ -15,11 +15,12 @@ use core::fmt;
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
-use super::response::ResponseSample;
+use super::response::{ResponseSample, SimSettings, evaluate_point};
 use super::sweep::Sweep;
 use crate::error::{ParamError, check_range};
 use crate::model::RigParams;
 use crate::observe::Regime;
+use crate::real::Real;
 
 /// Most `1/1` bands reported.
 pub const MAX_BANDS: usize = 8;
@@ -296,6 +297,49 @@ pub fn select(
         bands_ratio,
         other_best,
     })
+}
+
+/// Largest sweep [`select_sequential`] holds (three responses of this many samples live on the stack).
+pub const MAX_SEQUENTIAL_POINTS: usize = 512;
+
+/// The whole selection computed in sequence with fixed-capacity buffers (no allocation): the
+/// path the firmware runs. Gives the same result as computing the responses elsewhere (in
+/// parallel on the host) and calling [`select`].
+///
+/// # Errors
+/// [`SelectionError::Param`] for invalid input or a sweep longer than
+/// [`MAX_SEQUENTIAL_POINTS`]; otherwise as [`select`].
+pub fn select_sequential<T: Real>(
+    params: &RigParams,
+    gap_m: f64,
+    spec: &SelectionSpec,
+    settings: &SimSettings,
+) -> Result<Selection, SelectionError> {
+    spec.validate()?;
+    let sweep = spec.omega_ratio;
+    if sweep.len() > MAX_SEQUENTIAL_POINTS {
+        return Err(ParamError::BadRange {
+            field: "omega_ratio",
+            reason: "too many points for the on-target selection (at most 512)",
+        }
+        .into());
+    }
+    let gaps = perturbed_gaps(gap_m, spec.gap_margin_mm);
+    let mut responses: Vec<Vec<ResponseSample, MAX_SEQUENTIAL_POINTS>, 3> = Vec::new();
+    for g in core::iter::once(gap_m).chain(gaps.iter().copied()) {
+        let mut r = Vec::new();
+        for i in 0..sweep.len() {
+            let res = evaluate_point::<T>(params, g, sweep.value(i), settings)?;
+            let _ = r.push(ResponseSample::from(&res));
+        }
+        let _ = responses.push(r);
+    }
+    let (nominal, rest) = responses.split_first().ok_or(SelectionError::NoOneToOneBand)?;
+    let mut perturbed: Vec<&[ResponseSample], 2> = Vec::new();
+    for r in rest {
+        let _ = perturbed.push(r.as_slice());
+    }
+    select(params, spec, nominal, &perturbed)
 }
 
 #[cfg(test)]

@@ -1,0 +1,190 @@
+//! The command-line contract: outputs, columns, and rejection of bad input with a named field,
+//! a non-zero exit and no output file left behind.
+
+use std::fs;
+use std::path::Path;
+
+use assert_cmd::Command;
+
+fn host_sim() -> Command {
+    Command::cargo_bin("host-sim").unwrap()
+}
+
+fn assert_rejected(args: &[&str], needle: &str, outputs: &[&Path]) {
+    let out = host_sim().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    assert!(stderr.contains(needle), "{args:?}: stderr `{stderr}` lacks `{needle}`");
+    for p in outputs {
+        assert!(!p.exists(), "{} was left behind", p.display());
+    }
+    // No temporary file left in the folder either.
+    if let Some(dir) = outputs.first().and_then(|p| p.parent()) {
+        let leftovers: Vec<_> = fs::read_dir(dir)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().starts_with(".host-sim-"))
+            .collect();
+        assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    }
+}
+
+#[test]
+fn select_json_reports_the_operating_point() {
+    let out = host_sim()
+        .args(["select", "--rig", "wires", "--gap-mm", "0", "--json", "--omega-ratio", "0.5:5.0:0.02"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["rig", "gap_mm", "freq_hz", "omega_ratio", "regime", "impact_force_mg", "band_hz", "margin_freq_pct"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(v["rig"], "wires");
+    assert_eq!(v["regime"], "1/1");
+    let f = v["freq_hz"].as_f64().unwrap();
+    let ratio = v["omega_ratio"].as_f64().unwrap();
+    // freq_hz = Ω/ω · sqrt(g/l)/2π.
+    assert!((f - ratio * libm_sqrt(9.81 / 0.075) / (2.0 * std::f64::consts::PI)).abs() < 1e-9);
+    let band = v["band_hz"].as_array().unwrap();
+    let (lo, hi) = (band[0].as_f64().unwrap(), band[1].as_f64().unwrap());
+    assert!(lo < f && f < hi);
+    let margin = v["margin_freq_pct"].as_f64().unwrap();
+    assert!(margin >= 5.0, "margin {margin}");
+    assert!((margin - ((f - lo).min(hi - f) / f * 100.0)).abs() < 1e-9);
+}
+
+fn libm_sqrt(x: f64) -> f64 {
+    x.sqrt()
+}
+
+#[test]
+fn response_writes_csv_and_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("fr.csv");
+    let png = dir.path().join("fr.png");
+    host_sim()
+        .args(["response", "--rig", "beam-150", "--gap-mm", "1", "--omega-ratio", "1.0:2.0:0.25"])
+        .arg("--out")
+        .arg(&csv)
+        .arg("--plot")
+        .arg(&png)
+        .assert()
+        .success();
+    let text = fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "omega_ratio,freq_hz,impact_force_mg,regime,impacts,transient_periods,settled"
+    );
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), 5);
+    // freq_hz = Ω/ω × 5.25 Hz for the 150 mm beam rig.
+    let first: Vec<&str> = rows[0].split(',').collect();
+    assert_eq!(first[0], "1.0");
+    assert!((first[1].parse::<f64>().unwrap() - 5.25).abs() < 1e-12);
+    assert_eq!(&fs::read(&png).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+#[test]
+fn simulate_writes_time_series_with_poincare_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("ts.csv");
+    host_sim()
+        .args(["simulate", "--rig", "wires", "--gap-mm", "0", "--omega-ratio", "2.0", "--periods", "10"])
+        .arg("--out")
+        .arg(&csv)
+        .assert()
+        .success();
+    let mut rdr = csv::Reader::from_path(&csv).unwrap();
+    let headers = rdr.headers().unwrap().clone();
+    assert_eq!(
+        headers.iter().collect::<Vec<_>>(),
+        ["t_s", "u_mm", "du_mm_s", "x_mm", "impact_force_n", "impact_force_mg", "region", "poincare"]
+    );
+    let recs: Vec<csv::StringRecord> = rdr.records().map(Result::unwrap).collect();
+    let strobes: Vec<&csv::StringRecord> = recs.iter().filter(|r| &r[7] == "true").collect();
+    assert_eq!(strobes.len(), 11, "t = 0 and the end of each of 10 periods");
+    // Poincaré instants fall at t = kT exactly (T = 1/(2 · 1.82025 Hz)).
+    let period = 1.0 / (2.0 * (9.81f64 / 0.075).sqrt() / (2.0 * std::f64::consts::PI));
+    for (k, r) in strobes.iter().enumerate() {
+        let t: f64 = r[0].parse().unwrap();
+        assert!((t - k as f64 * period).abs() < 1e-9, "strobe {k} at {t}");
+    }
+    // At the Poincaré instants sin Ωt = 0, so x = u (Eq. 3-18).
+    for r in &strobes {
+        let (u, x): (f64, f64) = (r[1].parse().unwrap(), r[3].parse().unwrap());
+        assert!((u - x).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn points_evaluates_a_batch() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("pts.csv");
+    let output = dir.path().join("res.csv");
+    fs::write(&input, "gap_mm,omega_ratio,note\n0,2.0,a\n1.0,1.5,b\n2.4,0.6,c\n").unwrap();
+    host_sim().args(["points", "--rig", "wires", "--input"]).arg(&input).arg("--out").arg(&output).assert().success();
+    let text = fs::read_to_string(&output).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "gap_mm,omega_ratio,freq_hz,regime,impacts,impact_force_mg");
+    assert_eq!(lines.len(), 4);
+    assert!(lines[1].starts_with("0.0,2.0,"));
+    assert!(lines[1].contains(",1/1,64,"), "{}", lines[1]);
+    // Far below resonance with a 2.4 mm gap the pendulum never reaches the surface.
+    assert!(lines[3].contains(",no impact,0,0.0"), "{}", lines[3]);
+}
+
+#[test]
+fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fr.csv");
+    let png = dir.path().join("fr.png");
+    let o = out.to_str().unwrap();
+    let p = png.to_str().unwrap();
+    assert_rejected(&["response", "--gap-mm", "-1", "--out", o, "--plot", p], "gap_mm", &[&out, &png]);
+    assert_rejected(&["response", "--gap-mm", "NaN", "--out", o], "gap_mm", &[&out]);
+    assert_rejected(&["response", "--gap-mm", "0", "--omega-ratio", "5:0.5:0.1", "--out", o], "--omega-ratio", &[&out]);
+    assert_rejected(&["response", "--gap-mm", "0", "--omega-ratio", "0.5:5:0", "--out", o], "step", &[&out]);
+    assert_rejected(&["response", "--gap-mm", "0", "--omega-ratio", "0.001:1:0.1", "--out", o], "allowed", &[&out]);
+    assert_rejected(&["simulate", "--gap-mm", "0", "--freq-hz", "-3", "--out", o], "freq_hz", &[&out]);
+    assert_rejected(&["select", "--rig", "beam-171"], "unknown rig", &[]);
+
+    let cfg = dir.path().join("bad.toml");
+    fs::write(&cfg, "[rig]\nmass_kg = -0.3\n").unwrap();
+    let c = cfg.to_str().unwrap();
+    assert_rejected(&["response", "--gap-mm", "0", "--config", c, "--out", o], "mass_kg", &[&out]);
+    fs::write(&cfg, "[rig]\nmas_kg = 0.3\n").unwrap();
+    assert_rejected(&["response", "--gap-mm", "0", "--config", c, "--out", o], "mas_kg", &[&out]);
+    fs::write(&cfg, "[rig\nmass_kg = 0.3\n").unwrap();
+    assert_rejected(&["response", "--gap-mm", "0", "--config", c, "--out", o], "malformed", &[&out]);
+
+    let input = dir.path().join("pts.csv");
+    let i = input.to_str().unwrap();
+    fs::write(&input, "gap_mm,omega_ratio\n0,2.0\nx,1.0\n").unwrap();
+    assert_rejected(&["points", "--input", i, "--out", o], "line 3", &[&out]);
+    fs::write(&input, "gap_mm,omega_ratio\n-0.5,2.0\n").unwrap();
+    assert_rejected(&["points", "--input", i, "--out", o], "gap_mm", &[&out]);
+    fs::write(&input, "gap,ratio\n0,2.0\n").unwrap();
+    assert_rejected(&["points", "--input", i, "--out", o], "gap_mm", &[&out]);
+}
+
+#[test]
+fn config_file_overrides_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("c.toml");
+    // Doubling A0 doubles the cart's drive; the 1/1 force at Ω/ω = 2 must change.
+    fs::write(&cfg, "[rig]\namplitude_m = 1.78e-3\n[settings.protocol]\nobserve_periods = 32\n").unwrap();
+    let run = |extra: &[&str]| {
+        let out = host_sim()
+            .args(["simulate", "--rig", "wires", "--gap-mm", "0", "--omega-ratio", "2.0", "--periods", "30"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let base = run(&[]);
+    let over = run(&["--config", cfg.to_str().unwrap()]);
+    assert_ne!(base, over);
+}

@@ -1,0 +1,160 @@
+//! Analytic checks of the model and integrator: the free pendulum's frequency, and single
+//! impacts against a stop compared with the closed-form spring–dashpot restitution, energy
+//! conservation (Hertz), and an independent f64 integration (Hunt–Crossley, Lankarani–Nikravesh).
+
+use shared::Real;
+use shared::integrate::{Simulator, StepSample, StepSettings};
+use shared::model::contact::spring_dashpot_restitution;
+use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension, SwitchBands};
+
+/// Frequency (Hz) of the free wire pendulum from upward zero crossings of `u` over `periods`
+/// excitation periods, with the cart almost still (A0 = 1e-7 m) and no impact (gap 18 mm).
+fn free_pendulum_freq<T: Real>(u0_m: f64) -> f64 {
+    let mut p = RigId::Wires.preset();
+    p.amplitude_m = 1e-7;
+    let omega_exc = 0.37 * p.omega_n();
+    let steps = StepSettings::default();
+    let mut sim = Simulator::<T>::new(&p, 0.018, omega_exc, &SwitchBands::default(), &steps).unwrap();
+    sim.reset_relative(u0_m, 0.0).unwrap();
+    let h_sub = sim.substep_s();
+    let hammer = *sim.hammer();
+    let mut prev: Option<(f64, f64)> = None;
+    let mut crossings = Vec::new();
+    for _ in 0..20 {
+        sim.run_period(&mut |s: &StepSample<T>| {
+            let (u, _) = hammer.relative(&s.x);
+            let (t, u) = (s.t_num as f64 * h_sub, u.to_f64());
+            if let Some((t0, u0)) = prev
+                && u0 < 0.0
+                && u >= 0.0
+            {
+                crossings.push(t0 + (t - t0) * (-u0) / (u - u0));
+            }
+            prev = Some((t, u));
+        });
+    }
+    let n = crossings.len() - 1;
+    n as f64 / (crossings[n] - crossings[0])
+}
+
+#[test]
+fn small_amplitude_free_pendulum_runs_at_1_82_hz() {
+    // sqrt(g/l)/2π = sqrt(9.81/0.075)/2π = 1.82025 Hz (Table 3.2: 1.82 Hz); the amplitude
+    // correction at θ0 = 0.5 mm / 75 mm is (1 + θ0²/16) − 1 = 3e-6.
+    let expect = libm::sqrt(9.81 / 0.075) / (2.0 * std::f64::consts::PI);
+    for f in [free_pendulum_freq::<f64>(0.5e-3), free_pendulum_freq::<f32>(0.5e-3)] {
+        assert!((f - expect).abs() / expect < 2e-5, "f = {f}, expected {expect}");
+        assert!((f - 1.82).abs() < 0.005);
+    }
+}
+
+/// A free mass (beam rig with negligible spring, no damping, cart almost still) thrown at the
+/// stop at `v_in` (m/s). Returns (restitution, contact duration in s, peak force in N).
+fn single_impact<T: Real>(law: ContactLaw, v_in: f64, steps: StepSettings) -> (f64, f64, f64) {
+    let p = RigParams {
+        mass_kg: 0.298,
+        cart_mass_kg: 5.38,
+        amplitude_m: 1e-7,
+        gravity_m_s2: 9.81,
+        suspension: Suspension::Beam {
+            natural_freq_hz: 0.01,
+            damping_ratio: 0.0,
+        },
+        contact: law,
+    };
+    let gap = 1e-3;
+    let mut sim = Simulator::<T>::new(&p, gap, 20.0, &SwitchBands::default(), &steps).unwrap();
+    sim.reset_relative(gap - 2e-5, v_in).unwrap();
+    let h_sub = sim.substep_s();
+    let (mut t_on, mut t_off, mut peak, mut v_out) = (None, None, 0.0f64, None);
+    while v_out.is_none() {
+        sim.step(&mut |s: &StepSample<T>| {
+            let t = s.t_num as f64 * h_sub;
+            let f = s.force.to_f64();
+            peak = peak.max(f);
+            if f > 0.0 && t_on.is_none() {
+                t_on = Some(t);
+            }
+            if t_on.is_some() && t_off.is_none() && f <= 0.0 {
+                t_off = Some(t);
+            }
+            if t_off.is_some() && v_out.is_none() && s.delta.to_f64() < -1e-6 {
+                v_out = Some(s.delta_dot.to_f64());
+            }
+        });
+        assert!(sim.periods_done() < 2, "no rebound");
+    }
+    (-v_out.unwrap() / v_in, t_off.unwrap() - t_on.unwrap(), peak)
+}
+
+#[test]
+fn spring_dashpot_impact_matches_the_closed_form_restitution() {
+    // Closed form with the force-vanish exit (h_β): e = 0.3169, t_c = 0.5708 ms, independent of v.
+    let (e_ref, tc_ref) = spring_dashpot_restitution(5.5e6, 1.2e3, 0.298).unwrap();
+    for v in [0.02, 0.1, 0.3] {
+        let (e, tc, _) = single_impact::<f64>(ContactLaw::identified(), v, StepSettings::default());
+        assert!((e - e_ref).abs() < 1e-3 * e_ref, "v = {v}: e = {e}, closed form {e_ref}");
+        // Contact time to within one sub-step (the force is sampled at sub-step ends).
+        assert!((tc - tc_ref).abs() < 0.05 * tc_ref, "t_c = {tc}, closed form {tc_ref}");
+        let (e32, _, _) = single_impact::<f32>(ContactLaw::identified(), v, StepSettings::default());
+        assert!((e32 - e_ref).abs() < 5e-3 * e_ref, "f32: e = {e32}");
+    }
+    // And not the displacement-exit value exp(−πζ/√(1−ζ²)) ≈ 0.19.
+    assert!(e_ref > 0.3);
+}
+
+#[test]
+fn hertz_impact_conserves_energy() {
+    let law = ContactLaw::preset(ContactLawKind::Hertz);
+    for v in [0.05, 0.2] {
+        let (e, _, peak) = single_impact::<f64>(law, v, StepSettings::default());
+        assert!((e - 1.0).abs() < 1e-4, "v = {v}: e = {e}");
+        // Peak force from energy: ½ m v² = k δ_m^(n+1)/(n+1), F_max = k δ_m^n.
+        let (k, n, m) = (2.1e8, 1.6, 0.298);
+        let dm = libm::pow((n + 1.0) * m * v * v / (2.0 * k), 1.0 / (n + 1.0));
+        let fmax = k * libm::pow(dm, n);
+        assert!((peak - fmax).abs() < 2e-3 * fmax, "peak {peak} vs {fmax}");
+    }
+}
+
+/// Independent reference: m δ̈ = −F(δ, δ̇) for one impact at `v_in`, RK4 with 1 ns steps in f64,
+/// contact ending when the force vanishes (or δ returns to 0). Returns the restitution.
+fn reference_restitution(force: impl Fn(f64, f64) -> f64, v_in: f64) -> f64 {
+    let m = 0.298;
+    let h = 1e-9;
+    let acc = |d: f64, v: f64| if d > 0.0 { -force(d, v).max(0.0) / m } else { 0.0 };
+    let (mut d, mut v) = (0.0f64, v_in);
+    loop {
+        let (k1d, k1v) = (v, acc(d, v));
+        let (k2d, k2v) = (v + 0.5 * h * k1v, acc(d + 0.5 * h * k1d, v + 0.5 * h * k1v));
+        let (k3d, k3v) = (v + 0.5 * h * k2v, acc(d + 0.5 * h * k2d, v + 0.5 * h * k2v));
+        let (k4d, k4v) = (v + h * k3v, acc(d + h * k3d, v + h * k3v));
+        d += h / 6.0 * (k1d + 2.0 * k2d + 2.0 * k3d + k4d);
+        v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+        if v < 0.0 && (d <= 0.0 || force(d, v) <= 0.0) {
+            return -v / v_in;
+        }
+    }
+}
+
+#[test]
+fn hunt_crossley_and_lankarani_nikravesh_match_an_f64_reference() {
+    let (k, n) = (2.1e8, 1.6);
+    for v in [0.05, 0.2] {
+        let hc = ContactLaw::preset(ContactLawKind::HuntCrossley);
+        let e_ref = reference_restitution(|d, dd| k * libm::pow(d, n) * (1.0 + 0.6 * dd), v);
+        let (e, _, _) = single_impact::<f64>(hc, v, StepSettings::default());
+        assert!((e - e_ref).abs() < 2e-3 * e_ref, "HC v = {v}: {e} vs {e_ref}");
+        let (e32, _, _) = single_impact::<f32>(hc, v, StepSettings::default());
+        assert!((e32 - e_ref).abs() < 5e-3 * e_ref, "HC f32 v = {v}: {e32} vs {e_ref}");
+
+        let restitution = 0.317;
+        let ln = ContactLaw::preset(ContactLawKind::LankaraniNikravesh);
+        let coef = 0.75 * (1.0 - restitution * restitution);
+        let e_ref = reference_restitution(|d, dd| k * libm::pow(d, n) * (1.0 + coef * dd / v), v);
+        let (e, _, _) = single_impact::<f64>(ln, v, StepSettings::default());
+        assert!((e - e_ref).abs() < 2e-3 * e_ref, "LN v = {v}: {e} vs {e_ref}");
+        // Hunt–Crossley dissipates, and more at higher speed (λ v grows).
+        assert!(e < 1.0);
+    }
+}
