@@ -35,7 +35,11 @@ mod app {
 
     #[init]
     fn init(_cx: init::Context) -> (Shared, Local) {
-        defmt::info!("vibro-impact rig firmware: rig {}, gap {=f64} mm", RIG.name(), GAP_M * 1e3);
+        defmt::info!(
+            "vibro-impact rig firmware: rig {}, gap {=f64} mm",
+            RIG.name(),
+            GAP_M * 1e3
+        );
         if select_operating_point::spawn().is_err() {
             defmt::error!("could not start the selection task");
         }
@@ -54,7 +58,10 @@ mod app {
     async fn select_operating_point(_cx: select_operating_point::Context) {
         let params = RIG.preset();
         let spec = SelectionSpec::default();
-        defmt::info!("selecting the operating frequency ({=usize} frequencies per gap)...", spec.omega_ratio.len());
+        defmt::info!(
+            "selecting the operating frequency ({=usize} frequencies per gap)...",
+            spec.omega_ratio.len()
+        );
         match select_sequential::<f32>(&params, GAP_M, &spec, &SimSettings::default()) {
             Ok(sel) => {
                 defmt::info!(

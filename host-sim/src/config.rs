@@ -141,7 +141,7 @@ fn overlay(base: &mut toml::Value, over: toml::Value) {
 /// # Errors
 /// NaN, negative or larger than [`MAX_GAP_MM`].
 pub fn gap_m_from_mm(flag: &str, gap_mm: f64) -> Result<f64> {
-    check_range("gap_mm", gap_mm, 0.0, MAX_GAP_MM).with_context(|| format!("{flag}"))?;
+    check_range("gap_mm", gap_mm, 0.0, MAX_GAP_MM).with_context(|| flag.to_string())?;
     Ok(gap_mm * 1e-3)
 }
 

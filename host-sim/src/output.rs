@@ -31,17 +31,21 @@ impl Outputs {
             .extension()
             .map(|e| format!(".{}", e.to_string_lossy()))
             .unwrap_or_default();
-        let tmp = tempfile::Builder::new()
-            .prefix(".host-sim-")
-            .suffix(&suffix)
-            .tempfile_in(&dir)
-            .with_context(|| {
-                format!(
-                    "cannot write {} (folder {})",
-                    target.display(),
-                    dir.display()
-                )
-            })?;
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".host-sim-").suffix(&suffix);
+        // Outputs are ordinary files (rw-r--r--), not the temporary file's private 0600.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(0o644));
+        }
+        let tmp = builder.tempfile_in(&dir).with_context(|| {
+            format!(
+                "cannot write {} (folder {})",
+                target.display(),
+                dir.display()
+            )
+        })?;
         let path = tmp.path().to_path_buf();
         self.pending.push((tmp, target.to_path_buf()));
         Ok(path)

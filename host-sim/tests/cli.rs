@@ -14,7 +14,10 @@ fn assert_rejected(args: &[&str], needle: &str, outputs: &[&Path]) {
     let out = host_sim().args(args).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{args:?} succeeded");
-    assert!(stderr.contains(needle), "{args:?}: stderr `{stderr}` lacks `{needle}`");
+    assert!(
+        stderr.contains(needle),
+        "{args:?}: stderr `{stderr}` lacks `{needle}`"
+    );
     for p in outputs {
         assert!(!p.exists(), "{} was left behind", p.display());
     }
@@ -32,12 +35,34 @@ fn assert_rejected(args: &[&str], needle: &str, outputs: &[&Path]) {
 #[test]
 fn select_json_reports_the_operating_point() {
     let out = host_sim()
-        .args(["select", "--rig", "wires", "--gap-mm", "0", "--json", "--omega-ratio", "0.5:5.0:0.02"])
+        .args([
+            "select",
+            "--rig",
+            "wires",
+            "--gap-mm",
+            "0",
+            "--json",
+            "--omega-ratio",
+            "0.5:5.0:0.02",
+        ])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    for key in ["rig", "gap_mm", "freq_hz", "omega_ratio", "regime", "impact_force_mg", "band_hz", "margin_freq_pct"] {
+    for key in [
+        "rig",
+        "gap_mm",
+        "freq_hz",
+        "omega_ratio",
+        "regime",
+        "impact_force_mg",
+        "band_hz",
+        "margin_freq_pct",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     assert_eq!(v["rig"], "wires");
@@ -64,7 +89,15 @@ fn response_writes_csv_and_png() {
     let csv = dir.path().join("fr.csv");
     let png = dir.path().join("fr.png");
     host_sim()
-        .args(["response", "--rig", "beam-150", "--gap-mm", "1", "--omega-ratio", "1.0:2.0:0.25"])
+        .args([
+            "response",
+            "--rig",
+            "beam-150",
+            "--gap-mm",
+            "1",
+            "--omega-ratio",
+            "1.0:2.0:0.25",
+        ])
         .arg("--out")
         .arg(&csv)
         .arg("--plot")
@@ -91,7 +124,17 @@ fn simulate_writes_time_series_with_poincare_rows() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("ts.csv");
     host_sim()
-        .args(["simulate", "--rig", "wires", "--gap-mm", "0", "--omega-ratio", "2.0", "--periods", "10"])
+        .args([
+            "simulate",
+            "--rig",
+            "wires",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "2.0",
+            "--periods",
+            "10",
+        ])
         .arg("--out")
         .arg(&csv)
         .assert()
@@ -100,7 +143,16 @@ fn simulate_writes_time_series_with_poincare_rows() {
     let headers = rdr.headers().unwrap().clone();
     assert_eq!(
         headers.iter().collect::<Vec<_>>(),
-        ["t_s", "u_mm", "du_mm_s", "x_mm", "impact_force_n", "impact_force_mg", "region", "poincare"]
+        [
+            "t_s",
+            "u_mm",
+            "du_mm_s",
+            "x_mm",
+            "impact_force_n",
+            "impact_force_mg",
+            "region",
+            "poincare"
+        ]
     );
     let recs: Vec<csv::StringRecord> = rdr.records().map(Result::unwrap).collect();
     let strobes: Vec<&csv::StringRecord> = recs.iter().filter(|r| &r[7] == "true").collect();
@@ -123,11 +175,24 @@ fn points_evaluates_a_batch() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("pts.csv");
     let output = dir.path().join("res.csv");
-    fs::write(&input, "gap_mm,omega_ratio,note\n0,2.0,a\n1.0,1.5,b\n2.4,0.6,c\n").unwrap();
-    host_sim().args(["points", "--rig", "wires", "--input"]).arg(&input).arg("--out").arg(&output).assert().success();
+    fs::write(
+        &input,
+        "gap_mm,omega_ratio,note\n0,2.0,a\n1.0,1.5,b\n2.4,0.6,c\n",
+    )
+    .unwrap();
+    host_sim()
+        .args(["points", "--rig", "wires", "--input"])
+        .arg(&input)
+        .arg("--out")
+        .arg(&output)
+        .assert()
+        .success();
     let text = fs::read_to_string(&output).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert_eq!(lines[0], "gap_mm,omega_ratio,freq_hz,regime,impacts,impact_force_mg");
+    assert_eq!(
+        lines[0],
+        "gap_mm,omega_ratio,freq_hz,regime,impacts,impact_force_mg"
+    );
     assert_eq!(lines.len(), 4);
     assert!(lines[1].starts_with("0.0,2.0,"));
     assert!(lines[1].contains(",1/1,64,"), "{}", lines[1]);
@@ -142,22 +207,82 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
     let png = dir.path().join("fr.png");
     let o = out.to_str().unwrap();
     let p = png.to_str().unwrap();
-    assert_rejected(&["response", "--gap-mm", "-1", "--out", o, "--plot", p], "gap_mm", &[&out, &png]);
-    assert_rejected(&["response", "--gap-mm", "NaN", "--out", o], "gap_mm", &[&out]);
-    assert_rejected(&["response", "--gap-mm", "0", "--omega-ratio", "5:0.5:0.1", "--out", o], "--omega-ratio", &[&out]);
-    assert_rejected(&["response", "--gap-mm", "0", "--omega-ratio", "0.5:5:0", "--out", o], "step", &[&out]);
-    assert_rejected(&["response", "--gap-mm", "0", "--omega-ratio", "0.001:1:0.1", "--out", o], "allowed", &[&out]);
-    assert_rejected(&["simulate", "--gap-mm", "0", "--freq-hz", "-3", "--out", o], "freq_hz", &[&out]);
+    assert_rejected(
+        &["response", "--gap-mm", "-1", "--out", o, "--plot", p],
+        "gap_mm",
+        &[&out, &png],
+    );
+    assert_rejected(
+        &["response", "--gap-mm", "NaN", "--out", o],
+        "gap_mm",
+        &[&out],
+    );
+    assert_rejected(
+        &[
+            "response",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "5:0.5:0.1",
+            "--out",
+            o,
+        ],
+        "--omega-ratio",
+        &[&out],
+    );
+    assert_rejected(
+        &[
+            "response",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "0.5:5:0",
+            "--out",
+            o,
+        ],
+        "step",
+        &[&out],
+    );
+    assert_rejected(
+        &[
+            "response",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "0.001:1:0.1",
+            "--out",
+            o,
+        ],
+        "allowed",
+        &[&out],
+    );
+    assert_rejected(
+        &["simulate", "--gap-mm", "0", "--freq-hz", "-3", "--out", o],
+        "freq_hz",
+        &[&out],
+    );
     assert_rejected(&["select", "--rig", "beam-171"], "unknown rig", &[]);
 
     let cfg = dir.path().join("bad.toml");
     fs::write(&cfg, "[rig]\nmass_kg = -0.3\n").unwrap();
     let c = cfg.to_str().unwrap();
-    assert_rejected(&["response", "--gap-mm", "0", "--config", c, "--out", o], "mass_kg", &[&out]);
+    assert_rejected(
+        &["response", "--gap-mm", "0", "--config", c, "--out", o],
+        "mass_kg",
+        &[&out],
+    );
     fs::write(&cfg, "[rig]\nmas_kg = 0.3\n").unwrap();
-    assert_rejected(&["response", "--gap-mm", "0", "--config", c, "--out", o], "mas_kg", &[&out]);
+    assert_rejected(
+        &["response", "--gap-mm", "0", "--config", c, "--out", o],
+        "mas_kg",
+        &[&out],
+    );
     fs::write(&cfg, "[rig\nmass_kg = 0.3\n").unwrap();
-    assert_rejected(&["response", "--gap-mm", "0", "--config", c, "--out", o], "malformed", &[&out]);
+    assert_rejected(
+        &["response", "--gap-mm", "0", "--config", c, "--out", o],
+        "malformed",
+        &[&out],
+    );
 
     let input = dir.path().join("pts.csv");
     let i = input.to_str().unwrap();
@@ -174,14 +299,32 @@ fn config_file_overrides_parameters() {
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("c.toml");
     // Doubling A0 doubles the cart's drive; the 1/1 force at Ω/ω = 2 must change.
-    fs::write(&cfg, "[rig]\namplitude_m = 1.78e-3\n[settings.protocol]\nobserve_periods = 32\n").unwrap();
+    fs::write(
+        &cfg,
+        "[rig]\namplitude_m = 1.78e-3\n[settings.protocol]\nobserve_periods = 32\n",
+    )
+    .unwrap();
     let run = |extra: &[&str]| {
         let out = host_sim()
-            .args(["simulate", "--rig", "wires", "--gap-mm", "0", "--omega-ratio", "2.0", "--periods", "30"])
+            .args([
+                "simulate",
+                "--rig",
+                "wires",
+                "--gap-mm",
+                "0",
+                "--omega-ratio",
+                "2.0",
+                "--periods",
+                "30",
+            ])
             .args(extra)
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         String::from_utf8(out.stdout).unwrap()
     };
     let base = run(&[]);

@@ -34,7 +34,10 @@ fn response(s: &Setup) -> Vec<PointResult> {
 /// Indices whose regime equals both neighbours' in `reference` (away from regime boundaries).
 fn interior(reference: &[PointResult]) -> Vec<usize> {
     (1..reference.len() - 1)
-        .filter(|&i| reference[i - 1].regime == reference[i].regime && reference[i + 1].regime == reference[i].regime)
+        .filter(|&i| {
+            reference[i - 1].regime == reference[i].regime
+                && reference[i + 1].regime == reference[i].regime
+        })
         .collect()
 }
 
@@ -51,11 +54,27 @@ fn f32_production_agrees_with_f64_four_times_finer() {
         assert_eq!(a.regime, b.regime, "Ω/ω = {:.2}", 0.5 + 0.05 * i as f64);
         let rel = (a.impact_force_mg - b.impact_force_mg).abs() / b.impact_force_mg.max(1e-9);
         worst = worst.max(rel);
-        assert!(rel < 0.02, "Ω/ω = {:.2}: F_i/mg {} vs {}", 0.5 + 0.05 * i as f64, a.impact_force_mg, b.impact_force_mg);
+        assert!(
+            rel < 0.02,
+            "Ω/ω = {:.2}: F_i/mg {} vs {}",
+            0.5 + 0.05 * i as f64,
+            a.impact_force_mg,
+            b.impact_force_mg
+        );
     }
-    eprintln!("f32 vs f64×4: {} interior points, worst F_i/mg difference {:.3} %", inner.len(), worst * 100.0);
+    eprintln!(
+        "f32 vs f64×4: {} interior points, worst F_i/mg difference {:.3} %",
+        inner.len(),
+        worst * 100.0
+    );
     // The 1/1 band of the thesis' Fig. 3.12 is there in both.
-    assert!(inner.iter().filter(|&&i| fine[i].regime == shared::observe::Regime::ONE_ONE).count() > 20);
+    assert!(
+        inner
+            .iter()
+            .filter(|&&i| fine[i].regime == shared::observe::Regime::ONE_ONE)
+            .count()
+            > 20
+    );
 }
 
 #[test]
@@ -68,10 +87,22 @@ fn halving_eta_changes_results_below_1pct() {
     let inner = interior(&a);
     let mut worst: f64 = 0.0;
     for &i in &inner {
-        assert_eq!(a[i].regime, b[i].regime, "Ω/ω = {:.2}", 0.5 + 0.05 * i as f64);
-        let rel = (a[i].impact_force_mg - b[i].impact_force_mg).abs() / a[i].impact_force_mg.max(1e-9);
+        assert_eq!(
+            a[i].regime,
+            b[i].regime,
+            "Ω/ω = {:.2}",
+            0.5 + 0.05 * i as f64
+        );
+        let rel =
+            (a[i].impact_force_mg - b[i].impact_force_mg).abs() / a[i].impact_force_mg.max(1e-9);
         worst = worst.max(rel);
-        assert!(rel < 0.01, "Ω/ω = {:.2}: {} vs {}", 0.5 + 0.05 * i as f64, a[i].impact_force_mg, b[i].impact_force_mg);
+        assert!(
+            rel < 0.01,
+            "Ω/ω = {:.2}: {} vs {}",
+            0.5 + 0.05 * i as f64,
+            a[i].impact_force_mg,
+            b[i].impact_force_mg
+        );
     }
     eprintln!("η vs η/2: worst F_i/mg difference {:.4} %", worst * 100.0);
 }

@@ -14,7 +14,8 @@ fn free_pendulum_freq<T: Real>(u0_m: f64) -> f64 {
     p.amplitude_m = 1e-7;
     let omega_exc = 0.37 * p.omega_n();
     let steps = StepSettings::default();
-    let mut sim = Simulator::<T>::new(&p, 0.018, omega_exc, &SwitchBands::default(), &steps).unwrap();
+    let mut sim =
+        Simulator::<T>::new(&p, 0.018, omega_exc, &SwitchBands::default(), &steps).unwrap();
     sim.reset_relative(u0_m, 0.0).unwrap();
     let h_sub = sim.substep_s();
     let hammer = *sim.hammer();
@@ -42,8 +43,14 @@ fn small_amplitude_free_pendulum_runs_at_1_82_hz() {
     // sqrt(g/l)/2π = sqrt(9.81/0.075)/2π = 1.82025 Hz (Table 3.2: 1.82 Hz); the amplitude
     // correction at θ0 = 0.5 mm / 75 mm is (1 + θ0²/16) − 1 = 3e-6.
     let expect = libm::sqrt(9.81 / 0.075) / (2.0 * std::f64::consts::PI);
-    for f in [free_pendulum_freq::<f64>(0.5e-3), free_pendulum_freq::<f32>(0.5e-3)] {
-        assert!((f - expect).abs() / expect < 2e-5, "f = {f}, expected {expect}");
+    for f in [
+        free_pendulum_freq::<f64>(0.5e-3),
+        free_pendulum_freq::<f32>(0.5e-3),
+    ] {
+        assert!(
+            (f - expect).abs() / expect < 2e-5,
+            "f = {f}, expected {expect}"
+        );
         assert!((f - 1.82).abs() < 0.005);
     }
 }
@@ -93,10 +100,17 @@ fn spring_dashpot_impact_matches_the_closed_form_restitution() {
     let (e_ref, tc_ref) = spring_dashpot_restitution(5.5e6, 1.2e3, 0.298).unwrap();
     for v in [0.02, 0.1, 0.3] {
         let (e, tc, _) = single_impact::<f64>(ContactLaw::identified(), v, StepSettings::default());
-        assert!((e - e_ref).abs() < 1e-3 * e_ref, "v = {v}: e = {e}, closed form {e_ref}");
+        assert!(
+            (e - e_ref).abs() < 1e-3 * e_ref,
+            "v = {v}: e = {e}, closed form {e_ref}"
+        );
         // Contact time to within one sub-step (the force is sampled at sub-step ends).
-        assert!((tc - tc_ref).abs() < 0.05 * tc_ref, "t_c = {tc}, closed form {tc_ref}");
-        let (e32, _, _) = single_impact::<f32>(ContactLaw::identified(), v, StepSettings::default());
+        assert!(
+            (tc - tc_ref).abs() < 0.05 * tc_ref,
+            "t_c = {tc}, closed form {tc_ref}"
+        );
+        let (e32, _, _) =
+            single_impact::<f32>(ContactLaw::identified(), v, StepSettings::default());
         assert!((e32 - e_ref).abs() < 5e-3 * e_ref, "f32: e = {e32}");
     }
     // And not the displacement-exit value exp(−πζ/√(1−ζ²)) ≈ 0.19.
@@ -122,7 +136,13 @@ fn hertz_impact_conserves_energy() {
 fn reference_restitution(force: impl Fn(f64, f64) -> f64, v_in: f64) -> f64 {
     let m = 0.298;
     let h = 1e-9;
-    let acc = |d: f64, v: f64| if d > 0.0 { -force(d, v).max(0.0) / m } else { 0.0 };
+    let acc = |d: f64, v: f64| {
+        if d > 0.0 {
+            -force(d, v).max(0.0) / m
+        } else {
+            0.0
+        }
+    };
     let (mut d, mut v) = (0.0f64, v_in);
     loop {
         let (k1d, k1v) = (v, acc(d, v));
@@ -144,16 +164,25 @@ fn hunt_crossley_and_lankarani_nikravesh_match_an_f64_reference() {
         let hc = ContactLaw::preset(ContactLawKind::HuntCrossley);
         let e_ref = reference_restitution(|d, dd| k * libm::pow(d, n) * (1.0 + 0.6 * dd), v);
         let (e, _, _) = single_impact::<f64>(hc, v, StepSettings::default());
-        assert!((e - e_ref).abs() < 2e-3 * e_ref, "HC v = {v}: {e} vs {e_ref}");
+        assert!(
+            (e - e_ref).abs() < 2e-3 * e_ref,
+            "HC v = {v}: {e} vs {e_ref}"
+        );
         let (e32, _, _) = single_impact::<f32>(hc, v, StepSettings::default());
-        assert!((e32 - e_ref).abs() < 5e-3 * e_ref, "HC f32 v = {v}: {e32} vs {e_ref}");
+        assert!(
+            (e32 - e_ref).abs() < 5e-3 * e_ref,
+            "HC f32 v = {v}: {e32} vs {e_ref}"
+        );
 
         let restitution = 0.317;
         let ln = ContactLaw::preset(ContactLawKind::LankaraniNikravesh);
         let coef = 0.75 * (1.0 - restitution * restitution);
         let e_ref = reference_restitution(|d, dd| k * libm::pow(d, n) * (1.0 + coef * dd / v), v);
         let (e, _, _) = single_impact::<f64>(ln, v, StepSettings::default());
-        assert!((e - e_ref).abs() < 2e-3 * e_ref, "LN v = {v}: {e} vs {e_ref}");
+        assert!(
+            (e - e_ref).abs() < 2e-3 * e_ref,
+            "LN v = {v}: {e} vs {e_ref}"
+        );
         // Hunt–Crossley dissipates, and more at higher speed (λ v grows).
         assert!(e < 1.0);
     }

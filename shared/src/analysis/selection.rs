@@ -334,7 +334,9 @@ pub fn select_sequential<T: Real>(
         }
         let _ = responses.push(r);
     }
-    let (nominal, rest) = responses.split_first().ok_or(SelectionError::NoOneToOneBand)?;
+    let (nominal, rest) = responses
+        .split_first()
+        .ok_or(SelectionError::NoOneToOneBand)?;
     let mut perturbed: Vec<&[ResponseSample], 2> = Vec::new();
     for r in rest {
         let _ = perturbed.push(r.as_slice());
