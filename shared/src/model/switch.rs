@@ -7,12 +7,16 @@
 //!
 //! | region | condition | contact force used |
 //! |---|---|---|
-//! | `Σ_α` | `|h_α| < η_δ` and `h_β ≥ 0` | dissipative part only, Eq. (3-28)/(3-38) |
+//! | `Σ_α` | `|h_α| < η_δ` and `h_β ≥ 0` | dissipative part only, Eq. (3-28)/(3-38), never negative |
 //! | `Σ_β` | `|h_β| < η_F` and `h_α ≥ 0` | none (free field), Eq. (3-29)/(3-39) |
 //! | `Γ+`  | `h_α > 0` and `h_β > 0` | full law, Eq. (3-27)/(3-37) |
 //! | `Γ−`  | otherwise | none, Eq. (3-26)/(3-36) |
 //!
 //! The bands are tested in the order of the table (`Σ_α` first where both apply).
+//!
+//! In `Σ_α` the literal Eq. (3-28) term `c_i δ̇` turns adhesive (negative) when the hammer peels
+//! slowly off a resting contact (`δ̇ < 0` while `k δ + c δ̇ ≥ 0` inside the band, a few 0.01 N);
+//! MODEL.md fixes `F_i ≥ 0`, so the band force is clamped at 0.
 
 use serde::{Deserialize, Serialize};
 
@@ -114,7 +118,7 @@ impl<T: Real> SwitchModel<T> {
         let h_beta = elastic + dissipative;
         let zero = T::zero();
         if h_alpha.abs() < self.eta_delta && h_beta >= zero {
-            (dissipative, Region::BandAlpha)
+            (dissipative.max_of(zero), Region::BandAlpha)
         } else if h_beta.abs() < self.eta_force && h_alpha >= zero {
             (zero, Region::BandBeta)
         } else if h_alpha > zero && h_beta > zero {
@@ -149,6 +153,8 @@ mod tests {
         let (f, r) = s.force(1e-9, 0.05, 0.05);
         assert_eq!(r, Region::BandAlpha);
         assert!((f - 1.2e3 * 0.05).abs() < 1e-9);
+        // Peeling off inside the band: no adhesive force.
+        assert_eq!(s.force(5e-9, -1e-5, 0.05), (0.0, Region::BandAlpha));
         // Force band: free field (Eq. 3-29).
         let delta = 1e-6;
         let dd = -5.5e6 * delta / 1.2e3 + 1e-7; // h_β ≈ 1.2e-4 N < η_F
