@@ -70,17 +70,13 @@ fn select_json_reports_the_operating_point() {
     let f = v["freq_hz"].as_f64().unwrap();
     let ratio = v["omega_ratio"].as_f64().unwrap();
     // freq_hz = Ω/ω · sqrt(g/l)/2π.
-    assert!((f - ratio * libm_sqrt(9.81 / 0.075) / (2.0 * std::f64::consts::PI)).abs() < 1e-9);
+    assert!((f - ratio * (9.81f64 / 0.075).sqrt() / (2.0 * std::f64::consts::PI)).abs() < 1e-9);
     let band = v["band_hz"].as_array().unwrap();
     let (lo, hi) = (band[0].as_f64().unwrap(), band[1].as_f64().unwrap());
     assert!(lo < f && f < hi);
     let margin = v["margin_freq_pct"].as_f64().unwrap();
     assert!(margin >= 5.0, "margin {margin}");
     assert!((margin - ((f - lo).min(hi - f) / f * 100.0)).abs() < 1e-9);
-}
-
-fn libm_sqrt(x: f64) -> f64 {
-    x.sqrt()
 }
 
 #[test]

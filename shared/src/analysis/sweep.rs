@@ -65,16 +65,6 @@ impl Sweep {
     pub fn value(&self, i: usize) -> f64 {
         self.lo + i as f64 * self.step
     }
-
-    /// Index of the grid point nearest to `x` (clamped to the sweep).
-    pub fn nearest_index(&self, x: f64) -> usize {
-        let i = libm::round((x - self.lo) / self.step);
-        if i <= 0.0 {
-            0
-        } else {
-            (i as usize).min(self.len() - 1)
-        }
-    }
 }
 
 #[cfg(test)]

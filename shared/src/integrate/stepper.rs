@@ -312,7 +312,13 @@ impl<T: Real> Simulator<T> {
         } else {
             FieldMode::Free
         };
-        let k1 = hammer.field_in(mode, &self.x, self.sin_at(j, T::zero()), v_in);
+        // Outside the bands the switch-model field at the start is the mode's field: reuse it.
+        let k1 = match start.region {
+            Region::Free | Region::Contact => start,
+            Region::BandAlpha | Region::BandBeta => {
+                hammer.field_in(mode, &self.x, self.sin_at(j, T::zero()), v_in)
+            }
+        };
         let trial = rk4_step(&self.x, &k1.dx, self.h_sub, s_mid, s_end, |y, s| {
             hammer.field_in(mode, y, s, v_in).dx
         });

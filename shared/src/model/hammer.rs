@@ -243,22 +243,6 @@ impl<T: Real> Hammer<T> {
             }
         }
     }
-
-    /// A bound on the magnitude of the free-flight acceleration of `δ` beyond its value at the
-    /// step start, m/s²: the excitation amplitude `A0 Ω²` plus gravity/spring terms over a
-    /// stroke of `A0 + |u|`. Used to decide conservatively whether a step can reach contact.
-    #[inline(always)]
-    pub fn free_accel_margin(&self, u: T) -> T {
-        match self.body {
-            Body::Wires {
-                length,
-                g_over_l,
-                a0w2_over_l,
-                ..
-            } => length * (a0w2_over_l + g_over_l) + g_over_l * (self.amplitude + u.abs()),
-            Body::Beam { k_over_m, a0w2, .. } => a0w2 + k_over_m * (self.amplitude + u.abs()),
-        }
-    }
 }
 
 #[cfg(test)]

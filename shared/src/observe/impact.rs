@@ -62,11 +62,6 @@ impl<T: Real> ImpactTracker<T> {
         }
     }
 
-    /// Whether an impact episode is in progress.
-    pub fn in_episode(&self) -> bool {
-        self.in_episode
-    }
-
     /// Peak force of the episode in progress so far, N.
     pub fn current_peak(&self) -> Option<T> {
         self.in_episode.then_some(self.peak)
