@@ -36,6 +36,10 @@ pub trait Real:
     fn sin(self) -> Self;
     /// `libm` cosine.
     fn cos(self) -> Self;
+    /// `(sin x, cos x)`: a Taylor polynomial accurate to the type's precision for
+    /// `|x| ≤ 0.5` rad (the wire pendulum's angles stay below 0.1 rad), `libm` elsewhere.
+    /// Only `+` and `×`, so the MCU and the host agree bit for bit.
+    fn sin_cos(self) -> (Self, Self);
     /// `libm` square root.
     fn sqrt(self) -> Self;
     /// `libm` arc sine.
@@ -66,8 +70,31 @@ pub trait Real:
     }
 }
 
+/// Taylor coefficients `(-1)^k/(2k+1)!` of `sin x / x` and `(-1)^k/(2k)!` of `cos x` in `x²`,
+/// highest order first (Horner), as many as double precision needs on `|x| ≤ 0.5`.
+const SIN_TAYLOR: [f64; 8] = [
+    -1.0 / 1_307_674_368_000.0,
+    1.0 / 6_227_020_800.0,
+    -1.0 / 39_916_800.0,
+    1.0 / 362_880.0,
+    -1.0 / 5_040.0,
+    1.0 / 120.0,
+    -1.0 / 6.0,
+    1.0,
+];
+const COS_TAYLOR: [f64; 8] = [
+    -1.0 / 87_178_291_200.0,
+    1.0 / 479_001_600.0,
+    -1.0 / 3_628_800.0,
+    1.0 / 40_320.0,
+    -1.0 / 720.0,
+    1.0 / 24.0,
+    -1.0 / 2.0,
+    1.0,
+];
+
 macro_rules! impl_real {
-    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path) => {
+    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path, $terms:literal) => {
         impl Real for $t {
             const NAME: &'static str = $name;
             #[inline(always)]
@@ -89,6 +116,35 @@ macro_rules! impl_real {
             #[inline(always)]
             fn cos(self) -> Self {
                 $cos(self)
+            }
+            #[inline(always)]
+            fn sin_cos(self) -> (Self, Self) {
+                // Truncation error at |x| = 0.5 below half an ulp: x^11/11! for f32, x^17/17! for f64.
+                const fn tail(table: &[f64; 8]) -> [$t; $terms] {
+                    let mut out = [0.0; $terms];
+                    let mut i = 0;
+                    while i < $terms {
+                        out[i] = table[8 - $terms + i] as $t;
+                        i += 1;
+                    }
+                    out
+                }
+                const S: [$t; $terms] = tail(&SIN_TAYLOR);
+                const C: [$t; $terms] = tail(&COS_TAYLOR);
+                if $fabs(self) <= 0.5 {
+                    let x2 = self * self;
+                    let mut s: $t = 0.0;
+                    let mut c: $t = 0.0;
+                    let mut i = 0;
+                    while i < $terms {
+                        s = s * x2 + S[i];
+                        c = c * x2 + C[i];
+                        i += 1;
+                    }
+                    (self * s, c)
+                } else {
+                    ($sin(self), $cos(self))
+                }
             }
             #[inline(always)]
             fn sqrt(self) -> Self {
@@ -122,7 +178,8 @@ impl_real!(
     libm::sqrtf,
     libm::asinf,
     libm::powf,
-    libm::fabsf
+    libm::fabsf,
+    5
 );
 impl_real!(
     f64,
@@ -132,5 +189,33 @@ impl_real!(
     libm::sqrt,
     libm::asin,
     libm::pow,
-    libm::fabs
+    libm::fabs,
+    8
 );
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sin_cos_polynomial_matches_libm() {
+        for i in -1000..=1000 {
+            let x = f64::from(i) * 6e-4;
+            let (s, c) = Real::sin_cos(x);
+            assert!((s - libm::sin(x)).abs() <= 2.0 * f64::EPSILON, "sin {x}");
+            assert!((c - libm::cos(x)).abs() <= 2.0 * f64::EPSILON, "cos {x}");
+            let xf = x as f32;
+            let (sf, cf) = Real::sin_cos(xf);
+            assert!(
+                (sf - libm::sinf(xf)).abs() <= 2.0 * f32::EPSILON,
+                "sinf {xf}"
+            );
+            assert!(
+                (cf - libm::cosf(xf)).abs() <= 2.0 * f32::EPSILON,
+                "cosf {xf}"
+            );
+        }
+        // Outside the polynomial's range: libm.
+        assert_eq!(Real::sin_cos(2.0f32), (libm::sinf(2.0), libm::cosf(2.0)));
+    }
+}

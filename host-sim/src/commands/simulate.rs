@@ -101,7 +101,7 @@ pub fn time_series<T: Real>(
     sim.reset_relative(u0_m, v0_m_s)
         .context("initial state (--u0-mm, --v0-mm-s)")?;
     let hammer = *sim.hammer();
-    let h_sub = sim.substep_s();
+    let h_sub = sim.step_s();
     let a0 = setup.params.amplitude_m;
     let mg = setup.params.weight_n();
     let (d0, _) = hammer.penetration(&sim.state());
@@ -128,7 +128,7 @@ pub fn time_series<T: Real>(
                 None => {}
             }
             let (u, du) = hammer.relative(&s.x);
-            let t = s.t_num as f64 * h_sub;
+            let t = s.time_s(h_sub);
             let u = u.to_f64();
             let f = s.force.to_f64();
             rows.push(TsRow {

@@ -5,7 +5,7 @@ pub mod response;
 pub mod selection;
 pub mod sweep;
 
-pub use response::{ResponseSample, SimSettings, evaluate_point};
+pub use response::{ResponseSample, SimSettings, evaluate_point, evaluate_point_observed};
 pub use selection::{
     Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, select, select_sequential,
 };

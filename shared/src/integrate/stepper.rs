@@ -2,17 +2,24 @@
 //!
 //! - `N` RK4 steps per excitation period, `h = T/N`, so the stroboscopic Poincaré section
 //!   `t = kT` falls exactly on step boundaries.
-//! - Time is an integer step index; the excitation phase of a stage is
-//!   `2π · j / (2N)` (or `/(2NM)` in sub-steps) from integers reduced modulo one period, so
-//!   there is no `t += h` drift in f32.
-//! - A step is first tried in one piece. If the hammer is in or near contact at either end
-//!   (`δ > −η_δ`), if the step turned round and its tangent-line peak bound reaches `−η_δ`, or if
-//!   any RK4 stage touched the contact region, the step is redone as `M` equal sub-steps with
-//!   the full switch model. `M = ceil(h / h_c)`, `h_c = (π/ω_c)/K` with `ω_c` the contact
-//!   frequency ([`crate::model::ContactLaw::contact_omega`]) and `K` sub-steps per contact
-//!   half-period. A sub-step costs one RK4 step, or three when a switching event (arrival or
-//!   departure) falls inside it ([`Simulator::step`]). The cost of a period is therefore bounded
-//!   by `N (1 + 3M)` RK4 steps; in practice it is `N` plus about `2M` per impact.
+//! - Time is an integer step index plus an offset inside the step; the excitation
+//!   `sin Ωt` at the step's start, midpoint and end comes from a table of `2N` values computed
+//!   once, and inside a step from the angle-addition formula with a short polynomial
+//!   ([`Real::sin_cos`]), so there is no `t += h` drift in f32.
+//! - A step is first tried in one piece in free flight. It is accepted if the hammer stays
+//!   clear of the surface (`δ ≤ −η_δ` at both ends, no RK4 stage touched the contact region,
+//!   and, if the step turned round, its tangent-line peak bound stays below `−η_δ`).
+//! - Otherwise the step is split at the time the trial's cubic Hermite dense output first comes
+//!   within `η_δ` of the surface (or peaks): one free-flight RK4 step up to half a contact
+//!   sub-step before it, then sub-steps of `h_c = (π/ω_c)/K` with the full switch model while the hammer
+//!   is in or near contact (`ω_c` the contact frequency,
+//!   [`crate::model::ContactLaw::contact_omega`], `K` sub-steps per contact half-period), then a
+//!   free trial again over the rest of the step. The last sub-step is shortened to end on the
+//!   step grid. A sub-step costs one RK4 step, or three when a switching event (arrival or
+//!   departure) falls inside it ([`Simulator::step`]).
+//! - An impact therefore costs about `K` sub-steps plus a few free-flight segments, whatever `N`;
+//!   resting contact costs one sub-step per `h_c`. The cost of a period is bounded by
+//!   `N (2 + 3M)` RK4 steps with `M = ceil(h/h_c)`.
 
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
@@ -28,8 +35,11 @@ use crate::real::Real;
 /// sub-steps per half-period.
 pub const SUBSTEP_REFERENCE_SPEED_M_S: f64 = 0.5;
 
-/// Largest phase denominator `2NM`: integers up to 2^24 are exact in f32.
-const MAX_PHASE_DENOMINATOR: u64 = 1 << 24;
+/// Largest `N` (the excitation tables hold `3N` values).
+pub const MAX_STEPS_PER_PERIOD: u32 = 512;
+
+/// Largest `M = ceil(h/h_c)`, contact sub-steps per step.
+const MAX_SUBSTEPS: f64 = 1e6;
 
 /// Floor of the Lankarani–Nikravesh approach speed, m/s (avoids dividing by a grazing speed of 0).
 const MIN_APPROACH_SPEED_M_S: f64 = 1e-4;
@@ -38,18 +48,18 @@ const MIN_APPROACH_SPEED_M_S: f64 = 1e-4;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StepSettings {
-    /// `N`: RK4 steps per excitation period (16..=8192).
+    /// `N`: RK4 steps per excitation period (16..=512).
     pub steps_per_period: u32,
     /// `K`: sub-steps per contact half-period `π/ω_c` (4..=1024).
     pub substeps_per_contact: u32,
 }
 
 impl Default for StepSettings {
-    /// The production settings (f32 on the MCU): `N = 256`, `K = 32`.
+    /// The production settings (f32 on the MCU): `N = 64`, `K = 16`.
     fn default() -> Self {
         StepSettings {
-            steps_per_period: 256,
-            substeps_per_contact: 32,
+            steps_per_period: 64,
+            substeps_per_contact: 16,
         }
     }
 }
@@ -60,7 +70,12 @@ impl StepSettings {
     /// # Errors
     /// [`ParamError::CountOutOfRange`] naming the field.
     pub fn validate(&self) -> Result<(), ParamError> {
-        check_count("steps_per_period", self.steps_per_period, 16, 8192)?;
+        check_count(
+            "steps_per_period",
+            self.steps_per_period,
+            16,
+            MAX_STEPS_PER_PERIOD,
+        )?;
         check_count("substeps_per_contact", self.substeps_per_contact, 4, 1024)?;
         Ok(())
     }
@@ -74,11 +89,13 @@ impl StepSettings {
     }
 }
 
-/// The state after one RK4 step or sub-step.
+/// The state after one RK4 step, free-flight segment or sub-step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepSample<T> {
-    /// Time in sub-step units since the start: `t = t_num · h_sub` ([`Simulator::substep_s`]).
-    pub t_num: u64,
+    /// Index of the step `h = T/N` this sample lies in, counted from the last reset.
+    pub step: u64,
+    /// Time since that step's start, s (`h` at the step's end).
+    pub offset: T,
     /// Whether this sample ends an excitation period (a Poincaré-section instant).
     pub period_end: bool,
     /// State vector (`(θ, θ̇)` for wires, `(u, u̇)` for beams).
@@ -93,6 +110,13 @@ pub struct StepSample<T> {
     pub region: Region,
 }
 
+impl<T: Real> StepSample<T> {
+    /// Time since the last reset, s, for step length `step_s` ([`Simulator::step_s`]).
+    pub fn time_s(&self, step_s: f64) -> f64 {
+        self.step as f64 * step_s + self.offset.to_f64()
+    }
+}
+
 /// Fixed-step switch-model integrator for one rig, gap and excitation frequency.
 #[derive(Debug, Clone)]
 pub struct Simulator<T: Real> {
@@ -102,18 +126,24 @@ pub struct Simulator<T: Real> {
     at_x: FieldEval<T>,
     n: u32,
     m: u32,
-    /// Macro step index within the period, `0..N`.
+    /// Step index within the period, `0..N`.
     k: u32,
     period: u32,
+    /// Steps since the last reset.
+    steps: u64,
     h: T,
-    h_sub: T,
-    macro_phase: T,
-    sub_phase: T,
+    /// Contact sub-step `h_c`, s.
+    h_c: T,
+    /// `sin(2π j/(2N))`, `j = 0..2N` (half-step phases).
+    sin_half: [T; 2 * MAX_STEPS_PER_PERIOD as usize],
+    /// `cos(2π k/N)`, `k = 0..N` (step starts).
+    cos_start: [T; MAX_STEPS_PER_PERIOD as usize],
     /// `Ω`, rad/s.
     omega: T,
     approach_speed: T,
     min_approach: T,
     h_f64: f64,
+    h_c_f64: f64,
     rk4_steps: u64,
 }
 
@@ -122,7 +152,7 @@ impl<T: Real> Simulator<T> {
     ///
     /// # Errors
     /// [`ParamError`] for invalid parameters, gap (m, `0 ..= 0.05`), `omega_exc` (rad/s), bands
-    /// or step settings, or a sub-step count whose phase denominator `2NM` exceeds 2^24.
+    /// or step settings, or more than 10^6 contact sub-steps per step (`substeps`).
     pub fn new(
         params: &RigParams,
         gap_m: f64,
@@ -138,16 +168,20 @@ impl<T: Real> Simulator<T> {
         let omega_c = params
             .contact
             .contact_omega(params.mass_kg, SUBSTEP_REFERENCE_SPEED_M_S);
-        let h_c = core::f64::consts::PI / omega_c / f64::from(steps.substeps_per_contact);
-        let m_f = libm::ceil(h / h_c);
-        check_range(
-            "substeps",
-            m_f,
-            1.0,
-            (MAX_PHASE_DENOMINATOR / (2 * u64::from(n))) as f64,
-        )?;
+        let h_c_max = core::f64::consts::PI / omega_c / f64::from(steps.substeps_per_contact);
+        let m_f = libm::ceil(h / h_c_max);
+        check_range("substeps", m_f, 1.0, MAX_SUBSTEPS)?;
         let m = m_f as u32;
-        let two_pi = 2.0 * core::f64::consts::PI;
+        let h_c = h / m_f;
+        let mut sin_half = [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize];
+        let mut cos_start = [T::zero(); MAX_STEPS_PER_PERIOD as usize];
+        let dphi = core::f64::consts::PI / f64::from(n);
+        for (j, v) in sin_half.iter_mut().take(2 * n as usize).enumerate() {
+            *v = T::from_f64(libm::sin(dphi * j as f64));
+        }
+        for (k, v) in cos_start.iter_mut().take(n as usize).enumerate() {
+            *v = T::from_f64(libm::cos(2.0 * dphi * k as f64));
+        }
         let x = Vector2::new(T::zero(), T::zero());
         let min_approach = T::from_f64(MIN_APPROACH_SPEED_M_S);
         let at_x = hammer.field(&x, T::zero(), min_approach);
@@ -159,14 +193,16 @@ impl<T: Real> Simulator<T> {
             m,
             k: 0,
             period: 0,
+            steps: 0,
             h: T::from_f64(h),
-            h_sub: T::from_f64(h / f64::from(m)),
-            macro_phase: T::from_f64(two_pi / f64::from(2 * n)),
-            sub_phase: T::from_f64(two_pi / (2.0 * f64::from(n) * f64::from(m))),
+            h_c: T::from_f64(h_c),
+            sin_half,
+            cos_start,
             omega: T::from_f64(omega_exc),
             approach_speed: min_approach,
             min_approach,
             h_f64: h,
+            h_c_f64: h_c,
             rk4_steps: 0,
         })
     }
@@ -186,6 +222,7 @@ impl<T: Real> Simulator<T> {
         self.x = x;
         self.k = 0;
         self.period = 0;
+        self.steps = 0;
         self.approach_speed = self.min_approach;
         self.at_x = self.hammer.field(&x, T::zero(), self.approach_speed);
     }
@@ -206,13 +243,17 @@ impl<T: Real> Simulator<T> {
     pub fn steps_per_period(&self) -> u32 {
         self.n
     }
-    /// `M`, sub-steps per step in and near contact.
+    /// `M = ceil(h/h_c)`, contact sub-steps per step.
     pub fn substeps(&self) -> u32 {
         self.m
     }
-    /// Sub-step length `h/M`, s (f64).
+    /// Step `h = T/N`, s (f64).
+    pub fn step_s(&self) -> f64 {
+        self.h_f64
+    }
+    /// Contact sub-step `h_c = h/M`, s (f64).
     pub fn substep_s(&self) -> f64 {
-        self.h_f64 / f64::from(self.m)
+        self.h_c_f64
     }
     /// Completed excitation periods since the last reset.
     pub fn periods_done(&self) -> u32 {
@@ -223,68 +264,155 @@ impl<T: Real> Simulator<T> {
         self.rk4_steps
     }
 
+    /// `sin Ωt` at `dt` seconds (`0 ≤ Ω dt ≤ 2π/N`) after the start of the current step.
     #[inline(always)]
-    fn macro_sin(&self, j: u32) -> T {
-        let j = if j >= 2 * self.n { j - 2 * self.n } else { j };
-        (T::from_u32(j) * self.macro_phase).sin()
+    fn sin_at(&self, dt: T) -> T {
+        let (s, c) = (self.omega * dt).sin_cos();
+        let k = self.k as usize;
+        self.sin_half[2 * k] * c + self.cos_start[k] * s
     }
 
+    /// Whether the hammer is clear of the surface: free region and `δ ≤ −η_δ`.
     #[inline(always)]
-    fn sub_sin(&self, j: u32) -> T {
-        let den = 2 * self.n * self.m;
-        let j = if j >= den { j - den } else { j };
-        (T::from_u32(j) * self.sub_phase).sin()
+    fn clear(&self, e: &FieldEval<T>) -> bool {
+        e.region == Region::Free && e.delta <= -self.hammer.switch.eta_delta
     }
 
-    /// Advances one step of `h = T/N` (as `M` sub-steps if in or near contact), calling
-    /// `observe` after the step or after every sub-step.
+    /// Advances one step of `h = T/N`, calling `observe` after every segment of it (the whole
+    /// step in free flight, or the free-flight segments and contact sub-steps it was split into).
     #[inline]
     pub fn step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
-        let eta = self.hammer.switch.eta_delta;
-        let k = self.k;
-        let start = self.at_x;
-        let mut near = start.delta > -eta || start.region != Region::Free;
-        if !near {
-            // Try the whole step in free flight.
-            let hammer = self.hammer;
-            let v_in = self.approach_speed;
-            let mut touched = false;
-            let s_mid = self.macro_sin(2 * k + 1);
-            let s_end = self.macro_sin(2 * k + 2);
-            let x1 = rk4_step(&self.x, &start.dx, self.h, s_mid, s_end, |y, s| {
-                let e = hammer.field(y, s, v_in);
-                touched |= e.region != Region::Free;
-                e.dx
-            });
-            let end = hammer.field(&x1, s_end, v_in);
-            self.rk4_steps += 1;
-            near = touched || end.delta > -eta || end.region != Region::Free;
-            if !near && start.delta_dot > T::zero() && end.delta_dot < T::zero() {
-                // Turned round inside the step: the peak lies under the two tangent lines.
-                let slope = start.delta_dot - end.delta_dot;
-                let t_star = (end.delta - start.delta - end.delta_dot * self.h) / slope;
-                near = start.delta + start.delta_dot * t_star > -eta;
+        let k2 = 2 * self.k as usize;
+        let j_end = if self.k + 1 == self.n { 0 } else { k2 + 2 };
+        let (s_mid, s_end) = (self.sin_half[k2 + 1], self.sin_half[j_end]);
+        let mut offset = T::zero();
+        let mut rest = self.h;
+        let mut first = true;
+        loop {
+            if self.clear(&self.at_x) {
+                let (sm, se) = if first {
+                    (s_mid, s_end)
+                } else {
+                    (self.sin_at(offset + rest * T::from_f64(0.5)), s_end)
+                };
+                match self.free_trial(rest, sm, se) {
+                    Ok((x1, end)) => {
+                        self.x = x1;
+                        self.at_x = end;
+                        self.finish_step(observe);
+                        return;
+                    }
+                    Err(t_near) => {
+                        // Stop half a sub-step short of the surface, so that the arrival
+                        // falls inside the next sub-step (not on its boundary, where the
+                        // switch would go through the Σ_α band instead of being located).
+                        let tau = t_near - self.h_c * T::from_f64(0.5);
+                        if tau > self.h_c * T::from_f64(0.25) {
+                            self.free_segment(offset, tau);
+                            offset += tau;
+                            rest -= tau;
+                            first = false;
+                            observe(&self.sample(offset, false));
+                            continue;
+                        }
+                    }
+                }
             }
-            if !near {
-                self.x = x1;
-                self.at_x = end;
-                self.advance_macro();
-                observe(&self.sample(self.m));
+            first = false;
+            if rest <= self.h_c {
+                self.substep(offset, rest, s_end);
+                self.finish_step(observe);
                 return;
             }
-        }
-        // Sub-steps with the full switch model.
-        let base = 2 * k * self.m;
-        for i in 0..self.m {
-            self.substep(base + 2 * i);
-            if i + 1 == self.m {
-                self.advance_macro();
-            }
-            observe(&self.sample(i + 1));
+            let s_next = self.sin_at(offset + self.h_c);
+            self.substep(offset, self.h_c, s_next);
+            offset += self.h_c;
+            rest -= self.h_c;
+            observe(&self.sample(offset, false));
         }
     }
 
-    /// One sub-step from half-sub-step phase index `j` (the step spans `j .. j + 2`).
+    /// Tries `rest` seconds (to the end of the step) in free flight from the current state, with
+    /// `sin Ωt` `s_mid`, `s_end` at the segment's midpoint and end. `Ok` with the end state and
+    /// its switch-model field if the hammer stays clear; otherwise `Err` with the time (s from
+    /// the segment's start) at which the trial's dense output first comes within `η_δ` of the
+    /// surface, or peaks.
+    #[inline(always)]
+    fn free_trial(&mut self, rest: T, s_mid: T, s_end: T) -> Result<(Vector2<T>, FieldEval<T>), T> {
+        let hammer = self.hammer;
+        let eta = hammer.switch.eta_delta;
+        let v_in = self.approach_speed;
+        let start = self.at_x;
+        // In free flight `f−` (so that the trial is the free dense output used below); a stage
+        // within η_δ of the surface is where the switch model would have left `Γ−`.
+        let mut touched = false;
+        let x1 = rk4_step(&self.x, &start.dx, rest, s_mid, s_end, |y, s| {
+            let e = hammer.field_in(FieldMode::Free, y, s, v_in);
+            touched |= e.delta > -eta;
+            e.dx
+        });
+        // Clear of the surface, the free field is the switch-model field.
+        let end = hammer.field_in(FieldMode::Free, &x1, s_end, v_in);
+        self.rk4_steps += 1;
+        let mut near = touched || end.delta > -eta;
+        if !near && start.delta_dot > T::zero() && end.delta_dot < T::zero() {
+            // Turned round inside the step: the peak lies under the two tangent lines.
+            let slope = start.delta_dot - end.delta_dot;
+            let t_star = (end.delta - start.delta - end.delta_dot * rest) / slope;
+            near = start.delta + start.delta_dot * t_star > -eta;
+        }
+        if !near {
+            return Ok((x1, end));
+        }
+        // Where the free-flight dense output first comes near the surface (or peaks).
+        let f1 = end.dx;
+        let delta_at = |t: T| {
+            let y = hermite(&self.x, &start.dx, &x1, &f1, rest, t / rest);
+            hammer.penetration(&y).0
+        };
+        const SAMPLES: u32 = 8;
+        let dt = rest / T::from_u32(SAMPLES);
+        let (mut best_t, mut best_d) = (T::zero(), start.delta);
+        for i in 1..=SAMPLES {
+            let t = dt * T::from_u32(i);
+            let d = delta_at(t);
+            if d > -eta {
+                // Refine the crossing of −η_δ between the previous sample and this one.
+                let (mut lo, mut hi) = (t - dt, t);
+                for _ in 0..16 {
+                    let mid = (lo + hi) * T::from_f64(0.5);
+                    if delta_at(mid) > -eta {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                return Err(lo);
+            }
+            if d > best_d {
+                best_t = t;
+                best_d = d;
+            }
+        }
+        Err(best_t)
+    }
+
+    /// One free-flight RK4 step of `len` seconds from `offset` (s into the current step).
+    #[inline(always)]
+    fn free_segment(&mut self, offset: T, len: T) {
+        let hammer = self.hammer;
+        let v_in = self.approach_speed;
+        let s_mid = self.sin_at(offset + len * T::from_f64(0.5));
+        let s_end = self.sin_at(offset + len);
+        self.x = rk4_step(&self.x, &self.at_x.dx, len, s_mid, s_end, |y, s| {
+            hammer.field_in(FieldMode::Free, y, s, v_in).dx
+        });
+        self.at_x = hammer.field(&self.x, s_end, v_in);
+        self.rk4_steps += 1;
+    }
+
+    /// One sub-step of `len` seconds from `offset` (s into the current step) with the full
+    /// switch model; `s_end` is `sin Ωt` at its end.
     ///
     /// The field is discontinuous where contact begins (the spring–dashpot force jumps to `c δ̇`)
     /// and has a kink where it ends (`h_β = 0`); a fixed step straddling either loses accuracy in
@@ -294,12 +422,12 @@ impl<T: Real> Simulator<T> {
     /// time `τ` is found by bisection on the step's cubic Hermite dense output (free → contact:
     /// `δ` or, when already inside, `h_β` rising through 0; contact → free: `h_β` falling
     /// through 0), the hammer is integrated in the old mode to `τ` and with the switch model from
-    /// `τ` to the end of the sub-step. The step grid is unchanged.
+    /// `τ` to the end of the sub-step.
     #[inline]
-    fn substep(&mut self, j: u32) {
+    fn substep(&mut self, offset: T, len: T, s_end: T) {
         let hammer = self.hammer;
-        let s_mid = self.sub_sin(j + 1);
-        let s_end = self.sub_sin(j + 2);
+        let half = T::from_f64(0.5);
+        let s_mid = self.sin_at(offset + len * half);
         let start = self.at_x;
         self.rk4_steps += 1;
         let touching = start.region.touching();
@@ -316,10 +444,10 @@ impl<T: Real> Simulator<T> {
         let k1 = match start.region {
             Region::Free | Region::Contact => start,
             Region::BandAlpha | Region::BandBeta => {
-                hammer.field_in(mode, &self.x, self.sin_at(j, T::zero()), v_in)
+                hammer.field_in(mode, &self.x, self.sin_at(offset), v_in)
             }
         };
-        let trial = rk4_step(&self.x, &k1.dx, self.h_sub, s_mid, s_end, |y, s| {
+        let trial = rk4_step(&self.x, &k1.dx, len, s_mid, s_end, |y, s| {
             hammer.field_in(mode, y, s, v_in).dx
         });
         let end = hammer.field(&trial, s_end, v_in);
@@ -342,14 +470,13 @@ impl<T: Real> Simulator<T> {
                 law.unswitched_force(d, dd, v_in)
             }
         };
-        let tau = event_time(&self.x, &k1.dx, &trial, &end_mode.dx, self.h_sub, event);
-        let half = T::from_f64(0.5);
+        let tau = event_time(&self.x, &k1.dx, &trial, &end_mode.dx, len, event);
         let x_a = rk4_step(
             &self.x,
             &k1.dx,
             tau,
-            self.sin_at(j, tau * half),
-            self.sin_at(j, tau),
+            self.sin_at(offset + tau * half),
+            self.sin_at(offset + tau),
             |y, s| hammer.field_in(mode, y, s, v_in).dx,
         );
         if !touching {
@@ -357,13 +484,13 @@ impl<T: Real> Simulator<T> {
             self.approach_speed = v_a.max_of(self.min_approach);
         }
         let v_in = self.approach_speed;
-        let rest = self.h_sub - tau;
-        let at_a = hammer.field(&x_a, self.sin_at(j, tau), v_in);
+        let rest = len - tau;
+        let at_a = hammer.field(&x_a, self.sin_at(offset + tau), v_in);
         self.x = rk4_step(
             &x_a,
             &at_a.dx,
             rest,
-            self.sin_at(j, tau + rest * half),
+            self.sin_at(offset + tau + rest * half),
             s_end,
             |y, s| hammer.field(y, s, v_in).dx,
         );
@@ -372,38 +499,25 @@ impl<T: Real> Simulator<T> {
         self.rk4_steps += 2;
     }
 
-    /// `sin(Ω t)` at `dt` seconds after half-sub-step phase index `j`.
+    /// Ends the current step: advances the step counters and reports the sample.
     #[inline(always)]
-    fn sin_at(&self, j: u32, dt: T) -> T {
-        (T::from_u32(j) * self.sub_phase + self.omega * dt).sin()
-    }
-
-    #[inline(always)]
-    fn advance_macro(&mut self) {
+    fn finish_step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
+        let sample = self.sample(self.h, true);
+        self.steps += 1;
         self.k += 1;
         if self.k == self.n {
             self.k = 0;
             self.period += 1;
         }
+        observe(&sample);
     }
 
     #[inline(always)]
-    fn sample(&self, sub_end: u32) -> StepSample<T> {
-        // After advance_macro the step index has moved on when sub_end == M.
-        let (period, k) = if sub_end == self.m {
-            if self.k == 0 {
-                (self.period - 1, self.n - 1)
-            } else {
-                (self.period, self.k - 1)
-            }
-        } else {
-            (self.period, self.k)
-        };
-        let t_num = (u64::from(period) * u64::from(self.n) + u64::from(k)) * u64::from(self.m)
-            + u64::from(sub_end);
+    fn sample(&self, offset: T, step_end: bool) -> StepSample<T> {
         StepSample {
-            t_num,
-            period_end: sub_end == self.m && self.k == 0,
+            step: self.steps,
+            offset,
+            period_end: step_end && self.k + 1 == self.n,
             x: self.x,
             delta: self.at_x.delta,
             delta_dot: self.at_x.delta_dot,
@@ -421,6 +535,29 @@ impl<T: Real> Simulator<T> {
     }
 }
 
+/// The cubic Hermite interpolant of the step `x0 → x1` (slopes `f0`, `f1`, length `h`) at
+/// fraction `s ∈ [0, 1]`.
+#[inline(always)]
+fn hermite<T: Real>(
+    x0: &Vector2<T>,
+    f0: &Vector2<T>,
+    x1: &Vector2<T>,
+    f1: &Vector2<T>,
+    h: T,
+    s: T,
+) -> Vector2<T> {
+    let one = T::from_f64(1.0);
+    let two = T::from_f64(2.0);
+    let three = T::from_f64(3.0);
+    let s2 = s * s;
+    let s3 = s2 * s;
+    let h00 = two * s3 - three * s2 + one;
+    let h10 = (s3 - two * s2 + s) * h;
+    let h01 = three * s2 - two * s3;
+    let h11 = (s3 - s2) * h;
+    x0 * h00 + f0 * h10 + x1 * h01 + f1 * h11
+}
+
 /// Time `τ ∈ (0, h]` at which `event` rises through 0 along the cubic Hermite interpolant of
 /// the step `x0 → x1` (slopes `f0`, `f1`), by bisection; `event(x0) ≤ 0 < event(x1)` is the
 /// caller's premise (if it fails, the bisection returns a time at one end of the step).
@@ -434,18 +571,8 @@ fn event_time<T: Real, G: Fn(&Vector2<T>) -> T>(
     event: G,
 ) -> T {
     let one = T::from_f64(1.0);
-    let two = T::from_f64(2.0);
-    let three = T::from_f64(3.0);
     let half = T::from_f64(0.5);
-    let at = |s: T| {
-        let s2 = s * s;
-        let s3 = s2 * s;
-        let h00 = two * s3 - three * s2 + one;
-        let h10 = (s3 - two * s2 + s) * h;
-        let h01 = three * s2 - two * s3;
-        let h11 = (s3 - s2) * h;
-        x0 * h00 + f0 * h10 + x1 * h01 + f1 * h11
-    };
+    let at = |s: T| hermite(x0, f0, x1, f1, h, s);
     let (mut lo, mut hi) = (T::zero(), one);
     for _ in 0..32 {
         let mid = (lo + hi) * half;

@@ -197,7 +197,7 @@ impl<T: Real> Hammer<T> {
     fn kinematics(&self, x: &Vector2<T>) -> (T, T, T, T) {
         match self.body {
             Body::Wires { length, .. } => {
-                let (st, ct) = (x[0].sin(), x[0].cos());
+                let (st, ct) = x[0].sin_cos();
                 (length * st - self.gap, length * x[1] * ct, st, ct)
             }
             Body::Beam { .. } => (x[0] - self.gap, x[1], T::zero(), T::from_f64(1.0)),
@@ -208,7 +208,10 @@ impl<T: Real> Hammer<T> {
     #[inline(always)]
     pub fn relative(&self, x: &Vector2<T>) -> (T, T) {
         match self.body {
-            Body::Wires { length, .. } => (length * x[0].sin(), length * x[1] * x[0].cos()),
+            Body::Wires { length, .. } => {
+                let (st, ct) = x[0].sin_cos();
+                (length * st, length * x[1] * ct)
+            }
             Body::Beam { .. } => (x[0], x[1]),
         }
     }

@@ -113,6 +113,10 @@ impl<T: Real> SwitchModel<T> {
     /// current impact (m/s, Lankarani–Nikravesh only).
     #[inline(always)]
     pub fn force(&self, delta: T, delta_dot: T, approach_speed: T) -> (T, Region) {
+        if delta <= -self.eta_delta {
+            // h_α ≤ −η_δ: free flight whatever h_β (no need to evaluate the law).
+            return (T::zero(), Region::Free);
+        }
         let (elastic, dissipative) = self.law.parts(delta, delta_dot, approach_speed);
         let h_alpha = delta;
         let h_beta = elastic + dissipative;
