@@ -94,7 +94,7 @@ const COS_TAYLOR: [f64; 8] = [
 ];
 
 macro_rules! impl_real {
-    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path, $terms:literal) => {
+    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
         impl Real for $t {
             const NAME: &'static str = $name;
             #[inline(always)]
@@ -119,29 +119,38 @@ macro_rules! impl_real {
             }
             #[inline(always)]
             fn sin_cos(self) -> (Self, Self) {
-                // Truncation error at |x| = 0.5 below half an ulp: x^11/11! for f32, x^17/17! for f64.
-                const fn tail(table: &[f64; 8]) -> [$t; $terms] {
-                    let mut out = [0.0; $terms];
+                // Two Taylor tiers, each truncated below half an ulp: |x| ≤ 1/8 (the pendulum's
+                // angles, the excitation inside a step) and |x| ≤ 1/2.
+                const fn tail<const K: usize>(table: &[f64; 8]) -> [$t; K] {
+                    let mut out = [0.0; K];
                     let mut i = 0;
-                    while i < $terms {
-                        out[i] = table[8 - $terms + i] as $t;
+                    while i < K {
+                        out[i] = table[8 - K + i] as $t;
                         i += 1;
                     }
                     out
                 }
-                const S: [$t; $terms] = tail(&SIN_TAYLOR);
-                const C: [$t; $terms] = tail(&COS_TAYLOR);
-                if $fabs(self) <= 0.5 {
-                    let x2 = self * self;
-                    let mut s: $t = 0.0;
-                    let mut c: $t = 0.0;
-                    let mut i = 0;
-                    while i < $terms {
-                        s = s * x2 + S[i];
-                        c = c * x2 + C[i];
+                #[inline(always)]
+                fn horner<const K: usize>(x: $t, s_c: &[$t; K], c_c: &[$t; K]) -> ($t, $t) {
+                    let x2 = x * x;
+                    let (mut s, mut c) = (s_c[0], c_c[0]);
+                    let mut i = 1;
+                    while i < K {
+                        s = s * x2 + s_c[i];
+                        c = c * x2 + c_c[i];
                         i += 1;
                     }
-                    (self * s, c)
+                    (x * s, c)
+                }
+                const S_SHORT: [$t; $short] = tail::<$short>(&SIN_TAYLOR);
+                const C_SHORT: [$t; $short] = tail::<$short>(&COS_TAYLOR);
+                const S_LONG: [$t; $long] = tail::<$long>(&SIN_TAYLOR);
+                const C_LONG: [$t; $long] = tail::<$long>(&COS_TAYLOR);
+                let a = $fabs(self);
+                if a <= 0.125 {
+                    horner(self, &S_SHORT, &C_SHORT)
+                } else if a <= 0.5 {
+                    horner(self, &S_LONG, &C_LONG)
                 } else {
                     ($sin(self), $cos(self))
                 }
@@ -179,6 +188,7 @@ impl_real!(
     libm::asinf,
     libm::powf,
     libm::fabsf,
+    3,
     5
 );
 impl_real!(
@@ -190,6 +200,7 @@ impl_real!(
     libm::asin,
     libm::pow,
     libm::fabs,
+    6,
     8
 );
 

@@ -1,11 +1,15 @@
 //! Analyses built on the protocol: one operating point, frequency responses over a sweep, and
 //! the operating-frequency selection.
 
+pub mod batch;
 pub mod response;
 pub mod selection;
 pub mod sweep;
 
-pub use response::{ResponseSample, SimSettings, evaluate_point, evaluate_point_observed};
+pub use batch::{DEFAULT_LANES, evaluate_interleaved};
+pub use response::{
+    ResponseSample, SimSettings, evaluate_point, evaluate_point_observed, simulator_at,
+};
 pub use selection::{
     Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, select, select_sequential,
 };

@@ -48,6 +48,21 @@ pub fn evaluate_point_observed<T: Real, O: Observer<T>>(
     settings: &SimSettings,
     obs: &mut O,
 ) -> Result<PointResult, ParamError> {
+    let mut sim = simulator_at(params, gap_m, omega_ratio, settings)?;
+    run_protocol(&mut sim, &settings.protocol, params.weight_n(), obs)
+}
+
+/// A simulator at rest at phase 0 for `gap_m` (m) and `omega_ratio` (`Ω/ω`).
+///
+/// # Errors
+/// [`ParamError`] for invalid parameters, gap or settings, or `omega_ratio` outside
+/// [`OMEGA_RATIO_RANGE`].
+pub fn simulator_at<T: Real>(
+    params: &RigParams,
+    gap_m: f64,
+    omega_ratio: f64,
+    settings: &SimSettings,
+) -> Result<Simulator<T>, ParamError> {
     check_range(
         "omega_ratio",
         omega_ratio,
@@ -55,8 +70,7 @@ pub fn evaluate_point_observed<T: Real, O: Observer<T>>(
         OMEGA_RATIO_RANGE.1,
     )?;
     let omega_exc = omega_ratio * params.omega_n();
-    let mut sim = Simulator::<T>::new(params, gap_m, omega_exc, &settings.bands, &settings.steps)?;
-    run_protocol(&mut sim, &settings.protocol, params.weight_n(), obs)
+    Simulator::<T>::new(params, gap_m, omega_exc, &settings.bands, &settings.steps)
 }
 
 /// [`evaluate_point_observed`] without an observer.

@@ -559,8 +559,9 @@ fn hermite<T: Real>(
 }
 
 /// Time `τ ∈ (0, h]` at which `event` rises through 0 along the cubic Hermite interpolant of
-/// the step `x0 → x1` (slopes `f0`, `f1`), by bisection; `event(x0) ≤ 0 < event(x1)` is the
-/// caller's premise (if it fails, the bisection returns a time at one end of the step).
+/// the step `x0 → x1` (slopes `f0`, `f1`): regula falsi with the Illinois modification, stopped
+/// when the bracket is below `2^-20` of the step or after 40 evaluations; `event(x0) ≤ 0 <
+/// event(x1)` is the caller's premise (if it fails, the result is a time at one end of the step).
 #[inline]
 fn event_time<T: Real, G: Fn(&Vector2<T>) -> T>(
     x0: &Vector2<T>,
@@ -570,17 +571,48 @@ fn event_time<T: Real, G: Fn(&Vector2<T>) -> T>(
     h: T,
     event: G,
 ) -> T {
-    let one = T::from_f64(1.0);
+    let hi = root_in_unit(|s| event(&hermite(x0, f0, x1, f1, h, s)));
+    hi * h
+}
+
+/// The upper end of a bracket `[lo, hi] ⊂ [0, 1]` (below `2^-20` wide) of a rising zero of `g`
+/// with `g(0) ≤ 0 < g(1)`: Illinois regula falsi (superlinear on the smooth event functions here,
+/// each iteration shrinks the bracket), with a bisection step whenever the secant stalls.
+#[inline]
+fn root_in_unit<T: Real, G: Fn(T) -> T>(g: G) -> T {
     let half = T::from_f64(0.5);
-    let at = |s: T| hermite(x0, f0, x1, f1, h, s);
-    let (mut lo, mut hi) = (T::zero(), one);
-    for _ in 0..32 {
-        let mid = (lo + hi) * half;
-        if event(&at(mid)) > T::zero() {
+    let tol = T::from_f64(1.0 / f64::from(1u32 << 20));
+    let (mut lo, mut hi) = (T::zero(), T::from_f64(1.0));
+    let (mut g_lo, mut g_hi) = (g(lo), g(hi));
+    if !(g_lo <= T::zero() && g_hi > T::zero()) {
+        return if g_lo > T::zero() { lo } else { hi };
+    }
+    let mut side = 0i8;
+    for _ in 0..40 {
+        if hi - lo <= tol {
+            break;
+        }
+        let mut mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
+        let width = hi - lo;
+        if !(mid > lo + width * T::from_f64(1e-3) && mid < hi - width * T::from_f64(1e-3)) {
+            mid = (lo + hi) * half;
+        }
+        let g_mid = g(mid);
+        if g_mid > T::zero() {
             hi = mid;
+            g_hi = g_mid;
+            if side == 1 {
+                g_lo *= half;
+            }
+            side = 1;
         } else {
             lo = mid;
+            g_lo = g_mid;
+            if side == -1 {
+                g_hi *= half;
+            }
+            side = -1;
         }
     }
-    hi * h
+    hi
 }

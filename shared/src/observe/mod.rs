@@ -9,5 +9,5 @@ pub mod regime;
 
 pub use impact::{ImpactEvent, ImpactTracker};
 pub use poincare::StroboPoint;
-pub use protocol::{Observer, PointResult, Protocol, run_protocol};
+pub use protocol::{Observer, PointResult, Protocol, ProtocolRun, run_protocol};
 pub use regime::Regime;

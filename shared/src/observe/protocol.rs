@@ -127,94 +127,161 @@ pub fn run_protocol<T: Real, O: Observer<T>>(
     weight_n: f64,
     obs: &mut O,
 ) -> Result<PointResult, ParamError> {
-    protocol.validate()?;
-    let hammer = *sim.hammer();
-    let u_scale = hammer.amplitude;
-    let v_scale = T::from_f64(hammer.amplitude.to_f64() * hammer.omega_exc);
-    let steady_tol = T::from_f64(protocol.steady_tol);
-    let (delta0, _) = hammer.penetration(&sim.state());
-    let mut tracker = ImpactTracker::new(hammer.switch.eta_delta, delta0);
-    let rk4_start = sim.rk4_steps();
-
-    // Transient.
-    let mut history = SectionHistory::<T>::default();
-    let mut transient = 0;
-    let mut settled = false;
-    while transient < protocol.max_transient_periods {
-        run_observed_period(sim, &mut tracker, obs, false);
-        transient += 1;
-        let (u, du) = sim.relative();
-        let p = StroboPoint { u, du };
-        obs.strobe(&p, false);
-        history.push(p);
-        if history
-            .repeating_period(
-                protocol.max_q as usize,
-                protocol.steady_cycles as usize,
-                steady_tol,
-                u_scale,
-                v_scale,
-            )
-            .is_some()
-        {
-            settled = true;
-            break;
+    let mut run = ProtocolRun::new(sim, protocol, weight_n)?;
+    loop {
+        if let Some(result) = run.step(sim, obs) {
+            return Ok(result);
         }
     }
-
-    // Observation window.
-    let mut section: Vec<StroboPoint<T>, MAX_OBSERVE_PERIODS> = Vec::new();
-    let mut impacts: Vec<u16, MAX_OBSERVE_PERIODS> = Vec::new();
-    let mut max_force = T::zero();
-    let mut total = 0u32;
-    for _ in 0..protocol.observe_periods {
-        let (arrivals, fmax) = run_observed_period(sim, &mut tracker, obs, true);
-        max_force = max_force.max_of(fmax);
-        total += u32::from(arrivals);
-        let (u, du) = sim.relative();
-        let p = StroboPoint { u, du };
-        obs.strobe(&p, true);
-        // Capacities hold by validation (observe_periods ≤ 256).
-        let _ = section.push(p);
-        let _ = impacts.push(arrivals);
-    }
-    let regime = classify(
-        &section,
-        &impacts,
-        protocol.max_q as usize,
-        T::from_f64(protocol.classify_tol),
-        u_scale,
-        v_scale,
-    );
-    let max_force_n = max_force.to_f64();
-    Ok(PointResult {
-        regime,
-        impacts: total,
-        max_force_n,
-        impact_force_mg: max_force_n / weight_n,
-        transient_periods: transient,
-        settled,
-        rk4_steps: sim.rk4_steps() - rk4_start,
-    })
 }
 
-/// One period: feeds the tracker and the observer; returns (arrivals, max force in N).
-fn run_observed_period<T: Real, O: Observer<T>>(
-    sim: &mut Simulator<T>,
-    tracker: &mut ImpactTracker<T>,
-    obs: &mut O,
-    window: bool,
-) -> (u16, T) {
-    let mut arrivals = 0u16;
-    let mut fmax = T::zero();
-    sim.run_period(&mut |s: &StepSample<T>| {
-        fmax = fmax.max_of(s.force);
-        match tracker.update(s.delta, s.force) {
-            Some(ImpactEvent::Arrival) => arrivals = arrivals.saturating_add(1),
-            Some(ImpactEvent::End { peak_n }) => obs.impact(peak_n, window),
-            None => {}
+/// The protocol as a resumable computation, advanced one integrator step at a time by
+/// [`ProtocolRun::step`] ([`run_protocol`] loops over it). Several runs stepped in turn on one
+/// core overlap their floating-point latency chains (`crate::analysis::batch`).
+#[derive(Debug, Clone)]
+pub struct ProtocolRun<T: Real> {
+    protocol: Protocol,
+    weight_n: f64,
+    u_scale: T,
+    v_scale: T,
+    steady_tol: T,
+    tracker: ImpactTracker<T>,
+    rk4_start: u64,
+    history: SectionHistory<T>,
+    transient: u32,
+    settled: bool,
+    in_window: bool,
+    observed: u32,
+    arrivals: u16,
+    period_force: T,
+    max_force: T,
+    total: u32,
+    section: Vec<StroboPoint<T>, MAX_OBSERVE_PERIODS>,
+    impacts: Vec<u16, MAX_OBSERVE_PERIODS>,
+    done: Option<PointResult>,
+}
+
+impl<T: Real> ProtocolRun<T> {
+    /// Starts the protocol from `sim`'s current state and phase (which must be at a period
+    /// boundary, as after construction or a reset). `weight_n` is `m g`, N.
+    ///
+    /// # Errors
+    /// [`ParamError`] if `protocol` is invalid.
+    pub fn new(sim: &Simulator<T>, protocol: &Protocol, weight_n: f64) -> Result<Self, ParamError> {
+        protocol.validate()?;
+        let hammer = *sim.hammer();
+        let (delta0, _) = hammer.penetration(&sim.state());
+        let in_window = protocol.max_transient_periods == 0;
+        Ok(ProtocolRun {
+            protocol: *protocol,
+            weight_n,
+            u_scale: hammer.amplitude,
+            v_scale: T::from_f64(hammer.amplitude.to_f64() * hammer.omega_exc),
+            steady_tol: T::from_f64(protocol.steady_tol),
+            tracker: ImpactTracker::new(hammer.switch.eta_delta, delta0),
+            rk4_start: sim.rk4_steps(),
+            history: SectionHistory::default(),
+            transient: 0,
+            settled: false,
+            in_window,
+            observed: 0,
+            arrivals: 0,
+            period_force: T::zero(),
+            max_force: T::zero(),
+            total: 0,
+            section: Vec::new(),
+            impacts: Vec::new(),
+            done: None,
+        })
+    }
+
+    /// Advances `sim` by one integrator step (feeding the tracker and `obs`); at a period end,
+    /// takes the Poincaré point and decides whether the transient is over. Returns the result
+    /// once the observation window is complete (and from then on returns it without stepping).
+    pub fn step<O: Observer<T>>(
+        &mut self,
+        sim: &mut Simulator<T>,
+        obs: &mut O,
+    ) -> Option<PointResult> {
+        if self.done.is_some() {
+            return self.done;
         }
-        obs.sample(s, window);
-    });
-    (arrivals, fmax)
+        let window = self.in_window;
+        let mut period_end = false;
+        let tracker = &mut self.tracker;
+        let arrivals = &mut self.arrivals;
+        let fmax = &mut self.period_force;
+        sim.step(&mut |s: &StepSample<T>| {
+            *fmax = fmax.max_of(s.force);
+            match tracker.update(s.delta, s.force) {
+                Some(ImpactEvent::Arrival) => *arrivals = arrivals.saturating_add(1),
+                Some(ImpactEvent::End { peak_n }) => obs.impact(peak_n, window),
+                None => {}
+            }
+            obs.sample(s, window);
+            period_end |= s.period_end;
+        });
+        if !period_end {
+            return None;
+        }
+        let (u, du) = sim.relative();
+        let p = StroboPoint { u, du };
+        obs.strobe(&p, window);
+        let (arrivals, fmax) = (self.arrivals, self.period_force);
+        self.arrivals = 0;
+        self.period_force = T::zero();
+        if !window {
+            self.transient += 1;
+            self.history.push(p);
+            let repeating = self
+                .history
+                .repeating_period(
+                    self.protocol.max_q as usize,
+                    self.protocol.steady_cycles as usize,
+                    self.steady_tol,
+                    self.u_scale,
+                    self.v_scale,
+                )
+                .is_some();
+            if repeating {
+                self.settled = true;
+            }
+            if repeating || self.transient >= self.protocol.max_transient_periods {
+                self.in_window = true;
+            }
+            return None;
+        }
+        self.max_force = self.max_force.max_of(fmax);
+        self.total += u32::from(arrivals);
+        // Capacities hold by validation (observe_periods ≤ 256).
+        let _ = self.section.push(p);
+        let _ = self.impacts.push(arrivals);
+        self.observed += 1;
+        if self.observed < self.protocol.observe_periods {
+            return None;
+        }
+        self.done = Some(self.result(sim));
+        self.done
+    }
+
+    fn result(&self, sim: &Simulator<T>) -> PointResult {
+        let regime = classify(
+            &self.section,
+            &self.impacts,
+            self.protocol.max_q as usize,
+            T::from_f64(self.protocol.classify_tol),
+            self.u_scale,
+            self.v_scale,
+        );
+        let max_force_n = self.max_force.to_f64();
+        PointResult {
+            regime,
+            impacts: self.total,
+            max_force_n,
+            impact_force_mg: max_force_n / self.weight_n,
+            transient_periods: self.transient,
+            settled: self.settled,
+            rk4_steps: sim.rk4_steps() - self.rk4_start,
+        }
+    }
 }
