@@ -315,8 +315,16 @@ impl<R: DeserializeOwned + Indexed> Input<R> {
             None => None,
             Some(r) => {
                 self.line += 1;
-                Some(r.with_context(|| {
-                    format!("{} line {}: malformed row", self.path.display(), self.line)
+                Some(r.map_err(|e| {
+                    let why = match e.kind() {
+                        csv::ErrorKind::Deserialize { err, .. } => err.to_string(),
+                        _ => e.to_string(),
+                    };
+                    anyhow!(
+                        "{} line {}: malformed row: {why}",
+                        self.path.display(),
+                        self.line
+                    )
                 })?)
             }
         };
