@@ -194,6 +194,21 @@ impl Meta {
             .with_context(|| format!("{} metadata: malformed grid", self.kind))
     }
 
+    /// One line describing the run (kind, shard, points).
+    pub fn describe(&self) -> String {
+        match self.shard {
+            Some(s) => format!(
+                "{} shard {}/{}: {} of {} points",
+                self.kind,
+                s.index,
+                s.count,
+                s.len(usize::try_from(self.points).unwrap_or(usize::MAX)),
+                self.points
+            ),
+            None => format!("{}: {} points", self.kind, self.points),
+        }
+    }
+
     /// Writes the first line of a shard file.
     ///
     /// # Errors

@@ -310,7 +310,7 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         finish(&mut outputs, &meta, raw.path(), &out, a.plot.as_deref())?;
     }
     outputs.commit()?;
-    eprintln!("{} → {}", super::peterka::describe(&meta), a.out.display());
+    eprintln!("{} → {}", meta.describe(), a.out.display());
     Ok(())
 }
 

@@ -335,7 +335,7 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
         figure(&mut outputs, &meta, &out, a.plot.as_deref())?;
     }
     outputs.commit()?;
-    eprintln!("{} → {}", super::peterka::describe(&meta), a.out.display());
+    eprintln!("{} → {}", meta.describe(), a.out.display());
     Ok(())
 }
 

@@ -265,23 +265,8 @@ pub fn run(a: &PeterkaArgs) -> Result<()> {
         )?;
     }
     outputs.commit()?;
-    eprintln!("{} → {}", describe(&meta), a.out.display());
+    eprintln!("{} → {}", meta.describe(), a.out.display());
     Ok(())
-}
-
-/// One line describing the run.
-pub fn describe(meta: &Meta) -> String {
-    match meta.shard {
-        Some(s) => format!(
-            "{} shard {}/{}: {} of {} points",
-            meta.kind,
-            s.index,
-            s.count,
-            s.len(meta.points as usize),
-            meta.points
-        ),
-        None => format!("{}: {} points", meta.kind, meta.points),
-    }
 }
 
 /// Draws the figures of a complete Peterka CSV `csv` (one run or merged) into reserved files.
