@@ -9,7 +9,9 @@ use shared::model::{ContactLawKind, RigId};
 use crate::commands;
 
 /// Float type of the simulation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
     /// Single precision: the MCU's arithmetic (default).
@@ -67,9 +69,20 @@ pub enum Command {
     Simulate(commands::simulate::SimulateArgs),
     /// Batch evaluation of (gap_mm, omega_ratio) points from a CSV, in parallel.
     Points(commands::points::PointsArgs),
+    /// Bifurcation diagram: Poincaré u and impact peaks F_i/mg vs Ω/ω, from rest or by
+    /// continuation (up/down/both).
+    Bifurcation(commands::bifurcation::BifurcationArgs),
+    /// Peterka map: the impact regime over a gap × frequency grid, and the z = 1/1 force map.
+    Peterka(commands::peterka::PeterkaArgs),
+    /// Basins of attraction over a grid of initial conditions (u0, u̇0).
+    Basins(commands::basins::BasinsArgs),
+    /// Join the shard CSVs of a peterka/basins/bifurcation run (--shard I/N) into its CSV and
+    /// figures.
+    Merge(commands::merge::MergeArgs),
 }
 
-/// Runs the CLI; errors are printed as `error: …` with a non-zero exit status.
+/// Runs the CLI; errors are printed as `error: …` with a non-zero exit status (130 after
+/// Ctrl-C).
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -77,12 +90,20 @@ pub fn main() -> ExitCode {
         Command::Response(a) => commands::response::run(&a),
         Command::Simulate(a) => commands::simulate::run(&a),
         Command::Points(a) => commands::points::run(&a),
+        Command::Bifurcation(a) => commands::bifurcation::run(&a),
+        Command::Peterka(a) => commands::peterka::run(&a),
+        Command::Basins(a) => commands::basins::run(&a),
+        Command::Merge(a) => commands::merge::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            if e.downcast_ref::<crate::interrupt::Interrupted>().is_some() {
+                ExitCode::from(130)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }

@@ -1,10 +1,14 @@
 //! Desktop side of the vibro-impact hammer project: the analysis commands (`select`,
-//! `response`, `simulate`, `points`), their CSV and PNG outputs, and the parallel runner.
+//! `response`, `simulate`, `points`, `bifurcation`, `peterka`, `basins`, `merge`), their CSV and PNG outputs, and the parallel runner.
 //! All physics comes from the `shared` crate, the same code the firmware runs.
 
 pub mod cli;
 pub mod commands;
 pub mod config;
+pub mod grid;
+pub mod interrupt;
+pub mod maps;
 pub mod output;
 pub mod plot;
 pub mod runner;
+pub mod shard;

@@ -8,9 +8,11 @@ use plotters::prelude::*;
 use shared::observe::Regime;
 
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-const SANS: &str = "sans-serif";
+/// Family name of the bundled font.
+pub(crate) const SANS: &str = "sans-serif";
 
-fn ensure_font() {
+/// Registers the bundled font (once).
+pub(crate) fn ensure_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         // The bundled font is valid TTF; a failure would only show as missing text.
@@ -18,7 +20,8 @@ fn ensure_font() {
     });
 }
 
-fn err<E: std::fmt::Display>(e: E) -> anyhow::Error {
+/// A plotters error as an `anyhow` error.
+pub(crate) fn err<E: std::fmt::Display>(e: E) -> anyhow::Error {
     anyhow!("plot: {e}")
 }
 

@@ -1,5 +1,9 @@
 //! One module per command.
 
+pub mod basins;
+pub mod bifurcation;
+pub mod merge;
+pub mod peterka;
 pub mod points;
 pub mod response;
 pub mod select;

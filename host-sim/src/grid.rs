@@ -1,0 +1,234 @@
+//! Long grid runs with flat memory: the points of a grid (or of one shard of it) are taken in
+//! chunks of [`CHUNK`] in ascending index order; each chunk is evaluated in parallel (rayon, all
+//! cores or `RAYON_NUM_THREADS`) and its results are handed to a sink in index order, so the
+//! sink can stream CSV rows to disk and nothing grows with the grid. A progress bar with rate and
+//! ETA is drawn on a terminal (nothing when stderr is not a terminal). Ctrl-C stops the run after
+//! the current chunk with [`Interrupted`](crate::interrupt::Interrupted).
+
+use anyhow::{Context, Result, anyhow, bail};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use std::path::Path;
+
+use crate::interrupt;
+use crate::runner::progress;
+use crate::shard::{Meta, Shard, create_csv};
+
+/// Points evaluated per parallel chunk.
+pub const CHUNK: usize = 4096;
+
+/// Evaluates `compute(i)` for every index of `indices` (ascending), `CHUNK` at a time in
+/// parallel, and passes each result to `sink` in index order. `len` is the number of indices
+/// (for the progress bar).
+///
+/// # Errors
+/// The first failing point or sink call (in index order), or [`Interrupted`](crate::interrupt::Interrupted).
+pub fn run_chunked<R: Send>(
+    indices: impl Iterator<Item = usize>,
+    len: usize,
+    what: &str,
+    compute: impl Fn(usize) -> Result<R> + Sync,
+    mut sink: impl FnMut(usize, R) -> Result<()>,
+) -> Result<()> {
+    interrupt::install();
+    let bar = progress(len, what);
+    let mut indices = indices;
+    let mut chunk: Vec<usize> = Vec::with_capacity(CHUNK);
+    loop {
+        chunk.clear();
+        chunk.extend(indices.by_ref().take(CHUNK));
+        if chunk.is_empty() {
+            break;
+        }
+        let results: Vec<Option<Result<R>>> = chunk
+            .par_iter()
+            .map(|&i| {
+                if interrupt::requested() {
+                    return None;
+                }
+                let r = compute(i);
+                bar.inc(1);
+                Some(r)
+            })
+            .collect();
+        if let Err(e) = interrupt::check() {
+            bar.abandon();
+            return Err(e.into());
+        }
+        for (&i, r) in chunk.iter().zip(results) {
+            let r = r.ok_or_else(|| anyhow!(interrupt::Interrupted))?;
+            sink(i, r?)?;
+        }
+    }
+    bar.finish_and_clear();
+    Ok(())
+}
+
+/// Writes the rows of a from-rest grid run to the CSV `path`: the points of `meta.shard` (or
+/// all), `compute(i)` giving the rows of point `i`, in index order. A shard file starts with
+/// its metadata line; a whole-grid file is a plain CSV.
+///
+/// # Errors
+/// As [`run_chunked`], or I/O failure.
+pub fn write_grid<I>(
+    path: &Path,
+    meta: &Meta,
+    header: &[&str],
+    what: &str,
+    compute: impl Fn(usize) -> Result<I> + Sync,
+) -> Result<()>
+where
+    I: IntoIterator + Send,
+    I::Item: Serialize,
+{
+    let total = usize::try_from(meta.points).context("grid too large for this platform")?;
+    let shard = meta.shard.unwrap_or(Shard::WHOLE);
+    let mut w = create_csv(path, meta.shard.is_some().then_some(meta), header)?;
+    run_chunked(
+        shard.indices(total),
+        shard.len(total),
+        what,
+        compute,
+        |_, rows| {
+            for r in rows {
+                w.serialize(r)?;
+            }
+            Ok(())
+        },
+    )?;
+    w.flush()?;
+    Ok(())
+}
+
+/// `count` evenly spaced values from `start` to `end`, both included (`START:END:COUNT`, used
+/// for initial-condition grids).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CountSweep {
+    /// First value.
+    pub start: f64,
+    /// Last value (equal to `start` when `count` is 1).
+    pub end: f64,
+    /// Number of values, ≥ 1.
+    pub count: u32,
+}
+
+/// Largest `COUNT` of a [`CountSweep`].
+pub const MAX_COUNT: u32 = 4096;
+
+impl CountSweep {
+    /// Parses `START:END:COUNT` given to `flag`, values within `[min, max]`.
+    ///
+    /// # Errors
+    /// Not three fields, non-numbers, NaN, values outside `[min, max]`, `START > END`,
+    /// `COUNT` outside `1 ..= 4096`, or `COUNT = 1` with `START ≠ END`.
+    pub fn parse(flag: &str, text: &str, min: f64, max: f64) -> Result<Self> {
+        let parts: Vec<&str> = text.split(':').collect();
+        if parts.len() != 3 {
+            bail!(
+                "{flag} {text}: expected START:END:COUNT (COUNT points, both ends included), e.g. -1:1:41"
+            );
+        }
+        let num = |p: &str| -> Result<f64> {
+            p.trim()
+                .parse::<f64>()
+                .with_context(|| format!("{flag} {text}: `{p}` is not a number"))
+        };
+        let (start, end) = (num(parts[0])?, num(parts[1])?);
+        let count: u32 = parts[2].trim().parse().map_err(|_| {
+            anyhow!(
+                "{flag} {text}: COUNT `{}` must be a whole number in 1 ..= {MAX_COUNT}",
+                parts[2]
+            )
+        })?;
+        for (name, v) in [("START", start), ("END", end)] {
+            if !v.is_finite() || v < min || v > max {
+                bail!("{flag} {text}: {name} = {v} is out of range: allowed {min} ..= {max}");
+            }
+        }
+        if !(1..=MAX_COUNT).contains(&count) {
+            bail!("{flag} {text}: COUNT = {count} is out of range: allowed 1 ..= {MAX_COUNT}");
+        }
+        if start > end {
+            bail!("{flag} {text}: START must be ≤ END");
+        }
+        if count == 1 && start != end {
+            bail!("{flag} {text}: with COUNT = 1, START must equal END");
+        }
+        Ok(CountSweep { start, end, count })
+    }
+
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        self.count as usize
+    }
+
+    /// Never empty.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The `i`-th value (`start + (end − start)·i/(count − 1)`).
+    pub fn value(&self, i: usize) -> f64 {
+        if self.count <= 1 {
+            self.start
+        } else {
+            self.start + (self.end - self.start) * i as f64 / f64::from(self.count - 1)
+        }
+    }
+
+    /// Spacing between values (1 when there is a single value, for plotting a cell width).
+    pub fn spacing(&self) -> f64 {
+        if self.count <= 1 {
+            1.0
+        } else {
+            (self.end - self.start) / f64::from(self.count - 1)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn count_sweeps() {
+        let s = CountSweep::parse("--u0-mm", "-1:1:5", -20.0, 20.0).unwrap();
+        assert_eq!(s.len(), 5);
+        assert_eq!(s.value(0), -1.0);
+        assert_eq!(s.value(4), 1.0);
+        assert_eq!(s.value(2), 0.0);
+        assert_eq!(
+            CountSweep::parse("--u0-mm", "0.5:0.5:1", -20.0, 20.0)
+                .unwrap()
+                .value(0),
+            0.5
+        );
+        for bad in [
+            "-1:1:0", "-1:1", "1:-1:3", "-1:1:x", "NaN:1:3", "-30:1:3", "0:1:1", "0:1:2.5",
+        ] {
+            assert!(
+                CountSweep::parse("--u0-mm", bad, -20.0, 20.0).is_err(),
+                "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn chunks_keep_index_order() {
+        let mut seen = Vec::new();
+        run_chunked(
+            (0..10_000).step_by(3),
+            3334,
+            "test",
+            |i| Ok(i * 2),
+            |i, r| {
+                assert_eq!(r, i * 2);
+                seen.push(i);
+                Ok(())
+            },
+        )
+        .unwrap();
+        assert_eq!(seen, (0..10_000).step_by(3).collect::<Vec<_>>());
+    }
+}

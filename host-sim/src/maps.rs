@@ -1,0 +1,613 @@
+//! Figures of the grid commands (Peterka map, force map, basins of attraction, bifurcation
+//! diagram). Maps are drawn from fixed-size rasters filled cell by cell while the CSV is read,
+//! so memory does not grow with the grid; colours are fixed functions of the regime (or of the
+//! sorted attractor id), so a one-run figure and a figure merged from shards are identical.
+
+use std::path::Path;
+
+use anyhow::Result;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::colors::colormaps::ViridisRGB;
+use shared::observe::Regime;
+
+use crate::plot::{SANS, ensure_font, err};
+
+/// Largest raster side, cells: grids finer than this are down-sampled (last cell in index order
+/// wins), which is finer than the figure's pixels anyway.
+pub const RASTER_MAX: usize = 1200;
+
+/// A fixed-size raster over an `nx × ny` cell grid (`x` index fastest in the plot's `x`).
+#[derive(Debug, Clone)]
+pub struct Raster<T: Copy> {
+    nx: usize,
+    ny: usize,
+    rx: usize,
+    ry: usize,
+    data: Vec<T>,
+}
+
+impl<T: Copy> Raster<T> {
+    /// A raster for `nx × ny` cells, at most [`RASTER_MAX`] per side, filled with `fill`.
+    pub fn new(nx: usize, ny: usize, fill: T) -> Self {
+        let (rx, ry) = (nx.clamp(1, RASTER_MAX), ny.clamp(1, RASTER_MAX));
+        Raster {
+            nx: nx.max(1),
+            ny: ny.max(1),
+            rx,
+            ry,
+            data: vec![fill; rx * ry],
+        }
+    }
+
+    /// Sets cell `(ix, iy)`.
+    pub fn set(&mut self, ix: usize, iy: usize, v: T) {
+        let cx = (ix * self.rx / self.nx).min(self.rx - 1);
+        let cy = (iy * self.ry / self.ny).min(self.ry - 1);
+        self.data[cy * self.rx + cx] = v;
+    }
+
+    /// Every stored value.
+    pub fn values(&self) -> impl Iterator<Item = T> + '_ {
+        self.data.iter().copied()
+    }
+
+    /// Paints the raster onto `area` (its full pixel extent, `y` up), colour by `color`.
+    fn blit(
+        &self,
+        area: &DrawingArea<BitMapBackend<'_>, Shift>,
+        color: impl Fn(T) -> RGBColor,
+    ) -> Result<()> {
+        let (pw, ph) = area.dim_in_pixel();
+        let (pw, ph) = (pw as usize, ph as usize);
+        for py in 0..ph {
+            let cy = ((ph - 1 - py) * self.ry / ph).min(self.ry - 1);
+            for px in 0..pw {
+                let cx = (px * self.rx / pw).min(self.rx - 1);
+                let c = color(self.data[cy * self.rx + cx]);
+                area.draw_pixel((px as i32, py as i32), &c).map_err(err)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// An axis of a map: cell centres `lo + i·step`, `n` cells.
+#[derive(Debug, Clone)]
+pub struct MapAxis {
+    /// First cell centre.
+    pub lo: f64,
+    /// Spacing between cell centres.
+    pub step: f64,
+    /// Number of cells.
+    pub n: usize,
+    /// Label of the axis, with its unit.
+    pub label: String,
+}
+
+impl MapAxis {
+    fn range(&self) -> (f64, f64) {
+        let half = 0.5 * self.step;
+        let hi = self.lo + (self.n.max(1) - 1) as f64 * self.step;
+        (self.lo - half, hi + half)
+    }
+}
+
+/// Swatch or marker in a legend panel.
+#[derive(Debug, Clone)]
+pub enum LegendMark {
+    /// A filled square.
+    Swatch(RGBColor),
+    /// A filled square with a black ring: an attractor whose Poincaré point is marked.
+    Dot(RGBColor),
+    /// No mark: a smaller continuation line of the entry above.
+    Text,
+}
+
+/// The colours and legend names of regimes on maps: the named regimes keep their own colour,
+/// every other periodic regime is "other periodic".
+pub const MAP_REGIMES: [(u16, u16, RGBColor); 11] = [
+    (1, 1, RGBColor(215, 25, 28)),
+    (1, 2, RGBColor(26, 150, 65)),
+    (2, 2, RGBColor(253, 174, 97)),
+    (1, 3, RGBColor(117, 112, 179)),
+    (2, 1, RGBColor(166, 86, 40)),
+    (3, 3, RGBColor(231, 41, 138)),
+    (2, 3, RGBColor(0, 160, 160)),
+    (3, 1, RGBColor(128, 128, 0)),
+    (1, 4, RGBColor(31, 60, 140)),
+    (4, 4, RGBColor(240, 200, 0)),
+    (3, 2, RGBColor(190, 120, 220)),
+];
+const OTHER_PERIODIC: RGBColor = RGBColor(43, 131, 186);
+const NO_IMPACT: RGBColor = RGBColor(190, 190, 190);
+const IRREGULAR: RGBColor = RGBColor(0, 0, 0);
+const EMPTY: RGBColor = RGBColor(255, 255, 255);
+const NOT_ONE_ONE: RGBColor = RGBColor(228, 228, 228);
+
+/// Legend class of a regime on a map: its position in the legend order and its name.
+pub fn map_class(r: Regime) -> (usize, String) {
+    match r {
+        Regime::Periodic { p, q } => {
+            match MAP_REGIMES.iter().position(|&(a, b, _)| a == p && b == q) {
+                Some(k) => (k, format!("z = {p}/{q}")),
+                None => (MAP_REGIMES.len(), "other periodic".into()),
+            }
+        }
+        Regime::Irregular => (MAP_REGIMES.len() + 1, "irregular".into()),
+        Regime::NoImpact => (MAP_REGIMES.len() + 2, "no impact".into()),
+    }
+}
+
+/// Colour of a regime on a map (a fixed function of the regime).
+pub fn map_color(r: Regime) -> RGBColor {
+    match r {
+        Regime::Periodic { p, q } => MAP_REGIMES
+            .iter()
+            .find(|&&(a, b, _)| a == p && b == q)
+            .map_or(OTHER_PERIODIC, |&(_, _, c)| c),
+        Regime::Irregular => IRREGULAR,
+        Regime::NoImpact => NO_IMPACT,
+    }
+}
+
+/// A map cell of a Peterka grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Cell {
+    /// Not computed (cannot happen in a complete grid).
+    Empty,
+    /// A regime (and its `F_i/mg`).
+    Regime(Regime, f32),
+}
+
+fn figure_with_panel<'a>(
+    path: &'a Path,
+    title: &str,
+) -> Result<(
+    DrawingArea<BitMapBackend<'a>, Shift>,
+    DrawingArea<BitMapBackend<'a>, Shift>,
+)> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1280, 860)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, (SANS, 20)).map_err(err)?;
+    let (left, right) = root.split_horizontally(1030);
+    Ok((left, right))
+}
+
+type MapChart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+fn map_chart<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    x: &MapAxis,
+    y: &MapAxis,
+) -> Result<MapChart<'a, 'b>> {
+    let (x0, x1) = x.range();
+    let (y0, y1) = y.range();
+    let mut chart = ChartBuilder::on(area)
+        .margin(10)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x.label.as_str())
+        .y_desc(y.label.as_str())
+        .label_style((SANS, 15))
+        .axis_desc_style((SANS, 17))
+        .draw()
+        .map_err(err)?;
+    Ok(chart)
+}
+
+fn legend_panel(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    heading: &str,
+    entries: &[(String, LegendMark)],
+) -> Result<()> {
+    let x = 10;
+    let mut y = 70;
+    area.draw(&Text::new(
+        heading.to_string(),
+        (x, y),
+        (SANS, 17).into_font(),
+    ))
+    .map_err(err)?;
+    y += 30;
+    for (name, mark) in entries {
+        let square = [(x, y), (x + 18, y + 18)];
+        match mark {
+            LegendMark::Swatch(c) => {
+                area.draw(&Rectangle::new(square, c.filled()))
+                    .map_err(err)?;
+                area.draw(&Rectangle::new(square, BLACK.stroke_width(1)))
+                    .map_err(err)?;
+            }
+            LegendMark::Dot(c) => {
+                area.draw(&Rectangle::new(square, c.filled()))
+                    .map_err(err)?;
+                area.draw(&Circle::new((x + 9, y + 9), 5, BLACK.stroke_width(2)))
+                    .map_err(err)?;
+            }
+            LegendMark::Text => {}
+        }
+        let (dy, size) = match mark {
+            LegendMark::Text => (-4, 13),
+            _ => (1, 15),
+        };
+        area.draw(&Text::new(
+            name.clone(),
+            (x + 28, y + dy),
+            (SANS, size).into_font(),
+        ))
+        .map_err(err)?;
+        y += match mark {
+            LegendMark::Text => 22,
+            _ => 26,
+        };
+    }
+    Ok(())
+}
+
+/// Regime over `x × y` cells with a legend of the regimes present (thesis Fig. 3.24).
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn regime_map(
+    path: &Path,
+    title: &str,
+    x: &MapAxis,
+    y: &MapAxis,
+    cells: &Raster<Cell>,
+) -> Result<()> {
+    let (left, right) = figure_with_panel(path, title)?;
+    let chart = map_chart(&left, x, y)?;
+    cells.blit(&chart.plotting_area().strip_coord_spec(), |c| match c {
+        Cell::Empty => EMPTY,
+        Cell::Regime(r, _) => map_color(r),
+    })?;
+    drop(chart);
+    let mut classes: Vec<(usize, String, RGBColor)> = Vec::new();
+    for c in cells.values() {
+        if let Cell::Regime(r, _) = c {
+            let (k, name) = map_class(r);
+            if !classes.iter().any(|(j, _, _)| *j == k) {
+                classes.push((k, name, map_color(r)));
+            }
+        }
+    }
+    classes.sort_by_key(|(k, _, _)| *k);
+    let entries: Vec<(String, LegendMark)> = classes
+        .into_iter()
+        .map(|(_, n, c)| (n, LegendMark::Swatch(c)))
+        .collect();
+    legend_panel(&right, "regime", &entries)?;
+    left.present().map_err(err)?;
+    Ok(())
+}
+
+/// The `z = 1/1` cells coloured by `F_i/mg` with a colour bar, other cells light grey
+/// (thesis Fig. 3.26). `range` is the `F_i/mg` span of the `1/1` cells.
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn force_map(
+    path: &Path,
+    title: &str,
+    x: &MapAxis,
+    y: &MapAxis,
+    cells: &Raster<Cell>,
+    range: Option<(f64, f64)>,
+) -> Result<()> {
+    let (left, right) = figure_with_panel(path, title)?;
+    let chart = map_chart(&left, x, y)?;
+    let (lo, hi) = range.unwrap_or((0.0, 1.0));
+    let hi = if hi > lo { hi } else { lo + 1.0 };
+    let color =
+        |f: f64| -> RGBColor { ViridisRGB::get_color_normalized(f as f32, lo as f32, hi as f32) };
+    cells.blit(&chart.plotting_area().strip_coord_spec(), |c| match c {
+        Cell::Regime(Regime::Periodic { p: 1, q: 1 }, f) => color(f64::from(f)),
+        Cell::Empty => EMPTY,
+        Cell::Regime(..) => NOT_ONE_ONE,
+    })?;
+    drop(chart);
+    // Colour bar.
+    let (bx, by0, by1) = (20, 110, 560);
+    right
+        .draw(&Text::new(
+            "F_i/mg (z = 1/1)",
+            (10, 70),
+            (SANS, 17).into_font(),
+        ))
+        .map_err(err)?;
+    if range.is_some() {
+        for py in by0..=by1 {
+            let f = hi - (hi - lo) * f64::from(py - by0) / f64::from(by1 - by0);
+            right
+                .draw(&Rectangle::new(
+                    [(bx, py), (bx + 30, py + 1)],
+                    color(f).filled(),
+                ))
+                .map_err(err)?;
+        }
+        right
+            .draw(&Rectangle::new(
+                [(bx, by0), (bx + 30, by1 + 1)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(err)?;
+        for k in 0..=5 {
+            let f = lo + (hi - lo) * f64::from(k) / 5.0;
+            let py = by1 - (by1 - by0) * k / 5;
+            right
+                .draw(&PathElement::new([(bx + 30, py), (bx + 36, py)], BLACK))
+                .map_err(err)?;
+            right
+                .draw(&Text::new(
+                    format!("{f:.1}"),
+                    (bx + 40, py - 8),
+                    (SANS, 15).into_font(),
+                ))
+                .map_err(err)?;
+        }
+    } else {
+        right
+            .draw(&Text::new(
+                "no z = 1/1 cell",
+                (10, 110),
+                (SANS, 15).into_font(),
+            ))
+            .map_err(err)?;
+    }
+    legend_panel(
+        &right.clone().shrink((0, 560), (250, 300)),
+        "",
+        &[("other regimes".into(), LegendMark::Swatch(NOT_ONE_ONE))],
+    )?;
+    left.present().map_err(err)?;
+    Ok(())
+}
+
+/// Tableau-10: colours of several impacting attractors, by their sorted id.
+pub const ATTRACTOR_PALETTE: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+    RGBColor(127, 127, 127),
+];
+
+/// One attractor of a basin map.
+#[derive(Debug, Clone)]
+pub struct AttractorKey {
+    /// Legend label, e.g. `1/1 A`.
+    pub label: String,
+    /// Regime.
+    pub regime: Regime,
+    /// Canonical Poincaré point `(u mm, u̇ mm/s)`, if periodic.
+    pub point: Option<(f64, f64)>,
+    /// Cells in its basin.
+    pub cells: u64,
+}
+
+/// Colours of the attractors (indexed like `attractors`): no impact light grey, irregular
+/// black; a single impacting periodic attractor takes its regime's colour, several take
+/// [`ATTRACTOR_PALETTE`] in id order (beyond ten: "other attractors", dark grey).
+pub fn attractor_colors(attractors: &[AttractorKey]) -> Vec<RGBColor> {
+    let periodic = attractors
+        .iter()
+        .filter(|a| matches!(a.regime, Regime::Periodic { .. }))
+        .count();
+    let mut k = 0;
+    attractors
+        .iter()
+        .map(|a| match a.regime {
+            Regime::NoImpact => RGBColor(215, 215, 215),
+            Regime::Irregular => IRREGULAR,
+            Regime::Periodic { .. } if periodic == 1 => map_color(a.regime),
+            Regime::Periodic { .. } => {
+                k += 1;
+                ATTRACTOR_PALETTE
+                    .get(k - 1)
+                    .copied()
+                    .unwrap_or(RGBColor(80, 80, 80))
+            }
+        })
+        .collect()
+}
+
+/// Basins of attraction over `(u0, u̇0)` cells (thesis Figs. 3.36–3.38): cells hold the sorted
+/// attractor id (`u32::MAX` for none), the attractors' Poincaré points are marked.
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn basins_map(
+    path: &Path,
+    title: &str,
+    x: &MapAxis,
+    y: &MapAxis,
+    cells: &Raster<u32>,
+    attractors: &[AttractorKey],
+) -> Result<()> {
+    let (left, right) = figure_with_panel(path, title)?;
+    let colors = attractor_colors(attractors);
+    let mut chart = map_chart(&left, x, y)?;
+    cells.blit(&chart.plotting_area().strip_coord_spec(), |id| {
+        colors.get(id as usize).copied().unwrap_or(EMPTY)
+    })?;
+    let (x0, x1) = x.range();
+    let (y0, y1) = y.range();
+    for (a, c) in attractors.iter().zip(&colors) {
+        if let Some((u, v)) = a.point
+            && (x0..=x1).contains(&u)
+            && (y0..=y1).contains(&v)
+        {
+            chart
+                .draw_series([
+                    Circle::new((u, v), 7, c.filled()),
+                    Circle::new((u, v), 7, BLACK.stroke_width(2)),
+                ])
+                .map_err(err)?;
+        }
+    }
+    let total: u64 = attractors.iter().map(|a| a.cells).sum::<u64>().max(1);
+    let mut entries: Vec<(String, LegendMark)> = Vec::new();
+    let mut others = 0u64;
+    for (i, (a, c)) in attractors.iter().zip(&colors).enumerate() {
+        if i >= 12 {
+            others += a.cells;
+            continue;
+        }
+        let share = 100.0 * a.cells as f64 / total as f64;
+        let name = format!("{} ({share:.1} %)", a.label);
+        match a.point {
+            Some((u, v)) => {
+                entries.push((name, LegendMark::Dot(*c)));
+                entries.push((format!("u = {u:.3} mm, u̇ = {v:.1} mm/s"), LegendMark::Text));
+            }
+            None => entries.push((name, LegendMark::Swatch(*c))),
+        }
+    }
+    if others > 0 {
+        entries.push((
+            format!("other attractors ({others} cells)"),
+            LegendMark::Swatch(RGBColor(80, 80, 80)),
+        ));
+    }
+    legend_panel(&right, "attractor (basin share)", &entries)?;
+    left.present().map_err(err)?;
+    Ok(())
+}
+
+/// A dot of a bifurcation diagram.
+#[derive(Debug, Clone, Copy)]
+pub enum BifDot {
+    /// A Poincaré point: `Ω/ω`, `u` (mm).
+    Strobe(f64, f64),
+    /// An impact: `Ω/ω`, `F_i/mg`.
+    Impact(f64, f64),
+}
+
+/// Colour of a bifurcation branch (`rest`, `up`, `down`).
+pub fn branch_color(branch: &str) -> RGBColor {
+    match branch {
+        "up" => RGBColor(215, 25, 28),
+        "down" => RGBColor(43, 131, 186),
+        _ => RGBColor(20, 20, 20),
+    }
+}
+
+/// Axis spans of a bifurcation diagram.
+#[derive(Debug, Clone, Copy)]
+pub struct BifRanges {
+    /// `Ω/ω` span.
+    pub x: (f64, f64),
+    /// `u` span, mm.
+    pub u: (f64, f64),
+    /// Largest `F_i/mg`.
+    pub force_max: f64,
+}
+
+/// Two panels over `Ω/ω` (thesis Figs. 3.27/3.30): Poincaré `u` (mm) on top, impact peaks
+/// `F_i/mg` below, small dots coloured by branch. `feed` streams the dots of each branch:
+/// it is called with a drawing function taking `(branch, dot)`.
+///
+/// # Errors
+/// Drawing, file or `feed` errors.
+pub fn bifurcation(
+    path: &Path,
+    title: &str,
+    ranges: BifRanges,
+    gap_mm: f64,
+    branches: &[&str],
+    feed: impl FnOnce(&mut dyn FnMut(&str, BifDot) -> Result<()>) -> Result<()>,
+) -> Result<()> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1100, 950)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, (SANS, 20)).map_err(err)?;
+    let (top, bottom) = root.split_vertically(470);
+    let pad = |(a, b): (f64, f64)| {
+        let d = ((b - a) * 0.04).max(1e-3);
+        (a - d, b + d)
+    };
+    let (x0, x1) = pad(ranges.x);
+    let (u0, u1) = pad((ranges.u.0.min(gap_mm), ranges.u.1.max(gap_mm)));
+    let mut ct = ChartBuilder::on(&top)
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, u0..u1)
+        .map_err(err)?;
+    ct.configure_mesh()
+        .x_desc("Ω/ω")
+        .y_desc("Poincaré u (mm)")
+        .label_style((SANS, 15))
+        .axis_desc_style((SANS, 17))
+        .draw()
+        .map_err(err)?;
+    ct.draw_series(LineSeries::new(
+        [(x0, gap_mm), (x1, gap_mm)],
+        BLACK.mix(0.4),
+    ))
+    .map_err(err)?
+    .label(format!("impact surface u = gap = {gap_mm} mm"))
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.4)));
+    for b in branches {
+        let c = branch_color(b);
+        let name = match *b {
+            "up" => "continuation, Ω increasing",
+            "down" => "continuation, Ω decreasing",
+            _ => "from rest at each Ω",
+        };
+        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(err)?
+            .label(name)
+            .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
+    }
+    let mut cb = ChartBuilder::on(&bottom)
+        .margin(10)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, 0.0..(ranges.force_max * 1.06).max(1.0))
+        .map_err(err)?;
+    cb.configure_mesh()
+        .x_desc("Ω/ω")
+        .y_desc("impact peak F_i/mg")
+        .label_style((SANS, 15))
+        .axis_desc_style((SANS, 17))
+        .draw()
+        .map_err(err)?;
+    feed(&mut |branch: &str, dot: BifDot| {
+        let c = branch_color(branch).mix(0.75).filled();
+        match dot {
+            BifDot::Strobe(x, u) => {
+                ct.draw_series([Circle::new((x, u), 1, c)]).map_err(err)?;
+            }
+            BifDot::Impact(x, f) => {
+                cb.draw_series([Circle::new((x, f), 1, c)]).map_err(err)?;
+            }
+        }
+        Ok(())
+    })?;
+    ct.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}

@@ -1,0 +1,684 @@
+//! The grid commands (`peterka`, `basins`, `bifurcation`) and `merge`: shards merged equal a
+//! single run byte for byte, physics checks that can fail, bad input rejected with the flag and
+//! its range named, a non-zero exit and nothing written, and Ctrl-C leaving nothing behind.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use assert_cmd::Command;
+
+fn host_sim() -> Command {
+    let mut c = Command::cargo_bin("host-sim").unwrap();
+    c.env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("SLURM_ARRAY_TASK_COUNT");
+    c
+}
+
+fn run_ok(args: &[&str]) {
+    let out = host_sim().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn leftovers(dir: &Path) -> Vec<String> {
+    fs::read_dir(dir)
+        .unwrap()
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".host-sim-"))
+        .collect()
+}
+
+fn assert_rejected(args: &[&str], needles: &[&str], outputs: &[&Path]) {
+    let out = host_sim().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    for needle in needles {
+        assert!(
+            stderr.contains(needle),
+            "{args:?}: stderr `{stderr}` lacks `{needle}`"
+        );
+    }
+    for p in outputs {
+        assert!(!p.exists(), "{} was left behind", p.display());
+    }
+    if let Some(dir) = outputs.first().and_then(|p| p.parent()) {
+        assert!(leftovers(dir).is_empty(), "temporary files left");
+    }
+}
+
+fn strs(a: &[String]) -> Vec<&str> {
+    a.iter().map(String::as_str).collect()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs `cmd` once, then as 3 shards, merges them, and checks the CSVs and figures are equal
+/// byte for byte.
+fn shards_equal_one_run(dir: &Path, name: &str, cmd: &[&str], plots: &[&str]) {
+    let one = dir.join(format!("{name}-one.csv"));
+    let mut args: Vec<String> = cmd.iter().map(|a| a.to_string()).collect();
+    args.extend(["--out".into(), s(&one).into()]);
+    for flag in plots {
+        args.extend([
+            flag.to_string(),
+            s(&dir.join(format!("{name}-one{flag}.png"))).into(),
+        ]);
+    }
+    run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let mut shards: Vec<PathBuf> = Vec::new();
+    for i in 0..3 {
+        let p = dir.join(format!("{name}-shard{i}.csv"));
+        let mut a: Vec<String> = cmd.iter().map(|a| a.to_string()).collect();
+        a.extend([
+            "--out".into(),
+            s(&p).into(),
+            "--shard".into(),
+            format!("{i}/3"),
+        ]);
+        run_ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(
+            fs::read_to_string(&p)
+                .unwrap()
+                .starts_with("# host-sim-shard {")
+        );
+        shards.push(p);
+    }
+    let merged = dir.join(format!("{name}-merged.csv"));
+    let mut m: Vec<String> = vec!["merge".into(), "--out".into(), s(&merged).into()];
+    for flag in plots {
+        m.extend([
+            flag.to_string(),
+            s(&dir.join(format!("{name}-merged{flag}.png"))).into(),
+        ]);
+    }
+    // Shards in any order.
+    for i in [2, 0, 1] {
+        m.push(s(&shards[i]).into());
+    }
+    run_ok(&m.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(
+        fs::read(&one).unwrap(),
+        fs::read(&merged).unwrap(),
+        "{name}: merged CSV differs from the one-run CSV"
+    );
+    for flag in plots {
+        let a = fs::read(dir.join(format!("{name}-one{flag}.png"))).unwrap();
+        let b = fs::read(dir.join(format!("{name}-merged{flag}.png"))).unwrap();
+        assert_eq!(&a[..8], b"\x89PNG\r\n\x1a\n");
+        assert!(a == b, "{name}: merged {flag} figure differs");
+    }
+}
+
+#[test]
+fn peterka_shards_merge_to_the_one_run_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    shards_equal_one_run(
+        dir.path(),
+        "peterka",
+        &[
+            "peterka",
+            "--rig",
+            "wires",
+            "--gap-mm",
+            "0:0.3:0.1",
+            "--omega-ratio",
+            "1.2:2.8:0.4",
+        ],
+        &["--plot", "--force-plot"],
+    );
+    let text = fs::read_to_string(dir.path().join("peterka-one.csv")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        lines[0],
+        "index,gap_mm,gap_ratio,omega_ratio,freq_hz,regime,impacts,impact_force_mg,transient_periods,settled"
+    );
+    assert_eq!(lines.len(), 1 + 4 * 5);
+    // Gap outer, frequency inner; index in order.
+    for (i, l) in lines[1..].iter().enumerate() {
+        assert!(l.starts_with(&format!("{i},")), "{l}");
+    }
+    assert!(lines[6].starts_with("5,0.1,"), "{}", lines[6]);
+}
+
+#[test]
+fn basins_and_bifurcation_shards_merge_to_the_one_run_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    shards_equal_one_run(
+        dir.path(),
+        "basins",
+        &[
+            "basins",
+            "--rig",
+            "wires",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "1.5",
+            "--u0-mm",
+            "-1:0:4",
+            "--v0-mm-s",
+            "-10:10:5",
+        ],
+        &["--plot"],
+    );
+    shards_equal_one_run(
+        dir.path(),
+        "bif",
+        &[
+            "bifurcation",
+            "--rig",
+            "wires",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "1.4:2.2:0.2",
+        ],
+        &["--plot"],
+    );
+}
+
+#[test]
+fn slurm_variables_select_the_shard() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.csv");
+    let b = dir.path().join("b.csv");
+    let cmd = [
+        "peterka",
+        "--gap-mm",
+        "0:0.1:0.1",
+        "--omega-ratio",
+        "1.5:1.7:0.2",
+    ];
+    run_ok(&[&cmd[..], &["--shard", "1/2", "--out", s(&a)]].concat());
+    let out = host_sim()
+        .args(cmd)
+        .args(["--out", s(&b)])
+        .env("SLURM_ARRAY_TASK_ID", "1")
+        .env("SLURM_ARRAY_TASK_COUNT", "2")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert_eq!(fs::read(&a).unwrap(), fs::read(&b).unwrap());
+    let out = host_sim()
+        .args(cmd)
+        .args(["--out", s(&b)])
+        .env("SLURM_ARRAY_TASK_ID", "2")
+        .env("SLURM_ARRAY_TASK_COUNT", "2")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("SLURM_ARRAY_TASK_ID"));
+}
+
+fn read_rows(path: &Path) -> Vec<csv::StringRecord> {
+    let mut r = csv::Reader::from_path(path).unwrap();
+    r.records().map(Result::unwrap).collect()
+}
+
+#[test]
+fn peterka_wire_rig_at_gap_zero_is_one_one_up_to_the_force_peak() {
+    // MODEL.md/thesis: wires, gap 0: a z = 1/1 band (Ω/ω ≈ 1.16–2.64) whose maximum force,
+    // F_i/mg ≈ 32.9 near Ω/ω = 2.0, is about 3× the force at Ω = ω.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.csv");
+    run_ok(&[
+        "peterka",
+        "--rig",
+        "wires",
+        "--gap-ratio",
+        "0:0:0.1",
+        "--omega-ratio",
+        "1.5:2.1:0.1",
+        "--out",
+        s(&out),
+    ]);
+    let rows = read_rows(&out);
+    assert_eq!(rows.len(), 7);
+    let mut best = (0.0, 0.0);
+    for r in &rows {
+        assert_eq!(&r[5], "1/1", "Ω/ω {}", &r[3]);
+        assert_eq!(&r[6], "64");
+        let f: f64 = r[7].parse().unwrap();
+        if f > best.1 {
+            best = (r[3].parse().unwrap(), f);
+        }
+    }
+    assert!((best.0 - 2.0f64).abs() < 0.15, "peak at {}", best.0);
+    assert!((30.0..36.0).contains(&best.1), "peak F_i/mg {}", best.1);
+}
+
+#[test]
+fn basins_with_a_unique_attractor_give_one_attractor_everywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("b.csv");
+    run_ok(&[
+        "basins",
+        "--rig",
+        "wires",
+        "--gap-mm",
+        "0",
+        "--omega-ratio",
+        "1.5",
+        "--u0-mm",
+        "-1:0:3",
+        "--v0-mm-s",
+        "-10:10:3",
+        "--out",
+        s(&out),
+    ]);
+    let rows = read_rows(&out);
+    assert_eq!(rows.len(), 9);
+    let first = &rows[0];
+    for r in &rows {
+        assert_eq!(&r[3], "true");
+        assert_eq!(&r[4], "1/1");
+        assert_eq!(&r[5], "A");
+        assert_eq!(&r[6], &first[6]);
+        assert_eq!(&r[7], &first[7]);
+    }
+    // The attractor's Poincaré point is the from-rest steady state (bifurcation, same point).
+    let bif = dir.path().join("f.csv");
+    run_ok(&[
+        "bifurcation",
+        "--gap-mm",
+        "0",
+        "--omega-ratio",
+        "1.5:1.5:0.1",
+        "--out",
+        s(&bif),
+    ]);
+    let u: f64 = read_rows(&bif)[0][7].parse().unwrap();
+    let ua: f64 = first[6].parse().unwrap();
+    assert!((u - ua).abs() < 0.01 * 0.89, "{u} vs {ua}");
+}
+
+#[test]
+fn bifurcation_from_rest_at_gap_zero_is_period_one_with_one_impact_per_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("f.csv");
+    let png = dir.path().join("f.png");
+    run_ok(&[
+        "bifurcation",
+        "--rig",
+        "wires",
+        "--gap-mm",
+        "0",
+        "--omega-ratio",
+        "1.5:1.5:0.1",
+        "--out",
+        s(&out),
+        "--plot",
+        s(&png),
+    ]);
+    let rows = read_rows(&out);
+    let strobes: Vec<f64> = rows
+        .iter()
+        .filter(|r| &r[5] == "strobe")
+        .map(|r| r[7].parse().unwrap())
+        .collect();
+    assert_eq!(strobes.len(), 64);
+    for u in &strobes {
+        assert!((u - strobes[0]).abs() < 1e-6, "{u} vs {}", strobes[0]);
+    }
+    let mut per_period = [0u32; 64];
+    for r in rows.iter().filter(|r| &r[5] == "impact") {
+        assert_eq!(&r[4], "1/1");
+        per_period[r[6].parse::<usize>().unwrap()] += 1;
+    }
+    assert_eq!(per_period, [1; 64]);
+}
+
+#[test]
+fn bifurcation_continuation_writes_two_branches() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("c.csv");
+    run_ok(&[
+        "bifurcation",
+        "--gap-mm",
+        "0",
+        "--omega-ratio",
+        "1.5:1.9:0.2",
+        "--continuation",
+        "both",
+        "--out",
+        s(&out),
+    ]);
+    let rows = read_rows(&out);
+    let order: Vec<(String, String)> = rows
+        .iter()
+        .filter(|r| &r[5] == "strobe" && &r[6] == "0")
+        .map(|r| (r[1].to_string(), r[0].to_string()))
+        .collect();
+    let expect: Vec<(String, String)> = [
+        ("up", "0"),
+        ("up", "1"),
+        ("up", "2"),
+        ("down", "2"),
+        ("down", "1"),
+        ("down", "0"),
+    ]
+    .iter()
+    .map(|(a, b)| (a.to_string(), b.to_string()))
+    .collect();
+    assert_eq!(order, expect);
+    // A 1/1 state is unique here: both branches agree with each other at every frequency.
+    for r in rows.iter().filter(|r| &r[5] == "strobe") {
+        assert_eq!(&r[4], "1/1");
+    }
+}
+
+#[test]
+fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.csv");
+    let png = dir.path().join("o.png");
+    let o = s(&out);
+    let p = s(&png);
+    let peterka = |gap: &str, freq: &str| -> Vec<String> {
+        [
+            "peterka",
+            "--gap-mm",
+            gap,
+            "--freq-hz",
+            freq,
+            "--out",
+            o,
+            "--plot",
+            p,
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect()
+    };
+    assert_rejected(
+        &strs(&peterka("NaN:1:0.1", "2:3:0.1")),
+        &["--gap-mm", "finite"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &strs(&peterka("-0.5:1:0.1", "2:3:0.1")),
+        &["--gap-mm", "allowed 0 ..= 50"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &strs(&peterka("0:1:0.1", "0.01:3:0.1")),
+        &["--freq-hz", "allowed"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &strs(&peterka("0:1:0.1", "2:200:0.1")),
+        &["--freq-hz", "allowed"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &[
+            "peterka",
+            "--gap-mm",
+            "0:1:0.1",
+            "--gap-ratio",
+            "0:1:0.1",
+            "--freq-hz",
+            "2:3:0.1",
+            "--out",
+            o,
+        ],
+        &["--gap-ratio", "cannot be used with"],
+        &[&out],
+    );
+    assert_rejected(
+        &["peterka", "--gap-mm", "0:1:0.1", "--out", o],
+        &["--freq-hz", "--omega-ratio"],
+        &[&out],
+    );
+    for (shard, needle) in [
+        ("3/3", "allowed 0 ..= 2"),
+        ("0/0", "N ≥ 1"),
+        ("x", "expected I/N"),
+    ] {
+        assert_rejected(
+            &[
+                "peterka",
+                "--gap-mm",
+                "0:1:0.1",
+                "--freq-hz",
+                "2:3:0.1",
+                "--out",
+                o,
+                "--shard",
+                shard,
+            ],
+            &["--shard", needle],
+            &[&out],
+        );
+    }
+    let basins = |gap: &str, u0: &str, v0: &str| -> Vec<String> {
+        [
+            "basins",
+            "--gap-mm",
+            gap,
+            "--omega-ratio",
+            "1.5",
+            "--u0-mm",
+            u0,
+            "--v0-mm-s",
+            v0,
+            "--out",
+            o,
+            "--plot",
+            p,
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect()
+    };
+    assert_rejected(
+        &strs(&basins("0", "-1:0:0", "-1:1:3")),
+        &["--u0-mm", "COUNT = 0", "allowed 1 ..= 4096"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &strs(&basins("0", "-1:0:3", "-1:1:0")),
+        &["--v0-mm-s", "COUNT = 0"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &strs(&basins("-1", "-1:0:3", "-1:1:3")),
+        &["--gap-mm", "gap_mm"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &strs(&basins("NaN", "-1:0:3", "-1:1:3")),
+        &["--gap-mm", "finite"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &strs(&basins("0", "-1:1:3", "-1:1:3")),
+        &["--u0-mm", "u0 ≤ gap"],
+        &[&out, &png],
+    );
+    assert_rejected(
+        &[
+            "bifurcation",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "1:2:0.5",
+            "--continuation",
+            "up",
+            "--shard",
+            "0/2",
+            "--out",
+            o,
+        ],
+        &["--shard", "continuation"],
+        &[&out],
+    );
+    assert_rejected(
+        &[
+            "bifurcation",
+            "--gap-mm",
+            "0",
+            "--omega-ratio",
+            "0.001:2:0.5",
+            "--out",
+            o,
+        ],
+        &["--omega-ratio", "allowed"],
+        &[&out],
+    );
+}
+
+#[test]
+fn merge_rejects_bad_shards_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("m.csv");
+    let png = d.join("m.png");
+    let o = s(&out);
+    let p = s(&png);
+    let shard = |name: &str, gaps: &str, i: u32, n: u32| -> PathBuf {
+        let path = d.join(name);
+        run_ok(&[
+            "peterka",
+            "--gap-mm",
+            gaps,
+            "--omega-ratio",
+            "1.5:1.7:0.2",
+            "--out",
+            s(&path),
+            "--shard",
+            &format!("{i}/{n}"),
+        ]);
+        path
+    };
+    let a0 = shard("a0.csv", "0:0.1:0.1", 0, 2);
+    let a1 = shard("a1.csv", "0:0.1:0.1", 1, 2);
+    let b1 = shard("b1.csv", "0:0.2:0.1", 1, 2);
+    // Missing index (shard 1 absent).
+    assert_rejected(
+        &["merge", "--out", o, "--plot", p, s(&a0)],
+        &["point index 1 is missing"],
+        &[&out, &png],
+    );
+    // Same shard twice.
+    assert_rejected(
+        &["merge", "--out", o, s(&a0), s(&a1), s(&a1)],
+        &["appears twice"],
+        &[&out],
+    );
+    // Another grid.
+    assert_rejected(
+        &["merge", "--out", o, s(&a0), s(&b1)],
+        &["do not belong to the same run", "grid"],
+        &[&out],
+    );
+    // Wrong kind.
+    assert_rejected(
+        &["merge", "--kind", "basins", "--out", o, s(&a0), s(&a1)],
+        &["--kind basins", "peterka"],
+        &[&out],
+    );
+    // Not a shard (a one-run CSV has no metadata line).
+    let plain = d.join("plain.csv");
+    run_ok(&[
+        "peterka",
+        "--gap-mm",
+        "0:0.1:0.1",
+        "--omega-ratio",
+        "1.5:1.7:0.2",
+        "--out",
+        s(&plain),
+    ]);
+    assert_rejected(
+        &["merge", "--out", o, s(&plain)],
+        &["not a host-sim shard"],
+        &[&out],
+    );
+    // Malformed row.
+    let bad = d.join("bad.csv");
+    let text = fs::read_to_string(&a1).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[2] = lines[2].replacen(",1/1,", ",one,", 1);
+    fs::write(&bad, lines.join("\n") + "\n").unwrap();
+    assert_rejected(
+        &["merge", "--out", o, s(&a0), s(&bad)],
+        &["bad.csv line 3", "malformed"],
+        &[&out],
+    );
+    // Truncated shard: a row missing.
+    let trunc = d.join("trunc.csv");
+    let good: Vec<&str> = text.lines().collect();
+    fs::write(&trunc, good[..good.len() - 1].join("\n") + "\n").unwrap();
+    assert_rejected(
+        &["merge", "--out", o, s(&a0), s(&trunc)],
+        &["missing"],
+        &[&out],
+    );
+    // Edited metadata.
+    let meta = d.join("meta.csv");
+    fs::write(
+        &meta,
+        text.replacen("\"precision\":\"f32\"", "\"precision\":\"f64\"", 1),
+    )
+    .unwrap();
+    assert_rejected(
+        &["merge", "--out", o, s(&a0), s(&meta)],
+        &["precision"],
+        &[&out],
+    );
+    // The good pair merges.
+    run_ok(&["merge", "--out", o, s(&a0), s(&a1)]);
+    assert_eq!(read_rows(&out).len(), 4);
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_stops_and_leaves_no_file() {
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("big.csv");
+    let png = dir.path().join("big.png");
+    let bin = assert_cmd::cargo::cargo_bin("host-sim");
+    let child = std::process::Command::new(bin)
+        .args([
+            "peterka",
+            "--gap-mm",
+            "0:3.42:0.01",
+            "--freq-hz",
+            "1:7.11:0.01",
+            "--out",
+            s(&out),
+            "--plot",
+            s(&png),
+        ])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("SLURM_ARRAY_TASK_COUNT")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the temporary CSV exists (the run has started), then interrupt.
+    let t0 = Instant::now();
+    while leftovers(dir.path()).is_empty() && t0.elapsed() < Duration::from_secs(20) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let status = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let t1 = Instant::now();
+    let output = child.wait_with_output().unwrap();
+    assert!(t1.elapsed() < Duration::from_secs(15), "slow to stop");
+    assert_eq!(output.status.code(), Some(130));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("interrupted"));
+    assert!(!out.exists() && !png.exists());
+    assert!(leftovers(dir.path()).is_empty(), "temporary files left");
+}
