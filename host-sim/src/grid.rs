@@ -18,9 +18,13 @@ use crate::shard::{Meta, Shard, create_csv};
 /// Points evaluated per parallel chunk.
 pub const CHUNK: usize = 4096;
 
-/// Evaluates `compute(i)` for every index of `indices` (ascending), `CHUNK` at a time in
-/// parallel, and passes each result to `sink` in index order. `len` is the number of indices
-/// (for the progress bar).
+/// Points per parallel task inside a chunk (a task interleaves its points on one core,
+/// [`shared::analysis::run_interleaved`]).
+pub const BATCH: usize = 32;
+
+/// Evaluates `compute(batch)` (the results of the indices in `batch`, in order) over every index
+/// of `indices` (ascending), `CHUNK` at a time with batches of [`BATCH`] in parallel, and passes
+/// each result to `sink` in index order. `len` is the number of indices (for the progress bar).
 ///
 /// # Errors
 /// The first failing point or sink call (in index order), or [`Interrupted`](crate::interrupt::Interrupted).
@@ -28,7 +32,7 @@ pub fn run_chunked<R: Send>(
     indices: impl Iterator<Item = usize>,
     len: usize,
     what: &str,
-    compute: impl Fn(usize) -> Result<R> + Sync,
+    compute: impl Fn(&[usize]) -> Vec<Result<R>> + Sync,
     mut sink: impl FnMut(usize, R) -> Result<()>,
 ) -> Result<()> {
     interrupt::install();
@@ -41,14 +45,14 @@ pub fn run_chunked<R: Send>(
         if chunk.is_empty() {
             break;
         }
-        let results: Vec<Option<Result<R>>> = chunk
-            .par_iter()
-            .map(|&i| {
+        let results: Vec<Option<Vec<Result<R>>>> = chunk
+            .par_chunks(BATCH)
+            .map(|batch| {
                 if interrupt::requested() {
                     return None;
                 }
-                let r = compute(i);
-                bar.inc(1);
+                let r = compute(batch);
+                bar.inc(batch.len() as u64);
                 Some(r)
             })
             .collect();
@@ -56,18 +60,31 @@ pub fn run_chunked<R: Send>(
             bar.abandon();
             return Err(e.into());
         }
-        for (&i, r) in chunk.iter().zip(results) {
-            let r = r.ok_or_else(|| anyhow!(interrupt::Interrupted))?;
-            sink(i, r?)?;
+        let mut at = chunk.iter();
+        for batch in results {
+            let batch = batch.ok_or_else(|| anyhow!(interrupt::Interrupted))?;
+            for r in batch {
+                let &i = at
+                    .next()
+                    .ok_or_else(|| anyhow!("internal: batch longer than its chunk"))?;
+                sink(i, r?)?;
+            }
         }
     }
     bar.finish_and_clear();
     Ok(())
 }
 
+/// [`run_chunked`]'s `compute` for a per-point function.
+pub fn per_point<R>(
+    compute: impl Fn(usize) -> Result<R> + Sync,
+) -> impl Fn(&[usize]) -> Vec<Result<R>> + Sync {
+    move |batch| batch.iter().map(|&i| compute(i)).collect()
+}
+
 /// Writes the rows of a from-rest grid run to the CSV `path`: the points of `meta.shard` (or
-/// all), `compute(i)` giving the rows of point `i`, in index order. A shard file starts with
-/// its metadata line; a whole-grid file is a plain CSV.
+/// all), `compute(batch)` giving the rows of each point of `batch`, in index order. A shard file
+/// starts with its metadata line; a whole-grid file is a plain CSV.
 ///
 /// # Errors
 /// As [`run_chunked`], or I/O failure.
@@ -76,7 +93,7 @@ pub fn write_grid<I>(
     meta: &Meta,
     header: &[&str],
     what: &str,
-    compute: impl Fn(usize) -> Result<I> + Sync,
+    compute: impl Fn(&[usize]) -> Vec<Result<I>> + Sync,
 ) -> Result<()>
 where
     I: IntoIterator + Send,
@@ -221,7 +238,7 @@ mod tests {
             (0..10_000).step_by(3),
             3334,
             "test",
-            |i| Ok(i * 2),
+            per_point(|i| Ok(i * 2)),
             |i, r| {
                 assert_eq!(r, i * 2);
                 seen.push(i);

@@ -4,7 +4,8 @@
 use anyhow::{Result, anyhow};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
-use shared::analysis::evaluate_point;
+use shared::Real;
+use shared::analysis::{DEFAULT_LANES, evaluate_interleaved, evaluate_point};
 use shared::observe::PointResult;
 
 use crate::cli::Precision;
@@ -33,6 +34,32 @@ pub fn evaluate(setup: &Setup, p: OperatingPoint) -> Result<PointResult> {
         }
     };
     r.map_err(|e| anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio))
+}
+
+/// Runs the canonical protocol at every point of `points` on the calling thread,
+/// [`DEFAULT_LANES`] interleaved (results identical to [`evaluate`], in order).
+pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
+    fn go<T: Real>(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
+        let mut out: Vec<Option<Result<PointResult>>> = points.iter().map(|_| None).collect();
+        evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
+            &setup.params,
+            &setup.settings,
+            points.iter().map(|p| (p.gap_m, p.omega_ratio)),
+            |i, r| {
+                let p = points[i];
+                out[i] = Some(r.map_err(|e| {
+                    anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
+                }));
+            },
+        );
+        out.into_iter()
+            .map(|r| r.unwrap_or_else(|| Err(anyhow!("internal: point not evaluated"))))
+            .collect()
+    }
+    match setup.precision {
+        Precision::F32 => go::<f32>(setup, points),
+        Precision::F64 => go::<f64>(setup, points),
+    }
 }
 
 /// A progress bar for `len` items on stderr, with rate and ETA.

@@ -19,9 +19,10 @@ use clap::Args;
 use serde::{Deserialize, Serialize};
 use shared::Real;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
+use shared::analysis::{DEFAULT_LANES, run_interleaved};
 use shared::error::check_range;
 use shared::integrate::Simulator;
-use shared::observe::{Observer, Regime, StroboPoint, run_protocol};
+use shared::observe::{Observer, ProtocolRun, Regime, StroboPoint};
 
 use crate::cli::{Precision, RigOpts};
 use crate::config::{Setup, gap_m_from_mm};
@@ -213,44 +214,63 @@ fn canonical(pts: &VecDeque<(f64, f64)>, q: usize) -> Option<(f64, f64)> {
         .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)))
 }
 
-fn point<T: Real>(setup: &Setup, grid: &BasinsGrid, i: usize) -> Result<BasinRaw> {
-    let (iu, iv) = grid.split(i);
-    let (u0_mm, v0_mm_s) = (grid.u0_mm.value(iu), grid.v0_mm_s.value(iv));
+/// The points of `batch` on the calling thread, [`DEFAULT_LANES`] interleaved.
+fn points<T: Real>(setup: &Setup, grid: &BasinsGrid, batch: &[usize]) -> Vec<Result<BasinRaw>> {
     let omega_exc = grid.omega_ratio * setup.params.omega_n();
-    let mut sim = Simulator::<T>::new(
-        &setup.params,
-        grid.gap_mm * 1e-3,
-        omega_exc,
-        &setup.settings.bands,
-        &setup.settings.steps,
-    )?;
-    sim.reset_relative(u0_mm * 1e-3, v0_mm_s * 1e-3)
-        .with_context(|| format!("initial condition u0 {u0_mm} mm, u̇0 {v0_mm_s} mm/s"))?;
-    let mut obs = LastStrobes {
-        keep: setup.settings.protocol.max_q as usize,
-        pts: VecDeque::new(),
+    let initial = |i: usize| {
+        let (iu, iv) = grid.split(i);
+        (grid.u0_mm.value(iu), grid.v0_mm_s.value(iv))
     };
-    let r = run_protocol(
-        &mut sim,
-        &setup.settings.protocol,
-        setup.params.weight_n(),
-        &mut obs,
-    )?;
-    let c = match r.regime {
-        Regime::Periodic { q, .. } => canonical(&obs.pts, usize::from(q)),
-        _ => None,
-    };
-    Ok(BasinRaw {
-        index: i as u64,
-        u0_mm,
-        v0_mm_s,
-        regime: r.regime,
-        impacts: r.impacts,
-        impact_force_mg: r.impact_force_mg,
-        settled: r.settled,
-        strobe_u_mm: c.map(|c| c.0 * 1e3),
-        strobe_v_mm_s: c.map(|c| c.1 * 1e3),
-    })
+    let mut out: Vec<Option<Result<BasinRaw>>> = batch.iter().map(|_| None).collect();
+    run_interleaved::<T, LastStrobes, DEFAULT_LANES, _, _, _>(
+        batch.iter().copied(),
+        |i| {
+            let (u0_mm, v0_mm_s) = initial(i);
+            let mut sim = Simulator::<T>::new(
+                &setup.params,
+                grid.gap_mm * 1e-3,
+                omega_exc,
+                &setup.settings.bands,
+                &setup.settings.steps,
+            )?;
+            sim.reset_relative(u0_mm * 1e-3, v0_mm_s * 1e-3)?;
+            let run = ProtocolRun::new(&sim, &setup.settings.protocol, setup.params.weight_n())?;
+            let obs = LastStrobes {
+                keep: setup.settings.protocol.max_q as usize,
+                pts: VecDeque::new(),
+            };
+            Ok((sim, run, obs))
+        },
+        |k, r| {
+            let i = batch[k];
+            let (u0_mm, v0_mm_s) = initial(i);
+            out[k] = Some(
+                r.map(|(r, obs, _)| {
+                    let c = match r.regime {
+                        Regime::Periodic { q, .. } => canonical(&obs.pts, usize::from(q)),
+                        _ => None,
+                    };
+                    BasinRaw {
+                        index: i as u64,
+                        u0_mm,
+                        v0_mm_s,
+                        regime: r.regime,
+                        impacts: r.impacts,
+                        impact_force_mg: r.impact_force_mg,
+                        settled: r.settled,
+                        strobe_u_mm: c.map(|c| c.0 * 1e3),
+                        strobe_v_mm_s: c.map(|c| c.1 * 1e3),
+                    }
+                })
+                .map_err(|e| {
+                    anyhow::anyhow!("initial condition u0 {u0_mm} mm, u̇0 {v0_mm_s} mm/s: {e}")
+                }),
+            );
+        },
+    );
+    out.into_iter()
+        .map(|r| r.unwrap_or_else(|| Err(anyhow::anyhow!("internal: point not evaluated"))))
+        .collect()
 }
 
 /// Runs `basins`.
@@ -292,11 +312,12 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
     meta.shard = shard;
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&a.out)?;
-    let compute = |i: usize| -> Result<[BasinRaw; 1]> {
-        Ok([match setup.precision {
-            Precision::F32 => point::<f32>(&setup, &grid, i)?,
-            Precision::F64 => point::<f64>(&setup, &grid, i)?,
-        }])
+    let compute = |batch: &[usize]| -> Vec<Result<[BasinRaw; 1]>> {
+        let rows = match setup.precision {
+            Precision::F32 => points::<f32>(&setup, &grid, batch),
+            Precision::F64 => points::<f64>(&setup, &grid, batch),
+        };
+        rows.into_iter().map(|r| r.map(|r| [r])).collect()
     };
     if shard.is_some() {
         write_grid(&out, &meta, &RAW_HEADER, "basins", compute)?;

@@ -21,7 +21,7 @@ use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
 use super::response::omega_sweep;
 use crate::cli::{Precision, RigOpts};
 use crate::config::{Setup, gap_m_from_mm};
-use crate::grid::write_grid;
+use crate::grid::{per_point, write_grid};
 use crate::interrupt;
 use crate::maps::{self, BifDot, BifRanges};
 use crate::output::Outputs;
@@ -327,9 +327,13 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
     let out = outputs.reserve(&a.out)?;
     match a.continuation {
         Some(mode) => continuation(&setup, gap_m, &sweep, mode, &out)?,
-        None => write_grid(&out, &meta, &HEADER, "bifurcation", |i| {
-            from_rest(&setup, gap_m, &sweep, i)
-        })?,
+        None => write_grid(
+            &out,
+            &meta,
+            &HEADER,
+            "bifurcation",
+            per_point(|i| from_rest(&setup, gap_m, &sweep, i)),
+        )?,
     }
     if shard.is_none() {
         figure(&mut outputs, &meta, &out, a.plot.as_deref())?;

@@ -16,7 +16,7 @@ use crate::config::{MAX_GAP_MM, Setup, parse_sweep};
 use crate::grid::write_grid;
 use crate::maps::{self, Cell, MapAxis, Raster};
 use crate::output::Outputs;
-use crate::runner::{OperatingPoint, evaluate};
+use crate::runner::{OperatingPoint, evaluate_batch};
 use crate::shard::{Indexed, Kind, Meta, Shard, open_csv, title_prefix};
 
 /// Largest Peterka grid, points.
@@ -231,29 +231,41 @@ pub fn run(a: &PeterkaArgs) -> Result<()> {
     let fn_hz = setup.params.natural_freq_hz();
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&a.out)?;
-    write_grid(&out, &meta, &HEADER, "peterka", |i| {
+    let at = |i: usize| {
         let (ig, jf) = grid.split(i);
-        let (gap_mm, gap_ratio) = grid.gap(ig, a0_mm);
-        let (omega_ratio, freq_hz) = grid.freq(jf, fn_hz);
-        let r = evaluate(
-            &setup,
-            OperatingPoint {
-                gap_m: gap_mm * 1e-3,
-                omega_ratio,
-            },
-        )?;
-        Ok([PeterkaRow {
-            index: i as u64,
-            gap_mm,
-            gap_ratio,
-            omega_ratio,
-            freq_hz,
-            regime: r.regime,
-            impacts: r.impacts,
-            impact_force_mg: r.impact_force_mg,
-            transient_periods: r.transient_periods,
-            settled: r.settled,
-        }])
+        (grid.gap(ig, a0_mm), grid.freq(jf, fn_hz))
+    };
+    write_grid(&out, &meta, &HEADER, "peterka", |batch: &[usize]| {
+        let points: Vec<OperatingPoint> = batch
+            .iter()
+            .map(|&i| {
+                let ((gap_mm, _), (omega_ratio, _)) = at(i);
+                OperatingPoint {
+                    gap_m: gap_mm * 1e-3,
+                    omega_ratio,
+                }
+            })
+            .collect();
+        batch
+            .iter()
+            .zip(evaluate_batch(&setup, &points))
+            .map(|(&i, r)| {
+                let r = r?;
+                let ((gap_mm, gap_ratio), (omega_ratio, freq_hz)) = at(i);
+                Ok([PeterkaRow {
+                    index: i as u64,
+                    gap_mm,
+                    gap_ratio,
+                    omega_ratio,
+                    freq_hz,
+                    regime: r.regime,
+                    impacts: r.impacts,
+                    impact_force_mg: r.impact_force_mg,
+                    transient_periods: r.transient_periods,
+                    settled: r.settled,
+                }])
+            })
+            .collect()
     })?;
     if shard.is_none() {
         figures(

@@ -11,21 +11,85 @@ use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 use crate::integrate::Simulator;
 use crate::model::RigParams;
-use crate::observe::{PointResult, ProtocolRun};
+use crate::observe::{Observer, PointResult, ProtocolRun};
 use crate::real::Real;
 
 /// Lanes that the host's analysis commands interleave per core.
 pub const DEFAULT_LANES: usize = 4;
 
-struct Lane<T: Real> {
+struct Lane<T: Real, O> {
     index: usize,
     sim: Simulator<T>,
     run: ProtocolRun<T>,
+    obs: O,
+}
+
+/// A protocol run ready to go: the simulator at its initial state (at a period boundary), the
+/// run, and the observer that will watch it.
+pub type Started<T, O> = (Simulator<T>, ProtocolRun<T>, O);
+
+/// Runs one protocol per item of `items`, `L` at a time interleaved step by step. `start` turns
+/// an item into a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the
+/// `i`-th item's result with its observer and final simulator as soon as it is done (so not in
+/// order).
+pub fn run_interleaved<T, O, const L: usize, I, S, F>(items: I, mut start: S, mut emit: F)
+where
+    T: Real,
+    O: Observer<T>,
+    I: IntoIterator,
+    S: FnMut(I::Item) -> Result<Started<T, O>, ParamError>,
+    F: FnMut(usize, Result<(PointResult, O, &Simulator<T>), ParamError>),
+{
+    let mut next = items.into_iter().enumerate();
+    let mut launch = |emit: &mut F| -> Option<Lane<T, O>> {
+        for (index, item) in next.by_ref() {
+            match start(item) {
+                Ok((sim, run, obs)) => {
+                    return Some(Lane {
+                        index,
+                        sim,
+                        run,
+                        obs,
+                    });
+                }
+                Err(e) => emit(index, Err(e)),
+            }
+        }
+        None
+    };
+    let mut lanes: [Option<Lane<T, O>>; L] = core::array::from_fn(|_| None);
+    for lane in lanes.iter_mut() {
+        *lane = launch(&mut emit);
+    }
+    loop {
+        let mut active = false;
+        for slot in lanes.iter_mut() {
+            let done = match slot {
+                Some(lane) => {
+                    active = true;
+                    lane.run
+                        .step(&mut lane.sim, &mut lane.obs)
+                        .map(|r| (lane.index, r))
+                }
+                None => None,
+            };
+            if let Some((index, result)) = done {
+                if let Some(lane) = slot.take() {
+                    emit(index, Ok((result, lane.obs, &lane.sim)));
+                }
+                *slot = launch(&mut emit);
+            }
+        }
+        if !active {
+            return;
+        }
+    }
 }
 
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),
-/// `L` at a time interleaved step by step, and calls `emit(i, result)` for the `i`-th point
-/// as soon as it is done (so not in order; invalid points are emitted at once with their error).
+/// `L` at a time interleaved ([`run_interleaved`]), and calls `emit(i, result)` for the `i`-th
+/// point as soon as it is done (so not in order; invalid points are emitted at once with their
+/// error).
 pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
     params: &RigParams,
     settings: &SimSettings,
@@ -36,39 +100,15 @@ pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
     F: FnMut(usize, Result<PointResult, ParamError>),
 {
     let weight_n = params.weight_n();
-    let mut next = points.into_iter().enumerate();
-    let mut lanes: [Option<Lane<T>>; L] = core::array::from_fn(|_| None);
-    let start = |next: &mut core::iter::Enumerate<I::IntoIter>, emit: &mut F| -> Option<Lane<T>> {
-        for (index, (gap_m, omega_ratio)) in next.by_ref() {
-            let started = simulator_at::<T>(params, gap_m, omega_ratio, settings).and_then(|sim| {
-                let run = ProtocolRun::new(&sim, &settings.protocol, weight_n)?;
-                Ok(Lane { index, sim, run })
-            });
-            match started {
-                Ok(lane) => return Some(lane),
-                Err(e) => emit(index, Err(e)),
-            }
-        }
-        None
-    };
-    for lane in lanes.iter_mut() {
-        *lane = start(&mut next, &mut emit);
-    }
-    loop {
-        let mut active = false;
-        for slot in lanes.iter_mut() {
-            if let Some(lane) = slot {
-                active = true;
-                if let Some(result) = lane.run.step(&mut lane.sim, &mut ()) {
-                    emit(lane.index, Ok(result));
-                    *slot = start(&mut next, &mut emit);
-                }
-            }
-        }
-        if !active {
-            return;
-        }
-    }
+    run_interleaved::<T, (), L, _, _, _>(
+        points,
+        |(gap_m, omega_ratio)| {
+            let sim = simulator_at::<T>(params, gap_m, omega_ratio, settings)?;
+            let run = ProtocolRun::new(&sim, &settings.protocol, weight_n)?;
+            Ok((sim, run, ()))
+        },
+        |i, r| emit(i, r.map(|(result, (), _)| result)),
+    );
 }
 
 #[cfg(test)]
