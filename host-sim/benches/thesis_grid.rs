@@ -1,0 +1,160 @@
+//! The issue-3 performance numbers, measured on this machine (not a criterion bench: one run
+//! of each workload is long enough to time).
+//!
+//! 1. The thesis' Peterka grid (wire rig, gap 0.00–3.42 mm × 1.00–7.11 Hz, steps 0.01:
+//!    209,916 points, canonical protocol, f32) through the same batched, interleaved,
+//!    rayon-parallel evaluation as `host-sim peterka`: wall time, points/s, µs per point, where
+//!    the time goes (transient lengths, RK4 steps in whole steps vs contact sub-steps), and the
+//!    peak RSS of the process.
+//! 2. A 200 × 200 basin of attraction through `host-sim basins` (CSV + PNG into a temporary
+//!    directory).
+//!
+//! `cargo bench -p host-sim --bench thesis_grid` (about 3 minutes on 2 cores);
+//! `-- --quick` runs every 7th gap only.
+
+use std::time::Instant;
+
+use clap::Parser;
+use rayon::prelude::*;
+use shared::analysis::SimSettings;
+use shared::model::RigId;
+use shared::observe::PointResult;
+
+use host_sim::cli::{Cli, Command, Precision, RigOpts};
+use host_sim::commands;
+use host_sim::config::Setup;
+use host_sim::grid::BATCH;
+use host_sim::runner::{OperatingPoint, evaluate_batch};
+
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn main() {
+    let quick = std::env::args().any(|a| a == "--quick");
+    let setup = Setup::from_opts(&RigOpts {
+        rig: RigId::Wires,
+        law: None,
+        config: None,
+        precision: Precision::F32,
+    })
+    .expect("wire rig");
+    assert_eq!(setup.settings, SimSettings::default());
+    let fn_hz = RigId::Wires.preset().natural_freq_hz();
+    let gaps: Vec<f64> = (0..343)
+        .filter(|i| !quick || i % 7 == 0)
+        .map(|i| f64::from(i) * 0.01)
+        .collect();
+    let points: Vec<OperatingPoint> = gaps
+        .iter()
+        .flat_map(|&g| {
+            (0..612).map(move |j| OperatingPoint {
+                gap_m: g * 1e-3,
+                omega_ratio: (1.0 + f64::from(j) * 0.01) / fn_hz,
+            })
+        })
+        .collect();
+    let t = Instant::now();
+    let results: Vec<PointResult> = points
+        .par_chunks(BATCH)
+        .flat_map_iter(|b| {
+            evaluate_batch(&setup, b)
+                .into_iter()
+                .map(|r| r.expect("valid point"))
+        })
+        .collect();
+    let wall = t.elapsed().as_secs_f64();
+    let n = results.len() as f64;
+    println!(
+        "Peterka grid: {} points ({} gaps × 612 frequencies), f32, {} threads",
+        results.len(),
+        gaps.len(),
+        rayon::current_num_threads()
+    );
+    println!(
+        "  wall {wall:.1} s, {:.0} points/s, {:.0} µs per point (wall), {:.0} µs per point per core",
+        n / wall,
+        1e6 * wall / n,
+        1e6 * wall * rayon::current_num_threads() as f64 / n
+    );
+    if !quick {
+        println!("  thesis: 120 h → {:.0}× faster", 120.0 * 3600.0 / wall);
+    }
+    let observe = f64::from(setup.settings.protocol.observe_periods);
+    let periods: f64 = results
+        .iter()
+        .map(|r| f64::from(r.transient_periods) + observe)
+        .sum();
+    let rk4: f64 = results.iter().map(|r| r.rk4_steps as f64).sum();
+    let whole = periods * f64::from(setup.settings.steps.steps_per_period);
+    println!(
+        "  simulated periods {:.3e} ({:.0} per point), RK4 steps {:.3e} ({:.0} per period): {:.0} % whole steps h = T/N, {:.0} % free-flight segments and contact sub-steps",
+        periods,
+        periods / n,
+        rk4,
+        rk4 / periods,
+        100.0 * whole / rk4,
+        100.0 * (1.0 - whole / rk4)
+    );
+    let buckets: [(u32, u32, &str); 5] = [
+        (0, 20, "≤ 20"),
+        (21, 50, "21–50"),
+        (51, 100, "51–100"),
+        (101, 199, "101–199"),
+        (200, u32::MAX, "200 (limit)"),
+    ];
+    for (lo, hi, label) in buckets {
+        let sel: Vec<&PointResult> = results
+            .iter()
+            .filter(|r| (lo..=hi).contains(&r.transient_periods))
+            .collect();
+        let share_pts = sel.len() as f64 / n;
+        let share_rk4 = sel.iter().map(|r| r.rk4_steps as f64).sum::<f64>() / rk4;
+        println!(
+            "  transient {label:>11} periods: {:5.1} % of points, {:5.1} % of RK4 steps",
+            100.0 * share_pts,
+            100.0 * share_rk4
+        );
+    }
+    match peak_rss_kib() {
+        Some(k) => println!(
+            "  peak RSS of the benchmark process so far: {:.1} MiB",
+            k as f64 / 1024.0
+        ),
+        None => println!("  peak RSS: not available"),
+    }
+
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let csv = dir.path().join("basins.csv");
+    let png = dir.path().join("basins.png");
+    let cli = Cli::try_parse_from([
+        "host-sim",
+        "basins",
+        "--rig",
+        "wires",
+        "--gap-mm",
+        "1.335",
+        "--omega-ratio",
+        "2.0",
+        "--u0-mm",
+        "-4:1.335:200",
+        "--v0-mm-s",
+        "-100:100:200",
+        "--out",
+        csv.to_str().expect("utf-8 path"),
+        "--plot",
+        png.to_str().expect("utf-8 path"),
+    ])
+    .expect("valid arguments");
+    let Command::Basins(args) = cli.command else {
+        unreachable!()
+    };
+    let t = Instant::now();
+    commands::basins::run(&args).expect("basins run");
+    println!(
+        "Basin of attraction 200 × 200 (wires, gap/A0 1.5, Ω/ω 2.0, Fig. 3.36b), CSV + PNG: {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+}
