@@ -365,11 +365,14 @@ impl<T: Real> Simulator<T> {
             return Ok((x1, end));
         }
         // Where the free-flight dense output first comes near the surface (or peaks).
-        let f1 = end.dx;
-        let delta_at = |t: T| {
-            let y = hermite(&self.x, &start.dx, &x1, &f1, rest, t / rest);
-            hammer.penetration(&y).0
+        let dense = DenseStep {
+            x0: self.x,
+            f0: start.dx,
+            x1,
+            f1: end.dx,
+            h: rest,
         };
+        let delta_at = |t: T| hammer.penetration(&dense.at(t / rest)).0;
         const SAMPLES: u32 = 8;
         let dt = rest / T::from_u32(SAMPLES);
         let (mut best_t, mut best_d) = (T::zero(), start.delta);
@@ -378,6 +381,7 @@ impl<T: Real> Simulator<T> {
             let d = delta_at(t);
             if d > -eta {
                 // Refine the crossing of −η_δ between the previous sample and this one.
+                // (Bisection, 16 halvings: this only places the start of the sub-steps.)
                 let (mut lo, mut hi) = (t - dt, t);
                 for _ in 0..16 {
                     let mid = (lo + hi) * T::from_f64(0.5);
@@ -419,7 +423,7 @@ impl<T: Real> Simulator<T> {
     /// proportion to where the event falls, which shows as jitter of the Poincaré section. So the
     /// sub-step is first taken in the mode of its start (free flight `f−`, or contact `f+` with
     /// the law continued past `h_β = 0`). If the switch model disagrees at the end, the event
-    /// time `τ` is found by bisection on the step's cubic Hermite dense output (free → contact:
+    /// time `τ` is found by Illinois regula falsi on the step's cubic Hermite dense output (free → contact:
     /// `δ` or, when already inside, `h_β` rising through 0; contact → free: `h_β` falling
     /// through 0), the hammer is integrated in the old mode to `τ` and with the switch model from
     /// `τ` to the end of the sub-step.
@@ -470,7 +474,14 @@ impl<T: Real> Simulator<T> {
                 law.unswitched_force(d, dd, v_in)
             }
         };
-        let tau = event_time(&self.x, &k1.dx, &trial, &end_mode.dx, len, event);
+        let dense = DenseStep {
+            x0: self.x,
+            f0: k1.dx,
+            x1: trial,
+            f1: end_mode.dx,
+            h: len,
+        };
+        let tau = root_in_unit(|f| event(&dense.at(f))) * len;
         let x_a = rk4_step(
             &self.x,
             &k1.dx,
@@ -535,48 +546,36 @@ impl<T: Real> Simulator<T> {
     }
 }
 
-/// The cubic Hermite interpolant of the step `x0 → x1` (slopes `f0`, `f1`, length `h`) at
-/// fraction `s ∈ [0, 1]`.
-#[inline(always)]
-fn hermite<T: Real>(
-    x0: &Vector2<T>,
-    f0: &Vector2<T>,
-    x1: &Vector2<T>,
-    f1: &Vector2<T>,
+/// One RK4 step's cubic Hermite dense output: from `x0` with slope `f0` to `x1` with slope
+/// `f1` over `h` seconds.
+struct DenseStep<T: Real> {
+    x0: Vector2<T>,
+    f0: Vector2<T>,
+    x1: Vector2<T>,
+    f1: Vector2<T>,
     h: T,
-    s: T,
-) -> Vector2<T> {
-    let one = T::from_f64(1.0);
-    let two = T::from_f64(2.0);
-    let three = T::from_f64(3.0);
-    let s2 = s * s;
-    let s3 = s2 * s;
-    let h00 = two * s3 - three * s2 + one;
-    let h10 = (s3 - two * s2 + s) * h;
-    let h01 = three * s2 - two * s3;
-    let h11 = (s3 - s2) * h;
-    x0 * h00 + f0 * h10 + x1 * h01 + f1 * h11
 }
 
-/// Time `τ ∈ (0, h]` at which `event` rises through 0 along the cubic Hermite interpolant of
-/// the step `x0 → x1` (slopes `f0`, `f1`): regula falsi with the Illinois modification, stopped
-/// when the bracket is below `2^-20` of the step or after 40 evaluations; `event(x0) ≤ 0 <
-/// event(x1)` is the caller's premise (if it fails, the result is a time at one end of the step).
-#[inline]
-fn event_time<T: Real, G: Fn(&Vector2<T>) -> T>(
-    x0: &Vector2<T>,
-    f0: &Vector2<T>,
-    x1: &Vector2<T>,
-    f1: &Vector2<T>,
-    h: T,
-    event: G,
-) -> T {
-    let hi = root_in_unit(|s| event(&hermite(x0, f0, x1, f1, h, s)));
-    hi * h
+impl<T: Real> DenseStep<T> {
+    /// The interpolated state at fraction `s ∈ [0, 1]` of the step.
+    #[inline(always)]
+    fn at(&self, s: T) -> Vector2<T> {
+        let one = T::from_f64(1.0);
+        let two = T::from_f64(2.0);
+        let three = T::from_f64(3.0);
+        let s2 = s * s;
+        let s3 = s2 * s;
+        let h00 = two * s3 - three * s2 + one;
+        let h10 = (s3 - two * s2 + s) * self.h;
+        let h01 = three * s2 - two * s3;
+        let h11 = (s3 - s2) * self.h;
+        self.x0 * h00 + self.f0 * h10 + self.x1 * h01 + self.f1 * h11
+    }
 }
 
-/// The upper end of a bracket `[lo, hi] ⊂ [0, 1]` (below `2^-20` wide) of a rising zero of `g`
-/// with `g(0) ≤ 0 < g(1)`: Illinois regula falsi (superlinear on the smooth event functions here,
+/// The upper end of a bracket `[lo, hi] ⊂ [0, 1]` (below `2^-20` wide, or after 40
+/// evaluations) of a rising zero of `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end
+/// of the interval): Illinois regula falsi (superlinear on the smooth event functions here,
 /// each iteration shrinks the bracket), with a bisection step whenever the secant stalls.
 #[inline]
 fn root_in_unit<T: Real, G: Fn(T) -> T>(g: G) -> T {
