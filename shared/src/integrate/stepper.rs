@@ -347,9 +347,9 @@ impl<T: Real> Simulator<T> {
         // within η_δ of the surface is where the switch model would have left `Γ−`.
         let mut touched = false;
         let x1 = rk4_step(&self.x, &start.dx, rest, s_mid, s_end, |y, s| {
-            let e = hammer.field_in(FieldMode::Free, y, s, v_in);
-            touched |= e.delta > -eta;
-            e.dx
+            let (acc, delta) = hammer.free_accel(y, s);
+            touched |= delta > -eta;
+            Vector2::new(y[1], acc)
         });
         // Clear of the surface, the free field is the switch-model field.
         let end = hammer.field_in(FieldMode::Free, &x1, s_end, v_in);

@@ -192,6 +192,39 @@ impl<T: Real> Hammer<T> {
         }
     }
 
+    /// The free-flight field `f−` at `x` as `(acceleration, δ)` (the second component of `ẋ`,
+    /// and the penetration in m): [`Hammer::field_in`] with [`FieldMode::Free`] without the rest
+    /// of the [`FieldEval`], bit for bit the same numbers (the integrator's hot path).
+    #[inline(always)]
+    pub fn free_accel(&self, x: &Vector2<T>, sin_phase: T) -> (T, T) {
+        match self.body {
+            Body::Wires {
+                length,
+                g_over_l,
+                a0w2_over_l,
+                ..
+            } => {
+                let (st, ct) = x[0].sin_cos();
+                (
+                    a0w2_over_l * ct * sin_phase - g_over_l * st,
+                    length * st - self.gap,
+                )
+            }
+            Body::Beam {
+                k_over_m,
+                c_over_m,
+                a0w2,
+                ..
+            } => {
+                let u = x[0];
+                (
+                    -c_over_m * x[1] - k_over_m * (u + u * u * u) + a0w2 * sin_phase,
+                    u - self.gap,
+                )
+            }
+        }
+    }
+
     /// `(δ, δ̇, sin θ, cos θ)` of state `x` (beams: `sin θ`, `cos θ` unused, returned as 0, 1).
     #[inline(always)]
     fn kinematics(&self, x: &Vector2<T>) -> (T, T, T, T) {
@@ -285,5 +318,7 @@ mod tests {
         assert!((du - 0.075 * 0.2 * libm::cos(0.01)).abs() < 1e-15);
         let back = h.state_from_relative(u, du).unwrap();
         assert!((back - x).norm() < 1e-12);
+        let free = h.field_in(FieldMode::Free, &x, s, 0.1);
+        assert_eq!(h.free_accel(&x, s), (free.dx[1], free.delta));
     }
 }
