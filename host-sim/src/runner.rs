@@ -5,11 +5,12 @@ use anyhow::{Result, anyhow};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use shared::Real;
-use shared::analysis::{DEFAULT_LANES, evaluate_interleaved, evaluate_point};
+use shared::analysis::{DEFAULT_LANES, evaluate_interleaved};
 use shared::observe::PointResult;
 
 use crate::cli::Precision;
 use crate::config::Setup;
+use crate::grid::BATCH;
 
 /// One operating point: gap (m) and `Ω/ω`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -20,41 +21,40 @@ pub struct OperatingPoint {
     pub omega_ratio: f64,
 }
 
-/// Runs the canonical protocol at one point in the setup's precision.
-///
-/// # Errors
-/// Invalid point (named field and range).
-pub fn evaluate(setup: &Setup, p: OperatingPoint) -> Result<PointResult> {
-    let r = match setup.precision {
-        Precision::F32 => {
-            evaluate_point::<f32>(&setup.params, p.gap_m, p.omega_ratio, &setup.settings)
-        }
-        Precision::F64 => {
-            evaluate_point::<f64>(&setup.params, p.gap_m, p.omega_ratio, &setup.settings)
-        }
-    };
-    r.map_err(|e| anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio))
+/// Collects the out-of-order `emit(i, result)` calls of an interleaved run into a vector in
+/// item order: `run(emit)` must emit every index below `len` once.
+pub fn in_order<R>(
+    len: usize,
+    run: impl FnOnce(&mut dyn FnMut(usize, Result<R>)),
+) -> Vec<Result<R>> {
+    let mut out: Vec<Option<Result<R>>> = (0..len).map(|_| None).collect();
+    run(&mut |i, r| out[i] = Some(r));
+    out.into_iter()
+        .map(|r| r.unwrap_or_else(|| Err(anyhow!("internal: point not evaluated"))))
+        .collect()
 }
 
 /// Runs the canonical protocol at every point of `points` on the calling thread,
-/// [`DEFAULT_LANES`] interleaved (results identical to [`evaluate`], in order).
+/// [`DEFAULT_LANES`] interleaved, in the setup's precision; results in order, identical to
+/// one-at-a-time [`shared::analysis::evaluate_point`].
 pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
     fn go<T: Real>(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
-        let mut out: Vec<Option<Result<PointResult>>> = points.iter().map(|_| None).collect();
-        evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
-            &setup.params,
-            &setup.settings,
-            points.iter().map(|p| (p.gap_m, p.omega_ratio)),
-            |i, r| {
-                let p = points[i];
-                out[i] = Some(r.map_err(|e| {
-                    anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
-                }));
-            },
-        );
-        out.into_iter()
-            .map(|r| r.unwrap_or_else(|| Err(anyhow!("internal: point not evaluated"))))
-            .collect()
+        in_order(points.len(), |emit| {
+            evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
+                &setup.params,
+                &setup.settings,
+                points.iter().map(|p| (p.gap_m, p.omega_ratio)),
+                |i, r| {
+                    let p = points[i];
+                    emit(
+                        i,
+                        r.map_err(|e| {
+                            anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
+                        }),
+                    );
+                },
+            );
+        })
     }
     match setup.precision {
         Precision::F32 => go::<f32>(setup, points),
@@ -85,10 +85,10 @@ pub fn evaluate_all(
 ) -> Result<Vec<PointResult>> {
     let bar = progress(points.len(), what);
     let out: Result<Vec<_>> = points
-        .par_iter()
-        .map(|&p| {
-            let r = evaluate(setup, p);
-            bar.inc(1);
+        .par_chunks(BATCH)
+        .flat_map_iter(|batch| {
+            let r = evaluate_batch(setup, batch);
+            bar.inc(batch.len() as u64);
             r
         })
         .collect();

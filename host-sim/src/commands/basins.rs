@@ -19,9 +19,8 @@ use clap::Args;
 use serde::{Deserialize, Serialize};
 use shared::Real;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
-use shared::analysis::{DEFAULT_LANES, run_interleaved};
+use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
 use shared::error::check_range;
-use shared::integrate::Simulator;
 use shared::observe::{Observer, ProtocolRun, Regime, StroboPoint};
 
 use crate::cli::{Precision, RigOpts};
@@ -29,6 +28,7 @@ use crate::config::{Setup, gap_m_from_mm};
 use crate::grid::{CountSweep, write_grid};
 use crate::maps::{self, AttractorKey, MapAxis, Raster};
 use crate::output::Outputs;
+use crate::runner::in_order;
 use crate::shard::{Indexed, Kind, Meta, Shard, create_csv, open_csv, title_prefix};
 
 /// Largest `|u0|` accepted, mm.
@@ -216,61 +216,58 @@ fn canonical(pts: &VecDeque<(f64, f64)>, q: usize) -> Option<(f64, f64)> {
 
 /// The points of `batch` on the calling thread, [`DEFAULT_LANES`] interleaved.
 fn points<T: Real>(setup: &Setup, grid: &BasinsGrid, batch: &[usize]) -> Vec<Result<BasinRaw>> {
-    let omega_exc = grid.omega_ratio * setup.params.omega_n();
     let initial = |i: usize| {
         let (iu, iv) = grid.split(i);
         (grid.u0_mm.value(iu), grid.v0_mm_s.value(iv))
     };
-    let mut out: Vec<Option<Result<BasinRaw>>> = batch.iter().map(|_| None).collect();
-    run_interleaved::<T, LastStrobes, DEFAULT_LANES, _, _, _>(
-        batch.iter().copied(),
-        |i| {
-            let (u0_mm, v0_mm_s) = initial(i);
-            let mut sim = Simulator::<T>::new(
-                &setup.params,
-                grid.gap_mm * 1e-3,
-                omega_exc,
-                &setup.settings.bands,
-                &setup.settings.steps,
-            )?;
-            sim.reset_relative(u0_mm * 1e-3, v0_mm_s * 1e-3)?;
-            let run = ProtocolRun::new(&sim, &setup.settings.protocol, setup.params.weight_n())?;
-            let obs = LastStrobes {
-                keep: setup.settings.protocol.max_q as usize,
-                pts: VecDeque::new(),
-            };
-            Ok((sim, run, obs))
-        },
-        |k, r| {
-            let i = batch[k];
-            let (u0_mm, v0_mm_s) = initial(i);
-            out[k] = Some(
-                r.map(|(r, obs, _)| {
-                    let c = match r.regime {
-                        Regime::Periodic { q, .. } => canonical(&obs.pts, usize::from(q)),
-                        _ => None,
-                    };
-                    BasinRaw {
-                        index: i as u64,
-                        u0_mm,
-                        v0_mm_s,
-                        regime: r.regime,
-                        impacts: r.impacts,
-                        impact_force_mg: r.impact_force_mg,
-                        settled: r.settled,
-                        strobe_u_mm: c.map(|c| c.0 * 1e3),
-                        strobe_v_mm_s: c.map(|c| c.1 * 1e3),
-                    }
-                })
-                .map_err(|e| {
-                    anyhow::anyhow!("initial condition u0 {u0_mm} mm, u̇0 {v0_mm_s} mm/s: {e}")
-                }),
-            );
-        },
-    );
-    out.into_iter()
-        .map(|r| r.unwrap_or_else(|| Err(anyhow::anyhow!("internal: point not evaluated"))))
-        .collect()
+    in_order(batch.len(), |emit| {
+        run_interleaved::<T, LastStrobes, DEFAULT_LANES, _, _, _>(
+            batch.iter().copied(),
+            |i| {
+                let (u0_mm, v0_mm_s) = initial(i);
+                let mut sim = simulator_at::<T>(
+                    &setup.params,
+                    grid.gap_mm * 1e-3,
+                    grid.omega_ratio,
+                    &setup.settings,
+                )?;
+                sim.reset_relative(u0_mm * 1e-3, v0_mm_s * 1e-3)?;
+                let run =
+                    ProtocolRun::new(&sim, &setup.settings.protocol, setup.params.weight_n())?;
+                let obs = LastStrobes {
+                    keep: setup.settings.protocol.max_q as usize,
+                    pts: VecDeque::new(),
+                };
+                Ok((sim, run, obs))
+            },
+            |k, r| {
+                let i = batch[k];
+                let (u0_mm, v0_mm_s) = initial(i);
+                let row = r
+                    .map(|(r, obs, _)| {
+                        let c = match r.regime {
+                            Regime::Periodic { q, .. } => canonical(&obs.pts, usize::from(q)),
+                            _ => None,
+                        };
+                        BasinRaw {
+                            index: i as u64,
+                            u0_mm,
+                            v0_mm_s,
+                            regime: r.regime,
+                            impacts: r.impacts,
+                            impact_force_mg: r.impact_force_mg,
+                            settled: r.settled,
+                            strobe_u_mm: c.map(|c| c.0 * 1e3),
+                            strobe_v_mm_s: c.map(|c| c.1 * 1e3),
+                        }
+                    })
+                    .map_err(|e| {
+                        anyhow::anyhow!("initial condition u0 {u0_mm} mm, u̇0 {v0_mm_s} mm/s: {e}")
+                    });
+                emit(k, row);
+            },
+        );
+    })
 }
 
 /// Runs `basins`.

@@ -125,7 +125,6 @@ pub struct Simulator<T: Real> {
     /// Field at `x` (RK4's first stage of the next step).
     at_x: FieldEval<T>,
     n: u32,
-    m: u32,
     /// Step index within the period, `0..N`.
     k: u32,
     period: u32,
@@ -171,7 +170,6 @@ impl<T: Real> Simulator<T> {
         let h_c_max = core::f64::consts::PI / omega_c / f64::from(steps.substeps_per_contact);
         let m_f = libm::ceil(h / h_c_max);
         check_range("substeps", m_f, 1.0, MAX_SUBSTEPS)?;
-        let m = m_f as u32;
         let h_c = h / m_f;
         let mut sin_half = [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize];
         let mut cos_start = [T::zero(); MAX_STEPS_PER_PERIOD as usize];
@@ -190,7 +188,6 @@ impl<T: Real> Simulator<T> {
             x,
             at_x,
             n,
-            m,
             k: 0,
             period: 0,
             steps: 0,
@@ -242,10 +239,6 @@ impl<T: Real> Simulator<T> {
     /// `N`, steps per period.
     pub fn steps_per_period(&self) -> u32 {
         self.n
-    }
-    /// `M = ceil(h/h_c)`, contact sub-steps per step.
-    pub fn substeps(&self) -> u32 {
-        self.m
     }
     /// Step `h = T/N`, s (f64).
     pub fn step_s(&self) -> f64 {
