@@ -4,7 +4,9 @@
 //! Data flows one way, and the modules follow it:
 //! rig parameters → [`model`] (contact law + suspension + switch model) → [`integrate`]
 //! (fixed-step RK4) → [`observe`] (impacts, Poincaré section, regime, canonical protocol) →
-//! [`analysis`] (frequency response, operating-frequency selection).
+//! [`analysis`] (frequency response, operating-frequency selection) → [`control`] (the rig
+//! controller: drive, impact detection, measured regime, tracking, faults, console), which talks
+//! to the hardware through [`hal`].
 //!
 //! Physics: `MODEL.md` of the project's shared folder; equation numbers are the thesis'.
 #![cfg_attr(not(test), no_std)]
@@ -14,7 +16,9 @@
 extern crate std;
 
 pub mod analysis;
+pub mod control;
 pub mod error;
+pub mod hal;
 pub mod integrate;
 pub mod model;
 pub mod observe;

@@ -24,6 +24,27 @@ pub struct SimSettings {
 }
 
 impl SimSettings {
+    /// The on-target profile the firmware's model task runs (and `host-sim --profile embedded`
+    /// reproduces): `N = 32` steps per period, `K = 8` contact sub-steps, a transient of at most
+    /// 40 periods, periods `q ≤ 4`, an 8-period observation window. About 50× cheaper than the
+    /// default per point, so that the whole selection fits the MCU's 0.5 s budget (README,
+    /// "Firmware"); the default profile stays the reference for the analyses.
+    pub fn embedded() -> Self {
+        SimSettings {
+            bands: SwitchBands::default(),
+            steps: StepSettings {
+                steps_per_period: 32,
+                substeps_per_contact: 8,
+            },
+            protocol: Protocol {
+                max_transient_periods: 40,
+                max_q: 4,
+                observe_periods: 8,
+                ..Protocol::default()
+            },
+        }
+    }
+
     /// The convergence reference of the issue: steps and sub-steps `factor`× finer and both
     /// bands `factor`× narrower.
     pub fn refined(&self, factor: u32) -> Self {

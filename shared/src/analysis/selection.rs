@@ -52,6 +52,19 @@ impl Default for SelectionSpec {
 }
 
 impl SelectionSpec {
+    /// The on-target selection (with [`SimSettings::embedded`]): `Ω/ω` 1.0:4.0:0.1 (31
+    /// frequencies, the rigs' operating bands lie inside), ±5 % and ±0.1 mm as the default.
+    pub fn embedded() -> Self {
+        SelectionSpec {
+            omega_ratio: Sweep {
+                lo: 1.0,
+                hi: 4.0,
+                step: 0.1,
+            },
+            ..SelectionSpec::default()
+        }
+    }
+
     /// Checks the spec.
     ///
     /// # Errors

@@ -1,0 +1,648 @@
+//! The rig controller: the state machine `Idle → Ramp → Dwell/Track → Stopping → Idle`, with
+//! `Fault` from anywhere, driven by one call per force sample ([`Controller::on_sample`], the
+//! sampling task) and one call per console line ([`Controller::execute`]). The model runs
+//! elsewhere (the firmware's low-priority task): the controller hands out requests
+//! ([`Controller::take_model_request`]) and accepts their results
+//! ([`Controller::set_prediction`]).
+//!
+//! Hardware-free: the firmware feeds ADC codes and writes the returned DAC code; host-sim does
+//! the same against a simulated plant.
+
+use core::fmt;
+
+use heapless::Deque;
+
+use super::config::{ControllerConfig, SAMPLE_RATE_HZ};
+use super::console::{Command, HELP};
+use super::detector::ImpactDetector;
+use super::faults::{Fault, SensorMonitor};
+use super::meter::RegimeMeter;
+use super::model::Prediction;
+use super::sine::SineGenerator;
+use super::tracker::HillClimber;
+use crate::analysis::SelectionError;
+use crate::error::ParamError;
+use crate::hal::SampleError;
+use crate::model::RigId;
+use crate::observe::Regime;
+
+/// Controller states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum State {
+    /// Drive off.
+    Idle,
+    /// Soft start: amplitude ramping up at the start frequency.
+    Ramp,
+    /// Holding a manual frequency (`freq`), measuring.
+    Dwell,
+    /// Holding `1/1` and climbing to the force maximum.
+    Track,
+    /// Soft stop: amplitude ramping down.
+    Stopping,
+    /// Aborted: drive ramped to zero, latched until `clear`.
+    Fault,
+}
+
+impl State {
+    /// Short name for logs and the console.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            State::Idle => "idle",
+            State::Ramp => "ramp",
+            State::Dwell => "dwell",
+            State::Track => "track",
+            State::Stopping => "stopping",
+            State::Fault => "fault",
+        }
+    }
+}
+
+/// The model's status.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ModelStatus {
+    /// A computation is requested or running.
+    Pending,
+    /// The latest prediction.
+    Ready(Prediction),
+    /// The latest computation found no robust `1/1` point (or failed).
+    Failed,
+}
+
+/// A computation for the model task.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelRequest {
+    /// Rig.
+    pub rig: RigId,
+    /// Gap, mm.
+    pub gap_mm: f32,
+    /// Tag to hand back with the result; stale results are dropped.
+    pub generation: u32,
+}
+
+/// Something worth a log line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Event {
+    /// The state changed.
+    State {
+        /// Old state.
+        from: State,
+        /// New state.
+        to: State,
+    },
+    /// A fault tripped.
+    Fault(Fault),
+    /// A prediction arrived.
+    ModelReady(Prediction),
+    /// The model found no target.
+    ModelFailed,
+}
+
+/// Why a console command was refused (nothing changed).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CommandError {
+    /// `rig`/`gap` only while idle.
+    NotIdle,
+    /// A fault is latched: `clear` first.
+    FaultLatched,
+    /// `start` without a target: the model is still computing.
+    ModelPending,
+    /// `start` without a target: the model found none (use `freq`).
+    NoTarget,
+    /// `freq` outside the safe window.
+    FreqOutOfWindow {
+        /// Lowest, Hz.
+        min: f32,
+        /// Highest, Hz.
+        max: f32,
+    },
+}
+
+impl fmt::Display for CommandError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CommandError::NotIdle => f.write_str("only while idle: stop first"),
+            CommandError::FaultLatched => f.write_str("fault latched: clear first"),
+            CommandError::ModelPending => {
+                f.write_str("model still computing the target: wait or use freq <Hz>")
+            }
+            CommandError::NoTarget => {
+                f.write_str("the model found no robust 1/1 target: use freq <Hz>")
+            }
+            CommandError::FreqOutOfWindow { min, max } => {
+                write!(
+                    f,
+                    "frequency out of the safe window: allowed {min} ..= {max} Hz"
+                )
+            }
+        }
+    }
+}
+
+/// The reply to a console command.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Reply {
+    /// Done.
+    Ok,
+    /// The status line.
+    Status(Status),
+    /// The help line.
+    Help,
+}
+
+impl fmt::Display for Reply {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Reply::Ok => f.write_str("ok"),
+            Reply::Status(s) => write!(f, "{s}"),
+            Reply::Help => f.write_str(HELP),
+        }
+    }
+}
+
+/// A snapshot for the console's `status` and the periodic log line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Status {
+    /// State.
+    pub state: State,
+    /// Rig.
+    pub rig: RigId,
+    /// Gap, mm.
+    pub gap_mm: f32,
+    /// Drive frequency now, Hz.
+    pub freq_hz: f32,
+    /// Drive amplitude now, mm.
+    pub amplitude_mm: f32,
+    /// Measured regime of the last evaluation.
+    pub regime: Option<Regime>,
+    /// Measured mean peak force of the last evaluation, N.
+    pub peak_n: Option<f32>,
+    /// The same over `m g`.
+    pub peak_mg: Option<f32>,
+    /// Model status.
+    pub model: ModelStatus,
+    /// Latched fault.
+    pub fault: Option<Fault>,
+    /// Impacts detected since start-up.
+    pub impacts: u32,
+    /// Cycles in `Track` (after settling) whose impact count was not 1.
+    pub lost_cycles: u32,
+}
+
+impl fmt::Display for Status {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "state={} rig={} gap_mm={:.2} freq_hz={:.4} amp_mm={:.3} regime=",
+            self.state.as_str(),
+            self.rig.name(),
+            self.gap_mm,
+            self.freq_hz,
+            self.amplitude_mm
+        )?;
+        match self.regime {
+            Some(r @ Regime::Periodic { .. }) => write!(f, "{r}")?,
+            Some(Regime::NoImpact) => f.write_str("none")?,
+            Some(Regime::Irregular) => f.write_str("irregular")?,
+            None => f.write_str("-")?,
+        }
+        match (self.peak_n, self.peak_mg) {
+            (Some(n), Some(mg)) => write!(f, " peak_n={n:.1} peak_mg={mg:.2}")?,
+            _ => f.write_str(" peak_n=- peak_mg=-")?,
+        }
+        match self.model {
+            ModelStatus::Ready(p) => write!(
+                f,
+                " model=ready target_hz={:.4} band_hz={:.3}..{:.3} predicted_mg={:.2}",
+                p.target_hz, p.band_hz[0], p.band_hz[1], p.impact_force_mg
+            )?,
+            ModelStatus::Pending => f.write_str(" model=pending")?,
+            ModelStatus::Failed => f.write_str(" model=failed")?,
+        }
+        write!(
+            f,
+            " fault={} impacts={} lost_cycles={}",
+            self.fault.map_or("none", Fault::as_str),
+            self.impacts,
+            self.lost_cycles
+        )
+    }
+}
+
+/// Events kept for the logger.
+pub const EVENT_QUEUE: usize = 8;
+
+/// The controller.
+#[derive(Debug, Clone)]
+pub struct Controller {
+    config: ControllerConfig,
+    rig: RigId,
+    gap_mm: f32,
+    state: State,
+    fault: Option<Fault>,
+    manual_hz: Option<f32>,
+    model: ModelStatus,
+    generation: u32,
+    request_open: bool,
+    generator: SineGenerator,
+    detector: ImpactDetector,
+    meter: RegimeMeter,
+    monitor: SensorMonitor,
+    climber: Option<HillClimber>,
+    sample: u64,
+    last_us: Option<u64>,
+    cycles_at_freq: u32,
+    regime: Option<Regime>,
+    peak_n: Option<f32>,
+    impacts: u32,
+    lost_cycles: u32,
+    events: Deque<Event, EVENT_QUEUE>,
+}
+
+impl Controller {
+    /// A controller in `Idle` for `rig` at `gap_mm`, with a model request open.
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the bad configuration field, or `gap_mm` outside `0 ..= 10`.
+    pub fn new(config: ControllerConfig, rig: RigId, gap_mm: f32) -> Result<Self, ParamError> {
+        config.validate()?;
+        crate::error::check_range(
+            "gap_mm",
+            f64::from(gap_mm),
+            0.0,
+            f64::from(super::console::MAX_GAP_MM),
+        )?;
+        Ok(Controller {
+            generator: SineGenerator::new(&config.limits, &config.drive),
+            detector: ImpactDetector::new(&config.detector),
+            meter: RegimeMeter::new(),
+            monitor: SensorMonitor::new(&config.faults),
+            config,
+            rig,
+            gap_mm,
+            state: State::Idle,
+            fault: None,
+            manual_hz: None,
+            model: ModelStatus::Pending,
+            generation: 0,
+            request_open: true,
+            climber: None,
+            sample: 0,
+            last_us: None,
+            cycles_at_freq: 0,
+            regime: None,
+            peak_n: None,
+            impacts: 0,
+            lost_cycles: 0,
+            events: Deque::new(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+
+    /// State.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// Latched fault.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// Samples processed.
+    pub fn samples(&self) -> u64 {
+        self.sample
+    }
+
+    /// The drive generator (frequency and amplitude now).
+    pub fn generator(&self) -> &SineGenerator {
+        &self.generator
+    }
+
+    /// The status snapshot.
+    pub fn status(&self) -> Status {
+        let weight = self.rig.preset().weight_n() as f32;
+        Status {
+            state: self.state,
+            rig: self.rig,
+            gap_mm: self.gap_mm,
+            freq_hz: self.generator.freq_hz(),
+            amplitude_mm: self.generator.amplitude_mm(),
+            regime: self.regime,
+            peak_n: self.peak_n,
+            peak_mg: self.peak_n.map(|n| n / weight),
+            model: self.model,
+            fault: self.fault,
+            impacts: self.impacts,
+            lost_cycles: self.lost_cycles,
+        }
+    }
+
+    /// The oldest unlogged event.
+    pub fn pop_event(&mut self) -> Option<Event> {
+        self.events.pop_front()
+    }
+
+    /// Whether a model computation is waiting to be taken.
+    pub fn model_request_open(&self) -> bool {
+        self.request_open
+    }
+
+    /// Takes the open model request, if any (the model task then computes it).
+    pub fn take_model_request(&mut self) -> Option<ModelRequest> {
+        if !core::mem::take(&mut self.request_open) {
+            return None;
+        }
+        Some(ModelRequest {
+            rig: self.rig,
+            gap_mm: self.gap_mm,
+            generation: self.generation,
+        })
+    }
+
+    /// Hands back the result of request `generation`; stale results are ignored. A new target
+    /// while tracking moves the drive toward it; while dwelling after `tune`, tracking resumes.
+    pub fn set_prediction(&mut self, generation: u32, result: Result<Prediction, SelectionError>) {
+        if generation != self.generation {
+            return;
+        }
+        match result {
+            Ok(p) => {
+                self.model = ModelStatus::Ready(p);
+                self.push(Event::ModelReady(p));
+                if matches!(self.state, State::Track | State::Dwell) && self.manual_hz.is_none() {
+                    if self.target_in_window(&p) {
+                        self.begin_tracking(&p);
+                        self.set_state(State::Track);
+                    } else {
+                        self.trip(Fault::BadConfig);
+                    }
+                }
+            }
+            Err(_) => {
+                self.model = ModelStatus::Failed;
+                self.push(Event::ModelFailed);
+            }
+        }
+    }
+
+    /// Runs one console command.
+    ///
+    /// # Errors
+    /// [`CommandError`]: the command was refused and nothing changed.
+    pub fn execute(&mut self, cmd: Command) -> Result<Reply, CommandError> {
+        match cmd {
+            Command::Status => return Ok(Reply::Status(self.status())),
+            Command::Help => return Ok(Reply::Help),
+            Command::Rig(rig) => {
+                self.require_idle()?;
+                self.rig = rig;
+                self.request_model();
+            }
+            Command::Gap(gap_mm) => {
+                self.require_idle()?;
+                self.gap_mm = gap_mm;
+                self.request_model();
+            }
+            Command::Tune => {
+                self.manual_hz = None;
+                self.request_model();
+            }
+            Command::Start => {
+                match self.state {
+                    State::Idle => {}
+                    State::Fault => return Err(CommandError::FaultLatched),
+                    _ => return Ok(Reply::Ok), // already running
+                }
+                let start_hz = match (self.manual_hz, self.model) {
+                    (Some(f), _) => f,
+                    (None, ModelStatus::Ready(p)) => p.target_hz,
+                    (None, ModelStatus::Pending) => return Err(CommandError::ModelPending),
+                    (None, ModelStatus::Failed) => return Err(CommandError::NoTarget),
+                };
+                let amplitude = (self.rig.preset().amplitude_m * 1e3) as f32;
+                let l = self.config.limits;
+                if amplitude > l.amplitude_max_mm
+                    || !(l.freq_min_hz..=l.freq_max_hz).contains(&start_hz)
+                {
+                    self.trip(Fault::BadConfig);
+                    return Ok(Reply::Ok);
+                }
+                self.generator.jump_freq_hz(start_hz);
+                self.generator.set_amplitude_mm(amplitude);
+                self.reset_measurement();
+                self.set_state(State::Ramp);
+            }
+            Command::Stop => {
+                if matches!(self.state, State::Ramp | State::Dwell | State::Track) {
+                    self.generator.set_amplitude_mm(0.0);
+                    self.set_state(State::Stopping);
+                }
+            }
+            Command::Freq(freq_hz) => {
+                let l = self.config.limits;
+                if !(l.freq_min_hz..=l.freq_max_hz).contains(&freq_hz) {
+                    return Err(CommandError::FreqOutOfWindow {
+                        min: l.freq_min_hz,
+                        max: l.freq_max_hz,
+                    });
+                }
+                match self.state {
+                    State::Fault => return Err(CommandError::FaultLatched),
+                    State::Stopping => return Err(CommandError::NotIdle),
+                    State::Idle => {}
+                    State::Ramp | State::Dwell | State::Track => {
+                        self.generator.set_freq_hz(freq_hz);
+                        self.reset_measurement();
+                        if self.state != State::Ramp {
+                            self.set_state(State::Dwell);
+                        }
+                    }
+                }
+                self.manual_hz = Some(freq_hz);
+            }
+            Command::Clear => {
+                if self.state == State::Fault {
+                    self.fault = None;
+                    self.detector.reset();
+                    self.monitor.disarm();
+                    let next = if self.generator.amplitude_mm() > 0.0 {
+                        State::Stopping
+                    } else {
+                        State::Idle
+                    };
+                    self.generator.set_amplitude_mm(0.0);
+                    self.set_state(next);
+                }
+            }
+        }
+        Ok(Reply::Ok)
+    }
+
+    /// The sampling task: one ADC result in (`now_us` from the time base), one DAC code out.
+    pub fn on_sample(&mut self, code: Result<u16, SampleError>, now_us: u64) -> u16 {
+        self.sample = self.sample.wrapping_add(1);
+        if let Some(last) = self.last_us.replace(now_us) {
+            if now_us.wrapping_sub(last) > u64::from(self.config.faults.deadline_us) {
+                self.trip(Fault::MissedDeadline);
+            }
+        }
+        let (force_n, code) = match code {
+            Ok(c) => (self.config.sensor.force_n(c), Some(c)),
+            Err(_) => {
+                self.trip(Fault::AdcOverrun);
+                (0.0, None)
+            }
+        };
+        if force_n > self.config.limits.force_limit_n {
+            self.trip(Fault::OverForce);
+        }
+        let rail = code.is_some_and(|c| self.monitor.at_rail(c));
+        let impact = self.detector.update(self.sample, force_n, rail);
+        if let Some(imp) = impact {
+            self.impacts = self.impacts.wrapping_add(1);
+            self.meter.on_impact(imp.peak_n);
+        }
+        if let Some(c) = code {
+            let driving = self.generator.amplitude_mm() > 0.0;
+            let full = matches!(self.state, State::Dwell | State::Track);
+            let q = match self.regime {
+                Some(Regime::Periodic { q, .. }) => u32::from(q),
+                _ => 1,
+            };
+            let period = SAMPLE_RATE_HZ as f32 / self.generator.freq_hz().max(0.01);
+            let gap = (period * q as f32) as u32;
+            if let Some(f) = self.monitor.check(c, driving, full, impact.is_some(), gap) {
+                self.trip(f);
+            }
+        }
+        let out = self.generator.next_sample();
+        if out.cycle_start {
+            self.on_cycle();
+        }
+        match self.state {
+            State::Ramp if self.generator.settled() => {
+                self.reset_measurement();
+                if self.manual_hz.is_some() {
+                    self.set_state(State::Dwell);
+                } else if let ModelStatus::Ready(p) = self.model {
+                    self.begin_tracking(&p);
+                    self.set_state(State::Track);
+                } else {
+                    self.set_state(State::Dwell);
+                }
+            }
+            State::Stopping if self.generator.amplitude_mm() == 0.0 => {
+                self.set_state(State::Idle);
+            }
+            _ => {}
+        }
+        out.code
+    }
+
+    fn on_cycle(&mut self) {
+        self.meter.on_cycle_end();
+        if !matches!(self.state, State::Dwell | State::Track) {
+            return;
+        }
+        self.cycles_at_freq = self.cycles_at_freq.saturating_add(1);
+        let t = self.config.track;
+        let settle = u32::from(t.settle_cycles);
+        if self.state == State::Track
+            && self.cycles_at_freq > settle
+            && self.meter.cycle(0).is_some_and(|c| c.impacts != 1)
+        {
+            self.lost_cycles = self.lost_cycles.saturating_add(1);
+        }
+        if self.cycles_at_freq < settle + u32::from(t.measure_cycles) {
+            return;
+        }
+        let window = usize::from(t.measure_cycles);
+        let Some(regime) = self.meter.regime(window) else {
+            return;
+        };
+        let peak = self.meter.peak_force_n(window).map(|(mean, _)| mean);
+        self.regime = Some(regime);
+        self.peak_n = peak;
+        match (self.state, self.climber.as_mut()) {
+            (State::Track, Some(climber)) => {
+                let f = self.generator.target_freq_hz();
+                let next = climber.next_freq_hz(f, regime, peak);
+                if next != f {
+                    self.generator.set_freq_hz(next);
+                    self.cycles_at_freq = 0;
+                } else {
+                    self.cycles_at_freq = settle;
+                }
+            }
+            // Dwell: keep measuring in consecutive windows.
+            _ => self.cycles_at_freq = settle,
+        }
+    }
+
+    fn begin_tracking(&mut self, p: &Prediction) {
+        let l = self.config.limits;
+        let band = [
+            p.band_hz[0].max(l.freq_min_hz),
+            p.band_hz[1].min(l.freq_max_hz),
+        ];
+        self.climber = Some(HillClimber::new(&self.config.track, band, p.target_hz));
+        self.generator.set_freq_hz(p.target_hz);
+        self.cycles_at_freq = 0;
+    }
+
+    fn target_in_window(&self, p: &Prediction) -> bool {
+        let l = self.config.limits;
+        (l.freq_min_hz..=l.freq_max_hz).contains(&p.target_hz)
+    }
+
+    fn reset_measurement(&mut self) {
+        self.meter.reset();
+        self.cycles_at_freq = 0;
+        self.regime = None;
+        self.peak_n = None;
+        self.monitor.disarm();
+    }
+
+    fn require_idle(&self) -> Result<(), CommandError> {
+        match self.state {
+            State::Idle => Ok(()),
+            State::Fault => Err(CommandError::FaultLatched),
+            _ => Err(CommandError::NotIdle),
+        }
+    }
+
+    fn request_model(&mut self) {
+        self.generation = self.generation.wrapping_add(1);
+        self.model = ModelStatus::Pending;
+        self.request_open = true;
+    }
+
+    fn trip(&mut self, fault: Fault) {
+        if self.state == State::Fault {
+            return;
+        }
+        self.fault = Some(fault);
+        self.generator.abort();
+        self.climber = None;
+        self.push(Event::Fault(fault));
+        self.set_state(State::Fault);
+    }
+
+    fn set_state(&mut self, to: State) {
+        if to != self.state {
+            let from = core::mem::replace(&mut self.state, to);
+            self.push(Event::State { from, to });
+        }
+    }
+
+    fn push(&mut self, e: Event) {
+        if self.events.is_full() {
+            let _ = self.events.pop_front();
+        }
+        let _ = self.events.push_back(e);
+    }
+}

@@ -1,0 +1,33 @@
+//! The rig controller, hardware-free: the drive's sine generator, the impact detector, the
+//! online regime meter, the fault checks, the tracking hill climber, the console parser and the
+//! state machine that ties them together. The firmware calls it from its RTIC tasks through the
+//! traits of [`crate::hal`]; host-sim runs the same code against a simulated rig.
+//!
+//! Data flow per force sample: ADC code → [`SensorChain`] (N) → [`ImpactDetector`] →
+//! [`RegimeMeter`] (per excitation cycle) → [`HillClimber`] (per evaluation) →
+//! [`SineGenerator`] → DAC code.
+
+pub mod config;
+pub mod console;
+pub mod controller;
+pub mod detector;
+pub mod faults;
+pub mod meter;
+pub mod model;
+pub mod sine;
+pub mod tracker;
+
+pub use config::{
+    ControllerConfig, DetectorSettings, DriveChain, FaultSettings, Limits, SAMPLE_PERIOD_US,
+    SAMPLE_RATE_HZ, SensorChain, TrackSettings,
+};
+pub use console::{Command, Line, LineBuffer, ParseError, parse};
+pub use controller::{
+    CommandError, Controller, Event, ModelRequest, ModelStatus, Reply, State, Status,
+};
+pub use detector::{DetectedImpact, ImpactDetector};
+pub use faults::{Fault, SensorMonitor};
+pub use meter::RegimeMeter;
+pub use model::{Prediction, predict};
+pub use sine::{DriveSample, SineGenerator, sin_turn};
+pub use tracker::HillClimber;
