@@ -1,49 +1,133 @@
-//! Firmware of the vibro-impact rig: an RTIC 2 application for the STM32F407 (Cortex-M4F).
+//! Firmware of the vibro-impact rig: an RTIC 2 application for the STM32F407 (Cortex-M4F,
+//! 168 MHz). Thin glue around `shared::control::Controller`:
 //!
-//! This first version logs, at start-up, the operating frequency that the `shared` selection
-//! picks for the configured rig and gap (the same function `host-sim select` calls). The
-//! shaker drive, impact sensing and tracking controller come with the controller issue.
+//! | task            | trigger                     | priority | does                                         |
+//! |-----------------|-----------------------------|----------|----------------------------------------------|
+//! | `sample`        | TIM2 update, 10 kHz         | 3        | ADC1 → `Controller::on_sample` → DAC1        |
+//! | `console`       | USART2 RX                   | 2        | bytes → lines → `parse` → `execute` → reply  |
+//! | `report`        | every 10,000 samples (1 s)  | 2        | logs events + status, feeds the watchdog     |
+//! | `model`         | start-up, `rig`/`gap`/`tune`| 1        | `shared::control::predict` (the selection)   |
 //!
+//! Wiring, console commands and faults: README, "Firmware".
 //! Build: `cargo fw-build`; flash and watch the defmt log: `cargo fw` (probe-rs).
 //! On the host this crate compiles to a stub so that `cargo build --workspace` works.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
-/// Configuration of the rig this board drives.
+/// Configuration of the rig this board drives at power-up (the console changes rig and gap).
 pub mod config {
     use shared::model::RigId;
 
-    /// The rig the firmware is configured for.
+    /// The rig at power-up.
     pub const RIG: RigId = RigId::Wires;
-    /// The gap set on the rig, m (field use: 0.0 mm).
-    pub const GAP_M: f64 = 0.0;
+    /// The gap at power-up, mm (field use: 0.0 mm).
+    pub const GAP_MM: f32 = 0.0;
+    /// Core clock, Hz.
+    pub const SYSCLK_HZ: u32 = 168_000_000;
+    /// Independent watchdog timeout, ms.
+    pub const WATCHDOG_MS: u32 = 2_000;
 }
 
 #[cfg(target_os = "none")]
-#[rtic::app(device = stm32f4xx_hal::pac, dispatchers = [EXTI0])]
+mod board;
+
+#[cfg(target_os = "none")]
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [EXTI0, EXTI1])]
 mod app {
+    use core::fmt::Write as _;
+
     use defmt_rtt as _;
     use panic_probe as _;
-    use shared::analysis::{SelectionSpec, SimSettings, select_sequential};
+    use shared::control::{
+        Controller, ControllerConfig, Event, Line, LineBuffer, SAMPLE_RATE_HZ, parse, predict,
+    };
+    use shared::hal::{DriveOutput, ForceSource};
+    use stm32f4xx_hal::{
+        adc::{Adc, config::AdcConfig},
+        pac,
+        prelude::*,
+        rcc::Config,
+        serial::{self, Rx, Serial, Tx},
+        timer::{CounterHz, Event as TimerEvent, Flag},
+        watchdog::IndependentWatchdog,
+    };
 
-    use crate::config::{GAP_M, RIG};
+    use crate::board::{CycleClock, DacDrive, ForceAdc};
+    use crate::config::{GAP_MM, RIG, SYSCLK_HZ, WATCHDOG_MS};
 
     #[shared]
-    struct Shared {}
+    struct Shared {
+        controller: Controller,
+    }
 
     #[local]
-    struct Local {}
+    struct Local {
+        timer: CounterHz<pac::TIM2>,
+        adc: ForceAdc,
+        dac: DacDrive,
+        clock: CycleClock,
+        rx: Rx<pac::USART2>,
+        tx: Tx<pac::USART2>,
+        line: LineBuffer,
+        watchdog: IndependentWatchdog,
+        last_samples: u64,
+    }
 
     #[init]
-    fn init(_cx: init::Context) -> (Shared, Local) {
-        defmt::info!(
-            "vibro-impact rig firmware: rig {}, gap {=f64} mm",
-            RIG.name(),
-            GAP_M * 1e3
-        );
-        if select_operating_point::spawn().is_err() {
-            defmt::error!("could not start the selection task");
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let dp = cx.device;
+        let mut rcc = dp.RCC.freeze(Config::hse(8.MHz()).sysclk(SYSCLK_HZ.Hz()));
+        let gpioa = dp.GPIOA.split(&mut rcc);
+
+        let adc = Adc::new(dp.ADC1, true, AdcConfig::default(), &mut rcc);
+        let adc = ForceAdc::new(adc, gpioa.pa1.into_analog());
+        let dac = DacDrive::new(dp.DAC, gpioa.pa4.into_analog(), &mut rcc);
+
+        let serial_config = serial::Config::default().baudrate(115_200.bps());
+        let (tx, mut rx) =
+            match Serial::new(dp.USART2, (gpioa.pa2, gpioa.pa3), serial_config, &mut rcc) {
+                Ok(s) => s.split(),
+                Err(_) => defmt::panic!("USART2 configuration rejected"),
+            };
+        rx.listen();
+
+        let controller = match Controller::new(ControllerConfig::default(), RIG, GAP_MM) {
+            Ok(c) => c,
+            Err(_) => defmt::panic!("the built-in controller configuration is invalid"),
+        };
+
+        let mut watchdog = IndependentWatchdog::new(dp.IWDG);
+        watchdog.start(WATCHDOG_MS.millis());
+
+        let mut timer = dp.TIM2.counter_hz(&mut rcc);
+        if timer.start(SAMPLE_RATE_HZ.Hz()).is_err() {
+            defmt::panic!("TIM2 cannot run at {=u32} Hz", SAMPLE_RATE_HZ);
         }
-        (Shared {}, Local {})
+        timer.listen(TimerEvent::Update);
+
+        let mut core = cx.core;
+        let clock = CycleClock::new(&mut core.DCB, core.DWT, SYSCLK_HZ);
+
+        defmt::info!(
+            "vibro-impact rig firmware: rig {=str}, gap {=f32} mm, sampling at {=u32} Hz",
+            RIG.name(),
+            GAP_MM,
+            SAMPLE_RATE_HZ
+        );
+        model::spawn().ok();
+        (
+            Shared { controller },
+            Local {
+                timer,
+                adc,
+                dac,
+                clock,
+                rx,
+                tx,
+                line: LineBuffer::default(),
+                watchdog,
+                last_samples: 0,
+            },
+        )
     }
 
     #[idle]
@@ -53,33 +137,117 @@ mod app {
         }
     }
 
-    /// Runs the operating-frequency selection in f32 at the lowest priority and logs it.
-    #[task(priority = 1)]
-    async fn select_operating_point(_cx: select_operating_point::Context) {
-        let params = RIG.preset();
-        let spec = SelectionSpec::default();
-        defmt::info!(
-            "selecting the operating frequency ({=usize} frequencies per gap)...",
-            spec.omega_ratio.len()
-        );
-        match select_sequential::<f32>(&params, GAP_M, &spec, &SimSettings::default()) {
-            Ok(sel) => {
-                defmt::info!(
-                    "operating frequency {=f64} Hz (omega_ratio {=f64}), regime 1/1, F_i/mg {=f64}",
-                    sel.best.freq_hz,
-                    sel.best.omega_ratio,
-                    sel.best.impact_force_mg
-                );
-                defmt::info!(
-                    "1/1 band {=f64} .. {=f64} Hz, margin {=f64} % (frequency), +-{=f64} mm (gap), worst F_i/mg {=f64}",
-                    sel.band_hz[0],
-                    sel.band_hz[1],
-                    sel.margin_freq_pct,
-                    sel.margin_gap_mm,
-                    sel.worst_impact_force_mg
-                );
+    /// The sampling task: one force sample in, one drive sample out, every 100 µs.
+    #[task(binds = TIM2, priority = 3, shared = [controller], local = [timer, adc, dac, clock])]
+    fn sample(mut cx: sample::Context) {
+        cx.local.timer.clear_flags(Flag::Update);
+        let code = cx.local.adc.read_code();
+        let now_us = cx.local.clock.tick_us();
+        let (out, n) = cx
+            .shared
+            .controller
+            .lock(|c| (c.on_sample(code, now_us), c.samples()));
+        cx.local.dac.write_code(out);
+        if n % u64::from(SAMPLE_RATE_HZ) == 0 {
+            report::spawn().ok();
+        }
+    }
+
+    /// The console: collects bytes into lines, runs each command, answers one line.
+    #[task(binds = USART2, priority = 2, shared = [controller], local = [rx, tx, line])]
+    fn console(mut cx: console::Context) {
+        while let Ok(byte) = cx.local.rx.read() {
+            let reply_to = match cx.local.line.push(byte) {
+                None => continue,
+                Some(Line::Bad) => {
+                    cx.local
+                        .tx
+                        .write_str("error: line too long or not text\r\n")
+                        .ok();
+                    continue;
+                }
+                Some(Line::Text(text)) => parse(text),
+            };
+            let tx = &mut *cx.local.tx;
+            match reply_to {
+                Err(e) => {
+                    write!(tx, "error: {e}\r\n").ok();
+                }
+                Ok(cmd) => {
+                    let (reply, model_needed) = cx
+                        .shared
+                        .controller
+                        .lock(|c| (c.execute(cmd), c.model_request_open()));
+                    match reply {
+                        Ok(r) => write!(tx, "{r}\r\n").ok(),
+                        Err(e) => write!(tx, "error: {e}\r\n").ok(),
+                    };
+                    if model_needed {
+                        model::spawn().ok();
+                    }
+                }
             }
-            Err(e) => defmt::error!("selection failed: {}", defmt::Display2Format(&e)),
+        }
+    }
+
+    /// Once a second: logs what happened, the status line, and feeds the watchdog while the
+    /// sampling task keeps its rate.
+    #[task(priority = 2, shared = [controller], local = [watchdog, last_samples])]
+    async fn report(mut cx: report::Context) {
+        let (status, samples, model_needed) = cx
+            .shared
+            .controller
+            .lock(|c| (c.status(), c.samples(), c.model_request_open()));
+        loop {
+            let Some(event) = cx.shared.controller.lock(|c| c.pop_event()) else {
+                break;
+            };
+            match event {
+                Event::State { from, to } => {
+                    defmt::info!("state {=str} -> {=str}", from.as_str(), to.as_str())
+                }
+                Event::Fault(f) => defmt::error!("FAULT {=str}: drive ramping to zero", f.as_str()),
+                Event::ModelReady(p) => defmt::info!(
+                    "model: target {=f32} Hz, 1/1 band {=f32}..{=f32} Hz, F_i/mg {=f32}",
+                    p.target_hz,
+                    p.band_hz[0],
+                    p.band_hz[1],
+                    p.impact_force_mg
+                ),
+                Event::ModelFailed => defmt::warn!("model: no robust 1/1 target"),
+            }
+        }
+        defmt::info!("{}", defmt::Display2Format(&status));
+        // Healthy: at least 90 % of the expected samples since the last report.
+        let done = samples.wrapping_sub(*cx.local.last_samples);
+        *cx.local.last_samples = samples;
+        if done >= u64::from(SAMPLE_RATE_HZ) * 9 / 10 {
+            cx.local.watchdog.feed();
+        } else {
+            defmt::error!(
+                "sampling stalled ({=u64} samples in 1 s): not feeding the watchdog",
+                done
+            );
+        }
+        if model_needed {
+            model::spawn().ok();
+        }
+    }
+
+    /// The model: runs the on-target selection for every open request (lowest priority, so
+    /// sampling and the console preempt it).
+    #[task(priority = 1, shared = [controller])]
+    async fn model(mut cx: model::Context) {
+        while let Some(req) = cx.shared.controller.lock(|c| c.take_model_request()) {
+            defmt::info!(
+                "model: computing rig {=str} gap {=f32} mm",
+                req.rig.name(),
+                req.gap_mm
+            );
+            let result = predict(req.rig, req.gap_mm);
+            cx.shared
+                .controller
+                .lock(|c| c.set_prediction(req.generation, result));
         }
     }
 }
@@ -89,6 +257,6 @@ fn main() {
     println!(
         "firmware for {} at {} mm gap: build it for the MCU with `cargo fw-build` (thumbv7em-none-eabihf)",
         config::RIG,
-        config::GAP_M * 1e3
+        config::GAP_MM
     );
 }

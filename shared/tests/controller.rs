@@ -102,7 +102,10 @@ fn prediction(target_hz: f32) -> Prediction {
 #[test]
 fn start_ramps_then_tracks_to_the_force_maximum() {
     let mut rig = Rig::new();
-    assert_eq!(rig.c.execute(Command::Start), Ok(shared::control::Reply::Ok));
+    assert_eq!(
+        rig.c.execute(Command::Start),
+        Ok(shared::control::Reply::Ok)
+    );
     assert_eq!(rig.c.state(), State::Ramp);
     // 0.89 mm at 0.5 mm/s: 1.78 s of ramp.
     rig.run(1.77);
@@ -117,7 +120,11 @@ fn start_ramps_then_tracks_to_the_force_maximum() {
     let f = s.freq_hz;
     assert!(hill(f) >= 0.995 * 96.0, "{f}");
     let peak = s.peak_n.unwrap();
-    assert!((peak - hill(f)).abs() < 0.02 * hill(f), "{peak} vs {}", hill(f));
+    assert!(
+        (peak - hill(f)).abs() < 0.02 * hill(f),
+        "{peak} vs {}",
+        hill(f)
+    );
     assert!((s.peak_mg.unwrap() - peak / 2.9234).abs() < 0.01);
     assert_eq!(s.lost_cycles, 0);
     assert_eq!(rig.c.fault(), None);
@@ -143,7 +150,10 @@ fn assert_fault_ramps_down_and_latches(rig: &mut Rig, fault: Fault, within_s: f3
     rig.run(5.0);
     assert_eq!(rig.c.state(), State::Fault);
     assert_eq!(rig.c.generator().amplitude_mm(), 0.0);
-    assert_eq!(rig.c.execute(Command::Start), Err(CommandError::FaultLatched));
+    assert_eq!(
+        rig.c.execute(Command::Start),
+        Err(CommandError::FaultLatched)
+    );
     rig.c.execute(Command::Clear).unwrap();
     assert_eq!(rig.c.state(), State::Idle);
     assert_eq!(rig.c.fault(), None);
@@ -211,15 +221,22 @@ fn adc_overrun_and_missed_deadline_trip() {
 fn bad_commands_change_nothing() {
     let mut rig = tracking_rig();
     let before = rig.c.status();
-    assert_eq!(rig.c.execute(Command::Rig(RigId::Beam170)), Err(CommandError::NotIdle));
+    assert_eq!(
+        rig.c.execute(Command::Rig(RigId::Beam170)),
+        Err(CommandError::NotIdle)
+    );
     assert_eq!(rig.c.execute(Command::Gap(1.0)), Err(CommandError::NotIdle));
     assert_eq!(
         rig.c.execute(Command::Freq(40.0)),
-        Err(CommandError::FreqOutOfWindow { min: 1.0, max: 30.0 })
+        Err(CommandError::FreqOutOfWindow {
+            min: 1.0,
+            max: 30.0
+        })
     );
     assert_eq!(rig.c.status(), before);
     // A stale model result is ignored.
-    rig.c.set_prediction(99, Err(SelectionError::NoOneToOneBand));
+    rig.c
+        .set_prediction(99, Err(SelectionError::NoOneToOneBand));
     assert_eq!(rig.c.status(), before);
     assert!(matches!(before.model, ModelStatus::Ready(_)));
 }
@@ -271,8 +288,18 @@ fn status_line_names_every_field() {
     let rig = tracking_rig();
     let line = std::format!("{}", rig.c.status());
     for key in [
-        "state=track", "rig=wires", "gap_mm=0.00", "freq_hz=", "amp_mm=0.890", "regime=1/1",
-        "peak_n=", "peak_mg=", "model=ready", "target_hz=3.6000", "fault=none", "impacts=",
+        "state=track",
+        "rig=wires",
+        "gap_mm=0.00",
+        "freq_hz=",
+        "amp_mm=0.890",
+        "regime=1/1",
+        "peak_n=",
+        "peak_mg=",
+        "model=ready",
+        "target_hz=3.6000",
+        "fault=none",
+        "impacts=",
         "lost_cycles=0",
     ] {
         assert!(line.contains(key), "{key} missing in {line}");

@@ -8,6 +8,7 @@
 
 use core::fmt;
 
+use super::fixed::{Fixed, parse_decimal};
 use crate::model::RigId;
 
 /// Longest accepted line, bytes (without the newline).
@@ -78,9 +79,12 @@ impl fmt::Display for ParseError {
                 f.write_str("rig must be wires, beam-170, beam-150 or beam-135")
             }
             ParseError::BadNumber(what) => write!(f, "{what} must be a number"),
-            ParseError::OutOfRange { field, min, max } => {
-                write!(f, "{field} out of range: allowed {min} ..= {max}")
-            }
+            ParseError::OutOfRange { field, min, max } => write!(
+                f,
+                "{field} out of range: allowed {} ..= {}",
+                Fixed(*min, 2),
+                Fixed(*max, 2)
+            ),
         }
     }
 }
@@ -139,12 +143,7 @@ pub fn parse(line: &str) -> Result<Command, ParseError> {
 
 fn number(arg: Option<&str>, what: &'static str) -> Result<f32, ParseError> {
     let s = arg.ok_or(ParseError::MissingArgument(what))?;
-    let v: f32 = s.parse().map_err(|_| ParseError::BadNumber(what))?;
-    if v.is_finite() {
-        Ok(v)
-    } else {
-        Err(ParseError::BadNumber(what))
-    }
+    parse_decimal(s).ok_or(ParseError::BadNumber(what))
 }
 
 fn in_range(v: f32, field: &'static str, min: f32, max: f32) -> Result<f32, ParseError> {

@@ -16,6 +16,7 @@ use super::config::{ControllerConfig, SAMPLE_RATE_HZ};
 use super::console::{Command, HELP};
 use super::detector::ImpactDetector;
 use super::faults::{Fault, SensorMonitor};
+use super::fixed::Fixed;
 use super::meter::RegimeMeter;
 use super::model::Prediction;
 use super::sine::SineGenerator;
@@ -192,12 +193,12 @@ impl fmt::Display for Status {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "state={} rig={} gap_mm={:.2} freq_hz={:.4} amp_mm={:.3} regime=",
+            "state={} rig={} gap_mm={} freq_hz={} amp_mm={} regime=",
             self.state.as_str(),
             self.rig.name(),
-            self.gap_mm,
-            self.freq_hz,
-            self.amplitude_mm
+            Fixed(self.gap_mm, 2),
+            Fixed(self.freq_hz, 4),
+            Fixed(self.amplitude_mm, 3)
         )?;
         match self.regime {
             Some(r @ Regime::Periodic { .. }) => write!(f, "{r}")?,
@@ -206,14 +207,17 @@ impl fmt::Display for Status {
             None => f.write_str("-")?,
         }
         match (self.peak_n, self.peak_mg) {
-            (Some(n), Some(mg)) => write!(f, " peak_n={n:.1} peak_mg={mg:.2}")?,
+            (Some(n), Some(mg)) => write!(f, " peak_n={} peak_mg={}", Fixed(n, 1), Fixed(mg, 2))?,
             _ => f.write_str(" peak_n=- peak_mg=-")?,
         }
         match self.model {
             ModelStatus::Ready(p) => write!(
                 f,
-                " model=ready target_hz={:.4} band_hz={:.3}..{:.3} predicted_mg={:.2}",
-                p.target_hz, p.band_hz[0], p.band_hz[1], p.impact_force_mg
+                " model=ready target_hz={} band_hz={}..{} predicted_mg={}",
+                Fixed(p.target_hz, 4),
+                Fixed(p.band_hz[0], 3),
+                Fixed(p.band_hz[1], 3),
+                Fixed(p.impact_force_mg, 2)
             )?,
             ModelStatus::Pending => f.write_str(" model=pending")?,
             ModelStatus::Failed => f.write_str(" model=failed")?,
@@ -485,10 +489,10 @@ impl Controller {
     /// The sampling task: one ADC result in (`now_us` from the time base), one DAC code out.
     pub fn on_sample(&mut self, code: Result<u16, SampleError>, now_us: u64) -> u16 {
         self.sample = self.sample.wrapping_add(1);
-        if let Some(last) = self.last_us.replace(now_us) {
-            if now_us.wrapping_sub(last) > u64::from(self.config.faults.deadline_us) {
-                self.trip(Fault::MissedDeadline);
-            }
+        if let Some(last) = self.last_us.replace(now_us)
+            && now_us.wrapping_sub(last) > u64::from(self.config.faults.deadline_us)
+        {
+            self.trip(Fault::MissedDeadline);
         }
         let (force_n, code) = match code {
             Ok(c) => (self.config.sensor.force_n(c), Some(c)),

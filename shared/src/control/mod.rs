@@ -12,6 +12,7 @@ pub mod console;
 pub mod controller;
 pub mod detector;
 pub mod faults;
+pub mod fixed;
 pub mod meter;
 pub mod model;
 pub mod sine;
@@ -27,6 +28,7 @@ pub use controller::{
 };
 pub use detector::{DetectedImpact, ImpactDetector};
 pub use faults::{Fault, SensorMonitor};
+pub use fixed::{Fixed, parse_decimal};
 pub use meter::RegimeMeter;
 pub use model::{Prediction, predict};
 pub use sine::{DriveSample, SineGenerator, sin_turn};

@@ -4,6 +4,7 @@
 //! and amplitude changes ramp (soft start, soft stop); both targets are clamped to the
 //! [`Limits`] window.
 
+use super::fixed::within;
 use super::config::{DAC_MID, DriveChain, Limits, SAMPLE_RATE_HZ};
 
 /// One full turn of the phase accumulator.
@@ -84,7 +85,7 @@ impl SineGenerator {
         if freq_hz.is_nan() {
             return;
         }
-        let f = freq_hz.clamp(self.limits.freq_min_hz, self.limits.freq_max_hz);
+        let f = within(freq_hz, self.limits.freq_min_hz, self.limits.freq_max_hz);
         self.target_increment = increment_of(f);
     }
 
@@ -105,7 +106,7 @@ impl SineGenerator {
         let a = if amplitude_mm.is_nan() {
             0.0
         } else {
-            amplitude_mm.clamp(0.0, self.limits.amplitude_max_mm)
+            within(amplitude_mm, 0.0, self.limits.amplitude_max_mm)
         };
         self.target_amplitude_mm = a;
         self.aborting = false;

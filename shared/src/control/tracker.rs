@@ -6,6 +6,7 @@
 //! few cycles at a frequency, then asks where to go). The step halves at every reversal down to
 //! `min_step_hz`, so the frequency ends up dithering by `min_step_hz` around the force maximum.
 
+use super::fixed::within;
 use super::config::TrackSettings;
 use crate::observe::Regime;
 
@@ -61,7 +62,7 @@ impl HillClimber {
                 } else {
                     freq_hz + self.direction * self.step_hz
                 };
-                return next.clamp(lo, hi);
+                return within(next, lo, hi);
             }
         };
         if let Some(last) = self.last_force_n {
@@ -77,7 +78,7 @@ impl HillClimber {
             self.direction = -self.direction;
             next = freq_hz + self.direction * self.step_hz;
         }
-        next.clamp(lo, hi)
+        within(next, lo, hi)
     }
 }
 
