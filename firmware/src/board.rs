@@ -32,8 +32,12 @@ impl ForceAdc {
         let regs = unsafe { &*pac::ADC1::ptr() };
         regs.sqr1().modify(|_, w| unsafe { w.l().bits(0) });
         regs.sqr3().modify(|_, w| unsafe { w.sq1().bits(1) });
-        regs.smpr2().modify(|_, w| unsafe { w.smp1().bits(SampleTime::Cycles_15 as u8) });
-        ForceAdc { _adc: adc, _pin: pin }
+        regs.smpr2()
+            .modify(|_, w| unsafe { w.smp1().bits(SampleTime::Cycles_15 as u8) });
+        ForceAdc {
+            _adc: adc,
+            _pin: pin,
+        }
     }
 }
 

@@ -20,7 +20,7 @@ use shared::analysis::SimSettings;
 use shared::model::RigId;
 use shared::observe::PointResult;
 
-use host_sim::cli::{Cli, Command, Precision, RigOpts};
+use host_sim::cli::{Cli, Command, Precision, Profile, RigOpts};
 use host_sim::commands;
 use host_sim::config::Setup;
 use host_sim::grid::BATCH;
@@ -39,6 +39,7 @@ fn main() {
         law: None,
         config: None,
         precision: Precision::F32,
+        profile: Profile::Host,
     })
     .expect("wire rig");
     assert_eq!(setup.settings, SimSettings::default());

@@ -21,6 +21,18 @@ pub enum Precision {
     F64,
 }
 
+/// Numerical profile: the analysis defaults, or the cheaper settings the firmware's model task
+/// runs on the MCU (`SimSettings::embedded`, `SelectionSpec::embedded`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum Profile {
+    /// Analysis defaults: N = 64, K = 16, 200-period transient, Ω/ω 0.5:5.0:0.01 for `select`.
+    #[default]
+    Host,
+    /// The firmware's on-target model: N = 32, K = 8, 40-period transient, q ≤ 4, 8-period
+    /// window, Ω/ω 1.0:4.0:0.1 for `select` (gives the firmware's target bit for bit).
+    Embedded,
+}
+
 /// The vibro-impact hammer of the thesis on the desktop: operating-frequency selection,
 /// frequency responses, time series and batch evaluation, from the same `shared` code as the
 /// rig's firmware.
@@ -47,6 +59,9 @@ pub struct RigOpts {
     /// Float type of the simulation.
     #[arg(long, value_enum, default_value_t = Precision::F32)]
     pub precision: Precision,
+    /// Numerical profile (defaults that `--config` then overrides).
+    #[arg(long, value_enum, default_value_t = Profile::Host)]
+    pub profile: Profile,
 }
 
 fn parse_rig(s: &str) -> Result<RigId, String> {

@@ -20,7 +20,7 @@ use shared::analysis::{SelectionSpec, SimSettings, Sweep};
 use shared::error::check_range;
 use shared::model::{ContactLaw, RigId, RigParams};
 
-use crate::cli::{Precision, RigOpts};
+use crate::cli::{Precision, Profile, RigOpts};
 
 /// Largest gap accepted on the command line, mm.
 pub const MAX_GAP_MM: f64 = 50.0;
@@ -58,8 +58,10 @@ impl Setup {
         if let Some(kind) = opts.law {
             params.contact = ContactLaw::preset(kind);
         }
-        let mut settings = SimSettings::default();
-        let mut selection = SelectionSpec::default();
+        let (mut settings, mut selection) = match opts.profile {
+            Profile::Host => (SimSettings::default(), SelectionSpec::default()),
+            Profile::Embedded => (SimSettings::embedded(), SelectionSpec::embedded()),
+        };
         if let Some(path) = &opts.config {
             let file = read_config(path)?;
             if let Some(t) = file.rig {

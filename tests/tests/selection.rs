@@ -3,25 +3,32 @@
 //! and the desktop's way (`host-sim select`, responses in parallel), must be identical, and the
 //! result must show the thesis' reported behaviour (MODEL.md, last section).
 
-use host_sim::cli::{Precision, RigOpts};
+use host_sim::cli::{Precision, Profile, RigOpts};
 use host_sim::commands::select::compute;
 use host_sim::config::Setup;
 use shared::analysis::{SimSettings, evaluate_point, select_sequential};
 use shared::model::RigId;
 use shared::observe::Regime;
 
-fn setup(rig: RigId) -> Setup {
+fn setup(rig: RigId, profile: Profile) -> Setup {
     Setup::from_opts(&RigOpts {
         rig,
         law: None,
         config: None,
         precision: Precision::F32,
+        profile,
     })
     .unwrap()
 }
 
 fn same_on_target_and_host(rig: RigId) -> host_sim::commands::select::SelectReport {
-    let s = setup(rig);
+    same_with_profile(rig, Profile::Host)
+}
+
+/// The firmware computes the target with `select_sequential` (perturbed gaps only where the
+/// selection reads them); the host computes every response in parallel and calls `select`.
+fn same_with_profile(rig: RigId, profile: Profile) -> host_sim::commands::select::SelectReport {
+    let s = setup(rig, profile);
     let (host, _) = compute(&s, 0.0).unwrap();
     let target = select_sequential::<f32>(&s.params, 0.0, &s.selection, &s.settings).unwrap();
     assert_eq!(target.best.omega_ratio, host.omega_ratio, "{rig}");
@@ -67,4 +74,32 @@ fn beam_170_rig_at_zero_gap() {
     assert!(r.margin_freq_pct >= 5.0);
     // freq_hz = Ω/ω × 4.50 Hz (Table 3.3).
     assert!((r.freq_hz - r.omega_ratio * 4.5).abs() < 1e-9);
+}
+
+#[test]
+fn embedded_profile_gives_the_firmware_target_bit_for_bit() {
+    for rig in [RigId::Wires, RigId::Beam170] {
+        let host = same_with_profile(rig, Profile::Embedded);
+        // What the firmware's model task calls (and the QEMU run prints).
+        let p = shared::control::predict(rig, 0.0).unwrap();
+        assert_eq!(p.target_hz, host.freq_hz as f32, "{rig}");
+        assert_eq!(
+            p.band_hz,
+            [host.band_hz[0] as f32, host.band_hz[1] as f32],
+            "{rig}"
+        );
+        assert_eq!(p.impact_force_mg, host.impact_force_mg as f32, "{rig}");
+        // The cheap profile lands within 1 % of the analysis profile's target.
+        let full = same_on_target_and_host(rig);
+        assert!(
+            (host.freq_hz / full.freq_hz - 1.0).abs() < 0.01,
+            "{rig}: {} vs {}",
+            host.freq_hz,
+            full.freq_hz
+        );
+        assert!(
+            (host.impact_force_mg / full.impact_force_mg - 1.0).abs() < 0.01,
+            "{rig}"
+        );
+    }
 }

@@ -219,8 +219,6 @@ pub fn select(
         }
     };
 
-    let p = spec.freq_margin_pct / 100.0;
-    let eps = 1e-9 * sweep.step;
     let mut best: Option<(usize, usize, usize)> = None; // (index, box lo, box hi)
     let mut strongest: Option<usize> = None;
     let mut robust_points = 0;
@@ -228,13 +226,9 @@ pub fn select(
         if strongest.is_none_or(|s| nominal[i].impact_force_mg > nominal[s].impact_force_mg) {
             strongest = Some(i);
         }
-        let r = sweep.value(i);
-        let (lo, hi) = (r * (1.0 - p), r * (1.0 + p));
-        if lo < sweep.lo - eps || hi > sweep.value(n - 1) + eps {
+        let Some((j_lo, j_hi)) = robustness_window(spec, i) else {
             continue;
-        }
-        let j_lo = libm::floor((lo - sweep.lo) / sweep.step + 1e-9).max(0.0) as usize;
-        let j_hi = (libm::ceil((hi - sweep.lo) / sweep.step - 1e-9) as usize).min(n - 1);
+        };
         if (j_lo..=j_hi).all(robust_at) {
             robust_points += 1;
             if best.is_none_or(|(b, _, _)| nominal[i].impact_force_mg > nominal[b].impact_force_mg)
@@ -312,6 +306,24 @@ pub fn select(
     })
 }
 
+/// The sweep indices `j_lo ..= j_hi` whose frequencies cover `±freq_margin_pct` around sweep
+/// point `i` (widened outward to the next grid points), or `None` when that window leaves the
+/// sweep (the point cannot be verified).
+fn robustness_window(spec: &SelectionSpec, i: usize) -> Option<(usize, usize)> {
+    let sweep = spec.omega_ratio;
+    let n = sweep.len();
+    let p = spec.freq_margin_pct / 100.0;
+    let eps = 1e-9 * sweep.step;
+    let r = sweep.value(i);
+    let (lo, hi) = (r * (1.0 - p), r * (1.0 + p));
+    if n == 0 || lo < sweep.lo - eps || hi > sweep.value(n - 1) + eps {
+        return None;
+    }
+    let j_lo = libm::floor((lo - sweep.lo) / sweep.step + 1e-9).max(0.0) as usize;
+    let j_hi = (libm::ceil((hi - sweep.lo) / sweep.step - 1e-9) as usize).min(n - 1);
+    Some((j_lo, j_hi))
+}
+
 /// Largest sweep [`select_sequential`] holds (three responses of this many samples live on the stack).
 pub const MAX_SEQUENTIAL_POINTS: usize = 512;
 
@@ -338,23 +350,46 @@ pub fn select_sequential<T: Real>(
         .into());
     }
     let gaps = perturbed_gaps(gap_m, spec.gap_margin_mm);
-    let mut responses: Vec<Vec<ResponseSample, MAX_SEQUENTIAL_POINTS>, 3> = Vec::new();
-    for g in core::iter::once(gap_m).chain(gaps.iter().copied()) {
+    let mut nominal: Vec<ResponseSample, MAX_SEQUENTIAL_POINTS> = Vec::new();
+    for i in 0..sweep.len() {
+        let res = evaluate_point::<T>(params, gap_m, sweep.value(i), settings)?;
+        let _ = nominal.push(ResponseSample::from(&res));
+    }
+    // [`select`] reads the perturbed responses only inside the robustness windows of the
+    // nominal `1/1` points: compute those and leave the rest as `no impact` (never read), which
+    // gives the same selection for a fraction of the work.
+    let mut needed = [false; MAX_SEQUENTIAL_POINTS];
+    for i in
+        (0..sweep.len()).filter(|&i| nominal.get(i).is_some_and(|s| s.regime == Regime::ONE_ONE))
+    {
+        if let Some((j_lo, j_hi)) = robustness_window(spec, i) {
+            for flag in needed.iter_mut().take(j_hi + 1).skip(j_lo) {
+                *flag = true;
+            }
+        }
+    }
+    let unread = ResponseSample {
+        regime: Regime::NoImpact,
+        impact_force_mg: 0.0,
+    };
+    let mut responses: Vec<Vec<ResponseSample, MAX_SEQUENTIAL_POINTS>, 2> = Vec::new();
+    for &g in &gaps {
         let mut r = Vec::new();
-        for i in 0..sweep.len() {
-            let res = evaluate_point::<T>(params, g, sweep.value(i), settings)?;
-            let _ = r.push(ResponseSample::from(&res));
+        for (i, &need) in needed.iter().enumerate().take(sweep.len()) {
+            let sample = if need {
+                ResponseSample::from(&evaluate_point::<T>(params, g, sweep.value(i), settings)?)
+            } else {
+                unread
+            };
+            let _ = r.push(sample);
         }
         let _ = responses.push(r);
     }
-    let (nominal, rest) = responses
-        .split_first()
-        .ok_or(SelectionError::NoOneToOneBand)?;
     let mut perturbed: Vec<&[ResponseSample], 2> = Vec::new();
-    for r in rest {
+    for r in &responses {
         let _ = perturbed.push(r.as_slice());
     }
-    select(params, spec, nominal, &perturbed)
+    select(params, spec, &nominal, &perturbed)
 }
 
 #[cfg(test)]

@@ -4,8 +4,8 @@
 //! and amplitude changes ramp (soft start, soft stop); both targets are clamped to the
 //! [`Limits`] window.
 
-use super::fixed::within;
 use super::config::{DAC_MID, DriveChain, Limits, SAMPLE_RATE_HZ};
+use super::fixed::within;
 
 /// One full turn of the phase accumulator.
 const TURN: f32 = 4_294_967_296.0;

@@ -6,8 +6,8 @@
 //! few cycles at a frequency, then asks where to go). The step halves at every reversal down to
 //! `min_step_hz`, so the frequency ends up dithering by `min_step_hz` around the force maximum.
 
-use super::fixed::within;
 use super::config::TrackSettings;
+use super::fixed::within;
 use crate::observe::Regime;
 
 /// The hill climber.

@@ -1,0 +1,226 @@
+//! The `shared` computations on an emulated Cortex-M4F (QEMU `netduinoplus2`, the STM32F407's
+//! memory map), for CI: prints the on-target operating frequency (to compare bit for bit with the
+//! host's f32 result) and the executed-instruction counts of one sampling-task call, one
+//! integrator step and one full target-frequency computation, plus the stack high-water mark.
+//! Exits 0 through semihosting when every budget holds, 1 otherwise.
+//!
+//! Run: `qemu-system-arm -machine netduinoplus2 -nographic -semihosting-config
+//! enable=on,target=native -icount shift=0,sleep=off -kernel
+//! target/thumbv7em-none-eabihf/release/qemu-check` (what `tests/tests/qemu.rs` does).
+//! With `-icount shift=0` SysTick counts executed instructions exactly and repeatably.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod target {
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    use cortex_m::peripheral::{SYST, syst::SystClkSource};
+    use cortex_m_rt::{entry, exception};
+    use cortex_m_semihosting::{debug, hprintln};
+    use shared::analysis::{SimSettings, simulator_at};
+    use shared::control::{
+        Command, Controller, ControllerConfig, Prediction, SensorChain, predict,
+    };
+    use shared::model::RigId;
+    // The device crate provides the interrupt vector table.
+    use stm32f4xx_hal as _;
+
+    /// Budgets of the issue: the target computation ≤ 84 M instructions (0.5 s at 168 MHz),
+    /// the sampling task ≤ 1,500 instructions per sample.
+    const PREDICT_BUDGET: u64 = 84_000_000;
+    const SAMPLE_BUDGET: u64 = 1_500;
+
+    static WRAPS: AtomicU32 = AtomicU32::new(0);
+
+    #[exception]
+    fn SysTick() {
+        WRAPS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Instructions since start (SysTick counts down from 2²⁴ − 1).
+    fn now() -> u64 {
+        loop {
+            let w = WRAPS.load(Ordering::Relaxed);
+            let v = SYST::get_current();
+            if WRAPS.load(Ordering::Relaxed) == w {
+                return u64::from(w) * 0x0100_0000 + u64::from(0x00FF_FFFF - v);
+            }
+        }
+    }
+
+    const PAINT: u32 = 0xC0FF_EE11;
+
+    /// Fills the unused stack (from the end of static data to 256 bytes below the current
+    /// stack pointer) with a pattern.
+    fn paint_stack() -> (usize, usize) {
+        let bottom = cortex_m_rt::heap_start() as usize;
+        let sp = cortex_m::register::msp::read() as usize - 256;
+        let mut p = bottom;
+        while p < sp {
+            // SAFETY: RAM between the heap start (no heap in this program) and the live stack.
+            unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
+            p += 4;
+        }
+        (bottom, sp)
+    }
+
+    /// Lowest painted word overwritten: the deepest the stack went.
+    fn stack_used(bottom: usize, top: usize) -> usize {
+        let mut p = bottom;
+        // SAFETY: reading the painted region.
+        while p < top && unsafe { core::ptr::read_volatile(p as *const u32) } == PAINT {
+            p += 4;
+        }
+        let stack_top = 0x2002_0000usize; // end of the 128 KiB SRAM (memory.x)
+        stack_top - p.max(bottom)
+    }
+
+    #[entry]
+    fn main() -> ! {
+        let (bottom, top) = paint_stack();
+        let mut cp = cortex_m::Peripherals::take().unwrap();
+        cp.SYST.set_clock_source(SystClkSource::Core);
+        cp.SYST.set_reload(0x00FF_FFFF);
+        cp.SYST.clear_current();
+        cp.SYST.enable_interrupt();
+        cp.SYST.enable_counter();
+        // Writing VAL does not raise the wrap exception: let the counter reload once, then take
+        // the cost of a `now()` pair as the measurement overhead (min of 16).
+        while now() < 0x0100_0000 {}
+        let overhead = (0..16)
+            .map(|_| {
+                let a = now();
+                now().saturating_sub(a)
+            })
+            .min()
+            .unwrap_or(0);
+        hprintln!("insns now_pair_overhead={}", overhead);
+        // Calibration: a loop of exactly 2 instructions per iteration (subs + bne).
+        let t = now();
+        // SAFETY: a register-only countdown loop.
+        unsafe {
+            core::arch::asm!("1:", "subs {0}, #1", "bne 1b", inout(reg) 1_000_000u32 => _, options(nomem, nostack));
+        }
+        let calib = now() - t;
+        hprintln!("calibration ticks_per_2M_insns={}", calib);
+        // SysTick runs at the emulated 168 MHz while `-icount shift=0` executes one instruction
+        // per virtual ns: instructions = ticks × 2e6 / calib (≈ ticks / 0.168).
+        let insns = |ticks: u64| ticks * 2_000_000 / calib.max(1);
+
+        // 1. The full target-frequency computation (the model task).
+        let t0 = now();
+        let prediction = predict(RigId::Wires, 0.0);
+        let predict_insns = now().saturating_sub(t0 + overhead);
+        let Ok(p) = prediction else {
+            hprintln!("error: on-target selection failed");
+            debug::exit(debug::EXIT_FAILURE);
+            loop {}
+        };
+        hprintln!(
+            "target_hz={} bits=0x{:08x} band_lo_bits=0x{:08x} band_hi_bits=0x{:08x} force_mg_bits=0x{:08x}",
+            p.target_hz,
+            p.target_hz.to_bits(),
+            p.band_hz[0].to_bits(),
+            p.band_hz[1].to_bits(),
+            p.impact_force_mg.to_bits()
+        );
+        let predict_insns = insns(predict_insns);
+        hprintln!("insns predict={}", predict_insns);
+
+        // 2. One integrator step (embedded settings, at the operating point, over 20 periods).
+        let params = RigId::Wires.preset();
+        let settings = SimSettings::embedded();
+        let ratio = params.ratio_from_freq_hz(f64::from(p.target_hz));
+        let Ok(mut sim) = simulator_at::<f32>(&params, 0.0, ratio, &settings) else {
+            debug::exit(debug::EXIT_FAILURE);
+            loop {}
+        };
+        let mut ignore = |_: &shared::integrate::StepSample<f32>| {};
+        for _ in 0..10 * 32 {
+            sim.step(&mut ignore); // past the transient
+        }
+        let (mut step_max, mut step_sum, mut rk4) = (0u64, 0u64, 0u64);
+        let n_steps = 20 * 32;
+        for _ in 0..n_steps {
+            let before = sim.rk4_steps();
+            let t = now();
+            sim.step(&mut ignore);
+            let d = now().saturating_sub(t + overhead);
+            rk4 += sim.rk4_steps() - before;
+            step_max = step_max.max(d);
+            step_sum += d;
+        }
+        hprintln!(
+            "insns step_mean={} step_max={} rk4_per_step={}",
+            insns(step_sum / n_steps),
+            insns(step_max),
+            rk4 as f32 / n_steps as f32
+        );
+
+        // 3. One sampling-task call: the controller tracking at the target with a toy impact
+        //    train (one 1.2 ms half-sine of 96 N per cycle), mean and worst over 20 s.
+        let Ok(mut c) = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0) else {
+            debug::exit(debug::EXIT_FAILURE);
+            loop {}
+        };
+        if let Some(req) = c.take_model_request() {
+            c.set_prediction(req.generation, Ok::<Prediction, _>(p));
+        }
+        let _ = c.execute(Command::Start);
+        let sensor = SensorChain::default();
+        let (mut worst, mut sum, mut n, mut in_cycle) = (0u64, 0u64, 0u64, 0u32);
+        for i in 0..250_000u64 {
+            let t_in = in_cycle as f32 * 1e-4 - 0.03;
+            let force = if (0.0..=0.0012).contains(&t_in) {
+                96.0 * libm::sinf(core::f32::consts::PI * t_in / 0.0012)
+            } else {
+                0.0
+            };
+            let code = libm::roundf(sensor.code_of(force)) as u16;
+            let phase = c.generator().phase();
+            let t = now();
+            let _ = c.on_sample(Ok(code), (i + 1) * 100);
+            let d = now().saturating_sub(t + overhead);
+            if i >= 50_000 {
+                worst = worst.max(d);
+                sum += d;
+                n += 1;
+            }
+            in_cycle = if c.generator().phase() < phase {
+                0
+            } else {
+                in_cycle + 1
+            };
+        }
+        let worst = insns(worst);
+        hprintln!("insns sample_mean={} sample_max={}", insns(sum / n), worst);
+        hprintln!(
+            "state={} fault={}",
+            c.state().as_str(),
+            c.fault().map_or("none", |f| f.as_str())
+        );
+        let stack = stack_used(bottom, top);
+        hprintln!("stack_high_water_bytes={}", stack);
+
+        let ok = predict_insns <= PREDICT_BUDGET && worst <= SAMPLE_BUDGET && c.fault().is_none();
+        hprintln!("budgets {}", if ok { "met" } else { "EXCEEDED" });
+        debug::exit(if ok {
+            debug::EXIT_SUCCESS
+        } else {
+            debug::EXIT_FAILURE
+        });
+        loop {}
+    }
+
+    #[panic_handler]
+    fn panic(info: &core::panic::PanicInfo) -> ! {
+        hprintln!("panic: {}", info);
+        debug::exit(debug::EXIT_FAILURE);
+        loop {}
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    println!("qemu-check runs on the MCU target under QEMU: see tests/tests/qemu.rs");
+}
