@@ -198,10 +198,7 @@ mod app {
             .shared
             .controller
             .lock(|c| (c.status(), c.samples(), c.model_request_open()));
-        loop {
-            let Some(event) = cx.shared.controller.lock(|c| c.pop_event()) else {
-                break;
-            };
+        while let Some(event) = cx.shared.controller.lock(|c| c.pop_event()) {
             match event {
                 Event::State { from, to } => {
                     defmt::info!("state {=str} -> {=str}", from.as_str(), to.as_str())

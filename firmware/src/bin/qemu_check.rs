@@ -112,9 +112,7 @@ mod target {
         let prediction = predict(RigId::Wires, 0.0);
         let predict_insns = now().saturating_sub(t0 + overhead);
         let Ok(p) = prediction else {
-            hprintln!("error: on-target selection failed");
-            debug::exit(debug::EXIT_FAILURE);
-            loop {}
+            fail("on-target selection failed")
         };
         hprintln!(
             "target_hz={} bits=0x{:08x} band_lo_bits=0x{:08x} band_hi_bits=0x{:08x} force_mg_bits=0x{:08x}",
@@ -132,8 +130,7 @@ mod target {
         let settings = SimSettings::embedded();
         let ratio = params.ratio_from_freq_hz(f64::from(p.target_hz));
         let Ok(mut sim) = simulator_at::<f32>(&params, 0.0, ratio, &settings) else {
-            debug::exit(debug::EXIT_FAILURE);
-            loop {}
+            fail("simulator_at rejected the operating point")
         };
         let mut ignore = |_: &shared::integrate::StepSample<f32>| {};
         for _ in 0..10 * 32 {
@@ -160,8 +157,7 @@ mod target {
         // 3. One sampling-task call: the controller tracking at the target with a toy impact
         //    train (one 1.2 ms half-sine of 96 N per cycle), mean and worst over 20 s.
         let Ok(mut c) = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0) else {
-            debug::exit(debug::EXIT_FAILURE);
-            loop {}
+            fail("controller configuration rejected")
         };
         if let Some(req) = c.take_model_request() {
             c.set_prediction(req.generation, Ok::<Prediction, _>(p));
@@ -209,14 +205,26 @@ mod target {
         } else {
             debug::EXIT_FAILURE
         });
-        loop {}
+        halt()
+    }
+
+    fn fail(msg: &str) -> ! {
+        hprintln!("error: {}", msg);
+        debug::exit(debug::EXIT_FAILURE);
+        halt()
+    }
+
+    fn halt() -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
     }
 
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo) -> ! {
         hprintln!("panic: {}", info);
         debug::exit(debug::EXIT_FAILURE);
-        loop {}
+        halt()
     }
 }
 

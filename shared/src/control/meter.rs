@@ -94,7 +94,7 @@ impl RegimeMeter {
     /// `Periodic { p, q }` for the shortest `q ≤ min(MAX_MEASURED_Q, window / 2)` that
     /// repeats; otherwise `Irregular`.
     pub fn regime(&self, window: usize) -> Option<Regime> {
-        let w = window.max(2).min(METER_CYCLES);
+        let w = window.clamp(2, METER_CYCLES);
         if self.filled < w {
             return None;
         }

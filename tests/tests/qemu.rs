@@ -1,0 +1,115 @@
+//! The `shared` computations on an emulated Cortex-M4F: runs the firmware crate's `qemu-check`
+//! image under `qemu-system-arm -machine netduinoplus2 -icount shift=0` and checks that
+//! - the operating frequency (and band and F_i/mg) computed on target equals the host's f32
+//!   `shared::control::predict` bit for bit,
+//! - one full target-frequency computation takes ≤ 84 M instructions (0.5 s at 168 MHz) and one
+//!   sampling-task call ≤ 1,500 instructions (the program's exit code says the same).
+//!
+//! Needs the image (`cargo fw-build`, which builds both firmware binaries) and QEMU
+//! (`apt-get install qemu-system-arm`); `.ci/run` provides both. Without them the test is
+//! skipped with a note, except under CI (`CI` set), where it fails.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use shared::control::predict;
+use shared::model::RigId;
+
+fn image() -> PathBuf {
+    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"));
+    target_dir.join("thumbv7em-none-eabihf/release/qemu-check")
+}
+
+fn field(out: &str, key: &str) -> String {
+    out.split_whitespace()
+        .find_map(|w| w.strip_prefix(&format!("{key}=")))
+        .unwrap_or_else(|| panic!("`{key}=` missing in the QEMU output:\n{out}"))
+        .to_string()
+}
+
+fn hex(s: &str) -> u32 {
+    u32::from_str_radix(s.trim_start_matches("0x"), 16).unwrap()
+}
+
+#[test]
+fn on_target_selection_matches_the_host_and_meets_the_budgets() {
+    let elf = image();
+    let qemu_ok = Command::new("qemu-system-arm")
+        .arg("--version")
+        .output()
+        .is_ok();
+    if !elf.exists() || !qemu_ok {
+        let why = format!(
+            "qemu test needs {} (cargo fw-build) and qemu-system-arm (found: image {}, qemu {})",
+            elf.display(),
+            elf.exists(),
+            qemu_ok
+        );
+        assert!(std::env::var_os("CI").is_none(), "{why}");
+        eprintln!("skipped: {why}");
+        return;
+    }
+    let run = Command::new("timeout")
+        .args([
+            "300",
+            "qemu-system-arm",
+            "-machine",
+            "netduinoplus2",
+            "-nographic",
+        ])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", "shift=0,sleep=off", "-kernel"])
+        .arg(&elf)
+        .output()
+        .expect("run qemu-system-arm");
+    let out = String::from_utf8_lossy(&run.stdout).into_owned();
+    eprintln!("{out}");
+    assert!(
+        run.status.success(),
+        "qemu-check failed ({}):\n{out}",
+        run.status
+    );
+
+    // Same inputs on the host, same f32 code: identical bits.
+    let host = predict(RigId::Wires, 0.0).unwrap();
+    let hint = "(a stale image? rebuild with `cargo fw-build`)";
+    assert_eq!(
+        hex(&field(&out, "bits")),
+        host.target_hz.to_bits(),
+        "target_hz {hint}"
+    );
+    assert_eq!(
+        hex(&field(&out, "band_lo_bits")),
+        host.band_hz[0].to_bits(),
+        "{hint}"
+    );
+    assert_eq!(
+        hex(&field(&out, "band_hi_bits")),
+        host.band_hz[1].to_bits(),
+        "{hint}"
+    );
+    assert_eq!(
+        hex(&field(&out, "force_mg_bits")),
+        host.impact_force_mg.to_bits(),
+        "{hint}"
+    );
+
+    let n = |k: &str| field(&out, k).parse::<u64>().unwrap();
+    assert!(
+        n("predict") <= 84_000_000,
+        "target computation: {} instructions",
+        n("predict")
+    );
+    assert!(
+        n("sample_max") <= 1_500,
+        "sampling task: {} instructions",
+        n("sample_max")
+    );
+    assert!(n("step_mean") > 0 && n("sample_mean") > 0);
+    // The stack must fit the 128 KiB SRAM with room for the interrupt tasks on top.
+    assert!(n("stack_high_water_bytes") < 96 * 1024);
+    assert_eq!(field(&out, "state"), "track");
+    assert_eq!(field(&out, "fault"), "none");
+}
