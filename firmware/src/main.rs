@@ -38,7 +38,7 @@ mod app {
     use defmt_rtt as _;
     use panic_probe as _;
     use shared::control::{
-        Controller, ControllerConfig, Event, Line, LineBuffer, SAMPLE_RATE_HZ, parse, predict,
+        Controller, ControllerConfig, Event, LineBuffer, SAMPLE_RATE_HZ, predict, respond,
     };
     use shared::hal::{DriveOutput, ForceSource};
     use stm32f4xx_hal::{
@@ -53,6 +53,9 @@ mod app {
 
     use crate::board::{CycleClock, DacDrive, ForceAdc};
     use crate::config::{GAP_MM, RIG, SYSCLK_HZ, WATCHDOG_MS};
+
+    /// Longest console reply (the status line is about 250 characters); longer is cut.
+    const REPLY_CAPACITY: usize = 384;
 
     #[shared]
     struct Shared {
@@ -157,35 +160,21 @@ mod app {
     #[task(binds = USART2, priority = 2, shared = [controller], local = [rx, tx, line])]
     fn console(mut cx: console::Context) {
         while let Ok(byte) = cx.local.rx.read() {
-            let reply_to = match cx.local.line.push(byte) {
-                None => continue,
-                Some(Line::Bad) => {
-                    cx.local
-                        .tx
-                        .write_str("error: line too long or not text\r\n")
-                        .ok();
-                    continue;
-                }
-                Some(Line::Text(text)) => parse(text),
+            let Some(line) = cx.local.line.push(byte) else {
+                continue;
             };
+            // Format under the lock (microseconds), send after it: a blocking UART write inside
+            // the lock would hold off the sampling task for milliseconds.
+            let mut reply: heapless::String<REPLY_CAPACITY> = heapless::String::new();
+            let model_needed = cx.shared.controller.lock(|c| {
+                respond(c, line, &mut reply).ok();
+                c.model_request_open()
+            });
             let tx = &mut *cx.local.tx;
-            match reply_to {
-                Err(e) => {
-                    write!(tx, "error: {e}\r\n").ok();
-                }
-                Ok(cmd) => {
-                    let (reply, model_needed) = cx
-                        .shared
-                        .controller
-                        .lock(|c| (c.execute(cmd), c.model_request_open()));
-                    match reply {
-                        Ok(r) => write!(tx, "{r}\r\n").ok(),
-                        Err(e) => write!(tx, "error: {e}\r\n").ok(),
-                    };
-                    if model_needed {
-                        model::spawn().ok();
-                    }
-                }
+            tx.write_str(&reply).ok();
+            tx.write_str("\r\n").ok();
+            if model_needed {
+                model::spawn().ok();
             }
         }
     }

@@ -8,6 +8,7 @@
 
 use core::fmt;
 
+use super::controller::Controller;
 use super::fixed::{Fixed, parse_decimal};
 use crate::model::RigId;
 
@@ -151,6 +152,26 @@ fn in_range(v: f32, field: &'static str, min: f32, max: f32) -> Result<f32, Pars
         Ok(v)
     } else {
         Err(ParseError::OutOfRange { field, min, max })
+    }
+}
+
+/// Runs one console line on the controller and writes its one-line reply (no line ending) to
+/// `out`: `ok`, the status line, the help line, or `error: …` (then nothing changed). The
+/// firmware's USART2 task and host-sim's virtual rig both answer through this.
+///
+/// # Errors
+/// Only `out`'s write errors.
+pub fn respond<W: fmt::Write>(c: &mut Controller, line: Line<'_>, out: &mut W) -> fmt::Result {
+    let text = match line {
+        Line::Bad => return out.write_str("error: line too long or not text"),
+        Line::Text(t) => t,
+    };
+    match parse(text) {
+        Err(e) => write!(out, "error: {e}"),
+        Ok(cmd) => match c.execute(cmd) {
+            Ok(reply) => write!(out, "{reply}"),
+            Err(e) => write!(out, "error: {e}"),
+        },
     }
 }
 

@@ -181,6 +181,9 @@ pub struct Status {
     pub peak_mg: Option<f32>,
     /// Model status.
     pub model: ModelStatus,
+    /// Measured peak force against the model's prediction, % (`(measured − predicted) /
+    /// predicted`): the discrepancy a wrong gap or a drifted rig shows.
+    pub force_vs_model_pct: Option<f32>,
     /// Latched fault.
     pub fault: Option<Fault>,
     /// Impacts detected since start-up.
@@ -221,6 +224,9 @@ impl fmt::Display for Status {
             )?,
             ModelStatus::Pending => f.write_str(" model=pending")?,
             ModelStatus::Failed => f.write_str(" model=failed")?,
+        }
+        if let Some(pct) = self.force_vs_model_pct {
+            write!(f, " force_vs_model_pct={}", Fixed(pct, 1))?;
         }
         write!(
             f,
@@ -339,6 +345,12 @@ impl Controller {
             peak_n: self.peak_n,
             peak_mg: self.peak_n.map(|n| n / weight),
             model: self.model,
+            force_vs_model_pct: match (self.peak_n, self.model) {
+                (Some(n), ModelStatus::Ready(p)) if p.impact_force_n > 0.0 => {
+                    Some((n / p.impact_force_n - 1.0) * 100.0)
+                }
+                _ => None,
+            },
             fault: self.fault,
             impacts: self.impacts,
             lost_cycles: self.lost_cycles,

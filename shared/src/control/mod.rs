@@ -22,7 +22,7 @@ pub use config::{
     ControllerConfig, DetectorSettings, DriveChain, FaultSettings, Limits, SAMPLE_PERIOD_US,
     SAMPLE_RATE_HZ, SensorChain, TrackSettings,
 };
-pub use console::{Command, Line, LineBuffer, ParseError, parse};
+pub use console::{Command, Line, LineBuffer, ParseError, parse, respond};
 pub use controller::{
     CommandError, Controller, Event, ModelRequest, ModelStatus, Reply, State, Status,
 };

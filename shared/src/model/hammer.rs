@@ -60,6 +60,15 @@ pub enum FieldMode {
     Contact,
 }
 
+/// The base excitation entering the field.
+#[derive(Debug, Clone, Copy)]
+enum Drive<T> {
+    /// `sin Ωt` of the harmonic cart motion `y = A0 sin Ωt`.
+    Harmonic(T),
+    /// The cart's acceleration `ÿ`, m/s².
+    Cart(T),
+}
+
 /// One evaluation of the vector field.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FieldEval<T> {
@@ -166,13 +175,50 @@ impl<T: Real> Hammer<T> {
                 Region::Contact,
             ),
         };
-        let acc = match self.body {
+        let acc = self.accel(x, st, ct, force, Drive::Harmonic(sin_phase));
+        FieldEval {
+            dx: Vector2::new(x[1], acc),
+            force,
+            region,
+            delta,
+            delta_dot,
+        }
+    }
+
+    /// The switch-model field for an arbitrary cart motion, `cart_accel_m_s2` = `ÿ(t)` (m/s²):
+    /// Eq. (3-26)–(3-29) / (3-36)–(3-39) with `−ÿ` in place of the harmonic `A0 Ω² sin Ωt`
+    /// (the rig's shaker chain in host-sim's virtual rig). `approach_speed` as in
+    /// [`Hammer::field`].
+    #[inline]
+    pub fn field_driven(&self, x: &Vector2<T>, cart_accel_m_s2: T, approach_speed: T) -> FieldEval<T> {
+        let (delta, delta_dot, st, ct) = self.kinematics(x);
+        let (force, region) = self.switch.force(delta, delta_dot, approach_speed);
+        let acc = self.accel(x, st, ct, force, Drive::Cart(cart_accel_m_s2));
+        FieldEval {
+            dx: Vector2::new(x[1], acc),
+            force,
+            region,
+            delta,
+            delta_dot,
+        }
+    }
+
+    /// The second component of `ẋ` given the kinematics, the contact force and the drive.
+    #[inline(always)]
+    fn accel(&self, x: &Vector2<T>, st: T, ct: T, force: T, drive: Drive<T>) -> T {
+        match self.body {
             Body::Wires {
+                length,
                 g_over_l,
                 a0w2_over_l,
                 inv_ml,
-                ..
-            } => a0w2_over_l * ct * sin_phase - g_over_l * st - force * inv_ml,
+            } => {
+                let excitation = match drive {
+                    Drive::Harmonic(sin_phase) => a0w2_over_l * ct * sin_phase,
+                    Drive::Cart(cart_accel) => T::zero() - cart_accel / length * ct,
+                };
+                excitation - g_over_l * st - force * inv_ml
+            }
             Body::Beam {
                 k_over_m,
                 c_over_m,
@@ -180,15 +226,12 @@ impl<T: Real> Hammer<T> {
                 inv_m,
             } => {
                 let u = x[0];
-                -c_over_m * x[1] - k_over_m * (u + u * u * u) - force * inv_m + a0w2 * sin_phase
+                let excitation = match drive {
+                    Drive::Harmonic(sin_phase) => a0w2 * sin_phase,
+                    Drive::Cart(cart_accel) => T::zero() - cart_accel,
+                };
+                -c_over_m * x[1] - k_over_m * (u + u * u * u) - force * inv_m + excitation
             }
-        };
-        FieldEval {
-            dx: Vector2::new(x[1], acc),
-            force,
-            region,
-            delta,
-            delta_dot,
         }
     }
 
