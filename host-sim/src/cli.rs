@@ -91,6 +91,9 @@ pub enum Command {
     Peterka(commands::peterka::PeterkaArgs),
     /// Basins of attraction over a grid of initial conditions (u0, u̇0).
     Basins(commands::basins::BasinsArgs),
+    /// Virtual rig: the firmware's controller in closed loop with a simulated hammer (drive and
+    /// sensor chains, injected faults, console commands), no hardware.
+    Hil(commands::hil::HilArgs),
     /// Join the shard CSVs of a peterka/basins/bifurcation run (--shard I/N) into its CSV and
     /// figures.
     Merge(commands::merge::MergeArgs),
@@ -109,6 +112,7 @@ pub fn main() -> ExitCode {
         Command::Peterka(a) => commands::peterka::run(&a),
         Command::Basins(a) => commands::basins::run(&a),
         Command::Merge(a) => commands::merge::run(&a),
+        Command::Hil(a) => commands::hil::run_cmd(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

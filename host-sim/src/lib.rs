@@ -10,5 +10,6 @@ pub mod interrupt;
 pub mod maps;
 pub mod output;
 pub mod plot;
+pub mod rig;
 pub mod runner;
 pub mod shard;

@@ -2,6 +2,7 @@
 
 pub mod basins;
 pub mod bifurcation;
+pub mod hil;
 pub mod merge;
 pub mod peterka;
 pub mod points;

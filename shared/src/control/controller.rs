@@ -332,6 +332,11 @@ impl Controller {
         &self.generator
     }
 
+    /// The last finished excitation cycle as the regime meter recorded it (impacts, peak).
+    pub fn last_cycle(&self) -> Option<super::meter::CycleRecord> {
+        self.meter.cycle(0)
+    }
+
     /// The status snapshot.
     pub fn status(&self) -> Status {
         let weight = self.rig.preset().weight_n() as f32;

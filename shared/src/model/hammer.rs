@@ -190,7 +190,12 @@ impl<T: Real> Hammer<T> {
     /// (the rig's shaker chain in host-sim's virtual rig). `approach_speed` as in
     /// [`Hammer::field`].
     #[inline]
-    pub fn field_driven(&self, x: &Vector2<T>, cart_accel_m_s2: T, approach_speed: T) -> FieldEval<T> {
+    pub fn field_driven(
+        &self,
+        x: &Vector2<T>,
+        cart_accel_m_s2: T,
+        approach_speed: T,
+    ) -> FieldEval<T> {
         let (delta, delta_dot, st, ct) = self.kinematics(x);
         let (force, region) = self.switch.force(delta, delta_dot, approach_speed);
         let acc = self.accel(x, st, ct, force, Drive::Cart(cart_accel_m_s2));

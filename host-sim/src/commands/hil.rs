@@ -1,0 +1,122 @@
+//! `host-sim hil`: the firmware's controller in closed loop with a simulated rig (no hardware).
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use clap::Args;
+use shared::model::RigId;
+
+use crate::output::{Outputs, write_csv};
+use crate::rig::scenario::Scenario;
+use crate::rig::{HilSetup, figure, run};
+
+/// Arguments of `hil`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct HilArgs {
+    /// Rig (the controller's model and the plant start from its preset).
+    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    pub rig: RigId,
+    /// Gap the controller is configured with, mm (0 ..= 10).
+    #[arg(long, default_value_t = 0.0)]
+    pub gap_mm: f64,
+    /// Gap of the simulated rig, mm (default: the configured one).
+    #[arg(long)]
+    pub actual_gap_mm: Option<f64>,
+    /// Scenario TOML: chains, controller configuration, timed commands and faults
+    /// (default: `start` at 1 s, no faults).
+    #[arg(long, value_name = "FILE.toml")]
+    pub scenario: Option<PathBuf>,
+    /// Rig time to simulate, s (0 < s ≤ 86400).
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// CSV log, one row per drive cycle: t_s, state, freq_hz, amp_cmd_mm, cart_amp_mm,
+    /// measured_impacts, measured_peak_n, true_impacts, true_peak_n, measured_regime, fault,
+    /// lost_cycles, force_vs_model_pct.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// PNG: frequency, force and state against time.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+fn parse_rig(s: &str) -> Result<RigId, String> {
+    s.parse().map_err(|e| format!("{e}"))
+}
+
+/// Runs the command.
+///
+/// # Errors
+/// Bad arguments or scenario (named), or an output that cannot be written (nothing is left).
+pub fn run_cmd(a: &HilArgs) -> Result<()> {
+    if !a.gap_mm.is_finite() || !(0.0..=10.0).contains(&a.gap_mm) {
+        bail!(
+            "--gap-mm = {} is out of range: allowed 0 ..= 10 mm",
+            a.gap_mm
+        );
+    }
+    let actual = a.actual_gap_mm.unwrap_or(a.gap_mm);
+    if !actual.is_finite() || !(0.0..=10.0).contains(&actual) {
+        bail!("--actual-gap-mm = {actual} is out of range: allowed 0 ..= 10 mm");
+    }
+    if !a.seconds.is_finite() || a.seconds <= 0.0 || a.seconds > 86_400.0 {
+        bail!(
+            "--seconds = {} is out of range: allowed (0, 86400]",
+            a.seconds
+        );
+    }
+    let scenario = match &a.scenario {
+        Some(p) => Scenario::from_file(p)?,
+        None => Scenario::default(),
+    };
+    let force_limit = f64::from(scenario.controller.limits.force_limit_n);
+    let setup = HilSetup {
+        rig: a.rig,
+        gap_mm: a.gap_mm as f32,
+        actual_gap_mm: actual,
+        seconds: a.seconds,
+        scenario,
+    };
+    let mut outputs = Outputs::new();
+    let csv = a.out.as_ref().map(|p| outputs.reserve(p)).transpose()?;
+    let png = a.plot.as_ref().map(|p| outputs.reserve(p)).transpose()?;
+    let r = run(&setup)?;
+
+    println!(
+        "virtual rig: {} configured at {:.2} mm, real gap {:.2} mm, {:.1} s of rig time in {:.2} s wall ({:.0}× real time, one core)",
+        a.rig,
+        a.gap_mm,
+        actual,
+        a.seconds,
+        r.wall_s,
+        r.speedup()
+    );
+    if let Some(p) = &r.prediction {
+        println!(
+            "model: target {:.4} Hz, 1/1 band {:.3} – {:.3} Hz, predicted F_i/mg {:.2} ({:.1} N)",
+            p.target_hz, p.band_hz[0], p.band_hz[1], p.impact_force_mg, p.impact_force_n
+        );
+    }
+    for c in &r.console {
+        println!("[{:8.3} s] > {}\n             {}", c.t_s, c.line, c.reply);
+    }
+    for (t, s) in &r.states {
+        println!("[{t:8.3} s] state {}", s.as_str());
+    }
+    for (t, f) in &r.faults {
+        println!("[{t:8.3} s] FAULT {f}");
+    }
+    println!("final: {}", r.status);
+
+    if let Some(path) = &csv {
+        write_csv(path, &r.rows)?;
+    }
+    if let Some(path) = &png {
+        let title = format!(
+            "virtual rig: {} (configured gap {:.2} mm, real {:.2} mm)",
+            a.rig, a.gap_mm, actual
+        );
+        figure::draw(path, &title, &r.rows, r.prediction.as_ref(), force_limit)?;
+    }
+    outputs.commit()
+}

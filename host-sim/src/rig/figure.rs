@@ -1,0 +1,192 @@
+//! The `hil` figure: drive frequency, impact force (measured and true) and controller state
+//! against rig time.
+
+use std::path::Path;
+
+use anyhow::Result;
+use plotters::prelude::*;
+use shared::control::Prediction;
+
+use super::session::CycleRow;
+use crate::plot::{SANS, ensure_font, err};
+
+/// Controller states in plotting order (y levels of the state panel).
+const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"];
+
+/// Three panels over time: frequency (with the model's target and band), per-cycle peak
+/// forces (measured by the controller, true from the plant, the force limit), and the state.
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn draw(
+    path: &Path,
+    title: &str,
+    rows: &[CycleRow],
+    prediction: Option<&Prediction>,
+    force_limit_n: f64,
+) -> Result<()> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1000, 1000)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, (SANS, 22)).map_err(err)?;
+    let panels = root.split_evenly((3, 1));
+    let t1 = rows.last().map_or(1.0, |r| r.t_s).max(1e-3);
+
+    // Frequency.
+    // The drive idles at the window's lowest frequency: show the frequency while driving.
+    let driving = |r: &&CycleRow| r.state != "idle";
+    let fvals =
+        rows.iter()
+            .filter(driving)
+            .map(|r| r.freq_hz)
+            .chain(prediction.into_iter().flat_map(|p| {
+                [
+                    f64::from(p.target_hz),
+                    f64::from(p.band_hz[0]),
+                    f64::from(p.band_hz[1]),
+                ]
+            }));
+    let (flo, fhi) = fvals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
+    let (flo, fhi) = if flo.is_finite() {
+        let pad = 0.08 * (fhi - flo).max(0.5);
+        (flo - pad, fhi + pad)
+    } else {
+        (0.0, 10.0)
+    };
+    let mut c = ChartBuilder::on(&panels[0])
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..t1, flo..fhi)
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("drive frequency (Hz)")
+        .label_style((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    c.draw_series(
+        rows.iter()
+            .filter(driving)
+            .map(|r| Circle::new((r.t_s, r.freq_hz), 2, BLUE.filled())),
+    )
+    .map_err(err)?
+    .label("drive frequency (per cycle)")
+    .legend(|(x, y)| Circle::new((x + 8, y), 2, BLUE.filled()));
+    if let Some(p) = prediction {
+        let grey = BLACK.mix(0.5);
+        let target = f64::from(p.target_hz);
+        c.draw_series(LineSeries::new(
+            [(0.0, target), (t1, target)],
+            RED.stroke_width(1),
+        ))
+        .map_err(err)?
+        .label("model target")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
+        for edge in p.band_hz {
+            let e = f64::from(edge);
+            c.draw_series(LineSeries::new([(0.0, e), (t1, e)], grey))
+                .map_err(err)?;
+        }
+        c.draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
+            .map_err(err)?
+            .label("model 1/1 band edges")
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey));
+    }
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 13))
+        .draw()
+        .map_err(err)?;
+
+    // Forces.
+    let fmax = rows
+        .iter()
+        .flat_map(|r| [r.measured_peak_n, r.true_peak_n])
+        .flatten()
+        .fold(force_limit_n, f64::max)
+        * 1.08;
+    let mut c = ChartBuilder::on(&panels[1])
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..t1, 0.0..fmax)
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("peak impact force per cycle (N)")
+        .label_style((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    let orange = RGBColor(230, 120, 0);
+    c.draw_series(rows.iter().filter_map(|r| {
+        r.true_peak_n
+            .map(|f| Circle::new((r.t_s, f), 3, orange.filled()))
+    }))
+    .map_err(err)?
+    .label("true (plant)")
+    .legend(move |(x, y)| Circle::new((x + 8, y), 3, orange.filled()));
+    c.draw_series(
+        rows.iter()
+            .filter_map(|r| r.measured_peak_n.map(|f| Cross::new((r.t_s, f), 4, BLUE))),
+    )
+    .map_err(err)?
+    .label("measured (controller)")
+    .legend(|(x, y)| Cross::new((x + 8, y), 4, BLUE));
+    c.draw_series(LineSeries::new(
+        [(0.0, force_limit_n), (t1, force_limit_n)],
+        RED.mix(0.6),
+    ))
+    .map_err(err)?
+    .label("force limit")
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED.mix(0.6)));
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 13))
+        .draw()
+        .map_err(err)?;
+
+    // State.
+    let level = |s: &str| STATES.iter().position(|x| *x == s).unwrap_or(0) as f64;
+    let mut c = ChartBuilder::on(&panels[2])
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..t1, -0.5..5.5)
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("controller state")
+        .y_labels(6)
+        .y_label_formatter(&|y: &f64| {
+            let i = y.round();
+            if (y - i).abs() < 1e-6 && (0.0..=5.0).contains(&i) {
+                STATES[i as usize].to_string()
+            } else {
+                String::new()
+            }
+        })
+        .label_style((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    let mut steps = Vec::with_capacity(rows.len() * 2);
+    let mut prev: Option<f64> = None;
+    for r in rows {
+        let y = level(r.state);
+        if let Some(p) = prev {
+            steps.push((r.t_s, p));
+        }
+        steps.push((r.t_s, y));
+        prev = Some(y);
+    }
+    c.draw_series(LineSeries::new(steps, BLACK.stroke_width(2)))
+        .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}

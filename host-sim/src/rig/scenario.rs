@@ -1,0 +1,234 @@
+//! A virtual-rig scenario (`hil --scenario FILE.toml`): the plant's chains and settings, the
+//! controller's configuration, timed console commands and injected faults.
+//!
+//! ```toml
+//! model_delay_s = 0.5            # the MCU's model computation time (the result arrives then)
+//! [plant]                        # rk4 steps per sample, refinement, bands
+//! steps_per_sample = 10
+//! contact_stiffness_factor = 1.0 # the real contact harder/softer than the model's
+//! [drive]                        # amp_tau_s, cart_mm_per_v, dac_full_scale_v
+//! [sensor]                       # volts_per_n, offset_v, noise_v, adc_full_scale_v, seed
+//! [controller]                   # shared::control::ControllerConfig (the firmware's defaults)
+//! [[commands]]                   # console lines (default: `start` at 1.0 s)
+//! at_s = 1.0
+//! line = "start"
+//! [[faults]]
+//! at_s = 20.0
+//! kind = "sensor-open"           # sensor-open | sensor-stuck-high | sensor-stuck-low | sensor-ok
+//!                                # | gain (factor) | drift (duration_s, natural_freq_pct,
+//!                                #   contact_stiffness_pct)
+//! ```
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+use shared::control::ControllerConfig;
+
+use super::chains::SensorChainSim;
+use super::plant::{DriveChainSim, PlantSettings};
+
+/// The plant section: integration settings and how the real rig differs from the model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlantSection {
+    /// RK4 steps per sample (10).
+    pub steps_per_sample: u32,
+    /// Steps a region-changing step is split into (16).
+    pub refine: u32,
+    /// The plant's contact stiffness (and damping) over the preset's (1.0).
+    pub contact_stiffness_factor: f64,
+}
+
+impl Default for PlantSection {
+    fn default() -> Self {
+        let d = PlantSettings::default();
+        PlantSection {
+            steps_per_sample: d.steps_per_sample,
+            refine: d.refine,
+            contact_stiffness_factor: 1.0,
+        }
+    }
+}
+
+impl PlantSection {
+    /// The integration settings.
+    pub fn settings(&self) -> PlantSettings {
+        PlantSettings {
+            steps_per_sample: self.steps_per_sample,
+            refine: self.refine,
+            ..PlantSettings::default()
+        }
+    }
+}
+
+/// A console line sent at a given rig time.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimedCommand {
+    /// Rig time, s.
+    pub at_s: f64,
+    /// The line (without line ending).
+    pub line: String,
+}
+
+/// A fault injected at rig time `at_s` (s).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TimedFault {
+    /// The sensor signal drops to the offset.
+    SensorOpen {
+        /// Rig time, s.
+        at_s: f64,
+    },
+    /// The ADC pinned at 4095.
+    SensorStuckHigh {
+        /// Rig time, s.
+        at_s: f64,
+    },
+    /// The ADC pinned at 0.
+    SensorStuckLow {
+        /// Rig time, s.
+        at_s: f64,
+    },
+    /// The sensor works again.
+    SensorOk {
+        /// Rig time, s.
+        at_s: f64,
+    },
+    /// The sensor gain is multiplied by `factor`.
+    Gain {
+        /// Rig time, s.
+        at_s: f64,
+        /// Gain multiplier.
+        factor: f64,
+    },
+    /// The rig drifts linearly over `duration_s`: natural frequency and/or contact stiffness
+    /// change by the given percentages.
+    Drift {
+        /// Rig time, s.
+        at_s: f64,
+        /// Duration, s.
+        duration_s: f64,
+        /// Natural frequency change, % (wires: through the pendulum length).
+        #[serde(default)]
+        natural_freq_pct: f64,
+        /// Contact stiffness change, %.
+        #[serde(default)]
+        contact_stiffness_pct: f64,
+    },
+}
+
+impl TimedFault {
+    /// When it happens, s.
+    pub fn at_s(&self) -> f64 {
+        match *self {
+            TimedFault::SensorOpen { at_s }
+            | TimedFault::SensorStuckHigh { at_s }
+            | TimedFault::SensorStuckLow { at_s }
+            | TimedFault::SensorOk { at_s }
+            | TimedFault::Gain { at_s, .. }
+            | TimedFault::Drift { at_s, .. } => at_s,
+        }
+    }
+}
+
+/// A whole scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scenario {
+    /// Rig time the model's result takes to arrive, s (0.5: the MCU's budget).
+    pub model_delay_s: f64,
+    /// The plant.
+    pub plant: PlantSection,
+    /// Drive chain.
+    pub drive: DriveChainSim,
+    /// Sensing chain.
+    pub sensor: SensorChainSim,
+    /// The controller's configuration (the firmware's defaults).
+    pub controller: ControllerConfig,
+    /// Console commands (default: `start` at 1.0 s).
+    pub commands: Vec<TimedCommand>,
+    /// Injected faults.
+    pub faults: Vec<TimedFault>,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Scenario {
+            model_delay_s: 0.5,
+            plant: PlantSection::default(),
+            drive: DriveChainSim::default(),
+            sensor: SensorChainSim::default(),
+            controller: ControllerConfig::default(),
+            commands: vec![TimedCommand {
+                at_s: 1.0,
+                line: "start".into(),
+            }],
+            faults: Vec::new(),
+        }
+    }
+}
+
+impl Scenario {
+    /// Reads and validates a scenario file.
+    ///
+    /// # Errors
+    /// Unreadable or malformed TOML, unknown keys, out-of-range values (named).
+    pub fn from_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read --scenario {}", path.display()))?;
+        let s: Scenario = toml::from_str(&text)
+            .with_context(|| format!("malformed --scenario {}", path.display()))?;
+        s.validate()
+            .with_context(|| format!("--scenario {}", path.display()))?;
+        Ok(s)
+    }
+
+    /// Checks the values.
+    ///
+    /// # Errors
+    /// The first bad field, named with its allowed range.
+    pub fn validate(&self) -> Result<()> {
+        let finite_in = |name: &str, v: f64, lo: f64, hi: f64| -> Result<()> {
+            if !v.is_finite() || v < lo || v > hi {
+                bail!("`{name}` = {v} is out of range: allowed {lo} ..= {hi}");
+            }
+            Ok(())
+        };
+        finite_in("model_delay_s", self.model_delay_s, 0.0, 60.0)?;
+        finite_in(
+            "plant.contact_stiffness_factor",
+            self.plant.contact_stiffness_factor,
+            0.01,
+            100.0,
+        )?;
+        self.controller.validate().context("[controller]")?;
+        for c in &self.commands {
+            finite_in("commands.at_s", c.at_s, 0.0, 1e6)?;
+        }
+        for f in &self.faults {
+            finite_in("faults.at_s", f.at_s(), 0.0, 1e6)?;
+            match *f {
+                TimedFault::Gain { factor, .. } => finite_in("faults.factor", factor, 0.0, 100.0)?,
+                TimedFault::Drift {
+                    duration_s,
+                    natural_freq_pct,
+                    contact_stiffness_pct,
+                    ..
+                } => {
+                    finite_in("faults.duration_s", duration_s, 0.0, 1e6)?;
+                    finite_in("faults.natural_freq_pct", natural_freq_pct, -50.0, 100.0)?;
+                    finite_in(
+                        "faults.contact_stiffness_pct",
+                        contact_stiffness_pct,
+                        -90.0,
+                        1000.0,
+                    )?;
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
