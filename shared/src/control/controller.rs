@@ -129,12 +129,12 @@ impl fmt::Display for CommandError {
             CommandError::NoTarget => {
                 f.write_str("the model found no robust 1/1 target: use freq <Hz>")
             }
-            CommandError::FreqOutOfWindow { min, max } => {
-                write!(
-                    f,
-                    "frequency out of the safe window: allowed {min} ..= {max} Hz"
-                )
-            }
+            CommandError::FreqOutOfWindow { min, max } => write!(
+                f,
+                "frequency out of the safe window: allowed {} ..= {} Hz",
+                Fixed(*min, 2),
+                Fixed(*max, 2)
+            ),
         }
     }
 }
@@ -525,7 +525,7 @@ impl Controller {
         let impact = self.detector.update(self.sample, force_n, rail);
         if let Some(imp) = impact {
             self.impacts = self.impacts.wrapping_add(1);
-            self.meter.on_impact(imp.peak_n);
+            self.meter.on_impact(imp.peak_n, imp.impulse_ns);
         }
         if let Some(c) = code {
             let driving = self.generator.amplitude_mm() > 0.0;
@@ -586,12 +586,15 @@ impl Controller {
             return;
         };
         let peak = self.meter.peak_force_n(window).map(|(mean, _)| mean);
+        // The climb follows the mean impulse per cycle: it grows with the approach speed as the
+        // peak force does, and does not carry the peak's sampling-phase bias (up to 4 %).
+        let impulse = self.meter.impulse_ns(window);
         self.regime = Some(regime);
         self.peak_n = peak;
         match (self.state, self.climber.as_mut()) {
             (State::Track, Some(climber)) => {
                 let f = self.generator.target_freq_hz();
-                let next = climber.next_freq_hz(f, regime, peak);
+                let next = climber.next_freq_hz(f, regime, impulse);
                 if next != f {
                     self.generator.set_freq_hz(next);
                     self.cycles_at_freq = 0;

@@ -3,7 +3,10 @@
 //! (chattering), and the impact is reported once the refractory time has passed, with its peak
 //! force and the sample index of the peak.
 
-use super::config::{DetectorSettings, samples};
+use super::config::{DetectorSettings, SAMPLE_RATE_HZ, samples};
+
+/// Sampling period, s.
+const SAMPLE_DT_S: f32 = 1.0 / SAMPLE_RATE_HZ as f32;
 
 /// One detected impact.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -16,6 +19,11 @@ pub struct DetectedImpact {
     pub start_sample: u64,
     /// The ADC was at a rail during the impact: the peak is a lower bound.
     pub saturated: bool,
+    /// Impulse `Σ F·Δt` over the impact's samples with positive force (from the sample before
+    /// the threshold crossing), N·s. Less sensitive to where the samples fall on the pulse than
+    /// the peak (a 0.57 ms half-sine sampled every 100 µs: the largest sample varies by 3.1 %
+    /// with the offset, the impulse by 1.9 %).
+    pub impulse_ns: f32,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,6 +45,8 @@ pub struct ImpactDetector {
     refractory: u64,
     state: State,
     current: DetectedImpact,
+    /// The previous sample's force, N (the rising edge's first sample).
+    last_n: f32,
 }
 
 impl ImpactDetector {
@@ -52,7 +62,9 @@ impl ImpactDetector {
                 peak_sample: 0,
                 start_sample: 0,
                 saturated: false,
+                impulse_ns: 0.0,
             },
+            last_n: 0.0,
         }
     }
 
@@ -69,6 +81,12 @@ impl ImpactDetector {
     /// Processes sample `index` of force `force_n` (N); `saturated` when the ADC code is at a
     /// rail. Returns the impact that closed at this sample, if any.
     pub fn update(&mut self, index: u64, force_n: f32, saturated: bool) -> Option<DetectedImpact> {
+        let out = self.advance(index, force_n, saturated);
+        self.last_n = force_n;
+        out
+    }
+
+    fn advance(&mut self, index: u64, force_n: f32, saturated: bool) -> Option<DetectedImpact> {
         match self.state {
             State::Idle => {
                 if force_n > self.on_n {
@@ -77,6 +95,7 @@ impl ImpactDetector {
                         peak_sample: index,
                         start_sample: index,
                         saturated,
+                        impulse_ns: (self.last_n.max(0.0) + force_n) * SAMPLE_DT_S,
                     };
                     self.state = State::Open;
                 }
@@ -104,6 +123,7 @@ impl ImpactDetector {
                     self.state = State::Idle;
                     Some(self.current)
                 } else {
+                    self.current.impulse_ns += force_n.max(0.0) * SAMPLE_DT_S;
                     None
                 }
             }
@@ -111,6 +131,7 @@ impl ImpactDetector {
     }
 
     fn track(&mut self, index: u64, force_n: f32, saturated: bool) {
+        self.current.impulse_ns += force_n.max(0.0) * SAMPLE_DT_S;
         if force_n > self.current.peak_n {
             self.current.peak_n = force_n;
             self.current.peak_sample = index;
@@ -165,6 +186,34 @@ mod tests {
         assert!((f64::from(imps[0].peak_n) - expected).abs() < 1e-3);
         assert_eq!(imps[0].peak_sample, 1006);
         assert!(!imps[0].saturated);
+    }
+
+    #[test]
+    fn impulse_is_insensitive_to_the_sampling_phase() {
+        // A 96 N half-sine of 0.57 ms: impulse 2/π · 96 · 0.57e-3 = 34.84 mN·s, read within
+        // 1.5 % (the rectangle rule over 5–6 samples) at every offset of the pulse within a
+        // sample, varying less with the offset than the largest sample does.
+        let exact = 2.0 / core::f64::consts::PI * 96.0 * 0.00057;
+        let (mut pmin, mut pmax) = (f64::INFINITY, 0.0f64);
+        let (mut imin, mut imax) = (f64::INFINITY, 0.0f64);
+        for k in 0..10 {
+            let t0 = 0.1 + f64::from(k) * 1e-5;
+            let imps = detect(3000, 1e9, |t| pulse(t, t0, 0.00057, 96.0));
+            assert_eq!(imps.len(), 1);
+            let i = f64::from(imps[0].impulse_ns);
+            assert!((i / exact - 1.0).abs() < 0.015, "{k}: {i} vs {exact}");
+            imin = imin.min(i);
+            imax = imax.max(i);
+            pmin = pmin.min(f64::from(imps[0].peak_n));
+            pmax = pmax.max(f64::from(imps[0].peak_n));
+        }
+        assert!(pmax / pmin > 1.02, "the peak does vary: {pmin} .. {pmax}");
+        // Measured: peak 93.06 .. 95.96 N (3.1 %), impulse 34.51 .. 35.15 mN·s (1.9 %).
+        assert!(imax / imin < 1.02, "impulse {imin} .. {imax}");
+        assert!(
+            imax / imin - 1.0 < 0.7 * (pmax / pmin - 1.0),
+            "impulse {imin} .. {imax}, peak {pmin} .. {pmax}"
+        );
     }
 
     #[test]

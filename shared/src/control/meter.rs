@@ -21,6 +21,8 @@ pub struct CycleRecord {
     pub impacts: u8,
     /// Largest impact peak in the cycle, N (0 without impacts).
     pub peak_n: f32,
+    /// Sum of the impacts' impulses in the cycle, N·s.
+    pub impulse_ns: f32,
 }
 
 /// The online regime meter.
@@ -57,9 +59,10 @@ impl RegimeMeter {
         self.current = CycleRecord::default();
     }
 
-    /// Counts an impact of peak `peak_n` (N) in the current cycle.
-    pub fn on_impact(&mut self, peak_n: f32) {
+    /// Counts an impact of peak `peak_n` (N) and impulse `impulse_ns` (N·s) in the current cycle.
+    pub fn on_impact(&mut self, peak_n: f32, impulse_ns: f32) {
         self.current.impacts = self.current.impacts.saturating_add(1);
+        self.current.impulse_ns += impulse_ns;
         if peak_n > self.current.peak_n {
             self.current.peak_n = peak_n;
         }
@@ -134,6 +137,22 @@ impl RegimeMeter {
     }
 }
 
+impl RegimeMeter {
+    /// Mean per-cycle impulse over the last `window` cycles that impacted, N·s; `None` when none
+    /// did.
+    pub fn impulse_ns(&self, window: usize) -> Option<f32> {
+        let mut n = 0u32;
+        let mut sum = 0.0f32;
+        for c in (0..window.min(self.filled)).filter_map(|k| self.cycle(k)) {
+            if c.impacts > 0 {
+                n += 1;
+                sum += c.impulse_ns;
+            }
+        }
+        (n > 0).then(|| sum / n as f32)
+    }
+}
+
 fn same(a: CycleRecord, b: CycleRecord) -> bool {
     a.impacts == b.impacts && (a.peak_n - b.peak_n).abs() <= PEAK_MATCH_REL * a.peak_n.max(b.peak_n)
 }
@@ -146,7 +165,7 @@ mod tests {
         let mut m = RegimeMeter::new();
         for &(n, peak) in cycles {
             for _ in 0..n {
-                m.on_impact(peak);
+                m.on_impact(peak, peak * 1e-3);
             }
             m.on_cycle_end();
         }
@@ -208,13 +227,13 @@ mod tests {
         m.on_cycle_end(); // an empty cycle: no longer 1/1
         assert_eq!(m.regime(8), Some(Regime::Irregular));
         for _ in 0..8 {
-            m.on_impact(90.0);
+            m.on_impact(90.0, 0.09);
             m.on_cycle_end();
         }
         assert_eq!(m.regime(8), Some(Regime::ONE_ONE));
         // Peak noise of ±3 % is still 1/1.
         for k in 0..8 {
-            m.on_impact(if k % 2 == 0 { 93.0 } else { 98.0 });
+            m.on_impact(if k % 2 == 0 { 93.0 } else { 98.0 }, 0.03);
             m.on_cycle_end();
         }
         assert_eq!(m.regime(8), Some(Regime::ONE_ONE));

@@ -1,5 +1,6 @@
 //! Extremum seeking in frequency: keep the measured regime at `1/1` and climb to the largest
-//! measured peak force by small frequency steps inside the model's predicted `1/1` band; on
+//! measured impact strength (the controller climbs on the impulse per cycle, which peaks where
+//! the peak force does) by small frequency steps inside the model's predicted `1/1` band; on
 //! regime loss step back toward the model's target.
 //!
 //! Each call to [`HillClimber::next_freq_hz`] is one evaluation (the controller measures for a
@@ -45,8 +46,9 @@ impl HillClimber {
         self.step_hz
     }
 
-    /// Next frequency (Hz) after measuring `regime` and mean peak force `force_n` (N) at
-    /// `freq_hz`. Always inside the band.
+    /// Next frequency (Hz) after measuring `regime` and the objective `force_n` at `freq_hz`
+    /// (any measure that grows with the impact strength: the controller passes the mean impulse
+    /// per cycle, N·s). Always inside the band.
     pub fn next_freq_hz(&mut self, freq_hz: f32, regime: Regime, force_n: Option<f32>) -> f32 {
         let [lo, hi] = self.band_hz;
         let force = match (regime, force_n) {
