@@ -79,6 +79,12 @@ pub enum Command {
     /// Join the shard CSVs of a peterka/basins/bifurcation run (--shard I/N) into its CSV and
     /// figures.
     Merge(commands::merge::MergeArgs),
+    /// Identify parameters from measurements: the contact law from a drop test, the
+    /// suspension from a free decay.
+    Identify(commands::identify::IdentifyArgs),
+    /// A drop test of the simulation (the hammer released at rest near the surface, no
+    /// excitation) recorded like a force sensor: t_s, force_n, with optional noise and offset.
+    Drop(commands::drop::DropArgs),
 }
 
 /// Runs the CLI; errors are printed as `error: …` with a non-zero exit status (130 after
@@ -94,6 +100,8 @@ pub fn main() -> ExitCode {
         Command::Peterka(a) => commands::peterka::run(&a),
         Command::Basins(a) => commands::basins::run(&a),
         Command::Merge(a) => commands::merge::run(&a),
+        Command::Identify(a) => commands::identify::run(&a),
+        Command::Drop(a) => commands::drop::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

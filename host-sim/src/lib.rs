@@ -1,5 +1,5 @@
 //! Desktop side of the vibro-impact hammer project: the analysis commands (`select`,
-//! `response`, `simulate`, `points`, `bifurcation`, `peterka`, `basins`, `merge`), their CSV and PNG outputs, and the parallel runner.
+//! `response`, `simulate`, `points`, `bifurcation`, `peterka`, `basins`, `merge`, `identify`, `drop`, `compare`), their CSV and PNG outputs, and the parallel runner.
 //! All physics comes from the `shared` crate, the same code the firmware runs.
 
 pub mod cli;
@@ -11,6 +11,7 @@ pub mod interrupt;
 pub mod maps;
 pub mod output;
 pub mod plot;
+pub mod plot_identify;
 pub mod runner;
 pub mod shard;
 pub mod trace;

@@ -2,6 +2,8 @@
 
 pub mod basins;
 pub mod bifurcation;
+pub mod drop;
+pub mod identify;
 pub mod merge;
 pub mod peterka;
 pub mod points;
