@@ -85,6 +85,9 @@ pub enum Command {
     /// A drop test of the simulation (the hammer released at rest near the surface, no
     /// excitation) recorded like a force sensor: t_s, force_n, with optional noise and offset.
     Drop(commands::drop::DropArgs),
+    /// Overlay a measured frequency response (F_i/mg vs Ω/ω) or time series (displacement,
+    /// phase plane, Poincaré points) on the simulation, with an error summary.
+    Compare(commands::compare::CompareArgs),
 }
 
 /// Runs the CLI; errors are printed as `error: …` with a non-zero exit status (130 after
@@ -102,6 +105,7 @@ pub fn main() -> ExitCode {
         Command::Merge(a) => commands::merge::run(&a),
         Command::Identify(a) => commands::identify::run(&a),
         Command::Drop(a) => commands::drop::run(&a),
+        Command::Compare(a) => commands::compare::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

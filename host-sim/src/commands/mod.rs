@@ -2,6 +2,7 @@
 
 pub mod basins;
 pub mod bifurcation;
+pub mod compare;
 pub mod drop;
 pub mod identify;
 pub mod merge;
