@@ -61,9 +61,11 @@ pub fn drop_fit(path: &Path, title: &str, data: &DropData, fits: &[(String, &Fit
     let per = (t.len() / cols).max(1);
     let mut env = Vec::with_capacity(2 * cols + 2);
     for chunk in (0..t.len()).collect::<Vec<_>>().chunks(per) {
-        let (lo, hi) = chunk.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, &i| {
-            (a.0.min(f[i]), a.1.max(f[i]))
-        });
+        let (lo, hi) = chunk
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |a, &i| {
+                (a.0.min(f[i]), a.1.max(f[i]))
+            });
         env.push((t[chunk[0]], lo));
         env.push((t[chunk[0]], hi));
     }
@@ -164,7 +166,12 @@ pub struct ResponseOverlay {
 ///
 /// # Errors
 /// Drawing or file errors.
-pub fn response_compare(path: &Path, title: &str, summary: &str, o: &ResponseOverlay) -> Result<()> {
+pub fn response_compare(
+    path: &Path,
+    title: &str,
+    summary: &str,
+    o: &ResponseOverlay,
+) -> Result<()> {
     use crate::plot::{regime_class, regime_color};
     ensure_font();
     let root = BitMapBackend::new(path, (1100, 680)).into_drawing_area();
@@ -271,7 +278,9 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
         .map_err(err)?;
     let (top, bottom) = body.split_vertically(430);
     let span = |it: &mut dyn Iterator<Item = f64>| {
-        let (lo, hi) = it.fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| (a.0.min(v), a.1.max(v)));
+        let (lo, hi) = it.fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| {
+            (a.0.min(v), a.1.max(v))
+        });
         if lo.is_finite() {
             let pad = ((hi - lo) * 0.06).max(1e-6);
             (lo - pad, hi + pad)
@@ -293,10 +302,13 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
         .label_style((SANS, 14))
         .draw()
         .map_err(err)?;
-    c.draw_series(LineSeries::new(o.measured.iter().map(|p| (p.0, p.1)), BLACK))
-        .map_err(err)?
-        .label("measured")
-        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
+    c.draw_series(LineSeries::new(
+        o.measured.iter().map(|p| (p.0, p.1)),
+        BLACK,
+    ))
+    .map_err(err)?
+    .label("measured")
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.0, p.1)),
         BLUE.stroke_width(2),

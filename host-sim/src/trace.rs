@@ -133,9 +133,7 @@ impl Trace {
 }
 
 fn split_cells(line: &str) -> Vec<&str> {
-    let delim = [',', ';', '\t']
-        .into_iter()
-        .find(|d| line.contains(*d));
+    let delim = [',', ';', '\t'].into_iter().find(|d| line.contains(*d));
     match delim {
         Some(d) => line.split(d).map(str::trim).collect(),
         None => line.split_whitespace().collect(),
@@ -232,7 +230,12 @@ pub fn parse_trace(text: &str, format: &TraceFormat, what: &str) -> Result<Trace
             width = cells.len();
             let is_header = cells.iter().any(|c| c.parse::<f64>().is_err());
             if is_header {
-                header = Some(cells.iter().map(|c| c.trim_matches('"').to_string()).collect());
+                header = Some(
+                    cells
+                        .iter()
+                        .map(|c| c.trim_matches('"').to_string())
+                        .collect(),
+                );
             }
             let h = header.as_deref();
             let value = column(&format.value_col, h, width, what)?;
@@ -391,14 +394,20 @@ mod tests {
             "{:#}",
             parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
         );
-        assert!(e.contains("line 9") && e.contains("force_n") && e.contains("abc"), "{e}");
+        assert!(
+            e.contains("line 9") && e.contains("force_n") && e.contains("abc"),
+            "{e}"
+        );
         lines[7] = "3,7".into();
         let text = format!("t_s,force_n\n{}", lines.join("\n"));
         let e = format!(
             "{:#}",
             parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
         );
-        assert!(e.contains("line 9") && e.contains("does not increase"), "{e}");
+        assert!(
+            e.contains("line 9") && e.contains("does not increase"),
+            "{e}"
+        );
         lines[7] = "7,NaN".into();
         let text = format!("t_s,force_n\n{}", lines.join("\n"));
         let e = format!(
@@ -415,18 +424,17 @@ mod tests {
         assert!(e.contains("line 9"), "{e}");
         let e = format!(
             "{:#}",
-            parse_trace("t_s,force_n\n0,1\n1,2", &fmt("t_s", "force_n", None), "force")
-                .unwrap_err()
-        );
-        assert!(e.contains("at least"), "{e}");
-        let e = format!(
-            "{:#}",
             parse_trace(
-                "t_s,f\n0,1\n1,2",
+                "t_s,force_n\n0,1\n1,2",
                 &fmt("t_s", "force_n", None),
                 "force"
             )
             .unwrap_err()
+        );
+        assert!(e.contains("at least"), "{e}");
+        let e = format!(
+            "{:#}",
+            parse_trace("t_s,f\n0,1\n1,2", &fmt("t_s", "force_n", None), "force").unwrap_err()
         );
         assert!(e.contains("no force column `force_n`"), "{e}");
     }

@@ -54,7 +54,11 @@ fn fit(law: ContactLaw, weights: Weights, seed: u64) -> Fit {
     };
     let trace = synthetic_drop(&p, &spec, &TRUTH_STEPS, &sensor).unwrap();
     let data = analyse_drop(&trace, 6).unwrap();
-    assert!((data.offset_n - 0.5).abs() < 0.02, "offset {}", data.offset_n);
+    assert!(
+        (data.offset_n - 0.5).abs() < 0.02,
+        "offset {}",
+        data.offset_n
+    );
     let setup = DropSetup {
         params: p,
         gap_m: 0.0,
@@ -84,7 +88,11 @@ fn power(law: &ContactLaw) -> (f64, f64, f64) {
             stiffness,
             exponent,
             restitution,
-        } => (stiffness * DELTA_REF_M.powf(exponent), exponent, restitution),
+        } => (
+            stiffness * DELTA_REF_M.powf(exponent),
+            exponent,
+            restitution,
+        ),
         ContactLaw::SpringDashpot { .. } => panic!("not a power law"),
     }
 }
@@ -104,8 +112,14 @@ fn spring_dashpot_is_recovered_from_peaks_alone_and_from_the_profile() {
         else {
             panic!("{:?}", f.law)
         };
-        assert!(rel(stiffness_n_m, 4.0e6) < 0.05, "k {stiffness_n_m} ({seed})");
-        assert!(rel(damping_n_s_m, 900.0) < 0.05, "c {damping_n_s_m} ({seed})");
+        assert!(
+            rel(stiffness_n_m, 4.0e6) < 0.05,
+            "k {stiffness_n_m} ({seed})"
+        );
+        assert!(
+            rel(damping_n_s_m, 900.0) < 0.05,
+            "c {damping_n_s_m} ({seed})"
+        );
         // The fit reaches the noise floor: peak rms about 1 % of the largest peak.
         assert!(f.residual.peak_rms_pct < 2.0, "{:?}", f.residual);
     }
@@ -190,9 +204,15 @@ fn hertz_peaks_alone_do_not_fix_k_and_n() {
     let theta0 = (3e-3f64 / 0.075).asin();
     let v = (2.0 * 9.81 * 0.075 * (1.0 - theta0.cos())).sqrt();
     let m = 0.298;
-    let peak = |k: f64, n: f64| k.powf(1.0 / (n + 1.0)) * ((n + 1.0) * m * v * v / 2.0).powf(n / (n + 1.0));
+    let peak = |k: f64, n: f64| {
+        k.powf(1.0 / (n + 1.0)) * ((n + 1.0) * m * v * v / 2.0).powf(n / (n + 1.0))
+    };
     let f1 = peak(k1, n1);
-    assert!(rel(a.impacts[0].peak_n, f1) < 2e-3, "{} vs {f1}", a.impacts[0].peak_n);
+    assert!(
+        rel(a.impacts[0].peak_n, f1) < 2e-3,
+        "{} vs {f1}",
+        a.impacts[0].peak_n
+    );
     let n2 = 1.6;
     let k2 = f1.powf(n2 + 1.0) / ((n2 + 1.0) * m * v * v / 2.0).powf(n2);
     assert!(k2 / k1 > 2.5, "k2 {k2}");
@@ -207,7 +227,12 @@ fn hertz_peaks_alone_do_not_fix_k_and_n() {
     )
     .unwrap();
     for (x, y) in a.impacts.iter().zip(&b.impacts) {
-        assert!(rel(x.peak_n, y.peak_n) < 2e-3, "{} vs {}", x.peak_n, y.peak_n);
+        assert!(
+            rel(x.peak_n, y.peak_n) < 2e-3,
+            "{} vs {}",
+            x.peak_n,
+            y.peak_n
+        );
     }
     let width = |s: &host_sim::identify::contact::SimImpact| {
         let p = &s.profile;
@@ -254,8 +279,17 @@ fn free_decay_recovers_the_analytic_oscillator() {
         assert!(rel(d.damping_ratio, zeta) < 0.05, "{d:?}");
         assert!(rel(d.offset, 0.05 * scale) < 0.05, "{d:?}");
         // Eq. 3-34 and c = 2ζmω, Table 3.3's 170 mm beam: c ≈ 0.067 N s/m.
-        assert!(rel(d.stiffness_n_m(0.298), 0.298 * (2.0 * std::f64::consts::PI * 4.5f64).powi(2)) < 2e-4);
-        assert!((d.damping_n_s_m(0.298) - 0.0674).abs() < 0.004, "{}", d.damping_n_s_m(0.298));
+        assert!(
+            rel(
+                d.stiffness_n_m(0.298),
+                0.298 * (2.0 * std::f64::consts::PI * 4.5f64).powi(2)
+            ) < 2e-4
+        );
+        assert!(
+            (d.damping_n_s_m(0.298) - 0.0674).abs() < 0.004,
+            "{}",
+            d.damping_n_s_m(0.298)
+        );
     }
 }
 
@@ -280,11 +314,11 @@ fn free_decay_of_the_simulated_beam_rig_gives_its_parameters() {
         &shared::model::SwitchBands::default(),
         &FIT_STEPS,
         |r| {
-            if let shared::analysis::drop::DropRecord::Sample(s) = r {
-                if t_s.last().is_none_or(|&l| s.t_s > l) {
-                    t_s.push(s.t_s);
-                    value.push(s.u_m);
-                }
+            if let shared::analysis::drop::DropRecord::Sample(s) = r
+                && t_s.last().is_none_or(|&l| s.t_s > l)
+            {
+                t_s.push(s.t_s);
+                value.push(s.u_m);
             }
         },
     )

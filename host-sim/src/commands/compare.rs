@@ -122,10 +122,13 @@ fn parse_response(text: &str, setup: &Setup) -> Result<Vec<Measured>> {
         let line = rec.position().map_or(0, |p| p.line());
         let cell = |c: usize, name: &str| -> Result<f64> {
             let s = rec.get(c).unwrap_or("");
-            let v: f64 = s
-                .parse()
-                .map_err(|_| anyhow::anyhow!("line {line}, column `{name}`: `{s}` is not a number"))?;
-            ensure!(v.is_finite(), "line {line}, column `{name}`: `{s}` is not finite");
+            let v: f64 = s.parse().map_err(|_| {
+                anyhow::anyhow!("line {line}, column `{name}`: `{s}` is not a number")
+            })?;
+            ensure!(
+                v.is_finite(),
+                "line {line}, column `{name}`: `{s}` is not finite"
+            );
             Ok(v)
         };
         let x = cell(x_col, &headers[x_col])?;
@@ -135,12 +138,21 @@ fn parse_response(text: &str, setup: &Setup) -> Result<Vec<Measured>> {
         } else {
             setup.params.ratio_from_freq_hz(x)
         };
-        check_range("omega_ratio", ratio, OMEGA_RATIO_RANGE.0, OMEGA_RATIO_RANGE.1)
-            .with_context(|| format!("line {line}"))?;
+        check_range(
+            "omega_ratio",
+            ratio,
+            OMEGA_RATIO_RANGE.0,
+            OMEGA_RATIO_RANGE.1,
+        )
+        .with_context(|| format!("line {line}"))?;
         ensure!(y >= 0.0, "line {line}: the impact force {y} is negative");
         out.push(Measured {
             omega_ratio: ratio,
-            force_mg: if y_is_mg { y } else { y / setup.params.weight_n() },
+            force_mg: if y_is_mg {
+                y
+            } else {
+                y / setup.params.weight_n()
+            },
         });
     }
     ensure!(!out.is_empty(), "no data rows");
@@ -150,9 +162,15 @@ fn parse_response(text: &str, setup: &Setup) -> Result<Vec<Measured>> {
 fn compare_response(a: &CompareArgs, setup: &Setup, gap_m: f64, text: &str) -> Result<()> {
     let meas = parse_response(text, setup)
         .with_context(|| format!("--experiment {}", a.experiment.display()))?;
-    let lo = meas.iter().map(|m| m.omega_ratio).fold(f64::INFINITY, f64::min);
+    let lo = meas
+        .iter()
+        .map(|m| m.omega_ratio)
+        .fold(f64::INFINITY, f64::min);
     let hi = meas.iter().map(|m| m.omega_ratio).fold(0.0, f64::max);
-    let (lo, hi) = ((lo - 0.05).max(OMEGA_RATIO_RANGE.0), (hi + 0.05).min(OMEGA_RATIO_RANGE.1));
+    let (lo, hi) = (
+        (lo - 0.05).max(OMEGA_RATIO_RANGE.0),
+        (hi + 0.05).min(OMEGA_RATIO_RANGE.1),
+    );
     let n_line = (((hi - lo) / 0.01).round() as usize).clamp(2, 2000);
     let mut points: Vec<OperatingPoint> = (0..=n_line)
         .map(|i| OperatingPoint {
@@ -274,7 +292,8 @@ fn compare_time_series(a: &CompareArgs, setup: &Setup, gap_m: f64) -> Result<()>
         .filter(|r| r.t_s >= t_start - 1e-12)
         .map(|r| {
             let t = r.t_s - t_start;
-            let v = r.du_mm_s + setup.params.amplitude_m * 1e3 * omega_exc * (omega_exc * r.t_s).cos();
+            let v =
+                r.du_mm_s + setup.params.amplitude_m * 1e3 * omega_exc * (omega_exc * r.t_s).cos();
             (t, r.x_mm, v)
         })
         .collect();
@@ -305,7 +324,9 @@ fn compare_time_series(a: &CompareArgs, setup: &Setup, gap_m: f64) -> Result<()>
     let rms = (best.1 / t_meas.len() as f64).sqrt();
     let (xlo, xhi) = x_meas
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, &x| (a.0.min(x), a.1.max(x)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, &x| {
+            (a.0.min(x), a.1.max(x))
+        });
     // Measured velocity by central differences.
     let n = t_meas.len();
     let v_meas: Vec<f64> = (0..n)
@@ -332,7 +353,8 @@ fn compare_time_series(a: &CompareArgs, setup: &Setup, gap_m: f64) -> Result<()>
         .iter()
         .filter(|r| r.poincare && r.t_s >= t_start - 1e-12)
         .map(|r| {
-            let v = r.du_mm_s + setup.params.amplitude_m * 1e3 * omega_exc * (omega_exc * r.t_s).cos();
+            let v =
+                r.du_mm_s + setup.params.amplitude_m * 1e3 * omega_exc * (omega_exc * r.t_s).cos();
             (r.x_mm, v)
         })
         .collect();

@@ -100,7 +100,11 @@ pub fn run(a: &DropArgs) -> Result<()> {
         w.flush()?;
     }
     outputs.commit()?;
-    let peak = trace.value.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let peak = trace
+        .value
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
     println!(
         "wrote {}: {} samples over {} s, largest sample {:.3} N",
         a.out.display(),

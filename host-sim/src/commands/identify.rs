@@ -370,9 +370,14 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         );
         std::fs::write(
             &tmp,
-            config_text(&comment, &out_params, &a.rig.preset(), &["mass_kg", "contact"])?,
+            config_text(
+                &comment,
+                &out_params,
+                &a.rig.preset(),
+                &["mass_kg", "contact"],
+            )?,
         )
-            .with_context(|| format!("writing {}", p.display()))?;
+        .with_context(|| format!("writing {}", p.display()))?;
     }
     if let Some(p) = &a.plot {
         let tmp = outputs.reserve(p)?;
@@ -384,10 +389,7 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
             a.release_mm,
             a.rig
         );
-        let curves: Vec<(String, &Fit)> = fits
-            .iter()
-            .map(|(k, f)| (k.to_string(), f))
-            .collect();
+        let curves: Vec<(String, &Fit)> = fits.iter().map(|(k, f)| (k.to_string(), f)).collect();
         plot_identify::drop_fit(&tmp, &title, &data, &curves)?;
     }
     outputs.commit()?;
@@ -542,9 +544,14 @@ fn run_free(a: &FreeArgs) -> Result<()> {
         );
         std::fs::write(
             &tmp,
-            config_text(&comment, &params, &a.rig.preset(), &["mass_kg", "suspension"])?,
+            config_text(
+                &comment,
+                &params,
+                &a.rig.preset(),
+                &["mass_kg", "suspension"],
+            )?,
         )
-            .with_context(|| format!("writing {}", p.display()))?;
+        .with_context(|| format!("writing {}", p.display()))?;
     }
     outputs.commit()?;
     if a.json {

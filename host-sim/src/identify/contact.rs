@@ -181,18 +181,19 @@ pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
     let n = f.len();
     let mut impacts = Vec::new();
     for (a, b) in merged.into_iter().take(max_impacts) {
-        let pad = ((b - a + 1) / 2).max(3);
+        let pad = (b - a).div_ceil(2).max(3);
         let window = (a.saturating_sub(pad), (b + pad).min(n - 1));
         let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
         let mut peak = f[imax];
-        if imax >= a + 2 && imax + 2 <= b && (imax - 2..=imax + 2).all(|i| f[i] > 0.5 * f[imax]) {
-            if let Some((tv, fv)) =
+        if imax >= a + 2
+            && imax + 2 <= b
+            && (imax - 2..=imax + 2).all(|i| f[i] > 0.5 * f[imax])
+            && let Some((tv, fv)) =
                 parabola_vertex(&t[imax - 2..=imax + 2], &f[imax - 2..=imax + 2])
-                && tv >= t[imax - 1]
-                && tv <= t[imax + 1]
-            {
-                peak = fv;
-            }
+            && tv >= t[imax - 1]
+            && tv <= t[imax + 1]
+        {
+            peak = fv;
         }
         let (mut sf, mut stf) = (0.0, 0.0);
         for i in window.0..=window.1 {
@@ -532,7 +533,10 @@ fn initial(law: ContactLawKind, data: &DropData, mass_kg: f64) -> ([f64; 3], f64
         ContactLawKind::HuntCrossley => {
             // e ≈ (F2/F1)^((n+1)/2n) at n = 1.5; λ ≈ 3(1 − e)/(2 v) (Hunt and Crossley).
             let e = ratio.powf(2.5 / 3.0);
-            ([i0.peak_n, 0.0, (1.5 * (1.0 - e) / v1).max(1e-3)], delta_ref)
+            (
+                [i0.peak_n, 0.0, (1.5 * (1.0 - e) / v1).max(1e-3)],
+                delta_ref,
+            )
         }
         ContactLawKind::LankaraniNikravesh => ([i0.peak_n, 0.0, 0.0], delta_ref),
     }
@@ -542,7 +546,9 @@ fn start_point(law: ContactLawKind, data: &DropData) -> Vec<f64> {
     let e = data
         .impacts
         .get(1)
-        .map_or(0.5, |i1| (i1.peak_n / data.impacts[0].peak_n).powf(2.5 / 3.0))
+        .map_or(0.5, |i1| {
+            (i1.peak_n / data.impacts[0].peak_n).powf(2.5 / 3.0)
+        })
         .clamp(0.05, 0.95);
     match law {
         ContactLawKind::SpringDashpot => vec![0.0, 0.0],

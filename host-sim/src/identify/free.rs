@@ -134,7 +134,10 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
             t.partition_point(|&ti| ti < w[0]),
             t.partition_point(|&ti| ti <= w[1]),
         );
-        let amp = y[lo..hi].iter().map(|v| (v - mean).abs()).fold(0.0, f64::max);
+        let amp = y[lo..hi]
+            .iter()
+            .map(|v| (v - mean).abs())
+            .fold(0.0, f64::max);
         if amp > 0.0 {
             let tm = 0.5 * (w[0] + w[1]);
             let la = amp.ln();
@@ -153,12 +156,7 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
     };
     let scale = y.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
     ensure!(scale > 0.0, "the record is constant");
-    let problem = Problem {
-        t,
-        y,
-        wd0,
-        scale,
-    };
+    let problem = Problem { t, y, wd0, scale };
     let x0 = vec![1.0, sigma0 / wd0];
     let simplex = vec![
         x0.clone(),
