@@ -97,6 +97,15 @@ pub enum Command {
     /// Join the shard CSVs of a peterka/basins/bifurcation run (--shard I/N) into its CSV and
     /// figures.
     Merge(commands::merge::MergeArgs),
+    /// Identify parameters from measurements: the contact law from a drop test, the
+    /// suspension from a free decay.
+    Identify(commands::identify::IdentifyArgs),
+    /// A drop test of the simulation (the hammer released at rest near the surface, no
+    /// excitation) recorded like a force sensor: t_s, force_n, with optional noise and offset.
+    Drop(commands::drop::DropArgs),
+    /// Overlay a measured frequency response (F_i/mg vs Ω/ω) or time series (displacement,
+    /// phase plane, Poincaré points) on the simulation, with an error summary.
+    Compare(commands::compare::CompareArgs),
 }
 
 /// Runs the CLI; errors are printed as `error: …` with a non-zero exit status (130 after
@@ -113,6 +122,9 @@ pub fn main() -> ExitCode {
         Command::Basins(a) => commands::basins::run(&a),
         Command::Merge(a) => commands::merge::run(&a),
         Command::Hil(a) => commands::hil::run_cmd(&a),
+        Command::Identify(a) => commands::identify::run(&a),
+        Command::Drop(a) => commands::drop::run(&a),
+        Command::Compare(a) => commands::compare::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

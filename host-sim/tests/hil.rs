@@ -98,9 +98,18 @@ fn dwell_peak_after_drift(freq_hz: f64) -> f64 {
         natural_freq_pct: 5.0,
         contact_stiffness_pct: 0.0,
     });
-    sc.commands = vec![command(0.8, &format!("freq {freq_hz}")), command(1.0, "start")];
+    sc.commands = vec![
+        command(0.8, &format!("freq {freq_hz}")),
+        command(1.0, "start"),
+    ];
     let r = hil(0.0, 0.0, 15.0, sc);
-    r.rows.iter().rev().take(5).filter_map(|x| x.true_peak_n).sum::<f64>() / 5.0
+    r.rows
+        .iter()
+        .rev()
+        .take(5)
+        .filter_map(|x| x.true_peak_n)
+        .sum::<f64>()
+        / 5.0
 }
 
 #[test]
@@ -123,12 +132,22 @@ fn natural_frequency_drift_is_followed_without_losing_one_one() {
     // 2 % of the best the drifted plant gives at any of five dwell frequencies around it.
     let before = rows_between(&r, 8.0, 10.0)[0].freq_hz;
     let after = f64::from(r.status.freq_hz);
-    assert!(after > before * 1.01, "{after} Hz vs {before} Hz before the drift");
+    assert!(
+        after > before * 1.01,
+        "{after} Hz vs {before} Hz before the drift"
+    );
     let best = [3.64, 3.70, 3.76, 3.82, 3.88, 3.94]
         .into_iter()
         .map(dwell_peak_after_drift)
         .fold(0.0, f64::max);
-    let end = r.rows.iter().rev().take(5).filter_map(|x| x.true_peak_n).sum::<f64>() / 5.0;
+    let end = r
+        .rows
+        .iter()
+        .rev()
+        .take(5)
+        .filter_map(|x| x.true_peak_n)
+        .sum::<f64>()
+        / 5.0;
     assert!(end > 0.98 * best, "{end} N at the end vs {best} N at best");
 }
 
@@ -221,8 +240,10 @@ fn console_session_gives_the_expected_lines_and_bad_commands_change_nothing() {
         command(6.0, "rig beam-170"),
         command(6.1, "gap 0.5"),
     ];
-    let mut sc = Scenario::default();
-    sc.commands = good.iter().chain(bad.iter()).cloned().collect();
+    let sc = Scenario {
+        commands: good.iter().chain(bad.iter()).cloned().collect(),
+        ..Scenario::default()
+    };
     let r = hil(0.0, 0.0, 16.0, sc);
     let replies: Vec<(&str, &str)> = r
         .console
@@ -274,8 +295,10 @@ fn console_session_gives_the_expected_lines_and_bad_commands_change_nothing() {
     );
 
     // The same session without the bad commands: the plant does exactly the same.
-    let mut sc = Scenario::default();
-    sc.commands = good.to_vec();
+    let sc = Scenario {
+        commands: good.to_vec(),
+        ..Scenario::default()
+    };
     let clean = hil(0.0, 0.0, 16.0, sc);
     assert_eq!(clean.rows.len(), r.rows.len());
     for (a, b) in clean.rows.iter().zip(&r.rows) {

@@ -2,7 +2,10 @@
 
 pub mod basins;
 pub mod bifurcation;
+pub mod compare;
+pub mod drop;
 pub mod hil;
+pub mod identify;
 pub mod merge;
 pub mod peterka;
 pub mod points;

@@ -50,7 +50,7 @@ pub enum SensorState {
 }
 
 /// The mock ADC: reads the force latched by the rig loop through the chain.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct MockAdc {
     chain: SensorChainSim,
     /// Force at the sensor for the next conversion, N (set by the rig loop).

@@ -275,10 +275,10 @@ impl Plant {
                     peak_n: end.force,
                 };
             }
-        } else if end.region == Region::Free {
-            if let Some(p) = self.episode_peak.take() {
-                self.impacts.push(p);
-            }
+        } else if end.region == Region::Free
+            && let Some(p) = self.episode_peak.take()
+        {
+            self.impacts.push(p);
         }
     }
 }

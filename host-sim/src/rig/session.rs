@@ -273,13 +273,13 @@ pub fn run(setup: &HilSetup) -> Result<HilRun> {
         if let Some(req) = controller.take_model_request() {
             model_due = Some((t + sc.model_delay_s, req, predict(req.rig, req.gap_mm)));
         }
-        if model_due.as_ref().is_some_and(|(due, _, _)| *due <= t) {
-            if let Some((_, req, result)) = model_due.take() {
-                if let Ok(p) = &result {
-                    out.prediction = Some(*p);
-                }
-                controller.set_prediction(req.generation, result);
+        if model_due.as_ref().is_some_and(|(due, _, _)| *due <= t)
+            && let Some((_, req, result)) = model_due.take()
+        {
+            if let Ok(p) = &result {
+                out.prediction = Some(*p);
             }
+            controller.set_prediction(req.generation, result);
         }
 
         adc.input_n = plant.force_n();

@@ -1,7 +1,8 @@
 //! Analyses built on the protocol: one operating point, frequency responses over a sweep, and
-//! the operating-frequency selection.
+//! the operating-frequency selection; the drop test of the contact-law identification.
 
 pub mod batch;
+pub mod drop;
 pub mod response;
 pub mod selection;
 pub mod sweep;

@@ -161,12 +161,31 @@ impl<T: Real> Simulator<T> {
     ) -> Result<Self, ParamError> {
         steps.validate()?;
         let hammer = Hammer::<T>::new(params, gap_m, omega_exc, bands)?;
-        let period_s = 2.0 * core::f64::consts::PI / omega_exc;
-        let n = steps.steps_per_period;
-        let h = period_s / f64::from(n);
         let omega_c = params
             .contact
             .contact_omega(params.mass_kg, SUBSTEP_REFERENCE_SPEED_M_S);
+        Self::from_hammer(hammer, omega_c, steps)
+    }
+
+    /// A simulator at rest relative to the cart at phase 0 for an already compiled `hammer`
+    /// (e.g. one whose excitation was switched off for a drop test,
+    /// [`crate::analysis::drop`]); `omega_c` (rad/s) is the contact frequency that sets the
+    /// sub-step ([`crate::model::ContactLaw::contact_omega`]).
+    ///
+    /// # Errors
+    /// [`ParamError`] for invalid step settings, a non-finite or non-positive `omega_c`, or
+    /// more than 10^6 contact sub-steps per step (`substeps`).
+    pub fn from_hammer(
+        hammer: Hammer<T>,
+        omega_c: f64,
+        steps: &StepSettings,
+    ) -> Result<Self, ParamError> {
+        steps.validate()?;
+        check_range("omega_c", omega_c, 1e-6, 1e12)?;
+        let omega_exc = hammer.omega_exc;
+        let period_s = 2.0 * core::f64::consts::PI / omega_exc;
+        let n = steps.steps_per_period;
+        let h = period_s / f64::from(n);
         let h_c_max = core::f64::consts::PI / omega_c / f64::from(steps.substeps_per_contact);
         let m_f = libm::ceil(h / h_c_max);
         check_range("substeps", m_f, 1.0, MAX_SUBSTEPS)?;

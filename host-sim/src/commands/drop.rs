@@ -1,0 +1,116 @@
+//! `host-sim drop`: a drop test of the plant simulation recorded like a force sensor (optional
+//! noise and offset): the synthetic "measurement" for `identify contact`, or the prediction of a
+//! drop test with identified parameters.
+
+use std::io::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use shared::analysis::drop::DropSpec;
+use shared::error::check_range;
+
+use crate::cli::{Precision, RigOpts};
+use crate::config::{Setup, gap_m_from_mm};
+use crate::identify::synth::{Sensor, TRUTH_STEPS, synthetic_drop};
+use crate::output::Outputs;
+
+/// Arguments of `drop`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct DropArgs {
+    /// Rig (suspension, mass) and contact law (--law, --config); --precision is ignored
+    /// (always f64).
+    #[command(flatten)]
+    pub rig: RigOpts,
+    /// Gap between the hammer's rest position and the surface, mm.
+    #[arg(long, default_value_t = 0.0)]
+    pub gap_mm: f64,
+    /// Distance from the surface at which the hammer is released at rest, mm (> gap).
+    #[arg(long, default_value_t = 3.0)]
+    pub release_mm: f64,
+    /// Recorded time from the release, s (0 < t ≤ 100).
+    #[arg(long, default_value_t = 1.0)]
+    pub duration_s: f64,
+    /// Sample rate of the recording, Hz.
+    #[arg(long, default_value_t = 50_000.0)]
+    pub sample_rate_hz: f64,
+    /// Gaussian sensor noise, standard deviation in % of the largest force.
+    #[arg(long, default_value_t = 0.0)]
+    pub noise_pct: f64,
+    /// Sensor offset added to every sample, N.
+    #[arg(long, default_value_t = 0.0)]
+    pub offset_n: f64,
+    /// Seed of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// CSV output: `#` comment lines with the setup, then t_s, force_n.
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: PathBuf,
+}
+
+/// Runs `drop`.
+///
+/// # Errors
+/// Bad input or I/O failure.
+pub fn run(a: &DropArgs) -> Result<()> {
+    let mut opts = a.rig.clone();
+    opts.precision = Precision::F64;
+    let setup = Setup::from_opts(&opts)?;
+    let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
+    check_range("duration_s", a.duration_s, 1e-3, 100.0).context("--duration-s")?;
+    check_range("release_mm", a.release_mm, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
+    let spec = DropSpec {
+        gap_m,
+        release_m: a.release_mm * 1e-3,
+        duration_s: a.duration_s,
+        max_impacts: 0,
+    };
+    let sensor = Sensor {
+        sample_rate_hz: a.sample_rate_hz,
+        noise_pct: a.noise_pct,
+        offset_n: a.offset_n,
+        seed: a.seed,
+    };
+    let trace = synthetic_drop(&setup.params, &spec, &TRUTH_STEPS, &sensor)
+        .context("--sample-rate-hz, --noise-pct, --offset-n")?;
+    let mut outputs = Outputs::new();
+    let tmp = outputs.reserve(&a.out)?;
+    {
+        let file =
+            std::fs::File::create(&tmp).with_context(|| format!("writing {}", a.out.display()))?;
+        let mut w = std::io::BufWriter::new(file);
+        writeln!(
+            w,
+            "# host-sim drop: {} rig, m = {} kg, contact {}",
+            setup.rig,
+            setup.params.mass_kg,
+            serde_json::to_string(&setup.params.contact)?
+        )?;
+        writeln!(
+            w,
+            "# released at rest {} mm from the surface, gap {} mm; noise {} % of peak (seed {}), offset {} N",
+            a.release_mm, a.gap_mm, a.noise_pct, a.seed, a.offset_n
+        )?;
+        writeln!(w, "# sample_rate_hz = {}", a.sample_rate_hz)?;
+        writeln!(w, "t_s,force_n")?;
+        for (t, f) in trace.t_s.iter().zip(&trace.value) {
+            writeln!(w, "{t:.7},{f:.6}")?;
+        }
+        w.flush()?;
+    }
+    outputs.commit()?;
+    let peak = trace
+        .value
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    println!(
+        "wrote {}: {} samples over {} s, largest sample {:.3} N",
+        a.out.display(),
+        trace.t_s.len(),
+        a.duration_s,
+        peak
+    );
+    Ok(())
+}

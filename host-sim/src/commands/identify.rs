@@ -1,0 +1,589 @@
+//! `host-sim identify contact|free`: the contact law from a drop test, the suspension from a
+//! free decay (thesis §3.3.2, Eq. 3-34).
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use serde::Serialize;
+use shared::error::check_range;
+use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension};
+
+use crate::config::{MAX_GAP_MM, Setup};
+use crate::identify::contact::{
+    DropData, DropSetup, FIT_STEPS, Fit, FitError, Residual, Weights, analyse_drop, fit_law,
+};
+use crate::identify::free::{FreeDecay, identify_free};
+use crate::output::Outputs;
+use crate::plot_identify;
+use crate::trace::{ForceUnit, MotionUnit, TimeUnit, TraceFormat, read_trace};
+
+/// Arguments of `identify`.
+#[derive(Debug, Args)]
+pub struct IdentifyArgs {
+    /// What to identify.
+    #[command(subcommand)]
+    pub what: IdentifyCommand,
+}
+
+/// The identifications.
+#[derive(Debug, Subcommand)]
+pub enum IdentifyCommand {
+    /// Fit a contact law's parameters to a measured drop test (force–time trace, several
+    /// impacts) by Nelder–Mead, like the thesis' fminsearch on the peak forces.
+    Contact(ContactArgs),
+    /// Natural frequency and damping ratio from a free-decay record → k = m ω² (Eq. 3-34),
+    /// c = 2 ζ m ω.
+    Free(FreeArgs),
+}
+
+/// Where the time comes from and its unit.
+#[derive(Debug, Clone, Args)]
+pub struct TimeOpts {
+    /// Time column: header name or 1-based number (ignored with --sample-rate-hz).
+    #[arg(long, default_value = "t_s")]
+    pub time_col: String,
+    /// Unit of the time column.
+    #[arg(long, value_enum, default_value = "s")]
+    pub time_unit: TimeUnit,
+    /// Fixed sample rate, Hz, for files without a time column (overrides the time column).
+    #[arg(long)]
+    pub sample_rate_hz: Option<f64>,
+}
+
+/// `--law`: one law or `all`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LawChoice {
+    /// One law.
+    One(ContactLawKind),
+    /// Every law, compared.
+    All,
+}
+
+fn parse_law_choice(s: &str) -> Result<LawChoice, String> {
+    if s == "all" {
+        return Ok(LawChoice::All);
+    }
+    s.parse()
+        .map(LawChoice::One)
+        .map_err(|e| format!("{e}, or all"))
+}
+
+fn parse_rig(s: &str) -> Result<RigId, String> {
+    s.parse().map_err(|e| format!("{e}"))
+}
+
+/// Arguments of `identify contact`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct ContactArgs {
+    /// Measured drop test: CSV with a time column (or a sample rate) and a force column.
+    #[arg(long, value_name = "FILE.csv")]
+    pub trace: PathBuf,
+    /// Hammer mass, kg (0 < m ≤ 1000).
+    #[arg(long)]
+    pub mass_kg: f64,
+    /// Contact law to fit: hertz, spring-dashpot, hunt-crossley, lankarani-nikravesh, or all.
+    #[arg(long, value_parser = parse_law_choice)]
+    pub law: LawChoice,
+    /// Distance from the surface at which the hammer was released at rest, mm.
+    #[arg(long, default_value_t = 3.0)]
+    pub release_mm: f64,
+    /// Gap between the hammer's rest position and the surface during the test, mm.
+    #[arg(long, default_value_t = 0.0)]
+    pub gap_mm: f64,
+    /// Suspension of the hammer during the test (the free flight between impacts).
+    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    pub rig: RigId,
+    /// TOML file overriding rig parameters (e.g. the output of `identify free`).
+    #[arg(long, value_name = "FILE.toml")]
+    pub config: Option<PathBuf>,
+    /// The error to minimise: peaks (peak forces and impact times, the thesis') or profile
+    /// (also the whole force profile of every impact).
+    #[arg(long, value_enum, default_value = "peaks")]
+    pub error: FitError,
+    /// Weight of the impact-time term (0 ignores the times).
+    #[arg(long, default_value_t = 1.0)]
+    pub time_weight: f64,
+    /// Use at most this many impacts of the trace (1..=50).
+    #[arg(long, default_value_t = 6)]
+    pub max_impacts: u32,
+    /// Time column, unit or sample rate.
+    #[command(flatten)]
+    pub time: TimeOpts,
+    /// Force column: header name or 1-based number.
+    #[arg(long, default_value = "force_n")]
+    pub force_col: String,
+    /// Unit of the force column.
+    #[arg(long, value_enum, default_value = "N")]
+    pub force_unit: ForceUnit,
+    /// Config file with the fitted law (the best one with --law all), for --config of the
+    /// other commands.
+    #[arg(long, value_name = "FILE.toml")]
+    pub out: Option<PathBuf>,
+    /// PNG: the measured trace and the fitted simulation(s), whole and impact by impact.
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `identify free`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct FreeArgs {
+    /// Free-decay record: CSV with a time column (or a sample rate) and a displacement or
+    /// acceleration column.
+    #[arg(long, value_name = "FILE.csv")]
+    pub trace: PathBuf,
+    /// Hammer mass, kg (0 < m ≤ 1000).
+    #[arg(long)]
+    pub mass_kg: f64,
+    /// Time column, unit or sample rate.
+    #[command(flatten)]
+    pub time: TimeOpts,
+    /// Signal column: header name or 1-based number.
+    #[arg(long, default_value = "2")]
+    pub value_col: String,
+    /// Unit of the signal column: a displacement (m, mm, um) or an acceleration (m/s2, g).
+    #[arg(long, value_enum, default_value = "mm")]
+    pub unit: MotionUnit,
+    /// Rig whose suspension the config file sets: a beam preset (natural frequency and
+    /// damping ratio) or wires (pendulum length g/ω², no damping in the model).
+    #[arg(long, value_parser = parse_rig, default_value = "beam-170")]
+    pub rig: RigId,
+    /// Config file with the mass and the identified suspension.
+    #[arg(long, value_name = "FILE.toml")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object instead of the text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `identify`.
+///
+/// # Errors
+/// Bad input or I/O failure.
+pub fn run(a: &IdentifyArgs) -> Result<()> {
+    match &a.what {
+        IdentifyCommand::Contact(c) => run_contact(c),
+        IdentifyCommand::Free(f) => run_free(f),
+    }
+}
+
+fn format_of(t: &TimeOpts, value_col: &str, value_to_si: f64) -> TraceFormat {
+    TraceFormat {
+        time_col: t.time_col.clone(),
+        value_col: value_col.to_string(),
+        time_to_s: t.time_unit.to_s(),
+        value_to_si,
+        sample_rate_hz: t.sample_rate_hz,
+    }
+}
+
+/// The fitted parameters of a law as text, with units.
+pub fn describe_law(law: &ContactLaw, mass_kg: f64) -> String {
+    match *law {
+        ContactLaw::SpringDashpot {
+            stiffness_n_m,
+            damping_n_s_m,
+        } => {
+            let mut s = format!("k_i = {stiffness_n_m:.4e} N/m, c_i = {damping_n_s_m:.4e} N s/m");
+            if let Some((e, _)) = shared::model::contact::spring_dashpot_restitution(
+                stiffness_n_m,
+                damping_n_s_m,
+                mass_kg,
+            ) {
+                let _ = write!(s, " (e = {e:.3})");
+            }
+            s
+        }
+        ContactLaw::Hertz {
+            stiffness,
+            exponent,
+        } => format!("k_i = {stiffness:.4e} N/m^{exponent:.3}, n = {exponent:.4}"),
+        ContactLaw::HuntCrossley {
+            stiffness,
+            exponent,
+            lambda_s_m,
+        } => format!(
+            "k_i = {stiffness:.4e} N/m^{exponent:.3}, n = {exponent:.4}, λ_i = {lambda_s_m:.4} s/m"
+        ),
+        ContactLaw::LankaraniNikravesh {
+            stiffness,
+            exponent,
+            restitution,
+        } => format!(
+            "k_i = {stiffness:.4e} N/m^{exponent:.3}, n = {exponent:.4}, e = {restitution:.4}"
+        ),
+    }
+}
+
+/// The keys of `a` that differ from `b` (recursively through tables).
+fn diff(a: &toml::Value, b: &toml::Value) -> Option<toml::Value> {
+    match (a, b) {
+        (toml::Value::Table(ta), toml::Value::Table(tb)) => {
+            let mut out = toml::Table::new();
+            for (k, va) in ta {
+                let d = match tb.get(k) {
+                    Some(vb) => diff(va, vb),
+                    None => Some(va.clone()),
+                };
+                if let Some(d) = d {
+                    out.insert(k.clone(), d);
+                }
+            }
+            (!out.is_empty()).then_some(toml::Value::Table(out))
+        }
+        _ => (a != b).then(|| a.clone()),
+    }
+}
+
+/// A config file whose `[rig]` table holds `always` (keys written whatever their value, e.g.
+/// `mass_kg`, `contact`) and every other key of `params` that differs from `base` (the preset
+/// plus any `--config` the identification started from would be repeated, a plain preset is
+/// not), with `comment` as `#` lines on top. Loaded with `--rig <same preset> --config`, it
+/// reproduces `params`.
+///
+/// # Errors
+/// Serialisation failure.
+pub fn config_text(
+    comment: &str,
+    params: &RigParams,
+    base: &RigParams,
+    always: &[&str],
+) -> Result<String> {
+    let a = toml::Value::try_from(params).context("writing the config")?;
+    let b = toml::Value::try_from(base).context("writing the config")?;
+    let mut rig = match diff(&a, &b) {
+        Some(toml::Value::Table(t)) => t,
+        _ => toml::Table::new(),
+    };
+    if let toml::Value::Table(full) = &a {
+        for key in always {
+            if let Some(v) = full.get(*key) {
+                rig.insert((*key).to_string(), v.clone());
+            }
+        }
+    }
+    let mut root = toml::Table::new();
+    root.insert("rig".into(), toml::Value::Table(rig));
+    let body = toml::to_string(&root).context("writing the config")?;
+    let mut out = String::new();
+    for line in comment.lines() {
+        let _ = writeln!(out, "# {line}");
+    }
+    out.push_str(&body);
+    Ok(out)
+}
+
+#[derive(Serialize)]
+struct LawReport {
+    law: ContactLawKind,
+    contact: ContactLaw,
+    residual: Residual,
+    evaluations: u64,
+}
+
+#[derive(Serialize)]
+struct ContactReport {
+    samples: usize,
+    offset_n: f64,
+    noise_n: f64,
+    impact_peaks_n: Vec<f64>,
+    error: FitError,
+    fits: Vec<LawReport>,
+    best: ContactLawKind,
+}
+
+fn run_contact(a: &ContactArgs) -> Result<()> {
+    check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
+    check_range("gap_mm", a.gap_mm, 0.0, MAX_GAP_MM).context("--gap-mm")?;
+    check_range("release_mm", a.release_mm, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
+    check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
+    shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
+    let setup = Setup::from_opts(&crate::cli::RigOpts {
+        rig: a.rig,
+        law: None,
+        config: a.config.clone(),
+        precision: crate::cli::Precision::F64,
+        profile: crate::cli::Profile::Host,
+    })?;
+    let mut params = setup.params;
+    params.mass_kg = a.mass_kg;
+    params.validate().context("rig parameters")?;
+    let trace = read_trace(
+        &a.trace,
+        &format_of(&a.time, &a.force_col, a.force_unit.to_n()),
+        "force",
+    )?;
+    let data = analyse_drop(&trace, a.max_impacts as usize)
+        .with_context(|| format!("trace {}", a.trace.display()))?;
+    let drop_setup = DropSetup {
+        params,
+        gap_m: a.gap_mm * 1e-3,
+        release_m: a.release_mm * 1e-3,
+        steps: FIT_STEPS,
+    };
+    let weights = Weights {
+        time: a.time_weight,
+        profile: match a.error {
+            FitError::Peaks => 0.0,
+            FitError::Profile => 1.0,
+        },
+    };
+    let laws: Vec<ContactLawKind> = match a.law {
+        LawChoice::One(k) => vec![k],
+        LawChoice::All => ContactLawKind::ALL.to_vec(),
+    };
+    let mut fits: Vec<(ContactLawKind, Fit)> = Vec::new();
+    for &k in &laws {
+        let fit = fit_law(&drop_setup, &data, k, weights, 400)
+            .with_context(|| format!("fitting the {k} law"))?;
+        fits.push((k, fit));
+    }
+    let best = fits
+        .iter()
+        .min_by(|x, y| x.1.residual.cost.total_cmp(&y.1.residual.cost))
+        .map(|f| f.0)
+        .unwrap_or(ContactLawKind::SpringDashpot);
+    let best_fit = &fits.iter().find(|f| f.0 == best).context("no fit")?.1;
+
+    let mut outputs = Outputs::new();
+    if let Some(p) = &a.out {
+        let tmp = outputs.reserve(p)?;
+        let mut out_params = params;
+        out_params.contact = best_fit.law;
+        let comment = format!(
+            "host-sim identify contact: {} law fitted to {} ({} impacts, error: {:?}, release {} mm, \
+             gap {} mm)\nresidual: peak rms {:.2} % of the largest peak, time rms {:.1} us, J = {:.3e}",
+            best,
+            a.trace.display(),
+            data.impacts.len(),
+            a.error,
+            a.release_mm,
+            a.gap_mm,
+            best_fit.residual.peak_rms_pct,
+            best_fit.residual.time_rms_us,
+            best_fit.residual.cost
+        );
+        std::fs::write(
+            &tmp,
+            config_text(
+                &comment,
+                &out_params,
+                &a.rig.preset(),
+                &["mass_kg", "contact"],
+            )?,
+        )
+        .with_context(|| format!("writing {}", p.display()))?;
+    }
+    if let Some(p) = &a.plot {
+        let tmp = outputs.reserve(p)?;
+        let title = format!(
+            "Drop test {} (release {} mm, {} rig): fitted contact laws",
+            a.trace
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            a.release_mm,
+            a.rig
+        );
+        let curves: Vec<(String, &Fit)> = fits.iter().map(|(k, f)| (k.to_string(), f)).collect();
+        plot_identify::drop_fit(&tmp, &title, &data, &curves)?;
+    }
+    outputs.commit()?;
+    print_contact(a, &data, &fits, best)
+}
+
+fn print_contact(
+    a: &ContactArgs,
+    data: &DropData,
+    fits: &[(ContactLawKind, Fit)],
+    best: ContactLawKind,
+) -> Result<()> {
+    if a.json {
+        let report = ContactReport {
+            samples: data.t_s.len(),
+            offset_n: data.offset_n,
+            noise_n: data.noise_n,
+            impact_peaks_n: data.impacts.iter().map(|i| i.peak_n).collect(),
+            error: a.error,
+            fits: fits
+                .iter()
+                .map(|(k, f)| LawReport {
+                    law: *k,
+                    contact: f.law,
+                    residual: f.residual,
+                    evaluations: f.evaluations,
+                })
+                .collect(),
+            best,
+        };
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    let dt = (data.t_s[data.t_s.len() - 1] - data.t_s[0]) / (data.t_s.len() - 1) as f64;
+    let peaks: Vec<String> = data
+        .impacts
+        .iter()
+        .map(|i| format!("{:.2}", i.peak_n))
+        .collect();
+    println!(
+        "Drop test {}: {} samples at {:.1} kHz, offset {:.3} N removed, noise {:.3} N; {} impacts, peaks {} N",
+        a.trace.display(),
+        data.t_s.len(),
+        1e-3 / dt,
+        data.offset_n,
+        data.noise_n,
+        data.impacts.len(),
+        peaks.join(", ")
+    );
+    println!(
+        "Fit ({} error{}), {} suspension, m = {} kg, released {} mm from the surface, gap {} mm:",
+        match a.error {
+            FitError::Peaks => "peak forces",
+            FitError::Profile => "peak forces + force profile",
+        },
+        if a.time_weight > 0.0 {
+            " + impact times"
+        } else {
+            ""
+        },
+        a.rig,
+        a.mass_kg,
+        a.release_mm,
+        a.gap_mm
+    );
+    println!(
+        "  {:<20} {:<62} {:>9} {:>10} {:>11} {:>10} {:>6}",
+        "law", "parameters", "peak rms", "time rms", "profile rms", "J", "evals"
+    );
+    for (k, f) in fits {
+        let r = &f.residual;
+        println!(
+            "  {:<20} {:<62} {:>7.2} % {:>7.1} µs {:>9} {:>10.3e} {:>6}",
+            k.to_string(),
+            describe_law(&f.law, a.mass_kg),
+            r.peak_rms_pct,
+            r.time_rms_us,
+            if a.error == FitError::Profile {
+                format!("{:.2} %", r.profile_rms_pct)
+            } else {
+                "–".to_string()
+            },
+            r.cost,
+            f.evaluations
+        );
+    }
+    if fits.len() > 1 {
+        println!("  smallest error: {best}");
+    }
+    if let Some(p) = &a.out {
+        println!("  wrote {} ({best} law; use it with --config)", p.display());
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct FreeReport {
+    #[serde(flatten)]
+    decay: FreeDecay,
+    mass_kg: f64,
+    stiffness_n_m: f64,
+    damping_n_s_m: f64,
+    pendulum_length_m: f64,
+}
+
+fn run_free(a: &FreeArgs) -> Result<()> {
+    check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
+    let trace = read_trace(
+        &a.trace,
+        &format_of(&a.time, &a.value_col, a.unit.to_si()),
+        if a.unit.is_acceleration() {
+            "acceleration"
+        } else {
+            "displacement"
+        },
+    )?;
+    let decay =
+        identify_free(&trace).with_context(|| format!("free decay {}", a.trace.display()))?;
+    let mut params = a.rig.preset();
+    params.mass_kg = a.mass_kg;
+    params.suspension = match params.suspension {
+        Suspension::Beam { .. } => Suspension::Beam {
+            natural_freq_hz: decay.natural_freq_hz,
+            damping_ratio: decay.damping_ratio,
+        },
+        Suspension::Wires { .. } => Suspension::Wires {
+            length_m: decay.pendulum_length_m(params.gravity_m_s2),
+        },
+    };
+    params
+        .validate()
+        .context("the identified suspension is out of range")?;
+    let report = FreeReport {
+        decay,
+        mass_kg: a.mass_kg,
+        stiffness_n_m: decay.stiffness_n_m(a.mass_kg),
+        damping_n_s_m: decay.damping_n_s_m(a.mass_kg),
+        pendulum_length_m: decay.pendulum_length_m(params.gravity_m_s2),
+    };
+    let mut outputs = Outputs::new();
+    if let Some(p) = &a.out {
+        let tmp = outputs.reserve(p)?;
+        let comment = format!(
+            "host-sim identify free: {} ({:.1} cycles): f_n = {:.5} Hz, zeta = {:.5}\n\
+             k = m w^2 = {:.5e} N/m (Eq. 3-34), c = 2 zeta m w = {:.5e} N s/m",
+            a.trace.display(),
+            decay.cycles,
+            decay.natural_freq_hz,
+            decay.damping_ratio,
+            report.stiffness_n_m,
+            report.damping_n_s_m
+        );
+        std::fs::write(
+            &tmp,
+            config_text(
+                &comment,
+                &params,
+                &a.rig.preset(),
+                &["mass_kg", "suspension"],
+            )?,
+        )
+        .with_context(|| format!("writing {}", p.display()))?;
+    }
+    outputs.commit()?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "Free decay {}: {} samples, {:.1} cycles, fit residual {:.2} % of the signal rms",
+        a.trace.display(),
+        trace.t_s.len(),
+        decay.cycles,
+        100.0 * decay.residual_rel
+    );
+    println!(
+        "  natural frequency ω/2π = {:.5} Hz (damped {:.5} Hz), damping ratio ζ = {:.5}",
+        decay.natural_freq_hz, decay.damped_freq_hz, decay.damping_ratio
+    );
+    println!(
+        "  m = {} kg: k = m ω² = {:.5e} N/m (Eq. 3-34), c = 2ζmω = {:.5e} N s/m; as a pendulum l = g/ω² = {:.2} mm",
+        a.mass_kg,
+        report.stiffness_n_m,
+        report.damping_n_s_m,
+        report.pendulum_length_m * 1e3
+    );
+    if let Some(p) = &a.out {
+        println!(
+            "  wrote {} (suspension of the {} rig; use it with --rig {} --config)",
+            p.display(),
+            a.rig,
+            a.rig
+        );
+    }
+    Ok(())
+}

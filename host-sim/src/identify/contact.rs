@@ -1,0 +1,703 @@
+//! Contact-law identification from a drop test (thesis §3.3.2, Figs. 3.8–3.10).
+//!
+//! The measured force–time trace of a drop test (the hammer released at rest `release` from
+//! the surface; several impacts) is compared with the drop simulation of `shared`
+//! ([`shared::analysis::drop`]) and the law's parameters are fitted by Nelder–Mead (argmin),
+//! as the thesis did with MATLAB's `fminsearch`.
+//!
+//! ## Preprocessing of the measured trace
+//! - Sensor offset: the median of the trace (most samples are free flight, `F = 0`); it is
+//!   subtracted. Noise level `σ`: 1.4826 × the median absolute deviation.
+//! - Impacts: runs of samples above `max(5σ, 3 % of the largest force)` with at least 3
+//!   samples; runs closer than twice the previous run's length are one impact (re-contacts).
+//!   At most `max_impacts`, in time order.
+//! - Peak force of an impact: the vertex of a least-squares parabola through the 5 samples
+//!   around the largest one (when all 5 are above half of it), else the largest sample.
+//! - Impact time: the force-weighted centroid `∫ t F dt / ∫ F dt` over the impact's window
+//!   (the run plus half its length on each side): robust to noise, unlike the onset or the
+//!   peak of a flat-topped pulse. Only differences to the first impact are used, so the trace's
+//!   time origin need not be the release.
+//!
+//! ## The error (documented for `identify contact --error`)
+//! With `F_ref` the largest measured peak, `τ_ref` the first impact's width at half maximum,
+//! and `j` running over the `n` measured impacts matched in order to the simulated ones:
+//! - `J_peak = Σ_j ((F_sim,j − F_meas,j)/F_ref)²` — the thesis' error;
+//! - `J_time = Σ_{j≥2} ((t_sim,j − t_sim,1) − (t_meas,j − t_meas,1))² / τ_ref²`;
+//! - `J_profile = Σ_j Σ_{i ∈ window j} ((F_sim(t_i − t_meas,j + t_sim,j) − F_meas,i)/F_ref)²`
+//!   (each simulated impact shifted onto the measured one's centroid). Sums, not means: with
+//!   white sensor noise this is the least-squares (maximum-likelihood) weighting, so the
+//!   profile's many samples outweigh the few peaks when it is switched on;
+//! - `J = J_peak + w_time J_time + w_profile J_profile`; `--error peaks`: `w_profile = 0`,
+//!   `--error profile`: `w_profile = 1`; `w_time` = `--time-weight` (default 1).
+//!
+//! A simulated impact that is missing counts with zero force and a time error of `τ_ref`.
+//!
+//! ## Parameters searched (Nelder–Mead works on unbounded, similarly scaled coordinates)
+//! - stiffness as the force at a reference penetration `δ_ref` (from the data:
+//!   `F_1 / (m ω_c²)`, `ω_c` from the first impact's width), `ln(k δ_ref^n)`, so that `k` and
+//!   `n` are not strongly correlated; damping `c_i` and `λ_i` by their logarithms; `n` and `e`
+//!   directly, bounded to `1 ≤ n ≤ 3`, `0.01 ≤ e ≤ 1` by a penalty.
+
+use std::cell::Cell;
+
+use anyhow::{Context, Result, bail, ensure};
+use argmin::core::{CostFunction, Executor, State};
+use argmin::solver::neldermead::NelderMead;
+use shared::analysis::drop::{DropRecord, DropSpec, run_drop};
+use shared::integrate::StepSettings;
+use shared::model::contact::spring_dashpot_restitution;
+use shared::model::{ContactLaw, ContactLawKind, RigParams, SwitchBands};
+
+use super::solve3;
+use crate::trace::Trace;
+
+/// Which error the fit minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FitError {
+    /// Peak forces and impact times (the thesis' error).
+    Peaks,
+    /// Peak forces, impact times and the whole force profile of every impact.
+    Profile,
+}
+
+/// One impact found in the measured trace.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeasuredImpact {
+    /// Peak force (offset removed), N.
+    pub peak_n: f64,
+    /// Force-weighted centroid time, s.
+    pub centroid_s: f64,
+    /// Width at half maximum, s.
+    pub fwhm_s: f64,
+    /// Sample index range `[first, last]` of the impact's window.
+    pub window: (usize, usize),
+}
+
+/// A measured drop test after preprocessing.
+#[derive(Debug, Clone)]
+pub struct DropData {
+    /// Sample times, s.
+    pub t_s: Vec<f64>,
+    /// Force with the offset removed, N.
+    pub force_n: Vec<f64>,
+    /// Removed sensor offset, N.
+    pub offset_n: f64,
+    /// Noise standard deviation, N.
+    pub noise_n: f64,
+    /// Impacts, in time order.
+    pub impacts: Vec<MeasuredImpact>,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Least-squares parabola through `(t, f)`: the vertex `(t*, f*)` if it opens downward.
+fn parabola_vertex(t: &[f64], f: &[f64]) -> Option<(f64, f64)> {
+    let t0 = t[t.len() / 2];
+    let (mut s, mut m) = ([0.0; 5], [0.0; 3]);
+    for (&ti, &fi) in t.iter().zip(f) {
+        let x = ti - t0;
+        let mut p = 1.0;
+        for sk in &mut s {
+            *sk += p;
+            p *= x;
+        }
+        m[0] += fi;
+        m[1] += fi * x;
+        m[2] += fi * x * x;
+    }
+    // Normal equations for f = a + b x + c x².
+    let a = solve3(
+        [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]],
+        m,
+    )?;
+    let (b, c) = (a[1], a[2]);
+    if c >= 0.0 {
+        return None;
+    }
+    let x = -b / (2.0 * c);
+    Some((t0 + x, a[0] + b * x + c * x * x))
+}
+
+/// Finds the sensor offset, the noise level and the impacts of a measured drop test.
+///
+/// # Errors
+/// No impact stands out of the noise (largest force below 10 σ).
+pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
+    let mut sorted = trace.value.clone();
+    let offset = median(&mut sorted);
+    let mut dev: Vec<f64> = trace.value.iter().map(|v| (v - offset).abs()).collect();
+    let fmax = trace
+        .value
+        .iter()
+        .map(|v| v - offset)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let noise = (1.4826 * median(&mut dev)).max(1e-12 * fmax.abs());
+    ensure!(
+        fmax > 10.0 * noise,
+        "no impact stands out of the noise: largest force {fmax:.4} N above the offset \
+         {offset:.4} N, noise {noise:.4} N"
+    );
+    let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
+    let t = &trace.t_s;
+    let threshold = (5.0 * noise).max(0.03 * fmax);
+    // Runs above the threshold.
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut start = None;
+    for (i, &fi) in f.iter().enumerate() {
+        match (fi > threshold, start) {
+            (true, None) => start = Some(i),
+            (false, Some(a)) => {
+                runs.push((a, i - 1));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(a) = start {
+        runs.push((a, f.len() - 1));
+    }
+    // Merge re-contacts, drop isolated noise spikes.
+    let mut merged: Vec<(usize, usize)> = Vec::new();
+    for r in runs {
+        if let Some(last) = merged.last_mut() {
+            let len = t[last.1] - t[last.0];
+            if t[r.0] - t[last.1] < 2.0 * len.max(t[1] - t[0]) {
+                last.1 = r.1;
+                continue;
+            }
+        }
+        merged.push(r);
+    }
+    merged.retain(|&(a, b)| b >= a + 2);
+    let n = f.len();
+    let mut impacts = Vec::new();
+    for (a, b) in merged.into_iter().take(max_impacts) {
+        let pad = (b - a).div_ceil(2).max(3);
+        let window = (a.saturating_sub(pad), (b + pad).min(n - 1));
+        let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
+        let mut peak = f[imax];
+        if imax >= a + 2
+            && imax + 2 <= b
+            && (imax - 2..=imax + 2).all(|i| f[i] > 0.5 * f[imax])
+            && let Some((tv, fv)) =
+                parabola_vertex(&t[imax - 2..=imax + 2], &f[imax - 2..=imax + 2])
+            && tv >= t[imax - 1]
+            && tv <= t[imax + 1]
+        {
+            peak = fv;
+        }
+        let (mut sf, mut stf) = (0.0, 0.0);
+        for i in window.0..=window.1 {
+            sf += f[i];
+            stf += t[i] * f[i];
+        }
+        let half: Vec<usize> = (a..=b).filter(|&i| f[i] > 0.5 * peak).collect();
+        let dt = t[1] - t[0];
+        let fwhm = match (half.first(), half.last()) {
+            (Some(&i), Some(&j)) => t[j] - t[i] + dt,
+            _ => dt,
+        };
+        impacts.push(MeasuredImpact {
+            peak_n: peak,
+            centroid_s: stf / sf,
+            fwhm_s: fwhm,
+            window,
+        });
+    }
+    ensure!(!impacts.is_empty(), "no impact found in the trace");
+    Ok(DropData {
+        t_s: t.clone(),
+        force_n: f,
+        offset_n: offset,
+        noise_n: noise,
+        impacts,
+    })
+}
+
+/// One simulated impact: its peak, centroid and force samples.
+#[derive(Debug, Clone, Default)]
+pub struct SimImpact {
+    /// Peak force, N.
+    pub peak_n: f64,
+    /// Force-weighted centroid time, s.
+    pub centroid_s: f64,
+    /// `(t, F)` samples of the episode, with the zero sample on each side.
+    pub profile: Vec<(f64, f64)>,
+}
+
+impl SimImpact {
+    /// Linear interpolation of the force at `t` (0 outside the episode).
+    pub fn force_at(&self, t: f64) -> f64 {
+        let p = &self.profile;
+        if p.len() < 2 || t <= p[0].0 || t >= p[p.len() - 1].0 {
+            return 0.0;
+        }
+        let i = p.partition_point(|s| s.0 <= t);
+        let (t0, f0) = p[i - 1];
+        let (t1, f1) = p[i];
+        if t1 <= t0 {
+            return f1;
+        }
+        f0 + (f1 - f0) * (t - t0) / (t1 - t0)
+    }
+}
+
+/// Simulated drop test: its impacts and, if `keep_samples`, every `(t, F)` sample.
+#[derive(Debug, Clone, Default)]
+pub struct SimDrop {
+    /// Impacts in time order.
+    pub impacts: Vec<SimImpact>,
+    /// All samples `(t_s, force_n)` (only with `keep_samples`).
+    pub samples: Vec<(f64, f64)>,
+}
+
+/// Simulates the drop test `spec` for `params` (f64) and collects the impacts.
+///
+/// # Errors
+/// Invalid parameters or spec.
+pub fn simulate_drop(
+    params: &RigParams,
+    spec: &DropSpec,
+    steps: &StepSettings,
+    keep_samples: bool,
+) -> Result<SimDrop> {
+    let mut out = SimDrop::default();
+    let mut pending: Vec<(f64, f64)> = Vec::new();
+    let mut last_zero = (0.0, 0.0);
+    let mut prev_force = 0.0;
+    run_drop::<f64, _>(params, spec, &SwitchBands::default(), steps, |r| match r {
+        DropRecord::Sample(s) => {
+            if keep_samples {
+                out.samples.push((s.t_s, s.force_n));
+            }
+            if s.force_n > 0.0 {
+                if prev_force <= 0.0 && pending.is_empty() {
+                    pending.push(last_zero);
+                }
+                pending.push((s.t_s, s.force_n));
+            } else if prev_force > 0.0 {
+                pending.push((s.t_s, 0.0));
+            } else {
+                last_zero = (s.t_s, 0.0);
+            }
+            prev_force = s.force_n;
+        }
+        DropRecord::Impact(i) => {
+            let profile = std::mem::take(&mut pending);
+            let (mut sf, mut stf) = (0.0, 0.0);
+            for w in profile.windows(2) {
+                let dt = w[1].0 - w[0].0;
+                sf += 0.5 * dt * (w[0].1 + w[1].1);
+                stf += 0.5 * dt * (w[0].0 * w[0].1 + w[1].0 * w[1].1);
+            }
+            out.impacts.push(SimImpact {
+                peak_n: i.peak_n,
+                centroid_s: if sf > 0.0 { stf / sf } else { i.arrival_s },
+                profile,
+            });
+        }
+    })
+    .context("drop simulation")?;
+    Ok(out)
+}
+
+/// The drop-test setup shared by the fit and the synthetic traces.
+#[derive(Debug, Clone, Copy)]
+pub struct DropSetup {
+    /// Rig (mass, suspension; the contact law is replaced by the fit).
+    pub params: RigParams,
+    /// Gap, m.
+    pub gap_m: f64,
+    /// Release distance from the surface, m.
+    pub release_m: f64,
+    /// Integrator settings of the fit's simulations.
+    pub steps: StepSettings,
+}
+
+/// The integrator settings of the fit: 256 steps per natural period, 64 sub-steps per contact
+/// half-period (peaks within 0.03 % of the converged value).
+pub const FIT_STEPS: StepSettings = StepSettings {
+    steps_per_period: 256,
+    substeps_per_contact: 64,
+};
+
+/// Weights of the error.
+#[derive(Debug, Clone, Copy)]
+pub struct Weights {
+    /// `w_time`.
+    pub time: f64,
+    /// `w_profile`.
+    pub profile: f64,
+}
+
+/// The parts of the error at one parameter set.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct Residual {
+    /// `J`.
+    pub cost: f64,
+    /// RMS of the peak errors, % of `F_ref`.
+    pub peak_rms_pct: f64,
+    /// RMS of the impact-time errors, µs.
+    pub time_rms_us: f64,
+    /// RMS of the profile errors, % of `F_ref`.
+    pub profile_rms_pct: f64,
+}
+
+#[derive(Clone)]
+struct Problem<'a> {
+    setup: &'a DropSetup,
+    data: &'a DropData,
+    law: ContactLawKind,
+    weights: Weights,
+    f_ref: f64,
+    tau_ref: f64,
+    delta_ref: f64,
+    x0_scale: [f64; 3],
+    duration_s: f64,
+    evaluations: &'a Cell<u64>,
+}
+
+impl Problem<'_> {
+    /// The law at search coordinates `x`, or `None` outside the bounds (with the distance).
+    fn law_at(&self, x: &[f64]) -> Result<ContactLaw, f64> {
+        let s = &self.x0_scale;
+        let out = |v: f64, lo: f64, hi: f64| (lo - v).max(0.0) + (v - hi).max(0.0);
+        let law = match self.law {
+            ContactLawKind::SpringDashpot => ContactLaw::SpringDashpot {
+                stiffness_n_m: s[0] * x[0].exp(),
+                damping_n_s_m: s[1] * x[1].exp(),
+            },
+            ContactLawKind::Hertz => {
+                let d = out(x[1], 1.0, 3.0);
+                if d > 0.0 {
+                    return Err(d);
+                }
+                ContactLaw::Hertz {
+                    stiffness: s[0] * x[0].exp() / self.delta_ref.powf(x[1]),
+                    exponent: x[1],
+                }
+            }
+            ContactLawKind::HuntCrossley => {
+                let d = out(x[1], 1.0, 3.0);
+                if d > 0.0 {
+                    return Err(d);
+                }
+                ContactLaw::HuntCrossley {
+                    stiffness: s[0] * x[0].exp() / self.delta_ref.powf(x[1]),
+                    exponent: x[1],
+                    lambda_s_m: s[2] * x[2].exp(),
+                }
+            }
+            ContactLawKind::LankaraniNikravesh => {
+                let d = out(x[1], 1.0, 3.0) + out(x[2], 0.01, 1.0);
+                if d > 0.0 {
+                    return Err(d);
+                }
+                ContactLaw::LankaraniNikravesh {
+                    stiffness: s[0] * x[0].exp() / self.delta_ref.powf(x[1]),
+                    exponent: x[1],
+                    restitution: x[2],
+                }
+            }
+        };
+        law.validate().map_err(|_| 1.0)?;
+        Ok(law)
+    }
+
+    fn residual(&self, law: &ContactLaw) -> Result<(Residual, SimDrop)> {
+        let mut params = self.setup.params;
+        params.contact = *law;
+        let spec = DropSpec {
+            gap_m: self.setup.gap_m,
+            release_m: self.setup.release_m,
+            duration_s: self.duration_s,
+            max_impacts: self.data.impacts.len() as u32,
+        };
+        let sim = simulate_drop(&params, &spec, &self.setup.steps, false)?;
+        Ok((self.score(&sim), sim))
+    }
+
+    fn score(&self, sim: &SimDrop) -> Residual {
+        let meas = &self.data.impacts;
+        let n = meas.len();
+        let (mut jp, mut jt, mut jprof, mut nprof) = (0.0, 0.0, 0.0, 0usize);
+        let (mut tsq, mut nt) = (0.0, 0usize);
+        let c_m0 = meas[0].centroid_s;
+        let c_s0 = sim.impacts.first().map(|s| s.centroid_s);
+        for (j, m) in meas.iter().enumerate() {
+            let s = sim.impacts.get(j);
+            let fs = s.map_or(0.0, |s| s.peak_n);
+            jp += ((fs - m.peak_n) / self.f_ref).powi(2);
+            if j > 0 {
+                let dt = match (s, c_s0) {
+                    (Some(s), Some(c0)) => (s.centroid_s - c0) - (m.centroid_s - c_m0),
+                    _ => self.tau_ref,
+                };
+                jt += (dt / self.tau_ref).powi(2);
+                tsq += dt * dt;
+                nt += 1;
+            }
+            if self.weights.profile > 0.0 {
+                for i in m.window.0..=m.window.1 {
+                    let fsim = s.map_or(0.0, |s| {
+                        s.force_at(self.data.t_s[i] - m.centroid_s + s.centroid_s)
+                    });
+                    jprof += ((fsim - self.data.force_n[i]) / self.f_ref).powi(2);
+                    nprof += 1;
+                }
+            }
+        }
+        let cost = jp + self.weights.time * jt + self.weights.profile * jprof;
+        Residual {
+            cost,
+            peak_rms_pct: 100.0 * (jp / n as f64).sqrt(),
+            time_rms_us: if nt > 0 {
+                1e6 * (tsq / nt as f64).sqrt()
+            } else {
+                0.0
+            },
+            profile_rms_pct: if nprof > 0 {
+                100.0 * (jprof / nprof as f64).sqrt()
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+impl CostFunction for Problem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+    fn cost(&self, x: &Vec<f64>) -> std::result::Result<f64, argmin::core::Error> {
+        self.evaluations.set(self.evaluations.get() + 1);
+        match self.law_at(x) {
+            Err(d) => Ok(1e3 * (1.0 + d)),
+            Ok(law) => match self.residual(&law) {
+                Ok((r, _)) if r.cost.is_finite() => Ok(r.cost),
+                _ => Ok(1e3),
+            },
+        }
+    }
+}
+
+/// A fitted law.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// The law with its fitted parameters.
+    pub law: ContactLaw,
+    /// The error at the fit.
+    pub residual: Residual,
+    /// Cost evaluations (drop simulations) spent.
+    pub evaluations: u64,
+    /// The simulated drop at the fit (all samples kept, for plots).
+    pub sim: SimDrop,
+}
+
+/// Initial guesses from the data: `(x0 scales, δ_ref)` for the law, see the module docs.
+fn initial(law: ContactLawKind, data: &DropData, mass_kg: f64) -> ([f64; 3], f64) {
+    let i0 = &data.impacts[0];
+    // Half-sine pulse: width at half maximum (2π/3)/ω_c.
+    let wc = 2.0 * std::f64::consts::PI / (3.0 * i0.fwhm_s);
+    let k_lin = mass_kg * wc * wc;
+    let delta_ref = i0.peak_n / k_lin;
+    let v1 = i0.peak_n / (mass_kg * wc);
+    let ratio = data
+        .impacts
+        .get(1)
+        .map_or(0.5, |i1| (i1.peak_n / i0.peak_n).clamp(0.02, 0.999));
+    match law {
+        ContactLawKind::SpringDashpot => {
+            // e ≈ F2/F1 for the linear law; ζ from the closed-form restitution.
+            let (mut lo, mut hi) = (0.0, 2.0 * (k_lin * mass_kg).sqrt() * 0.999);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                let e = spring_dashpot_restitution(k_lin, mid, mass_kg).map_or(0.0, |r| r.0);
+                if e > ratio {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            ([k_lin, 0.5 * (lo + hi).max(1e-3), 0.0], delta_ref)
+        }
+        ContactLawKind::Hertz => ([i0.peak_n, 0.0, 0.0], delta_ref),
+        ContactLawKind::HuntCrossley => {
+            // e ≈ (F2/F1)^((n+1)/2n) at n = 1.5; λ ≈ 3(1 − e)/(2 v) (Hunt and Crossley).
+            let e = ratio.powf(2.5 / 3.0);
+            (
+                [i0.peak_n, 0.0, (1.5 * (1.0 - e) / v1).max(1e-3)],
+                delta_ref,
+            )
+        }
+        ContactLawKind::LankaraniNikravesh => ([i0.peak_n, 0.0, 0.0], delta_ref),
+    }
+}
+
+fn start_point(law: ContactLawKind, data: &DropData) -> Vec<f64> {
+    let e = data
+        .impacts
+        .get(1)
+        .map_or(0.5, |i1| {
+            (i1.peak_n / data.impacts[0].peak_n).powf(2.5 / 3.0)
+        })
+        .clamp(0.05, 0.95);
+    match law {
+        ContactLawKind::SpringDashpot => vec![0.0, 0.0],
+        ContactLawKind::Hertz => vec![0.0, 1.5],
+        ContactLawKind::HuntCrossley => vec![0.0, 1.5, 0.0],
+        ContactLawKind::LankaraniNikravesh => vec![0.0, 1.5, e],
+    }
+}
+
+fn simplex(law: ContactLawKind, x0: &[f64]) -> Vec<Vec<f64>> {
+    let steps: &[f64] = match law {
+        ContactLawKind::SpringDashpot => &[0.4, 0.4],
+        ContactLawKind::Hertz => &[0.3, 0.2],
+        ContactLawKind::HuntCrossley => &[0.3, 0.2, 0.5],
+        ContactLawKind::LankaraniNikravesh => &[0.3, 0.2, 0.1],
+    };
+    let mut s = vec![x0.to_vec()];
+    for (i, &h) in steps.iter().enumerate() {
+        let mut p = x0.to_vec();
+        // Step inward for a bounded coordinate near its upper bound.
+        p[i] += if law == ContactLawKind::LankaraniNikravesh && i == 2 && x0[2] + h > 1.0 {
+            -h
+        } else {
+            h
+        };
+        s.push(p);
+    }
+    s
+}
+
+/// Fits `law` to the measured drop `data` with Nelder–Mead (argmin), restarting from the best
+/// point with a fresh simplex until a restart improves the error by less than 0.1 % (at most 4
+/// runs of at most `max_iters` iterations).
+///
+/// # Errors
+/// Invalid rig parameters or drop setup (checked with the preset law before fitting), or an
+/// optimiser failure.
+pub fn fit_law(
+    setup: &DropSetup,
+    data: &DropData,
+    law: ContactLawKind,
+    weights: Weights,
+    max_iters: u64,
+) -> Result<Fit> {
+    ensure!(!data.impacts.is_empty(), "no measured impact");
+    let mass = setup.params.mass_kg;
+    let (x0_scale, delta_ref) = initial(law, data, mass);
+    let evaluations = Cell::new(0);
+    let i0 = &data.impacts[0];
+    let last = data.impacts[data.impacts.len() - 1].centroid_s;
+    let span = last - i0.centroid_s;
+    let duration_s = 1.25 * span + 2.0 * std::f64::consts::PI / setup.params.omega_n() + 0.01;
+    let problem = Problem {
+        setup,
+        data,
+        law,
+        weights,
+        f_ref: data.impacts.iter().map(|i| i.peak_n).fold(0.0, f64::max),
+        tau_ref: i0.fwhm_s,
+        delta_ref,
+        x0_scale,
+        duration_s,
+        evaluations: &evaluations,
+    };
+    // Fails early (with the field) if the rig or the drop setup is invalid.
+    let mut check = setup.params;
+    check.contact = ContactLaw::preset(law);
+    check.validate().context("rig parameters")?;
+    DropSpec {
+        gap_m: setup.gap_m,
+        release_m: setup.release_m,
+        duration_s,
+        max_impacts: 1,
+    }
+    .validate()
+    .context("drop test")?;
+
+    let mut x = start_point(law, data);
+    let mut best = problem.cost(&x).map_err(|e| anyhow::anyhow!("{e}"))?;
+    for _ in 0..4 {
+        let solver = NelderMead::new(simplex(law, &x))
+            .with_sd_tolerance(1e-12)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let res = Executor::new(problem.clone(), solver)
+            .configure(|s| s.max_iters(max_iters))
+            .run()
+            .map_err(|e| anyhow::anyhow!("Nelder–Mead: {e}"))?;
+        let cost = res.state().get_best_cost();
+        let Some(p) = res.state().get_best_param().cloned() else {
+            break;
+        };
+        let improved = cost < best * (1.0 - 1e-3);
+        if cost < best {
+            best = cost;
+            x = p;
+        }
+        if !improved {
+            break;
+        }
+    }
+    let Ok(law_fit) = problem.law_at(&x) else {
+        bail!("the fit left the parameter bounds");
+    };
+    let (residual, _) = problem.residual(&law_fit)?;
+    let mut params = setup.params;
+    params.contact = law_fit;
+    let sim = simulate_drop(
+        &params,
+        &DropSpec {
+            gap_m: setup.gap_m,
+            release_m: setup.release_m,
+            duration_s: problem.duration_s,
+            max_impacts: 0,
+        },
+        &setup.steps,
+        true,
+    )?;
+    Ok(Fit {
+        law: law_fit,
+        residual,
+        evaluations: evaluations.get(),
+        sim,
+    })
+}
+
+/// The residual of a given law against `data` (no fit), e.g. to score the generating law.
+///
+/// # Errors
+/// Invalid parameters.
+pub fn residual_of(
+    setup: &DropSetup,
+    data: &DropData,
+    law: &ContactLaw,
+    weights: Weights,
+) -> Result<Residual> {
+    let (x0_scale, delta_ref) = initial(law.kind(), data, setup.params.mass_kg);
+    let i0 = &data.impacts[0];
+    let span = data.impacts[data.impacts.len() - 1].centroid_s - i0.centroid_s;
+    let problem = Problem {
+        setup,
+        data,
+        law: law.kind(),
+        weights,
+        f_ref: data.impacts.iter().map(|i| i.peak_n).fold(0.0, f64::max),
+        tau_ref: i0.fwhm_s,
+        delta_ref,
+        x0_scale,
+        duration_s: 1.25 * span + 2.0 * std::f64::consts::PI / setup.params.omega_n() + 0.01,
+        evaluations: &Cell::new(0),
+    };
+    Ok(problem.residual(law)?.0)
+}

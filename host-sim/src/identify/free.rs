@@ -1,0 +1,191 @@
+//! Natural frequency and damping ratio from a free-decay record (thesis §3.3.3 and §3.4.1:
+//! the suspension identified from its natural frequency, `k = m ω²`, Eq. 3-34, and a viscous
+//! damping ratio, `c = 2 ζ m ω`).
+//!
+//! Model of the record (displacement, or acceleration: the second derivative of a damped
+//! sinusoid is a damped sinusoid with the same `σ` and `ω_d`):
+//! `y(t) = e^{−σ t} (a cos ω_d t + b sin ω_d t) + y_0`, with `σ = ζ ω_n`,
+//! `ω_d = ω_n sqrt(1 − ζ²)`. For each `(σ, ω_d)` the amplitudes `a, b` and the offset `y_0`
+//! come from linear least squares; Nelder–Mead (argmin) searches `(σ, ω_d)` (variable
+//! projection). Start: `ω_d` from the mean spacing of the zero crossings, `σ` from a straight
+//! line through the logarithms of the half-cycle amplitudes (logarithmic decrement).
+
+use anyhow::{Result, bail, ensure};
+use argmin::core::{CostFunction, Executor, State};
+use argmin::solver::neldermead::NelderMead;
+use serde::Serialize;
+
+use super::solve3;
+use crate::trace::Trace;
+
+/// The identified free oscillation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FreeDecay {
+    /// Undamped natural frequency `ω_n/2π`, Hz.
+    pub natural_freq_hz: f64,
+    /// Damped frequency `ω_d/2π`, Hz.
+    pub damped_freq_hz: f64,
+    /// Viscous damping ratio `ζ`.
+    pub damping_ratio: f64,
+    /// Initial amplitude `sqrt(a² + b²)` at the first sample, in the record's unit (SI).
+    pub amplitude: f64,
+    /// Offset `y_0`, SI.
+    pub offset: f64,
+    /// RMS of the fit residual over the RMS of the signal (about its offset).
+    pub residual_rel: f64,
+    /// Cycles in the record.
+    pub cycles: f64,
+}
+
+impl FreeDecay {
+    /// Natural angular frequency `ω_n`, rad/s.
+    pub fn omega_n(&self) -> f64 {
+        2.0 * std::f64::consts::PI * self.natural_freq_hz
+    }
+    /// Suspension stiffness `k = m ω_n²` (Eq. 3-34), N/m, for a mass `mass_kg`.
+    pub fn stiffness_n_m(&self, mass_kg: f64) -> f64 {
+        mass_kg * self.omega_n().powi(2)
+    }
+    /// Viscous damping `c = 2 ζ m ω_n`, N s/m.
+    pub fn damping_n_s_m(&self, mass_kg: f64) -> f64 {
+        2.0 * self.damping_ratio * mass_kg * self.omega_n()
+    }
+    /// Length of the pendulum with this natural frequency, `l = g/ω_n²`, m.
+    pub fn pendulum_length_m(&self, gravity_m_s2: f64) -> f64 {
+        gravity_m_s2 / self.omega_n().powi(2)
+    }
+}
+
+/// Least-squares `(a, b, y_0)` and the residual sum of squares at `(σ, ω_d)`.
+fn project(t: &[f64], y: &[f64], sigma: f64, wd: f64) -> Option<([f64; 3], f64)> {
+    let t0 = t[0];
+    let mut ata = [[0.0; 3]; 3];
+    let mut aty = [0.0; 3];
+    for (&ti, &yi) in t.iter().zip(y) {
+        let s = ti - t0;
+        let e = (-sigma * s).exp();
+        let (sn, cs) = (wd * s).sin_cos();
+        let row = [e * cs, e * sn, 1.0];
+        for r in 0..3 {
+            aty[r] += row[r] * yi;
+            for c in 0..3 {
+                ata[r][c] += row[r] * row[c];
+            }
+        }
+    }
+    let x = solve3(ata, aty)?;
+    let mut rss = 0.0;
+    for (&ti, &yi) in t.iter().zip(y) {
+        let s = ti - t0;
+        let e = (-sigma * s).exp();
+        let (sn, cs) = (wd * s).sin_cos();
+        rss += (yi - e * (x[0] * cs + x[1] * sn) - x[2]).powi(2);
+    }
+    Some((x, rss))
+}
+
+#[derive(Clone)]
+struct Problem<'a> {
+    t: &'a [f64],
+    y: &'a [f64],
+    wd0: f64,
+    scale: f64,
+}
+
+impl CostFunction for Problem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+    fn cost(&self, x: &Vec<f64>) -> std::result::Result<f64, argmin::core::Error> {
+        let (wd, sigma) = (x[0] * self.wd0, x[1] * self.wd0);
+        if wd <= 0.0 || sigma < 0.0 {
+            return Ok(1e3 * (1.0 + (-wd).max(0.0) + (-sigma).max(0.0)));
+        }
+        Ok(project(self.t, self.y, sigma, wd).map_or(1e3, |(_, rss)| rss / self.scale))
+    }
+}
+
+/// Identifies `ω_n` and `ζ` from a free-decay trace (displacement or acceleration, SI).
+///
+/// # Errors
+/// Fewer than 3 full cycles, or a record that does not oscillate about a level.
+pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
+    let (t, y) = (&trace.t_s, &trace.value);
+    let n = y.len();
+    let mean = y.iter().sum::<f64>() / n as f64;
+    // Zero crossings about the mean, by linear interpolation.
+    let mut crossings = Vec::new();
+    for i in 1..n {
+        let (a, b) = (y[i - 1] - mean, y[i] - mean);
+        if (a < 0.0) != (b < 0.0) && a != b {
+            crossings.push(t[i - 1] + (t[i] - t[i - 1]) * a / (a - b));
+        }
+    }
+    ensure!(
+        crossings.len() >= 7,
+        "{} zero crossings: a free decay needs at least 3 full cycles",
+        crossings.len()
+    );
+    let half = (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    let wd0 = std::f64::consts::PI / half;
+    // Half-cycle amplitudes → logarithmic decrement.
+    let (mut sx, mut sy, mut sxx, mut sxy, mut m) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for w in crossings.windows(2) {
+        let (lo, hi) = (
+            t.partition_point(|&ti| ti < w[0]),
+            t.partition_point(|&ti| ti <= w[1]),
+        );
+        let amp = y[lo..hi]
+            .iter()
+            .map(|v| (v - mean).abs())
+            .fold(0.0, f64::max);
+        if amp > 0.0 {
+            let tm = 0.5 * (w[0] + w[1]);
+            let la = amp.ln();
+            sx += tm;
+            sy += la;
+            sxx += tm * tm;
+            sxy += tm * la;
+            m += 1.0;
+        }
+    }
+    let slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
+    let sigma0 = if slope.is_finite() {
+        (-slope).max(0.0)
+    } else {
+        0.0
+    };
+    let scale = y.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
+    ensure!(scale > 0.0, "the record is constant");
+    let problem = Problem { t, y, wd0, scale };
+    let x0 = vec![1.0, sigma0 / wd0];
+    let simplex = vec![
+        x0.clone(),
+        vec![x0[0] * 1.01, x0[1]],
+        vec![x0[0], x0[1] + 0.002 + 0.2 * x0[1]],
+    ];
+    let solver = NelderMead::new(simplex)
+        .with_sd_tolerance(1e-15)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let res = Executor::new(problem.clone(), solver)
+        .configure(|s| s.max_iters(400))
+        .run()
+        .map_err(|e| anyhow::anyhow!("Nelder–Mead: {e}"))?;
+    let Some(x) = res.state().get_best_param().cloned() else {
+        bail!("the fit found no parameters");
+    };
+    let (wd, sigma) = (x[0] * wd0, x[1] * wd0);
+    let Some((ab, rss)) = project(t, y, sigma, wd) else {
+        bail!("the free-decay fit is singular");
+    };
+    let wn = (wd * wd + sigma * sigma).sqrt();
+    let two_pi = 2.0 * std::f64::consts::PI;
+    Ok(FreeDecay {
+        natural_freq_hz: wn / two_pi,
+        damped_freq_hz: wd / two_pi,
+        damping_ratio: sigma / wn,
+        amplitude: ab[0].hypot(ab[1]),
+        offset: ab[2],
+        residual_rel: (rss / scale).sqrt(),
+        cycles: (t[n - 1] - t[0]) * wd / two_pi,
+    })
+}

@@ -1,0 +1,376 @@
+//! Figures of the identification: a drop test and its fitted simulations (thesis Figs.
+//! 3.9–3.10), and the comparison of a measured record with the simulation.
+
+use std::path::Path;
+
+use anyhow::Result;
+use plotters::prelude::*;
+use shared::model::ContactLawKind;
+
+use crate::identify::contact::{DropData, Fit};
+use crate::plot::{SANS, ensure_font, err};
+
+/// Colour of a contact law's curves.
+pub fn law_color(name: &str) -> RGBColor {
+    match name.parse::<ContactLawKind>() {
+        Ok(ContactLawKind::SpringDashpot) => RGBColor(215, 25, 28),
+        Ok(ContactLawKind::Hertz) => RGBColor(43, 131, 186),
+        Ok(ContactLawKind::HuntCrossley) => RGBColor(26, 150, 65),
+        Ok(ContactLawKind::LankaraniNikravesh) => RGBColor(230, 120, 0),
+        Err(_) => RGBColor(120, 60, 160),
+    }
+}
+
+/// The measured drop test (offset removed) with the simulated drop of each fit: the whole
+/// record on top (each simulation shifted so that its first impact's centroid falls on the
+/// measured one), and up to four impacts below, each simulated impact shifted onto the
+/// measured impact's centroid (as in the profile error).
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn drop_fit(path: &Path, title: &str, data: &DropData, fits: &[(String, &Fit)]) -> Result<()> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1300, 900)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, (SANS, 22)).map_err(err)?;
+    let (top, bottom) = root.split_vertically(430);
+    let t = &data.t_s;
+    let f = &data.force_n;
+    let m0 = data.impacts[0].centroid_s;
+    let fmax = f.iter().copied().fold(0.0, f64::max).max(
+        fits.iter()
+            .flat_map(|(_, fit)| fit.sim.impacts.iter().map(|i| i.peak_n))
+            .fold(0.0, f64::max),
+    ) * 1.1;
+    let fmin = f.iter().copied().fold(0.0, f64::min).min(0.0) * 1.1;
+    let (t0, t1) = (t[0], t[t.len() - 1]);
+    let mut c = ChartBuilder::on(&top)
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(t0..t1, fmin..fmax)
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("impact force F_i (N)")
+        .label_style((SANS, 15))
+        .draw()
+        .map_err(err)?;
+    // Decimate the measured trace to at most ~4000 points per pixel column group (min/max).
+    let cols = 1200usize;
+    let per = (t.len() / cols).max(1);
+    let mut env = Vec::with_capacity(2 * cols + 2);
+    for chunk in (0..t.len()).collect::<Vec<_>>().chunks(per) {
+        let (lo, hi) = chunk
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |a, &i| {
+                (a.0.min(f[i]), a.1.max(f[i]))
+            });
+        env.push((t[chunk[0]], lo));
+        env.push((t[chunk[0]], hi));
+    }
+    c.draw_series(LineSeries::new(env, RGBColor(90, 90, 90)))
+        .map_err(err)?
+        .label("measured (offset removed)")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(90, 90, 90)));
+    for (name, fit) in fits {
+        let Some(s0) = fit.sim.impacts.first() else {
+            continue;
+        };
+        let shift = m0 - s0.centroid_s;
+        let col = law_color(name);
+        c.draw_series(LineSeries::new(
+            fit.sim
+                .samples
+                .iter()
+                .map(|&(ts, fs)| (ts + shift, fs))
+                .filter(|p| p.0 >= t0 && p.0 <= t1),
+            col.stroke_width(1),
+        ))
+        .map_err(err)?
+        .label(format!("simulated, {name}"))
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
+    }
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 14))
+        .draw()
+        .map_err(err)?;
+
+    let shown: Vec<_> = data.impacts.iter().take(4).collect();
+    let panels = bottom.split_evenly((1, shown.len().max(1)));
+    for (j, (imp, area)) in shown.iter().zip(panels.iter()).enumerate() {
+        let (a, b) = imp.window;
+        let lo_ms = (t[a] - imp.centroid_s) * 1e3;
+        let hi_ms = (t[b] - imp.centroid_s) * 1e3;
+        let ymax = fits
+            .iter()
+            .filter_map(|(_, fit)| fit.sim.impacts.get(j).map(|s| s.peak_n))
+            .fold(imp.peak_n, f64::max)
+            .max(1e-9)
+            * 1.15;
+        let mut c = ChartBuilder::on(area)
+            .caption(format!("impact {}", j + 1), (SANS, 16))
+            .margin(8)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(lo_ms..hi_ms, (-0.1 * ymax)..ymax)
+            .map_err(err)?;
+        c.configure_mesh()
+            .x_desc("t − t_impact (ms)")
+            .y_desc(if j == 0 { "F_i (N)" } else { "" })
+            .label_style((SANS, 13))
+            .x_labels(5)
+            .draw()
+            .map_err(err)?;
+        c.draw_series((a..=b).map(|i| {
+            Circle::new(
+                ((t[i] - imp.centroid_s) * 1e3, f[i]),
+                2,
+                RGBColor(60, 60, 60).filled(),
+            )
+        }))
+        .map_err(err)?;
+        for (name, fit) in fits {
+            let Some(s) = fit.sim.impacts.get(j) else {
+                continue;
+            };
+            let col = law_color(name);
+            let mut pts: Vec<(f64, f64)> = Vec::new();
+            let n = 400;
+            for k in 0..=n {
+                let x = lo_ms + (hi_ms - lo_ms) * k as f64 / n as f64;
+                pts.push((x, s.force_at(x * 1e-3 + s.centroid_s)));
+            }
+            c.draw_series(LineSeries::new(pts, col.stroke_width(2)))
+                .map_err(err)?;
+        }
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// A simulated frequency response and the measured points, for [`response_compare`].
+#[derive(Debug, Clone, Default)]
+pub struct ResponseOverlay {
+    /// `(Ω/ω, F_i/mg, regime)` of the simulation.
+    pub sim: Vec<(f64, f64, shared::observe::Regime)>,
+    /// `(Ω/ω, F_i/mg)` measured.
+    pub measured: Vec<(f64, f64)>,
+}
+
+/// Measured max `F_i/mg` (black crosses) over the simulated response (grey line, dots by
+/// regime), with the error summary under the title (thesis Figs. 3.12–3.14).
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn response_compare(
+    path: &Path,
+    title: &str,
+    summary: &str,
+    o: &ResponseOverlay,
+) -> Result<()> {
+    use crate::plot::{regime_class, regime_color};
+    ensure_font();
+    let root = BitMapBackend::new(path, (1100, 680)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, (SANS, 21)).map_err(err)?;
+    let (head, body) = root.split_vertically(28);
+    head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))
+        .map_err(err)?;
+    let x0 = o.sim.first().map_or(0.0, |p| p.0);
+    let x1 = o.sim.last().map_or(1.0, |p| p.0).max(x0 + 1e-6);
+    let ymax = o
+        .sim
+        .iter()
+        .map(|p| p.1)
+        .chain(o.measured.iter().map(|p| p.1))
+        .fold(1.0, f64::max)
+        * 1.08;
+    let mut c = ChartBuilder::on(&body)
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x0..x1, 0.0..ymax)
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("Ω/ω")
+        .y_desc("max impact force F_i/mg")
+        .label_style((SANS, 15))
+        .draw()
+        .map_err(err)?;
+    c.draw_series(LineSeries::new(
+        o.sim.iter().map(|p| (p.0, p.1)),
+        RGBColor(150, 150, 150),
+    ))
+    .map_err(err)?
+    .label("simulated")
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(150, 150, 150)));
+    let mut seen: Vec<&str> = Vec::new();
+    for p in &o.sim {
+        let name = regime_class(p.2);
+        if !seen.contains(&name) {
+            seen.push(name);
+        }
+    }
+    for name in seen {
+        let col = o
+            .sim
+            .iter()
+            .find(|p| regime_class(p.2) == name)
+            .map_or(BLACK, |p| regime_color(p.2));
+        c.draw_series(
+            o.sim
+                .iter()
+                .filter(|p| regime_class(p.2) == name)
+                .map(|p| Circle::new((p.0, p.1), 2, col.filled())),
+        )
+        .map_err(err)?
+        .label(format!("simulated, {name}"))
+        .legend(move |(x, y)| Circle::new((x + 7, y), 4, col.filled()));
+    }
+    c.draw_series(
+        o.measured
+            .iter()
+            .map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))),
+    )
+    .map_err(err)?
+    .label("measured")
+    .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
+    c.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// A measured and a simulated time series, for [`time_series_compare`].
+#[derive(Debug, Clone, Default)]
+pub struct TsOverlay {
+    /// `(t s, x mm, ẋ mm/s)` measured.
+    pub measured: Vec<(f64, f64, f64)>,
+    /// `(t s, x mm, ẋ mm/s)` simulated, on the measured time axis.
+    pub sim: Vec<(f64, f64, f64)>,
+    /// Poincaré points `(x, ẋ)` measured.
+    pub strobe_measured: Vec<(f64, f64)>,
+    /// Poincaré points `(x, ẋ)` simulated.
+    pub strobe_sim: Vec<(f64, f64)>,
+}
+
+/// Absolute displacement vs time, and the phase plane `(x, ẋ)` with the Poincaré points:
+/// measured in black, simulated in blue/red (thesis Figs. 3.16–3.23).
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverlay) -> Result<()> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1100, 1000)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, (SANS, 21)).map_err(err)?;
+    let (head, body) = root.split_vertically(28);
+    head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))
+        .map_err(err)?;
+    let (top, bottom) = body.split_vertically(430);
+    let span = |it: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = it.fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| {
+            (a.0.min(v), a.1.max(v))
+        });
+        if lo.is_finite() {
+            let pad = ((hi - lo) * 0.06).max(1e-6);
+            (lo - pad, hi + pad)
+        } else {
+            (0.0, 1.0)
+        }
+    };
+    let t1 = o.measured.last().map_or(1.0, |p| p.0).max(1e-9);
+    let (xlo, xhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.1));
+    let mut c = ChartBuilder::on(&top)
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..t1, xlo..xhi)
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("t (s)")
+        .y_desc("absolute displacement x (mm)")
+        .label_style((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    c.draw_series(LineSeries::new(
+        o.measured.iter().map(|p| (p.0, p.1)),
+        BLACK,
+    ))
+    .map_err(err)?
+    .label("measured")
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
+    c.draw_series(LineSeries::new(
+        o.sim.iter().map(|p| (p.0, p.1)),
+        BLUE.stroke_width(2),
+    ))
+    .map_err(err)?
+    .label("simulated")
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE.stroke_width(2)));
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 13))
+        .draw()
+        .map_err(err)?;
+    let (vlo, vhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.2));
+    let mut c = ChartBuilder::on(&bottom)
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(xlo..xhi, vlo..vhi)
+        .map_err(err)?;
+    c.configure_mesh()
+        .x_desc("x (mm)")
+        .y_desc("ẋ (mm/s)")
+        .label_style((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    c.draw_series(LineSeries::new(
+        o.measured.iter().map(|p| (p.1, p.2)),
+        BLACK.mix(0.5),
+    ))
+    .map_err(err)?
+    .label("measured phase plane")
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
+    c.draw_series(LineSeries::new(
+        o.sim.iter().map(|p| (p.1, p.2)),
+        BLUE.mix(0.7),
+    ))
+    .map_err(err)?
+    .label("simulated phase plane")
+    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
+    c.draw_series(
+        o.strobe_measured
+            .iter()
+            .map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))),
+    )
+    .map_err(err)?
+    .label("measured Poincaré (t = kT)")
+    .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
+    c.draw_series(
+        o.strobe_sim
+            .iter()
+            .map(|&p| Circle::new(p, 4, RED.filled())),
+    )
+    .map_err(err)?
+    .label("simulated Poincaré (t = kT)")
+    .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 13))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}

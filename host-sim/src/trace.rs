@@ -1,0 +1,441 @@
+//! Measured traces from lab files: a time column (or a sample rate) and one value column.
+//!
+//! What is tolerated, because real acquisition software writes it:
+//! - comment/metadata lines starting with `#` or `%` anywhere (a metadata line
+//!   `# sample_rate_hz = 50000` or `# sample_rate_hz: 50000` gives the rate);
+//! - a header line naming the columns (recognised because a cell is not a number), or none
+//!   (columns are then addressed by number, 1-based);
+//! - `,`, `;` or tab as the delimiter, or runs of spaces;
+//! - the time as a column (`--time-col`, in `--time-unit`), as a fixed rate
+//!   (`--sample-rate-hz`), or as a `sample_rate_hz` column (constant down the file).
+//!
+//! What is rejected, with the line number: a value that is not a number or not finite, a
+//! line with too few cells, a time that does not increase, a sample-rate column that changes;
+//! and files with fewer than [`MIN_SAMPLES`] samples.
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail, ensure};
+use clap::ValueEnum;
+
+/// Fewest samples a trace must have.
+pub const MIN_SAMPLES: usize = 16;
+
+/// Unit of a time column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TimeUnit {
+    /// Seconds.
+    S,
+    /// Milliseconds.
+    Ms,
+    /// Microseconds.
+    Us,
+}
+
+impl TimeUnit {
+    /// Factor to seconds.
+    pub fn to_s(self) -> f64 {
+        match self {
+            TimeUnit::S => 1.0,
+            TimeUnit::Ms => 1e-3,
+            TimeUnit::Us => 1e-6,
+        }
+    }
+}
+
+/// Unit of a force column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ForceUnit {
+    /// Newtons.
+    #[value(name = "N")]
+    N,
+    /// Kilonewtons.
+    #[value(name = "kN")]
+    KN,
+    /// Pounds-force.
+    #[value(name = "lbf")]
+    Lbf,
+}
+
+impl ForceUnit {
+    /// Factor to newtons.
+    pub fn to_n(self) -> f64 {
+        match self {
+            ForceUnit::N => 1.0,
+            ForceUnit::KN => 1e3,
+            ForceUnit::Lbf => 4.448_221_615_260_5,
+        }
+    }
+}
+
+/// Unit of a displacement or acceleration column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MotionUnit {
+    /// Metres.
+    M,
+    /// Millimetres.
+    Mm,
+    /// Micrometres.
+    Um,
+    /// Metres per second squared.
+    #[value(name = "m/s2")]
+    MS2,
+    /// Standard gravities (9.80665 m/s²).
+    G,
+}
+
+impl MotionUnit {
+    /// Factor to SI (m or m/s²).
+    pub fn to_si(self) -> f64 {
+        match self {
+            MotionUnit::M | MotionUnit::MS2 => 1.0,
+            MotionUnit::Mm => 1e-3,
+            MotionUnit::Um => 1e-6,
+            MotionUnit::G => 9.806_65,
+        }
+    }
+    /// Whether this is an acceleration unit.
+    pub fn is_acceleration(self) -> bool {
+        matches!(self, MotionUnit::MS2 | MotionUnit::G)
+    }
+}
+
+/// How to read one trace.
+#[derive(Debug, Clone)]
+pub struct TraceFormat {
+    /// Time column: a header name or a 1-based column number.
+    pub time_col: String,
+    /// Value column: a header name or a 1-based column number.
+    pub value_col: String,
+    /// Unit of the time column → s.
+    pub time_to_s: f64,
+    /// Unit of the value column → SI.
+    pub value_to_si: f64,
+    /// Fixed sample rate, Hz (overrides any time column).
+    pub sample_rate_hz: Option<f64>,
+}
+
+/// A trace in SI units: strictly increasing times and one value per time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trace {
+    /// Sample times, s (strictly increasing).
+    pub t_s: Vec<f64>,
+    /// Values (N, m or m/s²).
+    pub value: Vec<f64>,
+}
+
+impl Trace {
+    /// Mean sample interval, s.
+    pub fn mean_dt(&self) -> f64 {
+        let n = self.t_s.len();
+        (self.t_s[n - 1] - self.t_s[0]) / (n - 1) as f64
+    }
+}
+
+fn split_cells(line: &str) -> Vec<&str> {
+    let delim = [',', ';', '\t'].into_iter().find(|d| line.contains(*d));
+    match delim {
+        Some(d) => line.split(d).map(str::trim).collect(),
+        None => line.split_whitespace().collect(),
+    }
+}
+
+fn metadata_rate(line: &str) -> Option<f64> {
+    let body = line.trim_start_matches(['#', '%']).trim();
+    let (key, value) = body.split_once(['=', ':'])?;
+    let key = key.trim().to_ascii_lowercase();
+    if key == "sample_rate_hz" || key == "sample rate (hz)" || key == "sample_rate" {
+        value.split_whitespace().next()?.parse().ok()
+    } else {
+        None
+    }
+}
+
+fn parse_cell(cell: &str, line: usize, col: &str, what: &str) -> Result<f64> {
+    let v: f64 = cell.parse().map_err(|_| {
+        anyhow::anyhow!("line {line}, column `{col}` ({what}): `{cell}` is not a number")
+    })?;
+    ensure!(
+        v.is_finite(),
+        "line {line}, column `{col}` ({what}): `{cell}` is not finite"
+    );
+    Ok(v)
+}
+
+/// Index of column `spec` (a header name, or a 1-based number) among `header` (if any) in a
+/// file with `width` columns.
+fn column(spec: &str, header: Option<&[String]>, width: usize, what: &str) -> Result<usize> {
+    if let Some(h) = header
+        && let Some(i) = h.iter().position(|c| c.eq_ignore_ascii_case(spec))
+    {
+        return Ok(i);
+    }
+    if let Ok(n) = spec.parse::<usize>() {
+        ensure!(
+            (1..=width).contains(&n),
+            "{what} column {n} does not exist: the file has {width} columns"
+        );
+        return Ok(n - 1);
+    }
+    match header {
+        Some(h) => bail!(
+            "no {what} column `{spec}` in the header ({}); give it by name or number",
+            h.join(", ")
+        ),
+        None => bail!("the file has no header line: give the {what} column by number (1-based)"),
+    }
+}
+
+/// Reads a trace from `path` as `format` says; `what` names the value in messages
+/// (`force`, `displacement`).
+///
+/// # Errors
+/// Unreadable file, missing columns, malformed lines (with their line number), non-increasing
+/// time, fewer than [`MIN_SAMPLES`] samples, or a missing time base.
+pub fn read_trace(path: &Path, format: &TraceFormat, what: &str) -> Result<Trace> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the trace {}", path.display()))?;
+    parse_trace(&text, format, what).with_context(|| format!("trace {}", path.display()))
+}
+
+/// [`read_trace`] on the file's text.
+///
+/// # Errors
+/// As [`read_trace`].
+pub fn parse_trace(text: &str, format: &TraceFormat, what: &str) -> Result<Trace> {
+    if let Some(r) = format.sample_rate_hz {
+        shared::error::check_range("sample_rate_hz", r, 1e-3, 1e9).context("--sample-rate-hz")?;
+    }
+    let mut meta_rate = None;
+    let mut header: Option<Vec<String>> = None;
+    let mut cols: Option<(Option<usize>, usize, Option<usize>)> = None;
+    let mut rate_from_col: Option<f64> = None;
+    let mut t = Vec::new();
+    let mut v = Vec::new();
+    let mut width = 0;
+    for (i, raw) in text.lines().enumerate() {
+        let line_no = i + 1;
+        let line = raw.trim().trim_start_matches('\u{feff}');
+        if line.is_empty() {
+            continue;
+        }
+        if line.starts_with('#') || line.starts_with('%') {
+            if let Some(r) = metadata_rate(line) {
+                meta_rate = Some(r);
+            }
+            continue;
+        }
+        let cells = split_cells(line);
+        if cols.is_none() {
+            width = cells.len();
+            let is_header = cells.iter().any(|c| c.parse::<f64>().is_err());
+            if is_header {
+                header = Some(
+                    cells
+                        .iter()
+                        .map(|c| c.trim_matches('"').to_string())
+                        .collect(),
+                );
+            }
+            let h = header.as_deref();
+            let value = column(&format.value_col, h, width, what)?;
+            let rate_col = h.and_then(|h| {
+                h.iter()
+                    .position(|c| c.eq_ignore_ascii_case("sample_rate_hz"))
+            });
+            let time = if format.sample_rate_hz.is_some() {
+                None
+            } else {
+                match column(&format.time_col, h, width, "time") {
+                    Ok(c) => Some(c),
+                    Err(e) => {
+                        if rate_col.is_none() && meta_rate.is_none() {
+                            return Err(e.context(
+                                "no time base: give a time column, --sample-rate-hz, a \
+                                 `sample_rate_hz` column or a `# sample_rate_hz = …` line",
+                            ));
+                        }
+                        None
+                    }
+                }
+            };
+            cols = Some((time, value, rate_col));
+            if is_header {
+                continue;
+            }
+        }
+        let (time_col, value_col, rate_col) = cols.unwrap_or((None, 0, None));
+        let needed = [Some(value_col), time_col, rate_col]
+            .into_iter()
+            .flatten()
+            .max()
+            .unwrap_or(0);
+        ensure!(
+            cells.len() > needed,
+            "line {line_no}: {} cells, expected {width}",
+            cells.len()
+        );
+        let name = |c: usize| -> String {
+            header
+                .as_ref()
+                .and_then(|h| h.get(c).cloned())
+                .unwrap_or_else(|| format!("{}", c + 1))
+        };
+        let value = parse_cell(cells[value_col], line_no, &name(value_col), what)?;
+        v.push(value * format.value_to_si);
+        if let Some(tc) = time_col {
+            let ts = parse_cell(cells[tc], line_no, &name(tc), "time")? * format.time_to_s;
+            if let Some(&prev) = t.last() {
+                ensure!(
+                    ts > prev,
+                    "line {line_no}: time {} s does not increase (previous sample {} s)",
+                    ts,
+                    prev
+                );
+            }
+            t.push(ts);
+        } else if let Some(rc) = rate_col {
+            let r = parse_cell(cells[rc], line_no, &name(rc), "sample rate")?;
+            match rate_from_col {
+                None => {
+                    shared::error::check_range("sample_rate_hz", r, 1e-3, 1e9)
+                        .with_context(|| format!("line {line_no}"))?;
+                    rate_from_col = Some(r);
+                }
+                Some(r0) => ensure!(
+                    r == r0,
+                    "line {line_no}: sample_rate_hz changes from {r0} to {r} (one rate per file)"
+                ),
+            }
+        }
+    }
+    ensure!(
+        v.len() >= MIN_SAMPLES,
+        "{} samples: at least {MIN_SAMPLES} are needed",
+        v.len()
+    );
+    if t.is_empty() {
+        let rate = format
+            .sample_rate_hz
+            .or(rate_from_col)
+            .or(meta_rate)
+            .context("no time base")?;
+        shared::error::check_range("sample_rate_hz", rate, 1e-3, 1e9)?;
+        t = (0..v.len()).map(|i| i as f64 / rate).collect();
+    }
+    Ok(Trace { t_s: t, value: v })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fmt(time: &str, value: &str, rate: Option<f64>) -> TraceFormat {
+        TraceFormat {
+            time_col: time.into(),
+            value_col: value.into(),
+            time_to_s: 1.0,
+            value_to_si: 1.0,
+            sample_rate_hz: rate,
+        }
+    }
+
+    fn body(n: usize, f: impl Fn(usize) -> String) -> String {
+        (0..n).map(f).collect::<Vec<_>>().join("\n")
+    }
+
+    #[test]
+    fn header_comments_delimiters_and_units() {
+        let text = format!(
+            "# rig: wires\n# exported by DAQ\ntime_ms;force_kN;ch2\n{}\n",
+            body(20, |i| format!("{};{};0", i as f64 * 0.02, i as f64 * 1e-3))
+        );
+        let mut f = fmt("time_ms", "force_kN", None);
+        f.time_to_s = 1e-3;
+        f.value_to_si = 1e3;
+        let tr = parse_trace(&text, &f, "force").unwrap();
+        assert_eq!(tr.t_s.len(), 20);
+        assert!((tr.t_s[3] - 60e-6).abs() < 1e-15);
+        assert!((tr.value[5] - 5.0).abs() < 1e-12);
+        // No header, columns by number, whitespace-separated.
+        let text = body(20, |i| format!("{}   {}", i, 2 * i));
+        let tr = parse_trace(&text, &fmt("1", "2", None), "force").unwrap();
+        assert_eq!(tr.value[4], 8.0);
+    }
+
+    #[test]
+    fn sample_rate_from_option_column_or_metadata() {
+        let text = format!("force_n\n{}", body(20, |i| format!("{i}")));
+        let tr = parse_trace(&text, &fmt("t_s", "force_n", Some(1000.0)), "force").unwrap();
+        assert!((tr.t_s[10] - 0.01).abs() < 1e-15);
+        let text = format!(
+            "# sample_rate_hz = 500\nforce_n\n{}",
+            body(20, |i| format!("{i}"))
+        );
+        let tr = parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap();
+        assert!((tr.t_s[10] - 0.02).abs() < 1e-15);
+        let text = format!(
+            "force_n,sample_rate_hz\n{}",
+            body(20, |i| format!("{i},250"))
+        );
+        let tr = parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap();
+        assert!((tr.t_s[10] - 0.04).abs() < 1e-15);
+        let text = format!("force_n\n{}", body(20, |i| format!("{i}")));
+        let e = parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err();
+        assert!(format!("{e:#}").contains("no time base"), "{e:#}");
+    }
+
+    #[test]
+    fn malformed_lines_are_named() {
+        let mut lines: Vec<String> = (0..20).map(|i| format!("{},{}", i, i)).collect();
+        lines[7] = "7,abc".into();
+        let text = format!("t_s,force_n\n{}", lines.join("\n"));
+        let e = format!(
+            "{:#}",
+            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
+        );
+        assert!(
+            e.contains("line 9") && e.contains("force_n") && e.contains("abc"),
+            "{e}"
+        );
+        lines[7] = "3,7".into();
+        let text = format!("t_s,force_n\n{}", lines.join("\n"));
+        let e = format!(
+            "{:#}",
+            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
+        );
+        assert!(
+            e.contains("line 9") && e.contains("does not increase"),
+            "{e}"
+        );
+        lines[7] = "7,NaN".into();
+        let text = format!("t_s,force_n\n{}", lines.join("\n"));
+        let e = format!(
+            "{:#}",
+            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
+        );
+        assert!(e.contains("line 9") && e.contains("not finite"), "{e}");
+        lines[7] = "7".into();
+        let text = format!("t_s,force_n\n{}", lines.join("\n"));
+        let e = format!(
+            "{:#}",
+            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
+        );
+        assert!(e.contains("line 9"), "{e}");
+        let e = format!(
+            "{:#}",
+            parse_trace(
+                "t_s,force_n\n0,1\n1,2",
+                &fmt("t_s", "force_n", None),
+                "force"
+            )
+            .unwrap_err()
+        );
+        assert!(e.contains("at least"), "{e}");
+        let e = format!(
+            "{:#}",
+            parse_trace("t_s,f\n0,1\n1,2", &fmt("t_s", "force_n", None), "force").unwrap_err()
+        );
+        assert!(e.contains("no force column `force_n`"), "{e}");
+    }
+}

@@ -1,0 +1,405 @@
+//! The identification commands end to end: `drop` → `identify contact` → `--config` of the
+//! other commands; `identify free`; `compare`; and the rejection of bad input (named field or
+//! line number, non-zero exit, nothing left behind).
+
+use std::fs;
+use std::path::Path;
+
+use assert_cmd::Command;
+
+fn host_sim() -> Command {
+    Command::cargo_bin("host-sim").unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = host_sim().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn rejected(args: &[&str], needles: &[&str], outputs: &[&Path]) {
+    let out = host_sim().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    for n in needles {
+        assert!(
+            stderr.contains(n),
+            "{args:?}: stderr `{stderr}` lacks `{n}`"
+        );
+    }
+    for p in outputs {
+        assert!(!p.exists(), "{} was left behind", p.display());
+        let dir = p.parent().unwrap();
+        let leftovers: Vec<_> = fs::read_dir(dir)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().starts_with(".host-sim-"))
+            .collect();
+        assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    }
+}
+
+#[test]
+fn drop_identify_contact_and_use_the_fit_as_config() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    fs::write(
+        p("truth.toml"),
+        "[rig.contact.spring-dashpot]\nstiffness_n_m = 4.0e6\ndamping_n_s_m = 900.0\n",
+    )
+    .unwrap();
+    ok(&[
+        "drop",
+        "--rig",
+        "wires",
+        "--config",
+        &p("truth.toml"),
+        "--release-mm",
+        "3",
+        "--duration-s",
+        "1.0",
+        "--noise-pct",
+        "1",
+        "--offset-n",
+        "0.5",
+        "--seed",
+        "2",
+        "--out",
+        &p("drop.csv"),
+    ]);
+    let text = fs::read_to_string(p("drop.csv")).unwrap();
+    assert!(text.starts_with("# host-sim drop"));
+    assert!(text.contains("\nt_s,force_n\n"));
+    let json = ok(&[
+        "identify",
+        "contact",
+        "--trace",
+        &p("drop.csv"),
+        "--mass-kg",
+        "0.298",
+        "--law",
+        "spring-dashpot",
+        "--out",
+        &p("fit.toml"),
+        "--plot",
+        &p("fit.png"),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["best"], "spring-dashpot");
+    assert_eq!(v["impact_peaks_n"].as_array().unwrap().len(), 3);
+    assert!((v["offset_n"].as_f64().unwrap() - 0.5).abs() < 0.02);
+    let sd = &v["fits"][0]["contact"]["spring-dashpot"];
+    let k = sd["stiffness_n_m"].as_f64().unwrap();
+    let c = sd["damping_n_s_m"].as_f64().unwrap();
+    assert!((k / 4.0e6 - 1.0).abs() < 0.05, "k {k}");
+    assert!((c / 900.0 - 1.0).abs() < 0.05, "c {c}");
+    assert!(fs::metadata(p("fit.png")).unwrap().len() > 10_000);
+    // The config file holds the mass and the law, and the other commands accept it.
+    let cfg = fs::read_to_string(p("fit.toml")).unwrap();
+    assert!(cfg.contains("[rig.contact.spring-dashpot]"), "{cfg}");
+    assert!(cfg.contains("mass_kg = 0.298"), "{cfg}");
+    ok(&[
+        "simulate",
+        "--rig",
+        "wires",
+        "--config",
+        &p("fit.toml"),
+        "--gap-mm",
+        "0",
+        "--omega-ratio",
+        "2.0",
+        "--periods",
+        "2",
+    ]);
+    // Re-simulating the drop with the fitted law reproduces the first peak (noise-free).
+    ok(&[
+        "drop",
+        "--rig",
+        "wires",
+        "--config",
+        &p("fit.toml"),
+        "--duration-s",
+        "0.3",
+        "--out",
+        &p("refit.csv"),
+    ]);
+    let max = |path: &str| {
+        fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+            .map(|l| l.split(',').nth(1).unwrap().parse::<f64>().unwrap())
+            .fold(0.0, f64::max)
+    };
+    let peak0 = v["impact_peaks_n"][0].as_f64().unwrap();
+    assert!((max(&p("refit.csv")) / peak0 - 1.0).abs() < 0.03);
+}
+
+#[test]
+fn identify_contact_rejects_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    let mut lines: Vec<String> = (0..40)
+        .map(|i| format!("{},{}", i as f64 * 1e-4, 0.0))
+        .collect();
+    fs::write(
+        p("good.csv"),
+        format!("t_s,force_n\n{}\n", lines.join("\n")),
+    )
+    .unwrap();
+    lines[12] = "0.0012,12..5".into();
+    fs::write(
+        p("bad.csv"),
+        format!("# DAQ export\nt_s,force_n\n{}\n", lines.join("\n")),
+    )
+    .unwrap();
+    let out = dir.path().join("fit.toml");
+    let o = out.to_string_lossy().into_owned();
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("good.csv"),
+            "--mass-kg",
+            "-0.3",
+            "--law",
+            "all",
+            "--out",
+            &o,
+        ],
+        &["mass_kg", "-0.3", "allowed"],
+        &[&out],
+    );
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("good.csv"),
+            "--mass-kg",
+            "NaN",
+            "--law",
+            "all",
+            "--out",
+            &o,
+        ],
+        &["mass_kg", "finite"],
+        &[&out],
+    );
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("bad.csv"),
+            "--mass-kg",
+            "0.3",
+            "--law",
+            "all",
+            "--out",
+            &o,
+        ],
+        &["line 15", "force_n", "12..5"],
+        &[&out],
+    );
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("good.csv"),
+            "--mass-kg",
+            "0.3",
+            "--law",
+            "hertz",
+            "--out",
+            &o,
+        ],
+        &["no impact"],
+        &[&out],
+    );
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("good.csv"),
+            "--mass-kg",
+            "0.3",
+            "--law",
+            "spring",
+            "--out",
+            &o,
+        ],
+        &["unknown contact law"],
+        &[&out],
+    );
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("good.csv"),
+            "--mass-kg",
+            "0.3",
+            "--law",
+            "all",
+            "--release-mm",
+            "-1",
+            "--out",
+            &o,
+        ],
+        &["release_mm"],
+        &[&out],
+    );
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("good.csv"),
+            "--mass-kg",
+            "0.3",
+            "--law",
+            "all",
+            "--force-col",
+            "F",
+            "--out",
+            &o,
+        ],
+        &["no force column `F`"],
+        &[&out],
+    );
+}
+
+#[test]
+fn identify_free_gives_the_beam_suspension() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    // Analytic free decay, 4.2 Hz, ζ = 0.01, 2 mm, in mm at a fixed 500 Hz rate (no time
+    // column; the rate comes from the option).
+    let (f, z) = (4.2f64, 0.01f64);
+    let wn = 2.0 * std::f64::consts::PI * f;
+    let wd = wn * (1.0 - z * z).sqrt();
+    let body: Vec<String> = (0..4000)
+        .map(|i| {
+            let t = i as f64 / 500.0;
+            format!("{:.6}", 2.0 * (-z * wn * t).exp() * (wd * t).cos() + 0.1)
+        })
+        .collect();
+    fs::write(p("decay.csv"), format!("disp_mm\n{}\n", body.join("\n"))).unwrap();
+    let json = ok(&[
+        "identify",
+        "free",
+        "--trace",
+        &p("decay.csv"),
+        "--mass-kg",
+        "0.298",
+        "--sample-rate-hz",
+        "500",
+        "--value-col",
+        "disp_mm",
+        "--unit",
+        "mm",
+        "--out",
+        &p("free.toml"),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert!(
+        (v["natural_freq_hz"].as_f64().unwrap() - f).abs() < 1e-4 * f,
+        "{v}"
+    );
+    assert!(
+        (v["damping_ratio"].as_f64().unwrap() - z).abs() < 1e-3 * z + 1e-5,
+        "{v}"
+    );
+    let k = v["stiffness_n_m"].as_f64().unwrap();
+    assert!((k / (0.298 * wn * wn) - 1.0).abs() < 2e-4, "k {k}");
+    let cfg = fs::read_to_string(p("free.toml")).unwrap();
+    assert!(cfg.contains("[rig.suspension.beam]"), "{cfg}");
+    ok(&[
+        "simulate",
+        "--rig",
+        "beam-170",
+        "--config",
+        &p("free.toml"),
+        "--gap-mm",
+        "0",
+        "--omega-ratio",
+        "1.5",
+        "--periods",
+        "2",
+    ]);
+    rejected(
+        &[
+            "identify",
+            "free",
+            "--trace",
+            &p("decay.csv"),
+            "--mass-kg",
+            "0.298",
+            "--value-col",
+            "disp_mm",
+            "--out",
+            &p("x.toml"),
+        ],
+        &["no time base"],
+        &[&dir.path().join("x.toml")],
+    );
+}
+
+#[test]
+fn compare_a_response_with_itself_has_no_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    ok(&[
+        "response",
+        "--rig",
+        "wires",
+        "--gap-mm",
+        "0",
+        "--omega-ratio",
+        "1.5:2.5:0.5",
+        "--out",
+        &p("exp.csv"),
+    ]);
+    let out = ok(&[
+        "compare",
+        "--rig",
+        "wires",
+        "--gap-mm",
+        "0",
+        "--experiment",
+        &p("exp.csv"),
+        "--out",
+        &p("cmp.png"),
+    ]);
+    assert!(
+        out.contains("3 points") && out.contains("RMS 0.00"),
+        "{out}"
+    );
+    assert!(fs::metadata(p("cmp.png")).unwrap().len() > 10_000);
+    fs::write(p("bad.csv"), "freq_hz,impact_force_n\n3.0,40\n3.1,x\n").unwrap();
+    rejected(
+        &[
+            "compare",
+            "--rig",
+            "wires",
+            "--gap-mm",
+            "0",
+            "--experiment",
+            &p("bad.csv"),
+            "--out",
+            &p("bad.png"),
+        ],
+        &["line 3", "impact_force_n"],
+        &[&dir.path().join("bad.png")],
+    );
+}
