@@ -303,7 +303,7 @@ mod tests {
     fn drive_chain_gain_and_lag_match_the_first_order_response() {
         let p = RigId::Wires.preset();
         let mut plant =
-            Plant::new(&p, 0.02, DriveChainSim::default(), PlantSettings::default()).unwrap();
+            Plant::new(&p, 0.015, DriveChainSim::default(), PlantSettings::default()).unwrap();
         let f = 20.0;
         let amp_v = 0.5;
         let n = 20_000; // 2 s
