@@ -302,8 +302,13 @@ mod tests {
     #[test]
     fn drive_chain_gain_and_lag_match_the_first_order_response() {
         let p = RigId::Wires.preset();
-        let mut plant =
-            Plant::new(&p, 0.015, DriveChainSim::default(), PlantSettings::default()).unwrap();
+        let mut plant = Plant::new(
+            &p,
+            0.015,
+            DriveChainSim::default(),
+            PlantSettings::default(),
+        )
+        .unwrap();
         let f = 20.0;
         let amp_v = 0.5;
         let n = 20_000; // 2 s

@@ -164,25 +164,7 @@ impl<T: Real> Hammer<T> {
         sin_phase: T,
         approach_speed: T,
     ) -> FieldEval<T> {
-        let (delta, delta_dot, st, ct) = self.kinematics(x);
-        let (force, region) = match mode {
-            FieldMode::Switch => self.switch.force(delta, delta_dot, approach_speed),
-            FieldMode::Free => (T::zero(), Region::Free),
-            FieldMode::Contact => (
-                self.switch
-                    .law
-                    .unswitched_force(delta, delta_dot, approach_speed),
-                Region::Contact,
-            ),
-        };
-        let acc = self.accel(x, st, ct, force, Drive::Harmonic(sin_phase));
-        FieldEval {
-            dx: Vector2::new(x[1], acc),
-            force,
-            region,
-            delta,
-            delta_dot,
-        }
+        self.eval(mode, x, Drive::Harmonic(sin_phase), approach_speed)
     }
 
     /// The switch-model field for an arbitrary cart motion, `cart_accel_m_s2` = `ÿ(t)` (m/s²):
@@ -196,9 +178,34 @@ impl<T: Real> Hammer<T> {
         cart_accel_m_s2: T,
         approach_speed: T,
     ) -> FieldEval<T> {
+        self.eval(
+            FieldMode::Switch,
+            x,
+            Drive::Cart(cart_accel_m_s2),
+            approach_speed,
+        )
+    }
+
+    #[inline(always)]
+    fn eval(
+        &self,
+        mode: FieldMode,
+        x: &Vector2<T>,
+        drive: Drive<T>,
+        approach_speed: T,
+    ) -> FieldEval<T> {
         let (delta, delta_dot, st, ct) = self.kinematics(x);
-        let (force, region) = self.switch.force(delta, delta_dot, approach_speed);
-        let acc = self.accel(x, st, ct, force, Drive::Cart(cart_accel_m_s2));
+        let (force, region) = match mode {
+            FieldMode::Switch => self.switch.force(delta, delta_dot, approach_speed),
+            FieldMode::Free => (T::zero(), Region::Free),
+            FieldMode::Contact => (
+                self.switch
+                    .law
+                    .unswitched_force(delta, delta_dot, approach_speed),
+                Region::Contact,
+            ),
+        };
+        let acc = self.accel(x, st, ct, force, drive);
         FieldEval {
             dx: Vector2::new(x[1], acc),
             force,
