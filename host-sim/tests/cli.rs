@@ -327,3 +327,78 @@ fn config_file_overrides_parameters() {
     let over = run(&["--config", cfg.to_str().unwrap()]);
     assert_ne!(base, over);
 }
+
+#[test]
+fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("run.csv");
+    let png = dir.path().join("run.png");
+    let (c, p) = (csv.to_str().unwrap(), png.to_str().unwrap());
+    let out = host_sim()
+        .args([
+            "hil",
+            "--rig",
+            "wires",
+            "--gap-mm",
+            "0",
+            "--seconds",
+            "6",
+            "--out",
+            c,
+            "--plot",
+            p,
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("state track"), "{stdout}");
+    let text = fs::read_to_string(&csv).unwrap();
+    assert!(text.starts_with(
+        "t_s,state,freq_hz,amp_cmd_mm,cart_amp_mm,measured_impacts,measured_peak_n,true_impacts,true_peak_n,measured_regime,fault,lost_cycles,force_vs_model_pct"
+    ));
+    assert!(fs::metadata(&png).unwrap().len() > 10_000);
+    fs::remove_file(&csv).unwrap();
+    fs::remove_file(&png).unwrap();
+
+    let outs = [csv.as_path(), png.as_path()];
+    assert_rejected(
+        &["hil", "--gap-mm", "-1", "--out", c, "--plot", p],
+        "--gap-mm",
+        &outs,
+    );
+    assert_rejected(&["hil", "--gap-mm", "NaN", "--out", c], "--gap-mm", &outs);
+    assert_rejected(
+        &["hil", "--actual-gap-mm", "11", "--out", c],
+        "--actual-gap-mm",
+        &outs,
+    );
+    assert_rejected(&["hil", "--seconds", "0", "--out", c], "--seconds", &outs);
+    let bad = dir.path().join("bad.toml");
+    fs::write(&bad, "[[faults]]\nkind = \"sensor-melted\"\nat_s = 1.0\n").unwrap();
+    assert_rejected(
+        &["hil", "--scenario", bad.to_str().unwrap(), "--out", c],
+        "malformed --scenario",
+        &outs,
+    );
+    fs::write(
+        &bad,
+        "[[faults]]\nkind = \"gain\"\nat_s = -2.0\nfactor = 1.0\n",
+    )
+    .unwrap();
+    assert_rejected(
+        &["hil", "--scenario", bad.to_str().unwrap(), "--out", c],
+        "faults.at_s",
+        &outs,
+    );
+    fs::write(&bad, "[controller.limits]\nfreq_max_hz = 0.5\n").unwrap();
+    assert_rejected(
+        &["hil", "--scenario", bad.to_str().unwrap(), "--out", c],
+        "freq_max_hz",
+        &outs,
+    );
+}

@@ -22,7 +22,7 @@ pub const DAC_MID: u16 = 2048;
 
 /// DAC code → volts → power amplifier → cart displacement.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct DriveChain {
     /// DAC full-scale voltage, V (3.3).
     pub dac_full_scale_v: f32,
@@ -53,7 +53,7 @@ impl DriveChain {
 
 /// Force → charge amplifier → ADC code.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct SensorChain {
     /// Charge amplifier gain, V/N (0.01).
     pub volts_per_n: f32,
@@ -93,7 +93,7 @@ impl SensorChain {
 
 /// The safe operating window: the drive never leaves it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Limits {
     /// Lowest drive frequency, Hz (1.0).
     pub freq_min_hz: f32,
@@ -128,7 +128,7 @@ impl Default for Limits {
 
 /// Impact detector settings ([`crate::control::ImpactDetector`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct DetectorSettings {
     /// An impact starts when the force rises above this, N (3.0 ≈ 1 mg of the hammer).
     pub threshold_n: f32,
@@ -151,7 +151,7 @@ impl Default for DetectorSettings {
 
 /// Tracking (hill climbing) settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct TrackSettings {
     /// First hill-climbing step, Hz (0.04).
     pub step_hz: f32,
@@ -179,7 +179,7 @@ impl Default for TrackSettings {
 
 /// Sensor fault settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct FaultSettings {
     /// While driving at full amplitude after impacts were seen, no impact for this long (or
     /// 1.5 periods of the last measured regime, whichever is longer) means the sensor is open, s
