@@ -7,7 +7,7 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
-use crate::identify::contact::{DropData, Fit};
+use crate::identify::contact::{DropData, Fit, SimDrop};
 use crate::plot::{SANS, ensure_font, err};
 
 /// Colour of a contact law's curves.
@@ -21,25 +21,55 @@ pub fn law_color(name: &str) -> RGBColor {
     }
 }
 
-/// The measured drop test (offset removed) with the simulated drop of each fit: the whole
-/// record on top (each simulation shifted so that its first impact's centroid falls on the
-/// measured one), and up to four impacts below, each simulated impact shifted onto the
+/// The measured drop tests (offset removed) with the simulated drop of each fit, one band per
+/// test (`tests`: caption and data; `fits[k].1.traces[i]` is law `k`'s simulation of test `i`):
+/// the whole record on top (each simulation shifted so that its first impact's centroid falls
+/// on the measured one), and up to four impacts below, each simulated impact shifted onto the
 /// measured impact's centroid (as in the profile error).
 ///
 /// # Errors
 /// Drawing or file errors.
-pub fn drop_fit(path: &Path, title: &str, data: &DropData, fits: &[(String, &Fit)]) -> Result<()> {
+pub fn drop_fit(
+    path: &Path,
+    title: &str,
+    tests: &[(String, &DropData)],
+    fits: &[(String, &Fit)],
+) -> Result<()> {
     ensure_font();
-    let root = BitMapBackend::new(path, (1300, 900)).into_drawing_area();
+    let bands = tests.len().max(1);
+    let root = BitMapBackend::new(path, (1300, 30 + 870 * bands as u32)).into_drawing_area();
     root.fill(&WHITE).map_err(err)?;
     let root = root.titled(title, (SANS, 22)).map_err(err)?;
-    let (top, bottom) = root.split_vertically(430);
+    let areas = root.split_evenly((bands, 1));
+    for (i, ((caption, data), area)) in tests.iter().zip(areas.iter()).enumerate() {
+        let sims: Vec<(String, &SimDrop)> = fits
+            .iter()
+            .filter_map(|(name, fit)| fit.traces.get(i).map(|t| (name.clone(), &t.sim)))
+            .collect();
+        let area = if tests.len() > 1 {
+            area.titled(caption, (SANS, 18)).map_err(err)?
+        } else {
+            area.clone()
+        };
+        drop_panel(&area, data, &sims)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// One drop test and its simulations (see [`drop_fit`]).
+fn drop_panel(
+    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    data: &DropData,
+    fits: &[(String, &SimDrop)],
+) -> Result<()> {
+    let (top, bottom) = area.split_vertically(430);
     let t = &data.t_s;
     let f = &data.force_n;
     let m0 = data.impacts[0].centroid_s;
     let fmax = f.iter().copied().fold(0.0, f64::max).max(
         fits.iter()
-            .flat_map(|(_, fit)| fit.sim.impacts.iter().map(|i| i.peak_n))
+            .flat_map(|(_, fit)| fit.impacts.iter().map(|i| i.peak_n))
             .fold(0.0, f64::max),
     ) * 1.1;
     let fmin = f.iter().copied().fold(0.0, f64::min).min(0.0) * 1.1;
@@ -74,14 +104,13 @@ pub fn drop_fit(path: &Path, title: &str, data: &DropData, fits: &[(String, &Fit
         .label("measured (offset removed)")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(90, 90, 90)));
     for (name, fit) in fits {
-        let Some(s0) = fit.sim.impacts.first() else {
+        let Some(s0) = fit.impacts.first() else {
             continue;
         };
         let shift = m0 - s0.centroid_s;
         let col = law_color(name);
         c.draw_series(LineSeries::new(
-            fit.sim
-                .samples
+            fit.samples
                 .iter()
                 .map(|&(ts, fs)| (ts + shift, fs))
                 .filter(|p| p.0 >= t0 && p.0 <= t1),
@@ -107,7 +136,7 @@ pub fn drop_fit(path: &Path, title: &str, data: &DropData, fits: &[(String, &Fit
         let hi_ms = (t[b] - imp.centroid_s) * 1e3;
         let ymax = fits
             .iter()
-            .filter_map(|(_, fit)| fit.sim.impacts.get(j).map(|s| s.peak_n))
+            .filter_map(|(_, fit)| fit.impacts.get(j).map(|s| s.peak_n))
             .fold(imp.peak_n, f64::max)
             .max(1e-9)
             * 1.15;
@@ -134,7 +163,7 @@ pub fn drop_fit(path: &Path, title: &str, data: &DropData, fits: &[(String, &Fit
         }))
         .map_err(err)?;
         for (name, fit) in fits {
-            let Some(s) = fit.sim.impacts.get(j) else {
+            let Some(s) = fit.impacts.get(j) else {
                 continue;
             };
             let col = law_color(name);
@@ -148,7 +177,6 @@ pub fn drop_fit(path: &Path, title: &str, data: &DropData, fits: &[(String, &Fit
                 .map_err(err)?;
         }
     }
-    root.present().map_err(err)?;
     Ok(())
 }
 

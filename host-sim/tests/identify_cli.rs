@@ -141,6 +141,134 @@ fn drop_identify_contact_and_use_the_fit_as_config() {
 }
 
 #[test]
+fn identify_contact_joint_fit_of_two_release_heights() {
+    // Two drop tests of one Hunt–Crossley law (0.25 mm and 3 mm), fitted jointly: one
+    // parameter set, the error summed over the traces; per-trace residuals in the report.
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    fs::write(
+        p("truth.toml"),
+        "[rig.contact.hunt-crossley]\nstiffness = 1.0e9\nexponent = 1.5\nlambda_s_m = 10.0\n",
+    )
+    .unwrap();
+    for (name, release, seed) in [("low.csv", "0.25", "3"), ("high.csv", "3", "4")] {
+        ok(&[
+            "drop",
+            "--rig",
+            "wires",
+            "--config",
+            &p("truth.toml"),
+            "--release-mm",
+            release,
+            "--duration-s",
+            "1.0",
+            "--noise-pct",
+            "1",
+            "--offset-n",
+            "0.5",
+            "--seed",
+            seed,
+            "--out",
+            &p(name),
+        ]);
+    }
+    let json = ok(&[
+        "identify",
+        "contact",
+        "--trace",
+        &p("low.csv"),
+        "--release-mm",
+        "0.25",
+        "--trace",
+        &p("high.csv"),
+        "--release-mm",
+        "3",
+        "--mass-kg",
+        "0.298",
+        "--law",
+        "hunt-crossley",
+        "--error",
+        "profile",
+        "--out",
+        &p("fit.toml"),
+        "--plot",
+        &p("fit.png"),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let traces = v["traces"].as_array().unwrap();
+    assert_eq!(traces.len(), 2);
+    assert_eq!(traces[0]["release_mm"].as_f64(), Some(0.25));
+    assert_eq!(traces[1]["release_mm"].as_f64(), Some(3.0));
+    let fit = &v["fits"][0];
+    assert_eq!(fit["trace_residuals"].as_array().unwrap().len(), 2);
+    let sum: f64 = fit["trace_residuals"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["cost"].as_f64().unwrap())
+        .sum();
+    let cost = fit["residual"]["cost"].as_f64().unwrap();
+    assert!((sum / cost - 1.0).abs() < 1e-9, "{sum} vs {cost}");
+    let hc = &fit["contact"]["hunt-crossley"];
+    let k = hc["stiffness"].as_f64().unwrap();
+    let n = hc["exponent"].as_f64().unwrap();
+    let lambda = hc["lambda_s_m"].as_f64().unwrap();
+    assert!((n / 1.5 - 1.0).abs() < 0.01, "n {n}");
+    assert!((lambda / 10.0 - 1.0).abs() < 0.05, "λ {lambda}");
+    assert!((k / 1e9 - 1.0).abs() < 0.10, "k {k}");
+    let cfg = fs::read_to_string(p("fit.toml")).unwrap();
+    assert!(cfg.contains("low.csv + "), "{cfg}");
+    assert!(cfg.contains("release 0.25 + 3 mm"), "{cfg}");
+    assert!(fs::metadata(p("fit.png")).unwrap().len() > 10_000);
+    // The text output names both traces and the per-trace rows.
+    let text = ok(&[
+        "identify",
+        "contact",
+        "--trace",
+        &p("low.csv"),
+        "--trace",
+        &p("high.csv"),
+        "--release-mm",
+        "0.25",
+        "--release-mm",
+        "3",
+        "--mass-kg",
+        "0.298",
+        "--law",
+        "hunt-crossley",
+    ]);
+    assert!(text.contains("Joint fit"), "{text}");
+    assert!(text.contains("of which release 0.25 mm"), "{text}");
+    // Three releases for two traces: rejected, naming the field.
+    let out = dir.path().join("bad.toml");
+    rejected(
+        &[
+            "identify",
+            "contact",
+            "--trace",
+            &p("low.csv"),
+            "--trace",
+            &p("high.csv"),
+            "--release-mm",
+            "0.25",
+            "--release-mm",
+            "3",
+            "--release-mm",
+            "1",
+            "--mass-kg",
+            "0.298",
+            "--law",
+            "all",
+            "--out",
+            &out.to_string_lossy(),
+        ],
+        &["release_mm", "3 values for 2 traces"],
+        &[&out],
+    );
+}
+
+#[test]
 fn identify_contact_rejects_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();

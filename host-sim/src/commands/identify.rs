@@ -12,7 +12,8 @@ use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension};
 
 use crate::config::{MAX_GAP_MM, Setup};
 use crate::identify::contact::{
-    DropData, DropSetup, FIT_STEPS, Fit, FitError, Residual, Weights, analyse_drop, fit_law,
+    DropData, DropSetup, DropTest, FIT_STEPS, Fit, FitError, Residual, Weights, analyse_drop,
+    fit_law_joint,
 };
 use crate::identify::free::{FreeDecay, identify_free};
 use crate::output::Outputs;
@@ -79,17 +80,20 @@ fn parse_rig(s: &str) -> Result<RigId, String> {
 #[command(allow_negative_numbers = true)]
 pub struct ContactArgs {
     /// Measured drop test: CSV with a time column (or a sample rate) and a force column.
-    #[arg(long, value_name = "FILE.csv")]
-    pub trace: PathBuf,
+    /// Repeat for a joint fit of several drop tests (e.g. two release heights): one parameter
+    /// set, the error summed over the traces.
+    #[arg(long, value_name = "FILE.csv", required = true)]
+    pub trace: Vec<PathBuf>,
     /// Hammer mass, kg (0 < m ≤ 1000).
     #[arg(long)]
     pub mass_kg: f64,
     /// Contact law to fit: hertz, spring-dashpot, hunt-crossley, lankarani-nikravesh, or all.
     #[arg(long, value_parser = parse_law_choice)]
     pub law: LawChoice,
-    /// Distance from the surface at which the hammer was released at rest, mm.
-    #[arg(long, default_value_t = 3.0)]
-    pub release_mm: f64,
+    /// Distance from the surface at which the hammer was released at rest, mm. One value for
+    /// every trace, or one per --trace in the same order.
+    #[arg(long, default_values_t = [3.0])]
+    pub release_mm: Vec<f64>,
     /// Gap between the hammer's rest position and the surface during the test, mm.
     #[arg(long, default_value_t = 0.0)]
     pub gap_mm: f64,
@@ -279,29 +283,95 @@ pub fn config_text(
     Ok(out)
 }
 
+/// Bad pairing of the repeated `identify contact` options.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum PairingError {
+    /// `--release-mm` given neither once nor once per `--trace`.
+    #[error(
+        "`release_mm`: {given} values for {traces} traces: give one (for every trace) or one \
+         per --trace, in the same order"
+    )]
+    ReleaseCount {
+        /// Number of `--release-mm` values.
+        given: usize,
+        /// Number of `--trace` files.
+        traces: usize,
+    },
+}
+
+/// The release distance of each of `traces` traces, mm: `release_mm` itself if it has one value
+/// per trace, its single value repeated if it has one.
+///
+/// # Errors
+/// [`PairingError::ReleaseCount`] for any other count.
+pub fn pair_releases(release_mm: &[f64], traces: usize) -> Result<Vec<f64>, PairingError> {
+    match release_mm.len() {
+        1 => Ok(vec![release_mm[0]; traces]),
+        n if n == traces => Ok(release_mm.to_vec()),
+        given => Err(PairingError::ReleaseCount { given, traces }),
+    }
+}
+
 #[derive(Serialize)]
 struct LawReport {
     law: ContactLawKind,
     contact: ContactLaw,
+    /// All traces together.
     residual: Residual,
+    /// Per trace, in the order of `traces`.
+    trace_residuals: Vec<Residual>,
     evaluations: u64,
 }
 
 #[derive(Serialize)]
-struct ContactReport {
+struct TraceReport {
+    trace: String,
+    release_mm: f64,
     samples: usize,
     offset_n: f64,
     noise_n: f64,
     impact_peaks_n: Vec<f64>,
+}
+
+#[derive(Serialize)]
+struct ContactReport {
+    /// The first trace's `samples`, `offset_n`, `noise_n`, `impact_peaks_n`.
+    #[serde(flatten)]
+    first: TraceReport,
+    /// Every trace (the first one again).
+    traces: Vec<TraceReport>,
     error: FitError,
     fits: Vec<LawReport>,
     best: ContactLawKind,
 }
 
+/// One `--trace` with its release distance and preprocessed data.
+struct LoadedTrace {
+    path: PathBuf,
+    release_mm: f64,
+    data: DropData,
+}
+
+impl LoadedTrace {
+    fn report(&self) -> TraceReport {
+        TraceReport {
+            trace: self.path.display().to_string(),
+            release_mm: self.release_mm,
+            samples: self.data.t_s.len(),
+            offset_n: self.data.offset_n,
+            noise_n: self.data.noise_n,
+            impact_peaks_n: self.data.impacts.iter().map(|i| i.peak_n).collect(),
+        }
+    }
+}
+
 fn run_contact(a: &ContactArgs) -> Result<()> {
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
     check_range("gap_mm", a.gap_mm, 0.0, MAX_GAP_MM).context("--gap-mm")?;
-    check_range("release_mm", a.release_mm, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
+    let releases = pair_releases(&a.release_mm, a.trace.len()).context("--release-mm")?;
+    for &r in &releases {
+        check_range("release_mm", r, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
+    }
     check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
     shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
     let setup = Setup::from_opts(&crate::cli::RigOpts {
@@ -314,19 +384,33 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
     let mut params = setup.params;
     params.mass_kg = a.mass_kg;
     params.validate().context("rig parameters")?;
-    let trace = read_trace(
-        &a.trace,
-        &format_of(&a.time, &a.force_col, a.force_unit.to_n()),
-        "force",
-    )?;
-    let data = analyse_drop(&trace, a.max_impacts as usize)
-        .with_context(|| format!("trace {}", a.trace.display()))?;
-    let drop_setup = DropSetup {
-        params,
-        gap_m: a.gap_mm * 1e-3,
-        release_m: a.release_mm * 1e-3,
-        steps: FIT_STEPS,
-    };
+    let mut loaded = Vec::with_capacity(a.trace.len());
+    for (path, &release_mm) in a.trace.iter().zip(&releases) {
+        let trace = read_trace(
+            path,
+            &format_of(&a.time, &a.force_col, a.force_unit.to_n()),
+            "force",
+        )?;
+        let data = analyse_drop(&trace, a.max_impacts as usize)
+            .with_context(|| format!("trace {}", path.display()))?;
+        loaded.push(LoadedTrace {
+            path: path.clone(),
+            release_mm,
+            data,
+        });
+    }
+    let tests: Vec<DropTest> = loaded
+        .iter()
+        .map(|l| DropTest {
+            setup: DropSetup {
+                params,
+                gap_m: a.gap_mm * 1e-3,
+                release_m: l.release_mm * 1e-3,
+                steps: FIT_STEPS,
+            },
+            data: l.data.clone(),
+        })
+        .collect();
     let weights = Weights {
         time: a.time_weight,
         profile: match a.error {
@@ -340,7 +424,7 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
     };
     let mut fits: Vec<(ContactLawKind, Fit)> = Vec::new();
     for &k in &laws {
-        let fit = fit_law(&drop_setup, &data, k, weights, 400)
+        let fit = fit_law_joint(&tests, k, weights, 400)
             .with_context(|| format!("fitting the {k} law"))?;
         fits.push((k, fit));
     }
@@ -350,6 +434,12 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         .map(|f| f.0)
         .unwrap_or(ContactLawKind::SpringDashpot);
     let best_fit = &fits.iter().find(|f| f.0 == best).context("no fit")?.1;
+    let files: Vec<String> = a.trace.iter().map(|p| p.display().to_string()).collect();
+    let releases_text: Vec<String> = releases.iter().map(|r| r.to_string()).collect();
+    let impacts: Vec<String> = loaded
+        .iter()
+        .map(|l| l.data.impacts.len().to_string())
+        .collect();
 
     let mut outputs = Outputs::new();
     if let Some(p) = &a.out {
@@ -358,14 +448,15 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         out_params.contact = best_fit.law;
         let comment = format!(
             "host-sim identify contact: {} law fitted to {} ({} impacts, error: {:?}, release {} mm, \
-             gap {} mm)\nresidual: peak rms {:.2} % of the largest peak, time rms {:.1} us, J = {:.3e}",
+             gap {} mm)\nresidual: peak rms {:.2} % of the {}largest peak, time rms {:.1} us, J = {:.3e}",
             best,
-            a.trace.display(),
-            data.impacts.len(),
+            files.join(" + "),
+            impacts.join(" + "),
             a.error,
-            a.release_mm,
+            releases_text.join(" + "),
             a.gap_mm,
             best_fit.residual.peak_rms_pct,
+            if loaded.len() > 1 { "trace's " } else { "" },
             best_fit.residual.time_rms_us,
             best_fit.residual.cost
         );
@@ -382,33 +473,44 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
     }
     if let Some(p) = &a.plot {
         let tmp = outputs.reserve(p)?;
+        let name = |p: &PathBuf| {
+            p.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        };
+        let names: Vec<String> = a.trace.iter().map(name).collect();
         let title = format!(
             "Drop test {} (release {} mm, {} rig): fitted contact laws",
-            a.trace
-                .file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-            a.release_mm,
+            names.join(" + "),
+            releases_text.join(" + "),
             a.rig
         );
+        let panels: Vec<(String, &DropData)> = loaded
+            .iter()
+            .map(|l| {
+                (
+                    format!("{} (release {} mm)", name(&l.path), l.release_mm),
+                    &l.data,
+                )
+            })
+            .collect();
         let curves: Vec<(String, &Fit)> = fits.iter().map(|(k, f)| (k.to_string(), f)).collect();
-        plot_identify::drop_fit(&tmp, &title, &data, &curves)?;
+        plot_identify::drop_fit(&tmp, &title, &panels, &curves)?;
     }
     outputs.commit()?;
-    print_contact(a, &data, &fits, best)
+    print_contact(a, &loaded, &fits, best)
 }
 
 fn print_contact(
     a: &ContactArgs,
-    data: &DropData,
+    loaded: &[LoadedTrace],
     fits: &[(ContactLawKind, Fit)],
     best: ContactLawKind,
 ) -> Result<()> {
     if a.json {
+        let traces: Vec<TraceReport> = loaded.iter().map(LoadedTrace::report).collect();
         let report = ContactReport {
-            samples: data.t_s.len(),
-            offset_n: data.offset_n,
-            noise_n: data.noise_n,
-            impact_peaks_n: data.impacts.iter().map(|i| i.peak_n).collect(),
+            first: loaded.first().context("no trace")?.report(),
+            traces,
             error: a.error,
             fits: fits
                 .iter()
@@ -416,6 +518,7 @@ fn print_contact(
                     law: *k,
                     contact: f.law,
                     residual: f.residual,
+                    trace_residuals: f.traces.iter().map(|t| t.residual).collect(),
                     evaluations: f.evaluations,
                 })
                 .collect(),
@@ -424,24 +527,33 @@ fn print_contact(
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    let dt = (data.t_s[data.t_s.len() - 1] - data.t_s[0]) / (data.t_s.len() - 1) as f64;
-    let peaks: Vec<String> = data
-        .impacts
-        .iter()
-        .map(|i| format!("{:.2}", i.peak_n))
-        .collect();
+    for l in loaded {
+        let data = &l.data;
+        let dt = (data.t_s[data.t_s.len() - 1] - data.t_s[0]) / (data.t_s.len() - 1) as f64;
+        let peaks: Vec<String> = data
+            .impacts
+            .iter()
+            .map(|i| format!("{:.2}", i.peak_n))
+            .collect();
+        println!(
+            "Drop test {}: {} samples at {:.1} kHz, offset {:.3} N removed, noise {:.3} N; {} impacts, peaks {} N",
+            l.path.display(),
+            data.t_s.len(),
+            1e-3 / dt,
+            data.offset_n,
+            data.noise_n,
+            data.impacts.len(),
+            peaks.join(", ")
+        );
+    }
+    let releases: Vec<String> = loaded.iter().map(|l| l.release_mm.to_string()).collect();
     println!(
-        "Drop test {}: {} samples at {:.1} kHz, offset {:.3} N removed, noise {:.3} N; {} impacts, peaks {} N",
-        a.trace.display(),
-        data.t_s.len(),
-        1e-3 / dt,
-        data.offset_n,
-        data.noise_n,
-        data.impacts.len(),
-        peaks.join(", ")
-    );
-    println!(
-        "Fit ({} error{}), {} suspension, m = {} kg, released {} mm from the surface, gap {} mm:",
+        "{} ({} error{}{}), {} suspension, m = {} kg, released {} mm from the surface, gap {} mm:",
+        if loaded.len() > 1 {
+            format!("Joint fit of {} drop tests", loaded.len())
+        } else {
+            "Fit".to_string()
+        },
         match a.error {
             FitError::Peaks => "peak forces",
             FitError::Profile => "peak forces + force profile",
@@ -451,21 +563,25 @@ fn print_contact(
         } else {
             ""
         },
+        if loaded.len() > 1 {
+            ", summed over the traces"
+        } else {
+            ""
+        },
         a.rig,
         a.mass_kg,
-        a.release_mm,
+        releases.join(" and "),
         a.gap_mm
     );
     println!(
         "  {:<20} {:<62} {:>9} {:>10} {:>11} {:>10} {:>6}",
         "law", "parameters", "peak rms", "time rms", "profile rms", "J", "evals"
     );
-    for (k, f) in fits {
-        let r = &f.residual;
+    let row = |label: String, params: String, r: &Residual, evals: String| {
         println!(
             "  {:<20} {:<62} {:>7.2} % {:>7.1} µs {:>9} {:>10.3e} {:>6}",
-            k.to_string(),
-            describe_law(&f.law, a.mass_kg),
+            label,
+            params,
             r.peak_rms_pct,
             r.time_rms_us,
             if a.error == FitError::Profile {
@@ -474,8 +590,26 @@ fn print_contact(
                 "–".to_string()
             },
             r.cost,
-            f.evaluations
+            evals
         );
+    };
+    for (k, f) in fits {
+        row(
+            k.to_string(),
+            describe_law(&f.law, a.mass_kg),
+            &f.residual,
+            f.evaluations.to_string(),
+        );
+        if loaded.len() > 1 {
+            for (l, t) in loaded.iter().zip(&f.traces) {
+                row(
+                    String::new(),
+                    format!("  of which release {} mm", l.release_mm),
+                    &t.residual,
+                    String::new(),
+                );
+            }
+        }
     }
     if fits.len() > 1 {
         println!("  smallest error: {best}");
@@ -586,4 +720,25 @@ fn run_free(a: &FreeArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn releases_pair_with_the_traces_in_order_or_one_for_all() {
+        assert_eq!(pair_releases(&[3.0], 2), Ok(vec![3.0, 3.0]));
+        assert_eq!(pair_releases(&[0.25, 3.0], 2), Ok(vec![0.25, 3.0]));
+        assert_eq!(pair_releases(&[3.0], 1), Ok(vec![3.0]));
+        let e = pair_releases(&[1.0, 2.0, 3.0], 2).unwrap_err();
+        assert_eq!(
+            e,
+            PairingError::ReleaseCount {
+                given: 3,
+                traces: 2
+            }
+        );
+        assert!(e.to_string().contains("release_mm"), "{e}");
+    }
 }

@@ -32,6 +32,13 @@
 //!
 //! A simulated impact that is missing counts with zero force and a time error of `τ_ref`.
 //!
+//! ## Several drop tests (joint fit, [`fit_law_joint`])
+//! One parameter set is fitted to several drop tests (e.g. two release heights, as the thesis
+//! did): `J = Σ_traces J_trace`, each trace's `J_trace` as above with its own `F_ref`, `τ_ref`,
+//! release distance and impacts (so every trace counts alike, whatever its force level). With
+//! one release height the impact speeds of a drop span a narrow range and a power law's `k` and
+//! `n` trade off against each other; a second height separates them.
+//!
 //! ## Parameters searched (Nelder–Mead works on unbounded, similarly scaled coordinates)
 //! - stiffness as the force at a reference penetration `δ_ref` (from the data:
 //!   `F_1 / (m ω_c²)`, `ω_c` from the first impact's width), `ln(k δ_ref^n)`, so that `k` and
@@ -310,6 +317,15 @@ pub fn simulate_drop(
     Ok(out)
 }
 
+/// One drop test of a (joint) fit: how it was made and what was measured.
+#[derive(Debug, Clone)]
+pub struct DropTest {
+    /// Rig, release distance, gap and the fit's integrator settings.
+    pub setup: DropSetup,
+    /// The measured trace after preprocessing ([`analyse_drop`]).
+    pub data: DropData,
+}
+
 /// The drop-test setup shared by the fit and the synthetic traces.
 #[derive(Debug, Clone, Copy)]
 pub struct DropSetup {
@@ -352,17 +368,84 @@ pub struct Residual {
     pub profile_rms_pct: f64,
 }
 
+/// Unnormalised sums of one or several traces' errors, combined into a [`Residual`].
+#[derive(Debug, Clone, Copy, Default)]
+struct Sums {
+    /// `Σ ((F_sim − F_meas)/F_ref)²` over the impacts, and their number.
+    peak: f64,
+    peaks_n: usize,
+    /// `Σ (Δt/τ_ref)²`, `Σ Δt²` (s²) over the impacts after the first, and their number.
+    time: f64,
+    time_sq_s2: f64,
+    times_n: usize,
+    /// `Σ ((F_sim − F_meas)/F_ref)²` over the profile samples, and their number.
+    profile: f64,
+    profile_n: usize,
+}
+
+impl Sums {
+    fn add(&mut self, o: &Sums) {
+        self.peak += o.peak;
+        self.peaks_n += o.peaks_n;
+        self.time += o.time;
+        self.time_sq_s2 += o.time_sq_s2;
+        self.times_n += o.times_n;
+        self.profile += o.profile;
+        self.profile_n += o.profile_n;
+    }
+
+    fn residual(&self, w: Weights) -> Residual {
+        let rms = |sum: f64, n: usize| if n > 0 { (sum / n as f64).sqrt() } else { 0.0 };
+        Residual {
+            cost: self.peak + w.time * self.time + w.profile * self.profile,
+            peak_rms_pct: 100.0 * rms(self.peak, self.peaks_n),
+            time_rms_us: 1e6 * rms(self.time_sq_s2, self.times_n),
+            profile_rms_pct: 100.0 * rms(self.profile, self.profile_n),
+        }
+    }
+}
+
+/// One drop test inside the fit, with its normalisations.
 #[derive(Clone)]
-struct Problem<'a> {
+struct TraceCtx<'a> {
     setup: &'a DropSetup,
     data: &'a DropData,
-    law: ContactLawKind,
-    weights: Weights,
     f_ref: f64,
     tau_ref: f64,
+    duration_s: f64,
+}
+
+impl<'a> TraceCtx<'a> {
+    fn new(t: &'a DropTest) -> Self {
+        let data = &t.data;
+        let i0 = &data.impacts[0];
+        let span = data.impacts[data.impacts.len() - 1].centroid_s - i0.centroid_s;
+        TraceCtx {
+            setup: &t.setup,
+            data,
+            f_ref: data.impacts.iter().map(|i| i.peak_n).fold(0.0, f64::max),
+            tau_ref: i0.fwhm_s,
+            duration_s: 1.25 * span + 2.0 * std::f64::consts::PI / t.setup.params.omega_n() + 0.01,
+        }
+    }
+
+    fn spec(&self, max_impacts: u32) -> DropSpec {
+        DropSpec {
+            gap_m: self.setup.gap_m,
+            release_m: self.setup.release_m,
+            duration_s: self.duration_s,
+            max_impacts,
+        }
+    }
+}
+
+#[derive(Clone)]
+struct Problem<'a> {
+    traces: Vec<TraceCtx<'a>>,
+    law: ContactLawKind,
+    weights: Weights,
     delta_ref: f64,
     x0_scale: [f64; 3],
-    duration_s: f64,
     evaluations: &'a Cell<u64>,
 }
 
@@ -413,64 +496,54 @@ impl Problem<'_> {
         Ok(law)
     }
 
-    fn residual(&self, law: &ContactLaw) -> Result<(Residual, SimDrop)> {
-        let mut params = self.setup.params;
-        params.contact = *law;
-        let spec = DropSpec {
-            gap_m: self.setup.gap_m,
-            release_m: self.setup.release_m,
-            duration_s: self.duration_s,
-            max_impacts: self.data.impacts.len() as u32,
-        };
-        let sim = simulate_drop(&params, &spec, &self.setup.steps, false)?;
-        Ok((self.score(&sim), sim))
+    /// The joint residual of `law` and each trace's (in order).
+    fn residual(&self, law: &ContactLaw) -> Result<(Residual, Vec<Residual>)> {
+        let mut total = Sums::default();
+        let mut each = Vec::with_capacity(self.traces.len());
+        for tc in &self.traces {
+            let mut params = tc.setup.params;
+            params.contact = *law;
+            let spec = tc.spec(tc.data.impacts.len() as u32);
+            let sim = simulate_drop(&params, &spec, &tc.setup.steps, false)?;
+            let sums = self.score(tc, &sim);
+            total.add(&sums);
+            each.push(sums.residual(self.weights));
+        }
+        Ok((total.residual(self.weights), each))
     }
 
-    fn score(&self, sim: &SimDrop) -> Residual {
-        let meas = &self.data.impacts;
-        let n = meas.len();
-        let (mut jp, mut jt, mut jprof, mut nprof) = (0.0, 0.0, 0.0, 0usize);
-        let (mut tsq, mut nt) = (0.0, 0usize);
+    fn score(&self, tc: &TraceCtx<'_>, sim: &SimDrop) -> Sums {
+        let meas = &tc.data.impacts;
+        let mut out = Sums {
+            peaks_n: meas.len(),
+            ..Sums::default()
+        };
         let c_m0 = meas[0].centroid_s;
         let c_s0 = sim.impacts.first().map(|s| s.centroid_s);
         for (j, m) in meas.iter().enumerate() {
             let s = sim.impacts.get(j);
             let fs = s.map_or(0.0, |s| s.peak_n);
-            jp += ((fs - m.peak_n) / self.f_ref).powi(2);
+            out.peak += ((fs - m.peak_n) / tc.f_ref).powi(2);
             if j > 0 {
                 let dt = match (s, c_s0) {
                     (Some(s), Some(c0)) => (s.centroid_s - c0) - (m.centroid_s - c_m0),
-                    _ => self.tau_ref,
+                    _ => tc.tau_ref,
                 };
-                jt += (dt / self.tau_ref).powi(2);
-                tsq += dt * dt;
-                nt += 1;
+                out.time += (dt / tc.tau_ref).powi(2);
+                out.time_sq_s2 += dt * dt;
+                out.times_n += 1;
             }
             if self.weights.profile > 0.0 {
                 for i in m.window.0..=m.window.1 {
                     let fsim = s.map_or(0.0, |s| {
-                        s.force_at(self.data.t_s[i] - m.centroid_s + s.centroid_s)
+                        s.force_at(tc.data.t_s[i] - m.centroid_s + s.centroid_s)
                     });
-                    jprof += ((fsim - self.data.force_n[i]) / self.f_ref).powi(2);
-                    nprof += 1;
+                    out.profile += ((fsim - tc.data.force_n[i]) / tc.f_ref).powi(2);
+                    out.profile_n += 1;
                 }
             }
         }
-        let cost = jp + self.weights.time * jt + self.weights.profile * jprof;
-        Residual {
-            cost,
-            peak_rms_pct: 100.0 * (jp / n as f64).sqrt(),
-            time_rms_us: if nt > 0 {
-                1e6 * (tsq / nt as f64).sqrt()
-            } else {
-                0.0
-            },
-            profile_rms_pct: if nprof > 0 {
-                100.0 * (jprof / nprof as f64).sqrt()
-            } else {
-                0.0
-            },
-        }
+        out
     }
 }
 
@@ -494,11 +567,22 @@ impl CostFunction for Problem<'_> {
 pub struct Fit {
     /// The law with its fitted parameters.
     pub law: ContactLaw,
-    /// The error at the fit.
+    /// The error at the fit (all traces together: `J` is the sum of the traces' errors, the
+    /// RMS values are over all their impacts and samples).
     pub residual: Residual,
-    /// Cost evaluations (drop simulations) spent.
+    /// Cost evaluations (each one drop simulation per trace) spent.
     pub evaluations: u64,
-    /// The simulated drop at the fit (all samples kept, for plots).
+    /// Per trace, in the order given: its own error and the simulated drop at the fit (all
+    /// samples kept, for plots).
+    pub traces: Vec<TraceFit>,
+}
+
+/// One trace's part of a [`Fit`].
+#[derive(Debug, Clone)]
+pub struct TraceFit {
+    /// This trace's error at the fit.
+    pub residual: Residual,
+    /// The simulated drop of this trace's setup at the fit (all samples kept).
     pub sim: SimDrop,
 }
 
@@ -581,7 +665,7 @@ fn simplex(law: ContactLawKind, x0: &[f64]) -> Vec<Vec<f64>> {
 
 /// Fits `law` to the measured drop `data` with Nelder–Mead (argmin), restarting from the best
 /// point with a fresh simplex until a restart improves the error by less than 0.1 % (at most 4
-/// runs of at most `max_iters` iterations).
+/// runs of at most `max_iters` iterations). One trace of [`fit_law_joint`].
 ///
 /// # Errors
 /// Invalid rig parameters or drop setup (checked with the preset law before fitting), or an
@@ -593,40 +677,67 @@ pub fn fit_law(
     weights: Weights,
     max_iters: u64,
 ) -> Result<Fit> {
-    ensure!(!data.impacts.is_empty(), "no measured impact");
-    let mass = setup.params.mass_kg;
-    let (x0_scale, delta_ref) = initial(law, data, mass);
-    let evaluations = Cell::new(0);
-    let i0 = &data.impacts[0];
-    let last = data.impacts[data.impacts.len() - 1].centroid_s;
-    let span = last - i0.centroid_s;
-    let duration_s = 1.25 * span + 2.0 * std::f64::consts::PI / setup.params.omega_n() + 0.01;
-    let problem = Problem {
-        setup,
-        data,
+    let tests = [DropTest {
+        setup: *setup,
+        data: data.clone(),
+    }];
+    fit_law_joint(&tests, law, weights, max_iters)
+}
+
+fn problem<'a>(
+    tests: &'a [DropTest],
+    law: ContactLawKind,
+    weights: Weights,
+    evaluations: &'a Cell<u64>,
+) -> Result<Problem<'a>> {
+    ensure!(!tests.is_empty(), "no drop test to fit");
+    for (i, t) in tests.iter().enumerate() {
+        ensure!(
+            !t.data.impacts.is_empty(),
+            "drop test {}: no measured impact",
+            i + 1
+        );
+    }
+    // The search coordinates are scaled by the first trace.
+    let (x0_scale, delta_ref) = initial(law, &tests[0].data, tests[0].setup.params.mass_kg);
+    Ok(Problem {
+        traces: tests.iter().map(TraceCtx::new).collect(),
         law,
         weights,
-        f_ref: data.impacts.iter().map(|i| i.peak_n).fold(0.0, f64::max),
-        tau_ref: i0.fwhm_s,
         delta_ref,
         x0_scale,
-        duration_s,
-        evaluations: &evaluations,
-    };
-    // Fails early (with the field) if the rig or the drop setup is invalid.
-    let mut check = setup.params;
-    check.contact = ContactLaw::preset(law);
-    check.validate().context("rig parameters")?;
-    DropSpec {
-        gap_m: setup.gap_m,
-        release_m: setup.release_m,
-        duration_s,
-        max_impacts: 1,
-    }
-    .validate()
-    .context("drop test")?;
+        evaluations,
+    })
+}
 
-    let mut x = start_point(law, data);
+/// Fits one parameter set of `law` to several drop tests at once (e.g. two release heights):
+/// the error is the sum of the traces' errors (module docs). Nelder–Mead as in [`fit_law`],
+/// started from the first trace's data-based guess.
+///
+/// # Errors
+/// No test, a test without impacts, invalid rig parameters or drop setup of any test (checked
+/// with the preset law before fitting, named with the test's number), or an optimiser failure.
+pub fn fit_law_joint(
+    tests: &[DropTest],
+    law: ContactLawKind,
+    weights: Weights,
+    max_iters: u64,
+) -> Result<Fit> {
+    let evaluations = Cell::new(0);
+    let problem = problem(tests, law, weights, &evaluations)?;
+    // Fails early (with the field) if a rig or a drop setup is invalid.
+    for (i, tc) in problem.traces.iter().enumerate() {
+        let mut check = tc.setup.params;
+        check.contact = ContactLaw::preset(law);
+        check
+            .validate()
+            .with_context(|| format!("drop test {}: rig parameters", i + 1))?;
+        tc.spec(1)
+            .validate()
+            .with_context(|| format!("drop test {}", i + 1))?;
+    }
+
+    let mut x = start_point(law, &tests[0].data);
     let mut best = problem.cost(&x).map_err(|e| anyhow::anyhow!("{e}"))?;
     for _ in 0..4 {
         let solver = NelderMead::new(simplex(law, &x))
@@ -652,25 +763,19 @@ pub fn fit_law(
     let Ok(law_fit) = problem.law_at(&x) else {
         bail!("the fit left the parameter bounds");
     };
-    let (residual, _) = problem.residual(&law_fit)?;
-    let mut params = setup.params;
-    params.contact = law_fit;
-    let sim = simulate_drop(
-        &params,
-        &DropSpec {
-            gap_m: setup.gap_m,
-            release_m: setup.release_m,
-            duration_s: problem.duration_s,
-            max_impacts: 0,
-        },
-        &setup.steps,
-        true,
-    )?;
+    let (residual, each) = problem.residual(&law_fit)?;
+    let mut traces = Vec::with_capacity(each.len());
+    for (tc, r) in problem.traces.iter().zip(each) {
+        let mut params = tc.setup.params;
+        params.contact = law_fit;
+        let sim = simulate_drop(&params, &tc.spec(0), &tc.setup.steps, true)?;
+        traces.push(TraceFit { residual: r, sim });
+    }
     Ok(Fit {
         law: law_fit,
         residual,
         evaluations: evaluations.get(),
-        sim,
+        traces,
     })
 }
 
@@ -684,20 +789,23 @@ pub fn residual_of(
     law: &ContactLaw,
     weights: Weights,
 ) -> Result<Residual> {
-    let (x0_scale, delta_ref) = initial(law.kind(), data, setup.params.mass_kg);
-    let i0 = &data.impacts[0];
-    let span = data.impacts[data.impacts.len() - 1].centroid_s - i0.centroid_s;
-    let problem = Problem {
-        setup,
-        data,
-        law: law.kind(),
-        weights,
-        f_ref: data.impacts.iter().map(|i| i.peak_n).fold(0.0, f64::max),
-        tau_ref: i0.fwhm_s,
-        delta_ref,
-        x0_scale,
-        duration_s: 1.25 * span + 2.0 * std::f64::consts::PI / setup.params.omega_n() + 0.01,
-        evaluations: &Cell::new(0),
-    };
+    let tests = [DropTest {
+        setup: *setup,
+        data: data.clone(),
+    }];
+    residual_of_joint(&tests, law, weights)
+}
+
+/// The joint residual of a given law against several drop tests (no fit).
+///
+/// # Errors
+/// No test, a test without impacts, or invalid parameters.
+pub fn residual_of_joint(
+    tests: &[DropTest],
+    law: &ContactLaw,
+    weights: Weights,
+) -> Result<Residual> {
+    let evaluations = Cell::new(0);
+    let problem = problem(tests, law.kind(), weights, &evaluations)?;
     Ok(problem.residual(law)?.0)
 }
