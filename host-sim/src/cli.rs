@@ -29,7 +29,7 @@ pub enum Profile {
     #[default]
     Host,
     /// The firmware's on-target model: N = 32, K = 8, 40-period transient, q ≤ 4, 8-period
-    /// window, Ω/ω 1.0:4.0:0.1 for `select` (gives the firmware's target bit for bit).
+    /// window, Ω/ω 1.0:3.6:0.1 for `select` (gives the firmware's target bit for bit).
     Embedded,
 }
 
