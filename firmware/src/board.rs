@@ -81,11 +81,14 @@ impl DriveOutput for DacDrive {
     }
 }
 
-/// Microseconds from the cycle counter; must be read at least once per 25 s (CYCCNT wraps
-/// every 2³² / 168 MHz = 25.6 s; the sampling task reads it every 100 µs).
+/// Microseconds from the cycle counter, advanced by [`CycleClock::tick`] at every sample (CYCCNT
+/// wraps every 2³² / 168 MHz = 25.6 s; the sampling task ticks it every 100 µs). Only 32-bit
+/// arithmetic per tick (the M4 divides 32-bit integers in hardware; a 64-bit division would
+/// be a library call in the ISR).
 pub struct CycleClock {
     last: u32,
-    high: u64,
+    us: u64,
+    rem: u32,
     cycles_per_us: u32,
 }
 
@@ -100,31 +103,30 @@ impl CycleClock {
         dwt.enable_cycle_counter();
         CycleClock {
             last: cortex_m::peripheral::DWT::cycle_count(),
-            high: 0,
+            us: 0,
+            rem: 0,
             cycles_per_us: (sysclk_hz / 1_000_000).max(1),
         }
     }
 
-    /// Now, µs, updating the wrap count (the sampling task calls this every sample).
-    pub fn tick_us(&mut self) -> u64 {
+    /// Advances the clock to now.
+    pub fn tick(&mut self) {
         let now = cortex_m::peripheral::DWT::cycle_count();
-        if now < self.last {
-            self.high += 1 << 32;
-        }
+        let delta = now.wrapping_sub(self.last);
         self.last = now;
-        (self.high | u64::from(now)) / u64::from(self.cycles_per_us)
+        let cpu = self.cycles_per_us;
+        self.us += u64::from(delta / cpu);
+        self.rem += delta % cpu;
+        if self.rem >= cpu {
+            self.rem -= cpu;
+            self.us += 1;
+        }
     }
 }
 
 impl TimeBase for CycleClock {
+    /// µs at the last [`CycleClock::tick`].
     fn now_us(&self) -> u64 {
-        // Read-only view without updating the wrap count (valid within 25 s of the last update).
-        let now = cortex_m::peripheral::DWT::cycle_count();
-        let high = if now < self.last {
-            self.high + (1 << 32)
-        } else {
-            self.high
-        };
-        (high | u64::from(now)) / u64::from(self.cycles_per_us)
+        self.us
     }
 }

@@ -40,7 +40,7 @@ mod app {
     use shared::control::{
         Controller, ControllerConfig, Event, LineBuffer, SAMPLE_RATE_HZ, predict, respond,
     };
-    use shared::hal::{DriveOutput, ForceSource};
+    use shared::hal::{DriveOutput, ForceSource, TimeBase};
     use stm32f4xx_hal::{
         adc::{Adc, config::AdcConfig},
         pac,
@@ -141,17 +141,23 @@ mod app {
     }
 
     /// The sampling task: one force sample in, one drive sample out, every 100 µs.
-    #[task(binds = TIM2, priority = 3, shared = [controller], local = [timer, adc, dac, clock])]
+    #[task(
+        binds = TIM2,
+        priority = 3,
+        shared = [controller],
+        local = [timer, adc, dac, clock, until_report: u32 = SAMPLE_RATE_HZ]
+    )]
     fn sample(mut cx: sample::Context) {
         cx.local.timer.clear_flags(Flag::Update);
         let code = cx.local.adc.read_code();
-        let now_us = cx.local.clock.tick_us();
-        let (out, n) = cx
-            .shared
-            .controller
-            .lock(|c| (c.on_sample(code, now_us), c.samples()));
+        cx.local.clock.tick();
+        let now_us = cx.local.clock.now_us();
+        let out = cx.shared.controller.lock(|c| c.on_sample(code, now_us));
         cx.local.dac.write_code(out);
-        if n % u64::from(SAMPLE_RATE_HZ) == 0 {
+        // A report every SAMPLE_RATE_HZ samples (1 s), counted down without a division.
+        *cx.local.until_report -= 1;
+        if *cx.local.until_report == 0 {
+            *cx.local.until_report = SAMPLE_RATE_HZ;
             report::spawn().ok();
         }
     }

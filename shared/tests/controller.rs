@@ -75,9 +75,9 @@ impl Rig {
             Sensor::Overrun => Err(SampleError::Overrun),
         };
         self.t_us += u64::from(SAMPLE_PERIOD_US);
-        let before = self.c.generator().phase();
+        let before = self.c.cycles();
         self.c.on_sample(code, self.t_us);
-        if self.c.generator().phase() < before {
+        if self.c.cycles() != before {
             self.in_cycle = 0;
         } else {
             self.in_cycle += 1;

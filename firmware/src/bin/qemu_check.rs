@@ -173,7 +173,7 @@ mod target {
                 0.0
             };
             let code = libm::roundf(sensor.code_of(force)) as u16;
-            let phase = c.generator().phase();
+            let cycles = c.cycles();
             let t = now();
             let _ = c.on_sample(Ok(code), (i + 1) * 100);
             let d = now().saturating_sub(t + overhead);
@@ -182,7 +182,7 @@ mod target {
                 sum += d;
                 n += 1;
             }
-            in_cycle = if c.generator().phase() < phase {
+            in_cycle = if c.cycles() != cycles {
                 0
             } else {
                 in_cycle + 1

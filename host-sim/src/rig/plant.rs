@@ -18,6 +18,7 @@ use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 use shared::control::config::DAC_MID;
 use shared::integrate::rk4::rk4_step;
+use shared::model::hammer::FieldEval;
 use shared::model::{Hammer, Region, RigParams, SwitchBands};
 
 use shared::control::SAMPLE_RATE_HZ;
@@ -98,6 +99,8 @@ pub struct Plant {
     impacts: Vec<TrueImpact>,
     /// exp(−h/τ), exp(−h/2τ) for the step `h`.
     decay: (f64, f64),
+    /// The field at the current state and the cart acceleration it was evaluated with.
+    last_eval: Option<(f64, FieldEval<f64>)>,
 }
 
 impl Plant {
@@ -144,6 +147,7 @@ impl Plant {
             episode_peak: None,
             impacts: Vec::new(),
             decay: decay(h, drive.amp_tau_s),
+            last_eval: None,
         })
     }
 
@@ -161,6 +165,7 @@ impl Plant {
         let hammer = compile(params, self.gap_m, &self.bands)?;
         self.x = hammer.state_from_relative(u, du)?;
         self.hammer = hammer;
+        self.last_eval = None;
         self.params = *params;
         Ok(())
     }
@@ -217,7 +222,7 @@ impl Plant {
     }
 
     /// One RK4 step of `h` from `t0` with the cart accelerations at its start, middle and end;
-    /// refined when the region changes.
+    /// redone as `refine` shorter steps when the switch-model region changes within it.
     #[allow(clippy::too_many_arguments)]
     fn step(
         &mut self,
@@ -230,36 +235,55 @@ impl Plant {
         dh: f64,
         acc: &impl Fn(f64) -> f64,
     ) {
-        let start = self.hammer.field_driven(&self.x, a0, self.approach);
-        let approach = self.approach;
-        let f = |x: &Vector2<f64>, a: f64| self.hammer.field_driven(x, a, approach).dx;
-        let x1 = rk4_step(&self.x, &start.dx, h, a_mid, a_end, f);
-        let end = self.hammer.field_driven(&x1, a_end, approach);
-        if end.region == start.region || self.settings.refine <= 1 {
-            self.commit(x1, t0 + h, &end);
+        let (start_region, x1, end) = self.trial(h, a0, a_mid, a_end);
+        if end.region == start_region || self.settings.refine <= 1 {
+            self.commit(x1, t0 + h, a_end, end);
             return;
         }
-        // Region change inside the step: redo it in `refine` shorter steps.
         let m = self.settings.refine;
         let hr = h / f64::from(m);
         let dr = dh.powf(1.0 / f64::from(m));
         let dr2 = dr.sqrt();
         let mut e = e0;
         for j in 0..m {
-            let approach = self.approach;
-            let s = self.hammer.field_driven(&self.x, acc(e), approach);
-            let f = |x: &Vector2<f64>, a: f64| self.hammer.field_driven(x, a, approach).dx;
-            let x1 = rk4_step(&self.x, &s.dx, hr, acc(e * dr2), acc(e * dr), f);
-            let end = self.hammer.field_driven(&x1, acc(e * dr), approach);
-            self.commit(x1, t0 + f64::from(j + 1) * hr, &end);
+            let a_end = acc(e * dr);
+            let (_, x1, end) = self.trial(hr, acc(e), acc(e * dr2), a_end);
+            self.commit(x1, t0 + f64::from(j + 1) * hr, a_end, end);
             e *= dr;
         }
     }
 
-    fn commit(&mut self, x: Vector2<f64>, t: f64, end: &shared::model::hammer::FieldEval<f64>) {
+    /// An RK4 step of `h` from the current state (not committed): the start's region, the end
+    /// state and the field there. The field at the start is the last committed end's when the
+    /// cart acceleration is the same (consecutive steps within a sample).
+    fn trial(
+        &self,
+        h: f64,
+        a0: f64,
+        a_mid: f64,
+        a_end: f64,
+    ) -> (Region, Vector2<f64>, FieldEval<f64>) {
+        let approach = self.approach;
+        let start = match self.last_eval {
+            Some((a, e)) if a.to_bits() == a0.to_bits() => e,
+            _ => self.hammer.field_driven(&self.x, a0, approach),
+        };
+        let f = |x: &Vector2<f64>, a: f64| self.hammer.field_driven(x, a, approach).dx;
+        let x1 = rk4_step(&self.x, &start.dx, h, a_mid, a_end, f);
+        (
+            start.region,
+            x1,
+            self.hammer.field_driven(&x1, a_end, approach),
+        )
+    }
+
+    fn commit(&mut self, x: Vector2<f64>, t: f64, a_end: f64, end: FieldEval<f64>) {
+        self.last_eval = Some((a_end, end));
         if self.region == Region::Free && end.region != Region::Free {
-            // Arrival: the approach speed (Lankarani–Nikravesh) is the rate at the surface.
+            // Arrival: the approach speed (Lankarani–Nikravesh) is the rate at the surface; the
+            // field at this state changes with it.
             self.approach = end.delta_dot.abs();
+            self.last_eval = None;
         }
         self.x = x;
         self.region = end.region;

@@ -179,15 +179,20 @@ pub fn scale_natural_freq(params: &RigParams, factor: f64) -> RigParams {
 pub fn run(setup: &HilSetup) -> Result<HilRun> {
     let sc = &setup.scenario;
     sc.validate()?;
+    let gap = f64::from(setup.gap_mm);
     anyhow::ensure!(
-        setup.seconds.is_finite() && setup.seconds > 0.0 && setup.seconds <= 86_400.0,
-        "--seconds must be in (0, 86400] (got {})",
-        setup.seconds
+        gap.is_finite() && (0.0..=10.0).contains(&gap),
+        "--gap-mm = {gap} is out of range: allowed 0 ..= 10 mm"
     );
     anyhow::ensure!(
-        setup.actual_gap_mm.is_finite() && setup.actual_gap_mm >= 0.0,
-        "--actual-gap-mm must be ≥ 0 (got {})",
+        setup.actual_gap_mm.is_finite() && (0.0..=10.0).contains(&setup.actual_gap_mm),
+        "--actual-gap-mm = {} is out of range: allowed 0 ..= 10 mm",
         setup.actual_gap_mm
+    );
+    anyhow::ensure!(
+        setup.seconds.is_finite() && setup.seconds > 0.0 && setup.seconds <= 86_400.0,
+        "--seconds = {} is out of range: allowed (0, 86400]",
+        setup.seconds
     );
     let mut controller = Controller::new(sc.controller, setup.rig, setup.gap_mm)
         .map_err(|e| anyhow::anyhow!("--gap-mm / [controller]: {e}"))?;
@@ -285,7 +290,7 @@ pub fn run(setup: &HilSetup) -> Result<HilRun> {
         adc.input_n = plant.force_n();
         clock.samples = k;
         let code = adc.read_code();
-        let phase = controller.generator().phase();
+        let cycles = controller.cycles();
         let drive = controller.on_sample(code, clock.now_us());
         dac.write_code(drive);
         plant.advance(dac.code);
@@ -302,7 +307,7 @@ pub fn run(setup: &HilSetup) -> Result<HilRun> {
                 Event::ModelReady(_) | Event::ModelFailed => {}
             }
         }
-        if controller.generator().phase() < phase {
+        if controller.cycles() != cycles {
             let s = controller.status();
             let last = controller.last_cycle();
             out.rows.push(CycleRow {

@@ -12,7 +12,7 @@ use core::fmt;
 
 use heapless::Deque;
 
-use super::config::{ControllerConfig, SAMPLE_RATE_HZ};
+use super::config::ControllerConfig;
 use super::console::{Command, HELP};
 use super::detector::ImpactDetector;
 use super::faults::{Fault, SensorMonitor};
@@ -260,6 +260,12 @@ pub struct Controller {
     climber: Option<HillClimber>,
     sample: u64,
     last_us: Option<u64>,
+    /// Drive cycles completed.
+    cycles: u32,
+    /// Sample index where the current drive cycle began.
+    cycle_start_sample: u64,
+    /// Longest impact-free stretch the measured regime allows, samples (updated per cycle).
+    regime_gap_samples: u32,
     cycles_at_freq: u32,
     regime: Option<Regime>,
     peak_n: Option<f32>,
@@ -298,6 +304,9 @@ impl Controller {
             climber: None,
             sample: 0,
             last_us: None,
+            cycles: 0,
+            cycle_start_sample: 0,
+            regime_gap_samples: 0,
             cycles_at_freq: 0,
             regime: None,
             peak_n: None,
@@ -325,6 +334,11 @@ impl Controller {
     /// Samples processed.
     pub fn samples(&self) -> u64 {
         self.sample
+    }
+
+    /// Drive cycles completed (the phase accumulator wrapped), since start-up.
+    pub fn cycles(&self) -> u32 {
+        self.cycles
     }
 
     /// The drive generator (frequency and amplitude now).
@@ -530,12 +544,7 @@ impl Controller {
         if let Some(c) = code {
             let driving = self.generator.amplitude_mm() > 0.0;
             let full = matches!(self.state, State::Dwell | State::Track);
-            let q = match self.regime {
-                Some(Regime::Periodic { q, .. }) => u32::from(q),
-                _ => 1,
-            };
-            let period = SAMPLE_RATE_HZ as f32 / self.generator.freq_hz().max(0.01);
-            let gap = (period * q as f32) as u32;
+            let gap = self.regime_gap_samples;
             if let Some(f) = self.monitor.check(c, driving, full, impact.is_some(), gap) {
                 self.trip(f);
             }
@@ -566,6 +575,16 @@ impl Controller {
 
     fn on_cycle(&mut self) {
         self.meter.on_cycle_end();
+        self.cycles = self.cycles.wrapping_add(1);
+        // The longest impact-free stretch the measured regime allows: q drive periods, the
+        // period counted in samples (no division in the sampling path).
+        let period = self.sample.wrapping_sub(self.cycle_start_sample);
+        self.cycle_start_sample = self.sample;
+        let q = match self.regime {
+            Some(Regime::Periodic { q, .. }) => u64::from(q),
+            _ => 1,
+        };
+        self.regime_gap_samples = u32::try_from(period.saturating_mul(q)).unwrap_or(u32::MAX);
         if !matches!(self.state, State::Dwell | State::Track) {
             return;
         }

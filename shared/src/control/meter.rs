@@ -135,9 +135,7 @@ impl RegimeMeter {
         }
         (n > 0).then(|| (sum / n as f32, max))
     }
-}
 
-impl RegimeMeter {
     /// Mean per-cycle impulse over the last `window` cycles that impacted, N·s; `None` when none
     /// did.
     pub fn impulse_ns(&self, window: usize) -> Option<f32> {
