@@ -36,6 +36,11 @@ pub trait Real:
     fn sin(self) -> Self;
     /// `libm` cosine.
     fn cos(self) -> Self;
+    /// `(sin x, cos x)` by the short Taylor tier of [`Real::sin_cos`], without a branch: exact
+    /// to the type's precision for `|x| ≤ 1/8` only (the caller checks the range; used where
+    /// several lanes are evaluated in step, `crate::integrate::lanes`). Bit for bit what
+    /// [`Real::sin_cos`] returns on that range.
+    fn sin_cos_small(self) -> (Self, Self);
     /// `(sin x, cos x)`: a Taylor polynomial accurate to the type's precision for
     /// `|x| ≤ 0.5` rad (the wire pendulum's angles stay below 0.1 rad), `libm` elsewhere.
     /// Only `+` and `×`, so the MCU and the host agree bit for bit.
@@ -93,6 +98,45 @@ const COS_TAYLOR: [f64; 8] = [
     1.0,
 ];
 
+/// The last `$k` coefficients of a Taylor table as a `[$t; $k]` constant.
+macro_rules! tail {
+    ($t:ty, $k:expr, $table:expr) => {{
+        let mut out = [0.0 as $t; $k];
+        let mut i = 0;
+        while i < $k {
+            out[i] = $table[8 - $k + i] as $t;
+            i += 1;
+        }
+        out
+    }};
+}
+
+/// Horner evaluation of `(x · S(x²), C(x²))`.
+#[inline(always)]
+fn horner<T: Copy + Add<Output = T> + Mul<Output = T>, const K: usize>(
+    x: T,
+    s_c: &[T; K],
+    c_c: &[T; K],
+) -> (T, T) {
+    let x2 = x * x;
+    let (mut s, mut c) = (s_c[0], c_c[0]);
+    let mut i = 1;
+    while i < K {
+        s = s * x2 + s_c[i];
+        c = c * x2 + c_c[i];
+        i += 1;
+    }
+    (x * s, c)
+}
+
+/// The Taylor tiers behind [`Real::sin_cos`] and [`Real::sin_cos_small`].
+trait SinCosTiers: Sized {
+    /// The tier for `|x| ≤ 1/8`.
+    fn tier_short(self) -> (Self, Self);
+    /// The tier for `|x| ≤ 1/2`.
+    fn tier_long(self) -> (Self, Self);
+}
+
 macro_rules! impl_real {
     ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
         impl Real for $t {
@@ -118,39 +162,16 @@ macro_rules! impl_real {
                 $cos(self)
             }
             #[inline(always)]
+            fn sin_cos_small(self) -> (Self, Self) {
+                self.tier_short()
+            }
+            #[inline(always)]
             fn sin_cos(self) -> (Self, Self) {
-                // Two Taylor tiers, each truncated below half an ulp: |x| ≤ 1/8 (the pendulum's
-                // angles, the excitation inside a step) and |x| ≤ 1/2.
-                const fn tail<const K: usize>(table: &[f64; 8]) -> [$t; K] {
-                    let mut out = [0.0; K];
-                    let mut i = 0;
-                    while i < K {
-                        out[i] = table[8 - K + i] as $t;
-                        i += 1;
-                    }
-                    out
-                }
-                #[inline(always)]
-                fn horner<const K: usize>(x: $t, s_c: &[$t; K], c_c: &[$t; K]) -> ($t, $t) {
-                    let x2 = x * x;
-                    let (mut s, mut c) = (s_c[0], c_c[0]);
-                    let mut i = 1;
-                    while i < K {
-                        s = s * x2 + s_c[i];
-                        c = c * x2 + c_c[i];
-                        i += 1;
-                    }
-                    (x * s, c)
-                }
-                const S_SHORT: [$t; $short] = tail::<$short>(&SIN_TAYLOR);
-                const C_SHORT: [$t; $short] = tail::<$short>(&COS_TAYLOR);
-                const S_LONG: [$t; $long] = tail::<$long>(&SIN_TAYLOR);
-                const C_LONG: [$t; $long] = tail::<$long>(&COS_TAYLOR);
                 let a = $fabs(self);
                 if a <= 0.125 {
-                    horner(self, &S_SHORT, &C_SHORT)
+                    self.tier_short()
                 } else if a <= 0.5 {
-                    horner(self, &S_LONG, &C_LONG)
+                    self.tier_long()
                 } else {
                     ($sin(self), $cos(self))
                 }
@@ -174,6 +195,23 @@ macro_rules! impl_real {
             #[inline(always)]
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)
+            }
+        }
+        
+        impl SinCosTiers for $t {
+            // Two Taylor tiers, each truncated below half an ulp: |x| ≤ 1/8 (the pendulum's
+            // angles, the excitation inside a step) and |x| ≤ 1/2.
+            #[inline(always)]
+            fn tier_short(self) -> ($t, $t) {
+                const S: [$t; $short] = tail!($t, $short, SIN_TAYLOR);
+                const C: [$t; $short] = tail!($t, $short, COS_TAYLOR);
+                horner(self, &S, &C)
+            }
+            #[inline(always)]
+            fn tier_long(self) -> ($t, $t) {
+                const S: [$t; $long] = tail!($t, $long, SIN_TAYLOR);
+                const C: [$t; $long] = tail!($t, $long, COS_TAYLOR);
+                horner(self, &S, &C)
             }
         }
     };

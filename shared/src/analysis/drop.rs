@@ -16,7 +16,7 @@ use crate::error::{ParamError, check_range};
 use crate::integrate::{Simulator, StepSample, StepSettings};
 use crate::model::hammer::Body;
 use crate::model::{Hammer, RigParams, SwitchBands};
-use crate::observe::{ImpactEvent, ImpactTracker};
+use crate::observe::{DEFAULT_SEPARATION_M, ImpactEvent, ImpactTracker};
 use crate::real::Real;
 
 use crate::integrate::stepper::SUBSTEP_REFERENCE_SPEED_M_S;
@@ -153,7 +153,7 @@ pub fn run_drop<T: Real, F: FnMut(&DropRecord)>(
     let hammer = *sim.hammer();
     let h = sim.step_s();
     let (d0, dd0) = hammer.penetration(&sim.state());
-    let mut tracker = ImpactTracker::new(hammer.switch.eta_delta, d0);
+    let mut tracker = ImpactTracker::new(T::from_f64(DEFAULT_SEPARATION_M), d0);
     let (u0, du0) = sim.relative();
     report(&DropRecord::Sample(DropSample {
         t_s: 0.0,

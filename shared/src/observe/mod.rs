@@ -7,7 +7,7 @@ pub mod poincare;
 pub mod protocol;
 pub mod regime;
 
-pub use impact::{ImpactEvent, ImpactTracker};
+pub use impact::{DEFAULT_SEPARATION_M, ImpactEvent, ImpactTracker};
 pub use poincare::StroboPoint;
 pub use protocol::{Observer, PointResult, Protocol, ProtocolRun, run_protocol};
 pub use regime::Regime;

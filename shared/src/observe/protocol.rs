@@ -10,7 +10,7 @@
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
-use super::impact::{ImpactEvent, ImpactTracker};
+use super::impact::{DEFAULT_SEPARATION_M, ImpactEvent, ImpactTracker};
 use super::poincare::{HISTORY, SectionHistory, StroboPoint};
 use super::regime::{Regime, classify};
 use crate::error::{ParamError, check_count, check_range};
@@ -38,6 +38,14 @@ pub struct Protocol {
     /// `steady_tol` so that a state that is still converging at the end of a full-length
     /// transient is not called irregular).
     pub classify_tol: f64,
+    /// Separation that ends an impact episode, m (1e-8; [`DEFAULT_SEPARATION_M`]): re-contacts
+    /// before the hammer has left the surface by this much belong to the same impact.
+    #[serde(default = "default_separation_m")]
+    pub separation_m: f64,
+}
+
+fn default_separation_m() -> f64 {
+    DEFAULT_SEPARATION_M
 }
 
 impl Default for Protocol {
@@ -49,6 +57,7 @@ impl Default for Protocol {
             steady_cycles: 3,
             observe_periods: 64,
             classify_tol: 1e-3,
+            separation_m: DEFAULT_SEPARATION_M,
         }
     }
 }
@@ -58,7 +67,8 @@ impl Protocol {
     ///
     /// # Errors
     /// [`ParamError`] naming the field: `max_q` 1..=16, `steady_cycles` 1..=3 (the history holds
-    /// 64 = 4·16 periods), `observe_periods` `2·max_q ..= 256`, tolerances in `1e-9 ..= 1`.
+    /// 64 = 4·16 periods), `observe_periods` `2·max_q ..= 256`, tolerances in `1e-9 ..= 1`,
+    /// `separation_m` in `1e-12 ..= 1e-3` m.
     pub fn validate(&self) -> Result<(), ParamError> {
         check_count(
             "max_transient_periods",
@@ -81,6 +91,7 @@ impl Protocol {
         )?;
         check_range("steady_tol", self.steady_tol, 1e-9, 1.0)?;
         check_range("classify_tol", self.classify_tol, 1e-9, 1.0)?;
+        check_range("separation_m", self.separation_m, 1e-12, 1e-3)?;
         Ok(())
     }
 }
@@ -178,7 +189,7 @@ impl<T: Real> ProtocolRun<T> {
             u_scale: hammer.amplitude,
             v_scale: T::from_f64(hammer.amplitude.to_f64() * hammer.omega_exc),
             steady_tol: T::from_f64(protocol.steady_tol),
-            tracker: ImpactTracker::new(hammer.switch.eta_delta, delta0),
+            tracker: ImpactTracker::new(T::from_f64(protocol.separation_m), delta0),
             rk4_start: sim.rk4_steps(),
             history: SectionHistory::default(),
             transient: 0,
