@@ -197,7 +197,7 @@ macro_rules! impl_real {
                 <$t>::is_finite(self)
             }
         }
-        
+
         impl SinCosTiers for $t {
             // Two Taylor tiers, each truncated below half an ulp: |x| ≤ 1/8 (the pendulum's
             // angles, the excitation inside a step) and |x| ≤ 1/2.

@@ -192,6 +192,7 @@ struct LastStrobes {
 }
 
 impl<T: Real> Observer<T> for LastStrobes {
+    const SAMPLES: bool = false;
     fn strobe(&mut self, p: &StroboPoint<T>, window: bool) {
         if window {
             if self.pts.len() == self.keep {

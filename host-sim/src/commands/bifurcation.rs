@@ -137,6 +137,7 @@ pub struct WindowSamples {
 }
 
 impl<T: Real> Observer<T> for WindowSamples {
+    const SAMPLES: bool = false;
     fn strobe(&mut self, p: &StroboPoint<T>, window: bool) {
         if window {
             self.strobes.push((p.u.to_f64(), p.du.to_f64()));

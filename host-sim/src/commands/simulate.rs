@@ -105,10 +105,7 @@ pub fn time_series<T: Real>(
     let a0 = setup.params.amplitude_m;
     let mg = setup.params.weight_n();
     let (d0, _) = hammer.penetration(&sim.state());
-    let mut tracker = ImpactTracker::new(
-        T::from_f64(setup.settings.protocol.separation_m),
-        d0,
-    );
+    let mut tracker = ImpactTracker::new(T::from_f64(setup.settings.protocol.separation_m), d0);
     let mut summary = TsSummary::default();
     let (u, du) = sim.relative();
     let mut rows = vec![TsRow {

@@ -3,7 +3,9 @@
 //!
 //! - [`rk4`]: one classical Runge–Kutta step on a 2-state vector.
 //! - [`stepper`]: the period-locked driver ([`Simulator`]).
+//! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids).
 
+pub mod lanes;
 pub mod rk4;
 pub mod stepper;
 

@@ -120,21 +120,21 @@ impl<T: Real> StepSample<T> {
 /// Fixed-step switch-model integrator for one rig, gap and excitation frequency.
 #[derive(Debug, Clone)]
 pub struct Simulator<T: Real> {
-    hammer: Hammer<T>,
-    x: Vector2<T>,
+    pub(super) hammer: Hammer<T>,
+    pub(super) x: Vector2<T>,
     /// Field at `x` (RK4's first stage of the next step).
-    at_x: FieldEval<T>,
-    n: u32,
+    pub(super) at_x: FieldEval<T>,
+    pub(super) n: u32,
     /// Step index within the period, `0..N`.
-    k: u32,
+    pub(super) k: u32,
     period: u32,
     /// Steps since the last reset.
-    steps: u64,
-    h: T,
+    pub(super) steps: u64,
+    pub(super) h: T,
     /// Contact sub-step `h_c`, s.
     h_c: T,
     /// `sin(2π j/(2N))`, `j = 0..2N` (half-step phases).
-    sin_half: [T; 2 * MAX_STEPS_PER_PERIOD as usize],
+    pub(super) sin_half: [T; 2 * MAX_STEPS_PER_PERIOD as usize],
     /// `cos(2π k/N)`, `k = 0..N` (step starts).
     cos_start: [T; MAX_STEPS_PER_PERIOD as usize],
     /// `Ω`, rad/s.
@@ -143,7 +143,7 @@ pub struct Simulator<T: Real> {
     min_approach: T,
     h_f64: f64,
     h_c_f64: f64,
-    rk4_steps: u64,
+    pub(super) rk4_steps: u64,
 }
 
 impl<T: Real> Simulator<T> {
@@ -251,6 +251,10 @@ impl<T: Real> Simulator<T> {
     pub fn state(&self) -> Vector2<T> {
         self.x
     }
+    /// Penetration `δ` (m) at the current state, as evaluated with the current step's field.
+    pub fn state_penetration(&self) -> T {
+        self.at_x.delta
+    }
     /// Current `(u, u̇)`, m and m/s.
     pub fn relative(&self) -> (T, T) {
         self.hammer.relative(&self.x)
@@ -286,7 +290,7 @@ impl<T: Real> Simulator<T> {
 
     /// Whether the hammer is clear of the surface: free region and `δ ≤ −η_δ`.
     #[inline(always)]
-    fn clear(&self, e: &FieldEval<T>) -> bool {
+    pub(super) fn clear(&self, e: &FieldEval<T>) -> bool {
         e.region == Region::Free && e.delta <= -self.hammer.switch.eta_delta
     }
 

@@ -84,6 +84,43 @@ pub struct FieldEval<T> {
     pub delta_dot: T,
 }
 
+/// The pendulum's free-flight `(θ̈, δ)` (1/s², m) from `sin θ`, `cos θ` and `sin Ωt`
+/// (Eq. 3-26 with `F_i = 0`): the one formula behind [`Hammer::free_accel`] and the lockstep
+/// lanes of `crate::integrate::lanes`.
+#[inline(always)]
+pub(crate) fn wires_free<T: Real>(
+    length: T,
+    g_over_l: T,
+    a0w2_over_l: T,
+    gap: T,
+    st: T,
+    ct: T,
+    sin_phase: T,
+) -> (T, T) {
+    (
+        a0w2_over_l * ct * sin_phase - g_over_l * st,
+        length * st - gap,
+    )
+}
+
+/// The beam hammer's free-flight `(ü, δ)` (m/s², m) from `u`, `u̇` and `sin Ωt` (Eq. 3-36 with
+/// `F_i = 0`, relative to the cart).
+#[inline(always)]
+pub(crate) fn beam_free<T: Real>(
+    k_over_m: T,
+    c_over_m: T,
+    a0w2: T,
+    gap: T,
+    u: T,
+    du: T,
+    sin_phase: T,
+) -> (T, T) {
+    (
+        -c_over_m * du - k_over_m * (u + u * u * u) + a0w2 * sin_phase,
+        u - gap,
+    )
+}
+
 /// A rig at one gap and one excitation frequency, in the float type `T`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hammer<T> {
@@ -260,23 +297,14 @@ impl<T: Real> Hammer<T> {
                 ..
             } => {
                 let (st, ct) = x[0].sin_cos();
-                (
-                    a0w2_over_l * ct * sin_phase - g_over_l * st,
-                    length * st - self.gap,
-                )
+                wires_free(length, g_over_l, a0w2_over_l, self.gap, st, ct, sin_phase)
             }
             Body::Beam {
                 k_over_m,
                 c_over_m,
                 a0w2,
                 ..
-            } => {
-                let u = x[0];
-                (
-                    -c_over_m * x[1] - k_over_m * (u + u * u * u) + a0w2 * sin_phase,
-                    u - self.gap,
-                )
-            }
+            } => beam_free(k_over_m, c_over_m, a0w2, self.gap, x[0], x[1], sin_phase),
         }
     }
 

@@ -38,7 +38,7 @@ pub struct Protocol {
     /// `steady_tol` so that a state that is still converging at the end of a full-length
     /// transient is not called irregular).
     pub classify_tol: f64,
-    /// Separation that ends an impact episode, m (1e-8; [`DEFAULT_SEPARATION_M`]): re-contacts
+    /// Separation that ends an impact episode, m (1e-6; [`DEFAULT_SEPARATION_M`]): re-contacts
     /// before the hammer has left the surface by this much belong to the same impact.
     #[serde(default = "default_separation_m")]
     pub separation_m: f64,
@@ -118,6 +118,9 @@ pub struct PointResult {
 /// Hooks into a protocol run; every method defaults to doing nothing.
 /// `window` tells whether the event lies in the observation window.
 pub trait Observer<T> {
+    /// Whether [`Observer::sample`] does anything. If not, steps in free flight clear of the
+    /// surface may be taken without calling it ([`ProtocolRun::free_flight_allowed`]).
+    const SAMPLES: bool = true;
     /// After every RK4 step or sub-step.
     fn sample(&mut self, _s: &StepSample<T>, _window: bool) {}
     /// At every Poincaré-section instant `t = kT`.
@@ -126,7 +129,9 @@ pub trait Observer<T> {
     fn impact(&mut self, _peak_n: T, _window: bool) {}
 }
 
-impl<T> Observer<T> for () {}
+impl<T> Observer<T> for () {
+    const SAMPLES: bool = false;
+}
 
 /// Runs the protocol from `sim`'s current state and phase. `weight_n` is `m g` (N) for `F_i/mg`.
 ///
@@ -273,6 +278,24 @@ impl<T: Real> ProtocolRun<T> {
         }
         self.done = Some(self.result(sim));
         self.done
+    }
+
+    /// Whether `sim` may now take whole free-flight steps outside [`ProtocolRun::step`]
+    /// ([`crate::integrate::lanes::free_flight`], which stops before every step that affects
+    /// the protocol: a Poincaré-section instant or one near the surface): the run is not done,
+    /// no impact episode is open, and the observer ignores samples. Such steps must be booked
+    /// with [`ProtocolRun::after_free_flight`].
+    #[inline]
+    pub fn free_flight_allowed<O: Observer<T>>(&self) -> bool {
+        !O::SAMPLES && self.done.is_none() && !self.tracker.in_episode()
+    }
+
+    /// Books free-flight steps taken on `sim` since the last [`ProtocolRun::step`]: in free
+    /// flight clear of the surface they change only the impact tracker's last penetration
+    /// (the force is 0, so the period's maximum stays).
+    #[inline]
+    pub fn after_free_flight(&mut self, sim: &Simulator<T>) {
+        self.tracker.clear_at(sim.state_penetration());
     }
 
     fn result(&self, sim: &Simulator<T>) -> PointResult {
