@@ -3,7 +3,9 @@
 //! 0.01), each point run with the f32 production settings and with f64 and 4× finer steps,
 //! sub-steps and bands; prints every disagreement and the summary.
 //!
-//! `cargo run --release -p host-sim --example grid_accuracy -- [SAMPLES=2000] [SEED=777]`
+//! `cargo run --release -p host-sim --example grid_accuracy -- [SAMPLES=2000] [SEED=777] [MODE]`
+//! with MODE `f32` (default: f32 production vs f64×4), `f64` (f64 at the production steps vs
+//! f64×4: what f32 costs) or `ref` (f64×4 vs f64×8: the reference's own reproducibility).
 
 use rayon::prelude::*;
 use shared::analysis::{SimSettings, evaluate_point};
@@ -14,9 +16,17 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let n: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(2000);
     let mut seed: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(777);
+    let mode = args.next().unwrap_or_else(|| "f32".into());
     let p = RigId::Wires.preset();
-    let s = SimSettings::default();
-    let r = s.refined(4);
+    let base = SimSettings::default();
+    let (s, r) = match mode.as_str() {
+        "f32" | "f64" => (base, base.refined(4)),
+        "ref" => (base.refined(4), base.refined(8)),
+        other => {
+            eprintln!("MODE must be f32, f64 or ref, not {other}");
+            std::process::exit(2);
+        }
+    };
     let fn_hz = p.natural_freq_hz();
     // Knuth's MMIX LCG: the sample depends only on the seed.
     let mut rnd = |m: u64| {
@@ -31,7 +41,12 @@ fn main() {
     let res: Vec<_> = pts
         .par_iter()
         .map(|&(g, f)| {
-            let a = evaluate_point::<f32>(&p, g * 1e-3, f / fn_hz, &s).expect("valid point");
+            let a = if mode == "f32" {
+                evaluate_point::<f32>(&p, g * 1e-3, f / fn_hz, &s)
+            } else {
+                evaluate_point::<f64>(&p, g * 1e-3, f / fn_hz, &s)
+            }
+            .expect("valid point");
             let b = evaluate_point::<f64>(&p, g * 1e-3, f / fn_hz, &r).expect("valid point");
             (g, f, a, b)
         })
@@ -57,7 +72,7 @@ fn main() {
                 }
             };
             println!(
-                "gap {g:.2} mm, {f:.2} Hz (Ω/ω {:.3}): f32 {} vs f64×4 {}  (F_i/mg {:.3} / {:.3}, transient {} / {}) — {kind}",
+                "gap {g:.2} mm, {f:.2} Hz (Ω/ω {:.3}): {mode} {} vs reference {}  (F_i/mg {:.3} / {:.3}, transient {} / {}) — {kind}",
                 f / fn_hz,
                 a.regime,
                 b.regime,

@@ -2,10 +2,13 @@
 //!
 //! One protocol run is a chain of dependent floating-point operations (each RK4 stage needs the
 //! previous one), so a single run leaves most of an out-of-order core idle. Stepping `L`
-//! independent runs in turn lets the core overlap their chains: on the development machine two
-//! lanes run 1.9× the steps per second of one. Results are exactly those of
-//! [`super::evaluate_point`] (each run is the same computation, only the order of
-//! instructions between runs changes). No allocation; an in-order MCU gains nothing from it.
+//! independent runs in turn lets the core overlap their chains. Each round first takes, for the
+//! runs clear of the surface, whole free-flight steps in lockstep
+//! ([`crate::integrate::lanes::free_flight`], vectorised across the lanes; only for observers
+//! that ignore per-step samples), then one ordinary step of every run (Poincaré sections,
+//! contact sub-steps). Results are exactly those of [`super::evaluate_point`] (each run is the
+//! same computation, only the order of instructions between runs changes; tested). No
+//! allocation; an in-order MCU gains nothing from it.
 
 use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
