@@ -1,8 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates the committed analysis figures (README "Bifurcation diagrams, Peterka maps and
 # basins" and "Selection"): about 5 minutes on 2 cores. Run from the repository root.
-# The beam-170 continuation figure and the hil/identify figures have their own commands in the
-# README and docs/identification.md.
+# The hil/identify figures have their own commands in the README and docs/identification.md.
 set -euo pipefail
 cargo build --release -p host-sim
 h=target/release/host-sim
@@ -14,6 +13,8 @@ for g in 0 1.0 2.4; do
     $h bifurcation --rig wires --gap-mm "$g" --omega-ratio 0.5:4.0:0.005 \
         --out /tmp/bifurcation-wires-gap$n.csv --plot "$f/bifurcation-wires-gap$n.png"
 done
+$h bifurcation --rig beam-170 --gap-mm 3.0 --omega-ratio 0.5:3.0:0.005 --continuation both \
+    --out /tmp/bifurcation-beam-170.csv --plot "$f/bifurcation-beam-170-gap3.0-continuation.png"
 $h select --rig wires --gap-mm 0 --out "$f/select-wires-gap0.csv" --plot "$f/select-wires-gap0.png"
 $h select --rig beam-170 --gap-mm 0 --out "$f/select-beam-170-gap0.csv" --plot "$f/select-beam-170-gap0.png"
 $h basins --rig wires --gap-mm 1.335 --omega-ratio 2.0 --u0-mm -4:1.335:200 --v0-mm-s -100:100:200 \

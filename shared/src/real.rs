@@ -129,14 +129,6 @@ fn horner<T: Copy + Add<Output = T> + Mul<Output = T>, const K: usize>(
     (x * s, c)
 }
 
-/// The Taylor tiers behind [`Real::sin_cos`] and [`Real::sin_cos_small`].
-trait SinCosTiers: Sized {
-    /// The tier for `|x| ≤ 1/8`.
-    fn tier_short(self) -> (Self, Self);
-    /// The tier for `|x| ≤ 1/2`.
-    fn tier_long(self) -> (Self, Self);
-}
-
 macro_rules! impl_real {
     ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
         impl Real for $t {
@@ -163,15 +155,22 @@ macro_rules! impl_real {
             }
             #[inline(always)]
             fn sin_cos_small(self) -> (Self, Self) {
-                self.tier_short()
+                // Taylor tiers truncated below half an ulp: this one for |x| ≤ 1/8 (the
+                // pendulum's angles, the excitation inside a step), the long one in `sin_cos`
+                // for |x| ≤ 1/2.
+                const S: [$t; $short] = tail!($t, $short, SIN_TAYLOR);
+                const C: [$t; $short] = tail!($t, $short, COS_TAYLOR);
+                horner(self, &S, &C)
             }
             #[inline(always)]
             fn sin_cos(self) -> (Self, Self) {
                 let a = $fabs(self);
                 if a <= 0.125 {
-                    self.tier_short()
+                    self.sin_cos_small()
                 } else if a <= 0.5 {
-                    self.tier_long()
+                    const S: [$t; $long] = tail!($t, $long, SIN_TAYLOR);
+                    const C: [$t; $long] = tail!($t, $long, COS_TAYLOR);
+                    horner(self, &S, &C)
                 } else {
                     ($sin(self), $cos(self))
                 }
@@ -195,23 +194,6 @@ macro_rules! impl_real {
             #[inline(always)]
             fn is_finite(self) -> bool {
                 <$t>::is_finite(self)
-            }
-        }
-
-        impl SinCosTiers for $t {
-            // Two Taylor tiers, each truncated below half an ulp: |x| ≤ 1/8 (the pendulum's
-            // angles, the excitation inside a step) and |x| ≤ 1/2.
-            #[inline(always)]
-            fn tier_short(self) -> ($t, $t) {
-                const S: [$t; $short] = tail!($t, $short, SIN_TAYLOR);
-                const C: [$t; $short] = tail!($t, $short, COS_TAYLOR);
-                horner(self, &S, &C)
-            }
-            #[inline(always)]
-            fn tier_long(self) -> ($t, $t) {
-                const S: [$t; $long] = tail!($t, $long, SIN_TAYLOR);
-                const C: [$t; $long] = tail!($t, $long, COS_TAYLOR);
-                horner(self, &S, &C)
             }
         }
     };

@@ -78,19 +78,20 @@ struct LaneConst<T> {
     h: T,
 }
 
-/// Free-flight `(acceleration, δ)` of state `(y0, y1)` for wires (`c0, c1, c2 = l, g/l,
-/// A0Ω²/l`, `y0 = θ`) or beams (`k/m, c/m, A0Ω²`), and whether the short sine polynomial was in
-/// range.
+/// Free-flight `(acceleration, δ, δ̇)` of state `(y0, y1)` for wires (`c0, c1, c2 = l, g/l,
+/// A0Ω²/l`, `y0 = θ`; `δ̇ = l θ̇ cos θ` as in the field's kinematics) or beams (`k/m, c/m,
+/// A0Ω²`), and whether the short sine polynomial was in range. (The RK4 stages use only the
+/// first two; the compiler drops `δ̇` there.)
 #[inline(always)]
-fn free<T: Real, const WIRES: bool>(c: &LaneConst<T>, y0: T, y1: T, s: T) -> (T, T, bool) {
+fn free<T: Real, const WIRES: bool>(c: &LaneConst<T>, y0: T, y1: T, s: T) -> (T, T, T, bool) {
     if WIRES {
         let (st, ct) = y0.sin_cos_small();
         let lim = T::from_f64(0.125);
         let (acc, d) = wires_free(c.c0, c.c1, c.c2, c.gap, st, ct, s);
-        (acc, d, y0 <= lim && y0 >= -lim)
+        (acc, d, c.c0 * y1 * ct, y0 <= lim && y0 >= -lim)
     } else {
         let (acc, d) = beam_free(c.c0, c.c1, c.c2, c.gap, y0, y1, s);
-        (acc, d, true)
+        (acc, d, y1, true)
     }
 }
 
@@ -111,22 +112,16 @@ fn trial<T: Real, const WIRES: bool>(
     // rk4_step with k1 = (x1, a): the same operations in the same order.
     let hh = h * half;
     let (y2_0, y2_1) = (th + w * hh, w + acc0 * hh);
-    let (a2, d2, ok2) = free::<T, WIRES>(c, y2_0, y2_1, s_mid);
+    let (a2, d2, _, ok2) = free::<T, WIRES>(c, y2_0, y2_1, s_mid);
     let (y3_0, y3_1) = (th + y2_1 * hh, w + a2 * hh);
-    let (a3, d3, ok3) = free::<T, WIRES>(c, y3_0, y3_1, s_mid);
+    let (a3, d3, _, ok3) = free::<T, WIRES>(c, y3_0, y3_1, s_mid);
     let (y4_0, y4_1) = (th + y3_1 * h, w + a3 * h);
-    let (a4, d4, ok4) = free::<T, WIRES>(c, y4_0, y4_1, s_end);
+    let (a4, d4, _, ok4) = free::<T, WIRES>(c, y4_0, y4_1, s_end);
     let h6 = h * sixth;
     let n0 = th + (w + y2_1 * two + y3_1 * two + y4_1) * h6;
     let n1 = w + (acc0 + a2 * two + a3 * two + a4) * h6;
     // The end state's field (`field_in(Free, ..)`: the force is 0).
-    let (a5, d5, ok5) = free::<T, WIRES>(c, n0, n1, s_end);
-    let dd5 = if WIRES {
-        let (_, ct) = n0.sin_cos_small();
-        c.c0 * n1 * ct
-    } else {
-        n1
-    };
+    let (a5, d5, dd5, ok5) = free::<T, WIRES>(c, n0, n1, s_end);
     let neg_eta = -eta;
     let touched = (d2 > neg_eta) | (d3 > neg_eta) | (d4 > neg_eta);
     let mut near = touched | (d5 > neg_eta);
