@@ -284,6 +284,16 @@ impl<T: Real> Hammer<T> {
         }
     }
 
+    /// The part of the second component of `ẋ` that a contact force `force` (N) causes, in the
+    /// state's units (wires: `F/(m l)`, rad/s²; beams: `F/m`, m/s²), with the sign of `F`.
+    #[inline(always)]
+    pub fn contact_accel(&self, force: T) -> T {
+        match self.body {
+            Body::Wires { inv_ml, .. } => force * inv_ml,
+            Body::Beam { inv_m, .. } => force * inv_m,
+        }
+    }
+
     /// The free-flight field `f−` at `x` as `(acceleration, δ)` (the second component of `ẋ`,
     /// and the penetration in m): [`Hammer::field_in`] with [`FieldMode::Free`] without the rest
     /// of the [`FieldEval`], bit for bit the same numbers (the integrator's hot path).
