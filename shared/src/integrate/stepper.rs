@@ -41,11 +41,14 @@ pub const MAX_STEPS_PER_PERIOD: u32 = 512;
 /// Largest `M = ceil(h/h_c)`, contact sub-steps per step.
 const MAX_SUBSTEPS: f64 = 1e6;
 
-/// Sub-steps per contact sub-step while the hammer rests on the surface ([`Simulator`]): RK4
-/// at `ω_c · 4 h_c = π/4` (production `K = 16`: 4 such sub-steps per contact half-period) still damps the contact's own
-/// oscillation as the exact solution does to 0.3 % per step (`|R(λh)|` 0.6945 vs `e^{Re λh}`
-/// 0.6923 at the rig's contact damping ratio 0.469).
-pub const RESTING_SUBSTEPS: u32 = 4;
+/// Contact sub-steps `h_c` per sub-step while the hammer rests on the surface
+/// ([`Simulator`]). At the production `K = 16` that is `ω_c · 8 h_c = π/2`, inside RK4's
+/// stability region with room to spare (`|R(λh)|` 0.55 per sub-step at the rig's contact damping
+/// ratio 0.469, exact `e^{Re λh}` 0.48): the contact's own oscillation, which the resting test
+/// has already found below `ε`, keeps dying out, and the slow quasi-static motion (time scale
+/// `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy. Measured on the 2,000-point accuracy sample:
+/// the regime agreement with the f64 reference stays within its run-to-run scatter (README).
+pub const RESTING_SUBSTEPS: u32 = 8;
 
 /// `ε` of the resting test: the contact force balances the others to `ε`, and the
 /// penetration rate is below `ε ω_c δ`.
