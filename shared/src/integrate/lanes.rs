@@ -141,7 +141,7 @@ fn trial<T: Real, const WIRES: bool>(
 }
 
 /// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further
-/// ones are left alone) in lockstep, as long as at least half of the lanes that started can
+/// ones are left alone) in lockstep, as long as at least a quarter of the lanes that started can
 /// go on. A simulator takes part if it has the first one's `N`, suspension type and band
 /// `η_δ`, is clear of the surface, and is not at its period's last step. Returns the steps
 /// each took (0 for those that did not take part). Each simulator ends exactly where the same
@@ -225,7 +225,7 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -
     if started == 0 {
         return taken;
     }
-    let stop_below = started.div_ceil(2);
+    let stop_below = started.div_ceil(4);
     let table = &sims[0].sin_half;
     loop {
         let active = rem.iter().filter(|&&r| r > 0).count();
@@ -291,7 +291,7 @@ mod tests {
     use crate::model::RigId;
 
     /// Lockstep steps leave every simulator exactly where as many scalar steps do, and they do
-    /// run (from rest, far from the surface, until the period's last step or half the lanes stop).
+    /// run (from rest, far from the surface, until the period's last step or three quarters of the lanes stop).
     fn check(rig: RigId, gap_m: f64) {
         let p = rig.preset();
         let s = SimSettings::default();
