@@ -58,6 +58,21 @@ impl<T: Real, const L: usize> States<T, L> {
             dd: self.dd[i],
         }
     }
+    /// Takes lane `i` from `next` where `go[i]` is 1, keeps it where 0.
+    #[inline(always)]
+    fn select(&mut self, go: &[u32; L], next: &Self) {
+        #[inline(always)]
+        fn pick<T: Copy, const L: usize>(cur: &mut [T; L], new: &[T; L], go: &[u32; L]) {
+            for i in 0..L {
+                cur[i] = if go[i] != 0 { new[i] } else { cur[i] };
+            }
+        }
+        pick(&mut self.x0, &next.x0, go);
+        pick(&mut self.x1, &next.x1, go);
+        pick(&mut self.a, &next.a, go);
+        pick(&mut self.d, &next.d, go);
+        pick(&mut self.dd, &next.dd, go);
+    }
     #[inline(always)]
     fn set(&mut self, i: usize, s: LaneState<T>) {
         self.x0[i] = s.x0;
@@ -147,21 +162,21 @@ fn trial<T: Real, const WIRES: bool>(
 /// each took (0 for those that did not take part). Each simulator ends exactly where the same
 /// number of [`Simulator::step`] calls would have left it.
 ///
-/// With the `std` feature on x86-64 (the host), the kernel runs as AVX code when the CPU has
-/// AVX (chosen at run time: 8 `f32` lanes per register instead of 4): the same operations in
-/// the same order, no fused multiply-add, so the same bits.
+/// With the `std` feature on x86-64 (the host), the kernel runs as AVX2 code when the CPU has
+/// it (chosen at run time: 8 `f32` lanes per register instead of 4): the same operations in the
+/// same order, no fused multiply-add, so the same bits.
 pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -> [u32; L] {
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx") {
-        // SAFETY: the CPU supports AVX (checked just above).
+    if std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX and AVX2 (checked just above).
         return unsafe { free_flight_avx::<T, L>(sims) };
     }
     free_flight_kernel::<T, L>(sims)
 }
 
-/// [`free_flight`] compiled for AVX.
+/// [`free_flight`] compiled for AVX2.
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx")]
+#[target_feature(enable = "avx,avx2")]
 fn free_flight_avx<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -> [u32; L] {
     free_flight_kernel::<T, L>(sims)
 }
@@ -255,13 +270,16 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -
                 ok[i] = o;
             }
         }
+        // Branch-free, one array at a time (so that it vectorises too).
+        let mut go = [0u32; L];
         for i in 0..L {
-            let go = rem[i] > 0 && ok[i];
-            let (cur, new) = (state.get(i), next.get(i));
-            state.set(i, if go { new } else { cur });
-            k[i] += u32::from(go);
-            rem[i] = if go { rem[i] - 1 } else { 0 };
-            taken[i] += u32::from(go);
+            go[i] = u32::from((rem[i] > 0) & ok[i]);
+        }
+        state.select(&go, &next);
+        for i in 0..L {
+            k[i] += go[i];
+            rem[i] = (rem[i] - go[i]) * go[i];
+            taken[i] += go[i];
         }
     }
     for (i, sim) in sims.iter_mut().take(lanes).enumerate() {
