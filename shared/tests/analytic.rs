@@ -194,7 +194,8 @@ fn hunt_crossley_and_lankarani_nikravesh_match_an_f64_reference() {
 /// chattering/resting `3/1` regime (Ω/ω 0.6) and in the `1/1` band (Ω/ω 2.0), the f32
 /// production run gives the regime and `F_i/mg` (to 1 %) of f64 with 4× finer steps, sub-steps
 /// and bands, at a cost in RK4 steps per period that only the long sub-steps reach (5,326 and
-/// 128 per period with sub-steps of `h_c` everywhere).
+/// 128 per period at the previous version, with sub-steps of `h_c` everywhere; 5,189 at Ω/ω 0.6
+/// with today's other changes but resting sub-steps of `h_c`).
 #[test]
 fn long_substeps_keep_resting_and_impacting_results() {
     use shared::analysis::{SimSettings, evaluate_point};

@@ -360,22 +360,10 @@ impl<T: Real> Simulator<T> {
                 }
             }
             first = false;
-            if let Some(len) = self.receding_len(rest) {
-                if len >= rest {
-                    self.substep(offset, rest, s_end);
-                    self.finish_step(observe);
-                    return;
-                }
-                self.substep(offset, len, self.sin_at(offset + len));
-                offset += len;
-                rest -= len;
-                observe(&self.sample(offset, false));
-                continue;
-            }
-            let len = if self.resting() {
-                self.h_c * T::from_u32(RESTING_SUBSTEPS)
-            } else {
-                self.h_c
+            let len = match self.receding_len(rest) {
+                Some(len) => len,
+                None if self.resting() => self.h_c * T::from_u32(RESTING_SUBSTEPS),
+                None => self.h_c,
             };
             if rest <= len {
                 self.substep(offset, rest, s_end);

@@ -260,26 +260,27 @@ impl<T: Real> Hammer<T> {
                 length,
                 g_over_l,
                 a0w2_over_l,
-                inv_ml,
+                ..
             } => {
                 let excitation = match drive {
                     Drive::Harmonic(sin_phase) => a0w2_over_l * ct * sin_phase,
                     Drive::Cart(cart_accel) => T::zero() - cart_accel / length * ct,
                 };
-                excitation - g_over_l * st - force * inv_ml
+                excitation - g_over_l * st - self.contact_accel(force)
             }
             Body::Beam {
                 k_over_m,
                 c_over_m,
                 a0w2,
-                inv_m,
+                ..
             } => {
                 let u = x[0];
                 let excitation = match drive {
                     Drive::Harmonic(sin_phase) => a0w2 * sin_phase,
                     Drive::Cart(cart_accel) => T::zero() - cart_accel,
                 };
-                -c_over_m * x[1] - k_over_m * (u + u * u * u) - force * inv_m + excitation
+                -c_over_m * x[1] - k_over_m * (u + u * u * u) - self.contact_accel(force)
+                    + excitation
             }
         }
     }
