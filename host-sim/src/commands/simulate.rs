@@ -120,7 +120,7 @@ pub fn time_series<T: Real>(
     }];
     for _ in 0..periods {
         sim.run_period(&mut |s: &StepSample<T>| {
-            match tracker.update(s.delta, s.force) {
+            match tracker.update(s.delta, s.delta_min, s.force) {
                 Some(ImpactEvent::Arrival) => summary.impacts += 1,
                 Some(ImpactEvent::End { peak_n }) => {
                     summary.max_force_mg = summary.max_force_mg.max(peak_n.to_f64() / mg);

@@ -177,7 +177,7 @@ pub fn run_drop<T: Real, F: FnMut(&DropRecord)>(
                 du_m_s: du.to_f64(),
                 force_n: force,
             }));
-            match tracker.update(s.delta, s.force) {
+            match tracker.update(s.delta, s.delta_min, s.force) {
                 Some(ImpactEvent::Arrival) => {
                     current = Some(DropImpact {
                         index: summary.impacts,

@@ -29,6 +29,7 @@
 use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 
+use super::dense::{DenseStep, hermite_min, root_in_unit};
 use super::rk4::rk4_step;
 use crate::error::{ParamError, check_count, check_range};
 use crate::model::hammer::{FieldEval, FieldMode};
@@ -120,6 +121,10 @@ pub struct StepSample<T> {
     pub x: Vector2<T>,
     /// Penetration `δ`, m.
     pub delta: T,
+    /// Smallest penetration since the previous sample, m (`≤ delta`): the cubic Hermite
+    /// interpolant of `δ` (from `δ`, `δ̇` at both ends) over the segment this sample ends, so
+    /// that a hop off the surface between two samples shows (`crate::observe::impact`).
+    pub delta_min: T,
     /// Penetration rate `δ̇ = u̇`, m/s.
     pub delta_dot: T,
     /// Contact force `F_i`, N.
@@ -133,6 +138,14 @@ impl<T: Real> StepSample<T> {
     pub fn time_s(&self, step_s: f64) -> f64 {
         self.step as f64 * step_s + self.offset.to_f64()
     }
+}
+
+/// Penetration and its rate where a segment (a free-flight step or segment, or a sub-step)
+/// starts, `offset` s into the current step.
+struct SegmentStart<T> {
+    offset: T,
+    delta: T,
+    delta_dot: T,
 }
 
 /// Fixed-step switch-model integrator for one rig, gap and excitation frequency.
@@ -330,6 +343,12 @@ impl<T: Real> Simulator<T> {
         let mut rest = self.h;
         let mut first = true;
         loop {
+            // Where this segment starts (for the smallest δ over it, reported with its sample).
+            let seg = SegmentStart {
+                offset,
+                delta: self.at_x.delta,
+                delta_dot: self.at_x.delta_dot,
+            };
             if self.clear(&self.at_x) {
                 let (sm, se) = if first {
                     (s_mid, s_end)
@@ -340,7 +359,7 @@ impl<T: Real> Simulator<T> {
                     Ok((x1, end)) => {
                         self.x = x1;
                         self.at_x = end;
-                        self.finish_step(observe);
+                        self.finish_step(&seg, observe);
                         return;
                     }
                     Err(t_near) => {
@@ -353,7 +372,7 @@ impl<T: Real> Simulator<T> {
                             offset += tau;
                             rest -= tau;
                             first = false;
-                            observe(&self.sample(offset, false));
+                            observe(&self.sample(offset, false, &seg));
                             continue;
                         }
                     }
@@ -367,14 +386,14 @@ impl<T: Real> Simulator<T> {
             };
             if rest <= len {
                 self.substep(offset, rest, s_end);
-                self.finish_step(observe);
+                self.finish_step(&seg, observe);
                 return;
             }
             let s_next = self.sin_at(offset + len);
             self.substep(offset, len, s_next);
             offset += len;
             rest -= len;
-            observe(&self.sample(offset, false));
+            observe(&self.sample(offset, false, &seg));
         }
     }
 
@@ -593,8 +612,8 @@ impl<T: Real> Simulator<T> {
 
     /// Ends the current step: advances the step counters and reports the sample.
     #[inline(always)]
-    fn finish_step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
-        let sample = self.sample(self.h, true);
+    fn finish_step<O: FnMut(&StepSample<T>)>(&mut self, seg: &SegmentStart<T>, observe: &mut O) {
+        let sample = self.sample(self.h, true, seg);
         self.steps += 1;
         self.k += 1;
         if self.k == self.n {
@@ -605,15 +624,23 @@ impl<T: Real> Simulator<T> {
     }
 
     #[inline(always)]
-    fn sample(&self, offset: T, step_end: bool) -> StepSample<T> {
+    fn sample(&self, offset: T, step_end: bool, seg: &SegmentStart<T>) -> StepSample<T> {
+        let e = &self.at_x;
         StepSample {
             step: self.steps,
             offset,
             period_end: step_end && self.k + 1 == self.n,
             x: self.x,
-            delta: self.at_x.delta,
-            delta_dot: self.at_x.delta_dot,
-            force: self.at_x.force,
+            delta: e.delta,
+            delta_min: hermite_min(
+                seg.delta,
+                seg.delta_dot,
+                e.delta,
+                e.delta_dot,
+                offset - seg.offset,
+            ),
+            delta_dot: e.delta_dot,
+            force: e.force,
             region: self.at_x.region,
         }
     }
@@ -625,75 +652,4 @@ impl<T: Real> Simulator<T> {
             self.step(observe);
         }
     }
-}
-
-/// One RK4 step's cubic Hermite dense output: from `x0` with slope `f0` to `x1` with slope
-/// `f1` over `h` seconds.
-struct DenseStep<T: Real> {
-    x0: Vector2<T>,
-    f0: Vector2<T>,
-    x1: Vector2<T>,
-    f1: Vector2<T>,
-    h: T,
-}
-
-impl<T: Real> DenseStep<T> {
-    /// The interpolated state at fraction `s ∈ [0, 1]` of the step.
-    #[inline(always)]
-    fn at(&self, s: T) -> Vector2<T> {
-        let one = T::from_f64(1.0);
-        let two = T::from_f64(2.0);
-        let three = T::from_f64(3.0);
-        let s2 = s * s;
-        let s3 = s2 * s;
-        let h00 = two * s3 - three * s2 + one;
-        let h10 = (s3 - two * s2 + s) * self.h;
-        let h01 = three * s2 - two * s3;
-        let h11 = (s3 - s2) * self.h;
-        self.x0 * h00 + self.f0 * h10 + self.x1 * h01 + self.f1 * h11
-    }
-}
-
-/// The upper end of a bracket `[lo, hi] ⊂ [0, 1]` (below `2^-14` wide: 3 ns of a 45 µs sub-step, a
-/// 0.2 nm change of `δ` at 0.06 m/s; or after 40
-/// evaluations) of a rising zero of `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end
-/// of the interval): Illinois regula falsi (superlinear on the smooth event functions here,
-/// each iteration shrinks the bracket), with a bisection step whenever the secant stalls.
-#[inline]
-fn root_in_unit<T: Real, G: Fn(T) -> T>(g: G) -> T {
-    let half = T::from_f64(0.5);
-    let tol = T::from_f64(1.0 / f64::from(1u32 << 14));
-    let (mut lo, mut hi) = (T::zero(), T::from_f64(1.0));
-    let (mut g_lo, mut g_hi) = (g(lo), g(hi));
-    if !(g_lo <= T::zero() && g_hi > T::zero()) {
-        return if g_lo > T::zero() { lo } else { hi };
-    }
-    let mut side = 0i8;
-    for _ in 0..40 {
-        if hi - lo <= tol {
-            break;
-        }
-        let mut mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
-        let width = hi - lo;
-        if !(mid > lo + width * T::from_f64(1e-3) && mid < hi - width * T::from_f64(1e-3)) {
-            mid = (lo + hi) * half;
-        }
-        let g_mid = g(mid);
-        if g_mid > T::zero() {
-            hi = mid;
-            g_hi = g_mid;
-            if side == 1 {
-                g_lo *= half;
-            }
-            side = 1;
-        } else {
-            lo = mid;
-            g_lo = g_mid;
-            if side == -1 {
-                g_hi *= half;
-            }
-            side = -1;
-        }
-    }
-    hi
 }

@@ -51,18 +51,23 @@ impl<T: Real> ImpactTracker<T> {
         }
     }
 
-    /// Feeds one sample: penetration `delta` (m) and contact force `force` (N).
+    /// Feeds one sample: penetration `delta` (m), the smallest penetration since the previous
+    /// sample `delta_min` (m, `≤ delta`; [`crate::integrate::StepSample::delta_min`], or `delta`
+    /// itself for samples without a trajectory between them) and contact force `force` (N).
     #[inline(always)]
-    pub fn update(&mut self, delta: T, force: T) -> Option<ImpactEvent<T>> {
+    pub fn update(&mut self, delta: T, delta_min: T, force: T) -> Option<ImpactEvent<T>> {
         let zero = T::zero();
         let prev = self.prev_delta;
         self.prev_delta = delta;
         if self.in_episode {
-            self.peak = self.peak.max_of(force);
-            if delta < -self.separation {
+            if delta_min < -self.separation {
+                // Left by the separation since the last sample (perhaps between samples, so
+                // that a return with `δ > 0` already counts as the next arrival).
                 self.in_episode = false;
+                self.prev_delta = delta_min;
                 return Some(ImpactEvent::End { peak_n: self.peak });
             }
+            self.peak = self.peak.max_of(force);
             None
         } else if prev <= zero && delta > zero {
             self.in_episode = true;
@@ -114,7 +119,7 @@ mod tests {
             (1e-6, 9.0), // a new arrival
             (-1e-6, 0.0),
         ];
-        let events: Vec<_> = trace.iter().filter_map(|&(d, f)| t.update(d, f)).collect();
+        let events: Vec<_> = trace.iter().filter_map(|&(d, f)| t.update(d, d, f)).collect();
         assert_eq!(
             events,
             vec![
@@ -124,5 +129,21 @@ mod tests {
                 ImpactEvent::End { peak_n: 9.0 },
             ]
         );
+    }
+
+    #[test]
+    fn a_hop_beyond_the_separation_between_samples_ends_the_impact() {
+        let mut t = ImpactTracker::<f64>::new(1e-6, -1e-3);
+        assert_eq!(t.update(2e-6, 2e-6, 30.0), Some(ImpactEvent::Arrival));
+        // Both samples within 1 µm of the surface, but the hammer was 1.2 µm away in between.
+        assert_eq!(t.update(-3e-7, -3e-7, 0.0), None);
+        assert_eq!(t.update(-2e-7, -1.2e-6, 0.0), Some(ImpactEvent::End { peak_n: 30.0 }));
+        assert_eq!(t.update(1e-7, 1e-7, 4.0), Some(ImpactEvent::Arrival));
+        // The same hop at 0.8 µm is one episode with the re-contact.
+        let mut t = ImpactTracker::<f64>::new(1e-6, -1e-3);
+        t.update(2e-6, 2e-6, 30.0);
+        assert_eq!(t.update(-2e-7, -8e-7, 0.0), None);
+        assert_eq!(t.update(1e-7, 1e-7, 40.0), None);
+        assert_eq!(t.update(-2e-6, -2e-6, 0.0), Some(ImpactEvent::End { peak_n: 40.0 }));
     }
 }

@@ -229,7 +229,7 @@ impl<T: Real> ProtocolRun<T> {
         let fmax = &mut self.period_force;
         sim.step(&mut |s: &StepSample<T>| {
             *fmax = fmax.max_of(s.force);
-            match tracker.update(s.delta, s.force) {
+            match tracker.update(s.delta, s.delta_min, s.force) {
                 Some(ImpactEvent::Arrival) => *arrivals = arrivals.saturating_add(1),
                 Some(ImpactEvent::End { peak_n }) => obs.impact(peak_n, window),
                 None => {}
