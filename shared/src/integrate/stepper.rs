@@ -30,7 +30,7 @@ use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 
 use super::dense::{DenseStep, hermite_min, root_in_unit};
-use super::rk4::rk4_step;
+use super::rk4::rk4_step_compensated;
 use crate::error::{ParamError, check_count, check_range};
 use crate::model::hammer::{FieldEval, FieldMode};
 use crate::model::{Hammer, Region, RigParams, SwitchBands};
@@ -153,6 +153,8 @@ struct SegmentStart<T> {
 pub struct Simulator<T: Real> {
     pub(super) hammer: Hammer<T>,
     pub(super) x: Vector2<T>,
+    /// Rounding error of `x`'s compensated updates (see `rk4_step_compensated`).
+    pub(super) carry: Vector2<T>,
     /// Field at `x` (RK4's first stage of the next step).
     pub(super) at_x: FieldEval<T>,
     pub(super) n: u32,
@@ -241,6 +243,7 @@ impl<T: Real> Simulator<T> {
         Ok(Simulator {
             hammer,
             x,
+            carry: Vector2::new(T::zero(), T::zero()),
             at_x,
             n,
             k: 0,
@@ -274,6 +277,7 @@ impl<T: Real> Simulator<T> {
     /// Restarts at phase 0 from state vector `x` (keeps the rig and frequency).
     pub fn reset_state(&mut self, x: Vector2<T>) {
         self.x = x;
+        self.carry = Vector2::new(T::zero(), T::zero());
         self.k = 0;
         self.period = 0;
         self.steps = 0;
@@ -356,8 +360,9 @@ impl<T: Real> Simulator<T> {
                     (self.sin_at(offset + rest * T::from_f64(0.5)), s_end)
                 };
                 match self.free_trial(rest, sm, se) {
-                    Ok((x1, end)) => {
+                    Ok((x1, carry, end)) => {
                         self.x = x1;
+                        self.carry = carry;
                         self.at_x = end;
                         self.finish_step(&seg, observe);
                         return;
@@ -441,7 +446,12 @@ impl<T: Real> Simulator<T> {
     /// the segment's start) at which the trial's dense output first comes within `η_δ` of the
     /// surface, or peaks.
     #[inline(always)]
-    fn free_trial(&mut self, rest: T, s_mid: T, s_end: T) -> Result<(Vector2<T>, FieldEval<T>), T> {
+    fn free_trial(
+        &mut self,
+        rest: T,
+        s_mid: T,
+        s_end: T,
+    ) -> Result<(Vector2<T>, Vector2<T>, FieldEval<T>), T> {
         let hammer = self.hammer;
         let eta = hammer.switch.eta_delta;
         let v_in = self.approach_speed;
@@ -449,11 +459,19 @@ impl<T: Real> Simulator<T> {
         // In free flight `f−` (so that the trial is the free dense output used below); a stage
         // within η_δ of the surface is where the switch model would have left `Γ−`.
         let mut touched = false;
-        let x1 = rk4_step(&self.x, &start.dx, rest, s_mid, s_end, |y, s| {
-            let (acc, delta) = hammer.free_accel(y, s);
-            touched |= delta > -eta;
-            Vector2::new(y[1], acc)
-        });
+        let (x1, carry1) = rk4_step_compensated(
+            &self.x,
+            &self.carry,
+            &start.dx,
+            rest,
+            s_mid,
+            s_end,
+            |y, s| {
+                let (acc, delta) = hammer.free_accel(y, s);
+                touched |= delta > -eta;
+                Vector2::new(y[1], acc)
+            },
+        );
         // Clear of the surface, the free field is the switch-model field.
         let end = hammer.field_in(FieldMode::Free, &x1, s_end, v_in);
         self.rk4_steps += 1;
@@ -465,7 +483,7 @@ impl<T: Real> Simulator<T> {
             near = start.delta + start.delta_dot * t_star > -eta;
         }
         if !near {
-            return Ok((x1, end));
+            return Ok((x1, carry1, end));
         }
         // Where the free-flight dense output first comes near the surface (or peaks).
         let dense = DenseStep {
@@ -512,9 +530,15 @@ impl<T: Real> Simulator<T> {
         let v_in = self.approach_speed;
         let s_mid = self.sin_at(offset + len * T::from_f64(0.5));
         let s_end = self.sin_at(offset + len);
-        self.x = rk4_step(&self.x, &self.at_x.dx, len, s_mid, s_end, |y, s| {
-            hammer.field_in(FieldMode::Free, y, s, v_in).dx
-        });
+        (self.x, self.carry) = rk4_step_compensated(
+            &self.x,
+            &self.carry,
+            &self.at_x.dx,
+            len,
+            s_mid,
+            s_end,
+            |y, s| hammer.field_in(FieldMode::Free, y, s, v_in).dx,
+        );
         self.at_x = hammer.field(&self.x, s_end, v_in);
         self.rk4_steps += 1;
     }
@@ -555,12 +579,14 @@ impl<T: Real> Simulator<T> {
                 hammer.field_in(mode, &self.x, self.sin_at(offset), v_in)
             }
         };
-        let trial = rk4_step(&self.x, &k1.dx, len, s_mid, s_end, |y, s| {
-            hammer.field_in(mode, y, s, v_in).dx
-        });
+        let (trial, carry) =
+            rk4_step_compensated(&self.x, &self.carry, &k1.dx, len, s_mid, s_end, |y, s| {
+                hammer.field_in(mode, y, s, v_in).dx
+            });
         let end = hammer.field(&trial, s_end, v_in);
         if end.region.touching() == touching {
             self.x = trial;
+            self.carry = carry;
             self.at_x = end;
             return;
         }
@@ -597,8 +623,9 @@ impl<T: Real> Simulator<T> {
         let v_in = self.approach_speed;
         let rest = len - tau;
         let at_a = hammer.field(&x_a, self.sin_at(offset + tau), v_in);
-        self.x = rk4_step(
+        (self.x, self.carry) = rk4_step_compensated(
             &x_a,
+            &Vector2::new(T::zero(), T::zero()),
             &at_a.dx,
             rest,
             self.sin_at(offset + tau + rest * half),

@@ -119,7 +119,10 @@ mod tests {
             (1e-6, 9.0), // a new arrival
             (-1e-6, 0.0),
         ];
-        let events: Vec<_> = trace.iter().filter_map(|&(d, f)| t.update(d, d, f)).collect();
+        let events: Vec<_> = trace
+            .iter()
+            .filter_map(|&(d, f)| t.update(d, d, f))
+            .collect();
         assert_eq!(
             events,
             vec![
@@ -137,13 +140,19 @@ mod tests {
         assert_eq!(t.update(2e-6, 2e-6, 30.0), Some(ImpactEvent::Arrival));
         // Both samples within 1 µm of the surface, but the hammer was 1.2 µm away in between.
         assert_eq!(t.update(-3e-7, -3e-7, 0.0), None);
-        assert_eq!(t.update(-2e-7, -1.2e-6, 0.0), Some(ImpactEvent::End { peak_n: 30.0 }));
+        assert_eq!(
+            t.update(-2e-7, -1.2e-6, 0.0),
+            Some(ImpactEvent::End { peak_n: 30.0 })
+        );
         assert_eq!(t.update(1e-7, 1e-7, 4.0), Some(ImpactEvent::Arrival));
         // The same hop at 0.8 µm is one episode with the re-contact.
         let mut t = ImpactTracker::<f64>::new(1e-6, -1e-3);
         t.update(2e-6, 2e-6, 30.0);
         assert_eq!(t.update(-2e-7, -8e-7, 0.0), None);
         assert_eq!(t.update(1e-7, 1e-7, 40.0), None);
-        assert_eq!(t.update(-2e-6, -2e-6, 0.0), Some(ImpactEvent::End { peak_n: 40.0 }));
+        assert_eq!(
+            t.update(-2e-6, -2e-6, 0.0),
+            Some(ImpactEvent::End { peak_n: 40.0 })
+        );
     }
 }
