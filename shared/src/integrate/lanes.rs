@@ -18,15 +18,12 @@ use crate::model::Region;
 use crate::model::hammer::{Body, FieldEval, beam_free, wires_free};
 use crate::real::Real;
 
-/// One lane's state between lockstep steps: `x = (x0, x1)` and the carry `(c0, c1)` of its
-/// compensated updates, the field's second component `a` at `x`, penetration `d` and its rate
-/// `dd`.
+/// One lane's state between lockstep steps: `x = (x0, x1)`, the field's second component `a`
+/// at `x`, penetration `d` and its rate `dd`.
 #[derive(Clone, Copy, Default)]
 struct LaneState<T> {
     x0: T,
     x1: T,
-    c0: T,
-    c1: T,
     a: T,
     d: T,
     dd: T,
@@ -36,8 +33,6 @@ struct LaneState<T> {
 struct States<T, const L: usize> {
     x0: [T; L],
     x1: [T; L],
-    c0: [T; L],
-    c1: [T; L],
     a: [T; L],
     d: [T; L],
     dd: [T; L],
@@ -48,8 +43,6 @@ impl<T: Real, const L: usize> States<T, L> {
         States {
             x0: [T::zero(); L],
             x1: [T::zero(); L],
-            c0: [T::zero(); L],
-            c1: [T::zero(); L],
             a: [T::zero(); L],
             d: [T::zero(); L],
             dd: [T::zero(); L],
@@ -60,8 +53,6 @@ impl<T: Real, const L: usize> States<T, L> {
         LaneState {
             x0: self.x0[i],
             x1: self.x1[i],
-            c0: self.c0[i],
-            c1: self.c1[i],
             a: self.a[i],
             d: self.d[i],
             dd: self.dd[i],
@@ -78,8 +69,6 @@ impl<T: Real, const L: usize> States<T, L> {
         }
         pick(&mut self.x0, &next.x0, go);
         pick(&mut self.x1, &next.x1, go);
-        pick(&mut self.c0, &next.c0, go);
-        pick(&mut self.c1, &next.c1, go);
         pick(&mut self.a, &next.a, go);
         pick(&mut self.d, &next.d, go);
         pick(&mut self.dd, &next.dd, go);
@@ -88,8 +77,6 @@ impl<T: Real, const L: usize> States<T, L> {
     fn set(&mut self, i: usize, s: LaneState<T>) {
         self.x0[i] = s.x0;
         self.x1[i] = s.x1;
-        self.c0[i] = s.c0;
-        self.c1[i] = s.c1;
         self.a[i] = s.a;
         self.d[i] = s.d;
         self.dd[i] = s.dd;
@@ -137,7 +124,7 @@ fn trial<T: Real, const WIRES: bool>(
     let sixth = T::from_f64(1.0 / 6.0);
     let two = T::from_f64(2.0);
     let (h, th, w, acc0) = (c.h, st.x0, st.x1, st.a);
-    // rk4_step_compensated with k1 = (x1, a): the same operations in the same order.
+    // rk4_step with k1 = (x1, a): the same operations in the same order.
     let hh = h * half;
     let (y2_0, y2_1) = (th + w * hh, w + acc0 * hh);
     let (a2, d2, _, ok2) = free::<T, WIRES>(c, y2_0, y2_1, s_mid);
@@ -146,9 +133,8 @@ fn trial<T: Real, const WIRES: bool>(
     let (y4_0, y4_1) = (th + y3_1 * h, w + a3 * h);
     let (a4, d4, _, ok4) = free::<T, WIRES>(c, y4_0, y4_1, s_end);
     let h6 = h * sixth;
-    let i0 = (w + y2_1 * two + y3_1 * two + y4_1) * h6 - st.c0;
-    let i1 = (acc0 + a2 * two + a3 * two + a4) * h6 - st.c1;
-    let (n0, n1) = (th + i0, w + i1);
+    let n0 = th + (w + y2_1 * two + y3_1 * two + y4_1) * h6;
+    let n1 = w + (acc0 + a2 * two + a3 * two + a4) * h6;
     // The end state's field (`field_in(Free, ..)`: the force is 0).
     let (a5, d5, dd5, ok5) = free::<T, WIRES>(c, n0, n1, s_end);
     let neg_eta = -eta;
@@ -162,8 +148,6 @@ fn trial<T: Real, const WIRES: bool>(
     let next = LaneState {
         x0: n0,
         x1: n1,
-        c0: (n0 - th) - i0,
-        c1: (n1 - w) - i1,
         a: a5,
         d: d5,
         dd: dd5,
@@ -239,8 +223,6 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -
             LaneState {
                 x0: sim.x[0],
                 x1: sim.x[1],
-                c0: sim.carry[0],
-                c1: sim.carry[1],
                 a: sim.at_x.dx[1],
                 d: sim.at_x.delta,
                 dd: sim.at_x.delta_dot,
@@ -306,7 +288,6 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -
         }
         let s = state.get(i);
         sim.x = Vector2::new(s.x0, s.x1);
-        sim.carry = Vector2::new(s.c0, s.c1);
         sim.at_x = FieldEval {
             dx: Vector2::new(s.x1, s.a),
             force: T::zero(),

@@ -102,6 +102,9 @@ mod tests {
         let (e_plain, e_comp) = (err(&plain), err(&comp));
         // Measured: plain 7.6e-4, compensated 1.2e-4 (what is left comes from the stages and the
         // field's own `x_s − x`, rounded at the offset's precision).
-        assert!(e_comp < 0.3 * e_plain, "compensated {e_comp:e}, plain {e_plain:e}");
+        assert!(
+            e_comp < 0.3 * e_plain,
+            "compensated {e_comp:e}, plain {e_plain:e}"
+        );
     }
 }
