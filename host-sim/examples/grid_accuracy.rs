@@ -94,7 +94,11 @@ fn main() {
                 b.impact_force_mg,
                 a.transient_periods,
                 b.transient_periods,
-                if *converged { "" } else { " (reference not converged)" }
+                if *converged {
+                    ""
+                } else {
+                    " (reference not converged)"
+                }
             );
         }
         if a.regime == Regime::ONE_ONE && b.regime == Regime::ONE_ONE {
