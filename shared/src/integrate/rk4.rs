@@ -16,6 +16,19 @@ pub fn rk4_step<T: Real, F: FnMut(&Vector2<T>, T) -> Vector2<T>>(
     h: T,
     s_mid: T,
     s_end: T,
+    f: F,
+) -> Vector2<T> {
+    x + rk4_increment(x, k1, h, s_mid, s_end, f)
+}
+
+/// The increment `x(t + h) − x(t)` of one RK4 step (arguments as [`rk4_step`]).
+#[inline(always)]
+fn rk4_increment<T: Real, F: FnMut(&Vector2<T>, T) -> Vector2<T>>(
+    x: &Vector2<T>,
+    k1: &Vector2<T>,
+    h: T,
+    s_mid: T,
+    s_end: T,
     mut f: F,
 ) -> Vector2<T> {
     let half = T::from_f64(0.5);
@@ -25,7 +38,7 @@ pub fn rk4_step<T: Real, F: FnMut(&Vector2<T>, T) -> Vector2<T>>(
     let k2 = f(&(x + k1 * hh), s_mid);
     let k3 = f(&(x + k2 * hh), s_mid);
     let k4 = f(&(x + k3 * h), s_end);
-    x + (k1 + k2 * two + k3 * two + k4) * (h * sixth)
+    (k1 + k2 * two + k3 * two + k4) * (h * sixth)
 }
 
 /// [`rk4_step`] with compensated summation of the state update (Kahan; Hairer, Lubich &
@@ -40,16 +53,9 @@ pub fn rk4_step_compensated<T: Real, F: FnMut(&Vector2<T>, T) -> Vector2<T>>(
     h: T,
     s_mid: T,
     s_end: T,
-    mut f: F,
+    f: F,
 ) -> (Vector2<T>, Vector2<T>) {
-    let half = T::from_f64(0.5);
-    let sixth = T::from_f64(1.0 / 6.0);
-    let two = T::from_f64(2.0);
-    let hh = h * half;
-    let k2 = f(&(x + k1 * hh), s_mid);
-    let k3 = f(&(x + k2 * hh), s_mid);
-    let k4 = f(&(x + k3 * h), s_end);
-    let y = (k1 + k2 * two + k3 * two + k4) * (h * sixth) - carry;
+    let y = rk4_increment(x, k1, h, s_mid, s_end, f) - carry;
     let t = x + y;
     (t, (t - x) - y)
 }
