@@ -658,7 +658,7 @@ impl<T: Real> Simulator<T> {
             ),
             delta_dot: e.delta_dot,
             force: e.force,
-            region: self.at_x.region,
+            region: e.region,
         }
     }
 
