@@ -61,8 +61,9 @@ impl<T: Real> ImpactTracker<T> {
         self.prev_delta = delta;
         if self.in_episode {
             if delta_min < -self.separation {
-                // Left by the separation since the last sample (perhaps between samples, so
-                // that a return with `δ > 0` already counts as the next arrival).
+                // Left by the separation since the last sample (perhaps only between the
+                // samples). The next sample with `δ > 0` is an arrival, even if this one is
+                // already back on the surface (this sample's force is not this impact's).
                 self.in_episode = false;
                 self.prev_delta = delta_min;
                 return Some(ImpactEvent::End { peak_n: self.peak });
