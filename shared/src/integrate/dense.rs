@@ -33,11 +33,11 @@ impl<T: Real> DenseStep<T> {
     }
 }
 
-/// The upper end of a bracket `[lo, hi] ⊂ [0, 1]` (below `2^-14` wide: 3 ns of a 45 µs sub-step, a
-/// 0.2 nm change of `δ` at 0.06 m/s; or after 40
-/// evaluations) of a rising zero of `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end
-/// of the interval): Illinois regula falsi (superlinear on the smooth event functions here,
-/// each iteration shrinks the bracket), with a bisection step whenever the secant stalls.
+/// The upper end of a bracket `[lo, hi] ⊂ [0, 1]` (below `2^-14` wide: 3 ns of a 45 µs
+/// sub-step, a 0.2 nm change of `δ` at 0.06 m/s; or after 40 evaluations) of a rising zero of
+/// `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval): Illinois regula
+/// falsi (superlinear on the smooth event functions here, each iteration shrinks the bracket),
+/// with a bisection step whenever the secant stalls.
 #[inline]
 pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(g: G) -> T {
     let half = T::from_f64(0.5);

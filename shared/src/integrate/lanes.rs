@@ -309,7 +309,8 @@ mod tests {
     use crate::model::RigId;
 
     /// Lockstep steps leave every simulator exactly where as many scalar steps do, and they do
-    /// run (from rest, far from the surface, until the period's last step or three quarters of the lanes stop).
+    /// run (from rest, far from the surface, until the period's last step or until fewer than a
+    /// quarter of the lanes that started can go on).
     fn check(rig: RigId, gap_m: f64) {
         let p = rig.preset();
         let s = SimSettings::default();
