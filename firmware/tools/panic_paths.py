@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """No reachable panic path in the control loop: walks the call graph of the firmware ELF from the
-given roots (default: the sampling interrupt TIM2 and the console interrupt USART2) through every
+given roots (default: the sampling interrupt ADC and the console interrupt USART2) through every
 direct branch (bl / b.w / b / blx imm / cbz / cbnz) and fails if any reached function is a panic
 entry point (core::panicking::*, panic_fmt, *_failed, rust_begin_unwind, ...).
 
@@ -23,7 +23,7 @@ def main():
         print(__doc__)
         return 2
     elf = sys.argv[1]
-    roots = sys.argv[2:] or ["TIM2", "USART2"]
+    roots = sys.argv[2:] or ["ADC", "USART2"]
     syms = subprocess.run(
         ["llvm-nm", "-n", "-S", "--defined-only", "-C", elf],
         check=True, capture_output=True, text=True,

@@ -94,6 +94,9 @@ pub enum Command {
     /// Virtual rig: the firmware's controller in closed loop with a simulated hammer (drive and
     /// sensor chains, injected faults, console commands), no hardware.
     Hil(commands::hil::HilArgs),
+    /// The rig from the desktop, over its serial console: send lines, an interactive console,
+    /// a scenario's commands, a telemetry log, a drop-test capture, a frequency sweep.
+    Rig(commands::rig::RigArgs),
     /// Join the shard CSVs of a peterka/basins/bifurcation run (--shard I/N) into its CSV and
     /// figures.
     Merge(commands::merge::MergeArgs),
@@ -122,6 +125,7 @@ pub fn main() -> ExitCode {
         Command::Basins(a) => commands::basins::run(&a),
         Command::Merge(a) => commands::merge::run(&a),
         Command::Hil(a) => commands::hil::run_cmd(&a),
+        Command::Rig(a) => commands::rig::run(&a),
         Command::Identify(a) => commands::identify::run(&a),
         Command::Drop(a) => commands::drop::run(&a),
         Command::Compare(a) => commands::compare::run(&a),

@@ -1,7 +1,8 @@
 //! Ctrl-C for long runs: the first SIGINT/SIGTERM sets a flag; grid runs stop after the current
 //! chunk (points not yet started are skipped), every temporary file is removed as the error
-//! unwinds, and the process exits with status 130. A second Ctrl-C exits at once (status 130;
-//! hidden `.host-sim-*` temporary files may then remain in the output folder).
+//! unwinds, and the process exits with status 130; the virtual rig's pty server stops, writes
+//! its log and exits 0. A second Ctrl-C exits at once (status 130; hidden `.host-sim-*`
+//! temporary files may then remain in the output folder).
 
 use std::sync::Once;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -24,7 +25,9 @@ pub fn install() {
             if REQUESTED.swap(true, Ordering::SeqCst) {
                 std::process::exit(130);
             }
-            eprintln!("\ninterrupt: finishing the current chunk, then stopping (Ctrl-C again to quit at once)");
+            eprintln!(
+                "\ninterrupt: stopping after the current step (Ctrl-C again to quit at once)"
+            );
         });
     });
 }

@@ -3,6 +3,7 @@
 //! All physics comes from the `shared` crate, the same code the firmware runs.
 
 pub mod cli;
+pub mod client;
 pub mod commands;
 pub mod config;
 pub mod grid;

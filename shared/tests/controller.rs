@@ -6,7 +6,7 @@ use proptest::prelude::*;
 use shared::analysis::SelectionError;
 use shared::control::{
     Command, CommandError, Controller, ControllerConfig, Fault, Line, LineBuffer, ModelStatus,
-    Prediction, SAMPLE_PERIOD_US, SAMPLE_RATE_HZ, State, parse,
+    Prediction, Request, SAMPLE_PERIOD_US, SAMPLE_RATE_HZ, State, parse,
 };
 use shared::hal::SampleError;
 use shared::model::RigId;
@@ -313,8 +313,8 @@ proptest! {
     #[test]
     fn parser_never_panics(line in ".{0,80}") {
         match parse(&line) {
-            Ok(Command::Gap(g)) => prop_assert!((0.0..=10.0).contains(&g)),
-            Ok(Command::Freq(f)) => prop_assert!(f.is_finite() && f >= 0.0),
+            Ok(Request::Control(Command::Gap(g))) => prop_assert!((0.0..=10.0).contains(&g)),
+            Ok(Request::Control(Command::Freq(f))) => prop_assert!(f.is_finite() && f >= 0.0),
             _ => {}
         }
     }
@@ -327,7 +327,7 @@ proptest! {
     ) {
         let line = match &arg { Some(a) => std::format!("{word} {a}"), None => word.clone() };
         let r = parse(&line);
-        if let Ok(Command::Freq(f) | Command::Gap(f)) = r {
+        if let Ok(Request::Control(Command::Freq(f) | Command::Gap(f))) = r {
             prop_assert!(f.is_finite());
         }
         if word.eq_ignore_ascii_case("start") {
@@ -346,11 +346,12 @@ proptest! {
                 prop_assert!(s.len() <= shared::control::console::MAX_LINE);
                 let before = c.status();
                 match parse(s) {
-                    Ok(cmd) => {
+                    Ok(Request::Control(cmd)) => {
                         if c.execute(cmd).is_err() {
                             prop_assert_eq!(c.status(), before);
                         }
                     }
+                    Ok(_) => {}
                     Err(_) => prop_assert_eq!(c.status(), before),
                 }
             }

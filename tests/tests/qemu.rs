@@ -3,7 +3,8 @@
 //! - the operating frequency (and band and F_i/mg) computed on target equals the host's f32
 //!   `shared::control::predict` bit for bit,
 //! - one full target-frequency computation takes ≤ 84 M instructions (0.5 s at 168 MHz) and one
-//!   sampling-task call ≤ 1,500 instructions (the program's exit code says the same).
+//!   sampling-task call, streaming telemetry, ≤ 1,500 instructions (the program's exit code
+//!   says the same).
 //!
 //! Needs the image (`cargo fw-build`, which builds both firmware binaries) and QEMU
 //! (`apt-get install qemu-system-arm`); `.ci/run` provides both. Without them the test is
@@ -108,8 +109,10 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
         n("sample_max")
     );
     assert!(n("step_mean") > 0 && n("sample_mean") > 0);
-    // The stack must fit the 128 KiB SRAM with room for the interrupt tasks on top.
-    assert!(n("stack_high_water_bytes") < 96 * 1024);
+    // The stack must fit the 128 KiB SRAM with room for the interrupt tasks on top (and the
+    // painting must see the model task's depth: tens of KiB).
+    let stack = n("stack_high_water_bytes");
+    assert!((10 * 1024..96 * 1024).contains(&stack), "stack {stack} B");
     assert_eq!(field(&out, "state"), "track");
     assert_eq!(field(&out, "fault"), "none");
 }

@@ -11,6 +11,10 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
+#[path = "../stack.rs"]
+mod stack;
+
+#[cfg(target_os = "none")]
 mod target {
     use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -48,36 +52,9 @@ mod target {
         }
     }
 
-    const PAINT: u32 = 0xC0FF_EE11;
-
-    /// Fills the unused stack (from the end of static data to 256 bytes below the current
-    /// stack pointer) with a pattern.
-    fn paint_stack() -> (usize, usize) {
-        let bottom = cortex_m_rt::heap_start() as usize;
-        let sp = cortex_m::register::msp::read() as usize - 256;
-        let mut p = bottom;
-        while p < sp {
-            // SAFETY: RAM between the heap start (no heap in this program) and the live stack.
-            unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
-            p += 4;
-        }
-        (bottom, sp)
-    }
-
-    /// Lowest painted word overwritten: the deepest the stack went.
-    fn stack_used(bottom: usize, top: usize) -> usize {
-        let mut p = bottom;
-        // SAFETY: reading the painted region.
-        while p < top && unsafe { core::ptr::read_volatile(p as *const u32) } == PAINT {
-            p += 4;
-        }
-        let stack_top = 0x2002_0000usize; // end of the 128 KiB SRAM (memory.x)
-        stack_top - p.max(bottom)
-    }
-
     #[entry]
     fn main() -> ! {
-        let (bottom, top) = paint_stack();
+        crate::stack::paint();
         let mut cp = cortex_m::Peripherals::take().unwrap();
         cp.SYST.set_clock_source(SystClkSource::Core);
         cp.SYST.set_reload(0x00FF_FFFF);
@@ -162,6 +139,7 @@ mod target {
         if let Some(req) = c.take_model_request() {
             c.set_prediction(req.generation, Ok::<Prediction, _>(p));
         }
+        let _ = c.execute(Command::Stream(true));
         let _ = c.execute(Command::Start);
         let sensor = SensorChain::default();
         let (mut worst, mut sum, mut n, mut in_cycle) = (0u64, 0u64, 0u64, 0u32);
@@ -187,6 +165,8 @@ mod target {
             } else {
                 in_cycle + 1
             };
+            // The console service takes the telemetry records (outside the measurement).
+            while c.pop_async().is_some() {}
         }
         let worst = insns(worst);
         hprintln!("insns sample_mean={} sample_max={}", insns(sum / n), worst);
@@ -195,8 +175,11 @@ mod target {
             c.state().as_str(),
             c.fault().map_or("none", |f| f.as_str())
         );
-        let stack = stack_used(bottom, top);
-        hprintln!("stack_high_water_bytes={}", stack);
+        hprintln!(
+            "stack_high_water_bytes={} stack_size_bytes={}",
+            crate::stack::high_water_bytes(),
+            crate::stack::size_bytes()
+        );
 
         let ok = predict_insns <= PREDICT_BUDGET && worst <= SAMPLE_BUDGET && c.fault().is_none();
         hprintln!("budgets {}", if ok { "met" } else { "EXCEEDED" });

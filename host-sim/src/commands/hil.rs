@@ -1,14 +1,17 @@
 //! `host-sim hil`: the firmware's controller in closed loop with a simulated rig (no hardware).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
 use shared::model::RigId;
 
+use std::io::Write as _;
+
 use crate::output::{Outputs, write_csv};
+use crate::rig::pty::{ServeOptions, serve};
 use crate::rig::scenario::Scenario;
-use crate::rig::{HilSetup, figure, run};
+use crate::rig::{HilRun, HilSetup, figure, run};
 
 /// Arguments of `hil`.
 #[derive(Debug, Args)]
@@ -27,9 +30,18 @@ pub struct HilArgs {
     /// (default: `start` at 1 s, no faults).
     #[arg(long, value_name = "FILE.toml")]
     pub scenario: Option<PathBuf>,
-    /// Rig time to simulate, s (0 < s ≤ 86400).
-    #[arg(long, default_value_t = 60.0)]
-    pub seconds: f64,
+    /// Rig time to simulate, s (0 < s ≤ 86400; default 60, or until Ctrl-C with --serve-pty).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Serve the rig's console on a pseudo-terminal instead of running the scenario's timed
+    /// lines: prints `pty: /dev/pts/N` as its first line, then runs until --seconds of rig time
+    /// or Ctrl-C/SIGTERM, and writes --out/--plot then.
+    #[arg(long)]
+    pub serve_pty: bool,
+    /// With --serve-pty: rig time runs this many times faster than the wall clock (1: real
+    /// time; 0 < X ≤ 1000; `max`: as fast as the machine allows).
+    #[arg(long, default_value = "1", value_parser = parse_speed)]
+    pub speed: f64,
     /// CSV log, one row per drive cycle: t_s, state, freq_hz, amp_cmd_mm, cart_amp_mm,
     /// measured_impacts, measured_peak_n, true_impacts, true_peak_n, measured_regime, fault,
     /// lost_cycles, force_vs_model_pct.
@@ -44,6 +56,16 @@ fn parse_rig(s: &str) -> Result<RigId, String> {
     s.parse().map_err(|e| format!("{e}"))
 }
 
+fn parse_speed(s: &str) -> Result<f64, String> {
+    if s == "max" {
+        return Ok(f64::INFINITY);
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 1000.0 => Ok(v),
+        _ => Err(format!("`{s}`: allowed 0 < X ≤ 1000 or `max`")),
+    }
+}
+
 /// Runs the command.
 ///
 /// # Errors
@@ -51,32 +73,60 @@ fn parse_rig(s: &str) -> Result<RigId, String> {
 /// (nothing is left).
 pub fn run_cmd(a: &HilArgs) -> Result<()> {
     let actual = a.actual_gap_mm.unwrap_or(a.gap_mm);
-    let scenario = match &a.scenario {
+    let mut scenario = match &a.scenario {
         Some(p) => Scenario::from_file(p)?,
         None => Scenario::default(),
     };
+    if a.serve_pty {
+        // The console is on the pty: the scenario's timed lines (and the default `start`) are
+        // not run.
+        scenario.commands.clear();
+    }
     let force_limit = f64::from(scenario.controller.limits.force_limit_n);
     let setup = HilSetup {
         rig: a.rig,
         gap_mm: a.gap_mm as f32,
         actual_gap_mm: actual,
-        seconds: a.seconds,
+        seconds: a.seconds.unwrap_or(60.0),
         scenario,
     };
     let mut outputs = Outputs::new();
     let csv = a.out.as_ref().map(|p| outputs.reserve(p)).transpose()?;
     let png = a.plot.as_ref().map(|p| outputs.reserve(p)).transpose()?;
-    let r = run(&setup)?;
-
-    println!(
-        "virtual rig: {} configured at {:.2} mm, real gap {:.2} mm, {:.1} s of rig time in {:.2} s wall ({:.0}× real time, one core)",
-        a.rig,
-        a.gap_mm,
-        actual,
-        a.seconds,
-        r.wall_s,
-        r.speedup()
-    );
+    let r = if a.serve_pty {
+        let opts = ServeOptions {
+            speed: a.speed,
+            seconds: a.seconds,
+        };
+        let (r, stats) = serve(&setup, &opts, |path| {
+            println!("pty: {}", path.display());
+            let _ = std::io::stdout().flush();
+        })?;
+        // Whoever started the server may have stopped reading its stdout: write what it
+        // takes, and the files regardless.
+        let _ = writeln!(
+            std::io::stdout(),
+            "virtual rig stopped after {:.3} s of rig time ({:.2} s wall); {} bytes received, {} bytes not taken by the client",
+            r.samples as f64 / 1e4,
+            r.wall_s,
+            stats.rx_bytes,
+            stats.tx_lost_bytes
+        );
+        write_outputs(a, &r, actual, force_limit, csv.as_deref(), png.as_deref())?;
+        return outputs.commit();
+    } else {
+        let r = run(&setup)?;
+        println!(
+            "virtual rig: {} configured at {:.2} mm, real gap {:.2} mm, {:.1} s of rig time in {:.2} s wall ({:.0}× real time, one core)",
+            a.rig,
+            a.gap_mm,
+            actual,
+            setup.seconds,
+            r.wall_s,
+            r.speedup()
+        );
+        r
+    };
     if let Some(p) = &r.prediction {
         println!(
             "model: target {:.4} Hz, 1/1 band {:.3} – {:.3} Hz, predicted F_i/mg {:.2} ({:.1} N)",
@@ -93,16 +143,27 @@ pub fn run_cmd(a: &HilArgs) -> Result<()> {
         println!("[{t:8.3} s] FAULT {f}");
     }
     println!("final: {}", r.status);
+    write_outputs(a, &r, actual, force_limit, csv.as_deref(), png.as_deref())?;
+    outputs.commit()
+}
 
-    if let Some(path) = &csv {
+fn write_outputs(
+    a: &HilArgs,
+    r: &HilRun,
+    actual: f64,
+    force_limit: f64,
+    csv: Option<&Path>,
+    png: Option<&Path>,
+) -> Result<()> {
+    if let Some(path) = csv {
         write_csv(path, &r.rows)?;
     }
-    if let Some(path) = &png {
+    if let Some(path) = png {
         let title = format!(
             "virtual rig: {} (configured gap {:.2} mm, real {:.2} mm)",
             a.rig, a.gap_mm, actual
         );
         figure::draw(path, &title, &r.rows, r.prediction.as_ref(), force_limit)?;
     }
-    outputs.commit()
+    Ok(())
 }

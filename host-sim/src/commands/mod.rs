@@ -10,5 +10,6 @@ pub mod merge;
 pub mod peterka;
 pub mod points;
 pub mod response;
+pub mod rig;
 pub mod select;
 pub mod simulate;

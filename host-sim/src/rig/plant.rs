@@ -97,6 +97,8 @@ pub struct Plant {
     force_n: f64,
     episode_peak: Option<TrueImpact>,
     impacts: Vec<TrueImpact>,
+    /// The contact force at the end of each step of the last sample interval, N.
+    step_forces: Vec<f64>,
     /// exp(−h/τ), exp(−h/2τ) for the step `h`.
     decay: (f64, f64),
     /// The field at the current state and the cart acceleration it was evaluated with.
@@ -146,6 +148,7 @@ impl Plant {
             force_n: 0.0,
             episode_peak: None,
             impacts: Vec::new(),
+            step_forces: Vec::with_capacity(settings.steps_per_sample as usize),
             decay: decay(h, drive.amp_tau_s),
             last_eval: None,
         })
@@ -195,6 +198,38 @@ impl Plant {
         std::mem::take(&mut self.impacts)
     }
 
+    /// The contact force at `n` equally spaced instants of the last sample interval (the
+    /// `j`-th at `(j + 1)/n` of it), N: the steps' end forces, the step at or before each
+    /// instant. With the default 10 steps per sample and `n = 10`, every step (100 kHz).
+    pub fn forces_within_sample(&self, n: usize, out: &mut Vec<f64>) {
+        out.clear();
+        let m = self.step_forces.len();
+        for j in 0..n {
+            let i = ((j + 1) * m / n).max(1) - 1;
+            out.push(self.step_forces.get(i).copied().unwrap_or(self.force_n));
+        }
+    }
+
+    /// Releases the hammer at rest relative to the cart, `release_m` from the impact surface
+    /// (`u = gap − release`): the drop test's start (thesis §3.3.2). An open contact episode
+    /// ends.
+    ///
+    /// # Errors
+    /// A start beyond the suspension's range.
+    pub fn release(&mut self, release_m: f64) -> Result<()> {
+        let x = self
+            .hammer
+            .state_from_relative(self.gap_m - release_m, 0.0)?;
+        self.x = x;
+        self.last_eval = None;
+        self.region = Region::Free;
+        self.force_n = 0.0;
+        if let Some(p) = self.episode_peak.take() {
+            self.impacts.push(p);
+        }
+        Ok(())
+    }
+
     /// Advances one sample interval with the DAC at `dac_code`.
     pub fn advance(&mut self, dac_code: u16) {
         let v_code =
@@ -211,9 +246,11 @@ impl Plant {
         let h = ts / f64::from(n);
         let (dh, dh2) = self.decay;
         let mut e = 1.0;
+        self.step_forces.clear();
         for k in 0..n {
             let t0 = self.t_s + f64::from(k) * h;
             self.step(t0, h, acc(e), acc(e * dh2), acc(e * dh), e, dh, &acc);
+            self.step_forces.push(self.force_n);
             e *= dh;
         }
         self.t_s += ts;

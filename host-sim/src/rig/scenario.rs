@@ -17,6 +17,9 @@
 //! kind = "sensor-open"           # sensor-open | sensor-stuck-high | sensor-stuck-low | sensor-ok
 //!                                # | gain (factor) | drift (duration_s, natural_freq_pct,
 //!                                #   contact_stiffness_pct)
+//! [[drops]]                      # a drop test: the idle hammer released at rest
+//! at_s = 2.0
+//! release_mm = 3.0               # from the impact surface (> the rig's gap)
 //! ```
 
 use std::path::Path;
@@ -133,6 +136,17 @@ impl TimedFault {
     }
 }
 
+/// A drop test: at `at_s` the hammer is released at rest `release_mm` from the impact surface
+/// (thesis §3.3.2; meant for an idle drive, e.g. with `capture arm` before it).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimedDrop {
+    /// Rig time, s.
+    pub at_s: f64,
+    /// Distance from the impact surface, mm.
+    pub release_mm: f64,
+}
+
 /// A whole scenario.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -151,6 +165,8 @@ pub struct Scenario {
     pub commands: Vec<TimedCommand>,
     /// Injected faults.
     pub faults: Vec<TimedFault>,
+    /// Drop tests.
+    pub drops: Vec<TimedDrop>,
 }
 
 impl Default for Scenario {
@@ -166,6 +182,7 @@ impl Default for Scenario {
                 line: "start".into(),
             }],
             faults: Vec::new(),
+            drops: Vec::new(),
         }
     }
 }
@@ -206,6 +223,10 @@ impl Scenario {
         self.controller.validate().context("[controller]")?;
         for c in &self.commands {
             finite_in("commands.at_s", c.at_s, 0.0, 1e6)?;
+        }
+        for d in &self.drops {
+            finite_in("drops.at_s", d.at_s, 0.0, 1e6)?;
+            finite_in("drops.release_mm", d.release_mm, 0.001, 20.0)?;
         }
         for f in &self.faults {
             finite_in("faults.at_s", f.at_s(), 0.0, 1e6)?;

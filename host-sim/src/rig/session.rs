@@ -9,15 +9,15 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use shared::analysis::SelectionError;
 use shared::control::{
-    Controller, Event, Fault, Line, ModelRequest, Prediction, SAMPLE_RATE_HZ, State, Status,
-    predict, respond,
+    Answer, BoardInfo, CAPTURE_RATE_HZ, Capture, Controller, Direct, Event, Fault, Line, LinkStats,
+    ModelRequest, Prediction, SAMPLE_RATE_HZ, State, Status, answer, predict,
 };
 use shared::hal::{DriveOutput, ForceSource, TimeBase};
 use shared::model::{ContactLaw, RigId, RigParams, Suspension};
 
-use super::chains::{MockAdc, MockClock, MockDac, SensorState};
+use super::chains::{MockAdc, MockClock, MockDac, SensorChainSim, SensorState};
 use super::plant::Plant;
-use super::scenario::{Scenario, TimedFault};
+use super::scenario::{Scenario, TimedDrop, TimedFault};
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -172,67 +172,194 @@ pub fn scale_natural_freq(params: &RigParams, factor: f64) -> RigParams {
     p
 }
 
-/// Runs the closed loop.
-///
-/// # Errors
-/// Invalid setup (gap, scenario).
-pub fn run(setup: &HilSetup) -> Result<HilRun> {
-    let sc = &setup.scenario;
-    sc.validate()?;
-    let gap = f64::from(setup.gap_mm);
-    anyhow::ensure!(
-        gap.is_finite() && (0.0..=10.0).contains(&gap),
-        "--gap-mm = {gap} is out of range: allowed 0 ..= 10 mm"
-    );
-    anyhow::ensure!(
-        setup.actual_gap_mm.is_finite() && (0.0..=10.0).contains(&setup.actual_gap_mm),
-        "--actual-gap-mm = {} is out of range: allowed 0 ..= 10 mm",
-        setup.actual_gap_mm
-    );
-    anyhow::ensure!(
-        setup.seconds.is_finite() && setup.seconds > 0.0 && setup.seconds <= 86_400.0,
-        "--seconds = {} is out of range: allowed (0, 86400]",
-        setup.seconds
-    );
-    let mut controller = Controller::new(sc.controller, setup.rig, setup.gap_mm)
-        .map_err(|e| anyhow::anyhow!("--gap-mm / [controller]: {e}"))?;
-    let base = scale_contact(&setup.rig.preset(), sc.plant.contact_stiffness_factor);
-    let mut plant = Plant::new(
-        &base,
-        setup.actual_gap_mm * 1e-3,
-        sc.drive,
-        sc.plant.settings(),
-    )
-    .context("--actual-gap-mm")?;
-    let mut adc = MockAdc::new(sc.sensor)?;
-    let mut dac = MockDac::default();
-    let mut clock = MockClock::default();
+/// Sample rate of the capture ADC in the virtual rig: the plant's steps, `CAPTURE_RATE_HZ /
+/// SAMPLE_RATE_HZ` per control sample.
+const CAPTURE_PER_SAMPLE: usize = (CAPTURE_RATE_HZ / SAMPLE_RATE_HZ) as usize;
 
-    let mut faults_due: Vec<TimedFault> = sc.faults.clone();
-    faults_due.sort_by(|a, b| a.at_s().total_cmp(&b.at_s()));
-    let mut commands = sc.commands.clone();
-    commands.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
-    let (mut next_fault, mut next_cmd) = (0, 0);
-    let mut drifts: Vec<(f64, f64, f64, f64)> = Vec::new(); // (start, duration, nat %, stiff %)
-    let mut model_due: Option<(f64, ModelRequest, Result<Prediction, SelectionError>)> = None;
+/// The board as the virtual rig reports it (`id`, `diag`).
+pub fn virtual_board(uptime_ms: u64) -> BoardInfo {
+    BoardInfo {
+        firmware: env!("CARGO_PKG_VERSION"),
+        board: "virtual",
+        uptime_ms,
+        stack_hwm_bytes: 0,
+        stack_size_bytes: 0,
+        sample_gap_max_us: 0,
+    }
+}
 
-    let mut out = HilRun {
-        rows: Vec::new(),
-        console: Vec::new(),
-        states: vec![(0.0, State::Idle)],
-        faults: Vec::new(),
-        prediction: None,
-        status: controller.status(),
-        samples: 0,
-        wall_s: 0.0,
-    };
-    let wall = Instant::now();
-    let fs = f64::from(SAMPLE_RATE_HZ);
-    let n = (setup.seconds * fs).round() as u64;
-    let (mut cart_max, mut true_n, mut true_peak): (f64, u32, Option<f64>) = (0.0, 0, None);
-    for k in 0..n {
-        let t = k as f64 / fs;
-        while let Some(f) = faults_due.get(next_fault).filter(|f| f.at_s() <= t) {
+/// The virtual rig, one control sample at a time: the plant, the mocks of the firmware's
+/// hardware, the controller and the capture, with the scenario's faults, drifts and drops
+/// applied on time. Console lines come from outside (the scenario's timed commands in
+/// [`run`], a pseudo-terminal in [`super::pty`]) between [`Session::begin_sample`] and
+/// [`Session::end_sample`].
+pub struct Session {
+    sc: Scenario,
+    controller: Controller,
+    capture: Capture,
+    plant: Plant,
+    base: RigParams,
+    adc: MockAdc,
+    capture_adc: MockAdc,
+    dac: MockDac,
+    clock: MockClock,
+    faults_due: Vec<TimedFault>,
+    next_fault: usize,
+    drops_due: Vec<TimedDrop>,
+    next_drop: usize,
+    /// (start, duration, natural frequency %, contact stiffness %).
+    drifts: Vec<(f64, f64, f64, f64)>,
+    model_due: Option<(f64, ModelRequest, Result<Prediction, SelectionError>)>,
+    k: u64,
+    cart_max: f64,
+    true_n: u32,
+    true_peak: Option<f64>,
+    out: HilRun,
+    wall: Instant,
+    forces: Vec<f64>,
+    codes: Vec<u16>,
+}
+
+impl Session {
+    /// A rig at rest, drive off, model request open.
+    ///
+    /// # Errors
+    /// Invalid setup (gap, scenario).
+    pub fn new(setup: &HilSetup) -> Result<Self> {
+        let sc = setup.scenario.clone();
+        sc.validate()?;
+        let gap = f64::from(setup.gap_mm);
+        anyhow::ensure!(
+            gap.is_finite() && (0.0..=10.0).contains(&gap),
+            "--gap-mm = {gap} is out of range: allowed 0 ..= 10 mm"
+        );
+        anyhow::ensure!(
+            setup.actual_gap_mm.is_finite() && (0.0..=10.0).contains(&setup.actual_gap_mm),
+            "--actual-gap-mm = {} is out of range: allowed 0 ..= 10 mm",
+            setup.actual_gap_mm
+        );
+        for d in &sc.drops {
+            anyhow::ensure!(
+                d.release_mm > setup.actual_gap_mm,
+                "drops.release_mm = {} must exceed the rig's gap ({} mm)",
+                d.release_mm,
+                setup.actual_gap_mm
+            );
+        }
+        let controller = Controller::new(sc.controller, setup.rig, setup.gap_mm)
+            .map_err(|e| anyhow::anyhow!("--gap-mm / [controller]: {e}"))?;
+        let base = scale_contact(&setup.rig.preset(), sc.plant.contact_stiffness_factor);
+        let plant = Plant::new(
+            &base,
+            setup.actual_gap_mm * 1e-3,
+            sc.drive,
+            sc.plant.settings(),
+        )
+        .context("--actual-gap-mm")?;
+        let adc = MockAdc::new(sc.sensor)?;
+        let capture_adc = MockAdc::new(SensorChainSim {
+            seed: sc.sensor.seed.wrapping_add(1),
+            ..sc.sensor
+        })?;
+        let mut faults_due: Vec<TimedFault> = sc.faults.clone();
+        faults_due.sort_by(|a, b| a.at_s().total_cmp(&b.at_s()));
+        let mut drops_due = sc.drops.clone();
+        drops_due.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+        let status = controller.status();
+        Ok(Session {
+            sc,
+            controller,
+            capture: Capture::new(),
+            plant,
+            base,
+            adc,
+            capture_adc,
+            dac: MockDac::default(),
+            clock: MockClock::default(),
+            faults_due,
+            next_fault: 0,
+            drops_due,
+            next_drop: 0,
+            drifts: Vec::new(),
+            model_due: None,
+            k: 0,
+            cart_max: 0.0,
+            true_n: 0,
+            true_peak: None,
+            out: HilRun {
+                rows: Vec::new(),
+                console: Vec::new(),
+                states: vec![(0.0, State::Idle)],
+                faults: Vec::new(),
+                prediction: None,
+                status,
+                samples: 0,
+                wall_s: 0.0,
+            },
+            wall: Instant::now(),
+            forces: Vec::with_capacity(CAPTURE_PER_SAMPLE),
+            codes: Vec::with_capacity(CAPTURE_PER_SAMPLE),
+        })
+    }
+
+    /// Rig time at the start of the next sample, s.
+    pub fn t_s(&self) -> f64 {
+        self.k as f64 / f64::from(SAMPLE_RATE_HZ)
+    }
+
+    /// Samples run.
+    pub fn samples(&self) -> u64 {
+        self.k
+    }
+
+    /// The controller (the pty server takes its asynchronous lines).
+    pub fn controller_mut(&mut self) -> &mut Controller {
+        &mut self.controller
+    }
+
+    /// The plant.
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// The rows logged so far (one per drive cycle).
+    pub fn rows(&self) -> &[CycleRow] {
+        &self.out.rows
+    }
+
+    /// Answers a console line now (through the same service as the firmware's).
+    pub fn answer(&mut self, line: Line<'_>, link: LinkStats) -> Answer {
+        let mut access = Direct {
+            controller: &mut self.controller,
+            capture: &mut self.capture,
+            board: virtual_board(self.k / 10),
+            link,
+        };
+        answer(&mut access, line)
+    }
+
+    /// Runs a timed console line and records the exchange.
+    pub fn say(&mut self, line: &str) {
+        let a = self.answer(Line::Text(line), LinkStats::default());
+        self.out.console.push(ConsoleLine {
+            t_s: self.t_s(),
+            line: line.to_string(),
+            reply: a.to_string(),
+        });
+    }
+
+    /// The first half of a sample: the scenario's faults, drifts and drops due by now.
+    ///
+    /// # Errors
+    /// Drifted parameters the plant rejects, a drop the suspension cannot start from.
+    pub fn begin_sample(&mut self) -> Result<()> {
+        let t = self.t_s();
+        while let Some(f) = self
+            .faults_due
+            .get(self.next_fault)
+            .filter(|f| f.at_s() <= t)
+        {
+            let adc = &mut self.adc;
             match *f {
                 TimedFault::SensorOpen { .. } => adc.state = SensorState::Open,
                 TimedFault::SensorStuckHigh { .. } => adc.state = SensorState::Stuck(true),
@@ -244,14 +371,25 @@ pub fn run(setup: &HilSetup) -> Result<HilRun> {
                     duration_s,
                     natural_freq_pct,
                     contact_stiffness_pct,
-                } => drifts.push((at_s, duration_s, natural_freq_pct, contact_stiffness_pct)),
+                } => self
+                    .drifts
+                    .push((at_s, duration_s, natural_freq_pct, contact_stiffness_pct)),
             }
-            next_fault += 1;
+            // The capture ADC reads the same sensor.
+            self.capture_adc.state = self.adc.state;
+            self.capture_adc.gain_factor = self.adc.gain_factor;
+            self.next_fault += 1;
         }
-        if !drifts.is_empty() && k % 100 == 0 {
+        while let Some(d) = self.drops_due.get(self.next_drop).filter(|d| d.at_s <= t) {
+            self.plant
+                .release(d.release_mm * 1e-3)
+                .with_context(|| format!("drop at {} s", d.at_s))?;
+            self.next_drop += 1;
+        }
+        if !self.drifts.is_empty() && self.k.is_multiple_of(100) {
             // Every 10 ms: the plant's parameters on the linear drift paths.
             let (mut nat, mut stiff) = (1.0, 1.0);
-            for &(t0, dur, np, sp) in &drifts {
+            for &(t0, dur, np, sp) in &self.drifts {
                 let x = if dur > 0.0 {
                     ((t - t0) / dur).clamp(0.0, 1.0)
                 } else {
@@ -260,76 +398,117 @@ pub fn run(setup: &HilSetup) -> Result<HilRun> {
                 nat *= 1.0 + np / 100.0 * x;
                 stiff *= 1.0 + sp / 100.0 * x;
             }
-            let p = scale_contact(&scale_natural_freq(&base, nat), stiff);
-            plant.set_params(&p)?;
+            let p = scale_contact(&scale_natural_freq(&self.base, nat), stiff);
+            self.plant.set_params(&p)?;
         }
-        while let Some(c) = commands.get(next_cmd).filter(|c| c.at_s <= t) {
-            let mut reply = String::new();
-            respond(&mut controller, Line::Text(&c.line), &mut reply)
-                .context("formatting a console reply")?;
-            out.console.push(ConsoleLine {
-                t_s: t,
-                line: c.line.clone(),
-                reply,
-            });
-            next_cmd += 1;
-        }
+        Ok(())
+    }
+
+    /// The second half of a sample: the model task, the control loop (ADC → controller → DAC),
+    /// the plant over one sample interval, the capture, and the cycle log.
+    pub fn end_sample(&mut self) {
+        let t = self.t_s();
         // The model task: computed at once here, delivered after the MCU's computation time.
-        if let Some(req) = controller.take_model_request() {
-            model_due = Some((t + sc.model_delay_s, req, predict(req.rig, req.gap_mm)));
+        if let Some(req) = self.controller.take_model_request() {
+            self.model_due = Some((t + self.sc.model_delay_s, req, predict(req.rig, req.gap_mm)));
         }
-        if model_due.as_ref().is_some_and(|(due, _, _)| *due <= t)
-            && let Some((_, req, result)) = model_due.take()
+        if self.model_due.as_ref().is_some_and(|(due, _, _)| *due <= t)
+            && let Some((_, req, result)) = self.model_due.take()
         {
             if let Ok(p) = &result {
-                out.prediction = Some(*p);
+                self.out.prediction = Some(*p);
             }
-            controller.set_prediction(req.generation, result);
+            self.controller.set_prediction(req.generation, result);
         }
 
-        adc.input_n = plant.force_n();
-        clock.samples = k;
-        let code = adc.read_code();
-        let cycles = controller.cycles();
-        let drive = controller.on_sample(code, clock.now_us());
-        dac.write_code(drive);
-        plant.advance(dac.code);
-
-        cart_max = cart_max.max(plant.cart_m().abs());
-        for imp in plant.take_impacts() {
-            true_n += 1;
-            true_peak = Some(true_peak.map_or(imp.peak_n, |p: f64| p.max(imp.peak_n)));
+        self.adc.input_n = self.plant.force_n();
+        self.clock.samples = self.k;
+        let code = self.adc.read_code();
+        let cycles = self.controller.cycles();
+        let drive = self.controller.on_sample(code, self.clock.now_us());
+        self.dac.write_code(drive);
+        self.plant.advance(self.dac.code);
+        if self.capture.active() {
+            self.plant
+                .forces_within_sample(CAPTURE_PER_SAMPLE, &mut self.forces);
+            self.codes.clear();
+            for &f in &self.forces {
+                self.capture_adc.input_n = f;
+                self.codes.push(self.capture_adc.read_code().unwrap_or(0));
+            }
+            self.capture.push_block(&self.codes);
         }
-        while let Some(e) = controller.pop_event() {
+
+        self.cart_max = self.cart_max.max(self.plant.cart_m().abs());
+        for imp in self.plant.take_impacts() {
+            self.true_n += 1;
+            self.true_peak = Some(
+                self.true_peak
+                    .map_or(imp.peak_n, |p: f64| p.max(imp.peak_n)),
+            );
+        }
+        while let Some(e) = self.controller.pop_event() {
             match e {
-                Event::State { to, .. } => out.states.push((plant.t_s(), to)),
-                Event::Fault(f) => out.faults.push((plant.t_s(), f)),
-                Event::ModelReady(_) | Event::ModelFailed => {}
+                Event::State { to, .. } => self.out.states.push((self.plant.t_s(), to)),
+                Event::Fault(f) => self.out.faults.push((self.plant.t_s(), f)),
+                Event::ModelReady(_) | Event::ModelFailed | Event::SamplingStalled { .. } => {}
             }
         }
-        if controller.cycles() != cycles {
-            let s = controller.status();
-            let last = controller.last_cycle();
-            out.rows.push(CycleRow {
-                t_s: plant.t_s(),
+        if self.controller.cycles() != cycles {
+            let s = self.controller.status();
+            let last = self.controller.last_cycle();
+            self.out.rows.push(CycleRow {
+                t_s: self.plant.t_s(),
                 state: s.state.as_str(),
                 freq_hz: f64::from(s.freq_hz),
                 amp_cmd_mm: f64::from(s.amplitude_mm),
-                cart_amp_mm: cart_max * 1e3,
+                cart_amp_mm: self.cart_max * 1e3,
                 measured_impacts: last.map_or(0, |c| u32::from(c.impacts)),
                 measured_peak_n: last.filter(|c| c.impacts > 0).map(|c| f64::from(c.peak_n)),
-                true_impacts: true_n,
-                true_peak_n: true_peak,
+                true_impacts: self.true_n,
+                true_peak_n: self.true_peak,
                 measured_regime: s.regime.map_or("-".into(), |r| r.to_string()),
                 fault: s.fault.map_or("none", Fault::as_str),
                 lost_cycles: s.lost_cycles,
                 force_vs_model_pct: s.force_vs_model_pct.map(f64::from),
             });
-            (cart_max, true_n, true_peak) = (0.0, 0, None);
+            (self.cart_max, self.true_n, self.true_peak) = (0.0, 0, None);
         }
+        self.k += 1;
     }
-    out.samples = n;
-    out.status = controller.status();
-    out.wall_s = wall.elapsed().as_secs_f64();
-    Ok(out)
+
+    /// The run's record.
+    pub fn finish(mut self) -> HilRun {
+        self.out.samples = self.k;
+        self.out.status = self.controller.status();
+        self.out.wall_s = self.wall.elapsed().as_secs_f64();
+        self.out
+    }
+}
+
+/// Runs the closed loop for `setup.seconds` with the scenario's timed console lines.
+///
+/// # Errors
+/// Invalid setup (gap, scenario, duration).
+pub fn run(setup: &HilSetup) -> Result<HilRun> {
+    anyhow::ensure!(
+        setup.seconds.is_finite() && setup.seconds > 0.0 && setup.seconds <= 86_400.0,
+        "--seconds = {} is out of range: allowed (0, 86400]",
+        setup.seconds
+    );
+    let mut session = Session::new(setup)?;
+    let mut commands = setup.scenario.commands.clone();
+    commands.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+    let mut next_cmd = 0;
+    let n = (setup.seconds * f64::from(SAMPLE_RATE_HZ)).round() as u64;
+    for _ in 0..n {
+        session.begin_sample()?;
+        let t = session.t_s();
+        while let Some(c) = commands.get(next_cmd).filter(|c| c.at_s <= t) {
+            session.say(&c.line);
+            next_cmd += 1;
+        }
+        session.end_sample();
+    }
+    Ok(session.finish())
 }

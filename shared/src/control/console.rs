@@ -1,14 +1,15 @@
 //! The operator console (USART2, 115200 8N1): bytes are collected into lines by [`LineBuffer`]
-//! and each line is parsed by [`parse`] into a [`Command`]. A bad line gives a [`ParseError`]
+//! and each line is parsed by [`parse`] into a [`Request`]. A bad line gives a [`ParseError`]
 //! and changes nothing.
 //!
 //! Commands: `status`, `rig <wires|beam-170|beam-150|beam-135>`, `gap <mm>`, `start`, `stop`,
-//! `tune`, `freq <Hz>`, `clear`, `help`. Case-insensitive; extra spaces and a trailing `\r` are
-//! ignored.
+//! `tune`, `freq <Hz>`, `clear`, `stream <on|off>` (the controller's, [`Command`]); `id`,
+//! `diag`, `capture [arm [level_N] [seconds] | stop | get <k>]`, `help` (answered by
+//! [`super::serve`]). Case-insensitive; extra spaces and a trailing `\r` are ignored.
 
 use core::fmt;
 
-use super::controller::Controller;
+use super::capture::{CAPTURE_MAX_S, CaptureCommand, DEFAULT_LEVEL_N, DEFAULT_SECONDS, SEGMENTS};
 use super::fixed::{Fixed, parse_decimal};
 use crate::model::RigId;
 
@@ -16,8 +17,10 @@ use crate::model::RigId;
 pub const MAX_LINE: usize = 64;
 /// Largest gap accepted at the console, mm.
 pub const MAX_GAP_MM: f32 = 10.0;
+/// Largest trigger level of `capture arm`, N.
+pub const MAX_CAPTURE_LEVEL_N: f32 = 100.0;
 
-/// One console command.
+/// A command for the controller ([`super::Controller::execute`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Command {
     /// Print the status line.
@@ -38,6 +41,21 @@ pub enum Command {
     Clear,
     /// List the commands.
     Help,
+    /// Per-cycle telemetry and event lines on (`true`) or off.
+    Stream(bool),
+}
+
+/// One console line, parsed: a controller command or one of the console's own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Request {
+    /// For the controller.
+    Control(Command),
+    /// Identify the firmware, rig and sensor calibration.
+    Id,
+    /// Link and board diagnostics (samples, lost lines, stack).
+    Diag,
+    /// The force capture for drop tests.
+    Capture(CaptureCommand),
 }
 
 /// Why a line was rejected.
@@ -51,10 +69,14 @@ pub enum ParseError {
     UnknownCommand,
     /// The command needs an argument.
     MissingArgument(&'static str),
-    /// An argument was given to a command that takes none, or a second one.
+    /// An argument was given to a command that takes none, or too many.
     UnexpectedArgument,
     /// The rig name is not one of the four.
     UnknownRig,
+    /// `stream` takes `on` or `off`.
+    OnOff,
+    /// `capture` takes `arm`, `stop` or `get`.
+    UnknownCapture,
     /// The number is not a finite decimal number.
     BadNumber(&'static str),
     /// The number is outside its range.
@@ -79,6 +101,10 @@ impl fmt::Display for ParseError {
             ParseError::UnknownRig => {
                 f.write_str("rig must be wires, beam-170, beam-150 or beam-135")
             }
+            ParseError::OnOff => f.write_str("stream takes on or off"),
+            ParseError::UnknownCapture => {
+                f.write_str("capture takes arm [level_N] [seconds], stop or get <k>")
+            }
             ParseError::BadNumber(what) => write!(f, "{what} must be a number"),
             ParseError::OutOfRange { field, min, max } => write!(
                 f,
@@ -91,55 +117,119 @@ impl fmt::Display for ParseError {
 }
 
 /// The help text, one line.
-pub const HELP: &str = "commands: status | rig <wires|beam-170|beam-150|beam-135> | gap <mm> | start | stop | tune | freq <Hz> | clear";
+pub const HELP: &str = "commands: status | rig <wires|beam-170|beam-150|beam-135> | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k>] | help";
 
 /// Parses one line.
 ///
 /// # Errors
 /// [`ParseError`] saying what is wrong; no state is touched.
-pub fn parse(line: &str) -> Result<Command, ParseError> {
+pub fn parse(line: &str) -> Result<Request, ParseError> {
     let mut words = line.split_ascii_whitespace();
     let Some(word) = words.next() else {
         return Err(ParseError::Empty);
     };
-    let arg = words.next();
+    let args: [Option<&str>; 3] = [words.next(), words.next(), words.next()];
     if words.next().is_some() {
         return Err(ParseError::UnexpectedArgument);
     }
-    let no_arg = |c: Command| match arg {
-        None => Ok(c),
-        Some(_) => Err(ParseError::UnexpectedArgument),
+    let n_args = args.iter().flatten().count();
+    let takes = |max: usize, r: Request| {
+        if n_args > max {
+            Err(ParseError::UnexpectedArgument)
+        } else {
+            Ok(r)
+        }
     };
+    let control = |c: Command| takes(0, Request::Control(c));
+    let arg = args[0];
     let eq = |name: &str| word.eq_ignore_ascii_case(name);
     if eq("status") {
-        no_arg(Command::Status)
+        control(Command::Status)
     } else if eq("start") {
-        no_arg(Command::Start)
+        control(Command::Start)
     } else if eq("stop") {
-        no_arg(Command::Stop)
+        control(Command::Stop)
     } else if eq("tune") {
-        no_arg(Command::Tune)
+        control(Command::Tune)
     } else if eq("clear") {
-        no_arg(Command::Clear)
+        control(Command::Clear)
     } else if eq("help") {
-        no_arg(Command::Help)
+        control(Command::Help)
+    } else if eq("id") {
+        takes(0, Request::Id)
+    } else if eq("diag") {
+        takes(0, Request::Diag)
     } else if eq("rig") {
         let name = arg.ok_or(ParseError::MissingArgument("rig name"))?;
-        [RigId::Wires, RigId::Beam170, RigId::Beam150, RigId::Beam135]
+        let rig = [RigId::Wires, RigId::Beam170, RigId::Beam150, RigId::Beam135]
             .into_iter()
             .find(|r| r.name().eq_ignore_ascii_case(name))
-            .map(Command::Rig)
-            .ok_or(ParseError::UnknownRig)
+            .ok_or(ParseError::UnknownRig)?;
+        takes(1, Request::Control(Command::Rig(rig)))
     } else if eq("gap") {
         let v = number(arg, "gap (mm)")?;
-        in_range(v, "gap (mm)", 0.0, MAX_GAP_MM).map(Command::Gap)
+        let g = in_range(v, "gap (mm)", 0.0, MAX_GAP_MM)?;
+        takes(1, Request::Control(Command::Gap(g)))
     } else if eq("freq") {
         let v = number(arg, "frequency (Hz)")?;
         // The window check is the controller's (it depends on the configuration).
-        in_range(v, "frequency (Hz)", 0.0, 1000.0).map(Command::Freq)
+        let f = in_range(v, "frequency (Hz)", 0.0, 1000.0)?;
+        takes(1, Request::Control(Command::Freq(f)))
+    } else if eq("stream") {
+        let on = match arg {
+            Some(a) if a.eq_ignore_ascii_case("on") => true,
+            Some(a) if a.eq_ignore_ascii_case("off") => false,
+            Some(_) => return Err(ParseError::OnOff),
+            None => return Err(ParseError::MissingArgument("on or off")),
+        };
+        takes(1, Request::Control(Command::Stream(on)))
+    } else if eq("capture") {
+        parse_capture(args, n_args)
     } else {
         Err(ParseError::UnknownCommand)
     }
+}
+
+fn parse_capture(args: [Option<&str>; 3], n_args: usize) -> Result<Request, ParseError> {
+    let Some(sub) = args[0] else {
+        return Ok(Request::Capture(CaptureCommand::Status));
+    };
+    let too_many = |max: usize| n_args > max;
+    let cmd = if sub.eq_ignore_ascii_case("arm") {
+        let level_n = match args[1] {
+            Some(_) => in_range(
+                number(args[1], "level (N)")?,
+                "level (N)",
+                0.1,
+                MAX_CAPTURE_LEVEL_N,
+            )?,
+            None => DEFAULT_LEVEL_N,
+        };
+        let seconds = match args[2] {
+            Some(_) => in_range(number(args[2], "seconds")?, "seconds", 0.01, CAPTURE_MAX_S)?,
+            None => DEFAULT_SECONDS,
+        };
+        CaptureCommand::Arm { level_n, seconds }
+    } else if sub.eq_ignore_ascii_case("stop") {
+        if too_many(1) {
+            return Err(ParseError::UnexpectedArgument);
+        }
+        CaptureCommand::Stop
+    } else if sub.eq_ignore_ascii_case("get") {
+        if too_many(2) {
+            return Err(ParseError::UnexpectedArgument);
+        }
+        let k = number(args[1], "segment")?;
+        let max = (SEGMENTS - 1) as f32;
+        let k = in_range(k, "segment", 0.0, max)?;
+        if k != libm::floorf(k) {
+            return Err(ParseError::BadNumber("segment"));
+        }
+        CaptureCommand::Get(k as u16)
+    } else {
+        return Err(ParseError::UnknownCapture);
+    };
+    Ok(Request::Capture(cmd))
 }
 
 fn number(arg: Option<&str>, what: &'static str) -> Result<f32, ParseError> {
@@ -155,31 +245,28 @@ fn in_range(v: f32, field: &'static str, min: f32, max: f32) -> Result<f32, Pars
     }
 }
 
-/// Runs one console line on the controller and writes its one-line reply (no line ending) to
-/// `out`: `ok`, the status line, the help line, or `error: …` (then nothing changed). The
-/// firmware's USART2 task and host-sim's virtual rig both answer through this.
-///
-/// # Errors
-/// Only `out`'s write errors.
-pub fn respond<W: fmt::Write>(c: &mut Controller, line: Line<'_>, out: &mut W) -> fmt::Result {
-    let text = match line {
-        Line::Bad => return out.write_str("error: line too long or not text"),
-        Line::Text(t) => t,
-    };
-    match parse(text) {
-        Err(e) => write!(out, "error: {e}"),
-        Ok(cmd) => match c.execute(cmd) {
-            Ok(reply) => write!(out, "{reply}"),
-            Err(e) => write!(out, "error: {e}"),
-        },
-    }
+/// Why the receiver flagged a byte (the UART's status bits).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RxError {
+    /// A byte arrived before the previous one was read (`ORE`): at least one byte is missing.
+    Overrun,
+    /// No stop bit where one was expected (`FE`).
+    Framing,
+    /// Noise detected on the line while sampling the byte (`NF`).
+    Noise,
+    /// Parity mismatch (`PE`; not used at 8N1).
+    Parity,
 }
 
-/// Collects received bytes into lines.
+/// Collects received bytes into lines. A line whose bytes were received with an error
+/// ([`LineBuffer::error`]) or that overflowed [`MAX_LINE`] is handed out as [`Line::Lost`] or
+/// [`Line::Bad`] at its end, never as text: a corrupted command cannot run.
 #[derive(Debug, Clone, Default)]
 pub struct LineBuffer {
     buf: heapless::Vec<u8, MAX_LINE>,
     overflow: bool,
+    /// A receive error happened since the line began.
+    error: bool,
     /// The buffer holds a line already handed out: start afresh at the next byte.
     done: bool,
 }
@@ -191,15 +278,23 @@ pub enum Line<'a> {
     Text(&'a str),
     /// The line was longer than [`MAX_LINE`] or not UTF-8; it is discarded.
     Bad,
+    /// A receive error (overrun, framing, noise, parity) hit the line; it is discarded.
+    Lost,
 }
 
 impl LineBuffer {
-    /// Adds one byte; returns the line at `\n` or `\r`. Empty lines are skipped.
+    /// Adds one byte; returns the line at `\n` or `\r`. Empty lines are skipped, unless a
+    /// receive error was flagged since the last line (then the lost line is reported).
     pub fn push(&mut self, byte: u8) -> Option<Line<'_>> {
         if core::mem::take(&mut self.done) {
             self.buf.clear();
         }
         if byte == b'\n' || byte == b'\r' {
+            if core::mem::take(&mut self.error) {
+                self.overflow = false;
+                self.buf.clear();
+                return Some(Line::Lost);
+            }
             if core::mem::take(&mut self.overflow) {
                 self.buf.clear();
                 return Some(Line::Bad);
@@ -218,6 +313,15 @@ impl LineBuffer {
         }
         None
     }
+
+    /// Flags a receive error: the line being received (or, between lines, the next one) is
+    /// discarded at its end and reported as [`Line::Lost`].
+    pub fn error(&mut self) {
+        if core::mem::take(&mut self.done) {
+            self.buf.clear();
+        }
+        self.error = true;
+    }
 }
 
 #[cfg(test)]
@@ -226,15 +330,46 @@ mod tests {
 
     #[test]
     fn commands_parse() {
-        assert_eq!(parse("status"), Ok(Command::Status));
-        assert_eq!(parse("  START \r"), Ok(Command::Start));
-        assert_eq!(parse("rig beam-170"), Ok(Command::Rig(RigId::Beam170)));
-        assert_eq!(parse("RIG Wires"), Ok(Command::Rig(RigId::Wires)));
-        assert_eq!(parse("gap 0.3"), Ok(Command::Gap(0.3)));
-        assert_eq!(parse("freq 3.66"), Ok(Command::Freq(3.66)));
-        assert_eq!(parse("tune"), Ok(Command::Tune));
-        assert_eq!(parse("clear"), Ok(Command::Clear));
-        assert_eq!(parse("stop"), Ok(Command::Stop));
+        let c = |cmd| Ok(Request::Control(cmd));
+        assert_eq!(parse("status"), c(Command::Status));
+        assert_eq!(parse("  START \r"), c(Command::Start));
+        assert_eq!(parse("rig beam-170"), c(Command::Rig(RigId::Beam170)));
+        assert_eq!(parse("RIG Wires"), c(Command::Rig(RigId::Wires)));
+        assert_eq!(parse("gap 0.3"), c(Command::Gap(0.3)));
+        assert_eq!(parse("freq 3.66"), c(Command::Freq(3.66)));
+        assert_eq!(parse("tune"), c(Command::Tune));
+        assert_eq!(parse("clear"), c(Command::Clear));
+        assert_eq!(parse("stop"), c(Command::Stop));
+        assert_eq!(parse("stream ON"), c(Command::Stream(true)));
+        assert_eq!(parse("stream off"), c(Command::Stream(false)));
+        assert_eq!(parse("id"), Ok(Request::Id));
+        assert_eq!(parse("diag"), Ok(Request::Diag));
+        assert_eq!(
+            parse("capture"),
+            Ok(Request::Capture(CaptureCommand::Status))
+        );
+        assert_eq!(
+            parse("capture arm"),
+            Ok(Request::Capture(CaptureCommand::Arm {
+                level_n: DEFAULT_LEVEL_N,
+                seconds: DEFAULT_SECONDS
+            }))
+        );
+        assert_eq!(
+            parse("capture arm 2.5 1.5"),
+            Ok(Request::Capture(CaptureCommand::Arm {
+                level_n: 2.5,
+                seconds: 1.5
+            }))
+        );
+        assert_eq!(
+            parse("capture get 7"),
+            Ok(Request::Capture(CaptureCommand::Get(7)))
+        );
+        assert_eq!(
+            parse("capture stop"),
+            Ok(Request::Capture(CaptureCommand::Stop))
+        );
     }
 
     #[test]
@@ -255,6 +390,36 @@ mod tests {
         assert_eq!(parse("freq 3 4"), Err(ParseError::UnexpectedArgument));
         assert_eq!(parse("start now"), Err(ParseError::UnexpectedArgument));
         assert_eq!(parse("rig beam-200"), Err(ParseError::UnknownRig));
+        assert_eq!(
+            parse("stream"),
+            Err(ParseError::MissingArgument("on or off"))
+        );
+        assert_eq!(parse("stream maybe"), Err(ParseError::OnOff));
+        assert_eq!(parse("id now"), Err(ParseError::UnexpectedArgument));
+        assert_eq!(parse("capture fire"), Err(ParseError::UnknownCapture));
+        assert_eq!(
+            parse("capture get 1.5"),
+            Err(ParseError::BadNumber("segment"))
+        );
+        assert!(matches!(
+            parse("capture get 99"),
+            Err(ParseError::OutOfRange {
+                field: "segment",
+                ..
+            })
+        ));
+        assert!(matches!(
+            parse("capture arm 0"),
+            Err(ParseError::OutOfRange {
+                field: "level (N)",
+                ..
+            })
+        ));
+        assert_eq!(
+            parse("capture stop now"),
+            Err(ParseError::UnexpectedArgument)
+        );
+        assert_eq!(parse("gap 1 2 3 4"), Err(ParseError::UnexpectedArgument));
     }
 
     #[test]
@@ -269,6 +434,7 @@ mod tests {
             match b.push(byte) {
                 Some(Line::Text(s)) => lines.push(std::string::String::from(s)),
                 Some(Line::Bad) => lines.push("<bad>".into()),
+                Some(Line::Lost) => lines.push("<lost>".into()),
                 None => {}
             }
         }
@@ -281,5 +447,34 @@ mod tests {
             }
         }
         assert_eq!(got, Some(true));
+    }
+
+    #[test]
+    fn a_receive_error_discards_the_line_it_hits() {
+        // `gap 0.5` with its `.` lost to an overrun: the rest arrives as `gap 05`, which must
+        // not run.
+        let mut b = LineBuffer::default();
+        let mut out = std::vec::Vec::new();
+        for (i, &byte) in b"gap 05\nstatus\n".iter().enumerate() {
+            if i == 5 {
+                b.error();
+            }
+            match b.push(byte) {
+                Some(Line::Text(s)) => out.push(std::string::String::from(s)),
+                Some(Line::Lost) => out.push("<lost>".into()),
+                Some(Line::Bad) => out.push("<bad>".into()),
+                None => {}
+            }
+        }
+        assert_eq!(out, ["<lost>", "status"]);
+        // An error between lines (noise on an idle line) costs the next line, not more; an
+        // error right after a line's end does not reach back into it.
+        let mut b = LineBuffer::default();
+        assert_eq!(b.push(b'x'), None);
+        assert_eq!(b.push(b'\n'), Some(Line::Text("x")));
+        b.error();
+        assert_eq!(b.push(b'\n'), Some(Line::Lost));
+        assert_eq!(b.push(b'y'), None);
+        assert_eq!(b.push(b'\n'), Some(Line::Text("y")));
     }
 }

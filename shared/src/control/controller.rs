@@ -56,6 +56,20 @@ impl State {
             State::Fault => "fault",
         }
     }
+
+    /// The state of a name from [`State::as_str`].
+    pub fn from_name(name: &str) -> Option<State> {
+        [
+            State::Idle,
+            State::Ramp,
+            State::Dwell,
+            State::Track,
+            State::Stopping,
+            State::Fault,
+        ]
+        .into_iter()
+        .find(|s| s.as_str() == name)
+    }
 }
 
 /// The model's status.
@@ -80,7 +94,7 @@ pub struct ModelRequest {
     pub generation: u32,
 }
 
-/// Something worth a log line.
+/// Something worth a log line (and, while streaming, an event line on the console).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Event {
     /// The state changed.
@@ -96,6 +110,148 @@ pub enum Event {
     ModelReady(Prediction),
     /// The model found no target.
     ModelFailed,
+    /// The health check found the sampling slower than it should be (the watchdog is not fed).
+    SamplingStalled {
+        /// Samples taken in the last check window.
+        samples: u32,
+        /// Samples expected in that window at [`super::SAMPLE_RATE_HZ`].
+        expected: u32,
+    },
+}
+
+/// One finished drive cycle, as streamed (`!T` lines).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CycleTelemetry {
+    /// State at the end of the cycle.
+    pub state: State,
+    /// Drive frequency now, Hz.
+    pub freq_hz: f32,
+    /// Drive amplitude now, mm.
+    pub amplitude_mm: f32,
+    /// Impacts detected in the cycle.
+    pub impacts: u8,
+    /// Their largest peak, N (0 without impacts).
+    pub peak_n: f32,
+    /// Sum of their impulses, N·s.
+    pub impulse_n_s: f32,
+    /// Measured regime of the last evaluation.
+    pub regime: Option<Regime>,
+    /// Latched fault.
+    pub fault: Option<Fault>,
+    /// Cycles lost from `1/1` while tracking, so far.
+    pub lost_cycles: u32,
+}
+
+/// What an asynchronous line carries.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AsyncKind {
+    /// A drive cycle (`!T`).
+    Cycle(CycleTelemetry),
+    /// An event (`!E`).
+    Event(Event),
+}
+
+/// An asynchronous console line, produced while streaming: `!T` (one per drive cycle) or `!E`
+/// (one per event), with a sequence number that counts every line produced, so that the
+/// desktop sees any line lost on the way as a gap. Its text ([`fmt::Display`]):
+///
+/// ```text
+/// !T seq=41 t_s=12.3456 state=track freq_hz=3.7000 amp_mm=0.890 impacts=1 peak_n=95.4 impulse_n_s=0.02851 regime=1/1 fault=none lost_cycles=0
+/// !E seq=42 t_s=12.3457 event=state from=ramp to=track
+/// !E seq=43 t_s=15.1550 event=fault fault=sensor-open
+/// !E seq=44 t_s=0.5000 event=model-ready target_hz=3.6404 target_bits=0x4068fcfc band_hz=2.107..4.720 predicted_mg=32.76
+/// !E seq=45 t_s=0.5000 event=model-failed
+/// !E seq=46 t_s=20.0000 event=stalled samples=5000 expected=10000
+/// ```
+///
+/// `t_s` is the controller's sample count over [`super::SAMPLE_RATE_HZ`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AsyncRecord {
+    /// Sequence number (every line produced counts, sent or dropped).
+    pub seq: u32,
+    /// Samples since start-up when it was produced.
+    pub sample: u64,
+    /// What it says.
+    pub kind: AsyncKind,
+}
+
+/// Samples as seconds with four decimals, in integers (exact at 10 kHz).
+struct SampleTime(u64);
+
+impl fmt::Display for SampleTime {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let rate = u64::from(super::SAMPLE_RATE_HZ);
+        let frac = (self.0 % rate) * 10_000 / rate;
+        write!(f, "{}.{:04}", self.0 / rate, frac)
+    }
+}
+
+fn write_regime(f: &mut fmt::Formatter<'_>, regime: Option<Regime>) -> fmt::Result {
+    match regime {
+        Some(r @ Regime::Periodic { .. }) => write!(f, "{r}"),
+        Some(Regime::NoImpact) => f.write_str("none"),
+        Some(Regime::Irregular) => f.write_str("irregular"),
+        None => f.write_str("-"),
+    }
+}
+
+impl fmt::Display for AsyncRecord {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let tag = match self.kind {
+            AsyncKind::Cycle(_) => "!T",
+            AsyncKind::Event(_) => "!E",
+        };
+        write!(f, "{tag} seq={} t_s={}", self.seq, SampleTime(self.sample))?;
+        match self.kind {
+            AsyncKind::Cycle(c) => {
+                write!(
+                    f,
+                    " state={} freq_hz={} amp_mm={} impacts={}",
+                    c.state.as_str(),
+                    Fixed(c.freq_hz, 4),
+                    Fixed(c.amplitude_mm, 3),
+                    c.impacts
+                )?;
+                if c.impacts > 0 {
+                    write!(
+                        f,
+                        " peak_n={} impulse_n_s={}",
+                        Fixed(c.peak_n, 1),
+                        Fixed(c.impulse_n_s, 5)
+                    )?;
+                } else {
+                    f.write_str(" peak_n=- impulse_n_s=-")?;
+                }
+                f.write_str(" regime=")?;
+                write_regime(f, c.regime)?;
+                write!(
+                    f,
+                    " fault={} lost_cycles={}",
+                    c.fault.map_or("none", Fault::as_str),
+                    c.lost_cycles
+                )
+            }
+            AsyncKind::Event(e) => match e {
+                Event::State { from, to } => {
+                    write!(f, " event=state from={} to={}", from.as_str(), to.as_str())
+                }
+                Event::Fault(fault) => write!(f, " event=fault fault={}", fault.as_str()),
+                Event::ModelReady(p) => write!(
+                    f,
+                    " event=model-ready target_hz={} target_bits={:#010x} band_hz={}..{} predicted_mg={}",
+                    Fixed(p.target_hz, 4),
+                    p.target_hz.to_bits(),
+                    Fixed(p.band_hz[0], 3),
+                    Fixed(p.band_hz[1], 3),
+                    Fixed(p.impact_force_mg, 2)
+                ),
+                Event::ModelFailed => f.write_str(" event=model-failed"),
+                Event::SamplingStalled { samples, expected } => {
+                    write!(f, " event=stalled samples={samples} expected={expected}")
+                }
+            },
+        }
+    }
 }
 
 /// Why a console command was refused (nothing changed).
@@ -240,6 +396,8 @@ impl fmt::Display for Status {
 
 /// Events kept for the logger.
 pub const EVENT_QUEUE: usize = 8;
+/// Asynchronous lines kept for the console service while streaming.
+pub const OUTBOX: usize = 8;
 
 /// The controller.
 #[derive(Debug, Clone)]
@@ -272,6 +430,9 @@ pub struct Controller {
     impacts: u32,
     lost_cycles: u32,
     events: Deque<Event, EVENT_QUEUE>,
+    streaming: bool,
+    seq: u32,
+    outbox: Deque<AsyncRecord, OUTBOX>,
 }
 
 impl Controller {
@@ -313,6 +474,9 @@ impl Controller {
             impacts: 0,
             lost_cycles: 0,
             events: Deque::new(),
+            streaming: false,
+            seq: 0,
+            outbox: Deque::new(),
         })
     }
 
@@ -381,6 +545,27 @@ impl Controller {
         self.events.pop_front()
     }
 
+    /// Whether per-cycle telemetry and event lines are produced (`stream on`).
+    pub fn streaming(&self) -> bool {
+        self.streaming
+    }
+
+    /// The oldest asynchronous line not yet handed to the console.
+    pub fn pop_async(&mut self) -> Option<AsyncRecord> {
+        self.outbox.pop_front()
+    }
+
+    /// Whether asynchronous lines wait for the console.
+    pub fn async_pending(&self) -> bool {
+        !self.outbox.is_empty()
+    }
+
+    /// Records the health check's finding that sampling is slower than it should be: `samples`
+    /// taken where `expected` were due (an [`Event::SamplingStalled`]).
+    pub fn report_stall(&mut self, samples: u32, expected: u32) {
+        self.push(Event::SamplingStalled { samples, expected });
+    }
+
     /// Whether a model computation is waiting to be taken.
     pub fn model_request_open(&self) -> bool {
         self.request_open
@@ -432,6 +617,7 @@ impl Controller {
         match cmd {
             Command::Status => return Ok(Reply::Status(self.status())),
             Command::Help => return Ok(Reply::Help),
+            Command::Stream(on) => self.streaming = on,
             Command::Rig(rig) => {
                 self.require_idle()?;
                 self.rig = rig;
@@ -532,7 +718,9 @@ impl Controller {
                 (0.0, None)
             }
         };
-        if force_n > self.config.limits.force_limit_n {
+        // Over-force aborts a drive; with the drive off there is nothing to abort (a drop test
+        // or a hand on the hammer is not a fault).
+        if force_n > self.config.limits.force_limit_n && self.state != State::Idle {
             self.trip(Fault::OverForce);
         }
         let rail = code.is_some_and(|c| self.monitor.at_rail(c));
@@ -552,6 +740,9 @@ impl Controller {
         let out = self.generator.next_sample();
         if out.cycle_start {
             self.on_cycle();
+            if self.streaming {
+                self.queue_cycle();
+            }
         }
         match self.state {
             State::Ramp if self.generator.settled() => {
@@ -626,6 +817,34 @@ impl Controller {
         }
     }
 
+    fn queue_cycle(&mut self) {
+        let last = self.meter.cycle(0).unwrap_or_default();
+        let c = CycleTelemetry {
+            state: self.state,
+            freq_hz: self.generator.freq_hz(),
+            amplitude_mm: self.generator.amplitude_mm(),
+            impacts: last.impacts,
+            peak_n: last.peak_n,
+            impulse_n_s: last.impulse_ns,
+            regime: self.regime,
+            fault: self.fault,
+            lost_cycles: self.lost_cycles,
+        };
+        self.queue_async(AsyncKind::Cycle(c));
+    }
+
+    /// Queues an asynchronous line; a full outbox drops it (its sequence number is spent, so
+    /// the desktop counts it as lost).
+    fn queue_async(&mut self, kind: AsyncKind) {
+        let record = AsyncRecord {
+            seq: self.seq,
+            sample: self.sample,
+            kind,
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let _ = self.outbox.push_back(record);
+    }
+
     fn begin_tracking(&mut self, p: &Prediction) {
         let l = self.config.limits;
         let band = [
@@ -687,5 +906,8 @@ impl Controller {
             let _ = self.events.pop_front();
         }
         let _ = self.events.push_back(e);
+        if self.streaming {
+            self.queue_async(AsyncKind::Event(e));
+        }
     }
 }

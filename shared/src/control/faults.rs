@@ -36,6 +36,20 @@ impl Fault {
             Fault::BadConfig => "bad-config",
         }
     }
+
+    /// The fault of a name from [`Fault::as_str`].
+    pub fn from_name(name: &str) -> Option<Fault> {
+        [
+            Fault::OverForce,
+            Fault::SensorOpen,
+            Fault::SensorStuck,
+            Fault::AdcOverrun,
+            Fault::MissedDeadline,
+            Fault::BadConfig,
+        ]
+        .into_iter()
+        .find(|f| f.as_str() == name)
+    }
 }
 
 impl fmt::Display for Fault {

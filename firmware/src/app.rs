@@ -1,0 +1,415 @@
+//! The RTIC application, the same source for the rig image (`firmware`, `src/main.rs`) and the
+//! emulator image (`firmware-qemu`, `src/bin/firmware_qemu.rs`): each binary brings its own
+//! `board` module (the peripherals), and nothing here differs between them.
+//!
+//! | task      | trigger                                         | priority | does                                            |
+//! |-----------|-------------------------------------------------|----------|-------------------------------------------------|
+//! | `sample`  | ADC end of conversion (TIM2 TRGO starts it, 10 kHz) | 3    | ADC1 → `Controller::on_sample` → DAC1           |
+//! | `console` | USART2 (byte received, transmit register empty) | 3        | bytes ↔ the link's queues                       |
+//! | `serve`   | woken by `console`, `sample`, `report`          | 2        | one reply per line; telemetry and event lines   |
+//! | `capture` | DMA2 stream 2 (half of the capture buffer full) | 2        | capture-rate samples → the segment store        |
+//! | `report`  | every second on the SysTick monotonic           | 2        | health check and watchdog; the defmt status log |
+//! | `model`   | start-up, `rig`, `gap`, `tune`                  | 1        | `shared::control::predict` (the selection)      |
+//!
+//! Nothing is formatted or sent under a lock that the sampling task needs for long: the console
+//! service copies what it needs out of the controller, formats outside every lock, and queues
+//! the text for the UART, which drains it from its interrupt.
+
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [EXTI0, EXTI1])]
+mod app {
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    use defmt_rtt as _;
+    use rtic::Mutex;
+    use rtic_monotonics::systick::prelude::*;
+    use rtic_sync::signal::{SignalReader, SignalWriter};
+    use shared::control::capture::Capture;
+    use shared::control::link::{Link, LinkStats, REPLY_ROOM};
+    use shared::control::serve::{
+        Answer, AsyncText, BoardInfo, ReplyText, RigAccess, answer, format_answer, format_async,
+    };
+    use shared::control::{
+        Controller, ControllerConfig, Event, Health, HealthCheck, Status, predict,
+    };
+    use shared::hal::{DriveOutput, ForceSource};
+    use shared::observe::Regime;
+
+    use crate::board;
+    use crate::config::{CAPTURE_BLOCK, FIRMWARE_VERSION, GAP_MM, RIG, SYSCLK_HZ};
+
+    systick_monotonic!(Mono, 1_000);
+
+    /// Longest time between two sampling-task runs since start-up, µs (`diag`).
+    static SAMPLE_GAP_MAX_US: AtomicU32 = AtomicU32::new(0);
+
+    /// The console's link and its UART.
+    pub struct Console {
+        /// Lines in, replies and asynchronous lines out.
+        pub link: Link,
+        /// USART2.
+        pub serial: board::ConsoleSerial,
+    }
+
+    /// The capture's segment store and its sampling input.
+    pub struct CaptureRes {
+        /// Segments.
+        pub store: &'static mut Capture,
+        /// ADC2 at the capture rate.
+        pub input: board::CaptureInput,
+    }
+
+    #[shared]
+    struct Shared {
+        controller: Controller,
+        console: Console,
+        capture: CaptureRes,
+    }
+
+    #[local]
+    struct Local {
+        adc: board::ForceAdc,
+        dac: board::DacDrive,
+        clock: board::MicrosClock,
+        watchdog: board::Watchdog,
+        wake_from_sample: SignalWriter<'static, ()>,
+        wake_from_console: SignalWriter<'static, ()>,
+        wake_from_report: SignalWriter<'static, ()>,
+        wake: SignalReader<'static, ()>,
+    }
+
+    fn uptime_ms() -> u32 {
+        Mono::now().duration_since_epoch().to_millis()
+    }
+
+    fn board_info() -> BoardInfo {
+        BoardInfo {
+            firmware: FIRMWARE_VERSION,
+            board: board::BOARD,
+            uptime_ms: u64::from(uptime_ms()),
+            stack_hwm_bytes: crate::stack::high_water_bytes(),
+            stack_size_bytes: crate::stack::size_bytes(),
+            sample_gap_max_us: SAMPLE_GAP_MAX_US.load(Ordering::Relaxed),
+        }
+    }
+
+    #[init(local = [
+        capture_store: Capture = Capture::new(),
+        capture_bufs: [[u16; CAPTURE_BLOCK]; 3] = [[0; CAPTURE_BLOCK]; 3],
+    ])]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        crate::stack::paint();
+        let mut core = cx.core;
+        let [a, b, c] = cx.local.capture_bufs;
+        let parts = board::init(cx.device, &mut core.NVIC, [a, b, c]);
+        Mono::start(core.SYST, SYSCLK_HZ);
+        let controller = match Controller::new(ControllerConfig::default(), RIG, GAP_MM) {
+            Ok(c) => c,
+            Err(_) => defmt::panic!("the built-in controller configuration is invalid"),
+        };
+        let (writer, reader) = rtic_sync::make_signal!(());
+        defmt::info!(
+            "vibro-impact rig firmware {=str} ({=str} board): rig {=str}, gap {=f32} mm, sampling at {=u32} Hz",
+            FIRMWARE_VERSION,
+            board::BOARD,
+            RIG.name(),
+            GAP_MM,
+            shared::control::SAMPLE_RATE_HZ
+        );
+        model::spawn().ok();
+        serve::spawn().ok();
+        report::spawn().ok();
+        (
+            Shared {
+                controller,
+                console: Console {
+                    link: Link::new(),
+                    serial: parts.serial,
+                },
+                capture: CaptureRes {
+                    store: cx.local.capture_store,
+                    input: parts.capture,
+                },
+            },
+            Local {
+                adc: parts.adc,
+                dac: parts.dac,
+                clock: parts.clock,
+                watchdog: parts.watchdog,
+                wake_from_sample: writer.clone(),
+                wake_from_console: writer.clone(),
+                wake_from_report: writer,
+                wake: reader,
+            },
+        )
+    }
+
+    #[idle]
+    fn idle(_cx: idle::Context) -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    /// The sampling task: one force sample in, one drive sample out, every 100 µs, on the ADC's
+    /// end-of-conversion interrupt (the conversion itself is started by TIM2's trigger output).
+    #[task(
+        binds = ADC,
+        priority = 3,
+        shared = [controller],
+        local = [adc, dac, clock, wake_from_sample, last_us: u64 = 0]
+    )]
+    fn sample(mut cx: sample::Context) {
+        let code = cx.local.adc.read_code();
+        let now_us = cx.local.clock.now_us();
+        let last = core::mem::replace(cx.local.last_us, now_us);
+        if last != 0 {
+            let gap = u32::try_from(now_us.wrapping_sub(last)).unwrap_or(u32::MAX);
+            SAMPLE_GAP_MAX_US.fetch_max(gap, Ordering::Relaxed);
+        }
+        let (out, news) = cx
+            .shared
+            .controller
+            .lock(|c| (c.on_sample(code, now_us), c.async_pending()));
+        cx.local.dac.write_code(out);
+        if news {
+            cx.local.wake_from_sample.write(());
+        }
+    }
+
+    /// The UART: received bytes (and receive errors) into the link, the next queued byte out.
+    #[task(binds = USART2, priority = 3, shared = [console], local = [wake_from_console])]
+    fn console(mut cx: console::Context) {
+        let ready = cx.shared.console.lock(|con| {
+            while let Some(rx) = con.serial.read() {
+                match rx {
+                    Ok(byte) => con.link.on_rx_byte(byte),
+                    Err(e) => con.link.on_rx_error(e),
+                }
+            }
+            if con.serial.tx_ready() {
+                match con.link.pop_tx() {
+                    Some(byte) => {
+                        con.serial.write(byte);
+                        con.serial.more_tx();
+                    }
+                    None => con.serial.stop_tx(),
+                }
+            }
+            con.link.has_line() && con.link.tx_free() >= REPLY_ROOM
+        });
+        if ready {
+            cx.local.wake_from_console.write(());
+        }
+    }
+
+    /// [`RigAccess`] over the console service's locks: each closure runs under its resource's
+    /// lock only.
+    struct Access<'a, C, K> {
+        controller: &'a mut C,
+        capture: &'a mut K,
+        link: LinkStats,
+    }
+
+    impl<C, K> RigAccess for Access<'_, C, K>
+    where
+        C: Mutex<T = Controller>,
+        K: Mutex<T = CaptureRes>,
+    {
+        fn controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
+            self.controller.lock(f)
+        }
+        fn capture<R>(&mut self, f: impl FnOnce(&mut Capture) -> R) -> R {
+            self.capture.lock(|c| f(c.store))
+        }
+        fn board(&mut self) -> BoardInfo {
+            board_info()
+        }
+        fn link_stats(&mut self) -> LinkStats {
+            self.link
+        }
+    }
+
+    /// The console service: answers every waiting line (one reply each), then sends the
+    /// asynchronous lines; sleeps until woken again.
+    #[task(priority = 2, shared = [controller, console, capture], local = [wake])]
+    async fn serve(mut cx: serve::Context) {
+        let mut reply = ReplyText::new();
+        let mut line = AsyncText::new();
+        loop {
+            cx.local.wake.wait().await;
+            loop {
+                let next = cx
+                    .shared
+                    .console
+                    .lock(|c| c.link.next_line().map(|l| (l, c.link.stats())));
+                let Some((pending, stats)) = next else {
+                    break;
+                };
+                let hooked = match pending.as_line() {
+                    shared::control::Line::Text(t) => board::hook(t, uptime_ms()),
+                    _ => None,
+                };
+                match hooked {
+                    Some(text) => {
+                        reply.clear();
+                        let _ = reply.push_str(&text);
+                    }
+                    None => {
+                        let mut access = Access {
+                            controller: &mut cx.shared.controller,
+                            capture: &mut cx.shared.capture,
+                            link: stats,
+                        };
+                        let a: Answer = answer(&mut access, pending.as_line());
+                        format_answer(&a, &mut reply);
+                    }
+                }
+                send(&mut cx.shared.console, reply.as_bytes());
+                // A capture armed: start its sampling; a model request: start the model task.
+                cx.shared.capture.lock(|c| {
+                    if c.store.active() {
+                        c.input.start();
+                    }
+                });
+                if cx.shared.controller.lock(|c| c.model_request_open()) {
+                    model::spawn().ok();
+                }
+            }
+            while let Some(rec) = cx.shared.controller.lock(|c| c.pop_async()) {
+                if format_async(&rec, &mut line)
+                    && cx.shared.console.lock(|c| c.link.reserve_async(line.len()))
+                {
+                    send(&mut cx.shared.console, line.as_bytes());
+                }
+            }
+        }
+    }
+
+    /// Bytes per lock when queueing text: the console's lock holds off the sampling task, so it
+    /// is taken for short pieces (≈ 2 µs each on the rig), not for a whole 600-byte reply.
+    const SEND_CHUNK: usize = 32;
+
+    /// Queues a line (`\r\n` appended) in short pieces and starts the UART sending.
+    fn send(console: &mut impl Mutex<T = Console>, text: &[u8]) {
+        for piece in text.chunks(SEND_CHUNK).chain([&b"\r\n"[..]]) {
+            console.lock(|c| {
+                c.link.push_bytes(piece);
+                c.serial.kick_tx();
+            });
+        }
+    }
+
+    /// The capture: a block of capture-rate samples into the segment store; its sampling stops
+    /// when the capture ends.
+    #[task(binds = DMA2_STREAM2, priority = 2, shared = [capture])]
+    fn capture(mut cx: capture::Context) {
+        cx.shared.capture.lock(|c| {
+            let store = &mut *c.store;
+            c.input.take_block(|block| store.push_block(block));
+            if !c.store.active() {
+                c.input.stop();
+            }
+        });
+    }
+
+    /// Once a second: the health check on the monotonic (samples taken against time elapsed)
+    /// feeds the watchdog only while sampling keeps ≥ 90 % of its rate; events and the status
+    /// line to the defmt log.
+    #[task(priority = 2, shared = [controller], local = [watchdog, wake_from_report])]
+    async fn report(mut cx: report::Context) {
+        let mut health = HealthCheck::new();
+        let mut next = Mono::now();
+        loop {
+            next += 1000.millis();
+            Mono::delay_until(next).await;
+            let now_ms = uptime_ms();
+            let (status, samples, model_needed) = cx
+                .shared
+                .controller
+                .lock(|c| (c.status(), c.samples(), c.model_request_open()));
+            while let Some(event) = cx.shared.controller.lock(|c| c.pop_event()) {
+                log_event(event);
+            }
+            match health.check(samples, now_ms) {
+                Health::Feed => cx.local.watchdog.feed(now_ms),
+                Health::Stalled { samples, expected } => {
+                    defmt::error!(
+                        "sampling stalled ({=u32} of {=u32} samples): not feeding the watchdog",
+                        samples,
+                        expected
+                    );
+                    cx.shared
+                        .controller
+                        .lock(|c| c.report_stall(samples, expected));
+                    cx.local.wake_from_report.write(());
+                }
+            }
+            cx.local.watchdog.check(now_ms);
+            log_status(&status);
+            if model_needed {
+                model::spawn().ok();
+            }
+        }
+    }
+
+    /// The status line in defmt's binary encoding (formatted on the host). Not
+    /// `Display2Format`: defmt-rtt keeps interrupts off while it logs, and formatting the
+    /// 250-character line there would delay the sampling task by ~100 µs.
+    fn log_status(s: &Status) {
+        let (p, q) = match s.regime {
+            Some(Regime::Periodic { p, q }) => (p, q),
+            _ => (0, 0),
+        };
+        defmt::info!(
+            "status: {=str} rig {=str} gap {=f32} mm, drive {=f32} Hz {=f32} mm, regime {=u16}/{=u16}, peak {=f32} N, fault {=str}, impacts {=u32}, lost cycles {=u32}",
+            s.state.as_str(),
+            s.rig.name(),
+            s.gap_mm,
+            s.freq_hz,
+            s.amplitude_mm,
+            p,
+            q,
+            s.peak_n.unwrap_or(0.0),
+            s.fault.map_or("none", |f| f.as_str()),
+            s.impacts,
+            s.lost_cycles
+        );
+    }
+
+    fn log_event(event: Event) {
+        match event {
+            Event::State { from, to } => {
+                defmt::info!("state {=str} -> {=str}", from.as_str(), to.as_str())
+            }
+            Event::Fault(f) => defmt::error!("FAULT {=str}: drive ramping to zero", f.as_str()),
+            Event::ModelReady(p) => defmt::info!(
+                "model: target {=f32} Hz, 1/1 band {=f32}..{=f32} Hz, F_i/mg {=f32}",
+                p.target_hz,
+                p.band_hz[0],
+                p.band_hz[1],
+                p.impact_force_mg
+            ),
+            Event::ModelFailed => defmt::warn!("model: no robust 1/1 target"),
+            Event::SamplingStalled { samples, expected } => {
+                defmt::error!("sampling stalled: {=u32} of {=u32}", samples, expected)
+            }
+        }
+    }
+
+    /// The model: runs the on-target selection for every open request (lowest priority, so
+    /// sampling and the console preempt it).
+    #[task(priority = 1, shared = [controller])]
+    async fn model(mut cx: model::Context) {
+        while let Some(req) = cx.shared.controller.lock(|c| c.take_model_request()) {
+            defmt::info!(
+                "model: computing rig {=str} gap {=f32} mm",
+                req.rig.name(),
+                req.gap_mm
+            );
+            let result = predict(req.rig, req.gap_mm);
+            cx.shared
+                .controller
+                .lock(|c| c.set_prediction(req.generation, result));
+        }
+    }
+}

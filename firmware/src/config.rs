@@ -1,0 +1,16 @@
+//! Configuration of the rig this board drives at power-up (the console changes rig and gap).
+
+use shared::model::RigId;
+
+/// The rig at power-up.
+pub const RIG: RigId = RigId::Wires;
+/// The gap at power-up, mm (field use: 0.0 mm).
+pub const GAP_MM: f32 = 0.0;
+/// Core clock, Hz (also SysTick's clock, the monotonic's time base).
+pub const SYSCLK_HZ: u32 = 168_000_000;
+/// Independent watchdog timeout, ms.
+pub const WATCHDOG_MS: u32 = 2_000;
+/// The firmware's version (`id`).
+pub const FIRMWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
+/// Samples per capture DMA block (half of the double buffer): 0.64 ms at 100 kHz.
+pub const CAPTURE_BLOCK: usize = 64;

@@ -1,0 +1,428 @@
+//! `host-sim rig --port PATH …`: the rig as an instrument the desktop drives, over its serial
+//! console (the board over USB-serial, the firmware under QEMU, or `hil --serve-pty`).
+
+use std::io::BufRead as _;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail, ensure};
+use clap::{Args, Subcommand};
+
+use crate::client::capture::{capture, write_trace};
+use crate::client::log::record;
+use crate::client::sweep::{SweepOutcome, SweepPoint, SweepSpec, parse_range, sweep};
+use crate::client::{AsyncLine, RigPort};
+use crate::output::{Outputs, write_csv};
+use crate::plot::{self, ResponsePoint};
+use crate::rig::figure;
+use crate::rig::scenario::Scenario;
+
+/// Arguments of `rig`.
+#[derive(Debug, Args)]
+pub struct RigArgs {
+    /// The rig's console: a serial device (USB-serial adapter, `/dev/ttyACM0`), QEMU's pty or
+    /// `hil --serve-pty`'s (`/dev/pts/N`).
+    #[arg(long, value_name = "PATH")]
+    pub port: PathBuf,
+    /// Baud rate of the console (8N1).
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// How long to wait for a reply, s (0.1 ..= 60).
+    #[arg(long, default_value_t = 2.0)]
+    pub timeout_s: f64,
+    /// What to do.
+    #[command(subcommand)]
+    pub what: RigCommand,
+}
+
+/// The `rig` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum RigCommand {
+    /// Send console lines, print each reply; stop with a non-zero exit at the first
+    /// `error: …` reply.
+    Send(SendArgs),
+    /// Interactive: lines from stdin, replies (and asynchronous lines) to stdout.
+    Console(ConsoleArgs),
+    /// Run the timed [[commands]] of a virtual-rig scenario on the rig (times are rig time,
+    /// by the rig's own clock).
+    Run(RunArgs),
+    /// Record the per-cycle telemetry for a span of rig time: CSV (the `hil` log's columns for
+    /// what the rig measures) and figure.
+    Log(LogArgs),
+    /// Record a drop test with the rig's force capture: a `t_s,force_n` trace for
+    /// `identify contact --trace`.
+    Capture(CaptureArgs),
+    /// Measure a frequency response: dwell at each frequency, record the mean peak force
+    /// (F_i/mg) and the regime; a file `compare --experiment` reads.
+    Sweep(SweepArgs),
+}
+
+/// `rig send`.
+#[derive(Debug, Args)]
+pub struct SendArgs {
+    /// Console lines, sent in order (quote lines with spaces: "gap 0.5").
+    #[arg(required = true, value_name = "LINE")]
+    pub lines: Vec<String>,
+}
+
+/// `rig console`.
+#[derive(Debug, Args)]
+pub struct ConsoleArgs {
+    /// Turn streaming on and print the telemetry and event lines as they arrive.
+    #[arg(long)]
+    pub telemetry: bool,
+}
+
+/// `rig run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Scenario TOML; only its [[commands]] are used ([[faults]] and [[drops]] are the virtual
+    /// rig's and are refused).
+    #[arg(long, value_name = "FILE.toml")]
+    pub scenario: PathBuf,
+}
+
+/// `rig log`.
+#[derive(Debug, Args)]
+pub struct LogArgs {
+    /// Rig time to record, s (0 < s ≤ 86400).
+    #[arg(long)]
+    pub seconds: f64,
+    /// CSV, one row per drive cycle.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// PNG: frequency, measured peak force and state against time.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// `rig capture`.
+#[derive(Debug, Args)]
+pub struct CaptureArgs {
+    /// The trace: `t_s,force_n` (N on the rig's calibration from `id`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Trigger level, N (0.1 ..= 100).
+    #[arg(long, default_value_t = 1.0)]
+    pub level_n: f64,
+    /// Capture time from arming, s of rig time (0.01 ..= 60): release the hammer within it.
+    #[arg(long, default_value_t = 2.0)]
+    pub seconds: f64,
+}
+
+/// `rig sweep`.
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// Frequencies START:END:STEP, Hz (inside the rig's safe window, `id`'s freq_window_hz).
+    #[arg(long, value_name = "A:B:STEP")]
+    pub freq_hz: String,
+    /// Cycles recorded per frequency (1 ..= 10000).
+    #[arg(long, default_value_t = 16)]
+    pub dwell_cycles: u32,
+    /// Cycles skipped after each frequency change (the transient).
+    #[arg(long, default_value_t = 10)]
+    pub settle_cycles: u32,
+    /// CSV: freq_hz, impact_force_mg, impact_force_n, regime, cycles, impact_cycles. A sweep
+    /// ended by a fault writes what it measured to `<name>.partial.csv` instead.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// PNG: F_i/mg against Ω/ω (ω of the rig's preset), coloured by regime.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Runs `rig`.
+///
+/// # Errors
+/// Bad arguments, a link failure, a refused command, or a sweep ended by a fault.
+pub fn run(a: &RigArgs) -> Result<()> {
+    ensure!(
+        a.timeout_s.is_finite() && (0.1..=60.0).contains(&a.timeout_s),
+        "--timeout-s = {} is out of range: allowed 0.1 ..= 60",
+        a.timeout_s
+    );
+    ensure!(
+        (300..=4_000_000).contains(&a.baud),
+        "--baud = {} is out of range: allowed 300 ..= 4000000",
+        a.baud
+    );
+    // Check the subcommand's own arguments before touching the rig.
+    match &a.what {
+        RigCommand::Log(l) => ensure!(
+            l.seconds.is_finite() && l.seconds > 0.0 && l.seconds <= 86_400.0,
+            "--seconds = {} is out of range: allowed (0, 86400]",
+            l.seconds
+        ),
+        RigCommand::Capture(c) => {
+            ensure!(
+                c.level_n.is_finite() && (0.1..=100.0).contains(&c.level_n),
+                "--level-n = {} is out of range: allowed 0.1 ..= 100",
+                c.level_n
+            );
+            ensure!(
+                c.seconds.is_finite() && (0.01..=60.0).contains(&c.seconds),
+                "--seconds = {} is out of range: allowed 0.01 ..= 60",
+                c.seconds
+            );
+        }
+        _ => {}
+    }
+    let scenario = match &a.what {
+        RigCommand::Run(r) => Some(scenario_commands(&r.scenario)?),
+        _ => None,
+    };
+    let freqs = match &a.what {
+        RigCommand::Sweep(s) => Some(parse_range(&s.freq_hz)?),
+        _ => None,
+    };
+    let timeout = Duration::from_secs_f64(a.timeout_s);
+    let mut port = RigPort::open(&a.port, a.baud, timeout)?;
+    let quiet = Duration::from_secs_f64((5.0f64).max(3.0 * a.timeout_s));
+    match &a.what {
+        RigCommand::Send(s) => {
+            for line in &s.lines {
+                let reply = port.command(line)?;
+                println!("{reply}");
+                if reply.starts_with("error:") {
+                    bail!("the rig refused `{line}`");
+                }
+            }
+            Ok(())
+        }
+        RigCommand::Console(c) => console(&mut port, c.telemetry),
+        RigCommand::Run(_) => run_scenario(&mut port, scenario.unwrap_or_default()),
+        RigCommand::Log(l) => {
+            let mut outputs = Outputs::new();
+            let csv = outputs.reserve(&l.out)?;
+            let png = l.plot.as_ref().map(|p| outputs.reserve(p)).transpose()?;
+            let log = record(&mut port, l.seconds, quiet)?;
+            println!(
+                "{} cycles over {:.1} s of rig time; {} telemetry/event lines received, {} lost",
+                log.rows.len(),
+                log.rows.last().map_or(0.0, |r| r.t_s) - log.rows.first().map_or(0.0, |r| r.t_s),
+                log.seq.received,
+                log.seq.lost
+            );
+            for e in &log.events {
+                println!("{}", e.text);
+            }
+            write_csv(&csv, &log.rows)?;
+            if let Some(p) = &png {
+                let title = format!(
+                    "rig log: {} ({} board, firmware {}), gap {:.2} mm",
+                    port.id.rig, port.id.board, port.id.firmware, port.id.gap_mm
+                );
+                figure::draw(p, &title, &log.figure_rows(), None, 280.0)?;
+            }
+            outputs.commit()
+        }
+        RigCommand::Capture(c) => {
+            let mut outputs = Outputs::new();
+            let tmp = outputs.reserve(&c.out)?;
+            let mut last = usize::MAX;
+            let trace = capture(&mut port, c.level_n, c.seconds, quiet, |n| {
+                if n != last {
+                    eprintln!("capture: {n} segments");
+                    last = n;
+                }
+            })?;
+            write_trace(&tmp, &trace, &port.id.line, c.level_n)?;
+            outputs.commit()?;
+            println!(
+                "wrote {}: {} segments, {} samples at {} Hz",
+                c.out.display(),
+                trace.segments,
+                trace.t_s.len(),
+                port.id.capture_rate_hz
+            );
+            Ok(())
+        }
+        RigCommand::Sweep(s) => {
+            let spec = SweepSpec {
+                freqs_hz: freqs.unwrap_or_default(),
+                dwell_cycles: s.dwell_cycles,
+                settle_cycles: s.settle_cycles,
+                quiet,
+            };
+            let n = spec.freqs_hz.len();
+            let outcome = sweep(&mut port, &spec, |p| {
+                println!(
+                    "{:8.4} Hz  F_i/mg {:7.2}  regime {:>9}  ({} of {} cycles impacted)",
+                    p.freq_hz, p.impact_force_mg, p.regime, p.impact_cycles, p.cycles
+                );
+            })?;
+            match outcome {
+                SweepOutcome::Complete(points) => {
+                    write_sweep(&s.out, s.plot.as_deref(), &points, &port, None)
+                }
+                SweepOutcome::Faulted {
+                    points,
+                    fault,
+                    at_hz,
+                } => {
+                    let partial = partial_path(&s.out);
+                    let note = format!(
+                        "partial sweep: ended by the fault `{fault}` at {at_hz} Hz; {} of {n} points",
+                        points.len()
+                    );
+                    write_sweep(&partial, None, &points, &port, Some(&note))?;
+                    bail!(
+                        "{note} (the rig ramped its drive to zero); the points so far are in {}",
+                        partial.display()
+                    )
+                }
+            }
+        }
+    }
+}
+
+/// `fr.csv` → `fr.partial.csv`.
+pub fn partial_path(out: &Path) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map_or("sweep".into(), |s| s.to_string_lossy());
+    let ext = out
+        .extension()
+        .map_or("csv".into(), |e| e.to_string_lossy());
+    out.with_file_name(format!("{stem}.partial.{ext}"))
+}
+
+fn write_sweep(
+    out: &Path,
+    plot_path: Option<&Path>,
+    points: &[SweepPoint],
+    port: &RigPort,
+    note: Option<&str>,
+) -> Result<()> {
+    use std::io::Write as _;
+    let mut outputs = Outputs::new();
+    let csv = outputs.reserve(out)?;
+    let png = plot_path.map(|p| outputs.reserve(p)).transpose()?;
+    {
+        let f = std::fs::File::create(&csv)?;
+        let mut w = std::io::BufWriter::new(f);
+        if let Some(n) = note {
+            writeln!(w, "# {n}")?;
+        }
+        writeln!(w, "# host-sim rig sweep: {}", port.id.line)?;
+        let mut c = csv::Writer::from_writer(w);
+        for p in points {
+            c.serialize(p)?;
+        }
+        c.flush()?;
+    }
+    if let Some(p) = &png {
+        let params = port.id.rig.preset();
+        let pts: Vec<ResponsePoint> = points
+            .iter()
+            .map(|q| ResponsePoint {
+                omega_ratio: params.ratio_from_freq_hz(q.freq_hz),
+                impact_force_mg: q.impact_force_mg,
+                regime: q
+                    .regime
+                    .parse()
+                    .unwrap_or(shared::observe::Regime::Irregular),
+            })
+            .collect();
+        let title = format!(
+            "measured frequency response: {} at {:.2} mm (ω/2π = {:.3} Hz, preset)",
+            port.id.rig,
+            port.id.gap_mm,
+            params.natural_freq_hz()
+        );
+        plot::response(p, &title, &pts, None)?;
+    }
+    outputs.commit()
+}
+
+/// The scenario's commands, refusing what only the virtual rig can do.
+fn scenario_commands(path: &Path) -> Result<Vec<(f64, String)>> {
+    let s = Scenario::from_file(path)?;
+    ensure!(
+        s.faults.is_empty() && s.drops.is_empty(),
+        "--scenario {}: [[faults]] and [[drops]] are injected by the virtual rig \
+         (`host-sim hil --scenario`); a rig cannot run them: remove them to run the commands",
+        path.display()
+    );
+    let mut c: Vec<(f64, String)> = s.commands.into_iter().map(|c| (c.at_s, c.line)).collect();
+    c.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(c)
+}
+
+fn run_scenario(port: &mut RigPort, commands: Vec<(f64, String)>) -> Result<()> {
+    let t0 = port.uptime_s()?;
+    let mut refused = 0;
+    for (at, line) in commands {
+        loop {
+            let t = port.uptime_s()? - t0;
+            if t >= at {
+                break;
+            }
+            std::thread::sleep(Duration::from_secs_f64(((at - t) / 4.0).clamp(0.002, 0.05)));
+        }
+        let t = port.uptime_s()? - t0;
+        let reply = port.command(&line)?;
+        println!("[{t:8.3} s] > {line}\n             {reply}");
+        if reply.starts_with("error:") {
+            refused += 1;
+        }
+    }
+    ensure!(refused == 0, "{refused} command(s) refused by the rig");
+    Ok(())
+}
+
+fn console(port: &mut RigPort, telemetry: bool) -> Result<()> {
+    let (tx, rx) = std::sync::mpsc::channel::<Option<String>>();
+    std::thread::spawn(move || {
+        let stdin = std::io::stdin();
+        for line in stdin.lock().lines() {
+            match line {
+                Ok(l) => {
+                    if tx.send(Some(l)).is_err() {
+                        return;
+                    }
+                }
+                Err(_) => break,
+            }
+        }
+        let _ = tx.send(None);
+    });
+    if telemetry {
+        port.command_ok("stream on")?;
+    }
+    loop {
+        while let Some(a) = port.next_async(Duration::ZERO)? {
+            if telemetry {
+                match a {
+                    AsyncLine::Cycle(c) => println!(
+                        "!T seq={} t_s={:.4} state={} freq_hz={:.4} impacts={} peak_n={} regime={}",
+                        c.seq,
+                        c.t_s,
+                        c.state.as_str(),
+                        c.freq_hz,
+                        c.impacts,
+                        c.peak_n.map_or("-".into(), |p| format!("{p:.1}")),
+                        c.regime_text
+                    ),
+                    AsyncLine::Event(e) => println!("{}", e.text),
+                }
+            }
+        }
+        match rx.recv_timeout(Duration::from_millis(50)) {
+            Ok(Some(line)) => {
+                let line = line.trim().to_string();
+                if line.is_empty() {
+                    continue;
+                }
+                let reply = port.command(&line)?;
+                println!("{reply}");
+            }
+            Ok(None) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+        }
+    }
+    if telemetry {
+        port.command_ok("stream off").context("stream off")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,434 @@
+//! The rig from the desktop: `host-sim rig` against the virtual rig served on a pseudo-terminal
+//! (`host-sim hil --serve-pty`, a separate process, at ≥ 10× real time), every assertion read
+//! on the plant (the server's own log of true contact forces and cart amplitude).
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use host_sim::cli::{Precision, Profile, RigOpts};
+use host_sim::client::RigPort;
+use host_sim::client::log::record;
+use host_sim::client::sweep::parse_range;
+use host_sim::config::Setup;
+use host_sim::rig::scenario::Scenario;
+use host_sim::rig::{HilSetup, Session};
+use host_sim::runner::{OperatingPoint, evaluate_all};
+use nix::sys::signal::{Signal, kill};
+use nix::unistd::Pid;
+use shared::control::Line;
+use shared::control::serve::{ReplyText, format_answer};
+use shared::model::RigId;
+
+fn bin() -> PathBuf {
+    assert_cmd::cargo::cargo_bin("host-sim")
+}
+
+/// A `hil --serve-pty` process; its log (with the plant's truth) is read after SIGTERM.
+struct Server {
+    child: Child,
+    pty: PathBuf,
+    log: PathBuf,
+    _dir: tempfile::TempDir,
+}
+
+impl Server {
+    fn start(speed: &str, scenario: &str) -> Server {
+        let dir = tempfile::tempdir().unwrap();
+        let sc = dir.path().join("scenario.toml");
+        std::fs::write(&sc, scenario).unwrap();
+        let log = dir.path().join("truth.csv");
+        let mut child = Command::new(bin())
+            .args(["hil", "--serve-pty", "--speed", speed, "--scenario"])
+            .arg(&sc)
+            .arg("--out")
+            .arg(&log)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let mut first = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut first)
+            .unwrap();
+        let pty = PathBuf::from(first.trim().strip_prefix("pty: ").expect(&first));
+        Server {
+            child,
+            pty,
+            log,
+            _dir: dir,
+        }
+    }
+
+    fn port(&self) -> RigPort {
+        RigPort::open(&self.pty, 115_200, Duration::from_secs(5)).unwrap()
+    }
+
+    /// Stops the server (SIGTERM: it writes its log) and returns the log's rows.
+    fn stop(mut self) -> Vec<csv::StringRecord> {
+        kill(Pid::from_raw(self.child.id() as i32), Signal::SIGTERM).unwrap();
+        let status = self.child.wait().unwrap();
+        assert!(status.success(), "server exit {status}");
+        let mut r = csv::Reader::from_path(&self.log).unwrap();
+        r.records().map(Result::unwrap).collect()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Polls `status` until `key=value` shows (at most `wall` of wall time).
+fn wait_for(port: &mut RigPort, key: &str, value: &str, wall: Duration) -> String {
+    let end = Instant::now() + wall;
+    loop {
+        let s = port.command("status").unwrap();
+        if host_sim::client::protocol::field(&s, key) == Some(value) {
+            return s;
+        }
+        assert!(Instant::now() < end, "{key}={value} never came: {s}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn truth_f64(row: &csv::StringRecord, col: usize) -> Option<f64> {
+    row.get(col).and_then(|v| v.parse().ok())
+}
+
+#[test]
+fn a_console_session_over_the_pty_gives_the_in_process_replies() {
+    let server = Server::start("20", "");
+    let mut port = server.port();
+    wait_for(&mut port, "model", "ready", Duration::from_secs(20));
+    // The same session in-process: the same controller code, answered directly.
+    let mut sc = Scenario::default();
+    sc.commands.clear();
+    let mut session = Session::new(&HilSetup {
+        rig: RigId::Wires,
+        gap_mm: 0.0,
+        actual_gap_mm: 0.0,
+        seconds: 1.0,
+        scenario: sc,
+    })
+    .unwrap();
+    for _ in 0..6_000 {
+        session.begin_sample().unwrap();
+        session.end_sample();
+    }
+    let mut local = |line: &str| {
+        let a = session.answer(Line::Text(line), Default::default());
+        let mut t = ReplyText::new();
+        format_answer(&a, &mut t);
+        t.to_string()
+    };
+    let lines = [
+        "id",
+        "status",
+        "help",
+        "gap -1",
+        "gap 0.5x",
+        "bogus",
+        "freq 40",
+        "stream maybe",
+        "capture get 3",
+        "rig beam-200",
+        "RIG   wires",
+        "gap 0",
+    ];
+    for line in lines {
+        let remote = port.command(line).unwrap();
+        assert_eq!(remote, local(line), "`{line}`");
+    }
+    // A line longer than the console takes, and a start/stop.
+    let long = "x".repeat(100);
+    assert_eq!(
+        port.command(&long).unwrap(),
+        "error: line too long or not text"
+    );
+    wait_for(&mut port, "model", "ready", Duration::from_secs(20));
+    assert_eq!(port.command("start").unwrap(), "ok");
+    assert_eq!(
+        port.command("rig beam-170").unwrap(),
+        "error: only while idle: stop first"
+    );
+    assert_eq!(port.command("stop").unwrap(), "ok");
+    wait_for(&mut port, "state", "idle", Duration::from_secs(20));
+    let rows = server.stop();
+    assert!(!rows.is_empty());
+}
+
+#[test]
+fn a_log_while_tracking_reads_the_plant_cycle_by_cycle() {
+    let server = Server::start("20", "");
+    let mut port = server.port();
+    wait_for(&mut port, "model", "ready", Duration::from_secs(20));
+    port.command_ok("start").unwrap();
+    wait_for(&mut port, "regime", "1/1", Duration::from_secs(30));
+    let log = record(&mut port, 10.0, Duration::from_secs(10)).unwrap();
+    assert_eq!(log.seq.lost, 0, "telemetry lines lost at the default rate");
+    port.command_ok("stop").unwrap();
+    let truth = server.stop();
+    // Columns of the hil log: t_s 0, true_impacts 7, true_peak_n 8.
+    let mut matched = 0;
+    for r in log.rows.iter().filter(|r| r.state == "track") {
+        assert_eq!(r.measured_regime, "1/1", "{r:?}");
+        let t = truth
+            .iter()
+            .find(|row| truth_f64(row, 0).is_some_and(|t| (t - r.t_s).abs() < 5e-5))
+            .unwrap_or_else(|| panic!("no plant row at {} s", r.t_s));
+        assert_eq!(truth_f64(t, 7), Some(1.0), "plant impacts at {} s", r.t_s);
+        let (m, p) = (r.measured_peak_n.unwrap(), truth_f64(t, 8).unwrap());
+        assert!(
+            (m / p - 1.0).abs() < 0.05,
+            "measured {m} N vs the plant's {p} N at {} s",
+            r.t_s
+        );
+        matched += 1;
+    }
+    assert!(matched >= 30, "{matched} tracking cycles logged");
+}
+
+#[test]
+fn a_captured_drop_identifies_the_contact_law() {
+    // The drop comes at 20 s of rig time (2 s of wall time at 10×): the capture is armed before.
+    let server = Server::start("10", "[[drops]]\nat_s = 20.0\nrelease_mm = 3.0\n");
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("drop.csv");
+    let mut port = server.port();
+    let t = port.uptime_s().unwrap();
+    assert!(t < 15.0, "the test machine is too slow: rig time {t} s");
+    drop(port);
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&server.pty)
+        .args(["capture", "--seconds", "24", "--out"])
+        .arg(&trace)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let fit = dir.path().join("fit.toml");
+    let out = Command::new(bin())
+        .args(["identify", "contact", "--trace"])
+        .arg(&trace)
+        .args([
+            "--mass-kg",
+            "0.298",
+            "--law",
+            "spring-dashpot",
+            "--release-mm",
+            "3",
+            "--error",
+            "profile",
+            "--json",
+            "--out",
+        ])
+        .arg(&fit)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&fit).unwrap();
+    let v: toml::Value = toml::from_str(&text).unwrap();
+    let law = &v["rig"]["contact"]["spring-dashpot"];
+    let k = law["stiffness_n_m"].as_float().unwrap();
+    let c = law["damping_n_s_m"].as_float().unwrap();
+    // The plant's law: Table 3.1, k_i = 5.5e6 N/m, c_i = 1.2e3 N s/m.
+    assert!((k / 5.5e6 - 1.0).abs() < 0.05, "k_i {k}");
+    assert!((c / 1.2e3 - 1.0).abs() < 0.05, "c_i {c}");
+    server.stop();
+}
+
+/// `host-sim response`'s F_i/mg and regime at the given frequencies (wire rig, 0.0 mm, f32).
+fn model_response(freqs: &[f64]) -> Vec<(f64, String)> {
+    let setup = Setup::from_opts(&RigOpts {
+        rig: RigId::Wires,
+        law: None,
+        config: None,
+        precision: Precision::F32,
+        profile: Profile::Host,
+    })
+    .unwrap();
+    let points: Vec<OperatingPoint> = freqs
+        .iter()
+        .map(|&f| OperatingPoint {
+            gap_m: 0.0,
+            omega_ratio: setup.params.ratio_from_freq_hz(f),
+        })
+        .collect();
+    evaluate_all(&setup, &points, "response")
+        .unwrap()
+        .into_iter()
+        .map(|r| (r.impact_force_mg, r.regime.to_string()))
+        .collect()
+}
+
+#[test]
+fn a_measured_sweep_follows_the_model_response_and_compare_reads_it() {
+    let server = Server::start("40", "");
+    let dir = tempfile::tempdir().unwrap();
+    let fr = dir.path().join("fr.csv");
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&server.pty)
+        .args(["sweep", "--freq-hz", "2.2:4.6:0.1", "--out"])
+        .arg(&fr)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    server.stop();
+    let text = std::fs::read_to_string(&fr).unwrap();
+    let body: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();
+    let body = body.join("\n");
+    let mut r = csv::Reader::from_reader(body.as_bytes());
+    let rows: Vec<(f64, f64, String)> = r
+        .records()
+        .map(|x| {
+            let x = x.unwrap();
+            (
+                x[0].parse().unwrap(),
+                x[1].parse().unwrap(),
+                x[3].to_string(),
+            )
+        })
+        .collect();
+    let freqs = parse_range("2.2:4.6:0.1").unwrap();
+    assert_eq!(rows.len(), freqs.len());
+    let model = model_response(&freqs);
+    let mut same_regime = 0;
+    for ((f, mg, regime), (model_mg, model_regime)) in rows.iter().zip(&model) {
+        if regime == model_regime {
+            same_regime += 1;
+        }
+        if model_regime == "1/1" {
+            assert!(
+                (mg / model_mg - 1.0).abs() < 0.05,
+                "{f} Hz: measured F_i/mg {mg} vs the model's {model_mg}"
+            );
+        }
+    }
+    assert!(
+        same_regime * 10 >= rows.len() * 9,
+        "{same_regime} of {} points in the model's regime",
+        rows.len()
+    );
+    let png = dir.path().join("cmp.png");
+    let out = Command::new(bin())
+        .args(["compare", "--rig", "wires", "--gap-mm", "0", "--experiment"])
+        .arg(&fr)
+        .arg("--out")
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(png.exists());
+}
+
+#[test]
+fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
+    let server = Server::start("20", "[[faults]]\nat_s = 15.0\nkind = \"sensor-open\"\n");
+    let dir = tempfile::tempdir().unwrap();
+    let fr = dir.path().join("fr.csv");
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&server.pty)
+        .args(["sweep", "--freq-hz", "2.2:4.6:0.1", "--out"])
+        .arg(&fr)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("`sensor-open`"), "{stderr}");
+    assert!(!fr.exists(), "a half-file under the --out name");
+    let partial = host_sim::commands::rig::partial_path(&fr);
+    let text = std::fs::read_to_string(&partial).unwrap();
+    assert!(
+        text.starts_with("# partial sweep: ended by the fault `sensor-open`"),
+        "{text}"
+    );
+    let measured = text.lines().filter(|l| !l.starts_with('#')).count() - 1;
+    assert!((1..25).contains(&measured), "{measured} points");
+    // The rig stays latched: a new sweep is refused before it writes anything.
+    let again = dir.path().join("again.csv");
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&server.pty)
+        .args(["sweep", "--freq-hz", "2.2:4.6:0.1", "--out"])
+        .arg(&again)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("clear"));
+    assert!(!again.exists() && !host_sim::commands::rig::partial_path(&again).exists());
+    let truth = server.stop();
+    // On the plant: the cart stands still from 0.5 s after the fault (cart_amp_mm, column 4),
+    // and it was driven before.
+    let amp = |lo: f64, hi: f64| -> Vec<f64> {
+        truth
+            .iter()
+            .filter(|r| truth_f64(r, 0).is_some_and(|t| t > lo && t <= hi))
+            .filter_map(|r| truth_f64(r, 4))
+            .collect()
+    };
+    assert!(amp(10.0, 15.0).iter().all(|&a| a > 0.8));
+    let after = amp(16.0, f64::INFINITY);
+    assert!(!after.is_empty());
+    assert!(after.iter().all(|&a| a < 0.01), "{after:?}");
+}
+
+#[test]
+fn killing_the_rig_mid_log_is_a_clear_error_with_no_csv_left() {
+    let server = Server::start("10", "");
+    let dir = tempfile::tempdir().unwrap();
+    let csv_path = dir.path().join("run.csv");
+    let client = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&server.pty)
+        .args(["log", "--seconds", "1000", "--out"])
+        .arg(&csv_path)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let mut server = server;
+    server.child.kill().unwrap();
+    server.child.wait().unwrap();
+    let started = Instant::now();
+    let out = client.wait_with_output().unwrap();
+    assert!(started.elapsed() < Duration::from_secs(15));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("closed the link") || stderr.contains("no telemetry"),
+        "{stderr}"
+    );
+    assert!(!csv_path.exists());
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(Result::ok)
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}

@@ -1,0 +1,288 @@
+//! The console's serial link, hardware-free: received bytes become lines ([`LineBuffer`]) that
+//! wait in a short queue for the console service ([`super::serve`]); replies and asynchronous
+//! lines wait in a bounded transmit queue that the UART drains one byte at a time (the
+//! firmware's USART2 TXE interrupt; the virtual rig at the baud rate).
+//!
+//! Guarantees, each tested here:
+//! - every received line gets exactly one reply, in order: the service takes a line only when
+//!   the transmit queue has room for the longest reply ([`REPLY_ROOM`]); a line that finds the
+//!   line queue full is answered `error: line lost` once the queue has drained;
+//! - a line hit by a receive error (overrun, framing, noise) never runs: it is answered
+//!   `error: line lost` and counted;
+//! - asynchronous lines (telemetry, events) are queued only while that leaves [`REPLY_ROOM`]
+//!   free, so they can never hold a reply back; when they do not fit they are dropped and
+//!   counted (their sequence numbers show the gap on the desktop).
+
+use heapless::{Deque, String};
+
+use super::console::{Line, LineBuffer, MAX_LINE, RxError};
+
+/// Transmit queue, bytes.
+pub const TX_CAPACITY: usize = 2048;
+/// Longest reply line, bytes, without the line ending (a capture segment is 540).
+pub const MAX_REPLY: usize = 640;
+/// Free transmit space a reply needs (the reply and `\r\n`).
+pub const REPLY_ROOM: usize = MAX_REPLY + 2;
+/// Complete lines waiting for the service.
+pub const PENDING_LINES: usize = 4;
+
+/// A received line waiting for the service.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PendingLine {
+    /// Text to parse.
+    Text(String<MAX_LINE>),
+    /// Longer than [`MAX_LINE`] or not UTF-8.
+    Bad,
+    /// Hit by a receive error, or found the line queue full.
+    Lost,
+}
+
+impl PendingLine {
+    /// As a [`Line`] for [`super::serve::answer`].
+    pub fn as_line(&self) -> Line<'_> {
+        match self {
+            PendingLine::Text(s) => Line::Text(s.as_str()),
+            PendingLine::Bad => Line::Bad,
+            PendingLine::Lost => Line::Lost,
+        }
+    }
+}
+
+/// Counters of the link (`diag`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LinkStats {
+    /// Receive errors flagged by the UART.
+    pub rx_errors: u32,
+    /// Lines answered `error: line lost` (receive error or line queue full).
+    pub lines_lost: u32,
+    /// Asynchronous lines queued.
+    pub async_sent: u32,
+    /// Asynchronous lines dropped because the transmit queue was too full.
+    pub async_dropped: u32,
+}
+
+/// The link.
+#[derive(Debug, Clone, Default)]
+pub struct Link {
+    rx: LineBuffer,
+    pending: Deque<PendingLine, PENDING_LINES>,
+    /// Lines that found `pending` full: answered `error: line lost` after it drains.
+    overflowed: u32,
+    tx: Deque<u8, TX_CAPACITY>,
+    stats: LinkStats,
+}
+
+impl Link {
+    /// An idle link.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A received byte.
+    pub fn on_rx_byte(&mut self, byte: u8) {
+        let pending = match self.rx.push(byte) {
+            None => return,
+            Some(Line::Text(s)) => {
+                let mut owned = String::new();
+                // `s` is at most MAX_LINE bytes: it fits.
+                let _ = owned.push_str(s);
+                PendingLine::Text(owned)
+            }
+            Some(Line::Bad) => PendingLine::Bad,
+            Some(Line::Lost) => PendingLine::Lost,
+        };
+        if self.overflowed > 0 || self.pending.is_full() {
+            self.overflowed = self.overflowed.saturating_add(1);
+        } else {
+            let _ = self.pending.push_back(pending);
+        }
+    }
+
+    /// A byte received with an error (the byte, if any, is discarded).
+    pub fn on_rx_error(&mut self, _error: RxError) {
+        self.stats.rx_errors = self.stats.rx_errors.saturating_add(1);
+        self.rx.error();
+    }
+
+    /// Whether a line waits and the transmit queue has room for its reply.
+    pub fn ready(&self) -> bool {
+        self.has_line() && self.tx_free() >= REPLY_ROOM
+    }
+
+    /// Whether a line waits for the service.
+    pub fn has_line(&self) -> bool {
+        !self.pending.is_empty() || self.overflowed > 0
+    }
+
+    /// The next line for the service, if one waits and its reply will fit.
+    pub fn next_line(&mut self) -> Option<PendingLine> {
+        if self.tx_free() < REPLY_ROOM {
+            return None;
+        }
+        let line = match self.pending.pop_front() {
+            Some(l) => l,
+            None if self.overflowed > 0 => {
+                self.overflowed -= 1;
+                PendingLine::Lost
+            }
+            None => return None,
+        };
+        if line == PendingLine::Lost {
+            self.stats.lines_lost = self.stats.lines_lost.saturating_add(1);
+        }
+        Some(line)
+    }
+
+    /// Queues a reply line (`\r\n` appended; cut at [`MAX_REPLY`]). The service calls it once
+    /// per line taken with [`Link::next_line`], which guaranteed the room.
+    pub fn push_reply(&mut self, text: &str) {
+        let body = text.as_bytes();
+        let body = body.get(..MAX_REPLY).unwrap_or(body);
+        for &b in body.iter().chain(b"\r\n") {
+            if self.tx.push_back(b).is_err() {
+                break;
+            }
+        }
+    }
+
+    /// Queues an asynchronous line (`\r\n` appended) if that leaves room for a reply; otherwise
+    /// drops it and counts it. Returns whether it was queued.
+    pub fn push_async(&mut self, text: &str) -> bool {
+        if !self.reserve_async(text.len()) {
+            return false;
+        }
+        self.push_bytes(text.as_bytes());
+        self.push_bytes(b"\r\n");
+        true
+    }
+
+    /// Whether an asynchronous line of `len` bytes (plus `\r\n`) may be queued now, counted as
+    /// sent or dropped. For a caller that queues the line in pieces ([`Link::push_bytes`], each
+    /// under a short lock): the room only grows meanwhile, as only the UART takes bytes out.
+    pub fn reserve_async(&mut self, len: usize) -> bool {
+        if self.tx_free() < len + 2 + REPLY_ROOM {
+            self.stats.async_dropped = self.stats.async_dropped.saturating_add(1);
+            return false;
+        }
+        self.stats.async_sent = self.stats.async_sent.saturating_add(1);
+        true
+    }
+
+    /// Queues raw bytes (as many as fit): a piece of a reply whose room [`Link::next_line`]
+    /// guaranteed, or of an asynchronous line [`Link::reserve_async`] admitted.
+    pub fn push_bytes(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            if self.tx.push_back(b).is_err() {
+                break;
+            }
+        }
+    }
+
+    /// The next byte to transmit.
+    pub fn pop_tx(&mut self) -> Option<u8> {
+        self.tx.pop_front()
+    }
+
+    /// Free transmit space, bytes.
+    pub fn tx_free(&self) -> usize {
+        TX_CAPACITY - self.tx.len()
+    }
+
+    /// Bytes waiting to be transmitted.
+    pub fn tx_len(&self) -> usize {
+        self.tx.len()
+    }
+
+    /// The counters.
+    pub fn stats(&self) -> LinkStats {
+        self.stats
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::string::ToString;
+    use std::vec::Vec;
+
+    fn feed(link: &mut Link, bytes: &[u8]) {
+        for &b in bytes {
+            link.on_rx_byte(b);
+        }
+    }
+
+    fn drain(link: &mut Link) -> std::string::String {
+        let mut out = Vec::new();
+        while let Some(b) = link.pop_tx() {
+            out.push(b);
+        }
+        std::string::String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn one_reply_per_line_in_order_even_when_the_line_queue_overflows() {
+        let mut link = Link::new();
+        // Seven lines at once: four wait, three overflow and are answered `lost` after them.
+        feed(&mut link, b"a\nb\nc\nd\ne\nf\ng\n");
+        let mut answered = Vec::new();
+        while let Some(l) = link.next_line() {
+            answered.push(match l {
+                PendingLine::Text(s) => s.to_string(),
+                other => std::format!("{other:?}"),
+            });
+            link.push_reply("r");
+        }
+        assert_eq!(answered, ["a", "b", "c", "d", "Lost", "Lost", "Lost"]);
+        assert_eq!(link.stats().lines_lost, 3);
+        assert_eq!(drain(&mut link), "r\r\n".repeat(7));
+    }
+
+    #[test]
+    fn replies_wait_for_room_and_async_lines_never_take_it() {
+        let mut link = Link::new();
+        let long = "x".repeat(100);
+        // Telemetry fills the queue up to the reply reserve, then is dropped.
+        let mut queued = 0;
+        for _ in 0..40 {
+            if link.push_async(&long) {
+                queued += 1;
+            }
+        }
+        assert_eq!(queued, (TX_CAPACITY - REPLY_ROOM) / 102);
+        assert!(link.stats().async_dropped > 0);
+        assert!(link.tx_free() >= REPLY_ROOM);
+        // A line still gets its reply room.
+        feed(&mut link, b"status\n");
+        assert!(link.ready());
+        let l = link.next_line().unwrap();
+        assert_eq!(l, PendingLine::Text(String::try_from("status").unwrap()));
+        link.push_reply(&"y".repeat(MAX_REPLY));
+        // Now the queue is too full for another reply: the next line waits.
+        feed(&mut link, b"id\n");
+        assert!(!link.ready() && link.has_line());
+        assert_eq!(link.next_line(), None);
+        // The UART drains it; the line is served once a reply's room is free again.
+        let mut drained = 0;
+        while !link.ready() {
+            link.pop_tx().unwrap();
+            drained += 1;
+        }
+        assert_eq!(link.tx_free(), REPLY_ROOM);
+        assert!(drained > 0);
+    }
+
+    #[test]
+    fn a_receive_error_loses_the_line_and_is_counted() {
+        let mut link = Link::new();
+        feed(&mut link, b"gap 0");
+        link.on_rx_error(RxError::Overrun);
+        feed(&mut link, b"5\nstart\n");
+        assert_eq!(link.next_line(), Some(PendingLine::Lost));
+        assert_eq!(
+            link.next_line(),
+            Some(PendingLine::Text(String::try_from("start").unwrap()))
+        );
+        assert_eq!(link.stats().rx_errors, 1);
+        assert_eq!(link.stats().lines_lost, 1);
+    }
+}

@@ -1,0 +1,234 @@
+//! The console path under 1,000,000 generated inputs (valid commands, mutated commands, any
+//! bytes, over-long lines, partial commands, injected receive errors), through the link, the
+//! service and the controller, checked against an independent count of the lines sent:
+//! - nothing panics;
+//! - every line gets exactly one reply, in order, and every reply is one text line that fits
+//!   the reply size and never looks like an asynchronous line (`!`);
+//! - a line hit by a receive error is answered `error: line lost` and changes nothing, and an
+//!   over-long line is answered `error: line too long …` and changes nothing.
+//!
+//! Seeded (ChaCha8): the same inputs on every machine. CI also runs it as a release build.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use shared::control::console::MAX_LINE;
+use shared::control::link::{MAX_REPLY, TX_CAPACITY};
+use shared::control::serve::{ReplyText, format_answer};
+use shared::control::{
+    BoardInfo, Capture, Controller, ControllerConfig, Direct, Link, Prediction, RxError, answer,
+};
+use shared::model::RigId;
+
+const INPUTS: usize = 1_000_000;
+
+const WORDS: &[&str] = &[
+    "status", "rig", "gap", "start", "stop", "tune", "freq", "clear", "help", "stream", "id",
+    "diag", "capture",
+];
+const ARGS: &[&str] = &[
+    "", "wires", "beam-170", "0", "0.5", "-1", "3.66", "40", "1e3", "nan", "on", "off", "arm",
+    "get", "stop", "2", "31", "99", "0.1", "1.5", "x",
+];
+
+/// What the generator sent as one line, for the independent check.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Sent {
+    /// A line whose bytes all arrived.
+    Clean,
+    /// A line with a receive error injected.
+    Corrupted,
+    /// A line longer than MAX_LINE.
+    TooLong,
+}
+
+fn command_line(rng: &mut ChaCha8Rng) -> Vec<u8> {
+    let mut s = String::from(WORDS[rng.random_range(0..WORDS.len())]);
+    for _ in 0..rng.random_range(0..4) {
+        s.push(' ');
+        s.push_str(ARGS[rng.random_range(0..ARGS.len())]);
+    }
+    if rng.random_bool(0.2) {
+        s = s.to_uppercase();
+    }
+    s.into_bytes()
+}
+
+fn mutate(rng: &mut ChaCha8Rng, mut line: Vec<u8>) -> Vec<u8> {
+    for _ in 0..rng.random_range(1..4) {
+        let at = rng.random_range(0..=line.len());
+        match rng.random_range(0..3) {
+            0 if at < line.len() => {
+                line.remove(at);
+            }
+            1 if at < line.len() => line[at] = rng.random(),
+            _ => line.insert(at, rng.random()),
+        }
+    }
+    line
+}
+
+/// Bytes of one input, never containing a line terminator (the caller ends the line).
+fn body(rng: &mut ChaCha8Rng) -> Vec<u8> {
+    let mut b = match rng.random_range(0..100) {
+        0..30 => command_line(rng),
+        30..55 => {
+            let l = command_line(rng);
+            mutate(rng, l)
+        }
+        55..75 => (0..rng.random_range(0..100))
+            .map(|_| rng.random())
+            .collect(),
+        75..90 => (0..rng.random_range(MAX_LINE + 1..200))
+            .map(|_| rng.random_range(b' '..=b'~'))
+            .collect(),
+        _ => {
+            // A partial command: a prefix of one, the rest of the line something else.
+            let l = command_line(rng);
+            let cut = rng.random_range(0..=l.len());
+            let mut p = l[..cut].to_vec();
+            p.extend(command_line(rng));
+            p
+        }
+    };
+    b.retain(|&c| c != b'\n' && c != b'\r');
+    b
+}
+
+fn board() -> BoardInfo {
+    BoardInfo {
+        firmware: "fuzz",
+        board: "virtual",
+        uptime_ms: 0,
+        stack_hwm_bytes: 0,
+        stack_size_bytes: 0,
+        sample_gap_max_us: 0,
+    }
+}
+
+#[test]
+fn a_million_console_inputs() {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5eed_c0de);
+    let mut link = Link::new();
+    let mut controller = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
+    let mut capture = Capture::new();
+    let mut reply = ReplyText::new();
+    let mut sent: Vec<Sent> = Vec::new();
+    let mut tx: Vec<u8> = Vec::new();
+    let (mut replies, mut lost, mut too_long) = (0usize, 0usize, 0usize);
+    for input in 0..INPUTS {
+        // Now and then a model result arrives, so that `start` can run.
+        if input % 1000 == 0
+            && let Some(req) = controller.take_model_request()
+        {
+            let p = Prediction {
+                rig: req.rig,
+                gap_mm: req.gap_mm,
+                target_hz: 3.6,
+                band_hz: [2.2, 4.7],
+                impact_force_mg: 32.0,
+                impact_force_n: 93.5,
+                amplitude_mm: 0.89,
+                weight_n: 2.92,
+                natural_freq_hz: 1.82,
+            };
+            controller.set_prediction(req.generation, Ok(p));
+        }
+        let bytes = body(&mut rng);
+        let error_at = rng
+            .random_bool(0.05)
+            .then(|| rng.random_range(0..=bytes.len()));
+        for (i, &b) in bytes.iter().enumerate() {
+            if error_at == Some(i) {
+                link.on_rx_error(RxError::Overrun);
+            }
+            link.on_rx_byte(b);
+        }
+        if error_at == Some(bytes.len()) {
+            link.on_rx_error(RxError::Framing);
+        }
+        let kind = if error_at.is_some() {
+            Sent::Corrupted
+        } else if bytes.len() > MAX_LINE {
+            Sent::TooLong
+        } else {
+            Sent::Clean
+        };
+        // An empty clean line gets no reply (blank lines are skipped).
+        if !(kind == Sent::Clean && bytes.is_empty()) {
+            sent.push(kind);
+        }
+        link.on_rx_byte(if rng.random_bool(0.5) { b'\n' } else { b'\r' });
+
+        // The service answers every line it can; the UART drains at random speed.
+        while let Some(line) = link.next_line() {
+            let before = controller.status();
+            let a = {
+                let mut d = Direct {
+                    controller: &mut controller,
+                    capture: &mut capture,
+                    board: board(),
+                    link: link.stats(),
+                };
+                answer(&mut d, line.as_line())
+            };
+            format_answer(&a, &mut reply);
+            assert!(reply.len() <= MAX_REPLY);
+            let k = sent.get(replies).copied();
+            match k {
+                Some(Sent::Corrupted) => {
+                    assert_eq!(reply.as_str(), "error: line lost", "input {input}");
+                    assert_eq!(controller.status(), before, "input {input}");
+                    lost += 1;
+                }
+                Some(Sent::TooLong) => {
+                    assert!(reply.starts_with("error: line too long"), "{reply}");
+                    assert_eq!(controller.status(), before);
+                    too_long += 1;
+                }
+                Some(Sent::Clean) => {}
+                None => panic!("a reply without a line at input {input}: {reply}"),
+            }
+            link.push_reply(&reply);
+            replies += 1;
+        }
+        for _ in 0..rng.random_range(0..TX_CAPACITY) {
+            match link.pop_tx() {
+                Some(b) => tx.push(b),
+                None => break,
+            }
+        }
+        // Keep the controller alive: a few samples now and then.
+        if input % 97 == 0 {
+            for k in 0..50u64 {
+                controller.on_sample(Ok(300), (input as u64 * 50 + k) * 100);
+            }
+            while controller.pop_async().is_some() {}
+            while controller.pop_event().is_some() {}
+        }
+        // Check the transmitted text line by line as it comes.
+        if tx.len() > 1 << 16 {
+            check_lines(&mut tx);
+        }
+    }
+    while let Some(b) = link.pop_tx() {
+        tx.push(b);
+    }
+    check_lines(&mut tx);
+    assert_eq!(replies, sent.len(), "one reply per line");
+    // The generator's mix reached every kind.
+    assert!(lost > 10_000 && too_long > 100_000, "{lost} {too_long}");
+}
+
+/// Every complete transmitted line is a reply: text, `\r\n`-terminated, not `!`.
+fn check_lines(tx: &mut Vec<u8>) {
+    let end = tx
+        .windows(2)
+        .rposition(|w| w == b"\r\n")
+        .map_or(0, |p| p + 2);
+    let text = std::str::from_utf8(&tx[..end]).expect("replies are text");
+    for line in text.split_terminator("\r\n") {
+        assert!(!line.is_empty() && !line.starts_with('!') && !line.contains('\n'));
+        assert!(line.len() <= MAX_REPLY);
+    }
+    tx.drain(..end);
+}

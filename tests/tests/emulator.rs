@@ -1,0 +1,403 @@
+//! The rig's whole firmware image — RTIC app, tasks, priorities, the console over USART2, TIM2
+//! at 10 kHz — on QEMU's `netduinoplus2` (the `firmware-qemu` image: the rig image's app with
+//! stand-ins for what QEMU lacks, listed in `firmware/src/board_emu.rs`), driven through its
+//! USART2 on a pseudo-terminal by the same client as the rig (`host_sim::client::RigPort`).
+//!
+//! Needs the image (`cargo fw-build`) and `qemu-system-arm`; without them the tests are skipped
+//! with a note, except under CI (`CI` set), where they fail. `-icount shift=3`: every guest
+//! instruction takes 8 ns of emulated time (125 MIPS, slower than the rig's Cortex-M4 at
+//! 168 MHz), and timers, SysTick and the emulated UART follow emulated time.
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use host_sim::client::protocol::field;
+use host_sim::client::{AsyncLine, RigPort, SeqCounter};
+use shared::control::{Fixed, predict};
+use shared::model::RigId;
+
+/// Emulated time per guest instruction at `-icount shift=3`, s.
+const INSN_S: f64 = 8e-9;
+/// The model task's budget on the rig, instructions (0.5 s at 168 MHz).
+const PREDICT_BUDGET_INSNS: f64 = 84e6;
+/// SRAM, bytes.
+const RAM_BYTES: u64 = 128 * 1024;
+
+fn image() -> PathBuf {
+    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"));
+    target_dir.join("thumbv7em-none-eabihf/release/firmware-qemu")
+}
+
+/// QEMU running the emulator image, its stdout (semihosting) collected.
+struct Qemu {
+    child: Child,
+    pty: PathBuf,
+    out: Arc<Mutex<String>>,
+}
+
+impl Qemu {
+    /// `None` (with a note) when the image or QEMU is missing outside CI.
+    fn start() -> Option<Qemu> {
+        let elf = image();
+        let qemu_ok = Command::new("qemu-system-arm")
+            .arg("--version")
+            .output()
+            .is_ok();
+        if !elf.exists() || !qemu_ok {
+            let why = format!(
+                "the emulator test needs {} (cargo fw-build) and qemu-system-arm (found: image {}, qemu {})",
+                elf.display(),
+                elf.exists(),
+                qemu_ok
+            );
+            assert!(std::env::var_os("CI").is_none(), "{why}");
+            eprintln!("skipped: {why}");
+            return None;
+        }
+        let mut child = Command::new("qemu-system-arm")
+            .args([
+                "-machine",
+                "netduinoplus2",
+                "-nographic",
+                "-monitor",
+                "none",
+            ])
+            .args(["-serial", "null", "-serial", "pty"])
+            .args(["-semihosting-config", "enable=on,target=native"])
+            .args(["-icount", "shift=3,sleep=off", "-kernel"])
+            .arg(&elf)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("run qemu-system-arm");
+        let out = Arc::new(Mutex::new(String::new()));
+        for stream in [
+            Box::new(child.stdout.take().unwrap()) as Box<dyn std::io::Read + Send>,
+            Box::new(child.stderr.take().unwrap()),
+        ] {
+            let out = Arc::clone(&out);
+            std::thread::spawn(move || {
+                for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                    let mut o = out.lock().unwrap();
+                    o.push_str(&line);
+                    o.push('\n');
+                }
+            });
+        }
+        let end = Instant::now() + Duration::from_secs(30);
+        let pty = loop {
+            let text = out.lock().unwrap().clone();
+            if let Some(p) = text.split_whitespace().find(|w| w.starts_with("/dev/pts/")) {
+                break PathBuf::from(p);
+            }
+            assert!(Instant::now() < end, "QEMU did not open its pty:\n{text}");
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        Some(Qemu { child, pty, out })
+    }
+
+    fn port(&self) -> RigPort {
+        RigPort::open(&self.pty, 115_200, Duration::from_secs(20)).unwrap()
+    }
+
+    /// Waits for QEMU to end (at most `wall`); its output.
+    fn wait_exit(&mut self, wall: Duration) -> String {
+        let end = Instant::now() + wall;
+        while self.child.try_wait().unwrap().is_none() {
+            assert!(
+                Instant::now() < end,
+                "QEMU still running:\n{}",
+                self.output()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        std::thread::sleep(Duration::from_millis(100));
+        self.output()
+    }
+
+    fn output(&self) -> String {
+        self.out.lock().unwrap().clone()
+    }
+}
+
+impl Drop for Qemu {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn num(line: &str, key: &str) -> f64 {
+    field(line, key)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("`{key}=` missing in: {line}"))
+}
+
+/// Polls `status` until `key=value`.
+fn wait_status(port: &mut RigPort, key: &str, value: &str) -> String {
+    let end = Instant::now() + Duration::from_secs(60);
+    loop {
+        let s = port.command("status").unwrap();
+        if field(&s, key) == Some(value) {
+            return s;
+        }
+        assert!(Instant::now() < end, "{key}={value} never came: {s}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// The next `!E` line with `event=name` (other asynchronous lines are counted in `seq`).
+fn wait_event(port: &mut RigPort, name: &str, seq: &mut SeqCounter) -> String {
+    let end = Instant::now() + Duration::from_secs(60);
+    loop {
+        assert!(Instant::now() < end, "no `{name}` event");
+        if let Some(a) = port.next_async(Duration::from_millis(200)).unwrap() {
+            seq.see(a.seq());
+            if let AsyncLine::Event(e) = a
+                && e.event == name
+            {
+                return e.text;
+            }
+        }
+    }
+}
+
+/// The host's on-target prediction as the status line prints it.
+fn host_model_text(rig: RigId, gap_mm: f32) -> (String, u32) {
+    let p = predict(rig, gap_mm).unwrap();
+    (
+        format!(
+            "model=ready target_hz={} band_hz={}..{} predicted_mg={}",
+            Fixed(p.target_hz, 4),
+            Fixed(p.band_hz[0], 3),
+            Fixed(p.band_hz[1], 3),
+            Fixed(p.impact_force_mg, 2)
+        ),
+        p.target_hz.to_bits(),
+    )
+}
+
+#[test]
+fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
+    let Some(mut qemu) = Qemu::start() else {
+        return;
+    };
+    let mut port = qemu.port();
+
+    // Boot to the console.
+    assert_eq!(port.id.board, "emulator");
+    assert_eq!(port.id.rig, RigId::Wires);
+    assert!(
+        port.command("help")
+            .unwrap()
+            .starts_with("commands: status")
+    );
+    let (host_text, host_bits) = host_model_text(RigId::Wires, 0.0);
+    let status = wait_status(&mut port, "model", "ready");
+    assert!(
+        status.contains(&host_text),
+        "{status}\nvs the host: {host_text}"
+    );
+
+    // The model recomputes on `gap`: pending at once, ready with the host's bits, within the
+    // emulated time of the instruction budget, while sampling keeps 10 kHz.
+    let mut seq = SeqCounter::default();
+    assert_eq!(port.command("stream on").unwrap(), "ok");
+    assert_eq!(port.command("gap 0.5").unwrap(), "ok");
+    assert!(port.command("status").unwrap().contains("model=pending"));
+    wait_event(&mut port, "model-ready", &mut seq);
+    let d0 = port.command("diag").unwrap();
+    assert_eq!(port.command("gap 0").unwrap(), "ok");
+    let ready = wait_event(&mut port, "model-ready", &mut seq);
+    let d1 = port.command("diag").unwrap();
+    let bits = u32::from_str_radix(
+        field(&ready, "target_bits")
+            .unwrap()
+            .trim_start_matches("0x"),
+        16,
+    )
+    .unwrap();
+    assert_eq!(bits, host_bits, "on-target {ready} vs the host's bits");
+    let took_s = num(&ready, "t_s") - num(&d0, "samples") / 1e4;
+    let budget_s = PREDICT_BUDGET_INSNS * INSN_S / 0.85;
+    eprintln!("model computed in {took_s:.3} s of emulated time (budget {budget_s:.3} s)");
+    assert!(took_s > 0.0 && took_s < budget_s, "{took_s} s");
+    let (samples, ms) = (
+        num(&d1, "samples") - num(&d0, "samples"),
+        num(&d1, "uptime_ms") - num(&d0, "uptime_ms"),
+    );
+    let rate = samples / ms * 1e3;
+    eprintln!("sampling while the model computed: {samples} samples in {ms} ms ({rate:.1} Hz)");
+    assert!((rate / 1e4 - 1.0).abs() < 2e-3, "{rate} Hz");
+    assert_eq!(num(&d1, "lost_cycles"), 0.0);
+    let status = port.command("status").unwrap();
+    assert!(
+        status.contains("fault=none") && status.contains(&host_text),
+        "{status}"
+    );
+
+    // `rig` recomputes too.
+    assert_eq!(port.command("rig beam-170").unwrap(), "ok");
+    let beam = wait_event(&mut port, "model-ready", &mut seq);
+    let beam_bits = predict(RigId::Beam170, 0.0).unwrap().target_hz.to_bits();
+    assert!(
+        beam.contains(&format!("target_bits={beam_bits:#010x}")),
+        "{beam}"
+    );
+    assert_eq!(port.command("rig wires").unwrap(), "ok");
+    wait_event(&mut port, "model-ready", &mut seq);
+
+    // Bad lines: answered `error: …`, nothing changes.
+    let before = port.command("status").unwrap();
+    port.send_bytes(b"\xff\xfe\x01\x02\x7fgarbage\xc3\n")
+        .unwrap();
+    assert!(port.reply("garbage").unwrap().starts_with("error:"));
+    let long = "gap 0.5".repeat(20);
+    assert_eq!(
+        port.command(&long).unwrap(),
+        "error: line too long or not text"
+    );
+    assert_eq!(
+        port.command("fly").unwrap(),
+        "error: unknown command (try `help`)"
+    );
+    assert!(
+        port.command("gap 11")
+            .unwrap()
+            .starts_with("error: gap (mm) out of range")
+    );
+    assert!(
+        port.command("freq 0.5")
+            .unwrap()
+            .starts_with("error: frequency out of the safe window")
+    );
+    // Lines sent while a long reply goes out are answered, in order.
+    port.send_bytes(b"help\ngap 99\nstatus\n").unwrap();
+    assert!(port.reply("help").unwrap().starts_with("commands:"));
+    assert!(port.reply("gap 99").unwrap().starts_with("error: gap (mm)"));
+    assert_eq!(port.reply("status").unwrap(), before);
+    assert_eq!(port.command("status").unwrap(), before);
+
+    // Streaming: consecutive sequence numbers while the console keeps answering.
+    let mut cycles = SeqCounter::default();
+    let mut t = 0;
+    while t < 6 {
+        if let Some(a) = port.next_async(Duration::from_secs(5)).unwrap() {
+            cycles.see(a.seq());
+            if matches!(a, AsyncLine::Cycle(_)) {
+                t += 1;
+                let s = port.command("status").unwrap();
+                assert!(s.starts_with("state=idle"), "{s}");
+            }
+        }
+    }
+    assert_eq!(cycles.lost, 0, "telemetry lines lost");
+
+    // `start` on QEMU's synthetic ADC signal: a sawtooth over the whole ADC range (+7 codes
+    // per read, 585 reads per sweep) reads up to 310 N within 58.5 ms: the over-force abort.
+    assert_eq!(port.command("start").unwrap(), "ok");
+    let fault = wait_event(&mut port, "fault", &mut seq);
+    assert!(fault.contains("fault=over-force"), "{fault}");
+    let s = wait_status(&mut port, "amp_mm", "0.000");
+    assert!(
+        s.contains("state=fault") && s.contains("fault=over-force"),
+        "{s}"
+    );
+    assert_eq!(port.command("emu dac").unwrap(), "dac_code=2048");
+    assert_eq!(
+        port.command("start").unwrap(),
+        "error: fault latched: clear first"
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(port.command("status").unwrap().contains("fault=over-force"));
+    assert_eq!(port.command("clear").unwrap(), "ok");
+    let s = port.command("status").unwrap();
+    assert!(
+        s.starts_with("state=idle") && s.contains("fault=none"),
+        "{s}"
+    );
+
+    // A capture records the sawtooth's crossings.
+    assert!(
+        port.command("capture arm 1 0.2")
+            .unwrap()
+            .starts_with("capture state=armed")
+    );
+    let end = Instant::now() + Duration::from_secs(30);
+    let cap = loop {
+        let c = port.command("capture").unwrap();
+        if field(&c, "state") == Some("done") {
+            break c;
+        }
+        assert!(Instant::now() < end, "{c}");
+    };
+    assert_eq!(num(&cap, "segments"), 32.0, "{cap}");
+    assert!(
+        port.command("capture get 31")
+            .unwrap()
+            .starts_with("segment k=31 ")
+    );
+
+    // The stack after all of the above: the model task's depth with the interrupts on top.
+    let d = port.command("diag").unwrap();
+    let (hwm, size) = (num(&d, "stack_hwm_bytes"), num(&d, "stack_size_bytes"));
+    let static_ram = RAM_BYTES as f64 - size;
+    eprintln!(
+        "stack high-water mark {hwm} B of a {size} B stack; static RAM {static_ram} B; \
+         static + stack + 8 KiB = {:.1} KiB",
+        (static_ram + hwm + 8192.0) / 1024.0
+    );
+    assert!(
+        hwm > 30_000.0 && static_ram + hwm + 8192.0 <= RAM_BYTES as f64,
+        "{d}"
+    );
+    // Nothing held the sampling task off for long: the longest gap between two samples.
+    let gap = num(&d, "sample_gap_max_us");
+    eprintln!("longest gap between samples: {gap} µs (period 100 µs)");
+    assert!((100.0..150.0).contains(&gap), "{d}");
+
+    // A stalled sampling task stops the watchdog feeding: the health check sees it within a
+    // second or two, and 2 s after the last feed the watchdog (stand-in) resets the MCU.
+    let stalled = port.command("emu stall").unwrap();
+    let t_stall = num(&stalled.replace("ok sampling stalled at ", ""), "uptime_ms");
+    let ev = wait_event(&mut port, "stalled", &mut seq);
+    assert!(num(&ev, "expected") >= 9_000.0, "{ev}");
+    let out = qemu.wait_exit(Duration::from_secs(60));
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("watchdog:"))
+        .unwrap_or_else(|| panic!("no watchdog reset:\n{out}"));
+    let (last_feed, now) = (num(line, "last_feed_ms"), num(line, "now_ms"));
+    assert!(
+        last_feed - t_stall < 2000.0 && now - last_feed >= 2000.0,
+        "stall at {t_stall} ms: {line}"
+    );
+}
+
+#[test]
+fn a_stack_overflow_faults_instead_of_overwriting_static_data() {
+    let Some(mut qemu) = Qemu::start() else {
+        return;
+    };
+    let mut port = qemu.port();
+    assert!(port.command("emu overflow").is_err());
+    let out = qemu.wait_exit(Duration::from_secs(60));
+    // flip-link: the stack sits at the bottom of RAM, so the overflow reaches 0x1fff_ffff
+    // (unmapped) and faults; the fault cannot even be stacked: the CPU locks up (on the rig the
+    // watchdog then resets it).
+    let sp = out
+        .lines()
+        .find_map(|l| l.split_whitespace().find_map(|w| w.strip_prefix("R13=")))
+        .unwrap_or_else(|| panic!("no fault:\n{out}"));
+    let sp = u32::from_str_radix(sp, 16).unwrap();
+    assert!(out.contains("Lockup") || out.contains("HardFault"), "{out}");
+    assert!(
+        sp < 0x2000_0000,
+        "stack pointer 0x{sp:08x} at the fault:\n{out}"
+    );
+}
