@@ -432,3 +432,134 @@ fn killing_the_rig_mid_log_is_a_clear_error_with_no_csv_left() {
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
+
+/// A pseudo-terminal the test plays the rig on: `answer` gets every received line and returns
+/// the raw bytes to send back.
+fn fake_rig(mut answer: impl FnMut(&str) -> Vec<u8> + Send + 'static) -> PathBuf {
+    use std::io::{Read, Write};
+    let pair = nix::pty::openpty(None, None).unwrap();
+    let mut t = nix::sys::termios::tcgetattr(&pair.slave).unwrap();
+    nix::sys::termios::cfmakeraw(&mut t);
+    nix::sys::termios::tcsetattr(&pair.slave, nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
+    let path = nix::unistd::ttyname(&pair.slave).unwrap();
+    let mut master = std::fs::File::from(pair.master);
+    std::thread::spawn(move || {
+        let _slave = pair.slave;
+        let mut buf = Vec::new();
+        let mut chunk = [0u8; 256];
+        while let Ok(n) = master.read(&mut chunk) {
+            if n == 0 {
+                break;
+            }
+            buf.extend_from_slice(&chunk[..n]);
+            while let Some(end) = buf.iter().position(|&b| b == b'\n') {
+                let line: Vec<u8> = buf.drain(..=end).collect();
+                let line = String::from_utf8_lossy(&line).trim().to_string();
+                let out = answer(&line);
+                if master.write_all(&out).is_err() {
+                    return;
+                }
+            }
+        }
+    });
+    path
+}
+
+const ID: &str = "id firmware=0.1.0 board=virtual rig=wires gap_mm=0.00 sample_rate_hz=10000 \
+                  capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 \
+                  adc_full_scale_v=3.3000 mass_kg=0.2980 freq_window_hz=1.00..30.00";
+
+#[test]
+fn a_bad_link_is_a_clear_error_never_a_hang() {
+    // No such port.
+    let out = Command::new(bin())
+        .args(["rig", "--port", "/dev/does-not-exist", "send", "id"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("no such device"), "{stderr}");
+    // A port where nothing answers: the command is named.
+    let silent = fake_rig(|_| Vec::new());
+    let started = Instant::now();
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&silent)
+        .args(["--timeout-s", "0.5", "send", "status"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("no reply to `id` within 0.5 s"), "{stderr}");
+    assert!(started.elapsed() < Duration::from_secs(5));
+    // A rig that answers `id`, then a garbled and an unknown asynchronous line before its
+    // reply to `status`: both reported with their text, skipped; the reply goes through.
+    let noisy = fake_rig(|line| match line {
+        "id" => format!("{ID}\r\n").into_bytes(),
+        "status" => {
+            let mut v = b"\xff\xfe\x80garbled\r\n!Z what is this\r\n".to_vec();
+            v.extend_from_slice(b"state=idle rig=wires\r\n");
+            v
+        }
+        _ => b"error: unknown command (try `help`)\r\n".to_vec(),
+    });
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&noisy)
+        .args(["send", "status", "bogus"])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(stdout.starts_with("state=idle rig=wires\n"), "{stdout}");
+    assert!(stderr.contains("garbled line skipped: ��"), "{stderr}");
+    assert!(stderr.contains("unknown asynchronous line skipped: !Z what is this"), "{stderr}");
+    // `send` stops with a non-zero exit at the first `error: …` reply.
+    assert!(!out.status.success());
+    assert!(stdout.contains("error: unknown command"), "{stdout}");
+    assert!(stderr.contains("the rig refused `bogus`"), "{stderr}");
+}
+
+#[test]
+fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
+    let dir = tempfile::tempdir().unwrap();
+    let with_faults = dir.path().join("faults.toml");
+    std::fs::write(
+        &with_faults,
+        "[[commands]]\nat_s = 0.5\nline = \"status\"\n[[faults]]\nat_s = 1.0\nkind = \"sensor-open\"\n",
+    )
+    .unwrap();
+    let server = Server::start("20", "");
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&server.pty)
+        .args(["run", "--scenario"])
+        .arg(&with_faults)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("[[faults]] and [[drops]]"), "{stderr}");
+    let commands = dir.path().join("commands.toml");
+    std::fs::write(
+        &commands,
+        "[[commands]]\nat_s = 0.2\nline = \"gap 0.5\"\n[[commands]]\nat_s = 1.0\nline = \"status\"\n",
+    )
+    .unwrap();
+    let out = Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(&server.pty)
+        .args(["run", "--scenario"])
+        .arg(&commands)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("> gap 0.5\n             ok"), "{stdout}");
+    assert!(stdout.contains("gap_mm=0.50"), "{stdout}");
+    server.stop();
+}

@@ -529,16 +529,33 @@ fn print_contact(
     }
     for l in loaded {
         let data = &l.data;
-        let dt = (data.t_s[data.t_s.len() - 1] - data.t_s[0]) / (data.t_s.len() - 1) as f64;
+        // The sampling interval is the smallest step; larger steps are gaps between the
+        // segments of a segmented capture (`rig capture`).
+        let dt = data
+            .t_s
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(f64::INFINITY, f64::min);
+        let segments = 1 + data
+            .t_s
+            .windows(2)
+            .filter(|w| w[1] - w[0] > 1.5 * dt)
+            .count();
+        let segments = if segments > 1 {
+            format!(" in {segments} segments")
+        } else {
+            String::new()
+        };
         let peaks: Vec<String> = data
             .impacts
             .iter()
             .map(|i| format!("{:.2}", i.peak_n))
             .collect();
         println!(
-            "Drop test {}: {} samples at {:.1} kHz, offset {:.3} N removed, noise {:.3} N; {} impacts, peaks {} N",
+            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N; {} impacts, peaks {} N",
             l.path.display(),
             data.t_s.len(),
+            segments,
             1e-3 / dt,
             data.offset_n,
             data.noise_n,

@@ -30,7 +30,9 @@ pub fn draw(
     root.fill(&WHITE).map_err(err)?;
     let root = root.titled(title, (SANS, 22)).map_err(err)?;
     let panels = root.split_evenly((3, 1));
-    let t1 = rows.last().map_or(1.0, |r| r.t_s).max(1e-3);
+    // From the first logged cycle's whole second (a rig log starts mid-session).
+    let t0 = rows.first().map_or(0.0, |r| r.t_s.floor());
+    let t1 = rows.last().map_or(1.0, |r| r.t_s).max(t0 + 1e-3);
 
     // Frequency.
     // The drive idles at the window's lowest frequency: show the frequency while driving.
@@ -59,7 +61,7 @@ pub fn draw(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(80)
-        .build_cartesian_2d(0.0..t1, flo..fhi)
+        .build_cartesian_2d(t0..t1, flo..fhi)
         .map_err(err)?;
     c.configure_mesh()
         .x_desc("t (s)")
@@ -79,7 +81,7 @@ pub fn draw(
         let grey = BLACK.mix(0.5);
         let target = f64::from(p.target_hz);
         c.draw_series(LineSeries::new(
-            [(0.0, target), (t1, target)],
+            [(t0, target), (t1, target)],
             RED.stroke_width(1),
         ))
         .map_err(err)?
@@ -87,7 +89,7 @@ pub fn draw(
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
         for edge in p.band_hz {
             let e = f64::from(edge);
-            c.draw_series(LineSeries::new([(0.0, e), (t1, e)], grey))
+            c.draw_series(LineSeries::new([(t0, e), (t1, e)], grey))
                 .map_err(err)?;
         }
         c.draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
@@ -114,7 +116,7 @@ pub fn draw(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(80)
-        .build_cartesian_2d(0.0..t1, 0.0..fmax)
+        .build_cartesian_2d(t0..t1, 0.0..fmax)
         .map_err(err)?;
     c.configure_mesh()
         .x_desc("t (s)")
@@ -123,13 +125,15 @@ pub fn draw(
         .draw()
         .map_err(err)?;
     let orange = RGBColor(230, 120, 0);
-    c.draw_series(rows.iter().filter_map(|r| {
-        r.true_peak_n
-            .map(|f| Circle::new((r.t_s, f), 3, orange.filled()))
-    }))
-    .map_err(err)?
-    .label("true (plant)")
-    .legend(move |(x, y)| Circle::new((x + 8, y), 3, orange.filled()));
+    if rows.iter().any(|r| r.true_peak_n.is_some()) {
+        c.draw_series(rows.iter().filter_map(|r| {
+            r.true_peak_n
+                .map(|f| Circle::new((r.t_s, f), 3, orange.filled()))
+        }))
+        .map_err(err)?
+        .label("true (plant)")
+        .legend(move |(x, y)| Circle::new((x + 8, y), 3, orange.filled()));
+    }
     c.draw_series(
         rows.iter()
             .filter_map(|r| r.measured_peak_n.map(|f| Cross::new((r.t_s, f), 4, BLUE))),
@@ -138,7 +142,7 @@ pub fn draw(
     .label("measured (controller)")
     .legend(|(x, y)| Cross::new((x + 8, y), 4, BLUE));
     c.draw_series(LineSeries::new(
-        [(0.0, force_limit_n), (t1, force_limit_n)],
+        [(t0, force_limit_n), (t1, force_limit_n)],
         RED.mix(0.6),
     ))
     .map_err(err)?
@@ -158,7 +162,7 @@ pub fn draw(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(80)
-        .build_cartesian_2d(0.0..t1, -0.5..5.5)
+        .build_cartesian_2d(t0..t1, -0.5..5.5)
         .map_err(err)?;
     c.configure_mesh()
         .x_desc("t (s)")
