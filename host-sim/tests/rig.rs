@@ -477,7 +477,10 @@ fn a_bad_link_is_a_clear_error_never_a_hang() {
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.contains("no such device"), "{stderr}");
+    assert!(
+        !out.status.success() && stderr.contains("no such device"),
+        "{stderr}"
+    );
     // A port where nothing answers: the command is named.
     let silent = fake_rig(|_| Vec::new());
     let started = Instant::now();
@@ -516,7 +519,10 @@ fn a_bad_link_is_a_clear_error_never_a_hang() {
     );
     assert!(stdout.starts_with("state=idle rig=wires\n"), "{stdout}");
     assert!(stderr.contains("garbled line skipped: ��"), "{stderr}");
-    assert!(stderr.contains("unknown asynchronous line skipped: !Z what is this"), "{stderr}");
+    assert!(
+        stderr.contains("unknown asynchronous line skipped: !Z what is this"),
+        "{stderr}"
+    );
     // `send` stops with a non-zero exit at the first `error: …` reply.
     assert!(!out.status.success());
     assert!(stdout.contains("error: unknown command"), "{stdout}");
@@ -542,7 +548,10 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.contains("[[faults]] and [[drops]]"), "{stderr}");
+    assert!(
+        !out.status.success() && stderr.contains("[[faults]] and [[drops]]"),
+        "{stderr}"
+    );
     let commands = dir.path().join("commands.toml");
     std::fs::write(
         &commands,
@@ -558,7 +567,11 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(stdout.contains("> gap 0.5\n             ok"), "{stdout}");
     assert!(stdout.contains("gap_mm=0.50"), "{stdout}");
     server.stop();

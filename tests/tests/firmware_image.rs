@@ -79,7 +79,11 @@ fn the_rig_image_fits_its_flash_budget() {
         return;
     };
     if !out.status.success() {
-        assert!(std::env::var_os("CI").is_none(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         return;
     }
     let text = String::from_utf8(out.stdout).unwrap();
@@ -90,6 +94,9 @@ fn the_rig_image_fits_its_flash_budget() {
             .unwrap_or(0)
     };
     let flash = size(".vector_table") + size(".text") + size(".rodata") + size(".data");
-    eprintln!("rig image: flash {flash} B ({:.1} KiB)", flash as f64 / 1024.0);
+    eprintln!(
+        "rig image: flash {flash} B ({:.1} KiB)",
+        flash as f64 / 1024.0
+    );
     assert!(flash <= 128 * 1024, "flash {flash} B");
 }
