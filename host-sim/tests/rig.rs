@@ -382,6 +382,12 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("clear"));
     assert!(!again.exists() && !host_sim::commands::rig::partial_path(&again).exists());
+    // Let the rig run on past the abort before reading its log.
+    let mut port = server.port();
+    while port.uptime_s().unwrap() < 18.0 {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    drop(port);
     let truth = server.stop();
     // On the plant: the cart stands still from 0.5 s after the fault (cart_amp_mm, column 4),
     // and it was driven before.
@@ -499,6 +505,7 @@ fn a_bad_link_is_a_clear_error_never_a_hang() {
     // reply to `status`: both reported with their text, skipped; the reply goes through.
     let noisy = fake_rig(|line| match line {
         "id" => format!("{ID}\r\n").into_bytes(),
+        "diag" => b"diag samples=0 uptime_ms=0\r\n".to_vec(),
         "status" => {
             let mut v = b"\xff\xfe\x80garbled\r\n!Z what is this\r\n".to_vec();
             v.extend_from_slice(b"state=idle rig=wires\r\n");

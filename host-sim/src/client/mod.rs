@@ -87,24 +87,43 @@ impl RigPort {
         Ok(rig)
     }
 
-    /// Sends `id` until its reply comes (lines before it are dropped), and keeps it.
+    /// Sends `id` (again every second: a board still starting up drops what it receives)
+    /// until its reply comes, and keeps it; then one `diag` exchange, whose reply comes after
+    /// any duplicate `id` replies, so that every later reply answers its own line.
     fn sync(&mut self) -> Result<()> {
-        self.write_line("id")?;
         let deadline = Instant::now() + self.timeout;
+        let mut next_send = Instant::now();
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
+            if Instant::now() >= next_send {
+                self.write_line("id")?;
+                next_send = Instant::now() + Duration::from_secs(1);
+            }
+            let left = deadline
+                .min(next_send)
+                .saturating_duration_since(Instant::now());
             match self.replies.recv_timeout(left) {
                 Ok(Incoming::Reply(r)) if r.starts_with("id ") => {
                     self.id = protocol::parse_id(&r)?;
-                    return Ok(());
+                    break;
                 }
                 Ok(Incoming::Reply(_)) => {}
                 Ok(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
+                Err(RecvTimeoutError::Timeout) if Instant::now() < deadline => {}
                 Err(RecvTimeoutError::Timeout) => bail!(
                     "no reply to `id` within {:.1} s: is this the rig's console (115200 8N1)?",
                     self.timeout.as_secs_f64()
                 ),
                 Err(RecvTimeoutError::Disconnected) => bail!("the link closed"),
+            }
+        }
+        self.write_line("diag")?;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now()) + self.timeout;
+            match self.replies.recv_timeout(left) {
+                Ok(Incoming::Reply(r)) if r.starts_with("diag ") => return Ok(()),
+                Ok(Incoming::Reply(_)) => {}
+                Ok(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
+                Err(_) => bail!("no reply to `diag` after `id`"),
             }
         }
     }

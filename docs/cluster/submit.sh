@@ -1,0 +1,30 @@
+#!/bin/bash
+# Submits a grid as a SLURM job array of N shards and its merge, which waits for every task:
+#
+#   docs/cluster/submit.sh peterka 16 run1 --rig wires --gap-mm 0:3.42:0.01 --freq-hz 1:7.11:0.01
+#   docs/cluster/submit.sh basins 8 run2 --rig wires --gap-mm 1.335 --omega-ratio 2.0 \
+#       --u0-mm -4:1.335:200 --v0-mm-s -100:100:200
+#
+# Writes RUN/shards/KIND_i.csv, then RUN/KIND.csv and its figures; logs in RUN/logs. Prints the
+# two job ids (`array ID merge ID`). HOST_SIM overrides the host-sim binary (default: on PATH);
+# use the same binary for every task and the merge (its version is part of the shards' metadata).
+# A failed task: resubmit just its index with the line this prints, then the merge.
+set -euo pipefail
+if [ $# -lt 3 ]; then
+    echo "usage: $0 peterka|basins SHARDS RUN_DIR GRID_OPTIONS..." >&2
+    exit 2
+fi
+kind=$1 n=$2 run=$3
+shift 3
+case "$kind" in peterka | basins) ;; *) echo "KIND must be peterka or basins" >&2; exit 2 ;; esac
+[[ "$n" =~ ^[1-9][0-9]*$ ]] || { echo "SHARDS must be a positive whole number" >&2; exit 2; }
+here=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$run/logs"
+run=$(cd "$run" && pwd)
+common=(--export="ALL,KIND=$kind,N=$n,OUTDIR=$run")
+array=$(sbatch --parsable "${common[@]}" --array="0-$((n - 1))" \
+    --output="$run/logs/${kind}_%A_%a.out" "$here/grid-array.sbatch" "$@")
+merge=$(sbatch --parsable "${common[@]}" --dependency="afterok:$array" \
+    --output="$run/logs/${kind}_merge_%j.out" "$here/grid-merge.sbatch")
+echo "array $array merge $merge"
+echo "to rerun task I: sbatch ${common[*]} --array=I --output=$run/logs/${kind}_%A_%a.out $here/grid-array.sbatch $*" >&2

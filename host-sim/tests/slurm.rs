@@ -1,0 +1,276 @@
+//! The big grids on a real SLURM: the job-array and merge scripts of `docs/cluster/` submitted
+//! to the one-node cluster of `docs/cluster/local-slurm.sh` (which `.ci/run` starts):
+//! - a reduced Peterka map (3,171 points, 4 array tasks, the merge held by `afterok`) and a basin
+//!   (1,600 initial conditions, 4 tasks): the merged CSV and figures are byte for byte those of a
+//!   single-process run;
+//! - one task of a larger map killed with `scancel` while it computes: the merge never starts,
+//!   no partial shard is left, and rerunning that array index, then the merge, completes the map
+//!   (again byte-identical).
+//!
+//! Skipped with a note where no SLURM node is up, except under CI (`CI` set), where it fails.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn host_sim() -> PathBuf {
+    assert_cmd::cargo::cargo_bin("host-sim")
+}
+
+fn scripts() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs/cluster")
+}
+
+fn slurm_up() -> bool {
+    let up = Command::new("sinfo")
+        .args(["-h", "-o", "%t"])
+        .output()
+        .is_ok_and(|o| {
+            o.status.success()
+                && String::from_utf8_lossy(&o.stdout)
+                    .lines()
+                    .any(|l| matches!(l.trim(), "idle" | "mix" | "alloc"))
+        });
+    if !up {
+        let why = "no SLURM node is up (start one: sudo docs/cluster/local-slurm.sh start)";
+        assert!(std::env::var_os("CI").is_none(), "{why}");
+        eprintln!("skipped: {why}");
+    }
+    up
+}
+
+fn run(cmd: &mut Command) -> String {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{cmd:?}: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// `(array task id or "-", state, reason)` of every job of `id` (an array job lists each task).
+fn states(id: &str) -> Vec<(String, String, String)> {
+    let text = run(Command::new("scontrol").args(["-o", "show", "job", id]));
+    text.lines()
+        .map(|l| {
+            let f = |k: &str| {
+                l.split_whitespace()
+                    .find_map(|w| w.strip_prefix(k))
+                    .unwrap_or("-")
+                    .to_string()
+            };
+            (f("ArrayTaskId="), f("JobState="), f("Reason="))
+        })
+        .collect()
+}
+
+fn wait_for(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) {
+    let end = Instant::now() + timeout;
+    while !done() {
+        assert!(Instant::now() < end, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+fn terminal(state: &str) -> bool {
+    matches!(
+        state,
+        "COMPLETED" | "FAILED" | "CANCELLED" | "TIMEOUT" | "NODE_FAIL" | "OUT_OF_MEMORY"
+    )
+}
+
+/// Waits until every task of `id` has ended; all must have `COMPLETED`.
+fn wait_completed(id: &str, run_dir: &Path) {
+    wait_for(&format!("job {id}"), Duration::from_secs(600), || {
+        states(id).iter().all(|(_, s, _)| terminal(s))
+    });
+    let st = states(id);
+    assert!(
+        st.iter().all(|(_, s, _)| s == "COMPLETED"),
+        "job {id}: {st:?}\n{}",
+        logs(run_dir)
+    );
+}
+
+fn logs(run_dir: &Path) -> String {
+    let mut out = String::new();
+    if let Ok(dir) = std::fs::read_dir(run_dir.join("logs")) {
+        for e in dir.filter_map(Result::ok) {
+            out += &format!(
+                "--- {}\n{}",
+                e.path().display(),
+                std::fs::read_to_string(e.path()).unwrap_or_default()
+            );
+        }
+    }
+    out
+}
+
+/// `submit.sh KIND SHARDS RUN GRID...` → (array job, merge job).
+fn submit(kind: &str, shards: u32, run_dir: &Path, grid: &[&str]) -> (String, String) {
+    let out = run(Command::new(scripts().join("submit.sh"))
+        .env("HOST_SIM", host_sim())
+        .arg(kind)
+        .arg(shards.to_string())
+        .arg(run_dir)
+        .args(grid));
+    let w: Vec<&str> = out.split_whitespace().collect();
+    assert_eq!((w[0], w[2]), ("array", "merge"), "{out}");
+    (w[1].to_string(), w[3].to_string())
+}
+
+/// The same command in one process: its CSV and figures into `dir`.
+fn single(kind: &str, grid: &[&str], dir: &Path) {
+    let mut cmd = Command::new(host_sim());
+    cmd.arg(kind)
+        .args(grid)
+        .arg("--out")
+        .arg(dir.join(format!("{kind}.csv")));
+    match kind {
+        "peterka" => cmd
+            .arg("--plot")
+            .arg(dir.join("peterka.png"))
+            .arg("--force-plot")
+            .arg(dir.join("peterka-f11.png")),
+        _ => cmd.arg("--plot").arg(dir.join("basins.png")),
+    };
+    run(&mut cmd);
+}
+
+fn assert_same_files(kind: &str, a: &Path, b: &Path) {
+    let names: &[&str] = match kind {
+        "peterka" => &["peterka.csv", "peterka.png", "peterka-f11.png"],
+        _ => &["basins.csv", "basins.png"],
+    };
+    for name in names {
+        let (x, y) = (std::fs::read(a.join(name)), std::fs::read(b.join(name)));
+        assert!(
+            x.as_ref().ok() == y.as_ref().ok() && x.is_ok(),
+            "{name} differs between the array's merge and a single run"
+        );
+    }
+}
+
+const PETERKA: &[&str] = &[
+    "--rig",
+    "wires",
+    "--gap-mm",
+    "0:1.0:0.05",
+    "--freq-hz",
+    "1:4:0.02",
+];
+const BASINS: &[&str] = &[
+    "--rig",
+    "wires",
+    "--gap-mm",
+    "1.335",
+    "--omega-ratio",
+    "2.0",
+    "--u0-mm",
+    "-4:1.335:40",
+    "--v0-mm-s",
+    "-100:100:40",
+];
+/// A map whose shards take several seconds each on one core.
+const PETERKA_LONG: &[&str] = &[
+    "--rig",
+    "wires",
+    "--gap-mm",
+    "0:3.42:0.05",
+    "--freq-hz",
+    "1:7.11:0.01",
+];
+
+#[test]
+fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merge() {
+    if !slurm_up() {
+        return;
+    }
+    let started = Instant::now();
+    let dir = tempfile::tempdir().unwrap();
+    // 1. A Peterka map and a basin: array + merge against one process.
+    for (kind, grid) in [("peterka", PETERKA), ("basins", BASINS)] {
+        let one = dir.path().join(format!("{kind}-single"));
+        std::fs::create_dir_all(&one).unwrap();
+        single(kind, grid, &one);
+        let run_dir = dir.path().join(format!("{kind}-array"));
+        let (array, merge) = submit(kind, 4, &run_dir, grid);
+        wait_completed(&array, &run_dir);
+        wait_completed(&merge, &run_dir);
+        assert_same_files(kind, &one, &run_dir);
+    }
+
+    // 2. A task cancelled while it computes.
+    let run_dir = dir.path().join("long-array");
+    let (array, merge) = submit("peterka", 4, &run_dir, PETERKA_LONG);
+    let task1 = format!("{array}_1");
+    wait_for("task 1 to run", Duration::from_secs(300), || {
+        states(&task1).iter().any(|(_, s, _)| s == "RUNNING")
+    });
+    std::thread::sleep(Duration::from_millis(1500));
+    run(Command::new("scancel").arg(&task1));
+    wait_for("the other tasks", Duration::from_secs(600), || {
+        states(&array).iter().all(|(_, s, _)| terminal(s))
+    });
+    let st = states(&array);
+    for (task, state, _) in &st {
+        let expected = if task == "1" {
+            "CANCELLED"
+        } else {
+            "COMPLETED"
+        };
+        assert_eq!(state, expected, "task {task}: {st:?}\n{}", logs(&run_dir));
+    }
+    // The merge waits on a dependency that can no longer be met: it never starts.
+    std::thread::sleep(Duration::from_secs(2));
+    let m = states(&merge);
+    assert!(
+        m.iter()
+            .all(|(_, s, r)| s == "PENDING" && r == "DependencyNeverSatisfied"),
+        "{m:?}"
+    );
+    run(Command::new("scancel").arg(&merge));
+    assert!(!run_dir.join("merged.csv").exists() && !run_dir.join("peterka.csv").exists());
+    // No partial shard: task 1's file never appeared, nor any temporary file.
+    let shards: Vec<String> = std::fs::read_dir(run_dir.join("shards"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!shards.contains(&"peterka_1.csv".to_string()), "{shards:?}");
+    assert!(
+        shards.iter().all(|s| !s.starts_with(".host-sim-")),
+        "{shards:?}"
+    );
+    assert_eq!(shards.len(), 3, "{shards:?}");
+    // Rerun index 1, then the merge: the map is complete and a single run's.
+    let export = format!(
+        "ALL,KIND=peterka,N=4,OUTDIR={}",
+        run_dir.canonicalize().unwrap().display()
+    );
+    let rerun = run(Command::new("sbatch")
+        .env("HOST_SIM", host_sim())
+        .args(["--parsable", &format!("--export={export}"), "--array=1"])
+        .arg(format!(
+            "--output={}/logs/rerun_%A_%a.out",
+            run_dir.display()
+        ))
+        .arg(scripts().join("grid-array.sbatch"))
+        .args(PETERKA_LONG));
+    wait_completed(rerun.trim(), &run_dir);
+    let merge2 = run(Command::new("sbatch")
+        .env("HOST_SIM", host_sim())
+        .args(["--parsable", &format!("--export={export}")])
+        .arg(format!("--output={}/logs/merge2_%j.out", run_dir.display()))
+        .arg(scripts().join("grid-merge.sbatch")));
+    wait_completed(merge2.trim(), &run_dir);
+    let one = dir.path().join("long-single");
+    std::fs::create_dir_all(&one).unwrap();
+    single("peterka", PETERKA_LONG, &one);
+    assert_same_files("peterka", &one, &run_dir);
+    eprintln!(
+        "SLURM test: {:.1} s (two arrays and merges, a cancelled task, its rerun)",
+        started.elapsed().as_secs_f64()
+    );
+}
