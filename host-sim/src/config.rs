@@ -10,6 +10,11 @@
 //! steps_per_period = 512
 //! [selection]                # shared::analysis::SelectionSpec
 //! freq_margin_pct = 4.0
+//! [uncertainty]              # written by `identify contact --out`: for `select --uncertainty`
+//! law = "spring-dashpot"
+//! coordinates = ["ln_stiffness_n_m", "ln_damping_n_s_m"]
+//! mean = [15.52, 7.09]
+//! covariance = [[2.7e-5, 2.8e-5], [2.8e-5, 1.5e-4]]
 //! ```
 
 use std::path::Path;
@@ -38,6 +43,104 @@ pub struct Setup {
     pub selection: SelectionSpec,
     /// Float type.
     pub precision: Precision,
+    /// The identified contact law's distribution, if the config file has one.
+    pub uncertainty: Option<UncertaintyTable>,
+}
+
+/// The `[uncertainty]` table: the contact law's parameters as a normal distribution in the
+/// coordinates `identify contact` reports (`ln` of the scale parameters), for
+/// `select --uncertainty`. Other keys it writes (`ci95`, `notes`, …) are for the reader.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct UncertaintyTable {
+    /// The law (`spring-dashpot`, …): the same as `[rig.contact]`'s.
+    pub law: String,
+    /// Coordinate names, in the law's order.
+    pub coordinates: Vec<String>,
+    /// Mean.
+    pub mean: Vec<f64>,
+    /// Covariance (symmetric, finite, positive semi-definite).
+    pub covariance: Vec<Vec<f64>>,
+    /// How it was estimated.
+    #[serde(default)]
+    pub method: Option<String>,
+    /// The 95 % intervals, by parameter key.
+    #[serde(default)]
+    pub ci95: Option<toml::Table>,
+    /// Sensor noise of each trace, N.
+    #[serde(default)]
+    pub noise_n: Option<Vec<f64>>,
+    /// Identifiability notes.
+    #[serde(default)]
+    pub notes: Option<Vec<String>>,
+}
+
+impl UncertaintyTable {
+    /// Checks the table against the rig's contact law.
+    ///
+    /// # Errors
+    /// The field and what is wrong with it.
+    pub fn validate(&self, params: &RigParams) -> Result<()> {
+        let law = params.contact.kind();
+        anyhow::ensure!(
+            self.law == law.to_string(),
+            "[uncertainty] `law` = {} but [rig.contact] is {law}",
+            self.law
+        );
+        let expected = crate::identify::uncertainty::coordinate_names(law);
+        anyhow::ensure!(
+            self.coordinates
+                .iter()
+                .map(String::as_str)
+                .eq(expected.iter().copied()),
+            "[uncertainty] `coordinates` must be {expected:?} for the {law} law"
+        );
+        let p = expected.len();
+        anyhow::ensure!(
+            self.mean.len() == p && self.mean.iter().all(|v| v.is_finite()),
+            "[uncertainty] `mean` must hold {p} finite numbers"
+        );
+        anyhow::ensure!(
+            self.covariance.len() == p && self.covariance.iter().all(|r| r.len() == p),
+            "[uncertainty] `covariance` must be a {p} × {p} table"
+        );
+        for (i, row) in self.covariance.iter().enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                if !v.is_finite() {
+                    bail!(
+                        "[uncertainty] `covariance` is unbounded ({}): the identification did                          not fix `{}`, draws would be meaningless; fit again with more data                          (see its notes)",
+                        v,
+                        self.coordinates[i.max(j)]
+                    );
+                }
+                anyhow::ensure!(
+                    (v - self.covariance[j][i]).abs() <= 1e-9 * v.abs().max(1e-300),
+                    "[uncertainty] `covariance` must be symmetric"
+                );
+            }
+            anyhow::ensure!(
+                row[i] >= 0.0,
+                "[uncertainty] `covariance` has a negative variance"
+            );
+        }
+        Ok(())
+    }
+
+    /// Whether every coordinate has a finite variance (draws make sense).
+    ///
+    /// # Errors
+    /// The first unbounded coordinate.
+    pub fn check_bounded(&self) -> Result<()> {
+        for (i, c) in self.coordinates.iter().enumerate() {
+            if !self.covariance[i][i].is_finite() {
+                bail!(
+                    "[uncertainty]: the identification did not fix `{c}` (unbounded interval), so \
+                     draws from it would be meaningless; fit again with more data (see the \
+                     file's notes)"
+                );
+            }
+        }
+        Ok(())
+    }
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -46,6 +149,7 @@ struct ConfigFile {
     rig: Option<toml::Table>,
     settings: Option<toml::Table>,
     selection: Option<toml::Table>,
+    uncertainty: Option<UncertaintyTable>,
 }
 
 impl Setup {
@@ -58,6 +162,7 @@ impl Setup {
         if let Some(kind) = opts.law {
             params.contact = ContactLaw::preset(kind);
         }
+        let mut uncertainty = None;
         let (mut settings, mut selection) = match opts.profile {
             Profile::Host => (SimSettings::default(), SelectionSpec::default()),
             Profile::Embedded => (SimSettings::embedded(), SelectionSpec::embedded()),
@@ -75,18 +180,24 @@ impl Setup {
                 selection = merge(&selection, t, "selection")
                     .with_context(|| format!("{}", path.display()))?;
             }
+            uncertainty = file.uncertainty;
         }
         params.validate().context("rig parameters")?;
         settings.bands.validate().context("settings.bands")?;
         settings.steps.validate().context("settings.steps")?;
         settings.protocol.validate().context("settings.protocol")?;
         selection.validate().context("selection")?;
+        if let (Some(u), Some(path)) = (&uncertainty, &opts.config) {
+            u.validate(&params)
+                .with_context(|| format!("{}", path.display()))?;
+        }
         Ok(Setup {
             rig: opts.rig,
             params,
             settings,
             selection,
             precision: opts.precision,
+            uncertainty,
         })
     }
 }

@@ -200,6 +200,128 @@ pub fn response(
     Ok(())
 }
 
+/// The nominal response with the 95 % range of `F_i/mg` over the draws of an identified law
+/// (`select --uncertainty`), the chosen point and the robust recommendation.
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn response_band(
+    path: &Path,
+    title: &str,
+    spread: &crate::propagate::Propagation,
+    nominal: &[ResponsePoint],
+    chosen: &crate::selection::SelectReport,
+) -> Result<()> {
+    ensure_font();
+    let root = BitMapBackend::new(path, (1000, 620)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    // The fitted law's 1/1 band holding the chosen point, widened by a fifth on each side.
+    let [b0, b1] = chosen.band_omega_ratio;
+    let pad = 0.2 * (b1 - b0);
+    let (x0, x1) = (b0 - pad, b1 + pad);
+    let inside = |r: f64| r >= x0 && r <= x1;
+    let band: Vec<&crate::propagate::BandPoint> = spread
+        .band
+        .iter()
+        .filter(|p| inside(p.omega_ratio))
+        .collect();
+    let nominal: Vec<&ResponsePoint> = nominal.iter().filter(|p| inside(p.omega_ratio)).collect();
+    let ymax = band
+        .iter()
+        .map(|p| p.impact_force_mg.hi95)
+        .chain(nominal.iter().map(|p| p.impact_force_mg))
+        .fold(1.0, f64::max)
+        * 1.15;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, (SANS, 20))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x0..x1, 0.0..ymax)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("Ω/ω")
+        .y_desc("max impact force F_i/mg")
+        .label_style((SANS, 15))
+        .draw()
+        .map_err(err)?;
+    let blue = RGBColor(43, 131, 186);
+    let area: Vec<(f64, f64)> = band
+        .iter()
+        .map(|p| (p.omega_ratio, p.impact_force_mg.hi95))
+        .chain(
+            band.iter()
+                .rev()
+                .map(|p| (p.omega_ratio, p.impact_force_mg.lo95)),
+        )
+        .collect();
+    chart
+        .draw_series([Polygon::new(area, blue.mix(0.3).filled())])
+        .map_err(err)?
+        .label(format!("95 % range over {} draws", spread.draws))
+        .legend(move |(x, y)| {
+            Rectangle::new([(x, y - 5), (x + 14, y + 5)], blue.mix(0.3).filled())
+        });
+    chart
+        .draw_series(LineSeries::new(
+            band.iter()
+                .map(|p| (p.omega_ratio, p.impact_force_mg.median)),
+            blue.stroke_width(2),
+        ))
+        .map_err(err)?
+        .label("median over the draws")
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], blue.stroke_width(2)));
+    let red = RGBColor(215, 25, 28);
+    chart
+        .draw_series(
+            nominal
+                .iter()
+                .filter(|p| p.regime == Regime::ONE_ONE)
+                .map(|p| Circle::new((p.omega_ratio, p.impact_force_mg), 2, red.filled())),
+        )
+        .map_err(err)?
+        .label("the fitted law, z = 1/1")
+        .legend(move |(x, y)| Circle::new((x + 7, y), 3, red.filled()));
+    chart
+        .draw_series([Cross::new(
+            (chosen.omega_ratio, chosen.impact_force_mg),
+            9,
+            BLACK.stroke_width(3),
+        )])
+        .map_err(err)?
+        .label(format!(
+            "chosen: {:.3} Hz (draws: {:.3} – {:.3})",
+            chosen.freq_hz, spread.freq_hz.lo95, spread.freq_hz.hi95
+        ))
+        .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
+    if let Some(r) = spread.robust {
+        let green = RGBColor(26, 150, 65);
+        chart
+            .draw_series([TriangleMarker::new(
+                (r.omega_ratio, r.worst_impact_force_mg),
+                8,
+                green.filled(),
+            )])
+            .map_err(err)?
+            .label(format!(
+                "robust: {:.3} Hz, F_i/mg ≥ {:.1} in every draw",
+                r.freq_hz, r.worst_impact_force_mg
+            ))
+            .legend(move |(x, y)| TriangleMarker::new((x + 7, y), 5, green.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, 14))
+        .draw()
+        .map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}
+
 /// Samples of a time series for [`time_series`].
 #[derive(Debug, Clone, Copy)]
 pub struct TsPoint {

@@ -62,8 +62,12 @@ pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<Po
     }
 }
 
-/// A progress bar for `len` items on stderr, with rate and ETA.
+/// A progress bar for `len` items on stderr, with rate and ETA (hidden when `what` is empty,
+/// e.g. for one computation of many that have their own bar).
 pub fn progress(len: usize, what: &str) -> ProgressBar {
+    if what.is_empty() {
+        return ProgressBar::hidden();
+    }
     let bar = ProgressBar::new(len as u64);
     bar.set_style(
         ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} points, {per_sec}, ETA {eta}")

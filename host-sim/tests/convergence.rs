@@ -18,6 +18,7 @@ fn setup(precision: Precision, settings: SimSettings) -> Setup {
         settings,
         selection: SelectionSpec::default(),
         precision,
+        uncertainty: None,
     }
 }
 

@@ -16,9 +16,11 @@ use crate::identify::contact::{
     fit_law_joint,
 };
 use crate::identify::free::{FreeDecay, identify_free};
+use crate::identify::uncertainty::{STRONG_CORRELATION, Uncertainty, WIDE_REL};
 use crate::output::Outputs;
 use crate::plot_identify;
 use crate::trace::{ForceUnit, MotionUnit, TimeUnit, TraceFormat, read_trace};
+use rayon::prelude::*;
 
 /// Arguments of `identify`.
 #[derive(Debug, Args)]
@@ -103,9 +105,10 @@ pub struct ContactArgs {
     /// TOML file overriding rig parameters (e.g. the output of `identify free`).
     #[arg(long, value_name = "FILE.toml")]
     pub config: Option<PathBuf>,
-    /// The error to minimise: peaks (peak forces and impact times, the thesis') or profile
-    /// (also the whole force profile of every impact).
-    #[arg(long, value_enum, default_value = "peaks")]
+    /// The error to minimise: peaks (peak forces and impact times, the thesis'), profile (also
+    /// the whole force profile of every impact), or auto: the profile where every trace
+    /// resolves the contact (≥ 8 samples per contact), peaks otherwise.
+    #[arg(long, value_enum, default_value = "auto")]
     pub error: FitError,
     /// Weight of the impact-time term (0 ignores the times).
     #[arg(long, default_value_t = 1.0)]
@@ -321,6 +324,11 @@ struct LawReport {
     /// Per trace, in the order of `traces`.
     trace_residuals: Vec<Residual>,
     evaluations: u64,
+    /// Akaike's information criterion on the error's terms, and its difference to the best.
+    aic: f64,
+    delta_aic: f64,
+    /// 95 % intervals, correlations and identifiability notes (absent if not estimated).
+    uncertainty: Option<Uncertainty>,
 }
 
 #[derive(Serialize)]
@@ -340,7 +348,12 @@ struct ContactReport {
     first: TraceReport,
     /// Every trace (the first one again).
     traces: Vec<TraceReport>,
+    /// The error used (`auto` resolved).
     error: FitError,
+    /// The error asked for.
+    error_requested: FitError,
+    /// The fewest samples per contact over the traces.
+    samples_per_contact: f64,
     fits: Vec<LawReport>,
     best: ContactLawKind,
 }
@@ -411,28 +424,42 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
             data: l.data.clone(),
         })
         .collect();
+    let spc = loaded
+        .iter()
+        .map(|l| l.data.samples_per_contact())
+        .fold(f64::INFINITY, f64::min);
+    let error = a.error.resolve(spc);
     let weights = Weights {
         time: a.time_weight,
-        profile: match a.error {
-            FitError::Peaks => 0.0,
+        profile: match error {
             FitError::Profile => 1.0,
+            _ => 0.0,
         },
     };
     let laws: Vec<ContactLawKind> = match a.law {
         LawChoice::One(k) => vec![k],
         LawChoice::All => ContactLawKind::ALL.to_vec(),
     };
-    let mut fits: Vec<(ContactLawKind, Fit)> = Vec::new();
-    for &k in &laws {
-        let fit = fit_law_joint(&tests, k, weights, 400)
-            .with_context(|| format!("fitting the {k} law"))?;
-        fits.push((k, fit));
-    }
+    // The laws in parallel (each fit is a sequence of drop simulations).
+    let fits: Vec<(ContactLawKind, Fit)> = laws
+        .par_iter()
+        .map(|&k| {
+            fit_law_joint(&tests, k, weights, 400)
+                .with_context(|| format!("fitting the {k} law"))
+                .map(|f| (k, f))
+        })
+        .collect::<Result<_>>()?;
+    // Ranked by AIC (the same terms for every law).
     let best = fits
         .iter()
-        .min_by(|x, y| x.1.residual.cost.total_cmp(&y.1.residual.cost))
+        .min_by(|x, y| x.1.aic().total_cmp(&y.1.aic()))
         .map(|f| f.0)
         .unwrap_or(ContactLawKind::SpringDashpot);
+    let run = ContactRun {
+        error,
+        requested: a.error,
+        samples_per_contact: spc,
+    };
     let best_fit = &fits.iter().find(|f| f.0 == best).context("no fit")?.1;
     let files: Vec<String> = a.trace.iter().map(|p| p.display().to_string()).collect();
     let releases_text: Vec<String> = releases.iter().map(|r| r.to_string()).collect();
@@ -446,13 +473,13 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         let tmp = outputs.reserve(p)?;
         let mut out_params = params;
         out_params.contact = best_fit.law;
-        let comment = format!(
+        let mut comment = format!(
             "host-sim identify contact: {} law fitted to {} ({} impacts, error: {:?}, release {} mm, \
              gap {} mm)\nresidual: peak rms {:.2} % of the {}largest peak, time rms {:.1} us, J = {:.3e}",
             best,
             files.join(" + "),
             impacts.join(" + "),
-            a.error,
+            error,
             releases_text.join(" + "),
             a.gap_mm,
             best_fit.residual.peak_rms_pct,
@@ -460,16 +487,29 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
             best_fit.residual.time_rms_us,
             best_fit.residual.cost
         );
-        std::fs::write(
-            &tmp,
-            config_text(
-                &comment,
-                &out_params,
-                &a.rig.preset(),
-                &["mass_kg", "contact"],
-            )?,
-        )
-        .with_context(|| format!("writing {}", p.display()))?;
+        if let Ok(u) = &best_fit.uncertainty {
+            for par in &u.params {
+                let _ = write!(
+                    comment,
+                    "\n{} = {:.5e} {} (95 %: {:.5e} .. {:.5e})",
+                    par.name, par.value, par.unit, par.ci95[0], par.ci95[1]
+                );
+            }
+            for n in &u.notes {
+                let _ = write!(comment, "\n{n}");
+            }
+        }
+        let mut text = config_text(
+            &comment,
+            &out_params,
+            &a.rig.preset(),
+            &["mass_kg", "contact"],
+        )?;
+        if let Ok(u) = &best_fit.uncertainty {
+            text.push('\n');
+            text.push_str(&uncertainty_toml(u)?);
+        }
+        std::fs::write(&tmp, text).with_context(|| format!("writing {}", p.display()))?;
     }
     if let Some(p) = &a.plot {
         let tmp = outputs.reserve(p)?;
@@ -497,21 +537,138 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         plot_identify::drop_fit(&tmp, &title, &panels, &curves)?;
     }
     outputs.commit()?;
-    print_contact(a, &loaded, &fits, best)
+    print_contact(a, &run, &loaded, &fits, best)
+}
+
+/// How the error was chosen.
+struct ContactRun {
+    /// The error used.
+    error: FitError,
+    /// The one asked for (`auto` or the same).
+    requested: FitError,
+    /// The fewest samples per contact over the traces.
+    samples_per_contact: f64,
+}
+
+/// The `[uncertainty]` table of a fit's config file: the coordinates `select --uncertainty`
+/// draws in, their mean and covariance, the 95 % intervals and the notes.
+///
+/// # Errors
+/// Serialisation failure.
+pub fn uncertainty_toml(u: &Uncertainty) -> Result<String> {
+    let mut t = toml::Table::new();
+    t.insert("method".into(), u.method.clone().into());
+    t.insert("law".into(), u.law.to_string().into());
+    t.insert(
+        "coordinates".into(),
+        toml::Value::Array(u.coordinates.iter().map(|c| (*c).into()).collect()),
+    );
+    t.insert(
+        "mean".into(),
+        toml::Value::Array(u.mean.iter().map(|&v| v.into()).collect()),
+    );
+    t.insert(
+        "covariance".into(),
+        toml::Value::Array(
+            u.covariance
+                .iter()
+                .map(|row| toml::Value::Array(row.iter().map(|&v| v.into()).collect()))
+                .collect(),
+        ),
+    );
+    let mut ci = toml::Table::new();
+    for p in &u.params {
+        ci.insert(
+            p.key.into(),
+            toml::Value::Array(vec![p.ci95[0].into(), p.ci95[1].into()]),
+        );
+    }
+    t.insert("ci95".into(), toml::Value::Table(ci));
+    t.insert(
+        "noise_n".into(),
+        toml::Value::Array(u.noise_n.iter().map(|&v| v.into()).collect()),
+    );
+    t.insert(
+        "notes".into(),
+        toml::Value::Array(u.notes.iter().map(|n| n.clone().into()).collect()),
+    );
+    let mut root = toml::Table::new();
+    root.insert("uncertainty".into(), toml::Value::Table(t));
+    toml::to_string(&root).context("writing the [uncertainty] table")
+}
+
+/// The intervals, correlations and identifiability notes of one fit, as printed.
+fn print_uncertainty(label: &str, u: &Result<Uncertainty, String>) {
+    let u = match u {
+        Ok(u) => u,
+        Err(why) => {
+            println!("  {label}: no uncertainty estimate ({why})");
+            return;
+        }
+    };
+    println!(
+        "  {label}: 95 % intervals (linearised; sensor noise {} N):",
+        u.noise_n
+            .iter()
+            .map(|n| format!("{n:.3}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for p in &u.params {
+        let width = if p.sd.is_finite() {
+            format!("±{:.1} %", 100.0 * p.rel_half_width())
+        } else {
+            "not identifiable".to_string()
+        };
+        println!(
+            "    {:<5} = {:<12} {:<10} [{:.4e}, {:.4e}]  {}",
+            p.name,
+            format!("{:.4e}", p.value),
+            p.unit,
+            p.ci95[0],
+            p.ci95[1],
+            width
+        );
+    }
+    let k = u.params.len();
+    let mut corr = Vec::new();
+    for i in 0..k {
+        for j in i + 1..k {
+            corr.push(format!(
+                "{}–{} {:+.3}",
+                u.params[i].name, u.params[j].name, u.correlation[i][j]
+            ));
+        }
+    }
+    println!("    correlations: {}", corr.join(", "));
+    if u.notes.is_empty() {
+        println!(
+            "    every parameter fixed to ±{:.0} % or better, no two correlated beyond {}",
+            100.0 * WIDE_REL,
+            STRONG_CORRELATION
+        );
+    }
+    for n in &u.notes {
+        println!("    ! {n}");
+    }
 }
 
 fn print_contact(
     a: &ContactArgs,
+    run: &ContactRun,
     loaded: &[LoadedTrace],
     fits: &[(ContactLawKind, Fit)],
     best: ContactLawKind,
 ) -> Result<()> {
+    let best_aic = fits.iter().map(|f| f.1.aic()).fold(f64::INFINITY, f64::min);
     if a.json {
         let traces: Vec<TraceReport> = loaded.iter().map(LoadedTrace::report).collect();
         let report = ContactReport {
             first: loaded.first().context("no trace")?.report(),
             traces,
-            error: a.error,
+            error: run.error,
+            error_requested: run.requested,
+            samples_per_contact: run.samples_per_contact,
             fits: fits
                 .iter()
                 .map(|(k, f)| LawReport {
@@ -520,6 +677,9 @@ fn print_contact(
                     residual: f.residual,
                     trace_residuals: f.traces.iter().map(|t| t.residual).collect(),
                     evaluations: f.evaluations,
+                    aic: f.aic(),
+                    delta_aic: f.aic() - best_aic,
+                    uncertainty: f.uncertainty.as_ref().ok().cloned(),
                 })
                 .collect(),
             best,
@@ -571,9 +731,9 @@ fn print_contact(
         } else {
             "Fit".to_string()
         },
-        match a.error {
-            FitError::Peaks => "peak forces",
+        match run.error {
             FitError::Profile => "peak forces + force profile",
+            _ => "peak forces",
         },
         if a.time_weight > 0.0 {
             " + impact times"
@@ -591,30 +751,50 @@ fn print_contact(
         a.gap_mm
     );
     println!(
-        "  {:<20} {:<62} {:>9} {:>10} {:>11} {:>10} {:>6}",
-        "law", "parameters", "peak rms", "time rms", "profile rms", "J", "evals"
+        "  error: {}{}",
+        match run.error {
+            FitError::Profile => "profile",
+            _ => "peaks",
+        },
+        if run.requested == FitError::Auto {
+            format!(
+                " (auto: {:.1} samples per contact; the profile from {})",
+                run.samples_per_contact,
+                crate::identify::contact::PROFILE_MIN_SAMPLES
+            )
+        } else {
+            String::new()
+        }
     );
-    let row = |label: String, params: String, r: &Residual, evals: String| {
+    println!(
+        "  {:<20} {:<62} {:>9} {:>10} {:>11} {:>10} {:>7} {:>6}",
+        "law", "parameters", "peak rms", "time rms", "profile rms", "J", "ΔAIC", "evals"
+    );
+    let row = |label: String, params: String, r: &Residual, aic: String, evals: String| {
         println!(
-            "  {:<20} {:<62} {:>7.2} % {:>7.1} µs {:>9} {:>10.3e} {:>6}",
+            "  {:<20} {:<62} {:>7.2} % {:>7.1} µs {:>9} {:>10.3e} {:>7} {:>6}",
             label,
             params,
             r.peak_rms_pct,
             r.time_rms_us,
-            if a.error == FitError::Profile {
+            if run.error == FitError::Profile {
                 format!("{:.2} %", r.profile_rms_pct)
             } else {
                 "–".to_string()
             },
             r.cost,
+            aic,
             evals
         );
     };
-    for (k, f) in fits {
+    let mut ranked: Vec<&(ContactLawKind, Fit)> = fits.iter().collect();
+    ranked.sort_by(|x, y| x.1.aic().total_cmp(&y.1.aic()));
+    for (k, f) in &ranked {
         row(
             k.to_string(),
             describe_law(&f.law, a.mass_kg),
             &f.residual,
+            format!("{:.1}", f.aic() - best_aic),
             f.evaluations.to_string(),
         );
         if loaded.len() > 1 {
@@ -624,12 +804,33 @@ fn print_contact(
                     format!("  of which release {} mm", l.release_mm),
                     &t.residual,
                     String::new(),
+                    String::new(),
                 );
             }
         }
     }
     if fits.len() > 1 {
-        println!("  smallest error: {best}");
+        let close: Vec<String> = ranked
+            .iter()
+            .skip(1)
+            .filter(|f| f.1.aic() - best_aic < 2.0)
+            .map(|f| f.0.to_string())
+            .collect();
+        println!(
+            "  ranked by AIC (n ln(J/n) + 2p over the {} terms of the error): {best}{}",
+            ranked[0].1.terms,
+            if close.is_empty() {
+                String::from(" is best by more than 2")
+            } else {
+                format!(
+                    "; the data cannot tell it from {} (ΔAIC < 2)",
+                    close.join(", ")
+                )
+            }
+        );
+    }
+    for (k, f) in &ranked {
+        print_uncertainty(&k.to_string(), &f.uncertainty);
     }
     if let Some(p) = &a.out {
         println!("  wrote {} ({best} law; use it with --config)", p.display());
@@ -685,12 +886,17 @@ fn run_free(a: &FreeArgs) -> Result<()> {
     if let Some(p) = &a.out {
         let tmp = outputs.reserve(p)?;
         let comment = format!(
-            "host-sim identify free: {} ({:.1} cycles): f_n = {:.5} Hz, zeta = {:.5}\n\
+            "host-sim identify free: {} ({:.1} cycles): f_n = {:.5} Hz (95 %: {:.5} .. {:.5}), \
+             zeta = {:.5} (95 %: {:.5} .. {:.5})\n\
              k = m w^2 = {:.5e} N/m (Eq. 3-34), c = 2 zeta m w = {:.5e} N s/m",
             a.trace.display(),
             decay.cycles,
             decay.natural_freq_hz,
+            decay.natural_freq_ci95_hz[0],
+            decay.natural_freq_ci95_hz[1],
             decay.damping_ratio,
+            decay.damping_ratio_ci95[0],
+            decay.damping_ratio_ci95[1],
             report.stiffness_n_m,
             report.damping_n_s_m
         );
@@ -718,8 +924,18 @@ fn run_free(a: &FreeArgs) -> Result<()> {
         100.0 * decay.residual_rel
     );
     println!(
-        "  natural frequency ω/2π = {:.5} Hz (damped {:.5} Hz), damping ratio ζ = {:.5}",
-        decay.natural_freq_hz, decay.damped_freq_hz, decay.damping_ratio
+        "  natural frequency ω/2π = {:.5} Hz (95 %: {:.5} – {:.5}; damped {:.5} Hz)",
+        decay.natural_freq_hz,
+        decay.natural_freq_ci95_hz[0],
+        decay.natural_freq_ci95_hz[1],
+        decay.damped_freq_hz
+    );
+    println!(
+        "  damping ratio ζ = {:.5} (95 %: {:.5} – {:.5}); correlation with ω {:+.3}",
+        decay.damping_ratio,
+        decay.damping_ratio_ci95[0],
+        decay.damping_ratio_ci95[1],
+        decay.correlation_fn_zeta
     );
     println!(
         "  m = {} kg: k = m ω² = {:.5e} N/m (Eq. 3-34), c = 2ζmω = {:.5e} N s/m; as a pendulum l = g/ω² = {:.2} mm",

@@ -4,14 +4,14 @@ use std::path::PathBuf;
 
 use anyhow::{Result, anyhow};
 use clap::Args;
-use serde::Serialize;
-use shared::analysis::{ResponseSample, Selection, perturbed_gaps, select};
 
 use super::response::{self, omega_sweep};
-use crate::cli::{Precision, RigOpts};
-use crate::config::{Setup, gap_m_from_mm};
+use crate::cli::RigOpts;
+use crate::config::Setup;
 use crate::output::Outputs;
 use crate::plot::Highlight;
+use crate::propagate::{Propagation, propagate};
+pub use crate::selection::{OtherBest, SelectReport, compute};
 
 /// Arguments of `select`.
 #[derive(Debug, Args)]
@@ -38,129 +38,30 @@ pub struct SelectArgs {
     /// CSV of the nominal-gap response (columns as `response`).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// PNG of the nominal-gap response with the band, window and chosen point.
+    /// PNG of the nominal-gap response with the band, window and chosen point (with
+    /// --uncertainty: the response's 95 % range over the draws, and the robust point).
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Propagate the identified contact law's uncertainty (the `[uncertainty]` table of a
+    /// `--config` written by `identify contact --out`): the selection for parameter sets drawn
+    /// from it; the operating frequency and F_i/mg as median and 95 % range, the share of draws
+    /// still 1/1 at the nominal answer, and a robust recommendation.
+    #[arg(long)]
+    pub uncertainty: bool,
+    /// With --uncertainty: parameter sets drawn (8 ..= 100000).
+    #[arg(long, default_value_t = 64)]
+    pub draws: usize,
+    /// With --uncertainty: seed of the draws.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
-/// The JSON report.
-#[derive(Debug, Serialize)]
-pub struct SelectReport {
-    /// Rig name.
-    pub rig: String,
-    /// Contact law.
-    pub law: String,
-    /// Float type.
-    pub precision: Precision,
-    /// Gap, mm.
-    pub gap_mm: f64,
-    /// Natural frequency `ω/2π`, Hz.
-    pub natural_freq_hz: f64,
-    /// Chosen excitation frequency, Hz.
-    pub freq_hz: f64,
-    /// Chosen `Ω/ω`.
-    pub omega_ratio: f64,
-    /// Regime at the chosen point (`1/1`).
-    pub regime: String,
-    /// Predicted max impact force, `F_i/mg`.
-    pub impact_force_mg: f64,
-    /// Edges of its `1/1` band, Hz.
-    pub band_hz: [f64; 2],
-    /// The same in `Ω/ω`.
-    pub band_omega_ratio: [f64; 2],
-    /// Distance to the nearer band edge, % of the chosen frequency.
-    pub margin_freq_pct: f64,
-    /// Frequency robustness required and verified, ± %.
-    pub required_margin_freq_pct: f64,
-    /// Gap robustness verified, ± mm.
-    pub margin_gap_mm: f64,
-    /// Gaps at which the response was checked, mm.
-    pub gaps_checked_mm: Vec<f64>,
-    /// Lowest `F_i/mg` over the robustness box.
-    pub worst_impact_force_mg: f64,
-    /// Sweep points that passed the robustness check.
-    pub robust_points: usize,
-    /// Every `1/1` band at the nominal gap, `Ω/ω`.
-    pub bands_omega_ratio: Vec<[f64; 2]>,
-    /// Strongest point of another periodic regime, for information.
-    pub other_best: Option<OtherBest>,
-}
-
-/// The strongest non-`1/1` periodic point.
-#[derive(Debug, Serialize)]
-pub struct OtherBest {
-    /// Its regime.
-    pub regime: String,
-    /// Hz.
-    pub freq_hz: f64,
-    /// `Ω/ω`.
-    pub omega_ratio: f64,
-    /// `F_i/mg`.
-    pub impact_force_mg: f64,
-}
-
-fn report(setup: &Setup, gap_mm: f64, gaps_mm: Vec<f64>, sel: &Selection) -> SelectReport {
-    SelectReport {
-        rig: setup.rig.to_string(),
-        law: setup.params.contact.kind().to_string(),
-        precision: setup.precision,
-        gap_mm,
-        natural_freq_hz: setup.params.natural_freq_hz(),
-        freq_hz: sel.best.freq_hz,
-        omega_ratio: sel.best.omega_ratio,
-        regime: sel.best.regime.to_string(),
-        impact_force_mg: sel.best.impact_force_mg,
-        band_hz: sel.band_hz,
-        band_omega_ratio: sel.band_ratio,
-        margin_freq_pct: sel.margin_freq_pct,
-        required_margin_freq_pct: setup.selection.freq_margin_pct,
-        margin_gap_mm: sel.margin_gap_mm,
-        gaps_checked_mm: gaps_mm,
-        worst_impact_force_mg: sel.worst_impact_force_mg,
-        robust_points: sel.robust_points,
-        bands_omega_ratio: sel.bands_ratio.iter().copied().collect(),
-        other_best: sel.other_best.map(|c| OtherBest {
-            regime: c.regime.to_string(),
-            freq_hz: c.freq_hz,
-            omega_ratio: c.omega_ratio,
-            impact_force_mg: c.impact_force_mg,
-        }),
-    }
-}
-
-/// Computes the selection (responses at the nominal and perturbed gaps, in parallel).
-///
-/// # Errors
-/// Bad input, or no robust `1/1` point.
-pub fn compute(
-    setup: &Setup,
-    gap_mm: f64,
-) -> Result<(SelectReport, Vec<shared::observe::PointResult>)> {
-    let gap_m = gap_m_from_mm("--gap-mm", gap_mm)?;
-    let spec = setup.selection;
-    let sweep = spec.omega_ratio;
-    let mut gaps = vec![gap_m];
-    gaps.extend(perturbed_gaps(gap_m, spec.gap_margin_mm));
-    let responses = response::compute(setup, &gaps, &sweep, "select")?;
-    let samples: Vec<Vec<ResponseSample>> = responses
-        .iter()
-        .map(|r| r.iter().map(ResponseSample::from).collect())
-        .collect();
-    let perturbed: Vec<&[ResponseSample]> = samples[1..].iter().map(Vec::as_slice).collect();
-    let sel = select(&setup.params, &spec, &samples[0], &perturbed).map_err(|e| {
-        anyhow!(
-            "{} rig at {gap_mm} mm gap (±{} % frequency, ±{} mm gap): {e}",
-            setup.rig,
-            spec.freq_margin_pct,
-            spec.gap_margin_mm
-        )
-    })?;
-    let gaps_mm = gaps.iter().map(|g| g * 1e3).collect();
-    let mut responses = responses;
-    Ok((
-        report(setup, gap_mm, gaps_mm, &sel),
-        responses.swap_remove(0),
-    ))
+/// `select --json --uncertainty`: the report with the draws' spread.
+#[derive(serde::Serialize)]
+struct ReportWithUncertainty<'a> {
+    #[serde(flatten)]
+    report: &'a SelectReport,
+    uncertainty: &'a Propagation,
 }
 
 /// Runs `select`.
@@ -182,7 +83,28 @@ pub fn run(a: &SelectArgs) -> Result<()> {
         .selection
         .validate()
         .map_err(|e| anyhow!("{e} (--freq-margin-pct / --gap-margin-mm)"))?;
+    let table = if a.uncertainty {
+        let t = setup.uncertainty.clone().ok_or_else(|| {
+            anyhow!(
+                "--uncertainty needs a --config with an [uncertainty] table (identify contact \
+                 --out writes one)"
+            )
+        })?;
+        t.check_bounded()?;
+        anyhow::ensure!(
+            (8..=100_000).contains(&a.draws),
+            "--draws = {} is out of range: allowed 8 ..= 100000",
+            a.draws
+        );
+        Some(t)
+    } else {
+        None
+    };
     let (rep, nominal) = compute(&setup, a.gap_mm)?;
+    let spread = match &table {
+        Some(t) => Some(propagate(&setup, a.gap_mm, t, &rep, a.draws, a.seed)?),
+        None => None,
+    };
     let sweep = setup.selection.omega_ratio;
     let mut outputs = Outputs::new();
     if a.out.is_some() || a.plot.is_some() {
@@ -197,23 +119,125 @@ pub fn run(a: &SelectArgs) -> Result<()> {
             "{} rig, gap {:.2} mm: operating point {:.2} Hz (Ω/ω = {:.2})",
             setup.rig, a.gap_mm, rep.freq_hz, rep.omega_ratio
         );
-        response::write(
-            &mut outputs,
-            a.out.as_ref(),
-            a.plot.as_ref(),
-            &title,
-            &rows,
-            &nominal,
-            Some(highlight),
-        )?;
+        match &spread {
+            None => response::write(
+                &mut outputs,
+                a.out.as_ref(),
+                a.plot.as_ref(),
+                &title,
+                &rows,
+                &nominal,
+                Some(highlight),
+            )?,
+            Some(sp) => {
+                response::write(
+                    &mut outputs,
+                    a.out.as_ref(),
+                    None,
+                    &title,
+                    &rows,
+                    &nominal,
+                    Some(highlight),
+                )?;
+                if let Some(p) = &a.plot {
+                    let tmp = outputs.reserve(p)?;
+                    let title = format!(
+                        "{} rig, gap {:.2} mm: response over {} draws of the identified law",
+                        setup.rig, a.gap_mm, sp.draws
+                    );
+                    crate::plot::response_band(
+                        &tmp,
+                        &title,
+                        sp,
+                        &nominal_points(&rows, &nominal),
+                        &rep,
+                    )?;
+                }
+            }
+        }
     }
     outputs.commit()?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rep)?);
+        match &spread {
+            Some(sp) => println!(
+                "{}",
+                serde_json::to_string_pretty(&ReportWithUncertainty {
+                    report: &rep,
+                    uncertainty: sp,
+                })?
+            ),
+            None => println!("{}", serde_json::to_string_pretty(&rep)?),
+        }
     } else {
         print_report(&rep);
+        if let Some(sp) = &spread {
+            print_spread(&rep, sp, a.config_name());
+        }
     }
     Ok(())
+}
+
+impl SelectArgs {
+    fn config_name(&self) -> String {
+        self.rig
+            .config
+            .as_ref()
+            .map_or_else(String::new, |p| p.display().to_string())
+    }
+}
+
+fn nominal_points(
+    rows: &[response::ResponseRow],
+    nominal: &[shared::observe::PointResult],
+) -> Vec<crate::plot::ResponsePoint> {
+    rows.iter()
+        .zip(nominal)
+        .map(|(r, p)| crate::plot::ResponsePoint {
+            omega_ratio: r.omega_ratio,
+            impact_force_mg: r.impact_force_mg,
+            regime: p.regime,
+        })
+        .collect()
+}
+
+fn print_spread(r: &SelectReport, sp: &Propagation, config: String) {
+    println!(
+        "  with the identified law's uncertainty ({} draws from {config}'s [uncertainty], seed {}{}):",
+        sp.draws,
+        sp.seed,
+        if sp.redrawn > 0 {
+            format!(", {} invalid draws redrawn", sp.redrawn)
+        } else {
+            String::new()
+        }
+    );
+    println!(
+        "    operating frequency {:.3} Hz (median), 95 % range {:.3} – {:.3} Hz{}",
+        sp.freq_hz.median,
+        sp.freq_hz.lo95,
+        sp.freq_hz.hi95,
+        if sp.no_selection > 0 {
+            format!(" ({} draws without a robust 1/1 point)", sp.no_selection)
+        } else {
+            String::new()
+        }
+    );
+    println!(
+        "    its F_i/mg {:.2} (median), 95 % range {:.2} – {:.2}",
+        sp.impact_force_mg.median, sp.impact_force_mg.lo95, sp.impact_force_mg.hi95
+    );
+    println!(
+        "    the nominal {:.3} Hz is z = 1/1 in {:.0} % of the draws",
+        r.freq_hz,
+        100.0 * sp.nominal_one_one_share
+    );
+    match &sp.robust {
+        Some(b) => println!(
+            "    robust recommendation: {:.3} Hz (Ω/ω = {:.2}): z = 1/1 in every draw, F_i/mg ≥ {:.2} (median {:.2})",
+            b.freq_hz, b.omega_ratio, b.worst_impact_force_mg, b.median_impact_force_mg
+        ),
+        None => println!("    no frequency of the sweep is z = 1/1 in every draw"),
+    }
 }
 
 fn print_report(r: &SelectReport) {

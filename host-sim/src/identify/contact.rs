@@ -45,8 +45,6 @@
 //!   `n` are not strongly correlated; damping `c_i` and `λ_i` by their logarithms; `n` and `e`
 //!   directly, bounded to `1 ≤ n ≤ 3`, `0.01 ≤ e ≤ 1` by a penalty.
 
-use std::cell::Cell;
-
 use anyhow::{Context, Result, bail, ensure};
 use argmin::core::{CostFunction, Executor, State};
 use argmin::solver::neldermead::NelderMead;
@@ -62,10 +60,41 @@ use crate::trace::Trace;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum FitError {
+    /// The profile where every trace resolves the contact (at least
+    /// [`PROFILE_MIN_SAMPLES`] samples per contact), peaks and times otherwise.
+    Auto,
     /// Peak forces and impact times (the thesis' error).
     Peaks,
     /// Peak forces, impact times and the whole force profile of every impact.
     Profile,
+}
+
+/// Samples per contact (the first impact's width at half maximum over the sampling step) from
+/// which the profile error pays: a 0.57 ms contact sampled at 10 kHz has 4, at 50 kHz 19, at
+/// the rig's 100 kHz capture 38.
+pub const PROFILE_MIN_SAMPLES: f64 = 8.0;
+
+impl DropData {
+    /// Samples per contact: the first impact's width at half maximum over the sampling step.
+    pub fn samples_per_contact(&self) -> f64 {
+        let dt = self
+            .t_s
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(f64::INFINITY, f64::min);
+        self.impacts.first().map_or(0.0, |i| i.fwhm_s / dt)
+    }
+}
+
+impl FitError {
+    /// `Auto` resolved for traces with `samples_per_contact` (the fewest of them).
+    pub fn resolve(self, samples_per_contact: f64) -> FitError {
+        match self {
+            FitError::Auto if samples_per_contact >= PROFILE_MIN_SAMPLES => FitError::Profile,
+            FitError::Auto => FitError::Peaks,
+            e => e,
+        }
+    }
 }
 
 /// One impact found in the measured trace.
@@ -79,6 +108,8 @@ pub struct MeasuredImpact {
     pub fwhm_s: f64,
     /// Sample index range `[first, last]` of the impact's window.
     pub window: (usize, usize),
+    /// Sample index range `[first, last]` of the run above the threshold (the peak's search).
+    pub run: (usize, usize),
 }
 
 /// A measured drop test after preprocessing.
@@ -132,6 +163,25 @@ fn parabola_vertex(t: &[f64], f: &[f64]) -> Option<(f64, f64)> {
     }
     let x = -b / (2.0 * c);
     Some((t0 + x, a[0] + b * x + c * x * x))
+}
+
+/// The peak force of the impact whose run above the threshold is samples `a..=b` of `f` (times
+/// `t`): the vertex of a least-squares parabola through the 5 samples around the largest one,
+/// when all 5 are above half of it and the vertex lies between the largest one's neighbours;
+/// else the largest sample.
+pub(crate) fn peak_estimate(t: &[f64], f: &[f64], a: usize, b: usize) -> f64 {
+    let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
+    let mut peak = f[imax];
+    if imax >= a + 2
+        && imax + 2 <= b
+        && (imax - 2..=imax + 2).all(|i| f[i] > 0.5 * f[imax])
+        && let Some((tv, fv)) = parabola_vertex(&t[imax - 2..=imax + 2], &f[imax - 2..=imax + 2])
+        && tv >= t[imax - 1]
+        && tv <= t[imax + 1]
+    {
+        peak = fv;
+    }
+    peak
 }
 
 /// Finds the sensor offset, the noise level and the impacts of a measured drop test.
@@ -190,18 +240,7 @@ pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
     for (a, b) in merged.into_iter().take(max_impacts) {
         let pad = (b - a).div_ceil(2).max(3);
         let window = (a.saturating_sub(pad), (b + pad).min(n - 1));
-        let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
-        let mut peak = f[imax];
-        if imax >= a + 2
-            && imax + 2 <= b
-            && (imax - 2..=imax + 2).all(|i| f[i] > 0.5 * f[imax])
-            && let Some((tv, fv)) =
-                parabola_vertex(&t[imax - 2..=imax + 2], &f[imax - 2..=imax + 2])
-            && tv >= t[imax - 1]
-            && tv <= t[imax + 1]
-        {
-            peak = fv;
-        }
+        let peak = peak_estimate(t, &f, a, b);
         let (mut sf, mut stf) = (0.0, 0.0);
         for i in window.0..=window.1 {
             sf += f[i];
@@ -218,6 +257,7 @@ pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
             centroid_s: stf / sf,
             fwhm_s: fwhm,
             window,
+            run: (a, b),
         });
     }
     ensure!(!impacts.is_empty(), "no impact found in the trace");
@@ -439,19 +479,63 @@ impl<'a> TraceCtx<'a> {
     }
 }
 
+/// The fit's problem: the traces, the law and the error's weights, in the search coordinates
+/// of the module docs.
 #[derive(Clone)]
-struct Problem<'a> {
+pub(crate) struct Problem<'a> {
     traces: Vec<TraceCtx<'a>>,
-    law: ContactLawKind,
-    weights: Weights,
-    delta_ref: f64,
-    x0_scale: [f64; 3],
-    evaluations: &'a Cell<u64>,
+    pub(crate) law: ContactLawKind,
+    pub(crate) weights: Weights,
+    /// `δ_ref`, m: the stiffness coordinate is the force at this penetration.
+    pub(crate) delta_ref: f64,
+    /// Scales of the search coordinates (see [`initial`]).
+    pub(crate) x0_scale: [f64; 3],
+}
+
+/// The error's terms `r̃` at one parameter set (`J = Σ r̃²`): per impact of each trace in
+/// order, its peak term, its time term (`√w_time`, impacts after the first) and its profile
+/// terms (`√w_profile`, one per window sample); with their sensitivities to the measured
+/// samples when asked for.
+pub(crate) struct Terms {
+    /// The terms.
+    pub(crate) r: Vec<f64>,
+    /// Per term: `(trace, sample, ∂r̃/∂F_sample)` for the samples it depends on (empty unless
+    /// asked for).
+    pub(crate) sens: Vec<Vec<(usize, usize, f64)>>,
+}
+
+/// `∂c/∂F_k` of the force-weighted centroid `c = Σ t F / Σ F` over `window` of `(t, f)`.
+fn centroid_sensitivity(t: &[f64], f: &[f64], window: (usize, usize), c: f64) -> Vec<(usize, f64)> {
+    let sf: f64 = (window.0..=window.1).map(|i| f[i]).sum();
+    (window.0..=window.1)
+        .map(|k| (k, (t[k] - c) / sf))
+        .collect()
+}
+
+/// `∂peak/∂F_k` of [`peak_estimate`] over the samples around the largest one of the run, by
+/// finite differences.
+fn peak_sensitivity(t: &[f64], f: &[f64], run: (usize, usize), f_ref: f64) -> Vec<(usize, f64)> {
+    let (a, b) = run;
+    let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
+    let eps = 1e-6 * f_ref.max(1e-12);
+    let lo = imax.saturating_sub(2).max(a);
+    let hi = (imax + 2).min(b);
+    let mut g = f.to_vec();
+    (lo..=hi)
+        .map(|k| {
+            g[k] = f[k] + eps;
+            let up = peak_estimate(t, &g, a, b);
+            g[k] = f[k] - eps;
+            let down = peak_estimate(t, &g, a, b);
+            g[k] = f[k];
+            (k, (up - down) / (2.0 * eps))
+        })
+        .collect()
 }
 
 impl Problem<'_> {
     /// The law at search coordinates `x`, or `None` outside the bounds (with the distance).
-    fn law_at(&self, x: &[f64]) -> Result<ContactLaw, f64> {
+    pub(crate) fn law_at(&self, x: &[f64]) -> Result<ContactLaw, f64> {
         let s = &self.x0_scale;
         let out = |v: f64, lo: f64, hi: f64| (lo - v).max(0.0) + (v - hi).max(0.0);
         let law = match self.law {
@@ -512,6 +596,105 @@ impl Problem<'_> {
         Ok((total.residual(self.weights), each))
     }
 
+    /// The error's terms at `law` (see [`Terms`]); with `sens`, their sensitivities to the
+    /// measured samples (the peak, the centroids and the samples themselves; the offset and the
+    /// windows are taken as fixed).
+    pub(crate) fn terms(&self, law: &ContactLaw, sens: bool) -> Result<Terms> {
+        let (wt, wp) = (self.weights.time.sqrt(), self.weights.profile.sqrt());
+        let mut out = Terms {
+            r: Vec::new(),
+            sens: Vec::new(),
+        };
+        for (ti, tc) in self.traces.iter().enumerate() {
+            let mut params = tc.setup.params;
+            params.contact = *law;
+            let sim = simulate_drop(
+                &params,
+                &tc.spec(tc.data.impacts.len() as u32),
+                &tc.setup.steps,
+                false,
+            )?;
+            let (t, f) = (&tc.data.t_s, &tc.data.force_n);
+            let meas = &tc.data.impacts;
+            let c_m0 = meas[0].centroid_s;
+            let c_s0 = sim.impacts.first().map(|s| s.centroid_s);
+            let c0_sens = if sens {
+                centroid_sensitivity(t, f, meas[0].window, c_m0)
+            } else {
+                Vec::new()
+            };
+            for (j, m) in meas.iter().enumerate() {
+                let s = sim.impacts.get(j);
+                let fs = s.map_or(0.0, |s| s.peak_n);
+                out.r.push((fs - m.peak_n) / tc.f_ref);
+                out.sens.push(if sens {
+                    peak_sensitivity(t, f, m.run, tc.f_ref)
+                        .into_iter()
+                        .map(|(k, d)| (ti, k, -d / tc.f_ref))
+                        .collect()
+                } else {
+                    Vec::new()
+                });
+                let c_sens = if sens {
+                    centroid_sensitivity(t, f, m.window, m.centroid_s)
+                } else {
+                    Vec::new()
+                };
+                if j > 0 && wt > 0.0 {
+                    let dt = match (s, c_s0) {
+                        (Some(s), Some(c0)) => (s.centroid_s - c0) - (m.centroid_s - c_m0),
+                        _ => tc.tau_ref,
+                    };
+                    out.r.push(wt * dt / tc.tau_ref);
+                    let mut d: Vec<(usize, usize, f64)> = Vec::new();
+                    if sens && s.is_some() {
+                        let k = -wt / tc.tau_ref;
+                        d.extend(c_sens.iter().map(|&(i, v)| (ti, i, k * v)));
+                        d.extend(c0_sens.iter().map(|&(i, v)| (ti, i, -k * v)));
+                    }
+                    out.sens.push(d);
+                }
+                if wp > 0.0 {
+                    for i in m.window.0..=m.window.1 {
+                        let tau = t[i] - m.centroid_s;
+                        let fsim = s.map_or(0.0, |s| s.force_at(tau + s.centroid_s));
+                        out.r.push(wp * (fsim - f[i]) / tc.f_ref);
+                        let mut d = Vec::new();
+                        if sens {
+                            let k = wp / tc.f_ref;
+                            d.push((ti, i, -k));
+                            if let Some(s) = s {
+                                // Through the alignment on the measured centroid.
+                                let eps = 5e-7;
+                                let slope = (s.force_at(tau + s.centroid_s + eps)
+                                    - s.force_at(tau + s.centroid_s - eps))
+                                    / (2.0 * eps);
+                                d.extend(c_sens.iter().map(|&(q, v)| (ti, q, -k * slope * v)));
+                            }
+                        }
+                        out.sens.push(d);
+                    }
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The noise standard deviation of each trace's samples, N.
+    pub(crate) fn noise_n(&self) -> Vec<f64> {
+        self.traces.iter().map(|t| t.data.noise_n).collect()
+    }
+
+    /// Traces in the fit.
+    pub(crate) fn trace_count(&self) -> usize {
+        self.traces.len()
+    }
+
+    /// Samples per contact of the first trace ([`DropData::samples_per_contact`]).
+    pub(crate) fn samples_per_contact(&self) -> f64 {
+        self.traces[0].data.samples_per_contact()
+    }
+
     fn score(&self, tc: &TraceCtx<'_>, sim: &SimDrop) -> Sums {
         let meas = &tc.data.impacts;
         let mut out = Sums {
@@ -551,7 +734,6 @@ impl CostFunction for Problem<'_> {
     type Param = Vec<f64>;
     type Output = f64;
     fn cost(&self, x: &Vec<f64>) -> std::result::Result<f64, argmin::core::Error> {
-        self.evaluations.set(self.evaluations.get() + 1);
         match self.law_at(x) {
             Err(d) => Ok(1e3 * (1.0 + d)),
             Ok(law) => match self.residual(&law) {
@@ -575,6 +757,24 @@ pub struct Fit {
     /// Per trace, in the order given: its own error and the simulated drop at the fit (all
     /// samples kept, for plots).
     pub traces: Vec<TraceFit>,
+    /// The parameters' uncertainty at the fit, or why it could not be estimated.
+    pub uncertainty: Result<super::uncertainty::Uncertainty, String>,
+    /// Terms of the error (`J = Σ r̃²`): peaks, times and profile samples of all traces.
+    pub terms: usize,
+}
+
+impl Fit {
+    /// Akaike's information criterion on the error's terms, `n ln(J/n) + 2p` (`n` terms, `p`
+    /// parameters): the same terms for every law of one identification, so laws with more
+    /// parameters pay for them. Differences below 2 do not tell two laws apart.
+    pub fn aic(&self) -> f64 {
+        let n = self.terms.max(1) as f64;
+        let p = match self.law.kind() {
+            ContactLawKind::SpringDashpot | ContactLawKind::Hertz => 2.0,
+            _ => 3.0,
+        };
+        n * (self.residual.cost / n).max(1e-300).ln() + 2.0 * p
+    }
 }
 
 /// One trace's part of a [`Fit`].
@@ -684,12 +884,7 @@ pub fn fit_law(
     fit_law_joint(&tests, law, weights, max_iters)
 }
 
-fn problem<'a>(
-    tests: &'a [DropTest],
-    law: ContactLawKind,
-    weights: Weights,
-    evaluations: &'a Cell<u64>,
-) -> Result<Problem<'a>> {
+fn problem(tests: &[DropTest], law: ContactLawKind, weights: Weights) -> Result<Problem<'_>> {
     ensure!(!tests.is_empty(), "no drop test to fit");
     for (i, t) in tests.iter().enumerate() {
         ensure!(
@@ -706,7 +901,6 @@ fn problem<'a>(
         weights,
         delta_ref,
         x0_scale,
-        evaluations,
     })
 }
 
@@ -723,8 +917,7 @@ pub fn fit_law_joint(
     weights: Weights,
     max_iters: u64,
 ) -> Result<Fit> {
-    let evaluations = Cell::new(0);
-    let problem = problem(tests, law, weights, &evaluations)?;
+    let problem = problem(tests, law, weights)?;
     // Fails early (with the field) if a rig or a drop setup is invalid.
     for (i, tc) in problem.traces.iter().enumerate() {
         let mut check = tc.setup.params;
@@ -739,14 +932,21 @@ pub fn fit_law_joint(
 
     let mut x = start_point(law, &tests[0].data);
     let mut best = problem.cost(&x).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut evaluations = 1u64;
     for _ in 0..4 {
         let solver = NelderMead::new(simplex(law, &x))
             .with_sd_tolerance(1e-12)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         let res = Executor::new(problem.clone(), solver)
-            .configure(|s| s.max_iters(max_iters))
+            .configure(|s| s.max_iters(max_iters).counting(true))
             .run()
             .map_err(|e| anyhow::anyhow!("Nelder–Mead: {e}"))?;
+        evaluations += res
+            .state()
+            .get_func_counts()
+            .get("cost_count")
+            .copied()
+            .unwrap_or(0);
         let cost = res.state().get_best_cost();
         let Some(p) = res.state().get_best_param().cloned() else {
             break;
@@ -771,11 +971,15 @@ pub fn fit_law_joint(
         let sim = simulate_drop(&params, &tc.spec(0), &tc.setup.steps, true)?;
         traces.push(TraceFit { residual: r, sim });
     }
+    let uncertainty = super::uncertainty::linearised(&problem, &x);
+    let terms = problem.terms(&law_fit, false)?.r.len();
     Ok(Fit {
+        terms,
         law: law_fit,
         residual,
-        evaluations: evaluations.get(),
+        evaluations,
         traces,
+        uncertainty,
     })
 }
 
@@ -805,7 +1009,6 @@ pub fn residual_of_joint(
     law: &ContactLaw,
     weights: Weights,
 ) -> Result<Residual> {
-    let evaluations = Cell::new(0);
-    let problem = problem(tests, law.kind(), weights, &evaluations)?;
+    let problem = problem(tests, law.kind(), weights)?;
     Ok(problem.residual(law)?.0)
 }

@@ -9,6 +9,11 @@
 //! come from linear least squares; Nelder–Mead (argmin) searches `(σ, ω_d)` (variable
 //! projection). Start: `ω_d` from the mean spacing of the zero crossings, `σ` from a straight
 //! line through the logarithms of the half-cycle amplitudes (logarithmic decrement).
+//!
+//! Uncertainty: the least-squares covariance of all five parameters `(σ, ω_d, a, b, y_0)`,
+//! `s² (JᵀJ)⁻¹` with the residual variance `s² = RSS/(n − 5)` and the model's Jacobian `J` at
+//! the fit (white noise on the samples), carried to `ω_n = sqrt(ω_d² + σ²)` and
+//! `ζ = σ/ω_n` to first order; 95 % intervals `± 1.96` standard deviations.
 
 use anyhow::{Result, bail, ensure};
 use argmin::core::{CostFunction, Executor, State};
@@ -35,6 +40,12 @@ pub struct FreeDecay {
     pub residual_rel: f64,
     /// Cycles in the record.
     pub cycles: f64,
+    /// 95 % interval of `ω_n/2π`, Hz (linearised least squares, module docs).
+    pub natural_freq_ci95_hz: [f64; 2],
+    /// 95 % interval of `ζ`.
+    pub damping_ratio_ci95: [f64; 2],
+    /// Correlation of the `ω_n` and `ζ` estimates.
+    pub correlation_fn_zeta: f64,
 }
 
 impl FreeDecay {
@@ -179,7 +190,15 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
     };
     let wn = (wd * wd + sigma * sigma).sqrt();
     let two_pi = 2.0 * std::f64::consts::PI;
+    let (sd_fn, sd_zeta, rho) = covariance(t, sigma, wd, ab, rss)?;
+    let z95 = super::uncertainty::Z95;
     Ok(FreeDecay {
+        natural_freq_ci95_hz: [(wn - z95 * sd_fn) / two_pi, (wn + z95 * sd_fn) / two_pi],
+        damping_ratio_ci95: [
+            (sigma / wn - z95 * sd_zeta).max(0.0),
+            sigma / wn + z95 * sd_zeta,
+        ],
+        correlation_fn_zeta: rho,
         natural_freq_hz: wn / two_pi,
         damped_freq_hz: wd / two_pi,
         damping_ratio: sigma / wn,
@@ -188,4 +207,51 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
         residual_rel: (rss / scale).sqrt(),
         cycles: (t[n - 1] - t[0]) * wd / two_pi,
     })
+}
+
+/// Standard deviations of `ω_n` (rad/s) and `ζ` and their correlation at the fit `(σ, ω_d,
+/// a, b, y_0)` with residual sum of squares `rss` (module docs).
+fn covariance(t: &[f64], sigma: f64, wd: f64, ab: [f64; 3], rss: f64) -> Result<(f64, f64, f64)> {
+    use nalgebra::{Matrix2x5, Matrix5, Vector5};
+    let n = t.len();
+    ensure!(n > 5, "too few samples for an uncertainty estimate");
+    let t0 = t[0];
+    let mut jtj = Matrix5::<f64>::zeros();
+    for &ti in t {
+        let s = ti - t0;
+        let e = (-sigma * s).exp();
+        let (sn, cs) = (wd * s).sin_cos();
+        let osc = ab[0] * cs + ab[1] * sn;
+        let g = Vector5::new(
+            -s * e * osc,
+            s * e * (-ab[0] * sn + ab[1] * cs),
+            e * cs,
+            e * sn,
+            1.0,
+        );
+        jtj += g * g.transpose();
+    }
+    let s2 = rss / (n - 5) as f64;
+    let Some(inv) = jtj.try_inverse() else {
+        bail!("the free-decay fit is singular: no uncertainty estimate");
+    };
+    let cov = inv * s2;
+    let wn = (wd * wd + sigma * sigma).sqrt();
+    let wn3 = wn * wn * wn;
+    // Rows: ∂ω_n/∂(σ, ω_d, …) and ∂ζ/∂(σ, ω_d, …).
+    let g = Matrix2x5::new(
+        sigma / wn,
+        wd / wn,
+        0.0,
+        0.0,
+        0.0,
+        wd * wd / wn3,
+        -sigma * wd / wn3,
+        0.0,
+        0.0,
+        0.0,
+    );
+    let c = g * cov * g.transpose();
+    let (a, b) = (c[(0, 0)].sqrt(), c[(1, 1)].sqrt());
+    Ok((a, b, c[(0, 1)] / (a * b).max(1e-300)))
 }

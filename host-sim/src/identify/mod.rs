@@ -1,10 +1,12 @@
 //! Parameter identification and comparison with measurements (thesis §3.3.2–3.3.4, §3.4.1):
 //! the contact law from a drop test ([`contact`]), the suspension from a free decay
-//! ([`free`]), and synthetic drop tests made by the plant simulation ([`synth`]).
+//! ([`free`]), synthetic drop tests made by the plant simulation ([`synth`]), and the fitted
+//! parameters' uncertainty ([`uncertainty`]).
 
 pub mod contact;
 pub mod free;
 pub mod synth;
+pub mod uncertainty;
 
 /// Solves the 3×3 system `a x = b` (nalgebra LU; `None` if singular or not finite).
 pub(crate) fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
