@@ -105,15 +105,16 @@ impl UncertaintyTable {
         );
         for (i, row) in self.covariance.iter().enumerate() {
             for (j, &v) in row.iter().enumerate() {
-                if !v.is_finite() {
-                    bail!(
-                        "[uncertainty] `covariance` is unbounded ({}): the identification did                          not fix `{}`, draws would be meaningless; fit again with more data                          (see its notes)",
-                        v,
-                        self.coordinates[i.max(j)]
-                    );
-                }
+                // `inf` on the diagonal: a coordinate the identification did not fix (the
+                // file still sets the law; `select --uncertainty` refuses to draw from it).
+                let unbounded = i == j && v == f64::INFINITY;
                 anyhow::ensure!(
-                    (v - self.covariance[j][i]).abs() <= 1e-9 * v.abs().max(1e-300),
+                    v.is_finite() || unbounded,
+                    "[uncertainty] `covariance`[{i}][{j}] = {v}: allowed finite numbers (`inf` \
+                     only on the diagonal, for a coordinate the fit did not fix)"
+                );
+                anyhow::ensure!(
+                    unbounded || (v - self.covariance[j][i]).abs() <= 1e-9 * v.abs().max(1e-300),
                     "[uncertainty] `covariance` must be symmetric"
                 );
             }

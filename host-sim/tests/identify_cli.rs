@@ -531,3 +531,146 @@ fn compare_a_response_with_itself_has_no_error() {
         &[&dir.path().join("bad.png")],
     );
 }
+
+#[test]
+fn identify_contact_gives_intervals_and_select_propagates_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    // Table 3.1's law (the wire rig's default), one 3 mm drop at 50 kHz, 1 % noise.
+    ok(&[
+        "drop",
+        "--release-mm",
+        "3",
+        "--noise-pct",
+        "1",
+        "--offset-n",
+        "0.5",
+        "--seed",
+        "3",
+        "--out",
+        &p("drop.csv"),
+    ]);
+    let json = ok(&[
+        "identify",
+        "contact",
+        "--trace",
+        &p("drop.csv"),
+        "--mass-kg",
+        "0.298",
+        "--law",
+        "all",
+        "--out",
+        &p("fit.toml"),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    // --error auto: the trace resolves the contact (about 17 samples per contact).
+    assert_eq!(v["error_requested"], "auto");
+    assert_eq!(v["error"], "profile");
+    assert!(v["samples_per_contact"].as_f64().unwrap() > 8.0);
+    // Ranked by AIC: the generating law first, the others more than 2 behind.
+    let fits = v["fits"].as_array().unwrap();
+    assert_eq!(fits.len(), 4);
+    assert_eq!(v["best"], "spring-dashpot");
+    let best = fits.iter().find(|f| f["law"] == "spring-dashpot").unwrap();
+    assert_eq!(best["delta_aic"].as_f64().unwrap(), 0.0);
+    for f in fits.iter().filter(|f| f["law"] != "spring-dashpot") {
+        assert!(f["delta_aic"].as_f64().unwrap() > 2.0, "{f}");
+    }
+    // Intervals hold the truth (k_i = 5.5e6 N/m, c_i = 1.2e3 N s/m) and are narrow; no note.
+    let u = &best["uncertainty"];
+    assert_eq!(u["notes"].as_array().unwrap().len(), 0, "{u}");
+    for (i, truth) in [(0, 5.5e6), (1, 1.2e3)] {
+        let par = &u["params"][i];
+        let [lo, hi] = [
+            par["ci95"][0].as_f64().unwrap(),
+            par["ci95"][1].as_f64().unwrap(),
+        ];
+        assert!(lo < truth && truth < hi, "{par}");
+        assert!(hi / lo < 1.1, "{par}");
+    }
+    assert!((u["correlation"][0][1].as_f64().unwrap()).abs() < 0.95);
+    // The config holds the [uncertainty] table and the intervals as comments.
+    let cfg = fs::read_to_string(p("fit.toml")).unwrap();
+    for needle in [
+        "[uncertainty]",
+        "coordinates = [\"ln_stiffness_n_m\", \"ln_damping_n_s_m\"]",
+        "covariance = [[",
+        "# k_i = ",
+        "(95 %: ",
+    ] {
+        assert!(cfg.contains(needle), "{needle}: {cfg}");
+    }
+    // Propagation: the draws' 95 % range of the operating frequency holds the nominal one.
+    let json = ok(&[
+        "select",
+        "--config",
+        &p("fit.toml"),
+        "--gap-mm",
+        "0",
+        "--uncertainty",
+        "--draws",
+        "8",
+        "--json",
+        "--plot",
+        &p("band.png"),
+    ]);
+    let s: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let f = s["freq_hz"].as_f64().unwrap();
+    let spread = &s["uncertainty"]["freq_hz"];
+    assert!(spread["lo95"].as_f64().unwrap() <= f && f <= spread["hi95"].as_f64().unwrap());
+    assert_eq!(s["uncertainty"]["draws"], 8);
+    let share = s["uncertainty"]["nominal_one_one_share"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&share));
+    assert!(
+        s["uncertainty"]["robust"]["freq_hz"].as_f64().is_some(),
+        "{s}"
+    );
+    assert!(fs::metadata(p("band.png")).unwrap().len() > 10_000);
+    // Rejections: no table, too few draws, an unbounded coordinate.
+    fs::write(
+        p("plain.toml"),
+        "[rig.contact.spring-dashpot]\nstiffness_n_m = 5.5e6\ndamping_n_s_m = 1.2e3\n",
+    )
+    .unwrap();
+    rejected(
+        &["select", "--config", &p("plain.toml"), "--uncertainty"],
+        &["[uncertainty]"],
+        &[],
+    );
+    rejected(
+        &[
+            "select",
+            "--config",
+            &p("fit.toml"),
+            "--uncertainty",
+            "--draws",
+            "3",
+        ],
+        &["--draws", "8 ..= 100000"],
+        &[],
+    );
+    let unbounded: String = cfg
+        .lines()
+        .map(|l| {
+            if l.starts_with("covariance = ") {
+                "covariance = [[inf, 0.0], [0.0, 1e-4]]\n".to_string()
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    fs::write(p("unbounded.toml"), unbounded).unwrap();
+    rejected(
+        &[
+            "select",
+            "--config",
+            &p("unbounded.toml"),
+            "--uncertainty",
+            "--plot",
+            &p("u.png"),
+        ],
+        &["ln_stiffness_n_m", "did not fix"],
+        &[Path::new(&p("u.png"))],
+    );
+}

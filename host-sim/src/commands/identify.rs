@@ -474,7 +474,7 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         let mut out_params = params;
         out_params.contact = best_fit.law;
         let mut comment = format!(
-            "host-sim identify contact: {} law fitted to {} ({} impacts, error: {:?}, release {} mm, \
+            "host-sim identify contact: {} law fitted to {} ({} impacts, error: {}, release {} mm, \
              gap {} mm)\nresidual: peak rms {:.2} % of the {}largest peak, time rms {:.1} us, J = {:.3e}",
             best,
             files.join(" + "),
@@ -607,7 +607,8 @@ fn print_uncertainty(label: &str, u: &Result<Uncertainty, String>) {
         }
     };
     println!(
-        "  {label}: 95 % intervals (linearised; sensor noise {} N):",
+        "  {label}: 95 % intervals ({}; sensor noise {} N):",
+        u.method,
         u.noise_n
             .iter()
             .map(|n| format!("{n:.3}"))

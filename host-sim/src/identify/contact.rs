@@ -21,7 +21,12 @@
 //! ## The error (documented for `identify contact --error`)
 //! With `F_ref` the largest measured peak, `τ_ref` the first impact's width at half maximum,
 //! and `j` running over the `n` measured impacts matched in order to the simulated ones:
-//! - `J_peak = Σ_j ((F_sim,j − F_meas,j)/F_ref)²` — the thesis' error;
+//! - `J_peak = Σ_j ((F̂_sim,j − F_meas,j)/F_ref)²` — the thesis' error, with the simulated
+//!   peak as the sensor would report it: `F̂_sim,j` is the mean over [`PEAK_DRAWS`] fixed noise
+//!   draws (the trace's `σ`) of the peak estimate of the simulated force at the run's sample
+//!   times (aligned on the centroids). The estimate of a noisy peak is biased (the largest of
+//!   noisy samples on a flat top lies above it; a coarse grid misses the top) and the
+//!   simulated measurement has the same bias;
 //! - `J_time = Σ_{j≥2} ((t_sim,j − t_sim,1) − (t_meas,j − t_meas,1))² / τ_ref²`;
 //! - `J_profile = Σ_j Σ_{i ∈ window j} ((F_sim(t_i − t_meas,j + t_sim,j) − F_meas,i)/F_ref)²`
 //!   (each simulated impact shifted onto the measured one's centroid). Sums, not means: with
@@ -47,7 +52,11 @@
 
 use anyhow::{Context, Result, bail, ensure};
 use argmin::core::{CostFunction, Executor, State};
+use argmin::solver::brent::BrentOpt;
 use argmin::solver::neldermead::NelderMead;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
 use shared::analysis::drop::{DropRecord, DropSpec, run_drop};
 use shared::integrate::StepSettings;
 use shared::model::contact::spring_dashpot_restitution;
@@ -83,6 +92,16 @@ impl DropData {
             .map(|w| w[1] - w[0])
             .fold(f64::INFINITY, f64::min);
         self.impacts.first().map_or(0.0, |i| i.fwhm_s / dt)
+    }
+}
+
+impl std::fmt::Display for FitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            FitError::Auto => "auto",
+            FitError::Peaks => "peaks",
+            FitError::Profile => "profile",
+        })
     }
 }
 
@@ -127,13 +146,15 @@ pub struct DropData {
     pub impacts: Vec<MeasuredImpact>,
 }
 
+/// The median of `v` (reordered; selection, not a sort).
 fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
     let n = v.len();
+    let (below, mid, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
+    let mid = *mid;
     if n % 2 == 1 {
-        v[n / 2]
+        mid
     } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
+        0.5 * (below.iter().copied().fold(f64::NEG_INFINITY, f64::max) + mid)
     }
 }
 
@@ -174,7 +195,7 @@ pub(crate) fn peak_estimate(t: &[f64], f: &[f64], a: usize, b: usize) -> f64 {
     let mut peak = f[imax];
     if imax >= a + 2
         && imax + 2 <= b
-        && (imax - 2..=imax + 2).all(|i| f[i] > 0.5 * f[imax])
+        && (imax - 2..=imax + 2).all(|i| f[i] > 0.8 * f[imax])
         && let Some((tv, fv)) = parabola_vertex(&t[imax - 2..=imax + 2], &f[imax - 2..=imax + 2])
         && tv >= t[imax - 1]
         && tv <= t[imax + 1]
@@ -424,6 +445,29 @@ struct Sums {
 }
 
 impl Sums {
+    /// The sums of one trace's terms (`τ_ref` normalises its time errors).
+    fn of(terms: &[Term], tau_ref: f64) -> Sums {
+        let mut out = Sums::default();
+        for t in terms {
+            match *t {
+                Term::Peak(v) => {
+                    out.peak += v.powi(2);
+                    out.peaks_n += 1;
+                }
+                Term::Time(dt) => {
+                    out.time += (dt / tau_ref).powi(2);
+                    out.time_sq_s2 += dt * dt;
+                    out.times_n += 1;
+                }
+                Term::Profile(v) => {
+                    out.profile += v.powi(2);
+                    out.profile_n += 1;
+                }
+            }
+        }
+        out
+    }
+
     fn add(&mut self, o: &Sums) {
         self.peak += o.peak;
         self.peaks_n += o.peaks_n;
@@ -445,6 +489,33 @@ impl Sums {
     }
 }
 
+/// The least-squares misfit of a simulated impact shifted by `guess + u·spacing` onto measured
+/// samples (the cost of [`TraceCtx::shift_onto`], in `u`).
+struct Align<'a> {
+    t: &'a [f64],
+    f: &'a [f64],
+    s: &'a SimImpact,
+    guess: f64,
+    spacing: f64,
+}
+
+impl CostFunction for Align<'_> {
+    type Param = f64;
+    type Output = f64;
+    fn cost(&self, u: &f64) -> std::result::Result<f64, argmin::core::Error> {
+        let d = self.guess + u * self.spacing;
+        Ok(self
+            .t
+            .iter()
+            .zip(self.f)
+            .map(|(&t, &f)| (self.s.force_at(t + d) - f).powi(2))
+            .sum())
+    }
+}
+
+/// Noise draws of the simulated measurement of a peak ([`TraceCtx::sim_peak`]).
+pub const PEAK_DRAWS: usize = 32;
+
 /// One drop test inside the fit, with its normalisations.
 #[derive(Clone)]
 struct TraceCtx<'a> {
@@ -453,20 +524,97 @@ struct TraceCtx<'a> {
     f_ref: f64,
     tau_ref: f64,
     duration_s: f64,
+    /// Per impact: [`PEAK_DRAWS`] draws of the sensor noise over its run, draw-major, N.
+    peak_noise: Vec<Vec<f64>>,
 }
 
 impl<'a> TraceCtx<'a> {
-    fn new(t: &'a DropTest) -> Self {
-        let data = &t.data;
+    fn new(setup: &'a DropSetup, data: &'a DropData) -> Self {
         let i0 = &data.impacts[0];
         let span = data.impacts[data.impacts.len() - 1].centroid_s - i0.centroid_s;
+        // Fixed draws (common to every parameter set, so the simulated peak is a smooth
+        // function of the parameters), seeded per impact: the same on every machine.
+        let peak_noise = data
+            .impacts
+            .iter()
+            .enumerate()
+            .map(|(j, m)| {
+                let mut rng = ChaCha8Rng::seed_from_u64(j as u64);
+                let n = PEAK_DRAWS * (m.run.1 + 1 - m.run.0);
+                (0..n)
+                    .map(|_| {
+                        data.noise_n
+                            * <StandardNormal as Distribution<f64>>::sample(
+                                &StandardNormal,
+                                &mut rng,
+                            )
+                    })
+                    .collect()
+            })
+            .collect();
         TraceCtx {
-            setup: &t.setup,
+            setup,
             data,
             f_ref: data.impacts.iter().map(|i| i.peak_n).fold(0.0, f64::max),
             tau_ref: i0.fwhm_s,
-            duration_s: 1.25 * span + 2.0 * std::f64::consts::PI / t.setup.params.omega_n() + 0.01,
+            duration_s: 1.25 * span + 2.0 * std::f64::consts::PI / setup.params.omega_n() + 0.01,
+            peak_noise,
         }
+    }
+
+    /// The shift `δ`, s, that lays the simulated impact `s` on the samples of measured impact
+    /// `j` (simulated time `t_i + δ`): least squares of `F_sim(t_i + δ) − F_i` over the
+    /// impact's window, within 1.5 sample spacings of the centroids' alignment, to 1e-4 of a
+    /// spacing (Brent's method, argmin). The centroids alone place a pulse with a jump (the
+    /// spring–dashpot onset) only to a few µs, which moves the grid's samples across the jump.
+    fn shift_onto(&self, j: usize, s: &SimImpact) -> f64 {
+        let m = &self.data.impacts[j];
+        let guess = s.centroid_s - m.centroid_s;
+        let (a, b) = m.window;
+        let spacing = if b > a {
+            (self.data.t_s[b] - self.data.t_s[a]) / (b - a) as f64
+        } else {
+            return guess;
+        };
+        let cost = Align {
+            t: &self.data.t_s[a..=b],
+            f: &self.data.force_n[a..=b],
+            s,
+            guess,
+            spacing,
+        };
+        let solver = BrentOpt::new(-1.5, 1.5).set_tolerance(1e-8, 1e-4);
+        Executor::new(cost, solver)
+            .configure(|st| st.max_iters(100))
+            .run()
+            .ok()
+            .and_then(|r| r.state().get_best_param().copied())
+            .map_or(guess, |u| guess + u * spacing)
+    }
+
+    /// The peak the sensor would report for the simulated impact `s` in the place of measured
+    /// impact `j`: the simulated force at the run's sample times (shifted onto the measured
+    /// samples, [`Self::shift_onto`]) plus each of the fixed noise draws, through [`peak_estimate`]; the mean over
+    /// the draws, N. No simulated impact: zero force.
+    fn sim_peak(&self, j: usize, s: Option<&SimImpact>) -> f64 {
+        let Some(s) = s else {
+            return 0.0;
+        };
+        let m = &self.data.impacts[j];
+        let (a, b) = m.run;
+        let t = &self.data.t_s[a..=b];
+        let shift = self.shift_onto(j, s);
+        let clean: Vec<f64> = t.iter().map(|&tk| s.force_at(tk + shift)).collect();
+        let n = clean.len();
+        let mut g = vec![0.0; n];
+        let mut sum = 0.0;
+        for noise in self.peak_noise[j].chunks_exact(n) {
+            for ((gk, ck), ek) in g.iter_mut().zip(&clean).zip(noise) {
+                *gk = ck + ek;
+            }
+            sum += peak_estimate(t, &g, 0, n - 1);
+        }
+        sum / PEAK_DRAWS as f64
     }
 
     fn spec(&self, max_impacts: u32) -> DropSpec {
@@ -492,45 +640,15 @@ pub(crate) struct Problem<'a> {
     pub(crate) x0_scale: [f64; 3],
 }
 
-/// The error's terms `r̃` at one parameter set (`J = Σ r̃²`): per impact of each trace in
-/// order, its peak term, its time term (`√w_time`, impacts after the first) and its profile
-/// terms (`√w_profile`, one per window sample); with their sensitivities to the measured
-/// samples when asked for.
-pub(crate) struct Terms {
-    /// The terms.
-    pub(crate) r: Vec<f64>,
-    /// Per term: `(trace, sample, ∂r̃/∂F_sample)` for the samples it depends on (empty unless
-    /// asked for).
-    pub(crate) sens: Vec<Vec<(usize, usize, f64)>>,
-}
-
-/// `∂c/∂F_k` of the force-weighted centroid `c = Σ t F / Σ F` over `window` of `(t, f)`.
-fn centroid_sensitivity(t: &[f64], f: &[f64], window: (usize, usize), c: f64) -> Vec<(usize, f64)> {
-    let sf: f64 = (window.0..=window.1).map(|i| f[i]).sum();
-    (window.0..=window.1)
-        .map(|k| (k, (t[k] - c) / sf))
-        .collect()
-}
-
-/// `∂peak/∂F_k` of [`peak_estimate`] over the samples around the largest one of the run, by
-/// finite differences.
-fn peak_sensitivity(t: &[f64], f: &[f64], run: (usize, usize), f_ref: f64) -> Vec<(usize, f64)> {
-    let (a, b) = run;
-    let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
-    let eps = 1e-6 * f_ref.max(1e-12);
-    let lo = imax.saturating_sub(2).max(a);
-    let hi = (imax + 2).min(b);
-    let mut g = f.to_vec();
-    (lo..=hi)
-        .map(|k| {
-            g[k] = f[k] + eps;
-            let up = peak_estimate(t, &g, a, b);
-            g[k] = f[k] - eps;
-            let down = peak_estimate(t, &g, a, b);
-            g[k] = f[k];
-            (k, (up - down) / (2.0 * eps))
-        })
-        .collect()
+/// One term of a trace's error (module docs), unweighted.
+#[derive(Debug, Clone, Copy)]
+enum Term {
+    /// `(F̂_sim − F_meas)/F_ref` of one impact.
+    Peak(f64),
+    /// `Δt`, s: the time error of one impact after the first.
+    Time(f64),
+    /// `(F_sim − F_meas)/F_ref` of one profile sample.
+    Profile(f64),
 }
 
 impl Problem<'_> {
@@ -580,104 +698,105 @@ impl Problem<'_> {
         Ok(law)
     }
 
+    /// The simulated drop of each trace for `law` (all samples kept with `keep_samples`).
+    pub(crate) fn simulate(&self, law: &ContactLaw, keep_samples: bool) -> Result<Vec<SimDrop>> {
+        self.traces
+            .iter()
+            .map(|tc| {
+                let mut params = tc.setup.params;
+                params.contact = *law;
+                let spec = tc.spec(tc.data.impacts.len() as u32);
+                simulate_drop(&params, &spec, &tc.setup.steps, keep_samples)
+            })
+            .collect()
+    }
+
     /// The joint residual of `law` and each trace's (in order).
     fn residual(&self, law: &ContactLaw) -> Result<(Residual, Vec<Residual>)> {
+        let sims = self.simulate(law, false)?;
         let mut total = Sums::default();
         let mut each = Vec::with_capacity(self.traces.len());
-        for tc in &self.traces {
-            let mut params = tc.setup.params;
-            params.contact = *law;
-            let spec = tc.spec(tc.data.impacts.len() as u32);
-            let sim = simulate_drop(&params, &spec, &tc.setup.steps, false)?;
-            let sums = self.score(tc, &sim);
+        for (tc, sim) in self.traces.iter().zip(&sims) {
+            let sums = Sums::of(&Self::trace_terms(tc, sim, self.weights), tc.tau_ref);
             total.add(&sums);
             each.push(sums.residual(self.weights));
         }
         Ok((total.residual(self.weights), each))
     }
 
-    /// The error's terms at `law` (see [`Terms`]); with `sens`, their sensitivities to the
-    /// measured samples (the peak, the centroids and the samples themselves; the offset and the
-    /// windows are taken as fixed).
-    pub(crate) fn terms(&self, law: &ContactLaw, sens: bool) -> Result<Terms> {
+    /// The weighted terms `r̃` of the error (`J = Σ r̃²`) against the simulated drops `sims`
+    /// (one per trace, [`Self::simulate`]): per impact of each trace in order, its peak term,
+    /// its time term (`√w_time Δt/τ_ref`, impacts after the first, when `w_time > 0`) and its
+    /// profile terms (`√w_profile`, one per window sample).
+    pub(crate) fn terms(&self, sims: &[SimDrop]) -> Vec<f64> {
         let (wt, wp) = (self.weights.time.sqrt(), self.weights.profile.sqrt());
-        let mut out = Terms {
-            r: Vec::new(),
-            sens: Vec::new(),
-        };
-        for (ti, tc) in self.traces.iter().enumerate() {
-            let mut params = tc.setup.params;
-            params.contact = *law;
-            let sim = simulate_drop(
-                &params,
-                &tc.spec(tc.data.impacts.len() as u32),
-                &tc.setup.steps,
-                false,
-            )?;
-            let (t, f) = (&tc.data.t_s, &tc.data.force_n);
-            let meas = &tc.data.impacts;
-            let c_m0 = meas[0].centroid_s;
-            let c_s0 = sim.impacts.first().map(|s| s.centroid_s);
-            let c0_sens = if sens {
-                centroid_sensitivity(t, f, meas[0].window, c_m0)
-            } else {
-                Vec::new()
-            };
-            for (j, m) in meas.iter().enumerate() {
-                let s = sim.impacts.get(j);
-                let fs = s.map_or(0.0, |s| s.peak_n);
-                out.r.push((fs - m.peak_n) / tc.f_ref);
-                out.sens.push(if sens {
-                    peak_sensitivity(t, f, m.run, tc.f_ref)
-                        .into_iter()
-                        .map(|(k, d)| (ti, k, -d / tc.f_ref))
-                        .collect()
-                } else {
-                    Vec::new()
-                });
-                let c_sens = if sens {
-                    centroid_sensitivity(t, f, m.window, m.centroid_s)
-                } else {
-                    Vec::new()
-                };
-                if j > 0 && wt > 0.0 {
-                    let dt = match (s, c_s0) {
-                        (Some(s), Some(c0)) => (s.centroid_s - c0) - (m.centroid_s - c_m0),
-                        _ => tc.tau_ref,
-                    };
-                    out.r.push(wt * dt / tc.tau_ref);
-                    let mut d: Vec<(usize, usize, f64)> = Vec::new();
-                    if sens && s.is_some() {
-                        let k = -wt / tc.tau_ref;
-                        d.extend(c_sens.iter().map(|&(i, v)| (ti, i, k * v)));
-                        d.extend(c0_sens.iter().map(|&(i, v)| (ti, i, -k * v)));
-                    }
-                    out.sens.push(d);
-                }
-                if wp > 0.0 {
-                    for i in m.window.0..=m.window.1 {
-                        let tau = t[i] - m.centroid_s;
-                        let fsim = s.map_or(0.0, |s| s.force_at(tau + s.centroid_s));
-                        out.r.push(wp * (fsim - f[i]) / tc.f_ref);
-                        let mut d = Vec::new();
-                        if sens {
-                            let k = wp / tc.f_ref;
-                            d.push((ti, i, -k));
-                            if let Some(s) = s {
-                                // Through the alignment on the measured centroid.
-                                let eps = 5e-7;
-                                let slope = (s.force_at(tau + s.centroid_s + eps)
-                                    - s.force_at(tau + s.centroid_s - eps))
-                                    / (2.0 * eps);
-                                d.extend(c_sens.iter().map(|&(q, v)| (ti, q, -k * slope * v)));
-                            }
-                        }
-                        out.sens.push(d);
-                    }
-                }
-            }
+        let mut out = Vec::new();
+        for (tc, sim) in self.traces.iter().zip(sims) {
+            out.extend(
+                Self::trace_terms(tc, sim, self.weights)
+                    .into_iter()
+                    .filter_map(|t| match t {
+                        Term::Peak(v) => Some(v),
+                        Term::Time(dt) => (wt > 0.0).then_some(wt * dt / tc.tau_ref),
+                        Term::Profile(v) => Some(wp * v),
+                    }),
+            );
         }
-        Ok(out)
+        out
+    }
+
+    /// The same problem on other data (one [`DropData`] per trace, in order): the same law,
+    /// weights and search coordinates.
+    pub(crate) fn with_data<'b>(&'b self, data: &'b [DropData]) -> Problem<'b> {
+        Problem {
+            traces: self
+                .traces
+                .iter()
+                .zip(data)
+                .map(|(tc, d)| TraceCtx::new(tc.setup, d))
+                .collect(),
+            law: self.law,
+            weights: self.weights,
+            delta_ref: self.delta_ref,
+            x0_scale: self.x0_scale,
+        }
+    }
+
+    /// Drop data as the sensor would give them if `sims` (one per trace, with samples) were
+    /// the truth: each simulated drop at the trace's sample times (aligned on the first
+    /// impact's centroid) plus white noise of the trace's `σ` (ChaCha8 seeded with `seed` and
+    /// the trace's index), preprocessed like the measurement. `None` if a trace does not show
+    /// as many impacts as the measured one.
+    pub(crate) fn synthetic_data(&self, sims: &[SimDrop], seed: u64) -> Option<Vec<DropData>> {
+        self.traces
+            .iter()
+            .zip(sims)
+            .enumerate()
+            .map(|(i, (tc, sim))| {
+                let n = tc.data.impacts.len();
+                let shift = tc.shift_onto(0, sim.impacts.first()?);
+                let clean =
+                    super::synth::resample(&sim.samples, tc.data.t_s.iter().map(|t| t + shift));
+                let mut rng =
+                    ChaCha8Rng::seed_from_u64(seed.wrapping_mul(64).wrapping_add(i as u64));
+                let value = clean
+                    .iter()
+                    .map(|f| {
+                        f + tc.data.noise_n
+                            * <StandardNormal as Distribution<f64>>::sample(
+                                &StandardNormal,
+                                &mut rng,
+                            )
+                    })
+                    .collect();
+                let trace = Trace {
+                    t_s: tc.data.t_s.clone(),
+                    value,
+                };
+                let d = analyse_drop(&trace, n).ok()?;
+                (d.impacts.len() == n).then_some(d)
+            })
+            .collect()
     }
 
     /// The noise standard deviation of each trace's samples, N.
@@ -695,34 +814,28 @@ impl Problem<'_> {
         self.traces[0].data.samples_per_contact()
     }
 
-    fn score(&self, tc: &TraceCtx<'_>, sim: &SimDrop) -> Sums {
+    /// The unweighted terms of one trace's error against its simulated drop (module docs;
+    /// profile terms only when `w_profile > 0`).
+    fn trace_terms(tc: &TraceCtx<'_>, sim: &SimDrop, weights: Weights) -> Vec<Term> {
         let meas = &tc.data.impacts;
-        let mut out = Sums {
-            peaks_n: meas.len(),
-            ..Sums::default()
-        };
+        let mut out = Vec::new();
         let c_m0 = meas[0].centroid_s;
         let c_s0 = sim.impacts.first().map(|s| s.centroid_s);
         for (j, m) in meas.iter().enumerate() {
             let s = sim.impacts.get(j);
-            let fs = s.map_or(0.0, |s| s.peak_n);
-            out.peak += ((fs - m.peak_n) / tc.f_ref).powi(2);
+            out.push(Term::Peak((tc.sim_peak(j, s) - m.peak_n) / tc.f_ref));
             if j > 0 {
-                let dt = match (s, c_s0) {
+                out.push(Term::Time(match (s, c_s0) {
                     (Some(s), Some(c0)) => (s.centroid_s - c0) - (m.centroid_s - c_m0),
                     _ => tc.tau_ref,
-                };
-                out.time += (dt / tc.tau_ref).powi(2);
-                out.time_sq_s2 += dt * dt;
-                out.times_n += 1;
+                }));
             }
-            if self.weights.profile > 0.0 {
+            if weights.profile > 0.0 {
                 for i in m.window.0..=m.window.1 {
                     let fsim = s.map_or(0.0, |s| {
                         s.force_at(tc.data.t_s[i] - m.centroid_s + s.centroid_s)
                     });
-                    out.profile += ((fsim - tc.data.force_n[i]) / tc.f_ref).powi(2);
-                    out.profile_n += 1;
+                    out.push(Term::Profile((fsim - tc.data.force_n[i]) / tc.f_ref));
                 }
             }
         }
@@ -896,7 +1009,10 @@ fn problem(tests: &[DropTest], law: ContactLawKind, weights: Weights) -> Result<
     // The search coordinates are scaled by the first trace.
     let (x0_scale, delta_ref) = initial(law, &tests[0].data, tests[0].setup.params.mass_kg);
     Ok(Problem {
-        traces: tests.iter().map(TraceCtx::new).collect(),
+        traces: tests
+            .iter()
+            .map(|t| TraceCtx::new(&t.setup, &t.data))
+            .collect(),
         law,
         weights,
         delta_ref,
@@ -971,8 +1087,8 @@ pub fn fit_law_joint(
         let sim = simulate_drop(&params, &tc.spec(0), &tc.setup.steps, true)?;
         traces.push(TraceFit { residual: r, sim });
     }
-    let uncertainty = super::uncertainty::linearised(&problem, &x);
-    let terms = problem.terms(&law_fit, false)?.r.len();
+    let uncertainty = super::uncertainty::estimate(&problem, &x);
+    let terms = problem.terms(&problem.simulate(&law_fit, false)?).len();
     Ok(Fit {
         terms,
         law: law_fit,

@@ -4,7 +4,7 @@
 
 use anyhow::{Result, ensure};
 use rand::SeedableRng;
-use rand::rngs::StdRng;
+use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use shared::analysis::drop::DropSpec;
 use shared::error::check_range;
@@ -47,40 +47,77 @@ pub fn synthetic_drop(
     steps: &StepSettings,
     sensor: &Sensor,
 ) -> Result<Trace> {
-    check_range("sample_rate_hz", sensor.sample_rate_hz, 1.0, 1e7)?;
-    check_range("noise_pct", sensor.noise_pct, 0.0, 100.0)?;
-    check_range("offset_n", sensor.offset_n, -1e6, 1e6)?;
-    let samples_n = (spec.duration_s * sensor.sample_rate_hz).floor() as usize + 1;
+    let clean = clean_drop(params, spec, steps, sensor.sample_rate_hz)?;
+    record(&clean, sensor)
+}
+
+/// The drop test `spec` of `params` sampled at `sample_rate_hz` without noise or offset: the
+/// simulated force, linearly interpolated between the integrator's samples.
+///
+/// # Errors
+/// Invalid parameters or spec, a rate outside `1 ..= 1e7` Hz, or more than 5·10⁷ samples.
+pub fn clean_drop(
+    params: &RigParams,
+    spec: &DropSpec,
+    steps: &StepSettings,
+    sample_rate_hz: f64,
+) -> Result<Trace> {
+    check_range("sample_rate_hz", sample_rate_hz, 1.0, 1e7)?;
+    let samples_n = (spec.duration_s * sample_rate_hz).floor() as usize + 1;
     ensure!(
         samples_n <= 50_000_000,
         "{samples_n} samples: lower the rate or the duration"
     );
     let sim = simulate_drop(params, spec, steps, true)?;
-    let s = &sim.samples;
-    let fmax = s.iter().map(|p| p.1).fold(0.0, f64::max);
-    let normal = Normal::new(0.0, sensor.noise_pct / 100.0 * fmax)?;
-    let mut rng = StdRng::seed_from_u64(sensor.seed);
-    let mut t_s = Vec::with_capacity(samples_n);
-    let mut value = Vec::with_capacity(samples_n);
-    let mut j = 0;
-    for i in 0..samples_n {
-        let t = i as f64 / sensor.sample_rate_hz;
-        while j + 1 < s.len() && s[j + 1].0 < t {
-            j += 1;
-        }
-        let f = if j + 1 < s.len() {
-            let (t0, f0) = s[j];
-            let (t1, f1) = s[j + 1];
-            if t1 > t0 {
-                f0 + (f1 - f0) * ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
-            } else {
-                f1
-            }
-        } else {
-            s.last().map_or(0.0, |p| p.1)
-        };
-        t_s.push(t);
-        value.push(f + sensor.offset_n + normal.sample(&mut rng));
-    }
+    let t_s: Vec<f64> = (0..samples_n).map(|i| i as f64 / sample_rate_hz).collect();
+    let value = resample(&sim.samples, t_s.iter().copied());
     Ok(Trace { t_s, value })
+}
+
+/// `(t, F)` samples (times increasing) linearly interpolated at `times` (increasing); the
+/// first or last sample's force outside them.
+pub(crate) fn resample(samples: &[(f64, f64)], times: impl Iterator<Item = f64>) -> Vec<f64> {
+    let s = samples;
+    let mut j = 0;
+    times
+        .map(|t| {
+            while j + 1 < s.len() && s[j + 1].0 < t {
+                j += 1;
+            }
+            if j + 1 < s.len() {
+                let (t0, f0) = s[j];
+                let (t1, f1) = s[j + 1];
+                if t1 > t0 {
+                    f0 + (f1 - f0) * ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+                } else {
+                    f1
+                }
+            } else {
+                s.last().map_or(0.0, |p| p.1)
+            }
+        })
+        .collect()
+}
+
+/// A clean trace ([`clean_drop`], at `sensor`'s rate) as `sensor` records it: plus its offset
+/// and Gaussian noise of `noise_pct` % of the largest force (ChaCha8 seeded with `seed`: the
+/// same samples on every machine).
+///
+/// # Errors
+/// Sensor settings out of range (named).
+pub fn record(clean: &Trace, sensor: &Sensor) -> Result<Trace> {
+    check_range("noise_pct", sensor.noise_pct, 0.0, 100.0)?;
+    check_range("offset_n", sensor.offset_n, -1e6, 1e6)?;
+    let fmax = clean.value.iter().copied().fold(0.0, f64::max);
+    let normal = Normal::new(0.0, sensor.noise_pct / 100.0 * fmax)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(sensor.seed);
+    let value = clean
+        .value
+        .iter()
+        .map(|f| f + sensor.offset_n + normal.sample(&mut rng))
+        .collect();
+    Ok(Trace {
+        t_s: clean.t_s.clone(),
+        value,
+    })
 }

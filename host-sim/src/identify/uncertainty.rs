@@ -1,17 +1,23 @@
 //! The fitted contact law's uncertainty: 95 % intervals, correlations, and what the data leave
 //! undetermined, said in words.
 //!
-//! ## Method (linearised, with the measured noise)
+//! ## Method (parametric bootstrap, linearised in the parameters)
 //! The fit minimises `J(x) = Σ r̃_i(x, F)²` over the search coordinates `x` (module
-//! [`super::contact`]), where the terms `r̃` depend on the measured samples `F` (each with the
-//! sensor noise `σ` the trace reader estimates, independent between samples). At the optimum
-//! `∂J/∂x = 0`; perturbing the samples by `δF` moves the optimum by
-//! `δx = −(RᵀR)⁻¹ Rᵀ D δF`, with `R = ∂r̃/∂x` (central differences, step 1e-3) and
-//! `D = ∂r̃/∂F` (the peak estimates, the centroids and the profile samples). So
-//! `Cov(x) = R⁺ D (σ² I) Dᵀ R⁺ᵀ` (`R⁺` from nalgebra's SVD): a Gauss–Newton sandwich whose middle
-//! is the noise propagated through the terms, rather than the residual variance alone — the
-//! peak and time terms are few (a drop test has 3–6 impacts) and not independent of the
-//! profile terms, so their own scatter would be a poor variance estimate.
+//! [`super::contact`]), where the terms `r̃` depend on the measured samples `F` through the
+//! preprocessing: thresholds, impact windows, peak estimates and centroids. Those are not
+//! smooth in `F` (a noisy sample crosses the threshold, the largest sample of a flat top
+//! changes), so the noise is propagated by simulation rather than by derivatives:
+//! - the drop at the fit is simulated and sampled at each trace's sample times; [`REDRAWS`]
+//!   times, white noise of the trace's own `σ` is added (ChaCha8, seeded: the same result on
+//!   every machine) and the redrawn trace is preprocessed like the measurement;
+//! - for each redraw `b`, one Gauss–Newton step from the fit gives where a fit of that trace
+//!   would land: `δx_b = −R_b⁺ r̃_b`, with `r̃_b` the terms of the redrawn trace against the
+//!   fitted drop and `R_b = ∂r̃_b/∂x` (central differences, step 1e-3, on drops simulated
+//!   once for all redraws; `R⁺` from nalgebra's SVD);
+//! - `Cov(x)` is the covariance of the `δx_b`.
+//!
+//! Redraws whose trace does not show the measured number of impacts are dropped (counted in
+//! the method); fewer than half usable is an error.
 //!
 //! The reported coordinates are linear in `x`: `ln k_i` (the stiffness), `n`, `ln c_i`,
 //! `ln λ_i`, `e`. Scale parameters (`k_i`, `c_i`, `λ_i`) get log-normal intervals
@@ -20,13 +26,12 @@
 //! along which the error does not change at all (singular `R`) is reported as not identifiable.
 //! Coverage on synthetic drop tests with known truth: `host-sim/tests/uncertainty.rs`.
 
-use std::collections::HashMap;
-
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use serde::Serialize;
 use shared::model::{ContactLaw, ContactLawKind};
 
-use super::contact::Problem;
+use super::contact::{Problem, SimDrop};
 
 /// The normal quantile of a two-sided 95 % interval.
 pub const Z95: f64 = 1.959_963_984_540_054;
@@ -34,6 +39,8 @@ pub const Z95: f64 = 1.959_963_984_540_054;
 pub const WIDE_REL: f64 = 0.10;
 /// A correlation beyond this is reported as a trade-off.
 pub const STRONG_CORRELATION: f64 = 0.95;
+/// Noise redraws of the parametric bootstrap.
+pub const REDRAWS: usize = 100;
 /// The step of the central differences in the search coordinates.
 const JACOBIAN_STEP: f64 = 1e-3;
 /// A singular value below this fraction of the largest marks a direction the data do not fix.
@@ -103,6 +110,8 @@ struct Coord {
     key: &'static str,
     symbol: &'static str,
     log: bool,
+    /// The fit's bounds on a coordinate that has them (module [`super::contact`]).
+    bounds: Option<(f64, f64)>,
 }
 
 fn coords(law: ContactLawKind) -> Vec<Coord> {
@@ -111,6 +120,11 @@ fn coords(law: ContactLawKind) -> Vec<Coord> {
         key,
         symbol,
         log,
+        bounds: match key {
+            "exponent" => Some((1.0, 3.0)),
+            "restitution" => Some((0.01, 1.0)),
+            _ => None,
+        },
     };
     match law {
         ContactLawKind::SpringDashpot => vec![
@@ -192,58 +206,71 @@ pub fn law_from_coordinates(law: ContactLawKind, rep: &[f64]) -> Option<ContactL
 /// The uncertainty of the fit at search coordinates `x` of `problem` (module docs); `Err`
 /// with the reason when it cannot be estimated (e.g. the law at `x` is invalid or a drop
 /// simulation fails).
-pub(crate) fn linearised(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty, String> {
+pub(crate) fn estimate(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty, String> {
     let law = problem
         .law_at(x)
         .map_err(|_| "the fit is outside the parameter bounds".to_string())?;
-    let at = problem.terms(&law, true).map_err(|e| format!("{e:#}"))?;
-    let (n, p) = (at.r.len(), x.len());
-    // R = ∂r̃/∂x by central differences (one-sided where a step would leave the bounds).
-    let mut r = DMatrix::<f64>::zeros(n, p);
-    for j in 0..p {
-        let eval = |sign: f64| -> Option<Vec<f64>> {
-            let mut xs = x.to_vec();
-            xs[j] += sign * JACOBIAN_STEP;
-            let l = problem.law_at(&xs).ok()?;
-            let t = problem.terms(&l, false).ok()?.r;
-            (t.len() == n).then_some(t)
-        };
-        let (col, span) = match (eval(1.0), eval(-1.0)) {
-            (Some(up), Some(down)) => (
-                up.iter().zip(&down).map(|(u, d)| u - d).collect::<Vec<_>>(),
-                2.0,
-            ),
-            (Some(up), None) => (up.iter().zip(&at.r).map(|(u, c)| u - c).collect(), 1.0),
-            (None, Some(down)) => (at.r.iter().zip(&down).map(|(c, d)| c - d).collect(), 1.0),
-            (None, None) => return Err("the error cannot be evaluated around the fit".into()),
-        };
-        for (i, v) in col.iter().enumerate() {
-            r[(i, j)] = v / (span * JACOBIAN_STEP);
+    let p = x.len();
+    let center = problem.simulate(&law, true).map_err(|e| format!("{e:#}"))?;
+    // The drops one step up and down each coordinate (None beyond a bound).
+    let around: Vec<[Option<Vec<SimDrop>>; 2]> = (0..p)
+        .map(|j| {
+            [1.0, -1.0].map(|sign| {
+                let mut xs = x.to_vec();
+                xs[j] += sign * JACOBIAN_STEP;
+                problem.simulate(&problem.law_at(&xs).ok()?, false).ok()
+            })
+        })
+        .collect();
+    // The terms at the fit and their Jacobian for one data set (the measured or a redrawn one).
+    let linear = |pr: &Problem<'_>| -> Option<(DVector<f64>, DMatrix<f64>)> {
+        let r0 = pr.terms(&center);
+        let n = r0.len();
+        let mut jac = DMatrix::<f64>::zeros(n, p);
+        for (j, [up, down]) in around.iter().enumerate() {
+            let at =
+                |s: &Option<Vec<SimDrop>>| s.as_ref().map(|s| pr.terms(s)).filter(|t| t.len() == n);
+            let (col, span): (Vec<f64>, f64) = match (at(up), at(down)) {
+                (Some(u), Some(d)) => (u.iter().zip(&d).map(|(u, d)| u - d).collect(), 2.0),
+                (Some(u), None) => (u.iter().zip(&r0).map(|(u, c)| u - c).collect(), 1.0),
+                (None, Some(d)) => (r0.iter().zip(&d).map(|(c, d)| c - d).collect(), 1.0),
+                (None, None) => return None,
+            };
+            for (i, v) in col.iter().enumerate() {
+                jac[(i, j)] = v / (span * JACOBIAN_STEP);
+            }
         }
-    }
-    let svd = r.clone().svd(true, true);
+        Some((DVector::from_vec(r0), jac))
+    };
+    let (_, jac) = linear(problem)
+        .ok_or_else(|| "the error cannot be evaluated around the fit".to_string())?;
+    let svd = jac.svd(true, true);
     let s_max = svd.singular_values.max();
     let s_min = svd.singular_values.min();
     let identifiable = s_max > 0.0 && s_min > SINGULAR * s_max;
-    let pinv = svd
-        .clone()
-        .pseudo_inverse(SINGULAR * s_max.max(1e-300))
-        .map_err(|e| e.to_string())?;
-    // E = R⁺ D, one p-vector per measured sample; Cov(x) = Σ σ² E Eᵀ.
+    // The redraws, each one Gauss–Newton step from the fit.
+    let steps: Vec<DVector<f64>> = (0..REDRAWS as u64)
+        .into_par_iter()
+        .filter_map(|b| {
+            let data = problem.synthetic_data(&center, b)?;
+            let (r, jac) = linear(&problem.with_data(&data))?;
+            let svd = jac.svd(true, true);
+            let tol = SINGULAR * svd.singular_values.max().max(1e-300);
+            Some(-(svd.pseudo_inverse(tol).ok()? * r))
+        })
+        .collect();
+    let used = steps.len();
+    if 2 * used < REDRAWS {
+        return Err(format!(
+            "only {used} of {REDRAWS} noise redraws of the fitted drop show the measured impacts"
+        ));
+    }
+    let mean_x = steps.iter().fold(DVector::zeros(p), |acc, d| acc + d) / used as f64;
+    let cov_x = steps.iter().fold(DMatrix::zeros(p, p), |acc, d| {
+        let c = d - &mean_x;
+        acc + &c * c.transpose()
+    }) / (used - 1) as f64;
     let noise = problem.noise_n();
-    let mut e: HashMap<(usize, usize), DVector<f64>> = HashMap::new();
-    for (i, sens) in at.sens.iter().enumerate() {
-        for &(tr, k, d) in sens {
-            let col = pinv.column(i) * d;
-            e.entry((tr, k))
-                .and_modify(|v| *v += &col)
-                .or_insert_with(|| col.clone_owned());
-        }
-    }
-    let mut cov_x = DMatrix::<f64>::zeros(p, p);
-    for ((tr, _), v) in &e {
-        cov_x += v * v.transpose() * noise[*tr].powi(2);
-    }
     let (g, b) = linear_map(problem);
     let xv = DVector::from_column_slice(x);
     let mean = &g * xv + b;
@@ -288,7 +315,11 @@ pub(crate) fn linearised(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty
             let v = mean[i].exp();
             (v, [(mean[i] - Z95 * sd).exp(), (mean[i] + Z95 * sd).exp()])
         } else {
-            (mean[i], [mean[i] - Z95 * sd, mean[i] + Z95 * sd])
+            let (lo, hi) = c.bounds.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+            (
+                mean[i],
+                [(mean[i] - Z95 * sd).max(lo), (mean[i] + Z95 * sd).min(hi)],
+            )
         };
         params.push(ParamEstimate {
             name: c.symbol,
@@ -313,9 +344,9 @@ pub(crate) fn linearised(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty
         }
     }
     let mut u = Uncertainty {
-        method: "linearised: Gauss–Newton sandwich with the sensor noise propagated through the \
-                 error's terms"
-            .into(),
+        method: format!(
+            "parametric bootstrap: {used} of {REDRAWS} noise redraws, one Gauss–Newton step each"
+        ),
         law: problem.law,
         coordinates: cs.iter().map(|c| c.name).collect(),
         mean: mean.iter().copied().collect(),
@@ -346,6 +377,17 @@ fn delta(c: &Coord) -> String {
 /// what fixes it.
 fn notes(u: &Uncertainty, cs: &[Coord], problem: &Problem<'_>) -> Vec<String> {
     let mut out = Vec::new();
+    for (c, par) in cs.iter().zip(&u.params) {
+        if let Some((lo, hi)) = c.bounds
+            && (par.value <= lo + 1e-3 * (hi - lo) || par.value >= hi - 1e-3 * (hi - lo))
+        {
+            out.push(format!(
+                "{} = {:.4} sits on the fit's bound ({lo} ≤ {} ≤ {hi}): the {} law does not \
+                 describe these data (its interval is cut at the bound)",
+                par.name, par.value, par.name, u.law
+            ));
+        }
+    }
     let p = cs.len();
     let mut pairs = Vec::new();
     for i in 0..p {
