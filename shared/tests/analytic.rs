@@ -3,7 +3,7 @@
 //! conservation (Hertz), and an independent f64 integration (Hunt–Crossley, Lankarani–Nikravesh).
 
 use shared::Real;
-use shared::integrate::{Simulator, StepSample, StepSettings};
+use shared::integrate::{PhaseTable, Simulator, StepSample, StepSettings};
 use shared::model::contact::spring_dashpot_restitution;
 use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension, SwitchBands};
 
@@ -14,8 +14,16 @@ fn free_pendulum_freq<T: Real>(u0_m: f64) -> f64 {
     p.amplitude_m = 1e-7;
     let omega_exc = 1.37 * p.omega_n();
     let steps = StepSettings::default();
-    let mut sim =
-        Simulator::<T>::new(&p, 0.018, omega_exc, &SwitchBands::default(), &steps).unwrap();
+    let phases = PhaseTable::new(steps.steps_per_period).unwrap();
+    let mut sim = Simulator::<T>::new(
+        &p,
+        0.018,
+        omega_exc,
+        &SwitchBands::default(),
+        &steps,
+        &phases,
+    )
+    .unwrap();
     sim.reset_relative(u0_m, 0.0).unwrap();
     let h_step = sim.step_s();
     let hammer = *sim.hammer();
@@ -71,7 +79,9 @@ fn single_impact<T: Real>(law: ContactLaw, v_in: f64, steps: StepSettings) -> (f
         contact: law,
     };
     let gap = 1e-3;
-    let mut sim = Simulator::<T>::new(&p, gap, 20.0, &SwitchBands::default(), &steps).unwrap();
+    let phases = PhaseTable::new(steps.steps_per_period).unwrap();
+    let mut sim =
+        Simulator::<T>::new(&p, gap, 20.0, &SwitchBands::default(), &steps, &phases).unwrap();
     sim.reset_relative(gap - 2e-5, v_in).unwrap();
     let h_step = sim.step_s();
     let (mut t_on, mut t_off, mut peak, mut v_out) = (None, None, 0.0f64, None);

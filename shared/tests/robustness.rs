@@ -3,7 +3,7 @@
 
 use proptest::prelude::*;
 use shared::analysis::{SimSettings, Sweep, evaluate_point};
-use shared::integrate::{Simulator, StepSettings};
+use shared::integrate::{PhaseTable, Simulator, StepSettings};
 use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension, SwitchBands};
 use shared::observe::Regime;
 
@@ -37,7 +37,10 @@ proptest! {
             contact: ContactLaw::SpringDashpot { stiffness_n_m: k, damping_n_s_m: c },
         };
         let steps = StepSettings { steps_per_period: n, substeps_per_contact: kk };
-        let r = Simulator::<f32>::new(&p, gap, omega, &SwitchBands::default(), &steps);
+        let table = PhaseTable::<f32>::new(n);
+        prop_assert_eq!(table.is_ok(), (16..=512).contains(&n));
+        let phases = PhaseTable::<f32>::new(64).unwrap();
+        let r = Simulator::<f32>::new(&p, gap, omega, &SwitchBands::default(), &steps, table.as_ref().unwrap_or(&phases));
         if r.is_ok() {
             prop_assert!(p.validate().is_ok());
             prop_assert!(gap >= 0.0 && omega > 0.0);
@@ -53,7 +56,8 @@ proptest! {
         let mut p = RigId::ALL[rig].preset();
         p.contact = ContactLaw::preset(ContactLawKind::ALL[law]);
         let steps = StepSettings { steps_per_period: 64, substeps_per_contact: 8 };
-        let mut sim = Simulator::<f32>::new(&p, gap_mm * 1e-3, ratio * p.omega_n(), &SwitchBands::default(), &steps).unwrap();
+        let phases = PhaseTable::new(64).unwrap();
+        let mut sim = Simulator::<f32>::new(&p, gap_mm * 1e-3, ratio * p.omega_n(), &SwitchBands::default(), &steps, &phases).unwrap();
         for _ in 0..3 {
             sim.run_period(&mut |s| assert!(s.x[0].is_finite() && s.x[1].is_finite() && s.force >= 0.0));
         }

@@ -25,6 +25,7 @@ mod target {
     use shared::control::{
         Command, Controller, ControllerConfig, Prediction, SensorChain, predict,
     };
+    use shared::integrate::PhaseTable;
     use shared::model::RigId;
     // The device crate provides the interrupt vector table.
     use stm32f4xx_hal as _;
@@ -106,7 +107,10 @@ mod target {
         let params = RigId::Wires.preset();
         let settings = SimSettings::embedded();
         let ratio = params.ratio_from_freq_hz(f64::from(p.target_hz));
-        let Ok(mut sim) = simulator_at::<f32>(&params, 0.0, ratio, &settings) else {
+        let Ok(phases) = PhaseTable::<f32>::new(settings.steps.steps_per_period) else {
+            fail("the embedded profile's N has no phase table")
+        };
+        let Ok(mut sim) = simulator_at::<f32>(&params, 0.0, ratio, &settings, &phases) else {
             fail("simulator_at rejected the operating point")
         };
         let mut ignore = |_: &shared::integrate::StepSample<f32>| {};

@@ -21,6 +21,7 @@ use shared::Real;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
 use shared::error::check_range;
+use shared::integrate::PhaseTable;
 use shared::observe::{Observer, ProtocolRun, Regime, StroboPoint};
 
 use crate::cli::{Precision, RigOpts};
@@ -221,6 +222,10 @@ fn points<T: Real>(setup: &Setup, grid: &BasinsGrid, batch: &[usize]) -> Vec<Res
         let (iu, iv) = grid.split(i);
         (grid.u0_mm.value(iu), grid.v0_mm_s.value(iv))
     };
+    let phases = match PhaseTable::new(setup.settings.steps.steps_per_period) {
+        Ok(p) => p,
+        Err(e) => return batch.iter().map(|_| Err(e.into())).collect(),
+    };
     in_order(batch.len(), |emit| {
         run_interleaved::<T, LastStrobes, DEFAULT_LANES, _, _, _>(
             batch.iter().copied(),
@@ -231,6 +236,7 @@ fn points<T: Real>(setup: &Setup, grid: &BasinsGrid, batch: &[usize]) -> Vec<Res
                     grid.gap_mm * 1e-3,
                     grid.omega_ratio,
                     &setup.settings,
+                    &phases,
                 )?;
                 sim.reset_relative(u0_mm * 1e-3, v0_mm_s * 1e-3)?;
                 let run =

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use shared::Real;
 use shared::analysis::Sweep;
 use shared::analysis::response::evaluate_point_observed;
-use shared::integrate::Simulator;
+use shared::integrate::{PhaseTable, Simulator};
 use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
 
 use super::response::omega_sweep;
@@ -216,6 +216,7 @@ fn branch<T: Real>(
     bar: &indicatif::ProgressBar,
 ) -> Result<()> {
     let mut prev = None;
+    let phases = PhaseTable::new(setup.settings.steps.steps_per_period)?;
     for &i in order {
         interrupt::check()?;
         let ratio = sweep.value(i);
@@ -225,6 +226,7 @@ fn branch<T: Real>(
             ratio * setup.params.omega_n(),
             &setup.settings.bands,
             &setup.settings.steps,
+            &phases,
         )
         .with_context(|| format!("Ω/ω {ratio}"))?;
         if let Some(x) = prev {

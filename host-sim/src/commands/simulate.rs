@@ -8,7 +8,7 @@ use serde::Serialize;
 use shared::Real;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::{check_count, check_range};
-use shared::integrate::{Simulator, StepSample};
+use shared::integrate::{PhaseTable, Simulator, StepSample};
 use shared::observe::{ImpactEvent, ImpactTracker};
 
 use crate::cli::{Precision, RigOpts};
@@ -91,12 +91,14 @@ pub fn time_series<T: Real>(
     u0_m: f64,
     v0_m_s: f64,
 ) -> Result<(Vec<TsRow>, TsSummary)> {
+    let phases = PhaseTable::new(setup.settings.steps.steps_per_period)?;
     let mut sim = Simulator::<T>::new(
         &setup.params,
         gap_m,
         omega_exc,
         &setup.settings.bands,
         &setup.settings.steps,
+        &phases,
     )?;
     sim.reset_relative(u0_m, v0_m_s)
         .context("initial state (--u0-mm, --v0-mm-s)")?;

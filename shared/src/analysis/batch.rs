@@ -14,8 +14,8 @@ use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 use heapless::Vec;
 
-use crate::integrate::Simulator;
 use crate::integrate::lanes::free_flight;
+use crate::integrate::{PhaseTable, Simulator};
 use crate::model::RigParams;
 use crate::observe::{Observer, PointResult, ProtocolRun};
 use crate::real::Real;
@@ -23,31 +23,31 @@ use crate::real::Real;
 /// Lanes that the host's analysis commands interleave per core.
 pub const DEFAULT_LANES: usize = 8;
 
-struct Lane<T: Real, O> {
+struct Lane<'t, T: Real, O> {
     index: usize,
-    sim: Simulator<T>,
+    sim: Simulator<'t, T>,
     run: ProtocolRun<T>,
     obs: O,
 }
 
 /// A protocol run ready to go: the simulator at its initial state (at a period boundary), the
 /// run, and the observer that will watch it.
-pub type Started<T, O> = (Simulator<T>, ProtocolRun<T>, O);
+pub type Started<'t, T, O> = (Simulator<'t, T>, ProtocolRun<T>, O);
 
 /// Runs one protocol per item of `items`, `L` at a time interleaved step by step. `start` turns
 /// an item into a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the
 /// `i`-th item's result with its observer and final simulator as soon as it is done (so not in
 /// order).
-pub fn run_interleaved<T, O, const L: usize, I, S, F>(items: I, mut start: S, mut emit: F)
+pub fn run_interleaved<'t, T, O, const L: usize, I, S, F>(items: I, mut start: S, mut emit: F)
 where
-    T: Real,
+    T: Real + 't,
     O: Observer<T>,
     I: IntoIterator,
-    S: FnMut(I::Item) -> Result<Started<T, O>, ParamError>,
-    F: FnMut(usize, Result<(PointResult, O, &Simulator<T>), ParamError>),
+    S: FnMut(I::Item) -> Result<Started<'t, T, O>, ParamError>,
+    F: FnMut(usize, Result<(PointResult, O, &Simulator<'t, T>), ParamError>),
 {
     let mut next = items.into_iter().enumerate();
-    let mut launch = |emit: &mut F| -> Option<Lane<T, O>> {
+    let mut launch = |emit: &mut F| -> Option<Lane<'t, T, O>> {
         for (index, item) in next.by_ref() {
             match start(item) {
                 Ok((sim, run, obs)) => {
@@ -63,14 +63,14 @@ where
         }
         None
     };
-    let mut lanes: [Option<Lane<T, O>>; L] = core::array::from_fn(|_| None);
+    let mut lanes: [Option<Lane<'t, T, O>>; L] = core::array::from_fn(|_| None);
     for lane in lanes.iter_mut() {
         *lane = launch(&mut emit);
     }
     loop {
         // Whole free-flight steps in lockstep for the lanes clear of the surface.
         let mut taking_part = [false; L];
-        let mut sims: Vec<&mut Simulator<T>, L> = Vec::new();
+        let mut sims: Vec<&mut Simulator<'t, T>, L> = Vec::new();
         for (slot, part) in lanes.iter_mut().zip(taking_part.iter_mut()) {
             if let Some(lane) = slot
                 && lane.run.free_flight_allowed::<O>()
@@ -128,10 +128,19 @@ pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
     F: FnMut(usize, Result<PointResult, ParamError>),
 {
     let weight_n = params.weight_n();
+    let phases = match PhaseTable::new(settings.steps.steps_per_period) {
+        Ok(p) => p,
+        Err(e) => {
+            for (i, _) in points.into_iter().enumerate() {
+                emit(i, Err(e));
+            }
+            return;
+        }
+    };
     run_interleaved::<T, (), L, _, _, _>(
         points,
         |(gap_m, omega_ratio)| {
-            let sim = simulator_at::<T>(params, gap_m, omega_ratio, settings)?;
+            let sim = simulator_at::<T>(params, gap_m, omega_ratio, settings, &phases)?;
             let run = ProtocolRun::new(&sim, &settings.protocol, weight_n)?;
             Ok((sim, run, ()))
         },

@@ -13,8 +13,7 @@
 //! (`substeps_per_contact` per contact half-period).
 
 use crate::error::{ParamError, check_range};
-use crate::integrate::{Simulator, StepSample, StepSettings};
-use crate::model::hammer::Body;
+use crate::integrate::{PhaseTable, Simulator, StepSample, StepSettings};
 use crate::model::{Hammer, RigParams, SwitchBands};
 use crate::observe::{DEFAULT_SEPARATION_M, ImpactEvent, ImpactTracker};
 use crate::real::Real;
@@ -105,33 +104,25 @@ pub struct DropSummary {
     pub rk4_steps: u64,
 }
 
-/// The rig compiled with its excitation switched off: the cart at rest (`y = 0`).
-fn unforced<T: Real>(mut hammer: Hammer<T>) -> Hammer<T> {
-    match &mut hammer.body {
-        Body::Wires { a0w2_over_l, .. } => *a0w2_over_l = T::zero(),
-        Body::Beam { a0w2, .. } => *a0w2 = T::zero(),
-    }
-    hammer.amplitude = T::zero();
-    hammer
-}
-
-/// A simulator of the drop test `spec`, released (at rest, `u = gap − release`).
+/// A simulator of the drop test `spec`, released (at rest, `u = gap − release`), on the step
+/// grid of `phases` (built for `steps.steps_per_period`).
 ///
 /// # Errors
-/// [`ParamError`] for invalid parameters, bands, steps or spec, or a start the suspension
-/// cannot take (wires: `|u0| ≥ l/2`).
-pub fn drop_simulator<T: Real>(
+/// [`ParamError`] for invalid parameters, bands, steps or spec, a table for another `N`, or a
+/// start the suspension cannot take (wires: `|u0| ≥ l/2`).
+pub fn drop_simulator<'t, T: Real>(
     params: &RigParams,
     spec: &DropSpec,
     bands: &SwitchBands,
     steps: &StepSettings,
-) -> Result<Simulator<T>, ParamError> {
+    phases: &'t PhaseTable<T>,
+) -> Result<Simulator<'t, T>, ParamError> {
     spec.validate()?;
     let hammer = Hammer::<T>::new(params, spec.gap_m, params.omega_n(), bands)?;
     let omega_c = params
         .contact
         .contact_omega(params.mass_kg, SUBSTEP_REFERENCE_SPEED_M_S);
-    let mut sim = Simulator::from_hammer(unforced(hammer), omega_c, steps)?;
+    let mut sim = Simulator::from_hammer(hammer.without_excitation(), omega_c, steps, phases)?;
     sim.reset_relative(spec.gap_m - spec.release_m, 0.0)?;
     Ok(sim)
 }
@@ -149,7 +140,8 @@ pub fn run_drop<T: Real, F: FnMut(&DropRecord)>(
     steps: &StepSettings,
     mut report: F,
 ) -> Result<DropSummary, ParamError> {
-    let mut sim = drop_simulator::<T>(params, spec, bands, steps)?;
+    let phases = PhaseTable::new(steps.steps_per_period)?;
+    let mut sim = drop_simulator::<T>(params, spec, bands, steps, &phases)?;
     let hammer = *sim.hammer();
     let h = sim.step_s();
     let (d0, dd0) = hammer.penetration(&sim.state());
@@ -337,8 +329,9 @@ mod tests {
             duration_s: 1.0,
             max_impacts: 0,
         };
+        let phases = PhaseTable::new(s.steps_per_period).unwrap();
         assert!(matches!(
-            drop_simulator::<f64>(&p, &spec, &b, &s),
+            drop_simulator::<f64>(&p, &spec, &b, &s, &phases),
             Err(ParamError::OutOfRange {
                 field: "release_m",
                 ..
@@ -347,7 +340,7 @@ mod tests {
         spec.release_m = 3e-3;
         spec.duration_s = f64::NAN;
         assert!(matches!(
-            drop_simulator::<f64>(&p, &spec, &b, &s),
+            drop_simulator::<f64>(&p, &spec, &b, &s, &phases),
             Err(ParamError::NotFinite {
                 field: "duration_s"
             })

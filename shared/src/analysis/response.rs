@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{ParamError, check_range};
-use crate::integrate::{Simulator, StepSettings};
+use crate::integrate::{PhaseTable, Simulator, StepSettings};
 use crate::model::{RigParams, SwitchBands};
 use crate::observe::{Observer, PointResult, Protocol, Regime, run_protocol};
 use crate::real::Real;
@@ -69,21 +69,24 @@ pub fn evaluate_point_observed<T: Real, O: Observer<T>>(
     settings: &SimSettings,
     obs: &mut O,
 ) -> Result<PointResult, ParamError> {
-    let mut sim = simulator_at(params, gap_m, omega_ratio, settings)?;
+    let phases = PhaseTable::new(settings.steps.steps_per_period)?;
+    let mut sim = simulator_at(params, gap_m, omega_ratio, settings, &phases)?;
     run_protocol(&mut sim, &settings.protocol, params.weight_n(), obs)
 }
 
-/// A simulator at rest at phase 0 for `gap_m` (m) and `omega_ratio` (`Ω/ω`).
+/// A simulator at rest at phase 0 for `gap_m` (m) and `omega_ratio` (`Ω/ω`) on the step grid
+/// of `phases` (built for `settings.steps.steps_per_period`).
 ///
 /// # Errors
-/// [`ParamError`] for invalid parameters, gap or settings, or `omega_ratio` outside
-/// [`OMEGA_RATIO_RANGE`].
-pub fn simulator_at<T: Real>(
+/// [`ParamError`] for invalid parameters, gap or settings, a table for another `N`, or
+/// `omega_ratio` outside [`OMEGA_RATIO_RANGE`].
+pub fn simulator_at<'t, T: Real>(
     params: &RigParams,
     gap_m: f64,
     omega_ratio: f64,
     settings: &SimSettings,
-) -> Result<Simulator<T>, ParamError> {
+    phases: &'t PhaseTable<T>,
+) -> Result<Simulator<'t, T>, ParamError> {
     check_range(
         "omega_ratio",
         omega_ratio,
@@ -91,7 +94,14 @@ pub fn simulator_at<T: Real>(
         OMEGA_RATIO_RANGE.1,
     )?;
     let omega_exc = omega_ratio * params.omega_n();
-    Simulator::<T>::new(params, gap_m, omega_exc, &settings.bands, &settings.steps)
+    Simulator::<T>::new(
+        params,
+        gap_m,
+        omega_exc,
+        &settings.bands,
+        &settings.steps,
+        phases,
+    )
 }
 
 /// [`evaluate_point_observed`] without an observer.

@@ -1,10 +1,13 @@
 //! Dense output of one RK4 step and what the stepper reads from it: the cubic Hermite
 //! interpolant of the state ([`DenseStep`]), a rising zero of an event function on it
 //! ([`root_in_unit`], switching events), and the smallest value of a scalar's interpolant
-//! between two samples ([`hermite_min`], how far the hammer left the surface between them).
+//! between two samples ([`hermite_min`], how far the hammer left the surface between them);
+//! both searches are [`bracket_rising`].
 
-use crate::real::Real;
 use nalgebra::Vector2;
+
+use super::bracket::{Rule, bracket_rising};
+use crate::real::Real;
 
 /// One RK4 step's cubic Hermite dense output: from `x0` with slope `f0` to `x1` with slope
 /// `f1` over `h` seconds.
@@ -33,48 +36,16 @@ impl<T: Real> DenseStep<T> {
     }
 }
 
-/// The upper end of a bracket `[lo, hi] ⊂ [0, 1]` (below `2^-14` wide: 3 ns of a 45 µs
-/// sub-step, a 0.2 nm change of `δ` at 0.06 m/s; or after 40 evaluations) of a rising zero of
-/// `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval): Illinois regula
-/// falsi (superlinear on the smooth event functions here, each iteration shrinks the bracket),
-/// with a bisection step whenever the secant stalls.
+/// The upper end of a bracket in `[0, 1]` (below `2^-14` wide: 3 ns of a 45 µs sub-step, a
+/// 0.2 nm change of `δ` at 0.06 m/s; or after 40 evaluations) of a rising zero of `g` with
+/// `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval): [`Rule::Illinois`].
 #[inline]
 pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(g: G) -> T {
-    let half = T::from_f64(0.5);
-    let tol = T::from_f64(1.0 / f64::from(1u32 << 14));
-    let (mut lo, mut hi) = (T::zero(), T::from_f64(1.0));
-    let (mut g_lo, mut g_hi) = (g(lo), g(hi));
-    if !(g_lo <= T::zero() && g_hi > T::zero()) {
-        return if g_lo > T::zero() { lo } else { hi };
-    }
-    let mut side = 0i8;
-    for _ in 0..40 {
-        if hi - lo <= tol {
-            break;
-        }
-        let mut mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
-        let width = hi - lo;
-        if !(mid > lo + width * T::from_f64(1e-3) && mid < hi - width * T::from_f64(1e-3)) {
-            mid = (lo + hi) * half;
-        }
-        let g_mid = g(mid);
-        if g_mid > T::zero() {
-            hi = mid;
-            g_hi = g_mid;
-            if side == 1 {
-                g_lo *= half;
-            }
-            side = 1;
-        } else {
-            lo = mid;
-            g_lo = g_mid;
-            if side == -1 {
-                g_hi *= half;
-            }
-            side = -1;
-        }
-    }
-    hi
+    let rule = Rule::Illinois {
+        tol: T::from_f64(1.0 / f64::from(1u32 << 14)),
+        max_evals: 40,
+    };
+    bracket_rising(T::zero(), T::from_f64(1.0), rule, g).1
 }
 
 /// The smallest value over a segment of `len` seconds of the cubic Hermite interpolant from
@@ -86,7 +57,7 @@ pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(g: G) -> T {
 /// Used on the penetration `δ` between two samples: whether the hammer left the surface by the
 /// separation of an impact episode (`crate::observe::impact`) between samples, which the
 /// samples themselves (step ends, up to `T/N` apart) do not show.
-#[inline]
+#[inline(always)]
 pub(crate) fn hermite_min<T: Real>(y0: T, dy0: T, y1: T, dy1: T, len: T) -> T {
     let ends = y0.min_of(y1);
     if !(dy0 < T::zero() && dy1 > T::zero()) {
@@ -100,15 +71,7 @@ pub(crate) fn hermite_min<T: Real>(y0: T, dy0: T, y1: T, dy1: T, len: T) -> T {
     let b = three * d - len * (two * dy0 + dy1);
     let c = len * (dy0 + dy1) - two * d;
     let slope = |s: T| a + (two * b + three * c * s) * s;
-    let (mut lo, mut hi) = (T::zero(), T::from_f64(1.0));
-    for _ in 0..20 {
-        let mid = (lo + hi) * T::from_f64(0.5);
-        if slope(mid) < T::zero() {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
+    let (lo, hi) = bracket_rising(T::zero(), T::from_f64(1.0), Rule::Bisect(20), slope);
     let s = (lo + hi) * T::from_f64(0.5);
     ends.min_of(y0 + (a + (b + c * s) * s) * s)
 }

@@ -4,30 +4,15 @@
 //! flight (the first branch of [`Simulator::step`]): the same short chain of `+` and `×` for
 //! every simulator of a grid. [`free_flight`] evaluates it for `L` simulators at once, so the
 //! compiler packs the lanes into SIMD registers, and skips the per-step bookkeeping in between.
-//! Each lane takes exactly the steps [`Simulator::step`] would take in one piece, bit for bit
-//! the same numbers (the same operations in the same order, the field from the same
-//! [`wires_free`]/[`beam_free`] formulas), and stops before the period's last step (the Poincaré
-//! section), before any step that the scalar path would split near the surface, and (wires)
-//! before an angle outside the short sine polynomial's range `|θ| ≤ 1/8`. The caller then
-//! takes the next step with [`Simulator::step`] as usual.
-
-use nalgebra::Vector2;
+//! Each lane runs the stepper's own kernel ([`super::free::free_step`]) and stops before the
+//! period's last step (the Poincaré section), before any step that the stepper would split
+//! near the surface, and (wires) before an angle outside the short sine polynomial's range
+//! `|θ| ≤ 1/8`. The caller then takes the next step with [`Simulator::step`] as usual.
 
 use super::Simulator;
-use crate::model::Region;
-use crate::model::hammer::{Body, FieldEval, beam_free, wires_free};
+use super::free::{FreeState, SmallTrig, free_step};
+use crate::model::hammer::FreeFlight;
 use crate::real::Real;
-
-/// One lane's state between lockstep steps: `x = (x0, x1)`, the field's second component `a`
-/// at `x`, penetration `d` and its rate `dd`.
-#[derive(Clone, Copy, Default)]
-struct LaneState<T> {
-    x0: T,
-    x1: T,
-    a: T,
-    d: T,
-    dd: T,
-}
 
 /// The states of `L` lanes, one array per field (so that the lanes pack into SIMD registers).
 struct States<T, const L: usize> {
@@ -49,8 +34,8 @@ impl<T: Real, const L: usize> States<T, L> {
         }
     }
     #[inline(always)]
-    fn get(&self, i: usize) -> LaneState<T> {
-        LaneState {
+    fn get(&self, i: usize) -> FreeState<T> {
+        FreeState {
             x0: self.x0[i],
             x1: self.x1[i],
             a: self.a[i],
@@ -74,85 +59,13 @@ impl<T: Real, const L: usize> States<T, L> {
         pick(&mut self.dd, &next.dd, go);
     }
     #[inline(always)]
-    fn set(&mut self, i: usize, s: LaneState<T>) {
+    fn set(&mut self, i: usize, s: FreeState<T>) {
         self.x0[i] = s.x0;
         self.x1[i] = s.x1;
         self.a[i] = s.a;
         self.d[i] = s.d;
         self.dd[i] = s.dd;
     }
-}
-
-/// A lane's constants: the body's three coefficients, gap and step.
-#[derive(Clone, Copy, Default)]
-struct LaneConst<T> {
-    c0: T,
-    c1: T,
-    c2: T,
-    gap: T,
-    h: T,
-}
-
-/// Free-flight `(acceleration, δ, δ̇)` of state `(y0, y1)` for wires (`c0, c1, c2 = l, g/l,
-/// A0Ω²/l`, `y0 = θ`; `δ̇ = l θ̇ cos θ` as in the field's kinematics) or beams (`k/m, c/m,
-/// A0Ω²`), and whether the short sine polynomial was in range. (The RK4 stages use only the
-/// first two; the compiler drops `δ̇` there.)
-#[inline(always)]
-fn free<T: Real, const WIRES: bool>(c: &LaneConst<T>, y0: T, y1: T, s: T) -> (T, T, T, bool) {
-    if WIRES {
-        let (st, ct) = y0.sin_cos_small();
-        let lim = T::from_f64(0.125);
-        let (acc, d) = wires_free(c.c0, c.c1, c.c2, c.gap, st, ct, s);
-        (acc, d, c.c0 * y1 * ct, y0 <= lim && y0 >= -lim)
-    } else {
-        let (acc, d) = beam_free(c.c0, c.c1, c.c2, c.gap, y0, y1, s);
-        (acc, d, y1, true)
-    }
-}
-
-/// One trial step of a lane: the new state and whether [`Simulator::step`] would accept it in
-/// one piece (`free_trial`'s test, plus the polynomial's range).
-#[inline(always)]
-fn trial<T: Real, const WIRES: bool>(
-    c: &LaneConst<T>,
-    st: &LaneState<T>,
-    eta: T,
-    s_mid: T,
-    s_end: T,
-) -> (LaneState<T>, bool) {
-    let half = T::from_f64(0.5);
-    let sixth = T::from_f64(1.0 / 6.0);
-    let two = T::from_f64(2.0);
-    let (h, th, w, acc0) = (c.h, st.x0, st.x1, st.a);
-    // rk4_step with k1 = (x1, a): the same operations in the same order.
-    let hh = h * half;
-    let (y2_0, y2_1) = (th + w * hh, w + acc0 * hh);
-    let (a2, d2, _, ok2) = free::<T, WIRES>(c, y2_0, y2_1, s_mid);
-    let (y3_0, y3_1) = (th + y2_1 * hh, w + a2 * hh);
-    let (a3, d3, _, ok3) = free::<T, WIRES>(c, y3_0, y3_1, s_mid);
-    let (y4_0, y4_1) = (th + y3_1 * h, w + a3 * h);
-    let (a4, d4, _, ok4) = free::<T, WIRES>(c, y4_0, y4_1, s_end);
-    let h6 = h * sixth;
-    let n0 = th + (w + y2_1 * two + y3_1 * two + y4_1) * h6;
-    let n1 = w + (acc0 + a2 * two + a3 * two + a4) * h6;
-    // The end state's field (`field_in(Free, ..)`: the force is 0).
-    let (a5, d5, dd5, ok5) = free::<T, WIRES>(c, n0, n1, s_end);
-    let neg_eta = -eta;
-    let touched = (d2 > neg_eta) | (d3 > neg_eta) | (d4 > neg_eta);
-    let mut near = touched | (d5 > neg_eta);
-    // Turned round inside the step: the peak lies under the two tangent lines.
-    let turned = (st.dd > T::zero()) & (dd5 < T::zero());
-    let slope = st.dd - dd5;
-    let t_star = (d5 - st.d - dd5 * h) / slope;
-    near |= turned & (st.d + st.dd * t_star > neg_eta);
-    let next = LaneState {
-        x0: n0,
-        x1: n1,
-        a: a5,
-        d: d5,
-        dd: dd5,
-    };
-    (next, ok2 & ok3 & ok4 & ok5 & !near)
 }
 
 /// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further
@@ -165,7 +78,7 @@ fn trial<T: Real, const WIRES: bool>(
 /// With the `std` feature on x86-64 (the host), the kernel runs as AVX2 code when the CPU has
 /// it (chosen at run time: 8 `f32` lanes per register instead of 4): the same operations in the
 /// same order, no fused multiply-add, so the same bits.
-pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -> [u32; L] {
+pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     if std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX and AVX2 (checked just above).
@@ -177,71 +90,41 @@ pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -> [
 /// [`free_flight`] compiled for AVX2.
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx,avx2")]
-fn free_flight_avx<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -> [u32; L] {
+fn free_flight_avx<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
     free_flight_kernel::<T, L>(sims)
 }
 
 /// The body of [`free_flight`] (inlined into each instruction-set variant).
 #[inline(always)]
-fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -> [u32; L] {
+fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
     let mut taken = [0u32; L];
     let lanes = sims.len().min(L);
     if lanes == 0 {
         return taken;
     }
-    let wires = matches!(sims[0].hammer.body, Body::Wires { .. });
-    let n = sims[0].n;
-    let eta = sims[0].hammer.switch.eta_delta;
-    let mut cst = [LaneConst::default(); L];
+    let (table, wires, eta) = sims[0].lane_kind();
+    let n = table.steps_per_period();
+    let mut cst = [(FreeFlight::default(), T::zero()); L];
     let mut state = States::<T, L>::new();
     let mut k = [0u32; L];
     let mut rem = [0u32; L];
-    for (i, sim) in sims.iter().take(lanes).enumerate() {
-        let (c, same_kind) = match sim.hammer.body {
-            Body::Wires {
-                length,
-                g_over_l,
-                a0w2_over_l,
-                ..
-            } => ((length, g_over_l, a0w2_over_l), wires),
-            Body::Beam {
-                k_over_m,
-                c_over_m,
-                a0w2,
-                ..
-            } => ((k_over_m, c_over_m, a0w2), !wires),
-        };
-        cst[i] = LaneConst {
-            c0: c.0,
-            c1: c.1,
-            c2: c.2,
-            gap: sim.hammer.gap,
-            h: sim.h,
-        };
-        state.set(
-            i,
-            LaneState {
-                x0: sim.x[0],
-                x1: sim.x[1],
-                a: sim.at_x.dx[1],
-                d: sim.at_x.delta,
-                dd: sim.at_x.delta_dot,
-            },
-        );
-        k[i] = sim.k;
-        let eligible = same_kind
-            && sim.n == n
-            && sim.hammer.switch.eta_delta == eta
-            && sim.clear(&sim.at_x)
-            && sim.k + 1 < n;
-        rem[i] = if eligible { n - 1 - sim.k } else { 0 };
+    for i in 0..lanes {
+        let sim = &*sims[i];
+        if !sims[0].lane_compatible(sim) {
+            continue;
+        }
+        if let Some((st, r)) = sim.lane_start() {
+            cst[i] = sim.lane_constants();
+            state.set(i, st);
+            k[i] = n - 1 - r;
+            rem[i] = r;
+        }
     }
     let started = rem.iter().filter(|&&r| r > 0).count();
     if started == 0 {
         return taken;
     }
     let stop_below = started.div_ceil(4);
-    let table = &sims[0].sin_half;
     loop {
         let active = rem.iter().filter(|&&r| r > 0).count();
         if active == 0 || active < stop_below {
@@ -250,24 +133,29 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -
         let mut s_mid = [T::zero(); L];
         let mut s_end = [T::zero(); L];
         for i in 0..L {
-            // k < N − 1 on active lanes; idle lanes read a valid entry and are discarded.
+            // k < N − 1 on active lanes (so the step's end is not the period's); idle lanes
+            // read a valid entry and are discarded.
             let j = 2 * (k[i] as usize).min(n as usize - 2);
-            s_mid[i] = table[j + 1];
-            s_end[i] = table[j + 2];
+            s_mid[i] = table.sin_half(j + 1);
+            s_end[i] = table.sin_half(j + 2);
         }
         let mut next = States::<T, L>::new();
         let mut ok = [false; L];
         if wires {
             for i in 0..L {
-                let (n, o) = trial::<T, true>(&cst[i], &state.get(i), eta, s_mid[i], s_end[i]);
-                next.set(i, n);
-                ok[i] = o;
+                let (c, h) = &cst[i];
+                let (nx, exact, near) =
+                    free_step::<T, true, SmallTrig>(c, &state.get(i), *h, s_mid[i], s_end[i], eta);
+                next.set(i, nx);
+                ok[i] = exact & !near;
             }
         } else {
             for i in 0..L {
-                let (n, o) = trial::<T, false>(&cst[i], &state.get(i), eta, s_mid[i], s_end[i]);
-                next.set(i, n);
-                ok[i] = o;
+                let (c, h) = &cst[i];
+                let (nx, exact, near) =
+                    free_step::<T, false, SmallTrig>(c, &state.get(i), *h, s_mid[i], s_end[i], eta);
+                next.set(i, nx);
+                ok[i] = exact & !near;
             }
         }
         // Branch-free, one array at a time (so that it vectorises too).
@@ -283,21 +171,9 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -
         }
     }
     for (i, sim) in sims.iter_mut().take(lanes).enumerate() {
-        if taken[i] == 0 {
-            continue;
+        if taken[i] > 0 {
+            sim.lane_finish(&state.get(i), taken[i]);
         }
-        let s = state.get(i);
-        sim.x = Vector2::new(s.x0, s.x1);
-        sim.at_x = FieldEval {
-            dx: Vector2::new(s.x1, s.a),
-            force: T::zero(),
-            region: Region::Free,
-            delta: s.d,
-            delta_dot: s.dd,
-        };
-        sim.k = k[i];
-        sim.steps += u64::from(taken[i]);
-        sim.rk4_steps += u64::from(taken[i]);
     }
     taken
 }
@@ -306,7 +182,9 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<T>]) -
 mod tests {
     use super::*;
     use crate::analysis::{SimSettings, simulator_at};
+    use crate::integrate::PhaseTable;
     use crate::model::RigId;
+    use std::format;
 
     /// Lockstep steps leave every simulator exactly where as many scalar steps do, and they do
     /// run (from rest, far from the surface, until the period's last step or until fewer than a
@@ -315,9 +193,10 @@ mod tests {
         let p = rig.preset();
         let s = SimSettings::default();
         let ratios = [0.6, 0.9, 1.3, 1.7, 2.0, 2.6, 3.1, 3.9];
+        let phases = PhaseTable::new(s.steps.steps_per_period).expect("valid N");
         let mut sims: std::vec::Vec<Simulator<f32>> = ratios
             .iter()
-            .map(|&r| simulator_at::<f32>(&p, gap_m, r, &s).expect("valid"))
+            .map(|&r| simulator_at::<f32>(&p, gap_m, r, &s, &phases).expect("valid"))
             .collect();
         // Stagger the phases so that the lanes are not all at step 0.
         for (i, sim) in sims.iter_mut().enumerate() {
@@ -333,12 +212,13 @@ mod tests {
             for _ in 0..t {
                 r.step(&mut |_| {});
             }
-            assert_eq!(sim.x, r.x, "{rig:?}");
-            assert_eq!(sim.at_x, r.at_x, "{rig:?}");
+            assert_eq!(sim.state(), r.state(), "{rig:?}");
+            assert_eq!(sim.state_penetration(), r.state_penetration(), "{rig:?}");
             assert_eq!(
-                (sim.k, sim.steps, sim.rk4_steps),
-                (r.k, r.steps, r.rk4_steps)
+                (sim.periods_done(), sim.rk4_steps()),
+                (r.periods_done(), r.rk4_steps())
             );
+            assert_eq!(format!("{sim:?}"), format!("{r:?}"), "{rig:?}");
         }
     }
 

@@ -1,14 +1,23 @@
 //! The switch-model integrator: fixed-step RK4 with an integer number of steps per excitation
 //! period and deterministic sub-steps in and near contact.
 //!
+//! - [`plan`]: the step settings, the excitation phase on the step grid ([`PhaseTable`],
+//!   shared) and one simulator's step lengths ([`StepPlan`]).
 //! - [`rk4`]: one classical Runge–Kutta step on a 2-state vector.
-//! - `dense`: the step's cubic Hermite dense output, event location on it, minima between samples.
+//! - `free`: one whole free-flight step and its acceptance test (the stepper's and the lanes'
+//!   kernel).
+//! - `bracket`: the bracketing root finder; `dense`: the step's cubic Hermite dense output,
+//!   event location on it, minima between samples.
 //! - [`stepper`]: the period-locked driver ([`Simulator`]).
 //! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids).
 
+pub(crate) mod bracket;
 pub(crate) mod dense;
+pub(crate) mod free;
 pub mod lanes;
+pub mod plan;
 pub mod rk4;
 pub mod stepper;
 
-pub use stepper::{Simulator, StepSample, StepSettings};
+pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings};
+pub use stepper::{Simulator, StepSample};

@@ -27,11 +27,13 @@
 //!   `N (2 + 2M)` RK4 steps with `M = ceil(h/h_c)`.
 
 use nalgebra::Vector2;
-use serde::{Deserialize, Serialize};
 
+use super::bracket::{Rule, bracket_rising};
 use super::dense::{DenseStep, hermite_min, root_in_unit};
-use super::rk4::{rk4_step, rk4_step_compensated};
-use crate::error::{ParamError, check_count, check_range};
+use super::free::{FreeState, FullTrig, free_step};
+use super::plan::{PhaseTable, StepPlan, StepSettings, step_s};
+use super::rk4::rk4_step_compensated;
+use crate::error::ParamError;
 use crate::model::hammer::{FieldEval, FieldMode};
 use crate::model::{Hammer, Region, RigParams, SwitchBands};
 use crate::real::Real;
@@ -40,12 +42,6 @@ use crate::real::Real;
 /// faster than any impact of the thesis' rigs (≤ 0.2 m/s), so real contacts get at least `K`
 /// sub-steps per half-period.
 pub const SUBSTEP_REFERENCE_SPEED_M_S: f64 = 0.5;
-
-/// Largest `N` (the excitation tables hold `3N` values).
-pub const MAX_STEPS_PER_PERIOD: u32 = 512;
-
-/// Largest `M = ceil(h/h_c)`, contact sub-steps per step.
-const MAX_SUBSTEPS: f64 = 1e6;
 
 /// Contact sub-steps `h_c` per sub-step while the hammer rests on the surface
 /// ([`Simulator`]). At the production `K = 16` that is `ω_c · 8 h_c = π/2`, inside RK4's
@@ -62,51 +58,6 @@ pub const RESTING_TOLERANCE: f64 = 0.1;
 
 /// Floor of the Lankarani–Nikravesh approach speed, m/s (avoids dividing by a grazing speed of 0).
 const MIN_APPROACH_SPEED_M_S: f64 = 1e-4;
-
-/// Fixed-step settings.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct StepSettings {
-    /// `N`: RK4 steps per excitation period (16..=512).
-    pub steps_per_period: u32,
-    /// `K`: sub-steps per contact half-period `π/ω_c` (4..=1024).
-    pub substeps_per_contact: u32,
-}
-
-impl Default for StepSettings {
-    /// The production settings (f32 on the MCU): `N = 64`, `K = 16`.
-    fn default() -> Self {
-        StepSettings {
-            steps_per_period: 64,
-            substeps_per_contact: 16,
-        }
-    }
-}
-
-impl StepSettings {
-    /// Checks the settings.
-    ///
-    /// # Errors
-    /// [`ParamError::CountOutOfRange`] naming the field.
-    pub fn validate(&self) -> Result<(), ParamError> {
-        check_count(
-            "steps_per_period",
-            self.steps_per_period,
-            16,
-            MAX_STEPS_PER_PERIOD,
-        )?;
-        check_count("substeps_per_contact", self.substeps_per_contact, 4, 1024)?;
-        Ok(())
-    }
-
-    /// Both counts multiplied by `factor` (for convergence studies), saturating.
-    pub fn refined(&self, factor: u32) -> Self {
-        StepSettings {
-            steps_per_period: self.steps_per_period.saturating_mul(factor),
-            substeps_per_contact: self.substeps_per_contact.saturating_mul(factor),
-        }
-    }
-}
 
 /// The state after one RK4 step, free-flight segment or sub-step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -148,120 +99,96 @@ struct SegmentStart<T> {
     delta_dot: T,
 }
 
-/// Fixed-step switch-model integrator for one rig, gap and excitation frequency.
-#[derive(Debug, Clone)]
-pub struct Simulator<T: Real> {
-    pub(super) hammer: Hammer<T>,
-    pub(super) x: Vector2<T>,
+/// What changes from step to step.
+#[derive(Debug, Clone, Copy)]
+struct StepState<T> {
+    x: Vector2<T>,
     /// Rounding error of `x`'s compensated updates (free-flight segments and sub-steps, see
     /// `rk4_step_compensated`; whole free-flight steps leave it for the next one).
-    pub(super) carry: Vector2<T>,
+    carry: Vector2<T>,
     /// Field at `x` (RK4's first stage of the next step).
-    pub(super) at_x: FieldEval<T>,
-    pub(super) n: u32,
-    /// Step index within the period, `0..N`.
-    pub(super) k: u32,
-    period: u32,
-    /// Steps since the last reset.
-    pub(super) steps: u64,
-    pub(super) h: T,
-    /// Contact sub-step `h_c`, s.
-    h_c: T,
-    /// `sin(2π j/(2N))`, `j = 0..2N` (half-step phases).
-    pub(super) sin_half: [T; 2 * MAX_STEPS_PER_PERIOD as usize],
-    /// `cos(2π k/N)`, `k = 0..N` (step starts).
-    cos_start: [T; MAX_STEPS_PER_PERIOD as usize],
-    /// `Ω`, rad/s.
-    omega: T,
+    at_x: FieldEval<T>,
+    /// Step index within the period, `0..N` (`steps mod N`).
+    k: u32,
+    /// Steps since the last reset (at phase 0).
+    steps: u64,
+    /// Approach speed of the current impact, m/s (Lankarani–Nikravesh).
     approach_speed: T,
-    min_approach: T,
-    h_f64: f64,
-    h_c_f64: f64,
-    /// Longest free-flight sub-step after a departure, s: `π/(2 ω_c)`, half the contact
-    /// half-period at the reference speed (the shortest contact of the law).
-    receding_max: T,
-    /// `ω_c`, rad/s (the contact frequency that sets `h_c`).
-    omega_c: T,
-    pub(super) rk4_steps: u64,
+    /// RK4 steps and sub-steps since construction.
+    rk4_steps: u64,
 }
 
-impl<T: Real> Simulator<T> {
-    /// A simulator at rest relative to the cart (`u = 0`, `u̇ = 0`) at phase 0.
+/// Fixed-step switch-model integrator for one rig, gap and excitation frequency: the compiled
+/// [`Hammer`], its [`StepPlan`], the shared [`PhaseTable`] and a small step state.
+#[derive(Debug, Clone)]
+pub struct Simulator<'t, T: Real> {
+    phases: &'t PhaseTable<T>,
+    plan: StepPlan<T>,
+    hammer: Hammer<T>,
+    state: StepState<T>,
+}
+
+impl<'t, T: Real> Simulator<'t, T> {
+    /// A simulator at rest relative to the cart (`u = 0`, `u̇ = 0`) at phase 0, on the step
+    /// grid of `phases` (built for `steps.steps_per_period`).
     ///
     /// # Errors
     /// [`ParamError`] for invalid parameters, gap (m, `0 ..= 0.05`), `omega_exc` (rad/s), bands
-    /// or step settings, or more than 10^6 contact sub-steps per step (`substeps`).
+    /// or step settings, a table for another `N` (`steps_per_period`), or more than 10^6
+    /// contact sub-steps per step (`substeps`).
     pub fn new(
         params: &RigParams,
         gap_m: f64,
         omega_exc: f64,
         bands: &SwitchBands,
         steps: &StepSettings,
+        phases: &'t PhaseTable<T>,
     ) -> Result<Self, ParamError> {
         steps.validate()?;
         let hammer = Hammer::<T>::new(params, gap_m, omega_exc, bands)?;
         let omega_c = params
             .contact
             .contact_omega(params.mass_kg, SUBSTEP_REFERENCE_SPEED_M_S);
-        Self::from_hammer(hammer, omega_c, steps)
+        Self::from_hammer(hammer, omega_c, steps, phases)
     }
 
     /// A simulator at rest relative to the cart at phase 0 for an already compiled `hammer`
-    /// (e.g. one whose excitation was switched off for a drop test,
-    /// [`crate::analysis::drop`]); `omega_c` (rad/s) is the contact frequency that sets the
-    /// sub-step ([`crate::model::ContactLaw::contact_omega`]).
+    /// (e.g. one without excitation for a drop test, [`crate::analysis::drop`]); `omega_c`
+    /// (rad/s) is the contact frequency that sets the sub-step
+    /// ([`crate::model::ContactLaw::contact_omega`]).
     ///
     /// # Errors
-    /// [`ParamError`] for invalid step settings, a non-finite or non-positive `omega_c`, or
-    /// more than 10^6 contact sub-steps per step (`substeps`).
+    /// [`ParamError`] for invalid step settings, a table for another `N`
+    /// (`steps_per_period`), a non-finite or non-positive `omega_c`, or more than 10^6 contact
+    /// sub-steps per step (`substeps`).
     pub fn from_hammer(
         hammer: Hammer<T>,
         omega_c: f64,
         steps: &StepSettings,
+        phases: &'t PhaseTable<T>,
     ) -> Result<Self, ParamError> {
-        steps.validate()?;
-        check_range("omega_c", omega_c, 1e-6, 1e12)?;
-        let omega_exc = hammer.omega_exc;
-        let period_s = 2.0 * core::f64::consts::PI / omega_exc;
-        let n = steps.steps_per_period;
-        let h = period_s / f64::from(n);
-        let h_c_max = core::f64::consts::PI / omega_c / f64::from(steps.substeps_per_contact);
-        let m_f = libm::ceil(h / h_c_max);
-        check_range("substeps", m_f, 1.0, MAX_SUBSTEPS)?;
-        let h_c = h / m_f;
-        let mut sin_half = [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize];
-        let mut cos_start = [T::zero(); MAX_STEPS_PER_PERIOD as usize];
-        let dphi = core::f64::consts::PI / f64::from(n);
-        for (j, v) in sin_half.iter_mut().take(2 * n as usize).enumerate() {
-            *v = T::from_f64(libm::sin(dphi * j as f64));
+        if phases.steps_per_period() != steps.steps_per_period {
+            return Err(ParamError::BadRange {
+                field: "steps_per_period",
+                reason: "the phase table was built for another number of steps per period",
+            });
         }
-        for (k, v) in cos_start.iter_mut().take(n as usize).enumerate() {
-            *v = T::from_f64(libm::cos(2.0 * dphi * k as f64));
-        }
+        let plan = StepPlan::new(hammer.omega_exc(), omega_c, steps)?;
         let x = Vector2::new(T::zero(), T::zero());
-        let min_approach = T::from_f64(MIN_APPROACH_SPEED_M_S);
-        let at_x = hammer.field(&x, T::zero(), min_approach);
+        let approach_speed = min_approach();
         Ok(Simulator {
+            phases,
+            plan,
             hammer,
-            x,
-            carry: Vector2::new(T::zero(), T::zero()),
-            at_x,
-            n,
-            k: 0,
-            period: 0,
-            steps: 0,
-            h: T::from_f64(h),
-            h_c: T::from_f64(h_c),
-            sin_half,
-            cos_start,
-            omega: T::from_f64(omega_exc),
-            approach_speed: min_approach,
-            min_approach,
-            h_f64: h,
-            h_c_f64: h_c,
-            receding_max: T::from_f64(0.5 * core::f64::consts::PI / omega_c),
-            omega_c: T::from_f64(omega_c),
-            rk4_steps: 0,
+            state: StepState {
+                x,
+                carry: Vector2::new(T::zero(), T::zero()),
+                at_x: hammer.field(&x, T::zero(), approach_speed),
+                k: 0,
+                steps: 0,
+                approach_speed,
+                rk4_steps: 0,
+            },
         })
     }
 
@@ -277,13 +204,16 @@ impl<T: Real> Simulator<T> {
 
     /// Restarts at phase 0 from state vector `x` (keeps the rig and frequency).
     pub fn reset_state(&mut self, x: Vector2<T>) {
-        self.x = x;
-        self.carry = Vector2::new(T::zero(), T::zero());
-        self.k = 0;
-        self.period = 0;
-        self.steps = 0;
-        self.approach_speed = self.min_approach;
-        self.at_x = self.hammer.field(&x, T::zero(), self.approach_speed);
+        let approach_speed = min_approach();
+        self.state = StepState {
+            x,
+            carry: Vector2::new(T::zero(), T::zero()),
+            at_x: self.hammer.field(&x, T::zero(), approach_speed),
+            k: 0,
+            steps: 0,
+            approach_speed,
+            rk4_steps: self.state.rk4_steps,
+        };
     }
 
     /// The compiled model.
@@ -292,69 +222,128 @@ impl<T: Real> Simulator<T> {
     }
     /// Current state vector.
     pub fn state(&self) -> Vector2<T> {
-        self.x
+        self.state.x
     }
     /// Penetration `δ` (m) at the current state, as evaluated with the current step's field.
     pub fn state_penetration(&self) -> T {
-        self.at_x.delta
+        self.state.at_x.delta
     }
     /// Current `(u, u̇)`, m and m/s.
     pub fn relative(&self) -> (T, T) {
-        self.hammer.relative(&self.x)
+        self.hammer.relative(&self.state.x)
     }
     /// `N`, steps per period.
     pub fn steps_per_period(&self) -> u32 {
-        self.n
+        self.phases.steps_per_period()
     }
     /// Step `h = T/N`, s (f64).
     pub fn step_s(&self) -> f64 {
-        self.h_f64
+        step_s(self.hammer.omega_exc(), self.steps_per_period())
     }
     /// Contact sub-step `h_c = h/M`, s (f64).
     pub fn substep_s(&self) -> f64 {
-        self.h_c_f64
+        self.step_s() / f64::from(self.plan.substeps)
     }
     /// Completed excitation periods since the last reset.
     pub fn periods_done(&self) -> u32 {
-        self.period
+        (self.state.steps / u64::from(self.steps_per_period())) as u32
     }
     /// RK4 steps and sub-steps executed since construction (cost diagnostics).
     pub fn rk4_steps(&self) -> u64 {
-        self.rk4_steps
+        self.state.rk4_steps
     }
 
     /// `sin Ωt` at `dt` seconds (`0 ≤ Ω dt ≤ 2π/N`) after the start of the current step.
     #[inline(always)]
     fn sin_at(&self, dt: T) -> T {
-        let (s, c) = (self.omega * dt).sin_cos();
-        let k = self.k as usize;
-        self.sin_half[2 * k] * c + self.cos_start[k] * s
+        let (s, c) = (self.plan.omega * dt).sin_cos();
+        let k = self.state.k as usize;
+        self.phases.sin_half(2 * k) * c + self.phases.cos_start(k) * s
     }
 
     /// Whether the hammer is clear of the surface: free region and `δ ≤ −η_δ`.
     #[inline(always)]
-    pub(super) fn clear(&self, e: &FieldEval<T>) -> bool {
-        e.region == Region::Free && e.delta <= -self.hammer.switch.eta_delta
+    fn clear(&self) -> bool {
+        let e = &self.state.at_x;
+        e.region == Region::Free && e.delta <= -self.hammer.eta_delta()
+    }
+
+    /// The free-flight state for a lockstep lane ([`super::lanes`]), if this simulator may
+    /// take whole free-flight steps in lockstep now: clear of the surface and not at its
+    /// period's last step; with the steps it may take before that step.
+    #[inline(always)]
+    pub(super) fn lane_start(&self) -> Option<(FreeState<T>, u32)> {
+        let n = self.steps_per_period();
+        if !self.clear() || self.state.k + 1 >= n {
+            return None;
+        }
+        let (x, e) = (self.state.x, self.state.at_x);
+        let st = FreeState {
+            x0: x[0],
+            x1: x[1],
+            a: e.dx[1],
+            d: e.delta,
+            dd: e.delta_dot,
+        };
+        Some((st, n - 1 - self.state.k))
+    }
+
+    /// Whether `other` can run in the same lockstep batch as `self`: the same step grid,
+    /// suspension type and `η_δ`.
+    #[inline(always)]
+    pub(super) fn lane_compatible(&self, other: &Self) -> bool {
+        self.steps_per_period() == other.steps_per_period()
+            && self.hammer.is_wires() == other.hammer.is_wires()
+            && self.hammer.eta_delta() == other.hammer.eta_delta()
+    }
+
+    /// The constants of a lockstep lane: free-flight coefficients and `h`.
+    #[inline(always)]
+    pub(super) fn lane_constants(&self) -> (crate::model::hammer::FreeFlight<T>, T) {
+        (self.hammer.free_flight(), self.plan.h)
+    }
+
+    /// The phase table and whether the suspension is the wire pendulum (lanes).
+    #[inline(always)]
+    pub(super) fn lane_kind(&self) -> (&'t PhaseTable<T>, bool, T) {
+        (self.phases, self.hammer.is_wires(), self.hammer.eta_delta())
+    }
+
+    /// Ends `taken` whole free-flight steps taken in a lockstep lane ([`super::lanes`]) at
+    /// state `st`: where as many [`Simulator::step`] calls would have left the simulator.
+    #[inline(always)]
+    pub(super) fn lane_finish(&mut self, st: &FreeState<T>, taken: u32) {
+        let s = &mut self.state;
+        s.x = Vector2::new(st.x0, st.x1);
+        s.at_x = FieldEval {
+            dx: Vector2::new(st.x1, st.a),
+            force: T::zero(),
+            region: Region::Free,
+            delta: st.d,
+            delta_dot: st.dd,
+        };
+        s.k += taken;
+        s.steps += u64::from(taken);
+        s.rk4_steps += u64::from(taken);
     }
 
     /// Advances one step of `h = T/N`, calling `observe` after every segment of it (the whole
     /// step in free flight, or the free-flight segments and contact sub-steps it was split into).
     #[inline]
     pub fn step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
-        let k2 = 2 * self.k as usize;
-        let j_end = if self.k + 1 == self.n { 0 } else { k2 + 2 };
-        let (s_mid, s_end) = (self.sin_half[k2 + 1], self.sin_half[j_end]);
+        let (s_mid, s_end) = self.phases.step_mid_end(self.state.k);
+        let h_c = self.plan.h_c;
         let mut offset = T::zero();
-        let mut rest = self.h;
+        let mut rest = self.plan.h;
         let mut first = true;
         loop {
             // Where this segment starts (for the smallest δ over it, reported with its sample).
             let seg = SegmentStart {
                 offset,
-                delta: self.at_x.delta,
-                delta_dot: self.at_x.delta_dot,
+                delta: self.state.at_x.delta,
+                delta_dot: self.state.at_x.delta_dot,
             };
-            if self.clear(&self.at_x) {
+            if self.clear() {
                 let (sm, se) = if first {
                     (s_mid, s_end)
                 } else {
@@ -362,8 +351,8 @@ impl<T: Real> Simulator<T> {
                 };
                 match self.free_trial(rest, sm, se) {
                     Ok((x1, end)) => {
-                        self.x = x1;
-                        self.at_x = end;
+                        self.state.x = x1;
+                        self.state.at_x = end;
                         self.finish_step(&seg, observe);
                         return;
                     }
@@ -371,8 +360,8 @@ impl<T: Real> Simulator<T> {
                         // Stop half a sub-step short of the surface, so that the arrival
                         // falls inside the next sub-step (not on its boundary, where the
                         // switch would go through the Σ_α band instead of being located).
-                        let tau = t_near - self.h_c * T::from_f64(0.5);
-                        if tau > self.h_c * T::from_f64(0.25) {
+                        let tau = t_near - h_c * T::from_f64(0.5);
+                        if tau > h_c * T::from_f64(0.25) {
                             self.free_segment(offset, tau);
                             offset += tau;
                             rest -= tau;
@@ -386,8 +375,8 @@ impl<T: Real> Simulator<T> {
             first = false;
             let len = match self.receding_len(rest) {
                 Some(len) => len,
-                None if self.resting() => self.h_c * T::from_u32(RESTING_SUBSTEPS),
-                None => self.h_c,
+                None if self.resting() => h_c * T::from_u32(RESTING_SUBSTEPS),
+                None => h_c,
             };
             if rest <= len {
                 self.substep(offset, rest, s_end);
@@ -411,10 +400,10 @@ impl<T: Real> Simulator<T> {
     /// departure inside the longer sub-step is located as in any sub-step.
     #[inline(always)]
     fn resting(&self) -> bool {
-        let e = &self.at_x;
+        let e = &self.state.at_x;
         let eps = T::from_f64(RESTING_TOLERANCE);
-        let scale = e.delta.abs().max_of(self.hammer.switch.eta_delta);
-        if e.delta_dot.abs() > eps * self.omega_c * scale {
+        let scale = e.delta.abs().max_of(self.hammer.eta_delta());
+        if e.delta_dot.abs() > eps * self.plan.omega_c * scale {
             return false;
         }
         e.region != Region::Contact || e.dx[1].abs() <= eps * self.hammer.contact_accel(e.force)
@@ -423,61 +412,65 @@ impl<T: Real> Simulator<T> {
     /// After a departure (free region, `δ > −η_δ`, moving away from the surface: `δ̇ < 0`), the
     /// length of the one free-flight sub-step that takes the hammer clear: twice the time to
     /// `δ = −η_δ` at the current speed, at most the rest of the step and at most
-    /// [`Simulator::receding_max`] (a quarter of the shortest contact period, so that a whole
+    /// `π/(2 ω_c)` (a quarter of the shortest contact period, so that a whole
     /// re-contact cannot hide inside it; a re-contact that is still on at its end is located as
     /// in any sub-step). `None` where ordinary sub-steps apply (it would not be longer than one).
     #[inline(always)]
     fn receding_len(&self, rest: T) -> Option<T> {
-        let e = &self.at_x;
+        let e = &self.state.at_x;
         if e.region != Region::Free || e.delta_dot >= T::zero() {
             return None;
         }
-        let eta = self.hammer.switch.eta_delta;
+        let eta = self.hammer.eta_delta();
         let to_clear = (e.delta + eta) / (T::zero() - e.delta_dot);
         let len = (to_clear * T::from_f64(2.0))
-            .min_of(self.receding_max)
+            .min_of(self.plan.receding_max)
             .min_of(rest);
-        (len > self.h_c).then_some(len)
+        (len > self.plan.h_c).then_some(len)
     }
 
     /// Tries `rest` seconds (to the end of the step) in free flight from the current state, with
-    /// `sin Ωt` `s_mid`, `s_end` at the segment's midpoint and end. `Ok` with the end state and
-    /// its switch-model field if the hammer stays clear; otherwise `Err` with the time (s from
-    /// the segment's start) at which the trial's dense output first comes within `η_δ` of the
-    /// surface, or peaks.
+    /// `sin Ωt` `s_mid`, `s_end` at the segment's midpoint and end ([`super::free`]). `Ok` with
+    /// the end state and its switch-model field if the hammer stays clear; otherwise `Err`
+    /// with the time (s from the segment's start) at which the trial's dense output first
+    /// comes within `η_δ` of the surface, or peaks.
     #[inline(always)]
     fn free_trial(&mut self, rest: T, s_mid: T, s_end: T) -> Result<(Vector2<T>, FieldEval<T>), T> {
         let hammer = self.hammer;
-        let eta = hammer.switch.eta_delta;
-        let v_in = self.approach_speed;
-        let start = self.at_x;
-        // In free flight `f−` (so that the trial is the free dense output used below); a stage
-        // within η_δ of the surface is where the switch model would have left `Γ−`.
-        let mut touched = false;
+        let eta = hammer.eta_delta();
+        let (x0, start) = (self.state.x, self.state.at_x);
+        let st = FreeState {
+            x0: x0[0],
+            x1: x0[1],
+            a: start.dx[1],
+            d: start.delta,
+            dd: start.delta_dot,
+        };
         // A plain update (the carry is left for the next compensated one): the increment of a
         // free-flight step is a tenth of the state, not small enough for compensation to pay,
         // and the lockstep lanes take the same steps without carrying a second state.
-        let x1 = rk4_step(&self.x, &start.dx, rest, s_mid, s_end, |y, s| {
-            let (acc, delta) = hammer.free_accel(y, s);
-            touched |= delta > -eta;
-            Vector2::new(y[1], acc)
-        });
+        let c = hammer.free_flight();
+        let (next, _, near) = if hammer.is_wires() {
+            free_step::<T, true, FullTrig>(&c, &st, rest, s_mid, s_end, eta)
+        } else {
+            free_step::<T, false, FullTrig>(&c, &st, rest, s_mid, s_end, eta)
+        };
+        self.state.rk4_steps += 1;
+        let x1 = Vector2::new(next.x0, next.x1);
         // Clear of the surface, the free field is the switch-model field.
-        let end = hammer.field_in(FieldMode::Free, &x1, s_end, v_in);
-        self.rk4_steps += 1;
-        let mut near = touched || end.delta > -eta;
-        if !near && start.delta_dot > T::zero() && end.delta_dot < T::zero() {
-            // Turned round inside the step: the peak lies under the two tangent lines.
-            let slope = start.delta_dot - end.delta_dot;
-            let t_star = (end.delta - start.delta - end.delta_dot * rest) / slope;
-            near = start.delta + start.delta_dot * t_star > -eta;
-        }
+        let end = FieldEval {
+            dx: Vector2::new(next.x1, next.a),
+            force: T::zero(),
+            region: Region::Free,
+            delta: next.d,
+            delta_dot: next.dd,
+        };
         if !near {
             return Ok((x1, end));
         }
         // Where the free-flight dense output first comes near the surface (or peaks).
         let dense = DenseStep {
-            x0: self.x,
+            x0,
             f0: start.dx,
             x1,
             f1: end.dx,
@@ -491,19 +484,10 @@ impl<T: Real> Simulator<T> {
             let t = dt * T::from_u32(i);
             let d = delta_at(t);
             if d > -eta {
-                // Refine the crossing of −η_δ between the previous sample and this one.
-                // (Bisection, 10 halvings, to 1/8192 of the step: this only places the start of the
-                // sub-steps.)
-                let (mut lo, mut hi) = (t - dt, t);
-                for _ in 0..10 {
-                    let mid = (lo + hi) * T::from_f64(0.5);
-                    if delta_at(mid) > -eta {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
-                }
-                return Err(lo);
+                // The crossing of −η_δ between the previous sample and this one, to 1/8192 of
+                // the step (10 halvings: this only places the start of the sub-steps).
+                let near = |m: T| delta_at(m) + eta;
+                return Err(bracket_rising(t - dt, t, Rule::Bisect(10), near).0);
             }
             if d > best_d {
                 best_t = t;
@@ -517,20 +501,16 @@ impl<T: Real> Simulator<T> {
     #[inline(always)]
     fn free_segment(&mut self, offset: T, len: T) {
         let hammer = self.hammer;
-        let v_in = self.approach_speed;
+        let v_in = self.state.approach_speed;
         let s_mid = self.sin_at(offset + len * T::from_f64(0.5));
         let s_end = self.sin_at(offset + len);
-        (self.x, self.carry) = rk4_step_compensated(
-            &self.x,
-            &self.carry,
-            &self.at_x.dx,
-            len,
-            s_mid,
-            s_end,
-            |y, s| hammer.field_in(FieldMode::Free, y, s, v_in).dx,
-        );
-        self.at_x = hammer.field(&self.x, s_end, v_in);
-        self.rk4_steps += 1;
+        let s = &mut self.state;
+        (s.x, s.carry) =
+            rk4_step_compensated(&s.x, &s.carry, &s.at_x.dx, len, s_mid, s_end, |y, s| {
+                hammer.field_in(FieldMode::Free, y, s, v_in).dx
+            });
+        s.at_x = hammer.field(&s.x, s_end, v_in);
+        s.rk4_steps += 1;
     }
 
     /// One sub-step of `len` seconds from `offset` (s into the current step) with the full
@@ -550,13 +530,13 @@ impl<T: Real> Simulator<T> {
         let hammer = self.hammer;
         let half = T::from_f64(0.5);
         let s_mid = self.sin_at(offset + len * half);
-        let start = self.at_x;
-        self.rk4_steps += 1;
+        let start = self.state.at_x;
+        self.state.rk4_steps += 1;
         let touching = start.region.touching();
         if !touching && start.delta <= T::zero() {
-            self.approach_speed = start.delta_dot.max_of(self.min_approach);
+            self.state.approach_speed = start.delta_dot.max_of(min_approach());
         }
-        let v_in = self.approach_speed;
+        let v_in = self.state.approach_speed;
         let mode = if touching {
             FieldMode::Contact
         } else {
@@ -566,23 +546,28 @@ impl<T: Real> Simulator<T> {
         let k1 = match start.region {
             Region::Free | Region::Contact => start,
             Region::BandAlpha | Region::BandBeta => {
-                hammer.field_in(mode, &self.x, self.sin_at(offset), v_in)
+                hammer.field_in(mode, &self.state.x, self.sin_at(offset), v_in)
             }
         };
-        let (trial, carry) =
-            rk4_step_compensated(&self.x, &self.carry, &k1.dx, len, s_mid, s_end, |y, s| {
-                hammer.field_in(mode, y, s, v_in).dx
-            });
+        let (trial, carry) = rk4_step_compensated(
+            &self.state.x,
+            &self.state.carry,
+            &k1.dx,
+            len,
+            s_mid,
+            s_end,
+            |y, s| hammer.field_in(mode, y, s, v_in).dx,
+        );
         let end = hammer.field(&trial, s_end, v_in);
         if end.region.touching() == touching {
-            self.x = trial;
-            self.carry = carry;
-            self.at_x = end;
+            self.state.x = trial;
+            self.state.carry = carry;
+            self.state.at_x = end;
             return;
         }
         // A switching event inside the sub-step.
         let end_mode = hammer.field_in(mode, &trial, s_end, v_in);
-        let law = hammer.switch.law;
+        let law = hammer.switch().law;
         let arrival_by_distance = start.delta <= T::zero();
         let event = |y: &Vector2<T>| {
             let (d, dd) = hammer.penetration(y);
@@ -595,7 +580,7 @@ impl<T: Real> Simulator<T> {
             }
         };
         let dense = DenseStep {
-            x0: self.x,
+            x0: self.state.x,
             f0: k1.dx,
             x1: trial,
             f1: end_mode.dx,
@@ -608,46 +593,47 @@ impl<T: Real> Simulator<T> {
         let x_a = dense.at(frac);
         if !touching {
             let (_, v_a) = hammer.penetration(&x_a);
-            self.approach_speed = v_a.max_of(self.min_approach);
+            self.state.approach_speed = v_a.max_of(min_approach());
         }
-        let v_in = self.approach_speed;
+        let v_in = self.state.approach_speed;
         let rest = len - tau;
         let at_a = hammer.field(&x_a, self.sin_at(offset + tau), v_in);
-        (self.x, self.carry) = rk4_step_compensated(
+        let s_rest = self.sin_at(offset + tau + rest * half);
+        let s = &mut self.state;
+        (s.x, s.carry) = rk4_step_compensated(
             &x_a,
             &Vector2::new(T::zero(), T::zero()),
             &at_a.dx,
             rest,
-            self.sin_at(offset + tau + rest * half),
+            s_rest,
             s_end,
             |y, s| hammer.field(y, s, v_in).dx,
         );
-        self.at_x = hammer.field(&self.x, s_end, v_in);
+        s.at_x = hammer.field(&s.x, s_end, v_in);
         // The trial and the rest of the sub-step.
-        self.rk4_steps += 1;
+        s.rk4_steps += 1;
     }
 
     /// Ends the current step: advances the step counters and reports the sample.
     #[inline(always)]
     fn finish_step<O: FnMut(&StepSample<T>)>(&mut self, seg: &SegmentStart<T>, observe: &mut O) {
-        let sample = self.sample(self.h, true, seg);
-        self.steps += 1;
-        self.k += 1;
-        if self.k == self.n {
-            self.k = 0;
-            self.period += 1;
+        let sample = self.sample(self.plan.h, true, seg);
+        self.state.steps += 1;
+        self.state.k += 1;
+        if self.state.k == self.steps_per_period() {
+            self.state.k = 0;
         }
         observe(&sample);
     }
 
     #[inline(always)]
     fn sample(&self, offset: T, step_end: bool, seg: &SegmentStart<T>) -> StepSample<T> {
-        let e = &self.at_x;
+        let e = &self.state.at_x;
         StepSample {
-            step: self.steps,
+            step: self.state.steps,
             offset,
-            period_end: step_end && self.k + 1 == self.n,
-            x: self.x,
+            period_end: step_end && self.state.k + 1 == self.steps_per_period(),
+            x: self.state.x,
             delta: e.delta,
             delta_min: hermite_min(
                 seg.delta,
@@ -662,11 +648,33 @@ impl<T: Real> Simulator<T> {
         }
     }
 
-    /// Runs one full excitation period (`N` steps).
+    /// Runs to the end of the current excitation period (`N` steps from a period's start).
     pub fn run_period<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
-        let target = self.period + 1;
-        while self.period < target {
+        loop {
             self.step(observe);
+            if self.state.k == 0 {
+                return;
+            }
         }
+    }
+}
+
+/// Floor of the Lankarani–Nikravesh approach speed (avoids dividing by a grazing speed of 0).
+#[inline(always)]
+fn min_approach<T: Real>() -> T {
+    T::from_f64(MIN_APPROACH_SPEED_M_S)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn simulator_state_is_small() {
+        // The phase tables are shared by reference; what each simulator carries is the hammer,
+        // its step plan and the step state.
+        let size = core::mem::size_of::<Simulator<'_, f32>>();
+        assert!(size <= 256, "Simulator<f32> is {size} bytes");
+        assert!(core::mem::size_of::<PhaseTable<f32>>() > 6000);
     }
 }

@@ -7,8 +7,12 @@
 //! - Beam springs (coordinate `u = x − y`), Eq. (3-36)–(3-39) rewritten relative to the cart:
 //!   `ü = −(c/m) u̇ − (k/m) u − (k/m) u³ − F_i/m + A0 Ω² sin Ωt`, `k = m ω²`, `c = 2ζ m ω`.
 //!
-//! Sign convention (MODEL.md): the impact surface is at `u = gap` on the `+u` side;
+//! Sign convention (docs/model.md): the impact surface is at `u = gap` on the `+u` side;
 //! `δ = u − gap`; `F_i ≥ 0` pushes the hammer back toward `−u`.
+//!
+//! Each suspension's acceleration is written once ([`wires_accel`], [`beam_accel`]): the
+//! switch-model field, the free-flight field and the integrator's free-flight kernel
+//! (`crate::integrate::free`) all evaluate it.
 
 use nalgebra::Vector2;
 
@@ -17,7 +21,7 @@ use super::switch::{Region, SwitchBands, SwitchModel};
 use crate::error::{ParamError, check_range};
 use crate::real::Real;
 
-/// Largest accepted gap, m (the wire pendulum additionally needs `gap < l/2`).
+/// Largest accepted gap, m (the wire pendulum additionally needs `gap ≤ l/4`).
 pub const MAX_GAP_M: f64 = 0.05;
 /// Accepted excitation angular frequencies `Ω`, rad/s.
 pub const OMEGA_EXC_RANGE: (f64, f64) = (1e-2, 1e4);
@@ -84,56 +88,71 @@ pub struct FieldEval<T> {
     pub delta_dot: T,
 }
 
-/// The pendulum's free-flight `(θ̈, δ)` (1/s², m) from `sin θ`, `cos θ` and `sin Ωt`
-/// (Eq. 3-26 with `F_i = 0`): the one formula behind [`Hammer::free_accel`] and the lockstep
-/// lanes of `crate::integrate::lanes`.
+/// The pendulum's `θ̈` (1/s²), Eq. (3-26): `excitation − (g/l) sin θ − contact`, with
+/// `excitation` the drive term (`(A0 Ω²/l) cos θ sin Ωt` for the harmonic cart) and `contact`
+/// the contact force's term `F_i/(m l)` (0 in free flight).
 #[inline(always)]
-pub(crate) fn wires_free<T: Real>(
-    length: T,
-    g_over_l: T,
-    a0w2_over_l: T,
-    gap: T,
-    st: T,
-    ct: T,
-    sin_phase: T,
-) -> (T, T) {
-    (
-        a0w2_over_l * ct * sin_phase - g_over_l * st,
-        length * st - gap,
-    )
+pub(crate) fn wires_accel<T: Real>(g_over_l: T, sin_theta: T, excitation: T, contact: T) -> T {
+    excitation - g_over_l * sin_theta - contact
 }
 
-/// The beam hammer's free-flight `(ü, δ)` (m/s², m) from `u`, `u̇` and `sin Ωt` (Eq. 3-36 with
-/// `F_i = 0`, relative to the cart).
+/// The beam hammer's `ü` (m/s²) relative to the cart, Eq. (3-36):
+/// `−(c/m) u̇ − (k/m)(u + u³) − contact + excitation`, with `excitation` the drive term
+/// (`A0 Ω² sin Ωt` for the harmonic cart) and `contact` the contact force's term `F_i/m`.
 #[inline(always)]
-pub(crate) fn beam_free<T: Real>(
+pub(crate) fn beam_accel<T: Real>(
     k_over_m: T,
     c_over_m: T,
-    a0w2: T,
-    gap: T,
     u: T,
     du: T,
-    sin_phase: T,
-) -> (T, T) {
-    (
-        -c_over_m * du - k_over_m * (u + u * u * u) + a0w2 * sin_phase,
-        u - gap,
-    )
+    excitation: T,
+    contact: T,
+) -> T {
+    -c_over_m * du - k_over_m * (u + u * u * u) - contact + excitation
 }
 
-/// A rig at one gap and one excitation frequency, in the float type `T`.
+/// What a free-flight step needs of a hammer: the suspension's three coefficients (wires:
+/// `l`, `g/l`, `A0 Ω²/l`; beams: `k/m`, `c/m`, `A0 Ω²`) and the gap, m.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct FreeFlight<T> {
+    pub(crate) c0: T,
+    pub(crate) c1: T,
+    pub(crate) c2: T,
+    pub(crate) gap: T,
+}
+
+impl<T: Real> FreeFlight<T> {
+    /// The free-flight field at `(y0, y1)` with `sin Ωt = sin_phase`, given `(sin y0, cos y0)`
+    /// (wires only): `(acceleration, δ, δ̇)`. `WIRES` selects the suspension.
+    #[inline(always)]
+    pub(crate) fn eval<const WIRES: bool>(
+        &self,
+        y0: T,
+        y1: T,
+        sin_cos: (T, T),
+        sin_phase: T,
+    ) -> (T, T, T) {
+        if WIRES {
+            let (st, ct) = sin_cos;
+            let acc = wires_accel(self.c1, st, self.c2 * ct * sin_phase, T::zero());
+            (acc, self.c0 * st - self.gap, self.c0 * y1 * ct)
+        } else {
+            let acc = beam_accel(self.c0, self.c1, y0, y1, self.c2 * sin_phase, T::zero());
+            (acc, y0 - self.gap, y1)
+        }
+    }
+}
+
+/// A rig at one gap and one excitation frequency, in the float type `T` (built by
+/// [`Hammer::new`], which checks every value).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hammer<T> {
-    /// Suspension coefficients.
-    pub body: Body<T>,
-    /// Contact law with the switch-model bands.
-    pub switch: SwitchModel<T>,
-    /// Gap, m.
-    pub gap: T,
-    /// Excitation angular frequency `Ω`, rad/s (kept in f64 for phase bookkeeping).
-    pub omega_exc: f64,
-    /// Cart amplitude `A0`, m.
-    pub amplitude: T,
+    body: Body<T>,
+    switch: SwitchModel<T>,
+    gap: T,
+    /// `Ω`, rad/s, in f64: the step grid is computed from it.
+    omega_exc: f64,
+    amplitude: T,
 }
 
 impl<T: Real> Hammer<T> {
@@ -141,7 +160,7 @@ impl<T: Real> Hammer<T> {
     ///
     /// # Errors
     /// [`ParamError`] for invalid rig parameters, bands, a gap outside `0 ..= 0.05 m`
-    /// (wires: `< l/2`), or `Ω` outside [`OMEGA_EXC_RANGE`].
+    /// (wires: `0 ..= l/4`), or `Ω` outside [`OMEGA_EXC_RANGE`].
     pub fn new(
         params: &RigParams,
         gap_m: f64,
@@ -183,6 +202,72 @@ impl<T: Real> Hammer<T> {
             omega_exc,
             amplitude: c(params.amplitude_m),
         })
+    }
+
+    /// The same rig with the cart at rest (`A0 = 0`, no excitation term): the drop test
+    /// (`crate::analysis::drop`). `Ω` stays: it sets the step grid.
+    pub fn without_excitation(mut self) -> Self {
+        match &mut self.body {
+            Body::Wires { a0w2_over_l, .. } => *a0w2_over_l = T::zero(),
+            Body::Beam { a0w2, .. } => *a0w2 = T::zero(),
+        }
+        self.amplitude = T::zero();
+        self
+    }
+
+    /// Suspension coefficients.
+    pub fn body(&self) -> &Body<T> {
+        &self.body
+    }
+    /// The contact law with the switch-model bands.
+    pub fn switch(&self) -> &SwitchModel<T> {
+        &self.switch
+    }
+    /// Gap, m.
+    pub fn gap(&self) -> T {
+        self.gap
+    }
+    /// Excitation angular frequency `Ω`, rad/s.
+    pub fn omega_exc(&self) -> f64 {
+        self.omega_exc
+    }
+    /// Cart amplitude `A0`, m.
+    pub fn amplitude(&self) -> T {
+        self.amplitude
+    }
+    /// `η_δ`, m: within it of the surface the switch model may switch.
+    #[inline(always)]
+    pub fn eta_delta(&self) -> T {
+        self.switch.eta_delta
+    }
+    /// Whether the suspension is the wire pendulum.
+    #[inline(always)]
+    pub(crate) fn is_wires(&self) -> bool {
+        matches!(self.body, Body::Wires { .. })
+    }
+    /// The free-flight coefficients ([`FreeFlight`]).
+    #[inline(always)]
+    pub(crate) fn free_flight(&self) -> FreeFlight<T> {
+        let (c0, c1, c2) = match self.body {
+            Body::Wires {
+                length,
+                g_over_l,
+                a0w2_over_l,
+                ..
+            } => (length, g_over_l, a0w2_over_l),
+            Body::Beam {
+                k_over_m,
+                c_over_m,
+                a0w2,
+                ..
+            } => (k_over_m, c_over_m, a0w2),
+        };
+        FreeFlight {
+            c0,
+            c1,
+            c2,
+            gap: self.gap,
+        }
     }
 
     /// The switch-model field at state `x`, with `sin_phase = sin(Ω t)` and the current
@@ -255,6 +340,7 @@ impl<T: Real> Hammer<T> {
     /// The second component of `ẋ` given the kinematics, the contact force and the drive.
     #[inline(always)]
     fn accel(&self, x: &Vector2<T>, st: T, ct: T, force: T, drive: Drive<T>) -> T {
+        let contact = self.contact_accel(force);
         match self.body {
             Body::Wires {
                 length,
@@ -266,7 +352,7 @@ impl<T: Real> Hammer<T> {
                     Drive::Harmonic(sin_phase) => a0w2_over_l * ct * sin_phase,
                     Drive::Cart(cart_accel) => T::zero() - cart_accel / length * ct,
                 };
-                excitation - g_over_l * st - self.contact_accel(force)
+                wires_accel(g_over_l, st, excitation, contact)
             }
             Body::Beam {
                 k_over_m,
@@ -274,13 +360,11 @@ impl<T: Real> Hammer<T> {
                 a0w2,
                 ..
             } => {
-                let u = x[0];
                 let excitation = match drive {
                     Drive::Harmonic(sin_phase) => a0w2 * sin_phase,
                     Drive::Cart(cart_accel) => T::zero() - cart_accel,
                 };
-                -c_over_m * x[1] - k_over_m * (u + u * u * u) - self.contact_accel(force)
-                    + excitation
+                beam_accel(k_over_m, c_over_m, x[0], x[1], excitation, contact)
             }
         }
     }
@@ -292,30 +376,6 @@ impl<T: Real> Hammer<T> {
         match self.body {
             Body::Wires { inv_ml, .. } => force * inv_ml,
             Body::Beam { inv_m, .. } => force * inv_m,
-        }
-    }
-
-    /// The free-flight field `f−` at `x` as `(acceleration, δ)` (the second component of `ẋ`,
-    /// and the penetration in m): [`Hammer::field_in`] with [`FieldMode::Free`] without the rest
-    /// of the [`FieldEval`], bit for bit the same numbers (the integrator's hot path).
-    #[inline(always)]
-    pub fn free_accel(&self, x: &Vector2<T>, sin_phase: T) -> (T, T) {
-        match self.body {
-            Body::Wires {
-                length,
-                g_over_l,
-                a0w2_over_l,
-                ..
-            } => {
-                let (st, ct) = x[0].sin_cos();
-                wires_free(length, g_over_l, a0w2_over_l, self.gap, st, ct, sin_phase)
-            }
-            Body::Beam {
-                k_over_m,
-                c_over_m,
-                a0w2,
-                ..
-            } => beam_free(k_over_m, c_over_m, a0w2, self.gap, x[0], x[1], sin_phase),
         }
     }
 
@@ -412,7 +472,10 @@ mod tests {
         assert!((du - 0.075 * 0.2 * libm::cos(0.01)).abs() < 1e-15);
         let back = h.state_from_relative(u, du).unwrap();
         assert!((back - x).norm() < 1e-12);
+        // The free-flight coefficients give the free field bit for bit (the integrator's
+        // whole free-flight steps rest on it).
         let free = h.field_in(FieldMode::Free, &x, s, 0.1);
-        assert_eq!(h.free_accel(&x, s), (free.dx[1], free.delta));
+        let ff = h.free_flight().eval::<true>(x[0], x[1], x[0].sin_cos(), s);
+        assert_eq!(ff, (free.dx[1], free.delta, free.delta_dot));
     }
 }

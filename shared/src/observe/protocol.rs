@@ -138,7 +138,7 @@ impl<T> Observer<T> for () {
 /// # Errors
 /// [`ParamError`] if `protocol` is invalid.
 pub fn run_protocol<T: Real, O: Observer<T>>(
-    sim: &mut Simulator<T>,
+    sim: &mut Simulator<'_, T>,
     protocol: &Protocol,
     weight_n: f64,
     obs: &mut O,
@@ -183,7 +183,11 @@ impl<T: Real> ProtocolRun<T> {
     ///
     /// # Errors
     /// [`ParamError`] if `protocol` is invalid.
-    pub fn new(sim: &Simulator<T>, protocol: &Protocol, weight_n: f64) -> Result<Self, ParamError> {
+    pub fn new(
+        sim: &Simulator<'_, T>,
+        protocol: &Protocol,
+        weight_n: f64,
+    ) -> Result<Self, ParamError> {
         protocol.validate()?;
         let hammer = *sim.hammer();
         let (delta0, _) = hammer.penetration(&sim.state());
@@ -191,8 +195,8 @@ impl<T: Real> ProtocolRun<T> {
         Ok(ProtocolRun {
             protocol: *protocol,
             weight_n,
-            u_scale: hammer.amplitude,
-            v_scale: T::from_f64(hammer.amplitude.to_f64() * hammer.omega_exc),
+            u_scale: hammer.amplitude(),
+            v_scale: T::from_f64(hammer.amplitude().to_f64() * hammer.omega_exc()),
             steady_tol: T::from_f64(protocol.steady_tol),
             tracker: ImpactTracker::new(T::from_f64(protocol.separation_m), delta0),
             rk4_start: sim.rk4_steps(),
@@ -216,7 +220,7 @@ impl<T: Real> ProtocolRun<T> {
     /// once the observation window is complete (and from then on returns it without stepping).
     pub fn step<O: Observer<T>>(
         &mut self,
-        sim: &mut Simulator<T>,
+        sim: &mut Simulator<'_, T>,
         obs: &mut O,
     ) -> Option<PointResult> {
         if self.done.is_some() {
@@ -294,11 +298,11 @@ impl<T: Real> ProtocolRun<T> {
     /// flight clear of the surface they change only the impact tracker's last penetration
     /// (the force is 0, so the period's maximum stays).
     #[inline]
-    pub fn after_free_flight(&mut self, sim: &Simulator<T>) {
+    pub fn after_free_flight(&mut self, sim: &Simulator<'_, T>) {
         self.tracker.clear_at(sim.state_penetration());
     }
 
-    fn result(&self, sim: &Simulator<T>) -> PointResult {
+    fn result(&self, sim: &Simulator<'_, T>) -> PointResult {
         let regime = classify(
             &self.section,
             &self.impacts,

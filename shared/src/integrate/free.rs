@@ -1,0 +1,116 @@
+//! One whole RK4 step in free flight and the test that accepts it in one piece: the kernel of
+//! both [`super::Simulator::step`]'s first try and the lockstep lanes ([`super::lanes`]), so
+//! that the two take the same steps bit for bit.
+//!
+//! The step is accepted if the hammer stays clear of the surface: `δ ≤ −η_δ` at every RK4
+//! stage and at the end, and, if the step turned round (`δ̇` from positive to negative), the
+//! peak bound under the two tangent lines stays below `−η_δ` too.
+
+use nalgebra::Vector2;
+
+use super::rk4::rk4_step;
+use crate::model::hammer::FreeFlight;
+use crate::real::Real;
+
+/// The state a free-flight step carries: `x = (x0, x1)`, the field's second component `a` at
+/// `x`, the penetration `d` (m) and its rate `dd` (m/s).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct FreeState<T> {
+    pub(crate) x0: T,
+    pub(crate) x1: T,
+    pub(crate) a: T,
+    pub(crate) d: T,
+    pub(crate) dd: T,
+}
+
+/// Which `(sin θ, cos θ)` the wire pendulum's field takes, and whether it is exact there.
+pub(crate) trait Trig {
+    /// `(sin x, cos x, exact)`.
+    fn sin_cos<T: Real>(x: T) -> (T, T, bool);
+}
+
+/// [`Real::sin_cos`]: exact at every angle (the stepper).
+pub(crate) struct FullTrig;
+
+impl Trig for FullTrig {
+    #[inline(always)]
+    fn sin_cos<T: Real>(x: T) -> (T, T, bool) {
+        let (s, c) = x.sin_cos();
+        (s, c, true)
+    }
+}
+
+/// [`Real::sin_cos_small`]: branch-free, exact (bit for bit [`Real::sin_cos`]) for
+/// `|x| ≤ 1/8` only, which it reports (the lanes).
+pub(crate) struct SmallTrig;
+
+impl Trig for SmallTrig {
+    #[inline(always)]
+    fn sin_cos<T: Real>(x: T) -> (T, T, bool) {
+        let (s, c) = x.sin_cos_small();
+        let lim = T::from_f64(0.125);
+        (s, c, (x <= lim) & (x >= -lim))
+    }
+}
+
+/// The free-flight field at `(y0, y1)`: `(acceleration, δ, δ̇, exact)`.
+#[inline(always)]
+fn field<T: Real, const WIRES: bool, G: Trig>(
+    c: &FreeFlight<T>,
+    y0: T,
+    y1: T,
+    sin_phase: T,
+) -> (T, T, T, bool) {
+    let (st, ct, exact) = if WIRES {
+        G::sin_cos(y0)
+    } else {
+        (T::zero(), T::zero(), true)
+    };
+    let (a, d, dd) = c.eval::<WIRES>(y0, y1, (st, ct), sin_phase);
+    (a, d, dd, exact)
+}
+
+/// One RK4 step of `h` seconds in free flight from `st`, with `sin Ωt` `s_mid`, `s_end` at
+/// the midpoint and the end: the end state, whether every field evaluation was exact (`G`),
+/// and whether the step comes within `eta` of the surface (then [`super::Simulator::step`]
+/// splits it; module docs).
+#[inline(always)]
+pub(crate) fn free_step<T: Real, const WIRES: bool, G: Trig>(
+    c: &FreeFlight<T>,
+    st: &FreeState<T>,
+    h: T,
+    s_mid: T,
+    s_end: T,
+    eta: T,
+) -> (FreeState<T>, bool, bool) {
+    let neg_eta = -eta;
+    let mut touched = false;
+    let mut exact = true;
+    let x1 = rk4_step(
+        &Vector2::new(st.x0, st.x1),
+        &Vector2::new(st.x1, st.a),
+        h,
+        s_mid,
+        s_end,
+        |y, s| {
+            let (a, d, _, ok) = field::<T, WIRES, G>(c, y[0], y[1], s);
+            touched |= d > neg_eta;
+            exact &= ok;
+            Vector2::new(y[1], a)
+        },
+    );
+    let (a, d, dd, ok) = field::<T, WIRES, G>(c, x1[0], x1[1], s_end);
+    let mut near = touched | (d > neg_eta);
+    // Turned round inside the step: the peak lies under the two tangent lines.
+    let turned = (st.dd > T::zero()) & (dd < T::zero());
+    let t_star = (d - st.d - dd * h) / (st.dd - dd);
+    near |= turned & (st.d + st.dd * t_star > neg_eta);
+    let next = FreeState {
+        x0: x1[0],
+        x1: x1[1],
+        a,
+        d,
+        dd,
+    };
+    (next, exact & ok, near)
+}
