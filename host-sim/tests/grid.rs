@@ -223,7 +223,7 @@ fn read_rows(path: &Path) -> Vec<csv::StringRecord> {
 
 #[test]
 fn peterka_wire_rig_at_gap_zero_is_one_one_up_to_the_force_peak() {
-    // MODEL.md/thesis: wires, gap 0: a z = 1/1 band (Ω/ω ≈ 1.16–2.64) whose maximum force,
+    // The thesis (docs/model.md, "What the thesis reports"): wires, gap 0: a z = 1/1 band (Ω/ω ≈ 1.16–2.64) whose maximum force,
     // F_i/mg ≈ 32.9 near Ω/ω = 2.0, is about 3× the force at Ω = ω.
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("p.csv");

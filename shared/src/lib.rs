@@ -8,7 +8,7 @@
 //! controller: drive, impact detection, measured regime, tracking, faults, console), which talks
 //! to the hardware through [`hal`].
 //!
-//! Physics: `MODEL.md` of the project's shared folder; equation numbers are the thesis'.
+//! Physics: docs/model.md; equation numbers are the thesis'.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 

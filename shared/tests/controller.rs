@@ -284,6 +284,30 @@ fn start_needs_a_target_and_rig_changes_request_the_model() {
 }
 
 #[test]
+fn a_start_that_trips_says_so() {
+    // The model's target is outside the safe window (1 ..= 30 Hz): `start` trips bad-config,
+    // answers with the fault instead of `ok`, and the drive stays off.
+    let mut c = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
+    let req = c.take_model_request().unwrap();
+    c.set_prediction(req.generation, Ok(prediction(42.0)));
+    let reply = c.execute(Command::Start);
+    assert_eq!(reply, Err(CommandError::Tripped(Fault::BadConfig)));
+    assert_eq!(
+        reply.unwrap_err().to_string(),
+        "start tripped fault bad-config: frequency or amplitude outside the limits (clear first)"
+    );
+    assert_eq!(
+        (c.state(), c.fault()),
+        (State::Fault, Some(Fault::BadConfig))
+    );
+    assert_eq!(c.generator().amplitude_mm(), 0.0);
+    // Latched: another start is refused until `clear`.
+    assert_eq!(c.execute(Command::Start), Err(CommandError::FaultLatched));
+    c.execute(Command::Clear).unwrap();
+    assert_eq!((c.state(), c.fault()), (State::Idle, None));
+}
+
+#[test]
 fn status_line_names_every_field() {
     let rig = tracking_rig();
     let line = std::format!("{}", rig.c.status());

@@ -1,7 +1,7 @@
 //! The main job end to end: the operating frequency at 0.0 mm gap for the wire rig and the
 //! 170 mm beam rig, computed the firmware's way (`shared::analysis::select_sequential::<f32>`)
 //! and the desktop's way (`host-sim select`, responses in parallel), must be identical, and the
-//! result must show the thesis' reported behaviour (MODEL.md, last section).
+//! result must show the thesis' reported behaviour (docs/model.md, "What the thesis reports").
 
 use host_sim::cli::{Precision, Profile, RigOpts};
 use host_sim::commands::select::compute;

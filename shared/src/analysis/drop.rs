@@ -66,8 +66,9 @@ pub struct DropSample {
     pub force_n: f64,
 }
 
-/// One impact of a drop test (MODEL.md "Impact": from the arrival through `δ = 0` until
-/// `δ < −η_δ`, re-contacts included).
+/// One impact of a drop test: from the arrival through `δ = 0` until the hammer has left the
+/// surface by the separation [`DEFAULT_SEPARATION_M`] (1 µm), re-contacts included
+/// ([`ImpactTracker`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DropImpact {
     /// 0 for the first impact.
@@ -80,7 +81,7 @@ pub struct DropImpact {
     pub peak_n: f64,
     /// Time of the peak sample, s.
     pub peak_s: f64,
-    /// Time at which the episode ended (`δ < −η_δ`), s.
+    /// Time at which the episode ended (`δ` below minus the separation), s.
     pub end_s: f64,
 }
 

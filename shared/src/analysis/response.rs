@@ -27,8 +27,9 @@ impl SimSettings {
     /// The on-target profile the firmware's model task runs (and `host-sim --profile embedded`
     /// reproduces): `N = 32` steps per period, `K = 8` contact sub-steps, a transient of at most
     /// 40 periods, periods `q ≤ 4`, an 8-period observation window. About 50× cheaper than the
-    /// default per point, so that the whole selection fits the MCU's 0.5 s budget (README,
-    /// "Firmware"); the default profile stays the reference for the analyses.
+    /// default per point, so that the whole selection fits the MCU's 0.5 s budget
+    /// (docs/operator.md, "Budgets, measured"); the default profile stays the reference for the
+    /// analyses.
     pub fn embedded() -> Self {
         SimSettings {
             bands: SwitchBands::default(),

@@ -1,7 +1,7 @@
 //! The controller's configuration: sampling rate, the drive and sensing chains (codes ↔ physical
 //! units), the safe operating window, and the detector, tracking and fault settings.
 //!
-//! Defaults describe the rig as wired in the README (wiring table): 12-bit DAC and ADC at
+//! Defaults describe the rig as wired in docs/operator.md (wiring table): 12-bit DAC and ADC at
 //! 3.3 V full scale, a power amplifier + shaker giving 1 mm of cart amplitude per volt of DAC
 //! sine amplitude, and a charge amplifier of 10 mV/N with a 0.2 V offset (−20 N … 310 N on the
 //! ADC's range).

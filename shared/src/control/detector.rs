@@ -23,7 +23,7 @@ pub struct DetectedImpact {
     /// the threshold crossing), N·s. Less sensitive to where the samples fall on the pulse than
     /// the peak (a 0.57 ms half-sine sampled every 100 µs: the largest sample varies by 3.1 %
     /// with the offset, the impulse by 1.9 %).
-    pub impulse_ns: f32,
+    pub impulse_n_s: f32,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,7 +62,7 @@ impl ImpactDetector {
                 peak_sample: 0,
                 start_sample: 0,
                 saturated: false,
-                impulse_ns: 0.0,
+                impulse_n_s: 0.0,
             },
             last_n: 0.0,
         }
@@ -95,7 +95,7 @@ impl ImpactDetector {
                         peak_sample: index,
                         start_sample: index,
                         saturated,
-                        impulse_ns: (self.last_n.max(0.0) + force_n) * SAMPLE_DT_S,
+                        impulse_n_s: (self.last_n.max(0.0) + force_n) * SAMPLE_DT_S,
                     };
                     self.state = State::Open;
                 }
@@ -123,7 +123,7 @@ impl ImpactDetector {
                     self.state = State::Idle;
                     Some(self.current)
                 } else {
-                    self.current.impulse_ns += force_n.max(0.0) * SAMPLE_DT_S;
+                    self.current.impulse_n_s += force_n.max(0.0) * SAMPLE_DT_S;
                     None
                 }
             }
@@ -131,7 +131,7 @@ impl ImpactDetector {
     }
 
     fn track(&mut self, index: u64, force_n: f32, saturated: bool) {
-        self.current.impulse_ns += force_n.max(0.0) * SAMPLE_DT_S;
+        self.current.impulse_n_s += force_n.max(0.0) * SAMPLE_DT_S;
         if force_n > self.current.peak_n {
             self.current.peak_n = force_n;
             self.current.peak_sample = index;
@@ -200,7 +200,7 @@ mod tests {
             let t0 = 0.1 + f64::from(k) * 1e-5;
             let imps = detect(3000, 1e9, |t| pulse(t, t0, 0.00057, 96.0));
             assert_eq!(imps.len(), 1);
-            let i = f64::from(imps[0].impulse_ns);
+            let i = f64::from(imps[0].impulse_n_s);
             assert!((i / exact - 1.0).abs() < 0.015, "{k}: {i} vs {exact}");
             imin = imin.min(i);
             imax = imax.max(i);

@@ -1,8 +1,7 @@
 //! Small helpers that keep the control path lean on the MCU: [`Fixed`] prints an `f32` with a
 //! fixed number of decimals through integer formatting and [`parse_decimal`] reads a plain
-//! decimal number (both avoid `core`'s float formatting and parsing machinery, which took most
-//! of the 121.5 → 84.8 KiB the image lost as they were removed); [`within`] limits a value
-//! without `f32::clamp`'s panic.
+//! decimal number (both avoid `core`'s float formatting and parsing machinery, tens of KiB of
+//! flash); [`within`] limits a value without `f32::clamp`'s panic.
 
 use core::fmt;
 

@@ -5,6 +5,7 @@
 //! alternating peaks reads `2/2`, as the model's Poincaré classification says, not `1/1`).
 
 use crate::observe::Regime;
+use crate::observe::period::smallest_period;
 
 /// Cycles remembered.
 pub const METER_CYCLES: usize = 16;
@@ -22,7 +23,7 @@ pub struct CycleRecord {
     /// Largest impact peak in the cycle, N (0 without impacts).
     pub peak_n: f32,
     /// Sum of the impacts' impulses in the cycle, N·s.
-    pub impulse_ns: f32,
+    pub impulse_n_s: f32,
 }
 
 /// The online regime meter.
@@ -59,10 +60,10 @@ impl RegimeMeter {
         self.current = CycleRecord::default();
     }
 
-    /// Counts an impact of peak `peak_n` (N) and impulse `impulse_ns` (N·s) in the current cycle.
-    pub fn on_impact(&mut self, peak_n: f32, impulse_ns: f32) {
+    /// Counts an impact of peak `peak_n` (N) and impulse `impulse_n_s` (N·s) in the current cycle.
+    pub fn on_impact(&mut self, peak_n: f32, impulse_n_s: f32) {
         self.current.impacts = self.current.impacts.saturating_add(1);
-        self.current.impulse_ns += impulse_ns;
+        self.current.impulse_n_s += impulse_n_s;
         if peak_n > self.current.peak_n {
             self.current.peak_n = peak_n;
         }
@@ -105,20 +106,24 @@ impl RegimeMeter {
         if all_silent {
             return Some(Regime::NoImpact);
         }
-        for q in 1..=MAX_MEASURED_Q.min(w / 2) {
-            let repeats = (0..w - q).all(|k| match (self.cycle(k), self.cycle(k + q)) {
+        let period = smallest_period(
+            MAX_MEASURED_Q,
+            |q| (2 * q <= w).then_some(w),
+            |a, b| match (self.cycle(a), self.cycle(b)) {
                 (Some(a), Some(b)) => same(a, b),
                 _ => false,
-            });
-            if repeats {
+            },
+        );
+        Some(match period {
+            Some(q) => {
                 let p: u16 = (0..q)
                     .filter_map(|k| self.cycle(k))
                     .map(|c| u16::from(c.impacts))
                     .sum();
-                return Some(Regime::Periodic { p, q: q as u16 });
+                Regime::Periodic { p, q: q as u16 }
             }
-        }
-        Some(Regime::Irregular)
+            None => Regime::Irregular,
+        })
     }
 
     /// Mean and maximum of the per-cycle peak forces over the last `window` cycles that
@@ -138,13 +143,13 @@ impl RegimeMeter {
 
     /// Mean per-cycle impulse over the last `window` cycles that impacted, N·s; `None` when none
     /// did.
-    pub fn impulse_ns(&self, window: usize) -> Option<f32> {
+    pub fn impulse_n_s(&self, window: usize) -> Option<f32> {
         let mut n = 0u32;
         let mut sum = 0.0f32;
         for c in (0..window.min(self.filled)).filter_map(|k| self.cycle(k)) {
             if c.impacts > 0 {
                 n += 1;
-                sum += c.impulse_ns;
+                sum += c.impulse_n_s;
             }
         }
         (n > 0).then(|| sum / n as f32)

@@ -20,9 +20,10 @@ pub mod fixed;
 pub mod health;
 pub mod link;
 pub mod meter;
-pub mod model;
+pub mod prediction;
 pub mod serve;
 pub mod sine;
+pub mod status;
 pub mod tracker;
 
 pub use capture::{CAPTURE_RATE_HZ, Capture, CaptureCommand, CaptureState, CaptureStatus};
@@ -31,17 +32,18 @@ pub use config::{
     SAMPLE_RATE_HZ, SensorChain, TrackSettings,
 };
 pub use console::{Command, Line, LineBuffer, ParseError, Request, RxError, parse};
-pub use controller::{
-    AsyncKind, AsyncRecord, CommandError, Controller, CycleTelemetry, Event, ModelRequest,
-    ModelStatus, Reply, State, Status,
-};
+pub use controller::Controller;
 pub use detector::{DetectedImpact, ImpactDetector};
 pub use faults::{Fault, SensorMonitor};
 pub use fixed::{Fixed, parse_decimal};
 pub use health::{Health, HealthCheck};
 pub use link::{Link, LinkStats, PendingLine};
 pub use meter::RegimeMeter;
-pub use model::{Prediction, predict};
+pub use prediction::{Prediction, predict};
 pub use serve::{Answer, AnswerError, BoardInfo, Direct, RigAccess, answer};
 pub use sine::{DriveSample, SineGenerator, sin_turn};
+pub use status::{
+    AsyncKind, AsyncRecord, CommandError, CycleTelemetry, Event, ModelRequest, ModelStatus, Reply,
+    State, Status,
+};
 pub use tracker::HillClimber;

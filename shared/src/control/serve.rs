@@ -13,9 +13,10 @@ use core::fmt;
 use super::capture::{CAPTURE_RATE_HZ, Capture, CaptureCommand, CaptureStatus, SegmentView};
 use super::config::{SAMPLE_RATE_HZ, SensorChain};
 use super::console::{Command, Line, ParseError, Request, parse};
-use super::controller::{AsyncRecord, CommandError, Controller, Reply, State};
+use super::controller::Controller;
 use super::fixed::Fixed;
 use super::link::{LinkStats, MAX_REPLY};
+use super::status::{AsyncRecord, CommandError, Reply, State};
 use crate::model::RigId;
 
 /// What the board tells about itself (`id`, `diag`).
@@ -190,7 +191,8 @@ pub enum Answer {
     Capture(CaptureStatus),
     /// `capture get k`.
     Segment(SegmentView),
-    /// Refused; nothing changed.
+    /// Refused (nothing changed), or a `start` that tripped a fault
+    /// ([`CommandError::Tripped`]).
     Error(AnswerError),
 }
 

@@ -12,12 +12,13 @@ use super::fixed::within;
 use crate::observe::Regime;
 
 /// The hill climber.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub struct HillClimber {
     settings: TrackSettings,
     step_hz: f32,
     direction: f32,
-    last_force_n: Option<f32>,
+    /// The strength measured at the previous evaluation.
+    last_strength: Option<f32>,
     band_hz: [f32; 2],
     target_hz: f32,
 }
@@ -30,7 +31,7 @@ impl HillClimber {
             settings: *settings,
             step_hz: settings.step_hz,
             direction: 1.0,
-            last_force_n: None,
+            last_strength: None,
             band_hz,
             target_hz,
         }
@@ -46,16 +47,16 @@ impl HillClimber {
         self.step_hz
     }
 
-    /// Next frequency (Hz) after measuring `regime` and the objective `force_n` at `freq_hz`
+    /// Next frequency (Hz) after measuring `regime` and the impact `strength` at `freq_hz`
     /// (any measure that grows with the impact strength: the controller passes the mean impulse
     /// per cycle, N·s). Always inside the band.
-    pub fn next_freq_hz(&mut self, freq_hz: f32, regime: Regime, force_n: Option<f32>) -> f32 {
+    pub fn next_freq_hz(&mut self, freq_hz: f32, regime: Regime, strength: Option<f32>) -> f32 {
         let [lo, hi] = self.band_hz;
-        let force = match (regime, force_n) {
+        let strength = match (regime, strength) {
             (Regime::ONE_ONE, Some(f)) => f,
             _ => {
                 // Lost 1/1: back toward the model's target, start climbing afresh from there.
-                self.last_force_n = None;
+                self.last_strength = None;
                 self.step_hz = self.settings.step_hz;
                 let to_target = self.target_hz - freq_hz;
                 self.direction = if to_target >= 0.0 { 1.0 } else { -1.0 };
@@ -67,14 +68,14 @@ impl HillClimber {
                 return within(next, lo, hi);
             }
         };
-        if let Some(last) = self.last_force_n {
-            let better = force > last * (1.0 + self.settings.improve_rel);
+        if let Some(last) = self.last_strength {
+            let better = strength > last * (1.0 + self.settings.improve_rel);
             if !better {
                 self.direction = -self.direction;
                 self.step_hz = (self.step_hz * 0.5).max(self.settings.min_step_hz);
             }
         }
-        self.last_force_n = Some(force);
+        self.last_strength = Some(strength);
         let mut next = freq_hz + self.direction * self.step_hz;
         if next > hi || next < lo {
             self.direction = -self.direction;

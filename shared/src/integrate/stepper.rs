@@ -48,8 +48,7 @@ pub const SUBSTEP_REFERENCE_SPEED_M_S: f64 = 0.5;
 /// stability region with room to spare (`|R(λh)|` 0.55 per sub-step at the rig's contact damping
 /// ratio 0.469, exact `e^{Re λh}` 0.48): the contact's own oscillation, which the resting test
 /// has already found below `ε`, keeps dying out, and the slow quasi-static motion (time scale
-/// `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy. Measured on the 2,000-point accuracy sample:
-/// the regime agreement with the f64 reference stays within its run-to-run scatter (README).
+/// `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy.
 pub const RESTING_SUBSTEPS: u32 = 8;
 
 /// `ε` of the resting test: the contact force balances the others to `ε`, and the

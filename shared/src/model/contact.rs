@@ -309,7 +309,7 @@ impl ContactLaw {
 /// `tan(ω_d t_c) = −c ω_d / (k − c ζ ω_n)`, i.e. `ω_d t_c = π − atan2(2ζ sqrt(1−ζ²), 1 − 2ζ²)`.
 /// Then `e = −δ̇(t_c)/v`. Returns `(e, t_c)` (s), or `None` for `ζ ≥ 1` or bad input.
 ///
-/// For Table 3.1 with `m = 0.298 kg`: `ζ = 0.469`, `t_c ≈ 0.57 ms`, `e ≈ 0.317` (MODEL.md).
+/// For Table 3.1 with `m = 0.298 kg`: `ζ = 0.469`, `t_c ≈ 0.57 ms`, `e ≈ 0.317`.
 pub fn spring_dashpot_restitution(
     stiffness_n_m: f64,
     damping_n_s_m: f64,
@@ -421,7 +421,8 @@ mod tests {
 
     #[test]
     fn closed_form_restitution_of_table_3_1() {
-        // MODEL.md: ζ = 0.469, contact time ≈ 0.57 ms, e ≈ 0.317 (not exp(-πζ/√(1-ζ²)) ≈ 0.19).
+        // ζ = 0.469, contact time ≈ 0.57 ms, e ≈ 0.317 (not exp(-πζ/√(1-ζ²)) ≈ 0.19: the
+        // contact ends where the force returns to zero, before the spring does).
         let (e, tc) = spring_dashpot_restitution(5.5e6, 1.2e3, 0.298).unwrap();
         assert!((e - 0.317).abs() < 0.002, "e = {e}");
         assert!((tc - 0.57e-3).abs() < 0.01e-3, "t_c = {tc}");

@@ -16,7 +16,7 @@
 //!
 //! In `Σ_α` the literal Eq. (3-28) term `c_i δ̇` turns adhesive (negative) when the hammer peels
 //! slowly off a resting contact (`δ̇ < 0` while `k δ + c δ̇ ≥ 0` inside the band, a few 0.01 N);
-//! MODEL.md fixes `F_i ≥ 0`, so the band force is clamped at 0.
+//! The contact force never pulls (`F_i ≥ 0`, docs/model.md), so the band force is clamped at 0.
 
 use serde::{Deserialize, Serialize};
 

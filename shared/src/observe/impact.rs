@@ -1,4 +1,4 @@
-//! Impact detection (MODEL.md "Contact region").
+//! Impact detection (docs/model.md, "Impacts and their counting").
 //!
 //! An impact begins at an arrival through `δ = 0` (`δ` goes from `≤ 0` to `> 0`). Its episode
 //! lasts until the hammer has clearly left the surface (`δ < −s`, the separation
@@ -8,10 +8,7 @@
 //!
 //! `s` is a physical threshold, not the switch model's numerical band `η_δ` (10 nm): refining
 //! the band for a convergence study must not change how many impacts a chattering sequence
-//! counts. With `s = η_δ` the 4× refined reference counted 6 impacts per period where the
-//! production settings counted 5 at five of 2,000 grid points; with `s` = 10 nm fixed, halving
-//! `η_δ` turned a 5/1 point into 4/1 (bounces of a few nm depend on the band). At 1 µm (0.1 %
-//! of the cart amplitude) both convergence checks agree (README "Accuracy").
+//! counts (bounces of a few nm depend on the band; 1 µm is 0.1 % of the cart amplitude).
 
 /// Default separation that ends an impact episode, m (1 µm).
 pub const DEFAULT_SEPARATION_M: f64 = 1e-6;

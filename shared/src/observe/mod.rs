@@ -1,8 +1,9 @@
 //! Observables of a simulation: impacts and their peak forces, the stroboscopic Poincaré
-//! section, the impact regime `z = p/q`, and the canonical protocol that produces them
-//! (MODEL.md "Observables", "Canonical protocol").
+//! section, the smallest repeating period, the impact regime `z = p/q`, and the canonical
+//! protocol that produces them (docs/model.md, "Observables" and "Canonical protocol").
 
 pub mod impact;
+pub mod period;
 pub mod poincare;
 pub mod protocol;
 pub mod regime;

@@ -2,6 +2,7 @@
 
 use heapless::HistoryBuf;
 
+use super::period::smallest_period;
 use crate::real::Real;
 
 /// One point of the Poincaré section: relative displacement and velocity.
@@ -74,14 +75,14 @@ impl<T: Real> SectionHistory<T> {
         u_scale: T,
         v_scale: T,
     ) -> Option<usize> {
-        (1..=max_q).find(|&q| {
-            let need = (cycles + 1) * q;
-            need <= self.len()
-                && (0..cycles * q).all(|j| match (self.back(j), self.back(j + q)) {
-                    (Some(a), Some(b)) => a.distance(b, u_scale, v_scale) <= tol,
-                    _ => false,
-                })
-        })
+        smallest_period(
+            max_q,
+            |q| Some((cycles + 1) * q).filter(|&need| need <= self.len()),
+            |a, b| match (self.back(a), self.back(b)) {
+                (Some(a), Some(b)) => a.distance(b, u_scale, v_scale) <= tol,
+                _ => false,
+            },
+        )
     }
 }
 

@@ -1,4 +1,4 @@
-//! The canonical protocol (MODEL.md): from the simulator's current state (by default at rest
+//! The canonical protocol (docs/model.md, "Canonical protocol"): from the simulator's current state (by default at rest
 //! relative to the cart at phase 0), a transient of at most `max_transient_periods` periods that
 //! ends early once the Poincaré section repeats with a period `q ≤ max_q` to `steady_tol` for
 //! `steady_cycles` consecutive cycles of `q`; then an observation window of `observe_periods`
@@ -20,7 +20,7 @@ use crate::real::Real;
 /// Largest observation window, periods.
 pub const MAX_OBSERVE_PERIODS: usize = 256;
 
-/// Protocol settings (defaults: MODEL.md "Canonical protocol").
+/// Protocol settings (defaults: docs/model.md, "Canonical protocol").
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Protocol {

@@ -4,6 +4,7 @@
 use core::fmt;
 use core::str::FromStr;
 
+use super::period::smallest_period;
 use super::poincare::StroboPoint;
 use crate::real::Real;
 
@@ -89,20 +90,23 @@ pub fn classify<T: Real>(
     if impacts[..n].iter().all(|&c| c == 0) {
         return Regime::NoImpact;
     }
-    for q in 1..=max_q.min(n / 2) {
-        let periodic = (q..n).all(|j| {
-            impacts[j] == impacts[j - q]
-                && section[j].distance(&section[j - q], u_scale, v_scale) <= tol
-        });
-        if periodic {
+    let period = smallest_period(
+        max_q,
+        |q| (2 * q <= n).then_some(n),
+        |a, b| {
+            impacts[a] == impacts[b] && section[b].distance(&section[a], u_scale, v_scale) <= tol
+        },
+    );
+    match period {
+        Some(q) => {
             let p: u32 = impacts[n - q..n].iter().map(|&c| u32::from(c)).sum();
-            return Regime::Periodic {
+            Regime::Periodic {
                 p: u16::try_from(p).unwrap_or(u16::MAX),
                 q: q as u16,
-            };
+            }
         }
+        None => Regime::Irregular,
     }
-    Regime::Irregular
 }
 
 impl serde::Serialize for Regime {
