@@ -9,7 +9,8 @@ pub mod sweep;
 
 pub use batch::{DEFAULT_LANES, Started, evaluate_interleaved, run_interleaved};
 pub use response::{
-    ResponseSample, SimSettings, evaluate_point, evaluate_point_observed, simulator_at,
+    ResponseSample, SimSettings, evaluate_point, evaluate_point_observed, evaluate_point_on,
+    simulator_at,
 };
 pub use selection::{
     Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, select, select_sequential,

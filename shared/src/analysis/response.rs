@@ -71,7 +71,23 @@ pub fn evaluate_point_observed<T: Real, O: Observer<T>>(
     obs: &mut O,
 ) -> Result<PointResult, ParamError> {
     let phases = PhaseTable::new(settings.steps.steps_per_period)?;
-    let mut sim = simulator_at(params, gap_m, omega_ratio, settings, &phases)?;
+    evaluate_point_on(params, gap_m, omega_ratio, settings, &phases, obs)
+}
+
+/// [`evaluate_point_observed`] on the step grid of `phases` (built for
+/// `settings.steps.steps_per_period`; one table serves every point of a sweep).
+///
+/// # Errors
+/// As [`evaluate_point_observed`], and a table for another `N`.
+pub fn evaluate_point_on<T: Real, O: Observer<T>>(
+    params: &RigParams,
+    gap_m: f64,
+    omega_ratio: f64,
+    settings: &SimSettings,
+    phases: &PhaseTable<T>,
+    obs: &mut O,
+) -> Result<PointResult, ParamError> {
+    let mut sim = simulator_at(params, gap_m, omega_ratio, settings, phases)?;
     run_protocol(&mut sim, &settings.protocol, params.weight_n(), obs)
 }
 

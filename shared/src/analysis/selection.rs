@@ -15,9 +15,10 @@ use core::fmt;
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
-use super::response::{ResponseSample, SimSettings, evaluate_point};
+use super::response::{ResponseSample, SimSettings, evaluate_point_on};
 use super::sweep::Sweep;
 use crate::error::{ParamError, check_range};
+use crate::integrate::PhaseTable;
 use crate::model::RigParams;
 use crate::observe::Regime;
 use crate::real::Real;
@@ -351,9 +352,13 @@ pub fn select_sequential<T: Real>(
         .into());
     }
     let gaps = perturbed_gaps(gap_m, spec.gap_margin_mm);
+    let phases = PhaseTable::<T>::new(settings.steps.steps_per_period)?;
+    let point = |gap_m: f64, ratio: f64| {
+        evaluate_point_on::<T, ()>(params, gap_m, ratio, settings, &phases, &mut ())
+    };
     let mut nominal: Vec<ResponseSample, MAX_SEQUENTIAL_POINTS> = Vec::new();
     for i in 0..sweep.len() {
-        let res = evaluate_point::<T>(params, gap_m, sweep.value(i), settings)?;
+        let res = point(gap_m, sweep.value(i))?;
         let _ = nominal.push(ResponseSample::from(&res));
     }
     // [`select`] reads the perturbed responses only inside the robustness windows of the
@@ -378,7 +383,7 @@ pub fn select_sequential<T: Real>(
         let mut r = Vec::new();
         for (i, &need) in needed.iter().enumerate().take(sweep.len()) {
             let sample = if need {
-                ResponseSample::from(&evaluate_point::<T>(params, g, sweep.value(i), settings)?)
+                ResponseSample::from(&point(g, sweep.value(i))?)
             } else {
                 unread
             };

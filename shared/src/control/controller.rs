@@ -596,9 +596,10 @@ impl Controller {
         self.set_mode(Mode::Fault(fault));
     }
 
-    fn set_mode(&mut self, to: Mode) {
-        let from = core::mem::replace(&mut self.mode, to).state();
-        let to = to.state();
+    fn set_mode(&mut self, mode: Mode) {
+        let from = self.mode.state();
+        self.mode = mode;
+        let to = self.mode.state();
         if to != from {
             self.push(Event::State { from, to });
         }

@@ -21,59 +21,65 @@ pub(crate) enum Rule<T> {
 
 /// The bracket `(lo, hi)` of a rising zero of `g` in `[lo, hi]` after `rule`: at a point `m`,
 /// `g(m) > 0` moves `hi` to `m`, otherwise `lo`. With [`Rule::Illinois`], if the ends do not
-/// bracket a rising zero the result is `(lo, lo)` when `g(lo) > 0`, else `(hi, hi)`.
-#[inline]
-pub(crate) fn bracket_rising<T: Real, G: Fn(T) -> T>(
-    mut lo: T,
-    mut hi: T,
-    rule: Rule<T>,
-    g: G,
-) -> (T, T) {
-    let half = T::from_f64(0.5);
+/// bracket a rising zero the result is `(lo, lo)` when `g(lo) > 0`, else `(hi, hi)`. (The rule
+/// is a constant at each caller, so only its branch is compiled there.)
+#[inline(always)]
+pub(crate) fn bracket_rising<T: Real, G: Fn(T) -> T>(lo: T, hi: T, rule: Rule<T>, g: G) -> (T, T) {
     match rule {
-        Rule::Bisect(halvings) => {
-            for _ in 0..halvings {
-                let mid = (lo + hi) * half;
-                if g(mid) > T::zero() {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
+        Rule::Bisect(halvings) => bisect(lo, hi, halvings, g),
+        Rule::Illinois { tol, max_evals } => illinois(lo, hi, tol, max_evals, g),
+    }
+}
+
+/// [`Rule::Bisect`].
+#[inline]
+fn bisect<T: Real, G: Fn(T) -> T>(mut lo: T, mut hi: T, halvings: u32, g: G) -> (T, T) {
+    let half = T::from_f64(0.5);
+    for _ in 0..halvings {
+        let mid = (lo + hi) * half;
+        if g(mid) > T::zero() {
+            hi = mid;
+        } else {
+            lo = mid;
         }
-        Rule::Illinois { tol, max_evals } => {
-            let (mut g_lo, mut g_hi) = (g(lo), g(hi));
-            if !(g_lo <= T::zero() && g_hi > T::zero()) {
-                let end = if g_lo > T::zero() { lo } else { hi };
-                return (end, end);
+    }
+    (lo, hi)
+}
+
+/// [`Rule::Illinois`].
+#[inline]
+fn illinois<T: Real, G: Fn(T) -> T>(mut lo: T, mut hi: T, tol: T, max_evals: u32, g: G) -> (T, T) {
+    let half = T::from_f64(0.5);
+    let (mut g_lo, mut g_hi) = (g(lo), g(hi));
+    if !(g_lo <= T::zero() && g_hi > T::zero()) {
+        let end = if g_lo > T::zero() { lo } else { hi };
+        return (end, end);
+    }
+    let mut side = 0i8;
+    for _ in 0..max_evals {
+        if hi - lo <= tol {
+            break;
+        }
+        let mut mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
+        let width = hi - lo;
+        if !(mid > lo + width * T::from_f64(1e-3) && mid < hi - width * T::from_f64(1e-3)) {
+            mid = (lo + hi) * half;
+        }
+        let g_mid = g(mid);
+        if g_mid > T::zero() {
+            hi = mid;
+            g_hi = g_mid;
+            if side == 1 {
+                g_lo *= half;
             }
-            let mut side = 0i8;
-            for _ in 0..max_evals {
-                if hi - lo <= tol {
-                    break;
-                }
-                let mut mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
-                let width = hi - lo;
-                if !(mid > lo + width * T::from_f64(1e-3) && mid < hi - width * T::from_f64(1e-3)) {
-                    mid = (lo + hi) * half;
-                }
-                let g_mid = g(mid);
-                if g_mid > T::zero() {
-                    hi = mid;
-                    g_hi = g_mid;
-                    if side == 1 {
-                        g_lo *= half;
-                    }
-                    side = 1;
-                } else {
-                    lo = mid;
-                    g_lo = g_mid;
-                    if side == -1 {
-                        g_hi *= half;
-                    }
-                    side = -1;
-                }
+            side = 1;
+        } else {
+            lo = mid;
+            g_lo = g_mid;
+            if side == -1 {
+                g_hi *= half;
             }
+            side = -1;
         }
     }
     (lo, hi)

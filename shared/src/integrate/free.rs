@@ -53,20 +53,59 @@ impl Trig for SmallTrig {
     }
 }
 
+/// The suspension of a free-flight step: a constant ([`Wires`], [`Beam`]: the lanes, one
+/// kernel per suspension) or known at run time (`bool`, `true` for wires: the stepper, one
+/// kernel for both).
+pub(crate) trait Suspension: Copy {
+    /// Whether it is the wire pendulum.
+    fn wires(self) -> bool;
+}
+
+/// The wire pendulum, at compile time.
+#[derive(Clone, Copy)]
+pub(crate) struct Wires;
+
+/// The beam springs, at compile time.
+#[derive(Clone, Copy)]
+pub(crate) struct Beam;
+
+impl Suspension for Wires {
+    #[inline(always)]
+    fn wires(self) -> bool {
+        true
+    }
+}
+
+impl Suspension for Beam {
+    #[inline(always)]
+    fn wires(self) -> bool {
+        false
+    }
+}
+
+impl Suspension for bool {
+    #[inline(always)]
+    fn wires(self) -> bool {
+        self
+    }
+}
+
 /// The free-flight field at `(y0, y1)`: `(acceleration, δ, δ̇, exact)`.
 #[inline(always)]
-fn field<T: Real, const WIRES: bool, G: Trig>(
+fn field<T: Real, S: Suspension, G: Trig>(
+    kind: S,
     c: &FreeFlight<T>,
     y0: T,
     y1: T,
     sin_phase: T,
 ) -> (T, T, T, bool) {
-    let (st, ct, exact) = if WIRES {
+    let wires = kind.wires();
+    let (st, ct, exact) = if wires {
         G::sin_cos(y0)
     } else {
         (T::zero(), T::zero(), true)
     };
-    let (a, d, dd) = c.eval::<WIRES>(y0, y1, (st, ct), sin_phase);
+    let (a, d, dd) = c.eval(wires, y0, y1, (st, ct), sin_phase);
     (a, d, dd, exact)
 }
 
@@ -75,7 +114,8 @@ fn field<T: Real, const WIRES: bool, G: Trig>(
 /// and whether the step comes within `eta` of the surface (then [`super::Simulator::step`]
 /// splits it; module docs).
 #[inline(always)]
-pub(crate) fn free_step<T: Real, const WIRES: bool, G: Trig>(
+pub(crate) fn free_step<T: Real, S: Suspension, G: Trig>(
+    kind: S,
     c: &FreeFlight<T>,
     st: &FreeState<T>,
     h: T,
@@ -93,13 +133,13 @@ pub(crate) fn free_step<T: Real, const WIRES: bool, G: Trig>(
         s_mid,
         s_end,
         |y, s| {
-            let (a, d, _, ok) = field::<T, WIRES, G>(c, y[0], y[1], s);
+            let (a, d, _, ok) = field::<T, S, G>(kind, c, y[0], y[1], s);
             touched |= d > neg_eta;
             exact &= ok;
             Vector2::new(y[1], a)
         },
     );
-    let (a, d, dd, ok) = field::<T, WIRES, G>(c, x1[0], x1[1], s_end);
+    let (a, d, dd, ok) = field::<T, S, G>(kind, c, x1[0], x1[1], s_end);
     let mut near = touched | (d > neg_eta);
     // Turned round inside the step: the peak lies under the two tangent lines.
     let turned = (st.dd > T::zero()) & (dd < T::zero());

@@ -10,7 +10,7 @@
 //! `|θ| ≤ 1/8`. The caller then takes the next step with [`Simulator::step`] as usual.
 
 use super::Simulator;
-use super::free::{FreeState, SmallTrig, free_step};
+use super::free::{Beam, FreeState, SmallTrig, Wires, free_step};
 use crate::model::hammer::FreeFlight;
 use crate::real::Real;
 
@@ -144,16 +144,30 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>
         if wires {
             for i in 0..L {
                 let (c, h) = &cst[i];
-                let (nx, exact, near) =
-                    free_step::<T, true, SmallTrig>(c, &state.get(i), *h, s_mid[i], s_end[i], eta);
+                let (nx, exact, near) = free_step::<T, Wires, SmallTrig>(
+                    Wires,
+                    c,
+                    &state.get(i),
+                    *h,
+                    s_mid[i],
+                    s_end[i],
+                    eta,
+                );
                 next.set(i, nx);
                 ok[i] = exact & !near;
             }
         } else {
             for i in 0..L {
                 let (c, h) = &cst[i];
-                let (nx, exact, near) =
-                    free_step::<T, false, SmallTrig>(c, &state.get(i), *h, s_mid[i], s_end[i], eta);
+                let (nx, exact, near) = free_step::<T, Beam, SmallTrig>(
+                    Beam,
+                    c,
+                    &state.get(i),
+                    *h,
+                    s_mid[i],
+                    s_end[i],
+                    eta,
+                );
                 next.set(i, nx);
                 ok[i] = exact & !near;
             }

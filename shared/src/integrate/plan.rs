@@ -80,20 +80,13 @@ impl<T: Real> PhaseTable<T> {
             16,
             MAX_STEPS_PER_PERIOD,
         )?;
-        let mut sin_half = [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize];
-        let mut cos_start = [T::zero(); MAX_STEPS_PER_PERIOD as usize];
-        let dphi = core::f64::consts::PI / f64::from(n);
-        for (j, v) in sin_half.iter_mut().take(2 * n as usize).enumerate() {
-            *v = T::from_f64(libm::sin(dphi * j as f64));
-        }
-        for (k, v) in cos_start.iter_mut().take(n as usize).enumerate() {
-            *v = T::from_f64(libm::cos(2.0 * dphi * k as f64));
-        }
-        Ok(PhaseTable {
+        let mut t = PhaseTable {
             n,
-            sin_half,
-            cos_start,
-        })
+            sin_half: [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize],
+            cos_start: [T::zero(); MAX_STEPS_PER_PERIOD as usize],
+        };
+        fill(n, &mut t.sin_half, &mut t.cos_start);
+        Ok(t)
     }
 
     /// `N`, steps per period.
@@ -121,6 +114,19 @@ impl<T: Real> PhaseTable<T> {
         let k2 = 2 * k as usize;
         let j_end = if k + 1 == self.n { 0 } else { k2 + 2 };
         (self.sin_half[k2 + 1], self.sin_half[j_end])
+    }
+}
+
+/// The table's values for `n` steps per period (out of line: `libm`'s sine and cosine are
+/// compiled once, not into every caller; flash on the MCU).
+#[inline(never)]
+fn fill<T: Real>(n: u32, sin_half: &mut [T], cos_start: &mut [T]) {
+    let dphi = core::f64::consts::PI / f64::from(n);
+    for (j, v) in sin_half.iter_mut().take(2 * n as usize).enumerate() {
+        *v = T::from_f64(libm::sin(dphi * j as f64));
+    }
+    for (k, v) in cos_start.iter_mut().take(n as usize).enumerate() {
+        *v = T::from_f64(libm::cos(2.0 * dphi * k as f64));
     }
 }
 

@@ -433,7 +433,8 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// the end state and its switch-model field if the hammer stays clear; otherwise `Err`
     /// with the time (s from the segment's start) at which the trial's dense output first
     /// comes within `η_δ` of the surface, or peaks.
-    #[inline(always)]
+    #[cfg_attr(feature = "std", inline(always))]
+    #[cfg_attr(not(feature = "std"), inline(never))]
     fn free_trial(&mut self, rest: T, s_mid: T, s_end: T) -> Result<(Vector2<T>, FieldEval<T>), T> {
         let hammer = self.hammer;
         let eta = hammer.eta_delta();
@@ -449,11 +450,9 @@ impl<'t, T: Real> Simulator<'t, T> {
         // free-flight step is a tenth of the state, not small enough for compensation to pay,
         // and the lockstep lanes take the same steps without carrying a second state.
         let c = hammer.free_flight();
-        let (next, _, near) = if hammer.is_wires() {
-            free_step::<T, true, FullTrig>(&c, &st, rest, s_mid, s_end, eta)
-        } else {
-            free_step::<T, false, FullTrig>(&c, &st, rest, s_mid, s_end, eta)
-        };
+        let wires = hammer.is_wires();
+        let (next, _, near) =
+            free_step::<T, bool, FullTrig>(wires, &c, &st, rest, s_mid, s_end, eta);
         self.state.rk4_steps += 1;
         let x1 = Vector2::new(next.x0, next.x1);
         // Clear of the surface, the free field is the switch-model field.

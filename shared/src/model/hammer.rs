@@ -123,16 +123,17 @@ pub(crate) struct FreeFlight<T> {
 
 impl<T: Real> FreeFlight<T> {
     /// The free-flight field at `(y0, y1)` with `sin Ωt = sin_phase`, given `(sin y0, cos y0)`
-    /// (wires only): `(acceleration, δ, δ̇)`. `WIRES` selects the suspension.
+    /// (wires only): `(acceleration, δ, δ̇)`. `wires` selects the suspension.
     #[inline(always)]
-    pub(crate) fn eval<const WIRES: bool>(
+    pub(crate) fn eval(
         &self,
+        wires: bool,
         y0: T,
         y1: T,
         sin_cos: (T, T),
         sin_phase: T,
     ) -> (T, T, T) {
-        if WIRES {
+        if wires {
             let (st, ct) = sin_cos;
             let acc = wires_accel(self.c1, st, self.c2 * ct * sin_phase, T::zero());
             (acc, self.c0 * st - self.gap, self.c0 * y1 * ct)
@@ -475,7 +476,7 @@ mod tests {
         // The free-flight coefficients give the free field bit for bit (the integrator's
         // whole free-flight steps rest on it).
         let free = h.field_in(FieldMode::Free, &x, s, 0.1);
-        let ff = h.free_flight().eval::<true>(x[0], x[1], x[0].sin_cos(), s);
+        let ff = h.free_flight().eval(true, x[0], x[1], x[0].sin_cos(), s);
         assert_eq!(ff, (free.dx[1], free.delta, free.delta_dot));
     }
 }
