@@ -109,6 +109,26 @@ fn field<T: Real, S: Suspension, G: Trig>(
     (a, d, dd, exact)
 }
 
+/// One RK4 stage's field `(y1, acceleration)`, noting whether it came within `−neg_eta` of the
+/// surface and whether it was exact. (On the MCU one copy that the stages call: flash; on the
+/// host inlined.)
+#[cfg_attr(feature = "std", inline(always))]
+#[cfg_attr(not(feature = "std"), inline(never))]
+fn stage<T: Real, S: Suspension, G: Trig>(
+    kind: S,
+    c: &FreeFlight<T>,
+    y: &Vector2<T>,
+    s: T,
+    neg_eta: T,
+    touched: &mut bool,
+    exact: &mut bool,
+) -> Vector2<T> {
+    let (a, d, _, ok) = field::<T, S, G>(kind, c, y[0], y[1], s);
+    *touched |= d > neg_eta;
+    *exact &= ok;
+    Vector2::new(y[1], a)
+}
+
 /// One RK4 step of `h` seconds in free flight from `st`, with `sin Ωt` `s_mid`, `s_end` at
 /// the midpoint and the end: the end state, whether every field evaluation was exact (`G`),
 /// and whether the step comes within `eta` of the surface (then [`super::Simulator::step`]
@@ -132,12 +152,7 @@ pub(crate) fn free_step<T: Real, S: Suspension, G: Trig>(
         h,
         s_mid,
         s_end,
-        |y, s| {
-            let (a, d, _, ok) = field::<T, S, G>(kind, c, y[0], y[1], s);
-            touched |= d > neg_eta;
-            exact &= ok;
-            Vector2::new(y[1], a)
-        },
+        |y, s| stage::<T, S, G>(kind, c, y, s, neg_eta, &mut touched, &mut exact),
     );
     let (a, d, dd, ok) = field::<T, S, G>(kind, c, x1[0], x1[1], s_end);
     let mut near = touched | (d > neg_eta);
