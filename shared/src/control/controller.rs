@@ -545,6 +545,7 @@ impl Controller {
 
     /// Moves the drive to the prediction's target and returns the tracking mode that climbs
     /// from there within its `1/1` band (clipped to the limits).
+    #[inline(never)] // a transition: one copy (flash), not one per caller
     fn begin_tracking(&mut self, p: &Prediction) -> Mode {
         let l = self.config.limits;
         let band = [
@@ -563,6 +564,7 @@ impl Controller {
         (l.freq_min_hz..=l.freq_max_hz).contains(&p.target_hz)
     }
 
+    #[inline(never)] // called from several commands and transitions: one copy (flash)
     fn reset_measurement(&mut self) {
         self.meter.reset();
         if let Mode::Dwell(m) | Mode::Track { measurement: m, .. } = &mut self.mode {
@@ -587,6 +589,7 @@ impl Controller {
         self.request_open = true;
     }
 
+    #[inline(never)] // a transition: one copy (flash), not one per caller
     fn trip(&mut self, fault: Fault) {
         if let Mode::Fault(_) = self.mode {
             return;
@@ -596,6 +599,7 @@ impl Controller {
         self.set_mode(Mode::Fault(fault));
     }
 
+    #[inline(never)] // a transition: one copy (flash), not one per caller
     fn set_mode(&mut self, mode: Mode) {
         let from = self.mode.state();
         self.mode = mode;
