@@ -53,25 +53,33 @@ impl fmt::Display for ParamError {
                 value,
                 min,
                 max,
-            } => write!(
-                f,
-                "`{field}` = {value} is out of range: allowed {min} ..= {max}"
-            ),
+            } => out_of_range(f, field, &value, &min, &max),
             ParamError::CountOutOfRange {
                 field,
                 value,
                 min,
                 max,
-            } => write!(
-                f,
-                "`{field}` = {value} is out of range: allowed {min} ..= {max}"
-            ),
+            } => out_of_range(f, field, &value, &min, &max),
             ParamError::BadRange { field, reason } => write!(f, "`{field}`: {reason}"),
         }
     }
 }
 
 impl core::error::Error for ParamError {}
+
+/// The text of an out-of-range value (floats and counts alike).
+fn out_of_range(
+    f: &mut fmt::Formatter<'_>,
+    field: &str,
+    value: &dyn fmt::Display,
+    min: &dyn fmt::Display,
+    max: &dyn fmt::Display,
+) -> fmt::Result {
+    write!(
+        f,
+        "`{field}` = {value} is out of range: allowed {min} ..= {max}"
+    )
+}
 
 /// Checks that `value` is finite and in `[min, max]`.
 ///

@@ -10,7 +10,7 @@
 //! `|θ| ≤ 1/8`. The caller then takes the next step with [`Simulator::step`] as usual.
 
 use super::Simulator;
-use super::free::{Beam, FreeState, SmallTrig, Wires, free_step};
+use super::free::{Beam, FreeState, SmallTrig, Suspension, Wires, free_step};
 use crate::model::hammer::FreeFlight;
 use crate::real::Real;
 
@@ -65,6 +65,30 @@ impl<T: Real, const L: usize> States<T, L> {
         self.a[i] = s.a;
         self.d[i] = s.d;
         self.dd[i] = s.dd;
+    }
+}
+
+/// One trial step of every lane (`cst`: its free-flight coefficients and `h`; `s_mid`,
+/// `s_end`: `sin Ωt` at the step's midpoint and end): the states after it, and whether the
+/// stepper would take it in one piece (into `next`, `ok`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn trials<T: Real, S: Suspension, const L: usize>(
+    kind: S,
+    cst: &[(FreeFlight<T>, T); L],
+    state: &States<T, L>,
+    s_mid: &[T; L],
+    s_end: &[T; L],
+    eta: T,
+    next: &mut States<T, L>,
+    ok: &mut [bool; L],
+) {
+    for i in 0..L {
+        let (c, h) = &cst[i];
+        let (nx, exact, near) =
+            free_step::<T, S, SmallTrig>(kind, c, &state.get(i), *h, s_mid[i], s_end[i], eta);
+        next.set(i, nx);
+        ok[i] = exact & !near;
     }
 }
 
@@ -142,35 +166,9 @@ fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>
         let mut next = States::<T, L>::new();
         let mut ok = [false; L];
         if wires {
-            for i in 0..L {
-                let (c, h) = &cst[i];
-                let (nx, exact, near) = free_step::<T, Wires, SmallTrig>(
-                    Wires,
-                    c,
-                    &state.get(i),
-                    *h,
-                    s_mid[i],
-                    s_end[i],
-                    eta,
-                );
-                next.set(i, nx);
-                ok[i] = exact & !near;
-            }
+            trials(Wires, &cst, &state, &s_mid, &s_end, eta, &mut next, &mut ok);
         } else {
-            for i in 0..L {
-                let (c, h) = &cst[i];
-                let (nx, exact, near) = free_step::<T, Beam, SmallTrig>(
-                    Beam,
-                    c,
-                    &state.get(i),
-                    *h,
-                    s_mid[i],
-                    s_end[i],
-                    eta,
-                );
-                next.set(i, nx);
-                ok[i] = exact & !near;
-            }
+            trials(Beam, &cst, &state, &s_mid, &s_end, eta, &mut next, &mut ok);
         }
         // Branch-free, one array at a time (so that it vectorises too).
         let mut go = [0u32; L];

@@ -276,15 +276,20 @@ impl<'t, T: Real> Simulator<'t, T> {
         if !self.clear() || self.state.k + 1 >= n {
             return None;
         }
+        Some((self.free_state(), n - 1 - self.state.k))
+    }
+
+    /// The current state as the free-flight kernel takes it.
+    #[inline(always)]
+    fn free_state(&self) -> FreeState<T> {
         let (x, e) = (self.state.x, self.state.at_x);
-        let st = FreeState {
+        FreeState {
             x0: x[0],
             x1: x[1],
             a: e.dx[1],
             d: e.delta,
             dd: e.delta_dot,
-        };
-        Some((st, n - 1 - self.state.k))
+        }
     }
 
     /// Whether `other` can run in the same lockstep batch as `self`: the same step grid,
@@ -439,13 +444,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         let hammer = self.hammer;
         let eta = hammer.eta_delta();
         let (x0, start) = (self.state.x, self.state.at_x);
-        let st = FreeState {
-            x0: x0[0],
-            x1: x0[1],
-            a: start.dx[1],
-            d: start.delta,
-            dd: start.delta_dot,
-        };
+        let st = self.free_state();
         // A plain update (the carry is left for the next compensated one): the increment of a
         // free-flight step is a tenth of the state, not small enough for compensation to pay,
         // and the lockstep lanes take the same steps without carrying a second state.
