@@ -174,6 +174,37 @@ mod target {
         }
         let worst = insns(worst);
         hprintln!("insns sample_mean={} sample_max={}", insns(sum / n), worst);
+
+        // 4. The pendulum's sin/cos three ways, over 1,024 angles in [−0.5, 0.5] rad (the wire
+        //    rig's range): instructions per (sin, cos) pair and the largest error against f64
+        //    libm. The model's own polynomial (`Real::sin_cos`), `libm`'s `sinf`/`cosf`, and
+        //    `micromath`'s approximations (docs/model.md, "Dependencies").
+        let angle = |i: u32| -0.5 + i as f32 / 1023.0;
+        let mut measure = |name: &str, f: &dyn Fn(f32) -> (f32, f32)| {
+            let t = now();
+            for i in 0..1024u32 {
+                core::hint::black_box(f(core::hint::black_box(angle(i))));
+            }
+            let per_call = insns(now().saturating_sub(t + overhead)) / 1024;
+            let err = (0..1024u32)
+                .map(|i| {
+                    let x = angle(i);
+                    let (s, c) = f(x);
+                    let xs = f64::from(x);
+                    (f64::from(s) - libm::sin(xs))
+                        .abs()
+                        .max((f64::from(c) - libm::cos(xs)).abs())
+                })
+                .fold(0.0f64, f64::max);
+            hprintln!("math sin_cos {} insns={} max_err={:e}", name, per_call, err);
+        };
+        measure("model", &|x| <f32 as shared::Real>::sin_cos(x));
+        measure("libm", &|x| (libm::sinf(x), libm::cosf(x)));
+        measure("micromath", &|x| {
+            use micromath::F32Ext;
+            (x.sin(), x.cos())
+        });
+        measure("empty", &|x| (x, x));
         hprintln!(
             "state={} fault={}",
             c.state().as_str(),
