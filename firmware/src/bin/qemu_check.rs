@@ -180,7 +180,7 @@ mod target {
         //    libm. The model's own polynomial (`Real::sin_cos`), `libm`'s `sinf`/`cosf`, and
         //    `micromath`'s approximations (docs/model.md, "Dependencies").
         let angle = |i: u32| -0.5 + i as f32 / 1023.0;
-        let mut measure = |name: &str, f: &dyn Fn(f32) -> (f32, f32)| {
+        let measure = |name: &str, f: &dyn Fn(f32) -> (f32, f32)| {
             let t = now();
             for i in 0..1024u32 {
                 core::hint::black_box(f(core::hint::black_box(angle(i))));
