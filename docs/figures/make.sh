@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Regenerates the committed analysis figures (README "Bifurcation diagrams, Peterka maps and
-# basins" and "Selection"): about 5 minutes on 2 cores. Run from the repository root.
-# The hil/identify figures have their own commands in the README and docs/identification.md.
+# Regenerates the committed analysis figures (docs/analysis.md and the README): about 5 minutes
+# on 2 cores. Run from the repository root. The virtual rig's and the identification's figures
+# have their own commands (docs/virtual-rig.md, docs/operator.md, docs/identification.md).
 set -euo pipefail
 cargo build --release -p host-sim
 h=target/release/host-sim
@@ -21,3 +21,5 @@ $h basins --rig wires --gap-mm 1.335 --omega-ratio 2.0 --u0-mm -4:1.335:200 --v0
     --out /tmp/basins.csv --plot "$f/basins-wires-ratio2.00-gapA1.50.png"
 $h peterka --rig wires --gap-mm 0:3.42:0.01 --freq-hz 1:7.11:0.01 \
     --out /tmp/peterka.csv --plot "$f/peterka-wires.png" --force-plot "$f/peterka-wires-f11.png"
+$h simulate --rig wires --gap-mm 0 --omega-ratio 2.01 --periods 6 \
+    --out /tmp/simulate-wires.csv --plot "$f/simulate-wires-gap0-2.01.png"
