@@ -123,6 +123,18 @@ pub fn simulator_at<'t, T: Real>(
 
 /// [`evaluate_point_observed`] without an observer.
 ///
+/// The wire rig at 0.0 mm gap driven at twice its natural frequency: one impact per period
+/// (`z = 1/1`) of about 33 `mg` — the chosen operating point's neighbour.
+/// ```
+/// use shared::analysis::{SimSettings, evaluate_point};
+/// use shared::model::RigId;
+/// use shared::observe::Regime;
+/// let r = evaluate_point::<f32>(&RigId::Wires.preset(), 0.0, 2.0, &SimSettings::default())?;
+/// assert_eq!(r.regime, Regime::ONE_ONE);
+/// assert!((r.impact_force_mg - 33.0).abs() < 1.0);
+/// # Ok::<(), shared::ParamError>(())
+/// ```
+///
 /// # Errors
 /// As [`evaluate_point_observed`].
 pub fn evaluate_point<T: Real>(

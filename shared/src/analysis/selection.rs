@@ -333,6 +333,18 @@ pub const MAX_SEQUENTIAL_POINTS: usize = 512;
 /// path the firmware runs. Gives the same result as computing the responses elsewhere (in
 /// parallel on the host) and calling [`select`].
 ///
+/// The firmware's on-target selection for the wire rig at 0.0 mm gap: 3.640 Hz, inside the
+/// `1/1` band of 2.1–4.7 Hz.
+/// ```
+/// use shared::analysis::{SelectionSpec, SimSettings, select_sequential};
+/// use shared::model::RigId;
+/// let p = RigId::Wires.preset();
+/// let s = select_sequential::<f32>(&p, 0.0, &SelectionSpec::embedded(), &SimSettings::embedded())
+///     .expect("a robust 1/1 point");
+/// assert!((s.best.freq_hz - 3.6404).abs() < 1e-3);
+/// assert!(s.band_hz[0] < 2.2 && s.band_hz[1] > 4.6);
+/// ```
+///
 /// # Errors
 /// [`SelectionError::Param`] for invalid input or a sweep longer than
 /// [`MAX_SEQUENTIAL_POINTS`]; otherwise as [`select`].

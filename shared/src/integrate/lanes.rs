@@ -4,7 +4,7 @@
 //! flight (the first branch of [`Simulator::step`]): the same short chain of `+` and `×` for
 //! every simulator of a grid. [`free_flight`] evaluates it for `L` simulators at once, so the
 //! compiler packs the lanes into SIMD registers, and skips the per-step bookkeeping in between.
-//! Each lane runs the stepper's own kernel ([`super::free::free_step`]) and stops before the
+//! Each lane runs the stepper's own kernel (`integrate::free`) and stops before the
 //! period's last step (the Poincaré section), before any step that the stepper would split
 //! near the surface, and (wires) before an angle outside the short sine polynomial's range
 //! `|θ| ≤ 1/8`. The caller then takes the next step with [`Simulator::step`] as usual.

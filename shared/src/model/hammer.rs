@@ -10,7 +10,7 @@
 //! Sign convention (docs/model.md): the impact surface is at `u = gap` on the `+u` side;
 //! `δ = u − gap`; `F_i ≥ 0` pushes the hammer back toward `−u`.
 //!
-//! Each suspension's acceleration is written once ([`wires_accel`], [`beam_accel`]): the
+//! Each suspension's acceleration is written once (`wires_accel`, `beam_accel`): the
 //! switch-model field, the free-flight field and the integrator's free-flight kernel
 //! (`crate::integrate::free`) all evaluate it.
 

@@ -111,6 +111,19 @@ impl<T: Real> SwitchModel<T> {
     /// The contact force (N, positive pushes the hammer away from the surface) and the region,
     /// for penetration `delta` (m), its rate `delta_dot` (m/s) and the approach speed of the
     /// current impact (m/s, Lankarani–Nikravesh only).
+    ///
+    /// Table 3.1's spring–dashpot law 10 µm into the surface, closing at 0.1 m/s:
+    /// `5.5e6 · 1e-5 + 1.2e3 · 0.1` = 175 N (Eq. 3-3), in contact (`Γ+`); leaving the surface
+    /// fast enough that `k δ + c δ̇ < 0`, the force is 0 and the hammer is free (`h_β < 0`).
+    /// ```
+    /// use shared::model::switch::SwitchModel;
+    /// use shared::model::{ContactLaw, Region, SwitchBands};
+    /// let sw = SwitchModel::<f64>::new(ContactLaw::identified().compile(), &SwitchBands::default());
+    /// let (f, region) = sw.force(1e-5, 0.1, 0.1);
+    /// assert!((f - 175.0).abs() < 1e-9);
+    /// assert_eq!(region, Region::Contact);
+    /// assert_eq!(sw.force(1e-5, -0.1, 0.1), (0.0, Region::Free));
+    /// ```
     #[inline(always)]
     pub fn force(&self, delta: T, delta_dot: T, approach_speed: T) -> (T, Region) {
         if delta <= -self.eta_delta {
