@@ -21,9 +21,9 @@ use serde::{Deserialize, Serialize};
 use shared::analysis::SimSettings;
 use shared::model::RigParams;
 
-use crate::cli::Precision;
 use crate::config::Setup;
 use crate::interrupt;
+use crate::precision::Precision;
 
 /// First characters of a shard file.
 pub const MAGIC: &str = "# host-sim-shard ";
@@ -491,10 +491,7 @@ pub fn title_prefix(meta: &Meta) -> String {
         "{} rig, {} law, {}",
         meta.rig,
         meta.params.contact.kind(),
-        match meta.precision {
-            Precision::F32 => "f32",
-            Precision::F64 => "f64",
-        }
+        meta.precision.name()
     )
 }
 

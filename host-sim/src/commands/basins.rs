@@ -23,11 +23,12 @@ use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
 use shared::error::check_range;
 use shared::observe::{Observer, ProtocolRun, Regime, StroboPoint};
 
-use crate::cli::{Precision, RigOpts};
+use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
 use crate::grid::{CountSweep, write_grid};
 use crate::maps::{self, AttractorKey, MapAxis, Raster};
 use crate::output::Outputs;
+use crate::precision::Precision;
 use crate::runner::in_order;
 use crate::shard::{Indexed, Kind, Meta, Shard, create_csv, open_csv, title_prefix};
 

@@ -18,13 +18,14 @@ use shared::analysis::response::evaluate_point_observed;
 use shared::integrate::Simulator;
 use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
 
-use super::response::omega_sweep;
-use crate::cli::{Precision, RigOpts};
+use super::omega_sweep;
+use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
 use crate::grid::{per_point, write_grid};
 use crate::interrupt;
 use crate::maps::{self, BifDot, BifRanges};
 use crate::output::Outputs;
+use crate::precision::Precision;
 use crate::runner::progress;
 use crate::shard::{Indexed, Kind, Meta, Shard, create_csv, open_csv, title_prefix};
 

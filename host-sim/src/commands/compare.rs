@@ -20,12 +20,12 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::{check_count, check_range};
 use shared::observe::Regime;
 
-use crate::cli::{Precision, RigOpts};
-use crate::commands::simulate::time_series;
+use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
 use crate::output::Outputs;
 use crate::plot_identify::{self, ResponseOverlay, TsOverlay};
 use crate::runner::{OperatingPoint, evaluate_all};
+use crate::series;
 use crate::trace::{MotionUnit, TimeUnit, TraceFormat, read_trace};
 
 /// Arguments of `compare`.
@@ -281,10 +281,7 @@ fn compare_time_series(a: &CompareArgs, setup: &Setup, gap_m: f64) -> Result<()>
     );
     let omega_exc = 2.0 * std::f64::consts::PI * freq_hz;
     let periods = a.transient_periods + record_periods;
-    let (rows, _) = match setup.precision {
-        Precision::F32 => time_series::<f32>(setup, gap_m, omega_exc, periods, 0.0, 0.0)?,
-        Precision::F64 => time_series::<f64>(setup, gap_m, omega_exc, periods, 0.0, 0.0)?,
-    };
+    let (rows, _) = series::simulate(setup, gap_m, omega_exc, periods, 0.0, 0.0)?;
     let t_start = f64::from(a.transient_periods) * period;
     // Simulated absolute displacement and velocity after the transient, t from 0.
     let sim: Vec<(f64, f64, f64)> = rows

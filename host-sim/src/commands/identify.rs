@@ -73,10 +73,6 @@ fn parse_law_choice(s: &str) -> Result<LawChoice, String> {
         .map_err(|e| format!("{e}, or all"))
 }
 
-fn parse_rig(s: &str) -> Result<RigId, String> {
-    s.parse().map_err(|e| format!("{e}"))
-}
-
 /// Arguments of `identify contact`.
 #[derive(Debug, Args)]
 #[command(allow_negative_numbers = true)]
@@ -100,7 +96,7 @@ pub struct ContactArgs {
     #[arg(long, default_value_t = 0.0)]
     pub gap_mm: f64,
     /// Suspension of the hammer during the test (the free flight between impacts).
-    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    #[arg(long, value_parser = crate::config::parse_rig, default_value = "wires")]
     pub rig: RigId,
     /// TOML file overriding rig parameters (e.g. the output of `identify free`).
     #[arg(long, value_name = "FILE.toml")]
@@ -159,7 +155,7 @@ pub struct FreeArgs {
     pub unit: MotionUnit,
     /// Rig whose suspension the config file sets: a beam preset (natural frequency and
     /// damping ratio) or wires (pendulum length g/ω², no damping in the model).
-    #[arg(long, value_parser = parse_rig, default_value = "beam-170")]
+    #[arg(long, value_parser = crate::config::parse_rig, default_value = "beam-170")]
     pub rig: RigId,
     /// Config file with the mass and the identified suspension.
     #[arg(long, value_name = "FILE.toml")]
@@ -387,12 +383,12 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
     }
     check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
     shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
-    let setup = Setup::from_opts(&crate::cli::RigOpts {
+    let setup = Setup::from_opts(&crate::config::RigOpts {
         rig: a.rig,
         law: None,
         config: a.config.clone(),
-        precision: crate::cli::Precision::F64,
-        profile: crate::cli::Profile::Host,
+        precision: crate::precision::Precision::F64,
+        profile: crate::config::Profile::Host,
     })?;
     let mut params = setup.params;
     params.mass_kg = a.mass_kg;

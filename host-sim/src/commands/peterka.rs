@@ -11,7 +11,7 @@ use shared::analysis::Sweep;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::observe::Regime;
 
-use crate::cli::RigOpts;
+use crate::config::RigOpts;
 use crate::config::{MAX_GAP_MM, Setup, parse_sweep};
 use crate::grid::write_grid;
 use crate::maps::{self, Cell, MapAxis, Raster};
