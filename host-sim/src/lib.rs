@@ -5,6 +5,7 @@
 pub mod cli;
 pub mod client;
 pub mod commands;
+pub mod comparison;
 pub mod config;
 pub mod grid;
 pub mod identify;
