@@ -364,11 +364,7 @@ pub fn trace_from_table(table: &LabTable, format: &TraceFormat, what: &str) -> R
     if let Some(r) = format.sample_rate_hz {
         shared::error::check_range("sample_rate_hz", r, 1e-3, 1e9).context("--sample-rate-hz")?;
     }
-    let meta_rate = table
-        .comments
-        .iter()
-        .filter_map(|l| metadata_rate(l))
-        .last();
+    let meta_rate = table.comments.iter().rev().find_map(|l| metadata_rate(l));
     let value_col = table.column(&format.value_col, what)?;
     let rate_col = table.find("sample_rate_hz");
     let time_col = if format.sample_rate_hz.is_some() {
