@@ -54,6 +54,7 @@ use anyhow::{Context, Result, bail, ensure};
 use argmin::core::{CostFunction, Executor, State};
 use argmin::solver::brent::BrentOpt;
 use argmin::solver::neldermead::NelderMead;
+use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -62,7 +63,7 @@ use shared::integrate::StepSettings;
 use shared::model::contact::spring_dashpot_restitution;
 use shared::model::{ContactLaw, ContactLawKind, RigParams, SwitchBands};
 
-use super::solve3;
+use super::least_squares;
 use crate::trace::Trace;
 
 /// Which error the fit minimises.
@@ -161,23 +162,9 @@ fn median(v: &mut [f64]) -> f64 {
 /// Least-squares parabola through `(t, f)`: the vertex `(t*, f*)` if it opens downward.
 fn parabola_vertex(t: &[f64], f: &[f64]) -> Option<(f64, f64)> {
     let t0 = t[t.len() / 2];
-    let (mut s, mut m) = ([0.0; 5], [0.0; 3]);
-    for (&ti, &fi) in t.iter().zip(f) {
-        let x = ti - t0;
-        let mut p = 1.0;
-        for sk in &mut s {
-            *sk += p;
-            p *= x;
-        }
-        m[0] += fi;
-        m[1] += fi * x;
-        m[2] += fi * x * x;
-    }
-    // Normal equations for f = a + b x + c x².
-    let a = solve3(
-        [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]],
-        m,
-    )?;
+    // f = a + b x + c x², x = t − t0.
+    let design = DMatrix::from_fn(t.len(), 3, |i, k| (t[i] - t0).powi(k as i32));
+    let a = least_squares(design, DVector::from_column_slice(f))?;
     let (b, c) = (a[1], a[2]);
     if c >= 0.0 {
         return None;
