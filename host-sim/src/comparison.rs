@@ -179,7 +179,16 @@ pub fn time_series(
     );
     let omega_exc = 2.0 * std::f64::consts::PI * freq_hz;
     let periods = transient_periods + record_periods;
-    let (rows, _) = series::simulate(setup, gap_m, omega_exc, periods, 0.0, 0.0)?;
+    let (rows, _) = series::simulate(
+        setup,
+        &series::SeriesSpec {
+            gap_m,
+            omega_exc,
+            periods,
+            u0_m: 0.0,
+            v0_m_s: 0.0,
+        },
+    )?;
     let t_start = f64::from(transient_periods) * period;
     // Simulated absolute displacement and velocity after the transient, t from 0.
     let sim: Vec<(f64, f64, f64)> = rows

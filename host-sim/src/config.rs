@@ -17,6 +17,7 @@
 //! covariance = [[2.7e-5, 2.8e-5], [2.8e-5, 1.5e-4]]
 //! ```
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -298,6 +299,64 @@ fn overlay(base: &mut toml::Value, over: toml::Value) {
         }
         (b, o) => *b = o,
     }
+}
+
+/// The keys of `a` that differ from `b` (recursively through tables).
+fn diff(a: &toml::Value, b: &toml::Value) -> Option<toml::Value> {
+    match (a, b) {
+        (toml::Value::Table(ta), toml::Value::Table(tb)) => {
+            let mut out = toml::Table::new();
+            for (k, va) in ta {
+                let d = match tb.get(k) {
+                    Some(vb) => diff(va, vb),
+                    None => Some(va.clone()),
+                };
+                if let Some(d) = d {
+                    out.insert(k.clone(), d);
+                }
+            }
+            (!out.is_empty()).then_some(toml::Value::Table(out))
+        }
+        _ => (a != b).then(|| a.clone()),
+    }
+}
+
+/// A config file whose `[rig]` table holds `always` (keys written whatever their value, e.g.
+/// `mass_kg`, `contact`) and every other key of `params` that differs from `base` (the preset
+/// plus any `--config` the identification started from would be repeated, a plain preset is
+/// not), with `comment` as `#` lines on top. Loaded with `--rig <same preset> --config`, it
+/// reproduces `params`.
+///
+/// # Errors
+/// Serialisation failure.
+pub fn config_text(
+    comment: &str,
+    params: &RigParams,
+    base: &RigParams,
+    always: &[&str],
+) -> Result<String> {
+    let a = toml::Value::try_from(params).context("writing the config")?;
+    let b = toml::Value::try_from(base).context("writing the config")?;
+    let mut rig = match diff(&a, &b) {
+        Some(toml::Value::Table(t)) => t,
+        _ => toml::Table::new(),
+    };
+    if let toml::Value::Table(full) = &a {
+        for key in always {
+            if let Some(v) = full.get(*key) {
+                rig.insert((*key).to_string(), v.clone());
+            }
+        }
+    }
+    let mut root = toml::Table::new();
+    root.insert("rig".into(), toml::Value::Table(rig));
+    let body = toml::to_string(&root).context("writing the config")?;
+    let mut out = String::new();
+    for line in comment.lines() {
+        let _ = writeln!(out, "# {line}");
+    }
+    out.push_str(&body);
+    Ok(out)
 }
 
 /// Checks a gap given in mm on the command line and returns it in m.

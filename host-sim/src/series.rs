@@ -39,37 +39,39 @@ pub struct TsSummary {
     pub max_force_mg: f64,
 }
 
-/// [`time_series`] in the setup's precision.
-///
-/// # Errors
-/// As [`time_series`].
-pub fn simulate(
-    setup: &Setup,
-    gap_m: f64,
-    omega_exc: f64,
-    periods: u32,
-    u0_m: f64,
-    v0_m_s: f64,
-) -> Result<(Vec<TsRow>, TsSummary)> {
-    crate::with_precision!(setup.precision, T => {
-        time_series::<T>(setup, gap_m, omega_exc, periods, u0_m, v0_m_s)
-    })
+/// One run of a time series: `periods` excitation periods at `omega_exc` (rad/s) and gap
+/// `gap_m` (m), from the relative state `(u0_m, v0_m_s)` (m, m/s) at phase 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeriesSpec {
+    /// Gap, m.
+    pub gap_m: f64,
+    /// Excitation angular frequency `Ω`, rad/s.
+    pub omega_exc: f64,
+    /// Excitation periods to simulate.
+    pub periods: u32,
+    /// Initial relative displacement, m.
+    pub u0_m: f64,
+    /// Initial relative velocity, m/s.
+    pub v0_m_s: f64,
 }
 
-/// Simulates `periods` excitation periods (`omega_exc`, rad/s) at gap `gap_m` (m) from the
-/// relative state `(u0_m, v0_m_s)` (m, m/s) at phase 0, in float type `T`: one row at `t = 0`
-/// and one after every RK4 step or sub-step.
+/// Simulates `spec` in the setup's precision: one row at `t = 0` and one after every RK4 step
+/// or sub-step, and the impacts counted.
 ///
 /// # Errors
 /// Invalid parameters or initial state.
-pub fn time_series<T: Real>(
-    setup: &Setup,
-    gap_m: f64,
-    omega_exc: f64,
-    periods: u32,
-    u0_m: f64,
-    v0_m_s: f64,
-) -> Result<(Vec<TsRow>, TsSummary)> {
+pub fn simulate(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>, TsSummary)> {
+    crate::with_precision!(setup.precision, T => time_series::<T>(setup, spec))
+}
+
+fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>, TsSummary)> {
+    let &SeriesSpec {
+        gap_m,
+        omega_exc,
+        periods,
+        u0_m,
+        v0_m_s,
+    } = spec;
     let mut sim = Simulator::<T>::new(
         &setup.params,
         gap_m,

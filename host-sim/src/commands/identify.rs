@@ -8,19 +8,18 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use serde::Serialize;
 use shared::error::check_range;
-use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension};
+use shared::model::{ContactLaw, ContactLawKind, RigId};
 
-use crate::config::{MAX_GAP_MM, Setup};
+use crate::config::{MAX_GAP_MM, Setup, config_text};
 use crate::identify::contact::{
     DropData, DropSetup, DropTest, FIT_STEPS, Fit, FitError, Residual, Weights, analyse_drop,
-    fit_law_joint,
+    best_by_aic, fit_laws,
 };
 use crate::identify::free::{FreeDecay, identify_free};
 use crate::identify::uncertainty::{STRONG_CORRELATION, Uncertainty, WIDE_REL};
 use crate::output::Outputs;
 use crate::plot_identify;
 use crate::trace::{ForceUnit, MotionUnit, TimeUnit, TraceFormat, read_trace};
-use rayon::prelude::*;
 
 /// Arguments of `identify`.
 #[derive(Debug, Args)]
@@ -224,64 +223,6 @@ pub fn describe_law(law: &ContactLaw, mass_kg: f64) -> String {
     }
 }
 
-/// The keys of `a` that differ from `b` (recursively through tables).
-fn diff(a: &toml::Value, b: &toml::Value) -> Option<toml::Value> {
-    match (a, b) {
-        (toml::Value::Table(ta), toml::Value::Table(tb)) => {
-            let mut out = toml::Table::new();
-            for (k, va) in ta {
-                let d = match tb.get(k) {
-                    Some(vb) => diff(va, vb),
-                    None => Some(va.clone()),
-                };
-                if let Some(d) = d {
-                    out.insert(k.clone(), d);
-                }
-            }
-            (!out.is_empty()).then_some(toml::Value::Table(out))
-        }
-        _ => (a != b).then(|| a.clone()),
-    }
-}
-
-/// A config file whose `[rig]` table holds `always` (keys written whatever their value, e.g.
-/// `mass_kg`, `contact`) and every other key of `params` that differs from `base` (the preset
-/// plus any `--config` the identification started from would be repeated, a plain preset is
-/// not), with `comment` as `#` lines on top. Loaded with `--rig <same preset> --config`, it
-/// reproduces `params`.
-///
-/// # Errors
-/// Serialisation failure.
-pub fn config_text(
-    comment: &str,
-    params: &RigParams,
-    base: &RigParams,
-    always: &[&str],
-) -> Result<String> {
-    let a = toml::Value::try_from(params).context("writing the config")?;
-    let b = toml::Value::try_from(base).context("writing the config")?;
-    let mut rig = match diff(&a, &b) {
-        Some(toml::Value::Table(t)) => t,
-        _ => toml::Table::new(),
-    };
-    if let toml::Value::Table(full) = &a {
-        for key in always {
-            if let Some(v) = full.get(*key) {
-                rig.insert((*key).to_string(), v.clone());
-            }
-        }
-    }
-    let mut root = toml::Table::new();
-    root.insert("rig".into(), toml::Value::Table(rig));
-    let body = toml::to_string(&root).context("writing the config")?;
-    let mut out = String::new();
-    for line in comment.lines() {
-        let _ = writeln!(out, "# {line}");
-    }
-    out.push_str(&body);
-    Ok(out)
-}
-
 /// Bad pairing of the repeated `identify contact` options.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum PairingError {
@@ -436,21 +377,8 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         LawChoice::One(k) => vec![k],
         LawChoice::All => ContactLawKind::ALL.to_vec(),
     };
-    // The laws in parallel (each fit is a sequence of drop simulations).
-    let fits: Vec<(ContactLawKind, Fit)> = laws
-        .par_iter()
-        .map(|&k| {
-            fit_law_joint(&tests, k, weights, 400)
-                .with_context(|| format!("fitting the {k} law"))
-                .map(|f| (k, f))
-        })
-        .collect::<Result<_>>()?;
-    // Ranked by AIC (the same terms for every law).
-    let best = fits
-        .iter()
-        .min_by(|x, y| x.1.aic().total_cmp(&y.1.aic()))
-        .map(|f| f.0)
-        .unwrap_or(ContactLawKind::SpringDashpot);
+    let fits = fit_laws(&tests, &laws, weights, 400)?;
+    let best = best_by_aic(&fits).context("no fit")?;
     let run = ContactRun {
         error,
         requested: a.error,
@@ -503,7 +431,7 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         )?;
         if let Ok(u) = &best_fit.uncertainty {
             text.push('\n');
-            text.push_str(&uncertainty_toml(u)?);
+            text.push_str(&u.toml_table()?);
         }
         std::fs::write(&tmp, text).with_context(|| format!("writing {}", p.display()))?;
     }
@@ -544,53 +472,6 @@ struct ContactRun {
     requested: FitError,
     /// The fewest samples per contact over the traces.
     samples_per_contact: f64,
-}
-
-/// The `[uncertainty]` table of a fit's config file: the coordinates `select --uncertainty`
-/// draws in, their mean and covariance, the 95 % intervals and the notes.
-///
-/// # Errors
-/// Serialisation failure.
-pub fn uncertainty_toml(u: &Uncertainty) -> Result<String> {
-    let mut t = toml::Table::new();
-    t.insert("method".into(), u.method.clone().into());
-    t.insert("law".into(), u.law.to_string().into());
-    t.insert(
-        "coordinates".into(),
-        toml::Value::Array(u.coordinates.iter().map(|c| (*c).into()).collect()),
-    );
-    t.insert(
-        "mean".into(),
-        toml::Value::Array(u.mean.iter().map(|&v| v.into()).collect()),
-    );
-    t.insert(
-        "covariance".into(),
-        toml::Value::Array(
-            u.covariance
-                .iter()
-                .map(|row| toml::Value::Array(row.iter().map(|&v| v.into()).collect()))
-                .collect(),
-        ),
-    );
-    let mut ci = toml::Table::new();
-    for p in &u.params {
-        ci.insert(
-            p.key.into(),
-            toml::Value::Array(vec![p.ci95[0].into(), p.ci95[1].into()]),
-        );
-    }
-    t.insert("ci95".into(), toml::Value::Table(ci));
-    t.insert(
-        "noise_n".into(),
-        toml::Value::Array(u.noise_n.iter().map(|&v| v.into()).collect()),
-    );
-    t.insert(
-        "notes".into(),
-        toml::Value::Array(u.notes.iter().map(|n| n.clone().into()).collect()),
-    );
-    let mut root = toml::Table::new();
-    root.insert("uncertainty".into(), toml::Value::Table(t));
-    toml::to_string(&root).context("writing the [uncertainty] table")
 }
 
 /// The intervals, correlations and identifiability notes of one fit, as printed.
@@ -860,15 +741,7 @@ fn run_free(a: &FreeArgs) -> Result<()> {
         identify_free(&trace).with_context(|| format!("free decay {}", a.trace.display()))?;
     let mut params = a.rig.preset();
     params.mass_kg = a.mass_kg;
-    params.suspension = match params.suspension {
-        Suspension::Beam { .. } => Suspension::Beam {
-            natural_freq_hz: decay.natural_freq_hz,
-            damping_ratio: decay.damping_ratio,
-        },
-        Suspension::Wires { .. } => Suspension::Wires {
-            length_m: decay.pendulum_length_m(params.gravity_m_s2),
-        },
-    };
+    params.suspension = decay.suspension(&params.suspension, params.gravity_m_s2);
     params
         .validate()
         .context("the identified suspension is out of range")?;

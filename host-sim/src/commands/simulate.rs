@@ -10,7 +10,7 @@ use shared::error::{check_count, check_range};
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::output::{Outputs, write_csv};
 use crate::plot::{self, TsPoint};
-use crate::series;
+use crate::series::{self, SeriesSpec};
 
 /// Arguments of `simulate`.
 #[derive(Debug, Args)]
@@ -80,11 +80,13 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
     let omega_exc = ratio * setup.params.omega_n();
     let (rows, summary) = series::simulate(
         &setup,
-        gap_m,
-        omega_exc,
-        a.periods,
-        a.u0_mm * 1e-3,
-        a.v0_mm_s * 1e-3,
+        &SeriesSpec {
+            gap_m,
+            omega_exc,
+            periods: a.periods,
+            u0_m: a.u0_mm * 1e-3,
+            v0_m_s: a.v0_mm_s * 1e-3,
+        },
     )?;
     let mut outputs = Outputs::new();
     if let Some(p) = &a.out {

@@ -58,6 +58,7 @@ use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
 use shared::analysis::drop::{DropRecord, DropSpec, run_drop};
 use shared::integrate::StepSettings;
 use shared::model::contact::spring_dashpot_restitution;
@@ -1005,6 +1006,35 @@ fn problem(tests: &[DropTest], law: ContactLawKind, weights: Weights) -> Result<
         delta_ref,
         x0_scale,
     })
+}
+
+/// Fits every law of `laws` to the drop tests `tests` jointly (one parameter set per law, the
+/// error summed over the tests; at most `max_iters` Nelder–Mead iterations), the laws in
+/// parallel; results in the order of `laws`.
+///
+/// # Errors
+/// The first law whose fit fails (named).
+pub fn fit_laws(
+    tests: &[DropTest],
+    laws: &[ContactLawKind],
+    weights: Weights,
+    max_iters: u64,
+) -> Result<Vec<(ContactLawKind, Fit)>> {
+    laws.par_iter()
+        .map(|&k| {
+            fit_law_joint(tests, k, weights, max_iters)
+                .with_context(|| format!("fitting the {k} law"))
+                .map(|f| (k, f))
+        })
+        .collect()
+}
+
+/// The law of `fits` with the lowest AIC (the same error terms for every law); `None` if
+/// `fits` is empty.
+pub fn best_by_aic(fits: &[(ContactLawKind, Fit)]) -> Option<ContactLawKind> {
+    fits.iter()
+        .min_by(|x, y| x.1.aic().total_cmp(&y.1.aic()))
+        .map(|f| f.0)
 }
 
 /// Fits one parameter set of `law` to several drop tests at once (e.g. two release heights):

@@ -19,6 +19,7 @@ use anyhow::{Result, bail, ensure};
 use argmin::core::{CostFunction, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use serde::Serialize;
+use shared::model::Suspension;
 
 use nalgebra::{DMatrix, DVector};
 
@@ -66,6 +67,20 @@ impl FreeDecay {
     /// Length of the pendulum with this natural frequency, `l = g/ω_n²`, m.
     pub fn pendulum_length_m(&self, gravity_m_s2: f64) -> f64 {
         gravity_m_s2 / self.omega_n().powi(2)
+    }
+    /// A suspension of the same kind as `like` with this decay's parameters: a beam's natural
+    /// frequency and damping ratio, or the wires' pendulum length at gravity `gravity_m_s2`
+    /// (the wire model has no damping).
+    pub fn suspension(&self, like: &Suspension, gravity_m_s2: f64) -> Suspension {
+        match like {
+            Suspension::Beam { .. } => Suspension::Beam {
+                natural_freq_hz: self.natural_freq_hz,
+                damping_ratio: self.damping_ratio,
+            },
+            Suspension::Wires { .. } => Suspension::Wires {
+                length_m: self.pendulum_length_m(gravity_m_s2),
+            },
+        }
     }
 }
 
