@@ -21,11 +21,10 @@ use shared::observe::PointResult;
 
 use host_sim::config::{Profile, RigOpts, Setup};
 use host_sim::grid::basins::{self, Basins, BasinsGrid};
-use host_sim::grid::{self, BATCH, CountSweep, Figures, GridKind};
+use host_sim::grid::{self, BATCH, CountSweep, Figures};
 use host_sim::output::Outputs;
 use host_sim::precision::Precision;
 use host_sim::runner::{OperatingPoint, evaluate_batch};
-use host_sim::shard::Meta;
 
 fn peak_rss_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -138,7 +137,7 @@ fn main() {
         v0_mm_s: CountSweep::parse("--v0-mm-s", "-100:100:200", -1e4, 1e4).expect("v0 sweep"),
         attractor_tol: 0.01,
     };
-    let meta = Meta::new(Basins::KIND, &setup, &grid, grid.points()).expect("metadata");
+    let meta = grid::meta::<Basins>(&setup, &grid, grid.points()).expect("metadata");
     let t = Instant::now();
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&csv).expect("writable CSV");

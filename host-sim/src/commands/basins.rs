@@ -20,9 +20,9 @@ use shared::error::check_range;
 
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::basins::{self, Basins, BasinsGrid, MAX_U0_MM, MAX_V0_MM_S};
-use crate::grid::{self, CountSweep, Figures, GridKind};
+use crate::grid::{self, CountSweep, Figures};
 use crate::output::Outputs;
-use crate::shard::{Meta, Shard};
+use crate::shard::Shard;
 
 /// Arguments of `basins`.
 #[derive(Debug, Args)]
@@ -97,7 +97,7 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
     if shard.is_some() && a.plot.is_some() {
         bail!("--plot: a shard writes only its CSV; draw the figure with `host-sim merge`");
     }
-    let mut meta = Meta::new(Basins::KIND, &setup, &grid, grid.points())?;
+    let mut meta = grid::meta::<Basins>(&setup, &grid, grid.points())?;
     meta.shard = shard;
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&a.out)?;

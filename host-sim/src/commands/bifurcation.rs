@@ -10,9 +10,9 @@ use clap::Args;
 use super::omega_sweep;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::bifurcation::{self, BifGrid, Bifurcation, Continuation};
-use crate::grid::{self, Figures, GridKind, per_point};
+use crate::grid::{self, Figures, per_point};
 use crate::output::Outputs;
-use crate::shard::{Meta, Shard};
+use crate::shard::Shard;
 
 /// Arguments of `bifurcation`.
 #[derive(Debug, Args)]
@@ -70,7 +70,7 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
         omega_ratio: sweep,
         continuation: a.continuation,
     };
-    let mut meta = Meta::new(Bifurcation::KIND, &setup, &grid, sweep.len() as u64)?;
+    let mut meta = grid::meta::<Bifurcation>(&setup, &grid, sweep.len() as u64)?;
     meta.shard = shard;
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&a.out)?;

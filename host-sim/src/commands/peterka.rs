@@ -10,9 +10,9 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 
 use crate::config::{MAX_GAP_MM, RigOpts, Setup, parse_sweep};
 use crate::grid::peterka::{self, Axis, AxisUnit, MAX_POINTS, Peterka, PeterkaGrid};
-use crate::grid::{self, Figures, GridKind};
+use crate::grid::{self, Figures};
 use crate::output::Outputs;
-use crate::shard::{Meta, Shard};
+use crate::shard::Shard;
 
 /// Arguments of `peterka`.
 #[derive(Debug, Args)]
@@ -108,7 +108,7 @@ pub fn run(a: &PeterkaArgs) -> Result<()> {
             "--plot/--force-plot: a shard writes only its CSV; draw the figures with `host-sim merge`"
         );
     }
-    let mut meta = Meta::new(Peterka::KIND, &setup, &grid, grid.points())?;
+    let mut meta = grid::meta::<Peterka>(&setup, &grid, grid.points())?;
     meta.shard = shard;
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&a.out)?;

@@ -303,7 +303,7 @@ impl GridKind for Basins {
         out: &Path,
         figures: Figures<'_>,
     ) -> Result<()> {
-        let grid: BasinsGrid = meta.grid()?;
+        let grid = meta.grid::<Self::Grid>()?;
         // Pass 1: groups.
         let mut grouping = Grouping::new(meta, &grid);
         for r in open_csv::<BasinRaw>(raw)?.deserialize::<BasinRaw>() {

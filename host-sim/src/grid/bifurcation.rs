@@ -270,7 +270,7 @@ impl GridKind for Bifurcation {
         let Some(plot) = figures.plot else {
             return Ok(());
         };
-        let grid: BifGrid = meta.grid()?;
+        let grid = meta.grid::<Self::Grid>()?;
         let mut ranges = BifRanges {
             x: (
                 grid.omega_ratio.value(0),

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use std::path::Path;
 
+use crate::config::Setup;
 use crate::interrupt;
 use crate::output::{Outputs, scratch};
 use crate::runner::progress;
@@ -161,6 +162,14 @@ pub trait GridKind {
         out: &Path,
         figures: Figures<'_>,
     ) -> Result<()>;
+}
+
+/// The metadata of a run of kind `K` over `grid` (`points` points, no shard yet).
+///
+/// # Errors
+/// The grid does not serialise (internal).
+pub fn meta<K: GridKind>(setup: &Setup, grid: &K::Grid, points: u64) -> Result<Meta> {
+    Meta::new(K::KIND, setup, grid, points)
 }
 
 /// The outputs of a complete grid of kind `K`: `fill(path)` writes its rows file (a plain CSV

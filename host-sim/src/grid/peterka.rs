@@ -172,7 +172,7 @@ impl GridKind for Peterka {
         if plot.is_none() && force_plot.is_none() {
             return Ok(());
         }
-        let grid: PeterkaGrid = meta.grid()?;
+        let grid = meta.grid::<Self::Grid>()?;
         let a0_mm = meta.params.amplitude_m * 1e3;
         let fn_hz = meta.params.natural_freq_hz();
         let (nf, ng) = (grid.freq.sweep.len(), grid.gap.sweep.len());
