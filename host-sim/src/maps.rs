@@ -11,7 +11,7 @@ use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use shared::observe::Regime;
 
-use crate::plot::{SANS, ensure_font};
+use crate::plot::{SANS, ensure_font, series_legend};
 
 /// Largest raster side, cells: grids finer than this are down-sampled (last cell in index order
 /// wins), which is finer than the figure's pixels anyway.
@@ -573,12 +573,7 @@ pub fn bifurcation(
         }
         Ok(())
     })?;
-    ct.configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()?;
+    series_legend(&mut ct, Some(SeriesLabelPosition::UpperLeft), 14)?;
     root.present()?;
     Ok(())
 }

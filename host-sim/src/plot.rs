@@ -20,6 +20,28 @@ pub(crate) fn ensure_font() {
     });
 }
 
+/// Draws the series legend of `chart`: at `position` (plotters' default if `None`), on a
+/// translucent white box with a black border, labels in [`SANS`] at `font_size` px.
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn series_legend<'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'a>, CT>,
+    position: Option<SeriesLabelPosition>,
+    font_size: u32,
+) -> Result<()> {
+    let mut labels = chart.configure_series_labels();
+    if let Some(p) = position {
+        labels.position(p);
+    }
+    labels
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, font_size))
+        .draw()?;
+    Ok(())
+}
+
 /// Colour of a regime in every figure: `1/1` red, `1/2` green (the thesis' Peterka colours),
 /// `2/2` orange, other periodic blue, irregular black, no impact grey.
 pub fn regime_color(r: Regime) -> RGBColor {
@@ -175,13 +197,7 @@ pub fn response(
             ))
             .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()?;
+    series_legend(&mut chart, Some(SeriesLabelPosition::UpperLeft), 14)?;
     root.present()?;
     Ok(())
 }
@@ -289,13 +305,7 @@ pub fn response_band(
             ))
             .legend(move |(x, y)| TriangleMarker::new((x + 7, y), 5, green.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()?;
+    series_legend(&mut chart, Some(SeriesLabelPosition::UpperLeft), 14)?;
     root.present()?;
     Ok(())
 }
@@ -375,11 +385,7 @@ pub fn time_series(
     ))?
     .label("impact surface (u = gap)")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()?;
+    series_legend(&mut c, None, 13)?;
 
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;
     let mut c = ChartBuilder::on(&panels[1])
@@ -419,11 +425,7 @@ pub fn time_series(
     )?
     .label("Poincaré section (t = kT)")
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()?;
+    series_legend(&mut c, None, 13)?;
     root.present()?;
     Ok(())
 }

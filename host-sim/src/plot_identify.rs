@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
 use crate::identify::contact::{DropData, Fit, SimDrop};
-use crate::plot::{SANS, ensure_font};
+use crate::plot::{SANS, ensure_font, series_legend};
 
 /// Colour of a contact law's curves.
 pub fn law_color(name: &str) -> RGBColor {
@@ -116,12 +116,7 @@ fn drop_panel(
         .label(format!("simulated, {name}"))
         .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()?;
+    series_legend(&mut c, Some(SeriesLabelPosition::UpperRight), 14)?;
 
     let shown: Vec<_> = data.impacts.iter().take(4).collect();
     let panels = bottom.split_evenly((1, shown.len().max(1)));
@@ -252,12 +247,7 @@ pub fn response_compare(
     )?
     .label("measured")
     .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()?;
+    series_legend(&mut c, Some(SeriesLabelPosition::UpperLeft), 14)?;
     root.present()?;
     Ok(())
 }
@@ -323,11 +313,7 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
     ))?
     .label("simulated")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE.stroke_width(2)));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()?;
+    series_legend(&mut c, None, 13)?;
     let (vlo, vhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.2));
     let mut c = ChartBuilder::on(&bottom)
         .margin(12)
@@ -365,11 +351,7 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
     )?
     .label("simulated Poincaré (t = kT)")
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()?;
+    series_legend(&mut c, None, 13)?;
     root.present()?;
     Ok(())
 }

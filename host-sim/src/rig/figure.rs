@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use shared::control::Prediction;
 
 use super::session::CycleRow;
-use crate::plot::{SANS, ensure_font};
+use crate::plot::{SANS, ensure_font, series_legend};
 
 /// Controller states in plotting order (y levels of the state panel).
 const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"];
@@ -91,12 +91,7 @@ pub fn draw(
             .label("model 1/1 band edges")
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey));
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()?;
+    series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
 
     // Forces.
     let fmax = rows
@@ -136,12 +131,7 @@ pub fn draw(
     ))?
     .label("force limit")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED.mix(0.6)));
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()?;
+    series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
 
     // State.
     let level = |s: &str| STATES.iter().position(|x| *x == s).unwrap_or(0) as f64;
