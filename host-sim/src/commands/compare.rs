@@ -20,11 +20,12 @@ use clap::Args;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::{check_count, check_range};
 
+use super::TimeOpts;
 use crate::comparison;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::output::Outputs;
 use crate::plot_identify;
-use crate::trace::{LabTable, MotionUnit, TimeUnit, TraceFormat, trace_from_table};
+use crate::trace::{LabTable, MotionUnit, trace_from_table};
 
 /// Arguments of `compare`.
 #[derive(Debug, Args)]
@@ -42,15 +43,9 @@ pub struct CompareArgs {
     /// Excitation frequency of a time-series record, Hz.
     #[arg(long)]
     pub freq_hz: Option<f64>,
-    /// Time-series record: time column (name or 1-based number).
-    #[arg(long, default_value = "t_s")]
-    pub time_col: String,
-    /// Time-series record: unit of the time column.
-    #[arg(long, value_enum, default_value = "s")]
-    pub time_unit: TimeUnit,
-    /// Time-series record: fixed sample rate, Hz (instead of a time column).
-    #[arg(long)]
-    pub sample_rate_hz: Option<f64>,
+    /// Time-series record: time column, unit or sample rate.
+    #[command(flatten)]
+    pub time: TimeOpts,
     /// Time-series record: absolute displacement column (name or 1-based number).
     #[arg(long, default_value = "x_mm")]
     pub disp_col: String,
@@ -110,13 +105,7 @@ pub fn run(a: &CompareArgs) -> Result<()> {
         .context("--freq-hz")?;
         check_count("transient_periods", a.transient_periods, 1, 10_000)
             .context("--transient-periods")?;
-        let format = TraceFormat {
-            time_col: a.time_col.clone(),
-            value_col: a.disp_col.clone(),
-            time_to_s: a.time_unit.to_s(),
-            value_to_si: a.disp_unit.to_si(),
-            sample_rate_hz: a.sample_rate_hz,
-        };
+        let format = a.time.format(&a.disp_col, a.disp_unit.to_si());
         let trace = trace_from_table(&table, &format, "displacement")
             .with_context(|| format!("trace {}", a.experiment.display()))?;
         let (overlay, summary) =

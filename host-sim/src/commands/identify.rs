@@ -10,6 +10,7 @@ use serde::Serialize;
 use shared::error::check_range;
 use shared::model::{ContactLaw, ContactLawKind, RigId};
 
+use super::TimeOpts;
 use crate::config::{MAX_GAP_MM, Setup, config_text};
 use crate::identify::contact::{
     DropData, DropSetup, DropTest, FIT_STEPS, Fit, FitError, Residual, Weights, analyse_drop,
@@ -19,7 +20,7 @@ use crate::identify::free::{FreeDecay, identify_free};
 use crate::identify::uncertainty::{STRONG_CORRELATION, Uncertainty, WIDE_REL};
 use crate::output::Outputs;
 use crate::plot_identify;
-use crate::trace::{ForceUnit, MotionUnit, TimeUnit, TraceFormat, read_trace};
+use crate::trace::{ForceUnit, MotionUnit, read_trace};
 
 /// Arguments of `identify`.
 #[derive(Debug, Args)]
@@ -38,20 +39,6 @@ pub enum IdentifyCommand {
     /// Natural frequency and damping ratio from a free-decay record → k = m ω² (Eq. 3-34),
     /// c = 2 ζ m ω.
     Free(FreeArgs),
-}
-
-/// Where the time comes from and its unit.
-#[derive(Debug, Clone, Args)]
-pub struct TimeOpts {
-    /// Time column: header name or 1-based number (ignored with --sample-rate-hz).
-    #[arg(long, default_value = "t_s")]
-    pub time_col: String,
-    /// Unit of the time column.
-    #[arg(long, value_enum, default_value = "s")]
-    pub time_unit: TimeUnit,
-    /// Fixed sample rate, Hz, for files without a time column (overrides the time column).
-    #[arg(long)]
-    pub sample_rate_hz: Option<f64>,
 }
 
 /// `--law`: one law or `all`.
@@ -172,16 +159,6 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     match &a.what {
         IdentifyCommand::Contact(c) => run_contact(c),
         IdentifyCommand::Free(f) => run_free(f),
-    }
-}
-
-fn format_of(t: &TimeOpts, value_col: &str, value_to_si: f64) -> TraceFormat {
-    TraceFormat {
-        time_col: t.time_col.clone(),
-        value_col: value_col.to_string(),
-        time_to_s: t.time_unit.to_s(),
-        value_to_si,
-        sample_rate_hz: t.sample_rate_hz,
     }
 }
 
@@ -338,7 +315,7 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
     for (path, &release_mm) in a.trace.iter().zip(&releases) {
         let trace = read_trace(
             path,
-            &format_of(&a.time, &a.force_col, a.force_unit.to_n()),
+            &a.time.format(&a.force_col, a.force_unit.to_n()),
             "force",
         )?;
         let data = analyse_drop(&trace, a.max_impacts as usize)
@@ -730,7 +707,7 @@ fn run_free(a: &FreeArgs) -> Result<()> {
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
     let trace = read_trace(
         &a.trace,
-        &format_of(&a.time, &a.value_col, a.unit.to_si()),
+        &a.time.format(&a.value_col, a.unit.to_si()),
         if a.unit.is_acceleration() {
             "acceleration"
         } else {
