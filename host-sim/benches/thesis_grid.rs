@@ -6,24 +6,24 @@
 //!    rayon-parallel evaluation as `host-sim peterka`: wall time, points/s, µs per point, where
 //!    the time goes (transient lengths, RK4 steps in whole steps vs contact sub-steps), and the
 //!    peak RSS of the process.
-//! 2. A 200 × 200 basin of attraction through `host-sim basins` (CSV + PNG into a temporary
-//!    directory).
+//! 2. A 200 × 200 basin of attraction through the library path of `host-sim basins` (CSV + PNG
+//!    into a temporary directory).
 //!
 //! `cargo bench -p host-sim --bench thesis_grid` (about 3 minutes on 2 cores);
 //! `-- --quick` runs every 7th gap only.
 
 use std::time::Instant;
 
-use clap::Parser;
 use rayon::prelude::*;
 use shared::analysis::SimSettings;
 use shared::model::RigId;
 use shared::observe::PointResult;
 
-use host_sim::cli::{Cli, Command, Precision, Profile, RigOpts};
-use host_sim::commands;
-use host_sim::config::Setup;
-use host_sim::grid::BATCH;
+use host_sim::config::{Profile, RigOpts, Setup};
+use host_sim::grid::basins::{self, Basins, BasinsGrid};
+use host_sim::grid::{self, BATCH, CountSweep, Figures};
+use host_sim::output::Outputs;
+use host_sim::precision::Precision;
 use host_sim::runner::{OperatingPoint, evaluate_batch};
 
 fn peak_rss_kib() -> Option<u64> {
@@ -130,30 +130,26 @@ fn main() {
     let dir = tempfile::tempdir().expect("temporary directory");
     let csv = dir.path().join("basins.csv");
     let png = dir.path().join("basins.png");
-    let cli = Cli::try_parse_from([
-        "host-sim",
-        "basins",
-        "--rig",
-        "wires",
-        "--gap-mm",
-        "1.335",
-        "--omega-ratio",
-        "2.0",
-        "--u0-mm",
-        "-4:1.335:200",
-        "--v0-mm-s",
-        "-100:100:200",
-        "--out",
-        csv.to_str().expect("utf-8 path"),
-        "--plot",
-        png.to_str().expect("utf-8 path"),
-    ])
-    .expect("valid arguments");
-    let Command::Basins(args) = cli.command else {
-        unreachable!()
+    let grid = BasinsGrid {
+        gap_mm: 1.335,
+        omega_ratio: 2.0,
+        u0_mm: CountSweep::parse("--u0-mm", "-4:1.335:200", -20.0, 20.0).expect("u0 sweep"),
+        v0_mm_s: CountSweep::parse("--v0-mm-s", "-100:100:200", -1e4, 1e4).expect("v0 sweep"),
+        attractor_tol: 0.01,
     };
+    let meta = grid::meta::<Basins>(&setup, &grid, grid.points()).expect("metadata");
     let t = Instant::now();
-    commands::basins::run(&args).expect("basins run");
+    let mut outputs = Outputs::new();
+    let out = outputs.reserve(&csv).expect("writable CSV");
+    let figures = Figures {
+        plot: Some(&png),
+        force_plot: None,
+    };
+    grid::run::<Basins, _>(&mut outputs, &meta, &out, figures, |batch| {
+        basins::rows(&setup, &grid, batch)
+    })
+    .expect("basins run");
+    outputs.commit().expect("outputs");
     println!(
         "Basin of attraction 200 × 200 (wires, gap/A0 1.5, Ω/ω 2.0, Fig. 3.36b), CSV + PNG: {:.1} s",
         t.elapsed().as_secs_f64()

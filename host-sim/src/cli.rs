@@ -1,37 +1,12 @@
-//! Command-line interface (clap). Every command shares [`RigOpts`].
+//! Command-line interface (clap): the commands and `main`. Most commands flatten [`RigOpts`].
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Args, Parser, Subcommand, ValueEnum};
-use shared::model::{ContactLawKind, RigId};
+use clap::{Parser, Subcommand};
 
 use crate::commands;
-
-/// Float type of the simulation.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Precision {
-    /// Single precision: the MCU's arithmetic (default).
-    #[default]
-    F32,
-    /// Double precision (reference).
-    F64,
-}
-
-/// Numerical profile: the analysis defaults, or the cheaper settings the firmware's model task
-/// runs on the MCU (`SimSettings::embedded`, `SelectionSpec::embedded`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
-pub enum Profile {
-    /// Analysis defaults: N = 64, K = 16, 200-period transient, Ω/ω 0.5:5.0:0.01 for `select`.
-    #[default]
-    Host,
-    /// The firmware's on-target model: N = 32, K = 8, 40-period transient, q ≤ 4, 8-period
-    /// window, Ω/ω 1.0:3.6:0.1 for `select` (gives the firmware's target bit for bit).
-    Embedded,
-}
+pub use crate::config::{Profile, RigOpts};
+pub use crate::precision::Precision;
 
 /// The vibro-impact hammer of the thesis on the desktop: operating-frequency selection,
 /// frequency responses, time series and batch evaluation, from the same `shared` code as the
@@ -42,34 +17,6 @@ pub struct Cli {
     /// The command to run.
     #[command(subcommand)]
     pub command: Command,
-}
-
-/// Options that pick the rig and the numerics.
-#[derive(Debug, Clone, Args)]
-pub struct RigOpts {
-    /// Rig: hammer on wires, or on beam springs with 170/150/135 mm couplings distance.
-    #[arg(long, value_parser = parse_rig, default_value = "wires")]
-    pub rig: RigId,
-    /// Contact law (default: the identified spring–dashpot of Table 3.1).
-    #[arg(long, value_parser = parse_law)]
-    pub law: Option<ContactLawKind>,
-    /// TOML file overriding any parameter: tables [rig], [settings], [selection].
-    #[arg(long, value_name = "FILE.toml")]
-    pub config: Option<PathBuf>,
-    /// Float type of the simulation.
-    #[arg(long, value_enum, default_value_t = Precision::F32)]
-    pub precision: Precision,
-    /// Numerical profile (defaults that `--config` then overrides).
-    #[arg(long, value_enum, default_value_t = Profile::Host)]
-    pub profile: Profile,
-}
-
-fn parse_rig(s: &str) -> Result<RigId, String> {
-    s.parse().map_err(|e| format!("{e}"))
-}
-
-fn parse_law(s: &str) -> Result<ContactLawKind, String> {
-    s.parse().map_err(|e| format!("{e}"))
 }
 
 /// The commands.

@@ -17,15 +17,66 @@
 //! covariance = [[2.7e-5, 2.8e-5], [2.8e-5, 1.5e-4]]
 //! ```
 
-use std::path::Path;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
 use serde::Deserialize;
 use shared::analysis::{SelectionSpec, SimSettings, Sweep};
 use shared::error::check_range;
-use shared::model::{ContactLaw, RigId, RigParams};
+use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams};
 
-use crate::cli::{Precision, Profile, RigOpts};
+use crate::precision::Precision;
+
+/// Numerical profile: the analysis defaults, or the cheaper settings the firmware's model task
+/// runs on the MCU (`SimSettings::embedded`, `SelectionSpec::embedded`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum Profile {
+    /// Analysis defaults: N = 64, K = 16, 200-period transient, Ω/ω 0.5:5.0:0.01 for `select`.
+    #[default]
+    Host,
+    /// The firmware's on-target model: N = 32, K = 8, 40-period transient, q ≤ 4, 8-period
+    /// window, Ω/ω 1.0:3.6:0.1 for `select` (gives the firmware's target bit for bit).
+    Embedded,
+}
+
+/// What a [`Setup`] is built from: the rig, the numerics and an optional TOML file (flattened
+/// into the commands' arguments).
+#[derive(Debug, Clone, Args)]
+pub struct RigOpts {
+    /// Rig: hammer on wires, or on beam springs with 170/150/135 mm couplings distance.
+    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    pub rig: RigId,
+    /// Contact law (default: the identified spring–dashpot of Table 3.1).
+    #[arg(long, value_parser = parse_law)]
+    pub law: Option<ContactLawKind>,
+    /// TOML file overriding any parameter: tables [rig], [settings], [selection].
+    #[arg(long, value_name = "FILE.toml")]
+    pub config: Option<PathBuf>,
+    /// Float type of the simulation.
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    pub precision: Precision,
+    /// Numerical profile (defaults that `--config` then overrides).
+    #[arg(long, value_enum, default_value_t = Profile::Host)]
+    pub profile: Profile,
+}
+
+/// Parses a rig preset name (`wires`, `beam-170`, …) for a command-line option.
+///
+/// # Errors
+/// An unknown name, with the known ones.
+pub fn parse_rig(s: &str) -> Result<RigId, String> {
+    s.parse().map_err(|e| format!("{e}"))
+}
+
+/// Parses a contact-law name (`hertz`, `spring-dashpot`, …) for a command-line option.
+///
+/// # Errors
+/// An unknown name, with the known ones.
+pub fn parse_law(s: &str) -> Result<ContactLawKind, String> {
+    s.parse().map_err(|e| format!("{e}"))
+}
 
 /// Largest gap accepted on the command line, mm.
 pub const MAX_GAP_MM: f64 = 50.0;
@@ -248,6 +299,64 @@ fn overlay(base: &mut toml::Value, over: toml::Value) {
         }
         (b, o) => *b = o,
     }
+}
+
+/// The keys of `a` that differ from `b` (recursively through tables).
+fn diff(a: &toml::Value, b: &toml::Value) -> Option<toml::Value> {
+    match (a, b) {
+        (toml::Value::Table(ta), toml::Value::Table(tb)) => {
+            let mut out = toml::Table::new();
+            for (k, va) in ta {
+                let d = match tb.get(k) {
+                    Some(vb) => diff(va, vb),
+                    None => Some(va.clone()),
+                };
+                if let Some(d) = d {
+                    out.insert(k.clone(), d);
+                }
+            }
+            (!out.is_empty()).then_some(toml::Value::Table(out))
+        }
+        _ => (a != b).then(|| a.clone()),
+    }
+}
+
+/// A config file whose `[rig]` table holds `always` (keys written whatever their value, e.g.
+/// `mass_kg`, `contact`) and every other key of `params` that differs from `base` (the preset
+/// plus any `--config` the identification started from would be repeated, a plain preset is
+/// not), with `comment` as `#` lines on top. Loaded with `--rig <same preset> --config`, it
+/// reproduces `params`.
+///
+/// # Errors
+/// Serialisation failure.
+pub fn config_text(
+    comment: &str,
+    params: &RigParams,
+    base: &RigParams,
+    always: &[&str],
+) -> Result<String> {
+    let a = toml::Value::try_from(params).context("writing the config")?;
+    let b = toml::Value::try_from(base).context("writing the config")?;
+    let mut rig = match diff(&a, &b) {
+        Some(toml::Value::Table(t)) => t,
+        _ => toml::Table::new(),
+    };
+    if let toml::Value::Table(full) = &a {
+        for key in always {
+            if let Some(v) = full.get(*key) {
+                rig.insert((*key).to_string(), v.clone());
+            }
+        }
+    }
+    let mut root = toml::Table::new();
+    root.insert("rig".into(), toml::Value::Table(rig));
+    let body = toml::to_string(&root).context("writing the config")?;
+    let mut out = String::new();
+    for line in comment.lines() {
+        let _ = writeln!(out, "# {line}");
+    }
+    out.push_str(&body);
+    Ok(out)
 }
 
 /// Checks a gap given in mm on the command line and returns it in m.

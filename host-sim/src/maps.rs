@@ -11,7 +11,7 @@ use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use shared::observe::Regime;
 
-use crate::plot::{SANS, ensure_font, err};
+use crate::plot::{SANS, ensure_font, series_legend};
 
 /// Largest raster side, cells: grids finer than this are down-sampled (last cell in index order
 /// wins), which is finer than the figure's pixels anyway.
@@ -65,7 +65,7 @@ impl<T: Copy> Raster<T> {
             for px in 0..pw {
                 let cx = (px * self.rx / pw).min(self.rx - 1);
                 let c = color(self.data[cy * self.rx + cx]);
-                area.draw_pixel((px as i32, py as i32), &c).map_err(err)?;
+                area.draw_pixel((px as i32, py as i32), &c)?;
             }
         }
         Ok(())
@@ -169,8 +169,8 @@ fn figure_with_panel<'a>(
 )> {
     ensure_font();
     let root = BitMapBackend::new(path, (1280, 860)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, (SANS, 20)).map_err(err)?;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (SANS, 20))?;
     let (left, right) = root.split_horizontally(1030);
     Ok((left, right))
 }
@@ -192,8 +192,7 @@ fn map_chart<'a, 'b>(
         .margin(10)
         .x_label_area_size(50)
         .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(err)?;
+        .build_cartesian_2d(x0..x1, y0..y1)?;
     chart
         .configure_mesh()
         .disable_mesh()
@@ -201,8 +200,7 @@ fn map_chart<'a, 'b>(
         .y_desc(y.label.as_str())
         .label_style((SANS, 15))
         .axis_desc_style((SANS, 17))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     Ok(chart)
 }
 
@@ -217,23 +215,18 @@ fn legend_panel(
         heading.to_string(),
         (x, y),
         (SANS, 17).into_font(),
-    ))
-    .map_err(err)?;
+    ))?;
     y += 30;
     for (name, mark) in entries {
         let square = [(x, y), (x + 18, y + 18)];
         match mark {
             LegendMark::Swatch(c) => {
-                area.draw(&Rectangle::new(square, c.filled()))
-                    .map_err(err)?;
-                area.draw(&Rectangle::new(square, BLACK.stroke_width(1)))
-                    .map_err(err)?;
+                area.draw(&Rectangle::new(square, c.filled()))?;
+                area.draw(&Rectangle::new(square, BLACK.stroke_width(1)))?;
             }
             LegendMark::Dot(c) => {
-                area.draw(&Rectangle::new(square, c.filled()))
-                    .map_err(err)?;
-                area.draw(&Circle::new((x + 9, y + 9), 5, BLACK.stroke_width(2)))
-                    .map_err(err)?;
+                area.draw(&Rectangle::new(square, c.filled()))?;
+                area.draw(&Circle::new((x + 9, y + 9), 5, BLACK.stroke_width(2)))?;
             }
             LegendMark::Text => {}
         }
@@ -245,8 +238,7 @@ fn legend_panel(
             name.clone(),
             (x + 28, y + dy),
             (SANS, size).into_font(),
-        ))
-        .map_err(err)?;
+        ))?;
         y += match mark {
             LegendMark::Text => 22,
             _ => 26,
@@ -288,7 +280,7 @@ pub fn regime_map(
         .map(|(_, n, c)| (n, LegendMark::Swatch(c)))
         .collect();
     legend_panel(&right, "regime", &entries)?;
-    left.present().map_err(err)?;
+    left.present()?;
     Ok(())
 }
 
@@ -319,58 +311,46 @@ pub fn force_map(
     drop(chart);
     // Colour bar.
     let (bx, by0, by1) = (20, 110, 560);
-    right
-        .draw(&Text::new(
-            "F_i/mg (z = 1/1)",
-            (10, 70),
-            (SANS, 17).into_font(),
-        ))
-        .map_err(err)?;
+    right.draw(&Text::new(
+        "F_i/mg (z = 1/1)",
+        (10, 70),
+        (SANS, 17).into_font(),
+    ))?;
     if range.is_some() {
         for py in by0..=by1 {
             let f = hi - (hi - lo) * f64::from(py - by0) / f64::from(by1 - by0);
-            right
-                .draw(&Rectangle::new(
-                    [(bx, py), (bx + 30, py + 1)],
-                    color(f).filled(),
-                ))
-                .map_err(err)?;
+            right.draw(&Rectangle::new(
+                [(bx, py), (bx + 30, py + 1)],
+                color(f).filled(),
+            ))?;
         }
-        right
-            .draw(&Rectangle::new(
-                [(bx, by0), (bx + 30, by1 + 1)],
-                BLACK.stroke_width(1),
-            ))
-            .map_err(err)?;
+        right.draw(&Rectangle::new(
+            [(bx, by0), (bx + 30, by1 + 1)],
+            BLACK.stroke_width(1),
+        ))?;
         for k in 0..=5 {
             let f = lo + (hi - lo) * f64::from(k) / 5.0;
             let py = by1 - (by1 - by0) * k / 5;
-            right
-                .draw(&PathElement::new([(bx + 30, py), (bx + 36, py)], BLACK))
-                .map_err(err)?;
-            right
-                .draw(&Text::new(
-                    format!("{f:.1}"),
-                    (bx + 40, py - 8),
-                    (SANS, 15).into_font(),
-                ))
-                .map_err(err)?;
+            right.draw(&PathElement::new([(bx + 30, py), (bx + 36, py)], BLACK))?;
+            right.draw(&Text::new(
+                format!("{f:.1}"),
+                (bx + 40, py - 8),
+                (SANS, 15).into_font(),
+            ))?;
         }
     } else {
-        right
-            .draw(&Text::new(
-                "no z = 1/1 cell",
-                (10, 110),
-                (SANS, 15).into_font(),
-            ))
-            .map_err(err)?;
+        right.draw(&Text::new(
+            "no z = 1/1 cell",
+            (10, 110),
+            (SANS, 15).into_font(),
+        ))?;
     }
     legend_panel(
         &right.clone().shrink((0, 560), (250, 300)),
         "",
         &[("other regimes".into(), LegendMark::Swatch(NOT_ONE_ONE))],
     )?;
-    left.present().map_err(err)?;
+    left.present()?;
     Ok(())
 }
 
@@ -453,12 +433,10 @@ pub fn basins_map(
             && (x0..=x1).contains(&u)
             && (y0..=y1).contains(&v)
         {
-            chart
-                .draw_series([
-                    Circle::new((u, v), 7, c.filled()),
-                    Circle::new((u, v), 7, BLACK.stroke_width(2)),
-                ])
-                .map_err(err)?;
+            chart.draw_series([
+                Circle::new((u, v), 7, c.filled()),
+                Circle::new((u, v), 7, BLACK.stroke_width(2)),
+            ])?;
         }
     }
     let total: u64 = attractors.iter().map(|a| a.cells).sum::<u64>().max(1);
@@ -486,7 +464,7 @@ pub fn basins_map(
         ));
     }
     legend_panel(&right, "attractor (basin share)", &entries)?;
-    left.present().map_err(err)?;
+    left.present()?;
     Ok(())
 }
 
@@ -535,8 +513,8 @@ pub fn bifurcation(
 ) -> Result<()> {
     ensure_font();
     let root = BitMapBackend::new(path, (1100, 950)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, (SANS, 20)).map_err(err)?;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (SANS, 20))?;
     let (top, bottom) = root.split_vertically(470);
     let pad = |(a, b): (f64, f64)| {
         let d = ((b - a) * 0.04).max(1e-3);
@@ -548,20 +526,17 @@ pub fn bifurcation(
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, u0..u1)
-        .map_err(err)?;
+        .build_cartesian_2d(x0..x1, u0..u1)?;
     ct.configure_mesh()
         .x_desc("Ω/ω")
         .y_desc("Poincaré u (mm)")
         .label_style((SANS, 15))
         .axis_desc_style((SANS, 17))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     ct.draw_series(LineSeries::new(
         [(x0, gap_mm), (x1, gap_mm)],
         BLACK.mix(0.4),
-    ))
-    .map_err(err)?
+    ))?
     .label(format!("impact surface u = gap = {gap_mm} mm"))
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.4)));
     for b in branches {
@@ -571,8 +546,7 @@ pub fn bifurcation(
             "down" => "continuation, Ω decreasing",
             _ => "from rest at each Ω",
         };
-        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
-            .map_err(err)?
+        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
             .label(name)
             .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
     }
@@ -580,34 +554,26 @@ pub fn bifurcation(
         .margin(10)
         .x_label_area_size(45)
         .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, 0.0..(ranges.force_max * 1.06).max(1.0))
-        .map_err(err)?;
+        .build_cartesian_2d(x0..x1, 0.0..(ranges.force_max * 1.06).max(1.0))?;
     cb.configure_mesh()
         .x_desc("Ω/ω")
         .y_desc("impact peak F_i/mg")
         .label_style((SANS, 15))
         .axis_desc_style((SANS, 17))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     feed(&mut |branch: &str, dot: BifDot| {
         let c = branch_color(branch).mix(0.75).filled();
         match dot {
             BifDot::Strobe(x, u) => {
-                ct.draw_series([Circle::new((x, u), 1, c)]).map_err(err)?;
+                ct.draw_series([Circle::new((x, u), 1, c)])?;
             }
             BifDot::Impact(x, f) => {
-                cb.draw_series([Circle::new((x, f), 1, c)]).map_err(err)?;
+                cb.draw_series([Circle::new((x, f), 1, c)])?;
             }
         }
         Ok(())
     })?;
-    ct.configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
+    series_legend(&mut ct, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    root.present()?;
     Ok(())
 }

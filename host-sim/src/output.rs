@@ -23,29 +23,11 @@ impl Outputs {
     /// # Errors
     /// The folder does not exist or is not writable.
     pub fn reserve(&mut self, target: &Path) -> Result<PathBuf> {
-        let dir = match target.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
         let suffix = target
             .extension()
             .map(|e| format!(".{}", e.to_string_lossy()))
             .unwrap_or_default();
-        let mut builder = tempfile::Builder::new();
-        builder.prefix(".host-sim-").suffix(&suffix);
-        // Outputs are ordinary files (rw-r--r--), not the temporary file's private 0600.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            builder.permissions(std::fs::Permissions::from_mode(0o644));
-        }
-        let tmp = builder.tempfile_in(&dir).with_context(|| {
-            format!(
-                "cannot write {} (folder {})",
-                target.display(),
-                dir.display()
-            )
-        })?;
+        let tmp = scratch(target, &suffix)?;
         let path = tmp.path().to_path_buf();
         self.pending.push((tmp, target.to_path_buf()));
         Ok(path)
@@ -62,6 +44,33 @@ impl Outputs {
         }
         Ok(())
     }
+}
+
+/// A temporary file `.host-sim-…{suffix}` in `target`'s folder (so that renaming it onto
+/// `target` stays on one file system), mode `rw-r--r--`, removed when dropped.
+///
+/// # Errors
+/// The folder does not exist or is not writable.
+pub fn scratch(target: &Path, suffix: &str) -> Result<NamedTempFile> {
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".host-sim-").suffix(suffix);
+    // Outputs are ordinary files (rw-r--r--), not the temporary file's private 0600.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    builder.tempfile_in(&dir).with_context(|| {
+        format!(
+            "cannot write {} (folder {})",
+            target.display(),
+            dir.display()
+        )
+    })
 }
 
 /// Writes `rows` as CSV (header from the row type) to `path`.

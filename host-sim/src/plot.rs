@@ -3,7 +3,7 @@
 use std::path::Path;
 use std::sync::Once;
 
-use anyhow::{Result, anyhow};
+use anyhow::Result;
 use plotters::prelude::*;
 use shared::observe::Regime;
 
@@ -20,9 +20,26 @@ pub(crate) fn ensure_font() {
     });
 }
 
-/// A plotters error as an `anyhow` error.
-pub(crate) fn err<E: std::fmt::Display>(e: E) -> anyhow::Error {
-    anyhow!("plot: {e}")
+/// Draws the series legend of `chart`: at `position` (plotters' default if `None`), on a
+/// translucent white box with a black border, labels in [`SANS`] at `font_size` px.
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn series_legend<'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'a>, CT>,
+    position: Option<SeriesLabelPosition>,
+    font_size: u32,
+) -> Result<()> {
+    let mut labels = chart.configure_series_labels();
+    if let Some(p) = position {
+        labels.position(p);
+    }
+    labels
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, font_size))
+        .draw()?;
+    Ok(())
 }
 
 /// Colour of a regime in every figure: `1/1` red, `1/2` green (the thesis' Peterka colours),
@@ -106,7 +123,7 @@ pub fn response(
 ) -> Result<()> {
     ensure_font();
     let root = BitMapBackend::new(path, (1000, 620)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
+    root.fill(&WHITE)?;
     let x0 = pts.first().map_or(0.0, |p| p.omega_ratio);
     let x1 = pts.last().map_or(1.0, |p| p.omega_ratio).max(x0 + 1e-6);
     let ymax = pts.iter().map(|p| p.impact_force_mg).fold(1.0, f64::max) * 1.08;
@@ -115,22 +132,19 @@ pub fn response(
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, 0.0..ymax)
-        .map_err(err)?;
+        .build_cartesian_2d(x0..x1, 0.0..ymax)?;
     chart
         .configure_mesh()
         .x_desc("Ω/ω")
         .y_desc("max impact force F_i/mg")
         .label_style((SANS, 15))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     if let Some(h) = highlight {
         chart
             .draw_series([Rectangle::new(
                 [(h.band[0], 0.0), (h.band[1], ymax)],
                 RGBColor(215, 25, 28).mix(0.08).filled(),
-            )])
-            .map_err(err)?
+            )])?
             .label("z = 1/1 band")
             .legend(|(x, y)| {
                 Rectangle::new(
@@ -142,8 +156,7 @@ pub fn response(
             .draw_series([Rectangle::new(
                 [(h.window[0], 0.0), (h.window[1], ymax)],
                 RGBColor(43, 131, 186).mix(0.15).filled(),
-            )])
-            .map_err(err)?
+            )])?
             .label("±margin window")
             .legend(|(x, y)| {
                 Rectangle::new(
@@ -152,12 +165,10 @@ pub fn response(
                 )
             });
     }
-    chart
-        .draw_series(LineSeries::new(
-            pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg)),
-            RGBColor(120, 120, 120).stroke_width(1),
-        ))
-        .map_err(err)?;
+    chart.draw_series(LineSeries::new(
+        pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg)),
+        RGBColor(120, 120, 120).stroke_width(1),
+    ))?;
     let mut seen: Vec<&'static str> = Vec::new();
     for p in pts {
         let name = regime_class(p.regime);
@@ -173,30 +184,21 @@ pub fn response(
                 pts.iter()
                     .filter(|p| regime_class(p.regime) == name)
                     .map(|p| Circle::new((p.omega_ratio, p.impact_force_mg), 3, c.filled())),
-            )
-            .map_err(err)?
+            )?
             .label(name)
             .legend(move |(x, y)| Circle::new((x + 7, y), 4, c.filled()));
     }
     if let Some(h) = highlight {
         chart
-            .draw_series([Cross::new(h.chosen, 9, BLACK.stroke_width(3))])
-            .map_err(err)?
+            .draw_series([Cross::new(h.chosen, 9, BLACK.stroke_width(3))])?
             .label(format!(
                 "chosen: Ω/ω = {:.2}, F_i/mg = {:.1}",
                 h.chosen.0, h.chosen.1
             ))
             .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
+    series_legend(&mut chart, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    root.present()?;
     Ok(())
 }
 
@@ -214,7 +216,7 @@ pub fn response_band(
 ) -> Result<()> {
     ensure_font();
     let root = BitMapBackend::new(path, (1000, 620)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
+    root.fill(&WHITE)?;
     // The fitted law's 1/1 band holding the chosen point, widened by a fifth on each side.
     let [b0, b1] = chosen.band_omega_ratio;
     let pad = 0.2 * (b1 - b0);
@@ -237,15 +239,13 @@ pub fn response_band(
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, 0.0..ymax)
-        .map_err(err)?;
+        .build_cartesian_2d(x0..x1, 0.0..ymax)?;
     chart
         .configure_mesh()
         .x_desc("Ω/ω")
         .y_desc("max impact force F_i/mg")
         .label_style((SANS, 15))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     let blue = RGBColor(43, 131, 186);
     let area: Vec<(f64, f64)> = band
         .iter()
@@ -257,8 +257,7 @@ pub fn response_band(
         )
         .collect();
     chart
-        .draw_series([Polygon::new(area, blue.mix(0.3).filled())])
-        .map_err(err)?
+        .draw_series([Polygon::new(area, blue.mix(0.3).filled())])?
         .label(format!("95 % range over {} draws", spread.draws))
         .legend(move |(x, y)| {
             Rectangle::new([(x, y - 5), (x + 14, y + 5)], blue.mix(0.3).filled())
@@ -268,8 +267,7 @@ pub fn response_band(
             band.iter()
                 .map(|p| (p.omega_ratio, p.impact_force_mg.median)),
             blue.stroke_width(2),
-        ))
-        .map_err(err)?
+        ))?
         .label("median over the draws")
         .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], blue.stroke_width(2)));
     let red = RGBColor(215, 25, 28);
@@ -279,8 +277,7 @@ pub fn response_band(
                 .iter()
                 .filter(|p| p.regime == Regime::ONE_ONE)
                 .map(|p| Circle::new((p.omega_ratio, p.impact_force_mg), 2, red.filled())),
-        )
-        .map_err(err)?
+        )?
         .label("the fitted law, z = 1/1")
         .legend(move |(x, y)| Circle::new((x + 7, y), 3, red.filled()));
     chart
@@ -288,8 +285,7 @@ pub fn response_band(
             (chosen.omega_ratio, chosen.impact_force_mg),
             9,
             BLACK.stroke_width(3),
-        )])
-        .map_err(err)?
+        )])?
         .label(format!(
             "chosen: {:.3} Hz (draws: {:.3} – {:.3})",
             chosen.freq_hz, spread.freq_hz.lo95, spread.freq_hz.hi95
@@ -302,23 +298,15 @@ pub fn response_band(
                 (r.omega_ratio, r.worst_impact_force_mg),
                 8,
                 green.filled(),
-            )])
-            .map_err(err)?
+            )])?
             .label(format!(
                 "robust: {:.3} Hz, F_i/mg ≥ {:.1} in every draw",
                 r.freq_hz, r.worst_impact_force_mg
             ))
             .legend(move |(x, y)| TriangleMarker::new((x + 7, y), 5, green.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
+    series_legend(&mut chart, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    root.present()?;
     Ok(())
 }
 
@@ -362,8 +350,8 @@ pub fn time_series(
 ) -> Result<()> {
     ensure_font();
     let root = BitMapBackend::new(path, (1000, 1100)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, (SANS, 22)).map_err(err)?;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (SANS, 22))?;
     let panels = root.split_evenly((3, 1));
     let (t0, t1) = (
         ts.first().map_or(0.0, |p| p.t_s),
@@ -376,54 +364,41 @@ pub fn time_series(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(60)
-        .build_cartesian_2d(t0..t1, ylo..yhi)
-        .map_err(err)?;
+        .build_cartesian_2d(t0..t1, ylo..yhi)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .y_desc("displacement (mm)")
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
-    c.draw_series(LineSeries::new(ts.iter().map(|p| (p.t_s, p.u_mm)), BLUE))
-        .map_err(err)?
+        .draw()?;
+    c.draw_series(LineSeries::new(ts.iter().map(|p| (p.t_s, p.u_mm)), BLUE))?
         .label("u (relative to cart)")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
     c.draw_series(LineSeries::new(
         ts.iter().map(|p| (p.t_s, p.x_mm)),
         RGBColor(220, 120, 0),
-    ))
-    .map_err(err)?
+    ))?
     .label("x (absolute)")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(220, 120, 0)));
     c.draw_series(LineSeries::new(
         [(t0, gap_mm), (t1, gap_mm)],
         BLACK.mix(0.5),
-    ))
-    .map_err(err)?
+    ))?
     .label("impact surface (u = gap)")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()
-        .map_err(err)?;
+    series_legend(&mut c, None, 13)?;
 
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;
     let mut c = ChartBuilder::on(&panels[1])
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(60)
-        .build_cartesian_2d(t0..t1, 0.0..fmax)
-        .map_err(err)?;
+        .build_cartesian_2d(t0..t1, 0.0..fmax)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .y_desc("impact force F_i/mg")
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
-    c.draw_series(LineSeries::new(ts.iter().map(|p| (p.t_s, p.force_mg)), RED))
-        .map_err(err)?;
+        .draw()?;
+    c.draw_series(LineSeries::new(ts.iter().map(|p| (p.t_s, p.force_mg)), RED))?;
 
     let (ulo, uhi) = span(ts.iter().map(|p| p.u_mm));
     let (vlo, vhi) = span(ts.iter().map(|p| p.du_mm_s));
@@ -431,35 +406,26 @@ pub fn time_series(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(60)
-        .build_cartesian_2d(ulo..uhi, vlo..vhi)
-        .map_err(err)?;
+        .build_cartesian_2d(ulo..uhi, vlo..vhi)?;
     c.configure_mesh()
         .x_desc("u (mm)")
         .y_desc("u̇ (mm/s)")
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     c.draw_series(LineSeries::new(
         ts.iter().map(|p| (p.u_mm, p.du_mm_s)),
         BLUE.mix(0.6),
-    ))
-    .map_err(err)?
+    ))?
     .label("phase plane")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
     c.draw_series(
         strobes
             .iter()
             .map(|&(u, v)| Circle::new((u, v), 4, RED.filled())),
-    )
-    .map_err(err)?
+    )?
     .label("Poincaré section (t = kT)")
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
+    series_legend(&mut c, None, 13)?;
+    root.present()?;
     Ok(())
 }

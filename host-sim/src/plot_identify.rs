@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
 use crate::identify::contact::{DropData, Fit, SimDrop};
-use crate::plot::{SANS, ensure_font, err};
+use crate::plot::{SANS, ensure_font, series_legend};
 
 /// Colour of a contact law's curves.
 pub fn law_color(name: &str) -> RGBColor {
@@ -38,8 +38,8 @@ pub fn drop_fit(
     ensure_font();
     let bands = tests.len().max(1);
     let root = BitMapBackend::new(path, (1300, 30 + 870 * bands as u32)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, (SANS, 22)).map_err(err)?;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (SANS, 22))?;
     let areas = root.split_evenly((bands, 1));
     for (i, ((caption, data), area)) in tests.iter().zip(areas.iter()).enumerate() {
         let sims: Vec<(String, &SimDrop)> = fits
@@ -47,13 +47,13 @@ pub fn drop_fit(
             .filter_map(|(name, fit)| fit.traces.get(i).map(|t| (name.clone(), &t.sim)))
             .collect();
         let area = if tests.len() > 1 {
-            area.titled(caption, (SANS, 18)).map_err(err)?
+            area.titled(caption, (SANS, 18))?
         } else {
             area.clone()
         };
         drop_panel(&area, data, &sims)?;
     }
-    root.present().map_err(err)?;
+    root.present()?;
     Ok(())
 }
 
@@ -78,14 +78,12 @@ fn drop_panel(
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(t0..t1, fmin..fmax)
-        .map_err(err)?;
+        .build_cartesian_2d(t0..t1, fmin..fmax)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .y_desc("impact force F_i (N)")
         .label_style((SANS, 15))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     // Decimate the measured trace to at most ~4000 points per pixel column group (min/max).
     let cols = 1200usize;
     let per = (t.len() / cols).max(1);
@@ -99,8 +97,7 @@ fn drop_panel(
         env.push((t[chunk[0]], lo));
         env.push((t[chunk[0]], hi));
     }
-    c.draw_series(LineSeries::new(env, RGBColor(90, 90, 90)))
-        .map_err(err)?
+    c.draw_series(LineSeries::new(env, RGBColor(90, 90, 90)))?
         .label("measured (offset removed)")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(90, 90, 90)));
     for (name, fit) in fits {
@@ -115,18 +112,11 @@ fn drop_panel(
                 .map(|&(ts, fs)| (ts + shift, fs))
                 .filter(|p| p.0 >= t0 && p.0 <= t1),
             col.stroke_width(1),
-        ))
-        .map_err(err)?
+        ))?
         .label(format!("simulated, {name}"))
         .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()
-        .map_err(err)?;
+    series_legend(&mut c, Some(SeriesLabelPosition::UpperRight), 14)?;
 
     let shown: Vec<_> = data.impacts.iter().take(4).collect();
     let panels = bottom.split_evenly((1, shown.len().max(1)));
@@ -145,23 +135,20 @@ fn drop_panel(
             .margin(8)
             .x_label_area_size(40)
             .y_label_area_size(50)
-            .build_cartesian_2d(lo_ms..hi_ms, (-0.1 * ymax)..ymax)
-            .map_err(err)?;
+            .build_cartesian_2d(lo_ms..hi_ms, (-0.1 * ymax)..ymax)?;
         c.configure_mesh()
             .x_desc("t − t_impact (ms)")
             .y_desc(if j == 0 { "F_i (N)" } else { "" })
             .label_style((SANS, 13))
             .x_labels(5)
-            .draw()
-            .map_err(err)?;
+            .draw()?;
         c.draw_series((a..=b).map(|i| {
             Circle::new(
                 ((t[i] - imp.centroid_s) * 1e3, f[i]),
                 2,
                 RGBColor(60, 60, 60).filled(),
             )
-        }))
-        .map_err(err)?;
+        }))?;
         for (name, fit) in fits {
             let Some(s) = fit.impacts.get(j) else {
                 continue;
@@ -173,8 +160,7 @@ fn drop_panel(
                 let x = lo_ms + (hi_ms - lo_ms) * k as f64 / n as f64;
                 pts.push((x, s.force_at(x * 1e-3 + s.centroid_s)));
             }
-            c.draw_series(LineSeries::new(pts, col.stroke_width(2)))
-                .map_err(err)?;
+            c.draw_series(LineSeries::new(pts, col.stroke_width(2)))?;
         }
     }
     Ok(())
@@ -203,11 +189,10 @@ pub fn response_compare(
     use crate::plot::{regime_class, regime_color};
     ensure_font();
     let root = BitMapBackend::new(path, (1100, 680)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, (SANS, 21)).map_err(err)?;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (SANS, 21))?;
     let (head, body) = root.split_vertically(28);
-    head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))
-        .map_err(err)?;
+    head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))?;
     let x0 = o.sim.first().map_or(0.0, |p| p.0);
     let x1 = o.sim.last().map_or(1.0, |p| p.0).max(x0 + 1e-6);
     let ymax = o
@@ -221,19 +206,16 @@ pub fn response_compare(
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, 0.0..ymax)
-        .map_err(err)?;
+        .build_cartesian_2d(x0..x1, 0.0..ymax)?;
     c.configure_mesh()
         .x_desc("Ω/ω")
         .y_desc("max impact force F_i/mg")
         .label_style((SANS, 15))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.0, p.1)),
         RGBColor(150, 150, 150),
-    ))
-    .map_err(err)?
+    ))?
     .label("simulated")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(150, 150, 150)));
     let mut seen: Vec<&str> = Vec::new();
@@ -254,8 +236,7 @@ pub fn response_compare(
                 .iter()
                 .filter(|p| regime_class(p.2) == name)
                 .map(|p| Circle::new((p.0, p.1), 2, col.filled())),
-        )
-        .map_err(err)?
+        )?
         .label(format!("simulated, {name}"))
         .legend(move |(x, y)| Circle::new((x + 7, y), 4, col.filled()));
     }
@@ -263,18 +244,11 @@ pub fn response_compare(
         o.measured
             .iter()
             .map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))),
-    )
-    .map_err(err)?
+    )?
     .label("measured")
     .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 14))
-        .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
+    series_legend(&mut c, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    root.present()?;
     Ok(())
 }
 
@@ -299,11 +273,10 @@ pub struct TsOverlay {
 pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverlay) -> Result<()> {
     ensure_font();
     let root = BitMapBackend::new(path, (1100, 1000)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, (SANS, 21)).map_err(err)?;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (SANS, 21))?;
     let (head, body) = root.split_vertically(28);
-    head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))
-        .map_err(err)?;
+    head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))?;
     let (top, bottom) = body.split_vertically(430);
     let span = |it: &mut dyn Iterator<Item = f64>| {
         let (lo, hi) = it.fold((f64::INFINITY, f64::NEG_INFINITY), |a, v| {
@@ -322,83 +295,63 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t1, xlo..xhi)
-        .map_err(err)?;
+        .build_cartesian_2d(0.0..t1, xlo..xhi)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .y_desc("absolute displacement x (mm)")
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     c.draw_series(LineSeries::new(
         o.measured.iter().map(|p| (p.0, p.1)),
         BLACK,
-    ))
-    .map_err(err)?
+    ))?
     .label("measured")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.0, p.1)),
         BLUE.stroke_width(2),
-    ))
-    .map_err(err)?
+    ))?
     .label("simulated")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE.stroke_width(2)));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()
-        .map_err(err)?;
+    series_legend(&mut c, None, 13)?;
     let (vlo, vhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.2));
     let mut c = ChartBuilder::on(&bottom)
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(xlo..xhi, vlo..vhi)
-        .map_err(err)?;
+        .build_cartesian_2d(xlo..xhi, vlo..vhi)?;
     c.configure_mesh()
         .x_desc("x (mm)")
         .y_desc("ẋ (mm/s)")
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     c.draw_series(LineSeries::new(
         o.measured.iter().map(|p| (p.1, p.2)),
         BLACK.mix(0.5),
-    ))
-    .map_err(err)?
+    ))?
     .label("measured phase plane")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.1, p.2)),
         BLUE.mix(0.7),
-    ))
-    .map_err(err)?
+    ))?
     .label("simulated phase plane")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
     c.draw_series(
         o.strobe_measured
             .iter()
             .map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))),
-    )
-    .map_err(err)?
+    )?
     .label("measured Poincaré (t = kT)")
     .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
     c.draw_series(
         o.strobe_sim
             .iter()
             .map(|&p| Circle::new(p, 4, RED.filled())),
-    )
-    .map_err(err)?
+    )?
     .label("simulated Poincaré (t = kT)")
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    c.configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
+    series_legend(&mut c, None, 13)?;
+    root.present()?;
     Ok(())
 }

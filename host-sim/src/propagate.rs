@@ -193,7 +193,7 @@ pub fn propagate(
                 Err(_) => {
                     let sweep = s.selection.omega_ratio;
                     let gap_m = crate::config::gap_m_from_mm("--gap-mm", gap_mm)?;
-                    crate::commands::response::compute(&s, &[gap_m], &sweep, "")
+                    crate::response::compute(&s, &[gap_m], &sweep, "")
                         .map(|mut v| (None, v.swap_remove(0)))
                 }
             };

@@ -8,7 +8,6 @@ use shared::Real;
 use shared::analysis::{DEFAULT_LANES, evaluate_interleaved};
 use shared::observe::PointResult;
 
-use crate::cli::Precision;
 use crate::config::Setup;
 use crate::grid::BATCH;
 
@@ -56,10 +55,7 @@ pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<Po
             );
         })
     }
-    match setup.precision {
-        Precision::F32 => go::<f32>(setup, points),
-        Precision::F64 => go::<f64>(setup, points),
-    }
+    crate::with_precision!(setup.precision, T => go::<T>(setup, points))
 }
 
 /// A progress bar for `len` items on stderr, with rate and ETA (hidden when `what` is empty,

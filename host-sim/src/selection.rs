@@ -5,9 +5,9 @@ use anyhow::{Result, anyhow};
 use serde::Serialize;
 use shared::analysis::{ResponseSample, Selection, perturbed_gaps, select};
 
-use crate::cli::Precision;
-use crate::commands::response;
 use crate::config::{Setup, gap_m_from_mm};
+use crate::precision::Precision;
+use crate::response;
 
 /// The JSON report.
 #[derive(Debug, Serialize)]
@@ -65,6 +65,7 @@ pub struct OtherBest {
     pub impact_force_mg: f64,
 }
 
+/// The report of selection `sel` at `gap_mm` (responses checked at `gaps_mm`).
 pub fn report(setup: &Setup, gap_mm: f64, gaps_mm: Vec<f64>, sel: &Selection) -> SelectReport {
     SelectReport {
         rig: setup.rig.to_string(),

@@ -21,9 +21,9 @@ use serde::{Deserialize, Serialize};
 use shared::analysis::SimSettings;
 use shared::model::RigParams;
 
-use crate::cli::Precision;
 use crate::config::Setup;
 use crate::interrupt;
+use crate::precision::Precision;
 
 /// First characters of a shard file.
 pub const MAGIC: &str = "# host-sim-shard ";
@@ -348,7 +348,7 @@ impl<R: DeserializeOwned + Indexed> Input<R> {
 }
 
 /// Streams the rows of `files` to `sink` in ascending point index, checking the CSV header
-/// against `header`, that every index `0 .. total` appears in exactly one file, and that each
+/// against `R`'s ([`header`]), that every index `0 .. total` appears in exactly one file, and that each
 /// file is in ascending index order. With `grouped`, one index may span several consecutive
 /// rows of one file (bifurcation: the samples of one frequency).
 ///
@@ -357,11 +357,11 @@ impl<R: DeserializeOwned + Indexed> Input<R> {
 pub fn merge_rows<R: DeserializeOwned + Indexed>(
     files: Vec<ShardFile>,
     total: u64,
-    header: &[&str],
     grouped: bool,
     mut sink: impl FnMut(R) -> Result<()>,
 ) -> Result<()> {
     interrupt::install();
+    let header = header::<R>();
     let mut inputs: Vec<Input<R>> = Vec::with_capacity(files.len());
     for mut f in files {
         let h = f
@@ -449,15 +449,21 @@ pub fn merge_rows<R: DeserializeOwned + Indexed>(
     Ok(())
 }
 
-/// Creates a CSV file at `path` (normally a reserved temporary file): the metadata line if
-/// `meta` is given (a shard), then `header`; rows are written with `serialize` and no header.
+/// The CSV header of rows of type `R`: its field names, in order (a header line is written
+/// even when no row follows).
+pub fn header<R: DeserializeOwned>() -> &'static [&'static str] {
+    serde_aux::serde_introspection::serde_introspect::<R>()
+}
+
+/// Creates a CSV file of `R` rows at `path` (normally a reserved temporary file): the metadata
+/// line if `meta` is given (a shard), then `R`'s [`header`]; rows are written with
+/// `serialize`.
 ///
 /// # Errors
 /// I/O failure.
-pub fn create_csv(
+pub fn create_csv<R: DeserializeOwned>(
     path: &Path,
     meta: Option<&Meta>,
-    header: &[&str],
 ) -> Result<csv::Writer<std::io::BufWriter<File>>> {
     let file = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let mut buf = std::io::BufWriter::new(file);
@@ -467,19 +473,20 @@ pub fn create_csv(
     let mut w = csv::WriterBuilder::new()
         .has_headers(false)
         .from_writer(buf);
-    w.write_record(header)?;
+    w.write_record(header::<R>())?;
     Ok(w)
 }
 
-/// Opens a plain CSV written by [`create_csv`] without metadata and checks its header.
+/// Opens a plain CSV of `R` rows written by [`create_csv`] without metadata and checks its
+/// header.
 ///
 /// # Errors
 /// Unreadable file or another header.
-pub fn open_csv(path: &Path, header: &[&str]) -> Result<csv::Reader<BufReader<File>>> {
+pub fn open_csv<R: DeserializeOwned>(path: &Path) -> Result<csv::Reader<BufReader<File>>> {
     let file = File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut r = csv::Reader::from_reader(BufReader::new(file));
     let h = r.headers()?.clone();
-    if h.iter().ne(header.iter().copied()) {
+    if h.iter().ne(header::<R>().iter().copied()) {
         bail!("{}: unexpected CSV header", path.display());
     }
     Ok(r)
@@ -491,10 +498,7 @@ pub fn title_prefix(meta: &Meta) -> String {
         "{} rig, {} law, {}",
         meta.rig,
         meta.params.contact.kind(),
-        match meta.precision {
-            Precision::F32 => "f32",
-            Precision::F64 => "f64",
-        }
+        meta.precision.name()
     )
 }
 

@@ -12,6 +12,9 @@
 //! What is rejected, with the line number: a value that is not a number or not finite, a
 //! line with too few cells, a time that does not increase, a sample-rate column that changes;
 //! and files with fewer than [`MIN_SAMPLES`] samples.
+//!
+//! [`LabTable`] is the one reader of such files (traces here, measured responses in
+//! [`crate::comparison`]).
 
 use std::path::Path;
 
@@ -132,11 +135,193 @@ impl Trace {
     }
 }
 
-fn split_cells(line: &str) -> Vec<&str> {
-    let delim = [',', ';', '\t'].into_iter().find(|d| line.contains(*d));
-    match delim {
-        Some(d) => line.split(d).map(str::trim).collect(),
-        None => line.split_whitespace().collect(),
+/// The delimiter of a lab file, detected once from its first data line: the first of `,`,
+/// `;` and tab that the line contains, else runs of spaces.
+fn detect_delimiter(line: &str) -> Option<u8> {
+    [b',', b';', b'\t']
+        .into_iter()
+        .find(|&d| line.as_bytes().contains(&d))
+}
+
+/// A lab file as a table of text cells (module docs: what is tolerated). Comment and metadata
+/// lines (`#`, `%`) and blank lines are set apart; the first data line is the header if one of
+/// its cells is not a number. Read by `csv::ReaderBuilder` with the detected delimiter.
+#[derive(Debug, Clone)]
+pub struct LabTable {
+    /// Column names, if the file has a header line.
+    pub header: Option<Vec<String>>,
+    /// The comment and metadata lines, trimmed, in file order.
+    pub comments: Vec<String>,
+    /// Cells of the first data line (or of the header).
+    pub width: usize,
+    /// Data rows with their 1-based line number in the file.
+    rows: Vec<(usize, csv::StringRecord)>,
+}
+
+/// One data row of a [`LabTable`].
+#[derive(Debug, Clone, Copy)]
+pub struct LabRow<'a> {
+    /// 1-based line number in the file.
+    pub line: usize,
+    record: &'a csv::StringRecord,
+    table: &'a LabTable,
+}
+
+impl LabTable {
+    /// Reads the lab file at `path`.
+    ///
+    /// # Errors
+    /// Unreadable file, or as [`LabTable::parse`].
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        Self::parse(&text).with_context(|| format!("{}", path.display()))
+    }
+
+    /// Parses the text of a lab file.
+    ///
+    /// # Errors
+    /// A line the CSV reader rejects (unbalanced quotes), with its line number.
+    pub fn parse(text: &str) -> Result<Self> {
+        let mut comments = Vec::new();
+        let mut data = String::new();
+        let mut lines = Vec::new();
+        let mut delimiter: Option<Option<u8>> = None;
+        for (i, raw) in text.lines().enumerate() {
+            let line = raw.trim().trim_start_matches('\u{feff}');
+            if line.is_empty() {
+                continue;
+            }
+            if line.starts_with('#') || line.starts_with('%') {
+                comments.push(line.to_string());
+                continue;
+            }
+            match *delimiter.get_or_insert_with(|| detect_delimiter(line)) {
+                Some(_) => data.push_str(line),
+                None => data.push_str(&line.split_whitespace().collect::<Vec<_>>().join(" ")),
+            }
+            data.push('\n');
+            lines.push(i + 1);
+        }
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .delimiter(delimiter.flatten().unwrap_or(b' '))
+            .from_reader(data.as_bytes());
+        let line_of = |p: Option<&csv::Position>| {
+            p.and_then(|p| usize::try_from(p.line()).ok())
+                .and_then(|l| lines.get(l.wrapping_sub(1)).copied())
+                .unwrap_or(0)
+        };
+        let mut rows = Vec::with_capacity(lines.len());
+        for rec in reader.records() {
+            let rec = rec.map_err(|e| anyhow::anyhow!("line {}: {e}", line_of(e.position())))?;
+            rows.push((line_of(rec.position()), rec));
+        }
+        let mut header = None;
+        let width = rows.first().map_or(0, |r| r.1.len());
+        if let Some((_, first)) = rows.first()
+            && first.iter().any(|c| c.parse::<f64>().is_err())
+        {
+            header = Some(first.iter().map(str::to_string).collect());
+            rows.remove(0);
+        }
+        Ok(LabTable {
+            header,
+            comments,
+            width,
+            rows,
+        })
+    }
+
+    /// The data rows, in file order.
+    pub fn rows(&self) -> impl ExactSizeIterator<Item = LabRow<'_>> {
+        self.rows.iter().map(|(line, record)| LabRow {
+            line: *line,
+            record,
+            table: self,
+        })
+    }
+
+    /// Index of the header column named `name` (ASCII case ignored).
+    pub fn find(&self, name: &str) -> Option<usize> {
+        self.header
+            .as_ref()?
+            .iter()
+            .position(|c| c.eq_ignore_ascii_case(name))
+    }
+
+    /// Index of column `spec`: a header name, or a 1-based number; `what` names the column in
+    /// messages.
+    ///
+    /// # Errors
+    /// No such column (the header's names listed), or a name given to a file without header.
+    pub fn column(&self, spec: &str, what: &str) -> Result<usize> {
+        if let Some(i) = self.find(spec) {
+            return Ok(i);
+        }
+        if let Ok(n) = spec.parse::<usize>() {
+            ensure!(
+                (1..=self.width).contains(&n),
+                "{what} column {n} does not exist: the file has {} columns",
+                self.width
+            );
+            return Ok(n - 1);
+        }
+        match &self.header {
+            Some(h) => bail!(
+                "no {what} column `{spec}` in the header ({}); give it by name or number",
+                h.join(", ")
+            ),
+            None => {
+                bail!("the file has no header line: give the {what} column by number (1-based)")
+            }
+        }
+    }
+
+    /// The name of column `c` (its header name, or its 1-based number).
+    pub fn name(&self, c: usize) -> String {
+        self.header
+            .as_ref()
+            .and_then(|h| h.get(c).cloned())
+            .unwrap_or_else(|| format!("{}", c + 1))
+    }
+}
+
+impl LabRow<'_> {
+    /// Checks that the row has cells up to column `c`.
+    ///
+    /// # Errors
+    /// A short line, with its line number.
+    pub fn reaches(&self, c: usize) -> Result<()> {
+        ensure!(
+            self.record.len() > c,
+            "line {}: {} cells, expected {}",
+            self.line,
+            self.record.len(),
+            self.table.width
+        );
+        Ok(())
+    }
+
+    /// Cell `c` as a finite number; `what` names the quantity in messages.
+    ///
+    /// # Errors
+    /// A short line, or a cell that is not a number or not finite (line and column named).
+    pub fn number(&self, c: usize, what: &str) -> Result<f64> {
+        self.reaches(c)?;
+        let cell = &self.record[c];
+        let col = self.table.name(c);
+        let line = self.line;
+        let v: f64 = cell.parse().map_err(|_| {
+            anyhow::anyhow!("line {line}, column `{col}` ({what}): `{cell}` is not a number")
+        })?;
+        ensure!(
+            v.is_finite(),
+            "line {line}, column `{col}` ({what}): `{cell}` is not finite"
+        );
+        Ok(v)
     }
 }
 
@@ -148,41 +333,6 @@ fn metadata_rate(line: &str) -> Option<f64> {
         value.split_whitespace().next()?.parse().ok()
     } else {
         None
-    }
-}
-
-fn parse_cell(cell: &str, line: usize, col: &str, what: &str) -> Result<f64> {
-    let v: f64 = cell.parse().map_err(|_| {
-        anyhow::anyhow!("line {line}, column `{col}` ({what}): `{cell}` is not a number")
-    })?;
-    ensure!(
-        v.is_finite(),
-        "line {line}, column `{col}` ({what}): `{cell}` is not finite"
-    );
-    Ok(v)
-}
-
-/// Index of column `spec` (a header name, or a 1-based number) among `header` (if any) in a
-/// file with `width` columns.
-fn column(spec: &str, header: Option<&[String]>, width: usize, what: &str) -> Result<usize> {
-    if let Some(h) = header
-        && let Some(i) = h.iter().position(|c| c.eq_ignore_ascii_case(spec))
-    {
-        return Ok(i);
-    }
-    if let Ok(n) = spec.parse::<usize>() {
-        ensure!(
-            (1..=width).contains(&n),
-            "{what} column {n} does not exist: the file has {width} columns"
-        );
-        return Ok(n - 1);
-    }
-    match header {
-        Some(h) => bail!(
-            "no {what} column `{spec}` in the header ({}); give it by name or number",
-            h.join(", ")
-        ),
-        None => bail!("the file has no header line: give the {what} column by number (1-based)"),
     }
 }
 
@@ -203,88 +353,50 @@ pub fn read_trace(path: &Path, format: &TraceFormat, what: &str) -> Result<Trace
 /// # Errors
 /// As [`read_trace`].
 pub fn parse_trace(text: &str, format: &TraceFormat, what: &str) -> Result<Trace> {
+    trace_from_table(&LabTable::parse(text)?, format, what)
+}
+
+/// The trace in a lab file already read as a table ([`read_trace`]).
+///
+/// # Errors
+/// As [`read_trace`].
+pub fn trace_from_table(table: &LabTable, format: &TraceFormat, what: &str) -> Result<Trace> {
     if let Some(r) = format.sample_rate_hz {
         shared::error::check_range("sample_rate_hz", r, 1e-3, 1e9).context("--sample-rate-hz")?;
     }
-    let mut meta_rate = None;
-    let mut header: Option<Vec<String>> = None;
-    let mut cols: Option<(Option<usize>, usize, Option<usize>)> = None;
+    let meta_rate = table.comments.iter().rev().find_map(|l| metadata_rate(l));
+    let value_col = table.column(&format.value_col, what)?;
+    let rate_col = table.find("sample_rate_hz");
+    let time_col = if format.sample_rate_hz.is_some() {
+        None
+    } else {
+        match table.column(&format.time_col, "time") {
+            Ok(c) => Some(c),
+            Err(e) => {
+                if rate_col.is_none() && meta_rate.is_none() {
+                    return Err(e.context(
+                        "no time base: give a time column, --sample-rate-hz, a \
+                         `sample_rate_hz` column or a `# sample_rate_hz = …` line",
+                    ));
+                }
+                None
+            }
+        }
+    };
+    let needed = [Some(value_col), time_col, rate_col]
+        .into_iter()
+        .flatten()
+        .max()
+        .unwrap_or(0);
     let mut rate_from_col: Option<f64> = None;
     let mut t = Vec::new();
-    let mut v = Vec::new();
-    let mut width = 0;
-    for (i, raw) in text.lines().enumerate() {
-        let line_no = i + 1;
-        let line = raw.trim().trim_start_matches('\u{feff}');
-        if line.is_empty() {
-            continue;
-        }
-        if line.starts_with('#') || line.starts_with('%') {
-            if let Some(r) = metadata_rate(line) {
-                meta_rate = Some(r);
-            }
-            continue;
-        }
-        let cells = split_cells(line);
-        if cols.is_none() {
-            width = cells.len();
-            let is_header = cells.iter().any(|c| c.parse::<f64>().is_err());
-            if is_header {
-                header = Some(
-                    cells
-                        .iter()
-                        .map(|c| c.trim_matches('"').to_string())
-                        .collect(),
-                );
-            }
-            let h = header.as_deref();
-            let value = column(&format.value_col, h, width, what)?;
-            let rate_col = h.and_then(|h| {
-                h.iter()
-                    .position(|c| c.eq_ignore_ascii_case("sample_rate_hz"))
-            });
-            let time = if format.sample_rate_hz.is_some() {
-                None
-            } else {
-                match column(&format.time_col, h, width, "time") {
-                    Ok(c) => Some(c),
-                    Err(e) => {
-                        if rate_col.is_none() && meta_rate.is_none() {
-                            return Err(e.context(
-                                "no time base: give a time column, --sample-rate-hz, a \
-                                 `sample_rate_hz` column or a `# sample_rate_hz = …` line",
-                            ));
-                        }
-                        None
-                    }
-                }
-            };
-            cols = Some((time, value, rate_col));
-            if is_header {
-                continue;
-            }
-        }
-        let (time_col, value_col, rate_col) = cols.unwrap_or((None, 0, None));
-        let needed = [Some(value_col), time_col, rate_col]
-            .into_iter()
-            .flatten()
-            .max()
-            .unwrap_or(0);
-        ensure!(
-            cells.len() > needed,
-            "line {line_no}: {} cells, expected {width}",
-            cells.len()
-        );
-        let name = |c: usize| -> String {
-            header
-                .as_ref()
-                .and_then(|h| h.get(c).cloned())
-                .unwrap_or_else(|| format!("{}", c + 1))
-        };
-        let value = parse_cell(cells[value_col], line_no, &name(value_col), what)?;
-        v.push(value * format.value_to_si);
+    let mut v = Vec::with_capacity(table.rows().len());
+    for row in table.rows() {
+        row.reaches(needed)?;
+        let line_no = row.line;
+        v.push(row.number(value_col, what)? * format.value_to_si);
         if let Some(tc) = time_col {
-            let ts = parse_cell(cells[tc], line_no, &name(tc), "time")? * format.time_to_s;
+            let ts = row.number(tc, "time")? * format.time_to_s;
             if let Some(&prev) = t.last() {
                 ensure!(
                     ts > prev,
@@ -295,7 +407,7 @@ pub fn parse_trace(text: &str, format: &TraceFormat, what: &str) -> Result<Trace
             }
             t.push(ts);
         } else if let Some(rc) = rate_col {
-            let r = parse_cell(cells[rc], line_no, &name(rc), "sample rate")?;
+            let r = row.number(rc, "sample rate")?;
             match rate_from_col {
                 None => {
                     shared::error::check_range("sample_rate_hz", r, 1e-3, 1e9)

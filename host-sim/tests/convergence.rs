@@ -4,8 +4,8 @@
 //!   `F_i/mg` within 2 % at every point away from regime boundaries;
 //! - halving both bands (f32) changes `F_i/mg` by < 1 % at those points.
 
-use host_sim::cli::Precision;
 use host_sim::config::Setup;
+use host_sim::precision::Precision;
 use host_sim::runner::{OperatingPoint, evaluate_all};
 use shared::analysis::{SelectionSpec, SimSettings};
 use shared::model::RigId;

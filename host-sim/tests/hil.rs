@@ -2,11 +2,12 @@
 //! rig). Every assertion reads the plant (true impacts, true peak forces, the cart's amplitude),
 //! not only the controller's own beliefs.
 
-use host_sim::cli::{Precision, Profile, RigOpts};
-use host_sim::commands::select::compute;
 use host_sim::config::Setup;
+use host_sim::config::{Profile, RigOpts};
+use host_sim::precision::Precision;
 use host_sim::rig::scenario::{Scenario, TimedCommand, TimedFault};
 use host_sim::rig::{CycleRow, HilRun, HilSetup, run};
+use host_sim::selection::compute;
 use shared::control::{Fault, State};
 use shared::model::RigId;
 

@@ -514,6 +514,31 @@ fn compare_a_response_with_itself_has_no_error() {
         "{out}"
     );
     assert!(fs::metadata(p("cmp.png")).unwrap().len() > 10_000);
+    // A lab export: `%` and `#` comment lines, `;` as the delimiter (the trace reader's rules).
+    let exp = fs::read_to_string(p("exp.csv")).unwrap();
+    fs::write(
+        p("lab.csv"),
+        format!(
+            "% exported by the DAQ\n# gap 0 mm\n{}",
+            exp.replace(',', ";")
+        ),
+    )
+    .unwrap();
+    let out = ok(&[
+        "compare",
+        "--rig",
+        "wires",
+        "--gap-mm",
+        "0",
+        "--experiment",
+        &p("lab.csv"),
+        "--out",
+        &p("lab.png"),
+    ]);
+    assert!(
+        out.contains("3 points") && out.contains("RMS 0.00"),
+        "{out}"
+    );
     fs::write(p("bad.csv"), "freq_hz,impact_force_n\n3.0,40\n3.1,x\n").unwrap();
     rejected(
         &[

@@ -7,11 +7,12 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use host_sim::cli::{Precision, Profile, RigOpts};
 use host_sim::client::RigPort;
 use host_sim::client::log::record;
 use host_sim::client::sweep::parse_range;
 use host_sim::config::Setup;
+use host_sim::config::{Profile, RigOpts};
+use host_sim::precision::Precision;
 use host_sim::rig::scenario::Scenario;
 use host_sim::rig::{HilSetup, Session};
 use host_sim::runner::{OperatingPoint, evaluate_all};
@@ -361,7 +362,7 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     assert!(!out.status.success());
     assert!(stderr.contains("`sensor-open`"), "{stderr}");
     assert!(!fr.exists(), "a half-file under the --out name");
-    let partial = host_sim::commands::rig::partial_path(&fr);
+    let partial = host_sim::client::sweep::partial_path(&fr);
     let text = std::fs::read_to_string(&partial).unwrap();
     assert!(
         text.starts_with("# partial sweep: ended by the fault `sensor-open`"),
@@ -381,7 +382,7 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("clear"));
-    assert!(!again.exists() && !host_sim::commands::rig::partial_path(&again).exists());
+    assert!(!again.exists() && !host_sim::client::sweep::partial_path(&again).exists());
     // Let the rig run on past the abort before reading its log.
     let mut port = server.port();
     while port.uptime_s().unwrap() < 18.0 {

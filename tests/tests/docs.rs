@@ -10,7 +10,10 @@ use std::path::{Path, PathBuf};
 use pulldown_cmark::{Event, HeadingLevel, Parser, Tag, TagEnd};
 
 fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").canonicalize().unwrap()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .canonicalize()
+        .unwrap()
 }
 
 /// The repository's files (not `target/`, not hidden folders), relative to the root.
@@ -70,9 +73,8 @@ fn anchors(md: &str) -> HashSet<String> {
 fn targets(md: &str) -> Vec<String> {
     Parser::new(md)
         .filter_map(|ev| match ev {
-            Event::Start(Tag::Link { dest_url, .. }) | Event::Start(Tag::Image { dest_url, .. }) => {
-                Some(dest_url.into_string())
-            }
+            Event::Start(Tag::Link { dest_url, .. })
+            | Event::Start(Tag::Image { dest_url, .. }) => Some(dest_url.into_string()),
             _ => None,
         })
         .collect()
@@ -138,7 +140,9 @@ fn named_pages_exist_and_nothing_points_outside_the_repository() {
     for f in &all {
         let rel = f.strip_prefix(&root).unwrap();
         let ext = f.extension().and_then(|e| e.to_str()).unwrap_or("");
-        if !["rs", "md", "toml", "sh", "sbatch"].contains(&ext) || rel.starts_with("tests/tests/docs.rs") {
+        if !["rs", "md", "toml", "sh", "sbatch"].contains(&ext)
+            || rel.starts_with("tests/tests/docs.rs")
+        {
             continue;
         }
         let Ok(text) = fs::read_to_string(f) else {
@@ -146,11 +150,19 @@ fn named_pages_exist_and_nothing_points_outside_the_repository() {
         };
         for m in page.find_iter(&text) {
             if !root.join(m.as_str()).exists() {
-                bad.push(format!("{}: names {} (no such file)", rel.display(), m.as_str()));
+                bad.push(format!(
+                    "{}: names {} (no such file)",
+                    rel.display(),
+                    m.as_str()
+                ));
             }
         }
         for m in outside.find_iter(&text) {
-            bad.push(format!("{}: points outside the repository ({})", rel.display(), m.as_str()));
+            bad.push(format!(
+                "{}: points outside the repository ({})",
+                rel.display(),
+                m.as_str()
+            ));
         }
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));

@@ -3,6 +3,7 @@
 //! after the transient the mean peak impact force (`F_i/mg`) and the measured regime of the
 //! dwell's cycles are recorded. A fault ends the sweep (the rig ramps its drive to zero itself).
 
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Result, bail, ensure};
@@ -154,6 +155,17 @@ pub fn sweep(
 
 /// Waits until the drive dwells at `f`, skips the settling cycles and returns the dwell's
 /// cycles, or the fault that ended it.
+/// Where a sweep ended by a fault writes what it measured: `fr.csv` → `fr.partial.csv`.
+pub fn partial_path(out: &Path) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map_or("sweep".into(), |s| s.to_string_lossy());
+    let ext = out
+        .extension()
+        .map_or("csv".into(), |e| e.to_string_lossy());
+    out.with_file_name(format!("{stem}.partial.{ext}"))
+}
+
 fn dwell(port: &mut RigPort, spec: &SweepSpec, f: f64) -> Result<Result<Vec<CycleLine>, String>> {
     let mut settled = 0;
     let mut cycles = Vec::new();

@@ -10,10 +10,11 @@ use clap::Args;
 use shared::analysis::drop::DropSpec;
 use shared::error::check_range;
 
-use crate::cli::{Precision, RigOpts};
+use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
 use crate::identify::synth::{Sensor, TRUTH_STEPS, synthetic_drop};
 use crate::output::Outputs;
+use crate::precision::Precision;
 
 /// Arguments of `drop`.
 #[derive(Debug, Args)]

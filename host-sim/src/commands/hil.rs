@@ -18,7 +18,7 @@ use crate::rig::{HilRun, HilSetup, figure, run};
 #[command(allow_negative_numbers = true)]
 pub struct HilArgs {
     /// Rig (the controller's model and the plant start from its preset).
-    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    #[arg(long, value_parser = crate::config::parse_rig, default_value = "wires")]
     pub rig: RigId,
     /// Gap the controller is configured with, mm (0 ..= 10).
     #[arg(long, default_value_t = 0.0)]
@@ -50,10 +50,6 @@ pub struct HilArgs {
     /// PNG: frequency, force and state against time.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-}
-
-fn parse_rig(s: &str) -> Result<RigId, String> {
-    s.parse().map_err(|e| format!("{e}"))
 }
 
 fn parse_speed(s: &str) -> Result<f64, String> {

@@ -8,19 +8,19 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use serde::Serialize;
 use shared::error::check_range;
-use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension};
+use shared::model::{ContactLaw, ContactLawKind, RigId};
 
-use crate::config::{MAX_GAP_MM, Setup};
+use super::TimeOpts;
+use crate::config::{MAX_GAP_MM, Setup, config_text};
 use crate::identify::contact::{
     DropData, DropSetup, DropTest, FIT_STEPS, Fit, FitError, Residual, Weights, analyse_drop,
-    fit_law_joint,
+    best_by_aic, fit_laws,
 };
 use crate::identify::free::{FreeDecay, identify_free};
 use crate::identify::uncertainty::{STRONG_CORRELATION, Uncertainty, WIDE_REL};
 use crate::output::Outputs;
 use crate::plot_identify;
-use crate::trace::{ForceUnit, MotionUnit, TimeUnit, TraceFormat, read_trace};
-use rayon::prelude::*;
+use crate::trace::{ForceUnit, MotionUnit, read_trace};
 
 /// Arguments of `identify`.
 #[derive(Debug, Args)]
@@ -41,20 +41,6 @@ pub enum IdentifyCommand {
     Free(FreeArgs),
 }
 
-/// Where the time comes from and its unit.
-#[derive(Debug, Clone, Args)]
-pub struct TimeOpts {
-    /// Time column: header name or 1-based number (ignored with --sample-rate-hz).
-    #[arg(long, default_value = "t_s")]
-    pub time_col: String,
-    /// Unit of the time column.
-    #[arg(long, value_enum, default_value = "s")]
-    pub time_unit: TimeUnit,
-    /// Fixed sample rate, Hz, for files without a time column (overrides the time column).
-    #[arg(long)]
-    pub sample_rate_hz: Option<f64>,
-}
-
 /// `--law`: one law or `all`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LawChoice {
@@ -71,10 +57,6 @@ fn parse_law_choice(s: &str) -> Result<LawChoice, String> {
     s.parse()
         .map(LawChoice::One)
         .map_err(|e| format!("{e}, or all"))
-}
-
-fn parse_rig(s: &str) -> Result<RigId, String> {
-    s.parse().map_err(|e| format!("{e}"))
 }
 
 /// Arguments of `identify contact`.
@@ -100,7 +82,7 @@ pub struct ContactArgs {
     #[arg(long, default_value_t = 0.0)]
     pub gap_mm: f64,
     /// Suspension of the hammer during the test (the free flight between impacts).
-    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    #[arg(long, value_parser = crate::config::parse_rig, default_value = "wires")]
     pub rig: RigId,
     /// TOML file overriding rig parameters (e.g. the output of `identify free`).
     #[arg(long, value_name = "FILE.toml")]
@@ -159,7 +141,7 @@ pub struct FreeArgs {
     pub unit: MotionUnit,
     /// Rig whose suspension the config file sets: a beam preset (natural frequency and
     /// damping ratio) or wires (pendulum length g/ω², no damping in the model).
-    #[arg(long, value_parser = parse_rig, default_value = "beam-170")]
+    #[arg(long, value_parser = crate::config::parse_rig, default_value = "beam-170")]
     pub rig: RigId,
     /// Config file with the mass and the identified suspension.
     #[arg(long, value_name = "FILE.toml")]
@@ -177,16 +159,6 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     match &a.what {
         IdentifyCommand::Contact(c) => run_contact(c),
         IdentifyCommand::Free(f) => run_free(f),
-    }
-}
-
-fn format_of(t: &TimeOpts, value_col: &str, value_to_si: f64) -> TraceFormat {
-    TraceFormat {
-        time_col: t.time_col.clone(),
-        value_col: value_col.to_string(),
-        time_to_s: t.time_unit.to_s(),
-        value_to_si,
-        sample_rate_hz: t.sample_rate_hz,
     }
 }
 
@@ -226,64 +198,6 @@ pub fn describe_law(law: &ContactLaw, mass_kg: f64) -> String {
             "k_i = {stiffness:.4e} N/m^{exponent:.3}, n = {exponent:.4}, e = {restitution:.4}"
         ),
     }
-}
-
-/// The keys of `a` that differ from `b` (recursively through tables).
-fn diff(a: &toml::Value, b: &toml::Value) -> Option<toml::Value> {
-    match (a, b) {
-        (toml::Value::Table(ta), toml::Value::Table(tb)) => {
-            let mut out = toml::Table::new();
-            for (k, va) in ta {
-                let d = match tb.get(k) {
-                    Some(vb) => diff(va, vb),
-                    None => Some(va.clone()),
-                };
-                if let Some(d) = d {
-                    out.insert(k.clone(), d);
-                }
-            }
-            (!out.is_empty()).then_some(toml::Value::Table(out))
-        }
-        _ => (a != b).then(|| a.clone()),
-    }
-}
-
-/// A config file whose `[rig]` table holds `always` (keys written whatever their value, e.g.
-/// `mass_kg`, `contact`) and every other key of `params` that differs from `base` (the preset
-/// plus any `--config` the identification started from would be repeated, a plain preset is
-/// not), with `comment` as `#` lines on top. Loaded with `--rig <same preset> --config`, it
-/// reproduces `params`.
-///
-/// # Errors
-/// Serialisation failure.
-pub fn config_text(
-    comment: &str,
-    params: &RigParams,
-    base: &RigParams,
-    always: &[&str],
-) -> Result<String> {
-    let a = toml::Value::try_from(params).context("writing the config")?;
-    let b = toml::Value::try_from(base).context("writing the config")?;
-    let mut rig = match diff(&a, &b) {
-        Some(toml::Value::Table(t)) => t,
-        _ => toml::Table::new(),
-    };
-    if let toml::Value::Table(full) = &a {
-        for key in always {
-            if let Some(v) = full.get(*key) {
-                rig.insert((*key).to_string(), v.clone());
-            }
-        }
-    }
-    let mut root = toml::Table::new();
-    root.insert("rig".into(), toml::Value::Table(rig));
-    let body = toml::to_string(&root).context("writing the config")?;
-    let mut out = String::new();
-    for line in comment.lines() {
-        let _ = writeln!(out, "# {line}");
-    }
-    out.push_str(&body);
-    Ok(out)
 }
 
 /// Bad pairing of the repeated `identify contact` options.
@@ -387,12 +301,12 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
     }
     check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
     shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
-    let setup = Setup::from_opts(&crate::cli::RigOpts {
+    let setup = Setup::from_opts(&crate::config::RigOpts {
         rig: a.rig,
         law: None,
         config: a.config.clone(),
-        precision: crate::cli::Precision::F64,
-        profile: crate::cli::Profile::Host,
+        precision: crate::precision::Precision::F64,
+        profile: crate::config::Profile::Host,
     })?;
     let mut params = setup.params;
     params.mass_kg = a.mass_kg;
@@ -401,7 +315,7 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
     for (path, &release_mm) in a.trace.iter().zip(&releases) {
         let trace = read_trace(
             path,
-            &format_of(&a.time, &a.force_col, a.force_unit.to_n()),
+            &a.time.format(&a.force_col, a.force_unit.to_n()),
             "force",
         )?;
         let data = analyse_drop(&trace, a.max_impacts as usize)
@@ -440,21 +354,8 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         LawChoice::One(k) => vec![k],
         LawChoice::All => ContactLawKind::ALL.to_vec(),
     };
-    // The laws in parallel (each fit is a sequence of drop simulations).
-    let fits: Vec<(ContactLawKind, Fit)> = laws
-        .par_iter()
-        .map(|&k| {
-            fit_law_joint(&tests, k, weights, 400)
-                .with_context(|| format!("fitting the {k} law"))
-                .map(|f| (k, f))
-        })
-        .collect::<Result<_>>()?;
-    // Ranked by AIC (the same terms for every law).
-    let best = fits
-        .iter()
-        .min_by(|x, y| x.1.aic().total_cmp(&y.1.aic()))
-        .map(|f| f.0)
-        .unwrap_or(ContactLawKind::SpringDashpot);
+    let fits = fit_laws(&tests, &laws, weights, 400)?;
+    let best = best_by_aic(&fits).context("no fit")?;
     let run = ContactRun {
         error,
         requested: a.error,
@@ -507,7 +408,7 @@ fn run_contact(a: &ContactArgs) -> Result<()> {
         )?;
         if let Ok(u) = &best_fit.uncertainty {
             text.push('\n');
-            text.push_str(&uncertainty_toml(u)?);
+            text.push_str(&u.toml_table()?);
         }
         std::fs::write(&tmp, text).with_context(|| format!("writing {}", p.display()))?;
     }
@@ -548,53 +449,6 @@ struct ContactRun {
     requested: FitError,
     /// The fewest samples per contact over the traces.
     samples_per_contact: f64,
-}
-
-/// The `[uncertainty]` table of a fit's config file: the coordinates `select --uncertainty`
-/// draws in, their mean and covariance, the 95 % intervals and the notes.
-///
-/// # Errors
-/// Serialisation failure.
-pub fn uncertainty_toml(u: &Uncertainty) -> Result<String> {
-    let mut t = toml::Table::new();
-    t.insert("method".into(), u.method.clone().into());
-    t.insert("law".into(), u.law.to_string().into());
-    t.insert(
-        "coordinates".into(),
-        toml::Value::Array(u.coordinates.iter().map(|c| (*c).into()).collect()),
-    );
-    t.insert(
-        "mean".into(),
-        toml::Value::Array(u.mean.iter().map(|&v| v.into()).collect()),
-    );
-    t.insert(
-        "covariance".into(),
-        toml::Value::Array(
-            u.covariance
-                .iter()
-                .map(|row| toml::Value::Array(row.iter().map(|&v| v.into()).collect()))
-                .collect(),
-        ),
-    );
-    let mut ci = toml::Table::new();
-    for p in &u.params {
-        ci.insert(
-            p.key.into(),
-            toml::Value::Array(vec![p.ci95[0].into(), p.ci95[1].into()]),
-        );
-    }
-    t.insert("ci95".into(), toml::Value::Table(ci));
-    t.insert(
-        "noise_n".into(),
-        toml::Value::Array(u.noise_n.iter().map(|&v| v.into()).collect()),
-    );
-    t.insert(
-        "notes".into(),
-        toml::Value::Array(u.notes.iter().map(|n| n.clone().into()).collect()),
-    );
-    let mut root = toml::Table::new();
-    root.insert("uncertainty".into(), toml::Value::Table(t));
-    toml::to_string(&root).context("writing the [uncertainty] table")
 }
 
 /// The intervals, correlations and identifiability notes of one fit, as printed.
@@ -853,7 +707,7 @@ fn run_free(a: &FreeArgs) -> Result<()> {
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
     let trace = read_trace(
         &a.trace,
-        &format_of(&a.time, &a.value_col, a.unit.to_si()),
+        &a.time.format(&a.value_col, a.unit.to_si()),
         if a.unit.is_acceleration() {
             "acceleration"
         } else {
@@ -864,15 +718,7 @@ fn run_free(a: &FreeArgs) -> Result<()> {
         identify_free(&trace).with_context(|| format!("free decay {}", a.trace.display()))?;
     let mut params = a.rig.preset();
     params.mass_kg = a.mass_kg;
-    params.suspension = match params.suspension {
-        Suspension::Beam { .. } => Suspension::Beam {
-            natural_freq_hz: decay.natural_freq_hz,
-            damping_ratio: decay.damping_ratio,
-        },
-        Suspension::Wires { .. } => Suspension::Wires {
-            length_m: decay.pendulum_length_m(params.gravity_m_s2),
-        },
-    };
+    params.suspension = decay.suspension(&params.suspension, params.gravity_m_s2);
     params
         .validate()
         .context("the identified suspension is out of range")?;

@@ -5,14 +5,17 @@
 //! precision, grid) and that every point index appears exactly once. Memory stays flat: the
 //! shards are read in step (a k-way merge by index).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::Args;
 
-use super::{basins, bifurcation, peterka};
+use crate::grid::basins::Basins;
+use crate::grid::bifurcation::Bifurcation;
+use crate::grid::peterka::Peterka;
+use crate::grid::{Figures, merge};
 use crate::output::Outputs;
-use crate::shard::{Kind, create_csv, merge_rows, open_all};
+use crate::shard::{Kind, open_all};
 
 /// Arguments of `merge`.
 #[derive(Debug, Args)]
@@ -50,47 +53,14 @@ pub fn run(a: &MergeArgs) -> Result<()> {
     let n_files = files.len();
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&a.out)?;
+    let figures = Figures {
+        plot: a.plot.as_deref(),
+        force_plot: a.force_plot.as_deref(),
+    };
     match meta.kind {
-        Kind::Peterka => {
-            let mut w = create_csv(&out, None, &peterka::HEADER)?;
-            merge_rows::<peterka::PeterkaRow>(files, meta.points, &peterka::HEADER, false, |r| {
-                Ok(w.serialize(r)?)
-            })?;
-            w.flush()?;
-            peterka::figures(
-                &mut outputs,
-                &meta,
-                &out,
-                a.plot.as_deref(),
-                a.force_plot.as_deref(),
-            )?;
-        }
-        Kind::Bifurcation => {
-            let mut w = create_csv(&out, None, &bifurcation::HEADER)?;
-            merge_rows::<bifurcation::BifRow>(
-                files,
-                meta.points,
-                &bifurcation::HEADER,
-                true,
-                |r| Ok(w.serialize(r)?),
-            )?;
-            w.flush()?;
-            bifurcation::figure(&mut outputs, &meta, &out, a.plot.as_deref())?;
-        }
-        Kind::Basins => {
-            let raw = tempfile::Builder::new()
-                .prefix(".host-sim-")
-                .suffix(".raw.csv")
-                .tempfile_in(out.parent().unwrap_or(Path::new(".")))
-                .context("cannot create a temporary file next to --out")?;
-            let mut w = create_csv(raw.path(), None, &basins::RAW_HEADER)?;
-            merge_rows::<basins::BasinRaw>(files, meta.points, &basins::RAW_HEADER, false, |r| {
-                Ok(w.serialize(r)?)
-            })?;
-            w.flush()?;
-            drop(w);
-            basins::finish(&mut outputs, &meta, raw.path(), &out, a.plot.as_deref())?;
-        }
+        Kind::Peterka => merge::<Peterka>(&mut outputs, &meta, files, &out, figures)?,
+        Kind::Basins => merge::<Basins>(&mut outputs, &meta, files, &out, figures)?,
+        Kind::Bifurcation => merge::<Bifurcation>(&mut outputs, &meta, files, &out, figures)?,
     }
     outputs.commit()?;
     eprintln!(

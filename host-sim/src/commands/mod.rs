@@ -1,4 +1,13 @@
-//! One module per command.
+//! One module per command: each parses its arguments, calls the library, writes its outputs
+//! and prints.
+
+use anyhow::Result;
+use clap::Args;
+use shared::analysis::Sweep;
+use shared::analysis::response::OMEGA_RATIO_RANGE;
+
+use crate::config::parse_sweep;
+use crate::trace::{TimeUnit, TraceFormat};
 
 pub mod basins;
 pub mod bifurcation;
@@ -13,3 +22,44 @@ pub mod response;
 pub mod rig;
 pub mod select;
 pub mod simulate;
+
+/// Parses `--omega-ratio START:END:STEP` within the analyses' `Ω/ω` range.
+///
+/// # Errors
+/// Malformed or out-of-range sweep (the flag and the range named).
+pub fn omega_sweep(text: &str) -> Result<Sweep> {
+    parse_sweep(
+        "--omega-ratio",
+        text,
+        OMEGA_RATIO_RANGE.0,
+        OMEGA_RATIO_RANGE.1,
+    )
+}
+
+/// Where a lab file's time comes from and its unit (`identify`, `compare`).
+#[derive(Debug, Clone, Args)]
+pub struct TimeOpts {
+    /// Time column: header name or 1-based number (ignored with --sample-rate-hz).
+    #[arg(long, default_value = "t_s")]
+    pub time_col: String,
+    /// Unit of the time column.
+    #[arg(long, value_enum, default_value = "s")]
+    pub time_unit: TimeUnit,
+    /// Fixed sample rate, Hz, for files without a time column (overrides the time column).
+    #[arg(long)]
+    pub sample_rate_hz: Option<f64>,
+}
+
+impl TimeOpts {
+    /// How to read a trace whose values are in column `value_col` (name or 1-based number),
+    /// `value_to_si` converting them to SI.
+    pub fn format(&self, value_col: &str, value_to_si: f64) -> TraceFormat {
+        TraceFormat {
+            time_col: self.time_col.clone(),
+            value_col: value_col.to_string(),
+            time_to_s: self.time_unit.to_s(),
+            value_to_si,
+            sample_rate_hz: self.sample_rate_hz,
+        }
+    }
+}

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 
-use crate::cli::RigOpts;
+use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
 use crate::output::{Outputs, write_csv};
 use crate::runner::{OperatingPoint, evaluate_all};

@@ -10,7 +10,7 @@ use clap::{Args, Subcommand};
 
 use crate::client::capture::{capture, write_trace};
 use crate::client::log::record;
-use crate::client::sweep::{SweepOutcome, SweepPoint, SweepSpec, parse_range, sweep};
+use crate::client::sweep::{SweepOutcome, SweepPoint, SweepSpec, parse_range, partial_path, sweep};
 use crate::client::{AsyncLine, RigPort};
 use crate::output::{Outputs, write_csv};
 use crate::plot::{self, ResponsePoint};
@@ -274,17 +274,6 @@ pub fn run(a: &RigArgs) -> Result<()> {
             }
         }
     }
-}
-
-/// `fr.csv` → `fr.partial.csv`.
-pub fn partial_path(out: &Path) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map_or("sweep".into(), |s| s.to_string_lossy());
-    let ext = out
-        .extension()
-        .map_or("csv".into(), |e| e.to_string_lossy());
-    out.with_file_name(format!("{stem}.partial.{ext}"))
 }
 
 fn write_sweep(

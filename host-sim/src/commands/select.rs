@@ -5,12 +5,12 @@ use std::path::PathBuf;
 use anyhow::{Result, anyhow};
 use clap::Args;
 
-use super::response::{self, omega_sweep};
-use crate::cli::RigOpts;
-use crate::config::Setup;
+use super::omega_sweep;
+use crate::config::{RigOpts, Setup};
 use crate::output::Outputs;
 use crate::plot::Highlight;
 use crate::propagate::{Propagation, propagate};
+use crate::response;
 pub use crate::selection::{OtherBest, SelectReport, compute};
 
 /// Arguments of `select`.
@@ -109,6 +109,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     let mut outputs = Outputs::new();
     if a.out.is_some() || a.plot.is_some() {
         let rows = response::rows(&setup, &sweep, &nominal);
+        let points = response::plot_points(&sweep, &nominal);
         let p = setup.selection.freq_margin_pct / 100.0;
         let highlight = Highlight {
             chosen: (rep.omega_ratio, rep.impact_force_mg),
@@ -122,21 +123,21 @@ pub fn run(a: &SelectArgs) -> Result<()> {
         match &spread {
             None => response::write(
                 &mut outputs,
-                a.out.as_ref(),
-                a.plot.as_ref(),
+                a.out.as_deref(),
+                a.plot.as_deref(),
                 &title,
                 &rows,
-                &nominal,
+                &points,
                 Some(highlight),
             )?,
             Some(sp) => {
                 response::write(
                     &mut outputs,
-                    a.out.as_ref(),
+                    a.out.as_deref(),
                     None,
                     &title,
                     &rows,
-                    &nominal,
+                    &points,
                     Some(highlight),
                 )?;
                 if let Some(p) = &a.plot {
@@ -145,13 +146,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
                         "{} rig, gap {:.2} mm: response over {} draws of the identified law",
                         setup.rig, a.gap_mm, sp.draws
                     );
-                    crate::plot::response_band(
-                        &tmp,
-                        &title,
-                        sp,
-                        &nominal_points(&rows, &nominal),
-                        &rep,
-                    )?;
+                    crate::plot::response_band(&tmp, &title, sp, &points, &rep)?;
                 }
             }
         }
@@ -184,20 +179,6 @@ impl SelectArgs {
             .as_ref()
             .map_or_else(String::new, |p| p.display().to_string())
     }
-}
-
-fn nominal_points(
-    rows: &[response::ResponseRow],
-    nominal: &[shared::observe::PointResult],
-) -> Vec<crate::plot::ResponsePoint> {
-    rows.iter()
-        .zip(nominal)
-        .map(|(r, p)| crate::plot::ResponsePoint {
-            omega_ratio: r.omega_ratio,
-            impact_force_mg: r.impact_force_mg,
-            regime: p.regime,
-        })
-        .collect()
 }
 
 fn print_spread(r: &SelectReport, sp: &Propagation, config: String) {

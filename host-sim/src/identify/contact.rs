@@ -54,15 +54,17 @@ use anyhow::{Context, Result, bail, ensure};
 use argmin::core::{CostFunction, Executor, State};
 use argmin::solver::brent::BrentOpt;
 use argmin::solver::neldermead::NelderMead;
+use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
 use shared::analysis::drop::{DropRecord, DropSpec, run_drop};
 use shared::integrate::StepSettings;
 use shared::model::contact::spring_dashpot_restitution;
 use shared::model::{ContactLaw, ContactLawKind, RigParams, SwitchBands};
 
-use super::solve3;
+use super::least_squares;
 use crate::trace::Trace;
 
 /// Which error the fit minimises.
@@ -161,23 +163,9 @@ fn median(v: &mut [f64]) -> f64 {
 /// Least-squares parabola through `(t, f)`: the vertex `(t*, f*)` if it opens downward.
 fn parabola_vertex(t: &[f64], f: &[f64]) -> Option<(f64, f64)> {
     let t0 = t[t.len() / 2];
-    let (mut s, mut m) = ([0.0; 5], [0.0; 3]);
-    for (&ti, &fi) in t.iter().zip(f) {
-        let x = ti - t0;
-        let mut p = 1.0;
-        for sk in &mut s {
-            *sk += p;
-            p *= x;
-        }
-        m[0] += fi;
-        m[1] += fi * x;
-        m[2] += fi * x * x;
-    }
-    // Normal equations for f = a + b x + c x².
-    let a = solve3(
-        [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]],
-        m,
-    )?;
+    // f = a + b x + c x², x = t − t0.
+    let design = DMatrix::from_fn(t.len(), 3, |i, k| (t[i] - t0).powi(k as i32));
+    let a = least_squares(design, DVector::from_column_slice(f))?;
     let (b, c) = (a[1], a[2]);
     if c >= 0.0 {
         return None;
@@ -1018,6 +1006,35 @@ fn problem(tests: &[DropTest], law: ContactLawKind, weights: Weights) -> Result<
         delta_ref,
         x0_scale,
     })
+}
+
+/// Fits every law of `laws` to the drop tests `tests` jointly (one parameter set per law, the
+/// error summed over the tests; at most `max_iters` Nelder–Mead iterations), the laws in
+/// parallel; results in the order of `laws`.
+///
+/// # Errors
+/// The first law whose fit fails (named).
+pub fn fit_laws(
+    tests: &[DropTest],
+    laws: &[ContactLawKind],
+    weights: Weights,
+    max_iters: u64,
+) -> Result<Vec<(ContactLawKind, Fit)>> {
+    laws.par_iter()
+        .map(|&k| {
+            fit_law_joint(tests, k, weights, max_iters)
+                .with_context(|| format!("fitting the {k} law"))
+                .map(|f| (k, f))
+        })
+        .collect()
+}
+
+/// The law of `fits` with the lowest AIC (the same error terms for every law); `None` if
+/// `fits` is empty.
+pub fn best_by_aic(fits: &[(ContactLawKind, Fit)]) -> Option<ContactLawKind> {
+    fits.iter()
+        .min_by(|x, y| x.1.aic().total_cmp(&y.1.aic()))
+        .map(|f| f.0)
 }
 
 /// Fits one parameter set of `law` to several drop tests at once (e.g. two release heights):

@@ -11,7 +11,7 @@
 //! line through the logarithms of the half-cycle amplitudes (logarithmic decrement).
 //!
 //! Uncertainty: the least-squares covariance of all five parameters `(σ, ω_d, a, b, y_0)`,
-//! `s² (JᵀJ)⁻¹` with the residual variance `s² = RSS/(n − 5)` and the model's Jacobian `J` at
+//! `s² (JᵀJ)⁻¹` (from the QR factors of `J`) with the residual variance `s² = RSS/(n − 5)` and the model's Jacobian `J` at
 //! the fit (white noise on the samples), carried to `ω_n = sqrt(ω_d² + σ²)` and
 //! `ζ = σ/ω_n` to first order; 95 % intervals `± 1.96` standard deviations.
 
@@ -19,8 +19,11 @@ use anyhow::{Result, bail, ensure};
 use argmin::core::{CostFunction, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use serde::Serialize;
+use shared::model::Suspension;
 
-use super::solve3;
+use nalgebra::{DMatrix, DVector};
+
+use super::least_squares;
 use crate::trace::Trace;
 
 /// The identified free oscillation.
@@ -65,26 +68,36 @@ impl FreeDecay {
     pub fn pendulum_length_m(&self, gravity_m_s2: f64) -> f64 {
         gravity_m_s2 / self.omega_n().powi(2)
     }
+    /// A suspension of the same kind as `like` with this decay's parameters: a beam's natural
+    /// frequency and damping ratio, or the wires' pendulum length at gravity `gravity_m_s2`
+    /// (the wire model has no damping).
+    pub fn suspension(&self, like: &Suspension, gravity_m_s2: f64) -> Suspension {
+        match like {
+            Suspension::Beam { .. } => Suspension::Beam {
+                natural_freq_hz: self.natural_freq_hz,
+                damping_ratio: self.damping_ratio,
+            },
+            Suspension::Wires { .. } => Suspension::Wires {
+                length_m: self.pendulum_length_m(gravity_m_s2),
+            },
+        }
+    }
 }
 
 /// Least-squares `(a, b, y_0)` and the residual sum of squares at `(σ, ω_d)`.
 fn project(t: &[f64], y: &[f64], sigma: f64, wd: f64) -> Option<([f64; 3], f64)> {
     let t0 = t[0];
-    let mut ata = [[0.0; 3]; 3];
-    let mut aty = [0.0; 3];
-    for (&ti, &yi) in t.iter().zip(y) {
-        let s = ti - t0;
+    let design = DMatrix::from_fn(t.len(), 3, |i, c| {
+        let s = t[i] - t0;
         let e = (-sigma * s).exp();
-        let (sn, cs) = (wd * s).sin_cos();
-        let row = [e * cs, e * sn, 1.0];
-        for r in 0..3 {
-            aty[r] += row[r] * yi;
-            for c in 0..3 {
-                ata[r][c] += row[r] * row[c];
-            }
+        match c {
+            0 => e * (wd * s).cos(),
+            1 => e * (wd * s).sin(),
+            _ => 1.0,
         }
-    }
-    let x = solve3(ata, aty)?;
+    });
+    let x = least_squares(design, DVector::from_column_slice(y))?;
+    let x = [x[0], x[1], x[2]];
     let mut rss = 0.0;
     for (&ti, &yi) in t.iter().zip(y) {
         let s = ti - t0;
@@ -212,30 +225,28 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
 /// Standard deviations of `ω_n` (rad/s) and `ζ` and their correlation at the fit `(σ, ω_d,
 /// a, b, y_0)` with residual sum of squares `rss` (module docs).
 fn covariance(t: &[f64], sigma: f64, wd: f64, ab: [f64; 3], rss: f64) -> Result<(f64, f64, f64)> {
-    use nalgebra::{Matrix2x5, Matrix5, Vector5};
+    use nalgebra::Matrix2x5;
     let n = t.len();
     ensure!(n > 5, "too few samples for an uncertainty estimate");
     let t0 = t[0];
-    let mut jtj = Matrix5::<f64>::zeros();
-    for &ti in t {
-        let s = ti - t0;
+    let jac = DMatrix::from_fn(n, 5, |i, c| {
+        let s = t[i] - t0;
         let e = (-sigma * s).exp();
         let (sn, cs) = (wd * s).sin_cos();
-        let osc = ab[0] * cs + ab[1] * sn;
-        let g = Vector5::new(
-            -s * e * osc,
-            s * e * (-ab[0] * sn + ab[1] * cs),
-            e * cs,
-            e * sn,
-            1.0,
-        );
-        jtj += g * g.transpose();
-    }
+        match c {
+            0 => -s * e * (ab[0] * cs + ab[1] * sn),
+            1 => s * e * (-ab[0] * sn + ab[1] * cs),
+            2 => e * cs,
+            3 => e * sn,
+            _ => 1.0,
+        }
+    });
     let s2 = rss / (n - 5) as f64;
-    let Some(inv) = jtj.try_inverse() else {
+    // (JᵀJ)⁻¹ = R⁻¹ R⁻ᵀ from the QR factors of J, without forming JᵀJ.
+    let Some(r_inv) = jac.qr().r().try_inverse() else {
         bail!("the free-decay fit is singular: no uncertainty estimate");
     };
-    let cov = inv * s2;
+    let cov = &r_inv * r_inv.transpose() * s2;
     let wn = (wd * wd + sigma * sigma).sqrt();
     let wn3 = wn * wn * wn;
     // Rows: ∂ω_n/∂(σ, ω_d, …) and ∂ζ/∂(σ, ω_d, …).

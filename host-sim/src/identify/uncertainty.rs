@@ -105,6 +105,56 @@ pub struct Uncertainty {
     pub samples_per_contact: f64,
 }
 
+impl Uncertainty {
+    /// The `[uncertainty]` table of a fit's config file: the coordinates `select --uncertainty`
+    /// draws in, their mean and covariance, the 95 % intervals and the notes.
+    ///
+    /// # Errors
+    /// Serialisation failure.
+    pub fn toml_table(&self) -> anyhow::Result<String> {
+        let u = self;
+        let mut t = toml::Table::new();
+        t.insert("method".into(), u.method.clone().into());
+        t.insert("law".into(), u.law.to_string().into());
+        t.insert(
+            "coordinates".into(),
+            toml::Value::Array(u.coordinates.iter().map(|c| (*c).into()).collect()),
+        );
+        t.insert(
+            "mean".into(),
+            toml::Value::Array(u.mean.iter().map(|&v| v.into()).collect()),
+        );
+        t.insert(
+            "covariance".into(),
+            toml::Value::Array(
+                u.covariance
+                    .iter()
+                    .map(|row| toml::Value::Array(row.iter().map(|&v| v.into()).collect()))
+                    .collect(),
+            ),
+        );
+        let mut ci = toml::Table::new();
+        for p in &u.params {
+            ci.insert(
+                p.key.into(),
+                toml::Value::Array(vec![p.ci95[0].into(), p.ci95[1].into()]),
+            );
+        }
+        t.insert("ci95".into(), toml::Value::Table(ci));
+        t.insert(
+            "noise_n".into(),
+            toml::Value::Array(u.noise_n.iter().map(|&v| v.into()).collect()),
+        );
+        t.insert(
+            "notes".into(),
+            toml::Value::Array(u.notes.iter().map(|n| n.clone().into()).collect()),
+        );
+        let mut root = toml::Table::new();
+        root.insert("uncertainty".into(), toml::Value::Table(t));
+        anyhow::Context::context(toml::to_string(&root), "writing the [uncertainty] table")
+    }
+}
+
 struct Coord {
     name: &'static str,
     key: &'static str,

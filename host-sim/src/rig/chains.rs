@@ -3,7 +3,7 @@
 //! DAC, and a time base stepping at the sampling rate. Sensor faults are injected here.
 
 use rand::SeedableRng;
-use rand::rngs::StdRng;
+use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
 use shared::control::{SAMPLE_PERIOD_US, config::DAC_MID};
@@ -22,7 +22,7 @@ pub struct SensorChainSim {
     pub noise_v: f64,
     /// ADC full scale, V (3.3).
     pub adc_full_scale_v: f64,
-    /// Noise seed (1).
+    /// Seed of the noise stream (1; ChaCha8: the same stream on every machine).
     pub seed: u64,
 }
 
@@ -59,7 +59,7 @@ pub struct MockAdc {
     pub gain_factor: f64,
     /// Fault in effect.
     pub state: SensorState,
-    rng: StdRng,
+    rng: ChaCha8Rng,
     noise: Normal<f64>,
 }
 
@@ -76,7 +76,7 @@ impl MockAdc {
             "sensor.volts_per_n must be > 0"
         );
         Ok(MockAdc {
-            rng: StdRng::seed_from_u64(chain.seed),
+            rng: ChaCha8Rng::seed_from_u64(chain.seed),
             chain,
             input_n: 0.0,
             gain_factor: 1.0,

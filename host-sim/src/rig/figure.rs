@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use shared::control::Prediction;
 
 use super::session::CycleRow;
-use crate::plot::{SANS, ensure_font, err};
+use crate::plot::{SANS, ensure_font, series_legend};
 
 /// Controller states in plotting order (y levels of the state panel).
 const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"];
@@ -27,8 +27,8 @@ pub fn draw(
 ) -> Result<()> {
     ensure_font();
     let root = BitMapBackend::new(path, (1000, 1000)).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.titled(title, (SANS, 22)).map_err(err)?;
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (SANS, 22))?;
     let panels = root.split_evenly((3, 1));
     // From the first logged cycle's whole second (a rig log starts mid-session).
     let t0 = rows.first().map_or(0.0, |r| r.t_s.floor());
@@ -61,20 +61,17 @@ pub fn draw(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(80)
-        .build_cartesian_2d(t0..t1, flo..fhi)
-        .map_err(err)?;
+        .build_cartesian_2d(t0..t1, flo..fhi)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .y_desc("drive frequency (Hz)")
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     c.draw_series(
         rows.iter()
             .filter(driving)
             .map(|r| Circle::new((r.t_s, r.freq_hz), 2, BLUE.filled())),
-    )
-    .map_err(err)?
+    )?
     .label("drive frequency (per cycle)")
     .legend(|(x, y)| Circle::new((x + 8, y), 2, BLUE.filled()));
     if let Some(p) = prediction {
@@ -83,27 +80,18 @@ pub fn draw(
         c.draw_series(LineSeries::new(
             [(t0, target), (t1, target)],
             RED.stroke_width(1),
-        ))
-        .map_err(err)?
+        ))?
         .label("model target")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
         for edge in p.band_hz {
             let e = f64::from(edge);
-            c.draw_series(LineSeries::new([(t0, e), (t1, e)], grey))
-                .map_err(err)?;
+            c.draw_series(LineSeries::new([(t0, e), (t1, e)], grey))?;
         }
-        c.draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
-            .map_err(err)?
+        c.draw_series(std::iter::empty::<PathElement<(f64, f64)>>())?
             .label("model 1/1 band edges")
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey));
     }
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()
-        .map_err(err)?;
+    series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
 
     // Forces.
     let fmax = rows
@@ -116,45 +104,34 @@ pub fn draw(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(80)
-        .build_cartesian_2d(t0..t1, 0.0..fmax)
-        .map_err(err)?;
+        .build_cartesian_2d(t0..t1, 0.0..fmax)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .y_desc("peak impact force per cycle (N)")
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     let orange = RGBColor(230, 120, 0);
     if rows.iter().any(|r| r.true_peak_n.is_some()) {
         c.draw_series(rows.iter().filter_map(|r| {
             r.true_peak_n
                 .map(|f| Circle::new((r.t_s, f), 3, orange.filled()))
-        }))
-        .map_err(err)?
+        }))?
         .label("true (plant)")
         .legend(move |(x, y)| Circle::new((x + 8, y), 3, orange.filled()));
     }
     c.draw_series(
         rows.iter()
             .filter_map(|r| r.measured_peak_n.map(|f| Cross::new((r.t_s, f), 4, BLUE))),
-    )
-    .map_err(err)?
+    )?
     .label("measured (controller)")
     .legend(|(x, y)| Cross::new((x + 8, y), 4, BLUE));
     c.draw_series(LineSeries::new(
         [(t0, force_limit_n), (t1, force_limit_n)],
         RED.mix(0.6),
-    ))
-    .map_err(err)?
+    ))?
     .label("force limit")
     .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED.mix(0.6)));
-    c.configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, 13))
-        .draw()
-        .map_err(err)?;
+    series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
 
     // State.
     let level = |s: &str| STATES.iter().position(|x| *x == s).unwrap_or(0) as f64;
@@ -162,8 +139,7 @@ pub fn draw(
         .margin(10)
         .x_label_area_size(35)
         .y_label_area_size(80)
-        .build_cartesian_2d(t0..t1, -0.5..5.5)
-        .map_err(err)?;
+        .build_cartesian_2d(t0..t1, -0.5..5.5)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .y_desc("controller state")
@@ -177,8 +153,7 @@ pub fn draw(
             }
         })
         .label_style((SANS, 14))
-        .draw()
-        .map_err(err)?;
+        .draw()?;
     let mut steps = Vec::with_capacity(rows.len() * 2);
     let mut prev: Option<f64> = None;
     for r in rows {
@@ -189,8 +164,7 @@ pub fn draw(
         steps.push((r.t_s, y));
         prev = Some(y);
     }
-    c.draw_series(LineSeries::new(steps, BLACK.stroke_width(2)))
-        .map_err(err)?;
-    root.present().map_err(err)?;
+    c.draw_series(LineSeries::new(steps, BLACK.stroke_width(2)))?;
+    root.present()?;
     Ok(())
 }

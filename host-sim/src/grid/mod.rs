@@ -7,13 +7,20 @@
 
 use anyhow::{Context, Result, anyhow, bail};
 use rayon::prelude::*;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use std::path::Path;
 
+use crate::config::Setup;
 use crate::interrupt;
+use crate::output::{Outputs, scratch};
 use crate::runner::progress;
-use crate::shard::{Meta, Shard, create_csv};
+use crate::shard::{Indexed, Kind, Meta, Shard, ShardFile, create_csv, merge_rows};
+
+pub mod basins;
+pub mod bifurcation;
+pub mod peterka;
 
 /// Points evaluated per parallel chunk.
 pub const CHUNK: usize = 4096;
@@ -91,17 +98,16 @@ pub fn per_point<R>(
 pub fn write_grid<I>(
     path: &Path,
     meta: &Meta,
-    header: &[&str],
     what: &str,
     compute: impl Fn(&[usize]) -> Vec<Result<I>> + Sync,
 ) -> Result<()>
 where
     I: IntoIterator + Send,
-    I::Item: Serialize,
+    I::Item: Serialize + DeserializeOwned,
 {
     let total = usize::try_from(meta.points).context("grid too large for this platform")?;
     let shard = meta.shard.unwrap_or(Shard::WHOLE);
-    let mut w = create_csv(path, meta.shard.is_some().then_some(meta), header)?;
+    let mut w = create_csv::<I::Item>(path, meta.shard.is_some().then_some(meta))?;
     run_chunked(
         shard.indices(total),
         shard.len(total),
@@ -116,6 +122,124 @@ where
     )?;
     w.flush()?;
     Ok(())
+}
+
+/// The figures asked of a grid command or of `merge` (each absent if not asked).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Figures<'a> {
+    /// The kind's figure (Peterka regime map, basins map, bifurcation diagram).
+    pub plot: Option<&'a Path>,
+    /// Peterka only: the `z = 1/1` region coloured by `F_i/mg`.
+    pub force_plot: Option<&'a Path>,
+}
+
+/// A gridded analysis that runs whole or in shards and whose shards merge into the one-run
+/// outputs: its grid, its row type (the CSV header is derived from it) and its figures.
+pub trait GridKind {
+    /// The kind named in shard metadata.
+    const KIND: Kind;
+    /// Whether one point index may span several consecutive rows (bifurcation: the samples of
+    /// one frequency).
+    const GROUPED: bool = false;
+    /// Whether the rows file is the command's CSV; otherwise [`GridKind::finish`] writes the
+    /// CSV from it (basins: the attractors need the whole grid).
+    const ROWS_ARE_OUTPUT: bool = true;
+    /// The grid (metadata `grid`).
+    type Grid: Serialize + DeserializeOwned;
+    /// One row of a shard file, in point-index order.
+    type Row: Serialize + DeserializeOwned + Indexed + Send;
+
+    /// Writes the outputs of a complete grid from its rows file `rows` (plain CSV of
+    /// [`GridKind::Row`]): the CSV `out` (unless the rows are it) and the `figures` asked for,
+    /// reserved in `outputs`.
+    ///
+    /// # Errors
+    /// Unreadable rows, drawing or file errors.
+    fn finish(
+        outputs: &mut Outputs,
+        meta: &Meta,
+        rows: &Path,
+        out: &Path,
+        figures: Figures<'_>,
+    ) -> Result<()>;
+}
+
+/// The metadata of a run of kind `K` over `grid` (`points` points, no shard yet).
+///
+/// # Errors
+/// The grid does not serialise (internal).
+pub fn meta<K: GridKind>(setup: &Setup, grid: &K::Grid, points: u64) -> Result<Meta> {
+    Meta::new(K::KIND, setup, grid, points)
+}
+
+/// The outputs of a complete grid of kind `K`: `fill(path)` writes its rows file (a plain CSV
+/// of `K::Row` with header) at `path`, which is `out` itself or a scratch file next to it; then
+/// [`GridKind::finish`]. The same function serves a one-run command and `merge`, so their
+/// outputs are identical.
+///
+/// # Errors
+/// As `fill` and [`GridKind::finish`].
+pub fn complete<K: GridKind>(
+    outputs: &mut Outputs,
+    meta: &Meta,
+    out: &Path,
+    figures: Figures<'_>,
+    fill: impl FnOnce(&Path) -> Result<()>,
+) -> Result<()> {
+    if K::ROWS_ARE_OUTPUT {
+        fill(out)?;
+        K::finish(outputs, meta, out, out, figures)
+    } else {
+        let rows = scratch(out, ".raw.csv")?;
+        fill(rows.path())?;
+        K::finish(outputs, meta, rows.path(), out, figures)
+    }
+}
+
+/// A from-rest grid run of kind `K` into `out` (a reserved file): the shard file of
+/// `meta.shard`, or the complete outputs ([`complete`]); `compute(batch)` gives the rows of each
+/// point of `batch` ([`write_grid`]).
+///
+/// # Errors
+/// As [`write_grid`] and [`GridKind::finish`].
+pub fn run<K: GridKind, I>(
+    outputs: &mut Outputs,
+    meta: &Meta,
+    out: &Path,
+    figures: Figures<'_>,
+    compute: impl Fn(&[usize]) -> Vec<Result<I>> + Sync,
+) -> Result<()>
+where
+    I: IntoIterator<Item = K::Row> + Send,
+{
+    let what = K::KIND.to_string();
+    if meta.shard.is_some() {
+        write_grid(out, meta, &what, compute)
+    } else {
+        complete::<K>(outputs, meta, out, figures, |path| {
+            write_grid(path, meta, &what, compute)
+        })
+    }
+}
+
+/// Merges the shard `files` of one grid of kind `K` (their shared metadata `meta`) into the
+/// outputs a single run writes ([`complete`]), streaming the rows in point-index order.
+///
+/// # Errors
+/// Malformed shards, a missing or repeated point, I/O or drawing errors, Ctrl-C.
+pub fn merge<K: GridKind>(
+    outputs: &mut Outputs,
+    meta: &Meta,
+    files: Vec<ShardFile>,
+    out: &Path,
+    figures: Figures<'_>,
+) -> Result<()> {
+    complete::<K>(outputs, meta, out, figures, |path| {
+        let mut w = create_csv::<K::Row>(path, None)?;
+        merge_rows::<K::Row>(files, meta.points, K::GROUPED, |r| Ok(w.serialize(r)?))?;
+        w.flush()?;
+        Ok(())
+    })
 }
 
 /// `count` evenly spaced values from `start` to `end`, both included (`START:END:COUNT`, used
@@ -229,6 +353,29 @@ mod tests {
                 "{bad}"
             );
         }
+    }
+
+    #[test]
+    fn headers_are_the_row_fields_in_order() {
+        use crate::shard::header;
+        assert_eq!(
+            header::<peterka::PeterkaRow>().join(","),
+            "index,gap_mm,gap_ratio,omega_ratio,freq_hz,regime,impacts,impact_force_mg,\
+             transient_periods,settled"
+        );
+        assert_eq!(
+            header::<basins::BasinRaw>().join(","),
+            "index,u0_mm,v0_mm_s,regime,impacts,impact_force_mg,settled,strobe_u_mm,strobe_v_mm_s"
+        );
+        assert_eq!(
+            header::<basins::BasinRow>().join(","),
+            "index,u0_mm,v0_mm_s,impacting,regime,attractor,attractor_u_mm,attractor_v_mm_s,\
+             impacts,impact_force_mg,settled"
+        );
+        assert_eq!(
+            header::<bifurcation::BifRow>().join(","),
+            "index,branch,omega_ratio,freq_hz,regime,kind,k,u_mm,du_mm_s,impact_force_mg"
+        );
     }
 
     #[test]

@@ -1,0 +1,330 @@
+//! Bifurcation diagrams (thesis Figs. 3.27–3.35, 3.43–3.45): per excitation frequency, the
+//! Poincaré `u` at every section instant of the observation window and the peak force of every
+//! impact ending in the window. From rest at each frequency (a grid, shardable), or by
+//! continuation: each frequency starts from the previous one's final state, sweeping up, down
+//! or both, so that jumps and hysteresis show.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+use serde::{Deserialize, Serialize};
+use shared::Real;
+use shared::analysis::Sweep;
+use shared::analysis::response::evaluate_point_observed;
+use shared::integrate::{PhaseTable, Simulator};
+use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
+
+use super::{Figures, GridKind};
+use crate::config::Setup;
+use crate::interrupt;
+use crate::maps::{self, BifDot, BifRanges};
+use crate::output::{Outputs, scratch};
+use crate::runner::progress;
+use crate::shard::{Indexed, Kind, Meta, create_csv, open_csv, title_prefix};
+
+/// How the frequencies are visited.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Continuation {
+    /// Increasing Ω.
+    Up,
+    /// Decreasing Ω.
+    Down,
+    /// Up, then (an independent branch from rest at the top) down.
+    Both,
+}
+
+/// The grid of a bifurcation run (metadata `grid`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BifGrid {
+    /// Gap, mm.
+    pub gap_mm: f64,
+    /// `Ω/ω` sweep; the point index is the sweep index.
+    pub omega_ratio: Sweep,
+    /// Continuation, or `None` from rest.
+    pub continuation: Option<Continuation>,
+}
+
+/// One CSV row: a Poincaré point or an impact of the observation window.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BifRow {
+    /// Frequency index in the sweep.
+    pub index: u64,
+    /// `rest` (from rest), `up` or `down` (continuation).
+    pub branch: String,
+    /// `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Excitation frequency, Hz.
+    pub freq_hz: f64,
+    /// Regime of the window at this frequency.
+    pub regime: Regime,
+    /// `strobe` (Poincaré point at the end of period `k`) or `impact` (ending in period `k`).
+    pub kind: String,
+    /// Period of the observation window, 0-based.
+    pub k: u32,
+    /// Poincaré `u`, mm (strobes).
+    pub u_mm: Option<f64>,
+    /// Poincaré `u̇`, mm/s (strobes).
+    pub du_mm_s: Option<f64>,
+    /// Peak impact force `F_i/mg` (impacts).
+    pub impact_force_mg: Option<f64>,
+}
+
+impl Indexed for BifRow {
+    fn index(&self) -> u64 {
+        self.index
+    }
+}
+
+/// The window's Poincaré points (m, m/s) and impacts (period, peak N).
+#[derive(Debug, Default)]
+pub struct WindowSamples {
+    /// Poincaré points, in order.
+    pub strobes: Vec<(f64, f64)>,
+    /// Impacts: period of the window in which each ended, and its peak force (N).
+    pub impacts: Vec<(u32, f64)>,
+}
+
+impl<T: Real> Observer<T> for WindowSamples {
+    const SAMPLES: bool = false;
+    fn strobe(&mut self, p: &StroboPoint<T>, window: bool) {
+        if window {
+            self.strobes.push((p.u.to_f64(), p.du.to_f64()));
+        }
+    }
+    fn impact(&mut self, peak_n: T, window: bool) {
+        if window {
+            self.impacts
+                .push((self.strobes.len() as u32, peak_n.to_f64()));
+        }
+    }
+}
+
+fn rows(
+    setup: &Setup,
+    index: usize,
+    omega_ratio: f64,
+    branch: &str,
+    r: &PointResult,
+    s: &WindowSamples,
+) -> Vec<BifRow> {
+    let freq_hz = setup.params.freq_hz_from_ratio(omega_ratio);
+    let mg = setup.params.weight_n();
+    let base = |kind: &str, k: u32| BifRow {
+        index: index as u64,
+        branch: branch.to_string(),
+        omega_ratio,
+        freq_hz,
+        regime: r.regime,
+        kind: kind.to_string(),
+        k,
+        u_mm: None,
+        du_mm_s: None,
+        impact_force_mg: None,
+    };
+    let mut out = Vec::with_capacity(s.strobes.len() + s.impacts.len());
+    for (k, &(u, du)) in s.strobes.iter().enumerate() {
+        out.push(BifRow {
+            u_mm: Some(u * 1e3),
+            du_mm_s: Some(du * 1e3),
+            ..base("strobe", k as u32)
+        });
+    }
+    for &(k, peak) in &s.impacts {
+        out.push(BifRow {
+            impact_force_mg: Some(peak / mg),
+            ..base("impact", k)
+        });
+    }
+    out
+}
+
+/// The rows of frequency index `i` of `sweep` at gap `gap_m` (m), from rest.
+///
+/// # Errors
+/// An invalid point.
+pub fn from_rest(setup: &Setup, gap_m: f64, sweep: &Sweep, i: usize) -> Result<Vec<BifRow>> {
+    let ratio = sweep.value(i);
+    let mut s = WindowSamples::default();
+    let r = crate::with_precision!(setup.precision, T => {
+        evaluate_point_observed::<T, _>(&setup.params, gap_m, ratio, &setup.settings, &mut s)
+    })
+    .with_context(|| format!("Ω/ω {ratio}"))?;
+    Ok(rows(setup, i, ratio, "rest", &r, &s))
+}
+
+/// Runs one continuation branch over `order` (sweep indices), writing rows without header.
+fn branch<T: Real>(
+    setup: &Setup,
+    gap_m: f64,
+    sweep: &Sweep,
+    order: &[usize],
+    name: &str,
+    w: &mut csv::Writer<BufWriter<File>>,
+    bar: &indicatif::ProgressBar,
+) -> Result<()> {
+    let mut prev = None;
+    let phases = PhaseTable::new(setup.settings.steps.steps_per_period)?;
+    for &i in order {
+        interrupt::check()?;
+        let ratio = sweep.value(i);
+        let mut sim = Simulator::<T>::new(
+            &setup.params,
+            gap_m,
+            ratio * setup.params.omega_n(),
+            &setup.settings.bands,
+            &setup.settings.steps,
+            &phases,
+        )
+        .with_context(|| format!("Ω/ω {ratio}"))?;
+        if let Some(x) = prev {
+            sim.reset_state(x);
+        }
+        let mut s = WindowSamples::default();
+        let r = run_protocol(
+            &mut sim,
+            &setup.settings.protocol,
+            setup.params.weight_n(),
+            &mut s,
+        )?;
+        prev = Some(sim.state());
+        for row in rows(setup, i, ratio, name, &r, &s) {
+            w.serialize(row)?;
+        }
+        bar.inc(1);
+    }
+    w.flush()?;
+    Ok(())
+}
+
+/// Writes the rows of a continuation over `sweep` at gap `gap_m` (m) to the CSV `out` (with
+/// header): each branch of `mode` from rest at its first frequency, then from the previous
+/// frequency's final state; the two branches of `both` in parallel, `up` first in the file.
+///
+/// # Errors
+/// An invalid point, I/O failure or Ctrl-C.
+pub fn continuation(
+    setup: &Setup,
+    gap_m: f64,
+    sweep: &Sweep,
+    mode: Continuation,
+    out: &Path,
+) -> Result<()> {
+    interrupt::install();
+    let n = sweep.len();
+    let up: Vec<usize> = (0..n).collect();
+    let down: Vec<usize> = (0..n).rev().collect();
+    let branches: Vec<(&str, &[usize])> = match mode {
+        Continuation::Up => vec![("up", &up)],
+        Continuation::Down => vec![("down", &down)],
+        Continuation::Both => vec![("up", &up), ("down", &down)],
+    };
+    let bar = progress(n * branches.len(), "bifurcation (continuation)");
+    let run_one = |(name, order): (&str, &[usize])| -> Result<tempfile::NamedTempFile> {
+        let tmp = scratch(out, ".branch.csv")?;
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(BufWriter::new(tmp.reopen()?));
+        crate::with_precision!(setup.precision, T => {
+            branch::<T>(setup, gap_m, sweep, order, name, &mut w, &bar)
+        })?;
+        Ok(tmp)
+    };
+    let parts: Vec<tempfile::NamedTempFile> = if branches.len() == 2 {
+        let (a, b) = rayon::join(|| run_one(branches[0]), || run_one(branches[1]));
+        vec![a?, b?]
+    } else {
+        vec![run_one(branches[0])?]
+    };
+    bar.finish_and_clear();
+    let mut w = create_csv::<BifRow>(out, None)?;
+    w.flush()?;
+    let mut file = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
+    for p in &parts {
+        std::io::copy(&mut File::open(p.path())?, &mut file)?;
+    }
+    file.flush()?;
+    Ok(())
+}
+
+/// The bifurcation diagram as a [`GridKind`]: one point index per frequency, several rows
+/// each; its rows are the CSV.
+pub struct Bifurcation;
+
+impl GridKind for Bifurcation {
+    const KIND: Kind = Kind::Bifurcation;
+    const GROUPED: bool = true;
+    type Grid = BifGrid;
+    type Row = BifRow;
+
+    /// Draws the figure from the complete CSV, reading it twice (spans, then dots): memory
+    /// does not grow with the sweep.
+    fn finish(
+        outputs: &mut Outputs,
+        meta: &Meta,
+        csv: &Path,
+        _out: &Path,
+        figures: Figures<'_>,
+    ) -> Result<()> {
+        let Some(plot) = figures.plot else {
+            return Ok(());
+        };
+        let grid = meta.grid::<Self::Grid>()?;
+        let mut ranges = BifRanges {
+            x: (
+                grid.omega_ratio.value(0),
+                grid.omega_ratio.value(grid.omega_ratio.len() - 1),
+            ),
+            u: (f64::INFINITY, f64::NEG_INFINITY),
+            force_max: 0.0,
+        };
+        let mut present = [false; 3];
+        const BRANCHES: [&str; 3] = ["rest", "up", "down"];
+        for row in open_csv::<BifRow>(csv)?.deserialize::<BifRow>() {
+            let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
+            if let Some(k) = BRANCHES.iter().position(|b| *b == row.branch) {
+                present[k] = true;
+            }
+            if let Some(u) = row.u_mm {
+                ranges.u = (ranges.u.0.min(u), ranges.u.1.max(u));
+            }
+            if let Some(f) = row.impact_force_mg {
+                ranges.force_max = ranges.force_max.max(f);
+            }
+        }
+        if !ranges.u.0.is_finite() {
+            ranges.u = (0.0, grid.gap_mm);
+        }
+        let branches: Vec<&str> = BRANCHES
+            .iter()
+            .zip(present)
+            .filter(|(_, p)| *p)
+            .map(|(b, _)| *b)
+            .collect();
+        let tmp = outputs.reserve(plot)?;
+        let title = format!(
+            "{} — bifurcation diagram, gap {} mm{}",
+            title_prefix(meta),
+            grid.gap_mm,
+            match grid.continuation {
+                None => ", from rest at each Ω",
+                Some(_) => ", continuation",
+            }
+        );
+        maps::bifurcation(&tmp, &title, ranges, grid.gap_mm, &branches, |draw| {
+            for row in open_csv::<BifRow>(csv)?.deserialize::<BifRow>() {
+                let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
+                let dot = match (row.u_mm, row.impact_force_mg) {
+                    (Some(u), _) => BifDot::Strobe(row.omega_ratio, u),
+                    (None, Some(f)) => BifDot::Impact(row.omega_ratio, f),
+                    _ => continue,
+                };
+                draw(&row.branch, dot)?;
+            }
+            Ok(())
+        })
+    }
+}
