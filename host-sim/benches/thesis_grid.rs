@@ -1,4 +1,4 @@
-//! The issue-3 performance numbers, measured on this machine (not a criterion bench: one run
+//! The grid and basin performance numbers of docs/performance.md, measured on this machine (not a criterion bench: one run
 //! of each workload is long enough to time).
 //!
 //! 1. The thesis' Peterka grid (wire rig, gap 0.00–3.42 mm × 1.00–7.11 Hz, steps 0.01:
@@ -19,11 +19,10 @@ use shared::analysis::SimSettings;
 use shared::model::RigId;
 use shared::observe::PointResult;
 
-use host_sim::config::{Profile, RigOpts, Setup};
+use host_sim::config::Setup;
 use host_sim::grid::basins::{self, Basins, BasinsGrid};
 use host_sim::grid::{self, BATCH, CountSweep, Figures};
 use host_sim::output::Outputs;
-use host_sim::precision::Precision;
 use host_sim::runner::{OperatingPoint, evaluate_batch};
 
 fn peak_rss_kib() -> Option<u64> {
@@ -34,14 +33,7 @@ fn peak_rss_kib() -> Option<u64> {
 
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
-    let setup = Setup::from_opts(&RigOpts {
-        rig: RigId::Wires,
-        law: None,
-        config: None,
-        precision: Precision::F32,
-        profile: Profile::Host,
-    })
-    .expect("wire rig");
+    let setup = Setup::preset(RigId::Wires).expect("wire rig");
     assert_eq!(setup.settings, SimSettings::default());
     let fn_hz = RigId::Wires.preset().natural_freq_hz();
     let gaps: Vec<f64> = (0..343)

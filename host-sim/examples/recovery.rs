@@ -9,58 +9,25 @@
 //! `cargo run --release -p host-sim --example recovery` (about 3 minutes on 2 cores); the tables
 //! of docs/identification.md.
 
-use host_sim::identify::contact::{
-    DropSetup, DropTest, FIT_STEPS, Fit, Weights, analyse_drop, fit_law_joint,
-};
-use host_sim::identify::synth::{Sensor, TRUTH_STEPS, clean_drop, record};
+use host_sim::identify::contact::{DropTest, Fit, Weights, fit_law_joint};
+use host_sim::identify::synth::LabDrop;
 use host_sim::trace::Trace;
 use rayon::prelude::*;
-use shared::analysis::drop::DropSpec;
-use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams};
+use shared::model::{ContactLaw, ContactLawKind};
 
-const PEAKS: Weights = Weights {
-    time: 1.0,
-    profile: 0.0,
-};
-const PROFILE: Weights = Weights {
-    time: 1.0,
-    profile: 1.0,
-};
+const PEAKS: Weights = Weights::PEAKS;
+const PROFILE: Weights = Weights::PROFILE;
 /// Reference penetration of the power laws' force `k δ_ref^n`, m.
 const DELTA_REF_M: f64 = 1e-5;
 
-fn rig(law: ContactLaw) -> RigParams {
-    let mut p = RigId::Wires.preset();
-    p.contact = law;
-    p
-}
-
 fn clean(law: ContactLaw, release_mm: f64) -> Trace {
-    let spec = DropSpec {
-        gap_m: 0.0,
-        release_m: release_mm * 1e-3,
-        duration_s: 1.2,
-        max_impacts: 0,
-    };
-    clean_drop(&rig(law), &spec, &TRUTH_STEPS, 50e3).expect("valid drop")
+    LabDrop { law, release_mm }.clean().expect("valid drop")
 }
 
 fn measured(law: ContactLaw, clean: &Trace, release_mm: f64, seed: u64) -> DropTest {
-    let sensor = Sensor {
-        sample_rate_hz: 50e3,
-        noise_pct: 1.0,
-        offset_n: 0.5,
-        seed,
-    };
-    DropTest {
-        setup: DropSetup {
-            params: rig(law),
-            gap_m: 0.0,
-            release_m: release_mm * 1e-3,
-            steps: FIT_STEPS,
-        },
-        data: analyse_drop(&record(clean, &sensor).expect("sensor"), 6).expect("impacts"),
-    }
+    LabDrop { law, release_mm }
+        .measured(clean, seed)
+        .expect("impacts")
 }
 
 /// The law's parameters by name, plus `k δ_ref^n` for the power laws.

@@ -62,6 +62,21 @@ pub struct RigOpts {
     pub profile: Profile,
 }
 
+impl RigOpts {
+    /// A rig preset as the commands see it with no other option: its identified contact law,
+    /// no config file, f32, the host profile.
+    #[must_use]
+    pub fn preset(rig: RigId) -> Self {
+        Self {
+            rig,
+            law: None,
+            config: None,
+            precision: Precision::F32,
+            profile: Profile::Host,
+        }
+    }
+}
+
 /// Parses a rig preset name (`wires`, `beam-170`, …) for a command-line option.
 ///
 /// # Errors
@@ -205,6 +220,14 @@ struct ConfigFile {
 }
 
 impl Setup {
+    /// The setup of a rig preset with every option at its default ([`RigOpts::preset`]).
+    ///
+    /// # Errors
+    /// None for the built-in presets; the validation of [`Setup::from_opts`].
+    pub fn preset(rig: RigId) -> Result<Self> {
+        Self::from_opts(&RigOpts::preset(rig))
+    }
+
     /// Builds and validates the setup.
     ///
     /// # Errors

@@ -2,57 +2,17 @@
 //! a non-zero exit and no output file left behind.
 
 use std::fs;
-use std::path::Path;
 
-use assert_cmd::Command;
+mod common;
 
-fn host_sim() -> Command {
-    Command::cargo_bin("host-sim").unwrap()
-}
-
-fn assert_rejected(args: &[&str], needle: &str, outputs: &[&Path]) {
-    let out = host_sim().args(args).output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} succeeded");
-    assert!(
-        stderr.contains(needle),
-        "{args:?}: stderr `{stderr}` lacks `{needle}`"
-    );
-    for p in outputs {
-        assert!(!p.exists(), "{} was left behind", p.display());
-    }
-    // No temporary file left in the folder either.
-    if let Some(dir) = outputs.first().and_then(|p| p.parent()) {
-        let leftovers: Vec<_> = fs::read_dir(dir)
-            .unwrap()
-            .filter_map(Result::ok)
-            .filter(|e| e.file_name().to_string_lossy().starts_with(".host-sim-"))
-            .collect();
-        assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
-    }
-}
+use common::{host_sim, line, ok, rejected};
 
 #[test]
 fn select_json_reports_the_operating_point() {
-    let out = host_sim()
-        .args([
-            "select",
-            "--rig",
-            "wires",
-            "--gap-mm",
-            "0",
-            "--json",
-            "--omega-ratio",
-            "0.5:5.0:0.02",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let out = ok(&line(
+        "select --rig wires --gap-mm 0 --json --omega-ratio 0.5:5.0:0.02",
+    ));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     for key in [
         "rig",
         "gap_mm",
@@ -84,22 +44,11 @@ fn response_writes_csv_and_png() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("fr.csv");
     let png = dir.path().join("fr.png");
-    host_sim()
-        .args([
-            "response",
-            "--rig",
-            "beam-150",
-            "--gap-mm",
-            "1",
-            "--omega-ratio",
-            "1.0:2.0:0.25",
-        ])
-        .arg("--out")
-        .arg(&csv)
-        .arg("--plot")
-        .arg(&png)
-        .assert()
-        .success();
+    ok(&line(&format!(
+        "response --rig beam-150 --gap-mm 1 --omega-ratio 1.0:2.0:0.25 --out {} --plot {}",
+        csv.display(),
+        png.display()
+    )));
     let text = fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -119,22 +68,10 @@ fn response_writes_csv_and_png() {
 fn simulate_writes_time_series_with_poincare_rows() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("ts.csv");
-    host_sim()
-        .args([
-            "simulate",
-            "--rig",
-            "wires",
-            "--gap-mm",
-            "0",
-            "--omega-ratio",
-            "2.0",
-            "--periods",
-            "10",
-        ])
-        .arg("--out")
-        .arg(&csv)
-        .assert()
-        .success();
+    ok(&line(&format!(
+        "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 10 --out {}",
+        csv.display()
+    )));
     let mut rdr = csv::Reader::from_path(&csv).unwrap();
     let headers = rdr.headers().unwrap().clone();
     assert_eq!(
@@ -203,91 +140,88 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
     let png = dir.path().join("fr.png");
     let o = out.to_str().unwrap();
     let p = png.to_str().unwrap();
-    assert_rejected(
-        &["response", "--gap-mm", "-1", "--out", o, "--plot", p],
-        "gap_mm",
+    rejected(
+        &line(&format!("response --gap-mm -1 --out {} --plot {}", o, p)),
+        &["gap_mm"],
         &[&out, &png],
     );
-    assert_rejected(
-        &["response", "--gap-mm", "NaN", "--out", o],
-        "gap_mm",
+    rejected(
+        &line(&format!("response --gap-mm NaN --out {}", o)),
+        &["gap_mm"],
         &[&out],
     );
-    assert_rejected(
-        &[
-            "response",
-            "--gap-mm",
-            "0",
-            "--omega-ratio",
-            "5:0.5:0.1",
-            "--out",
-            o,
-        ],
-        "--omega-ratio",
+    rejected(
+        &line(&format!(
+            "response --gap-mm 0 --omega-ratio 5:0.5:0.1 --out {}",
+            o
+        )),
+        &["--omega-ratio"],
         &[&out],
     );
-    assert_rejected(
-        &[
-            "response",
-            "--gap-mm",
-            "0",
-            "--omega-ratio",
-            "0.5:5:0",
-            "--out",
-            o,
-        ],
-        "step",
+    rejected(
+        &line(&format!(
+            "response --gap-mm 0 --omega-ratio 0.5:5:0 --out {}",
+            o
+        )),
+        &["step"],
         &[&out],
     );
-    assert_rejected(
-        &[
-            "response",
-            "--gap-mm",
-            "0",
-            "--omega-ratio",
-            "0.001:1:0.1",
-            "--out",
-            o,
-        ],
-        "allowed",
+    rejected(
+        &line(&format!(
+            "response --gap-mm 0 --omega-ratio 0.001:1:0.1 --out {}",
+            o
+        )),
+        &["allowed"],
         &[&out],
     );
-    assert_rejected(
-        &["simulate", "--gap-mm", "0", "--freq-hz", "-3", "--out", o],
-        "freq_hz",
+    rejected(
+        &line(&format!("simulate --gap-mm 0 --freq-hz -3 --out {}", o)),
+        &["freq_hz"],
         &[&out],
     );
-    assert_rejected(&["select", "--rig", "beam-171"], "unknown rig", &[]);
+    rejected(&["select", "--rig", "beam-171"], &["unknown rig"], &[]);
 
     let cfg = dir.path().join("bad.toml");
     fs::write(&cfg, "[rig]\nmass_kg = -0.3\n").unwrap();
     let c = cfg.to_str().unwrap();
-    assert_rejected(
-        &["response", "--gap-mm", "0", "--config", c, "--out", o],
-        "mass_kg",
+    rejected(
+        &line(&format!("response --gap-mm 0 --config {} --out {}", c, o)),
+        &["mass_kg"],
         &[&out],
     );
     fs::write(&cfg, "[rig]\nmas_kg = 0.3\n").unwrap();
-    assert_rejected(
-        &["response", "--gap-mm", "0", "--config", c, "--out", o],
-        "mas_kg",
+    rejected(
+        &line(&format!("response --gap-mm 0 --config {} --out {}", c, o)),
+        &["mas_kg"],
         &[&out],
     );
     fs::write(&cfg, "[rig\nmass_kg = 0.3\n").unwrap();
-    assert_rejected(
-        &["response", "--gap-mm", "0", "--config", c, "--out", o],
-        "malformed",
+    rejected(
+        &line(&format!("response --gap-mm 0 --config {} --out {}", c, o)),
+        &["malformed"],
         &[&out],
     );
 
     let input = dir.path().join("pts.csv");
     let i = input.to_str().unwrap();
     fs::write(&input, "gap_mm,omega_ratio\n0,2.0\nx,1.0\n").unwrap();
-    assert_rejected(&["points", "--input", i, "--out", o], "line 3", &[&out]);
+    rejected(
+        &line(&format!("points --input {} --out {}", i, o)),
+        &["line 3"],
+        &[&out],
+    );
     fs::write(&input, "gap_mm,omega_ratio\n-0.5,2.0\n").unwrap();
-    assert_rejected(&["points", "--input", i, "--out", o], "gap_mm", &[&out]);
+    rejected(
+        &line(&format!("points --input {} --out {}", i, o)),
+        &["gap_mm"],
+        &[&out],
+    );
     fs::write(&input, "gap,ratio\n0,2.0\n").unwrap();
-    assert_rejected(&["points", "--input", i, "--out", o], "gap_mm", &[&out]);
+    rejected(
+        &line(&format!("points --input {} --out {}", i, o)),
+        &["gap_mm"],
+        &[&out],
+    );
 }
 
 #[test]
@@ -300,31 +234,13 @@ fn config_file_overrides_parameters() {
         "[rig]\namplitude_m = 1.78e-3\n[settings.protocol]\nobserve_periods = 32\n",
     )
     .unwrap();
-    let run = |extra: &[&str]| {
-        let out = host_sim()
-            .args([
-                "simulate",
-                "--rig",
-                "wires",
-                "--gap-mm",
-                "0",
-                "--omega-ratio",
-                "2.0",
-                "--periods",
-                "30",
-            ])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap()
+    let run = |extra: &str| {
+        ok(&line(&format!(
+            "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 30 {extra}"
+        )))
     };
-    let base = run(&[]);
-    let over = run(&["--config", cfg.to_str().unwrap()]);
+    let base = run("");
+    let over = run(&format!("--config {}", cfg.display()));
     assert_ne!(base, over);
 }
 
@@ -334,28 +250,9 @@ fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
     let csv = dir.path().join("run.csv");
     let png = dir.path().join("run.png");
     let (c, p) = (csv.to_str().unwrap(), png.to_str().unwrap());
-    let out = host_sim()
-        .args([
-            "hil",
-            "--rig",
-            "wires",
-            "--gap-mm",
-            "0",
-            "--seconds",
-            "6",
-            "--out",
-            c,
-            "--plot",
-            p,
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = ok(&line(&format!(
+        "hil --rig wires --gap-mm 0 --seconds 6 --out {c} --plot {p}"
+    )));
     assert!(stdout.contains("state track"), "{stdout}");
     let text = fs::read_to_string(&csv).unwrap();
     assert!(text.starts_with(
@@ -366,23 +263,35 @@ fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
     fs::remove_file(&png).unwrap();
 
     let outs = [csv.as_path(), png.as_path()];
-    assert_rejected(
-        &["hil", "--gap-mm", "-1", "--out", c, "--plot", p],
-        "--gap-mm",
+    rejected(
+        &line(&format!("hil --gap-mm -1 --out {} --plot {}", c, p)),
+        &["--gap-mm"],
         &outs,
     );
-    assert_rejected(&["hil", "--gap-mm", "NaN", "--out", c], "--gap-mm", &outs);
-    assert_rejected(
-        &["hil", "--actual-gap-mm", "11", "--out", c],
-        "--actual-gap-mm",
+    rejected(
+        &line(&format!("hil --gap-mm NaN --out {}", c)),
+        &["--gap-mm"],
         &outs,
     );
-    assert_rejected(&["hil", "--seconds", "0", "--out", c], "--seconds", &outs);
+    rejected(
+        &line(&format!("hil --actual-gap-mm 11 --out {}", c)),
+        &["--actual-gap-mm"],
+        &outs,
+    );
+    rejected(
+        &line(&format!("hil --seconds 0 --out {}", c)),
+        &["--seconds"],
+        &outs,
+    );
     let bad = dir.path().join("bad.toml");
     fs::write(&bad, "[[faults]]\nkind = \"sensor-melted\"\nat_s = 1.0\n").unwrap();
-    assert_rejected(
-        &["hil", "--scenario", bad.to_str().unwrap(), "--out", c],
-        "malformed --scenario",
+    rejected(
+        &line(&format!(
+            "hil --scenario {} --out {}",
+            bad.to_str().unwrap(),
+            c
+        )),
+        &["malformed --scenario"],
         &outs,
     );
     fs::write(
@@ -390,15 +299,23 @@ fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
         "[[faults]]\nkind = \"gain\"\nat_s = -2.0\nfactor = 1.0\n",
     )
     .unwrap();
-    assert_rejected(
-        &["hil", "--scenario", bad.to_str().unwrap(), "--out", c],
-        "faults.at_s",
+    rejected(
+        &line(&format!(
+            "hil --scenario {} --out {}",
+            bad.to_str().unwrap(),
+            c
+        )),
+        &["faults.at_s"],
         &outs,
     );
     fs::write(&bad, "[controller.limits]\nfreq_max_hz = 0.5\n").unwrap();
-    assert_rejected(
-        &["hil", "--scenario", bad.to_str().unwrap(), "--out", c],
-        "freq_max_hz",
+    rejected(
+        &line(&format!(
+            "hil --scenario {} --out {}",
+            bad.to_str().unwrap(),
+            c
+        )),
+        &["freq_max_hz"],
         &outs,
     );
 }

@@ -5,50 +5,9 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use assert_cmd::Command;
+mod common;
 
-fn host_sim() -> Command {
-    let mut c = Command::cargo_bin("host-sim").unwrap();
-    c.env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("SLURM_ARRAY_TASK_COUNT");
-    c
-}
-
-fn run_ok(args: &[&str]) {
-    let out = host_sim().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-fn leftovers(dir: &Path) -> Vec<String> {
-    fs::read_dir(dir)
-        .unwrap()
-        .filter_map(Result::ok)
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with(".host-sim-"))
-        .collect()
-}
-
-fn assert_rejected(args: &[&str], needles: &[&str], outputs: &[&Path]) {
-    let out = host_sim().args(args).output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} succeeded");
-    for needle in needles {
-        assert!(
-            stderr.contains(needle),
-            "{args:?}: stderr `{stderr}` lacks `{needle}`"
-        );
-    }
-    for p in outputs {
-        assert!(!p.exists(), "{} was left behind", p.display());
-    }
-    if let Some(dir) = outputs.first().and_then(|p| p.parent()) {
-        assert!(leftovers(dir).is_empty(), "temporary files left");
-    }
-}
+use common::{host_sim, leftovers, line, ok, rejected};
 
 fn strs(a: &[String]) -> Vec<&str> {
     a.iter().map(String::as_str).collect()
@@ -70,7 +29,7 @@ fn shards_equal_one_run(dir: &Path, name: &str, cmd: &[&str], plots: &[&str]) {
             s(&dir.join(format!("{name}-one{flag}.png"))).into(),
         ]);
     }
-    run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
     let mut shards: Vec<PathBuf> = Vec::new();
     for i in 0..3 {
         let p = dir.join(format!("{name}-shard{i}.csv"));
@@ -81,7 +40,7 @@ fn shards_equal_one_run(dir: &Path, name: &str, cmd: &[&str], plots: &[&str]) {
             "--shard".into(),
             format!("{i}/3"),
         ]);
-        run_ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
         assert!(
             fs::read_to_string(&p)
                 .unwrap()
@@ -101,7 +60,7 @@ fn shards_equal_one_run(dir: &Path, name: &str, cmd: &[&str], plots: &[&str]) {
     for i in [2, 0, 1] {
         m.push(s(&shards[i]).into());
     }
-    run_ok(&m.iter().map(String::as_str).collect::<Vec<_>>());
+    ok(&m.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(
         fs::read(&one).unwrap(),
         fs::read(&merged).unwrap(),
@@ -195,7 +154,7 @@ fn slurm_variables_select_the_shard() {
         "--omega-ratio",
         "1.5:1.7:0.2",
     ];
-    run_ok(&[&cmd[..], &["--shard", "1/2", "--out", s(&a)]].concat());
+    ok(&[&cmd[..], &["--shard", "1/2", "--out", s(&a)]].concat());
     let out = host_sim()
         .args(cmd)
         .args(["--out", s(&b)])
@@ -227,17 +186,10 @@ fn peterka_wire_rig_at_gap_zero_is_one_one_up_to_the_force_peak() {
     // F_i/mg ≈ 32.9 near Ω/ω = 2.0, is about 3× the force at Ω = ω.
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("p.csv");
-    run_ok(&[
-        "peterka",
-        "--rig",
-        "wires",
-        "--gap-ratio",
-        "0:0:0.1",
-        "--omega-ratio",
-        "1.5:2.1:0.1",
-        "--out",
-        s(&out),
-    ]);
+    ok(&line(&format!(
+        "peterka --rig wires --gap-ratio 0:0:0.1 --omega-ratio 1.5:2.1:0.1 --out {}",
+        s(&out)
+    )));
     let rows = read_rows(&out);
     assert_eq!(rows.len(), 7);
     let mut best = (0.0, 0.0);
@@ -257,21 +209,11 @@ fn peterka_wire_rig_at_gap_zero_is_one_one_up_to_the_force_peak() {
 fn basins_with_a_unique_attractor_give_one_attractor_everywhere() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("b.csv");
-    run_ok(&[
-        "basins",
-        "--rig",
-        "wires",
-        "--gap-mm",
-        "0",
-        "--omega-ratio",
-        "1.5",
-        "--u0-mm",
-        "-1:0:3",
-        "--v0-mm-s",
-        "-10:10:3",
-        "--out",
-        s(&out),
-    ]);
+    ok(&line(&format!(
+        "basins --rig wires --gap-mm 0 --omega-ratio 1.5 --u0-mm -1:0:3 \
+            --v0-mm-s -10:10:3 --out {}",
+        s(&out)
+    )));
     let rows = read_rows(&out);
     assert_eq!(rows.len(), 9);
     let first = &rows[0];
@@ -284,15 +226,10 @@ fn basins_with_a_unique_attractor_give_one_attractor_everywhere() {
     }
     // The attractor's Poincaré point is the from-rest steady state (bifurcation, same point).
     let bif = dir.path().join("f.csv");
-    run_ok(&[
-        "bifurcation",
-        "--gap-mm",
-        "0",
-        "--omega-ratio",
-        "1.5:1.5:0.1",
-        "--out",
-        s(&bif),
-    ]);
+    ok(&line(&format!(
+        "bifurcation --gap-mm 0 --omega-ratio 1.5:1.5:0.1 --out {}",
+        s(&bif)
+    )));
     let u: f64 = read_rows(&bif)[0][7].parse().unwrap();
     let ua: f64 = first[6].parse().unwrap();
     assert!((u - ua).abs() < 0.01 * 0.89, "{u} vs {ua}");
@@ -303,19 +240,11 @@ fn bifurcation_from_rest_at_gap_zero_is_period_one_with_one_impact_per_period() 
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f.csv");
     let png = dir.path().join("f.png");
-    run_ok(&[
-        "bifurcation",
-        "--rig",
-        "wires",
-        "--gap-mm",
-        "0",
-        "--omega-ratio",
-        "1.5:1.5:0.1",
-        "--out",
+    ok(&line(&format!(
+        "bifurcation --rig wires --gap-mm 0 --omega-ratio 1.5:1.5:0.1 --out {} --plot {}",
         s(&out),
-        "--plot",
-        s(&png),
-    ]);
+        s(&png)
+    )));
     let rows = read_rows(&out);
     let strobes: Vec<f64> = rows
         .iter()
@@ -338,17 +267,10 @@ fn bifurcation_from_rest_at_gap_zero_is_period_one_with_one_impact_per_period() 
 fn bifurcation_continuation_writes_two_branches() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("c.csv");
-    run_ok(&[
-        "bifurcation",
-        "--gap-mm",
-        "0",
-        "--omega-ratio",
-        "1.5:1.9:0.2",
-        "--continuation",
-        "both",
-        "--out",
-        s(&out),
-    ]);
+    ok(&line(&format!(
+        "bifurcation --gap-mm 0 --omega-ratio 1.5:1.9:0.2 --continuation both --out {}",
+        s(&out)
+    )));
     let rows = read_rows(&out);
     let order: Vec<(String, String)> = rows
         .iter()
@@ -396,43 +318,36 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
         .map(|x| x.to_string())
         .collect()
     };
-    assert_rejected(
+    rejected(
         &strs(&peterka("NaN:1:0.1", "2:3:0.1")),
         &["--gap-mm", "finite"],
         &[&out, &png],
     );
-    assert_rejected(
+    rejected(
         &strs(&peterka("-0.5:1:0.1", "2:3:0.1")),
         &["--gap-mm", "allowed 0 ..= 50"],
         &[&out, &png],
     );
-    assert_rejected(
+    rejected(
         &strs(&peterka("0:1:0.1", "0.01:3:0.1")),
         &["--freq-hz", "allowed"],
         &[&out, &png],
     );
-    assert_rejected(
+    rejected(
         &strs(&peterka("0:1:0.1", "2:200:0.1")),
         &["--freq-hz", "allowed"],
         &[&out, &png],
     );
-    assert_rejected(
-        &[
-            "peterka",
-            "--gap-mm",
-            "0:1:0.1",
-            "--gap-ratio",
-            "0:1:0.1",
-            "--freq-hz",
-            "2:3:0.1",
-            "--out",
-            o,
-        ],
+    rejected(
+        &line(&format!(
+            "peterka --gap-mm 0:1:0.1 --gap-ratio 0:1:0.1 --freq-hz 2:3:0.1 --out {}",
+            o
+        )),
         &["--gap-ratio", "cannot be used with"],
         &[&out],
     );
-    assert_rejected(
-        &["peterka", "--gap-mm", "0:1:0.1", "--out", o],
+    rejected(
+        &line(&format!("peterka --gap-mm 0:1:0.1 --out {}", o)),
         &["--freq-hz", "--omega-ratio"],
         &[&out],
     );
@@ -441,18 +356,11 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
         ("0/0", "N ≥ 1"),
         ("x", "expected I/N"),
     ] {
-        assert_rejected(
-            &[
-                "peterka",
-                "--gap-mm",
-                "0:1:0.1",
-                "--freq-hz",
-                "2:3:0.1",
-                "--out",
-                o,
-                "--shard",
-                shard,
-            ],
+        rejected(
+            &line(&format!(
+                "peterka --gap-mm 0:1:0.1 --freq-hz 2:3:0.1 --out {} --shard {}",
+                o, shard
+            )),
             &["--shard", needle],
             &[&out],
         );
@@ -477,58 +385,44 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
         .map(|x| x.to_string())
         .collect()
     };
-    assert_rejected(
+    rejected(
         &strs(&basins("0", "-1:0:0", "-1:1:3")),
         &["--u0-mm", "COUNT = 0", "allowed 1 ..= 4096"],
         &[&out, &png],
     );
-    assert_rejected(
+    rejected(
         &strs(&basins("0", "-1:0:3", "-1:1:0")),
         &["--v0-mm-s", "COUNT = 0"],
         &[&out, &png],
     );
-    assert_rejected(
+    rejected(
         &strs(&basins("-1", "-1:0:3", "-1:1:3")),
         &["--gap-mm", "gap_mm"],
         &[&out, &png],
     );
-    assert_rejected(
+    rejected(
         &strs(&basins("NaN", "-1:0:3", "-1:1:3")),
         &["--gap-mm", "finite"],
         &[&out, &png],
     );
-    assert_rejected(
+    rejected(
         &strs(&basins("0", "-1:1:3", "-1:1:3")),
         &["--u0-mm", "u0 ≤ gap"],
         &[&out, &png],
     );
-    assert_rejected(
-        &[
-            "bifurcation",
-            "--gap-mm",
-            "0",
-            "--omega-ratio",
-            "1:2:0.5",
-            "--continuation",
-            "up",
-            "--shard",
-            "0/2",
-            "--out",
-            o,
-        ],
+    rejected(
+        &line(&format!(
+            "bifurcation --gap-mm 0 --omega-ratio 1:2:0.5 --continuation up --shard 0/2 --out {}",
+            o
+        )),
         &["--shard", "continuation"],
         &[&out],
     );
-    assert_rejected(
-        &[
-            "bifurcation",
-            "--gap-mm",
-            "0",
-            "--omega-ratio",
-            "0.001:2:0.5",
-            "--out",
-            o,
-        ],
+    rejected(
+        &line(&format!(
+            "bifurcation --gap-mm 0 --omega-ratio 0.001:2:0.5 --out {}",
+            o
+        )),
         &["--omega-ratio", "allowed"],
         &[&out],
     );
@@ -544,59 +438,58 @@ fn merge_rejects_bad_shards_and_writes_nothing() {
     let p = s(&png);
     let shard = |name: &str, gaps: &str, i: u32, n: u32| -> PathBuf {
         let path = d.join(name);
-        run_ok(&[
-            "peterka",
-            "--gap-mm",
-            gaps,
-            "--omega-ratio",
-            "1.5:1.7:0.2",
-            "--out",
-            s(&path),
-            "--shard",
-            &format!("{i}/{n}"),
-        ]);
+        ok(&line(&format!(
+            "peterka --gap-mm {gaps} --omega-ratio 1.5:1.7:0.2 --out {} --shard {i}/{n}",
+            s(&path)
+        )));
         path
     };
     let a0 = shard("a0.csv", "0:0.1:0.1", 0, 2);
     let a1 = shard("a1.csv", "0:0.1:0.1", 1, 2);
     let b1 = shard("b1.csv", "0:0.2:0.1", 1, 2);
     // Missing index (shard 1 absent).
-    assert_rejected(
-        &["merge", "--out", o, "--plot", p, s(&a0)],
+    rejected(
+        &line(&format!("merge --out {} --plot {} {}", o, p, s(&a0))),
         &["point index 1 is missing"],
         &[&out, &png],
     );
     // Same shard twice.
-    assert_rejected(
-        &["merge", "--out", o, s(&a0), s(&a1), s(&a1)],
+    rejected(
+        &line(&format!(
+            "merge --out {} {} {} {}",
+            o,
+            s(&a0),
+            s(&a1),
+            s(&a1)
+        )),
         &["appears twice"],
         &[&out],
     );
     // Another grid.
-    assert_rejected(
-        &["merge", "--out", o, s(&a0), s(&b1)],
+    rejected(
+        &line(&format!("merge --out {} {} {}", o, s(&a0), s(&b1))),
         &["do not belong to the same run", "grid"],
         &[&out],
     );
     // Wrong kind.
-    assert_rejected(
-        &["merge", "--kind", "basins", "--out", o, s(&a0), s(&a1)],
+    rejected(
+        &line(&format!(
+            "merge --kind basins --out {} {} {}",
+            o,
+            s(&a0),
+            s(&a1)
+        )),
         &["--kind basins", "peterka"],
         &[&out],
     );
     // Not a shard (a one-run CSV has no metadata line).
     let plain = d.join("plain.csv");
-    run_ok(&[
-        "peterka",
-        "--gap-mm",
-        "0:0.1:0.1",
-        "--omega-ratio",
-        "1.5:1.7:0.2",
-        "--out",
-        s(&plain),
-    ]);
-    assert_rejected(
-        &["merge", "--out", o, s(&plain)],
+    ok(&line(&format!(
+        "peterka --gap-mm 0:0.1:0.1 --omega-ratio 1.5:1.7:0.2 --out {}",
+        s(&plain)
+    )));
+    rejected(
+        &line(&format!("merge --out {} {}", o, s(&plain))),
         &["not a host-sim shard"],
         &[&out],
     );
@@ -606,8 +499,8 @@ fn merge_rejects_bad_shards_and_writes_nothing() {
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
     lines[2] = lines[2].replacen(",1/1,", ",one,", 1);
     fs::write(&bad, lines.join("\n") + "\n").unwrap();
-    assert_rejected(
-        &["merge", "--out", o, s(&a0), s(&bad)],
+    rejected(
+        &line(&format!("merge --out {} {} {}", o, s(&a0), s(&bad))),
         &["bad.csv line 3", "malformed"],
         &[&out],
     );
@@ -615,8 +508,8 @@ fn merge_rejects_bad_shards_and_writes_nothing() {
     let trunc = d.join("trunc.csv");
     let good: Vec<&str> = text.lines().collect();
     fs::write(&trunc, good[..good.len() - 1].join("\n") + "\n").unwrap();
-    assert_rejected(
-        &["merge", "--out", o, s(&a0), s(&trunc)],
+    rejected(
+        &line(&format!("merge --out {} {} {}", o, s(&a0), s(&trunc))),
         &["missing"],
         &[&out],
     );
@@ -627,13 +520,13 @@ fn merge_rejects_bad_shards_and_writes_nothing() {
         text.replacen("\"precision\":\"f32\"", "\"precision\":\"f64\"", 1),
     )
     .unwrap();
-    assert_rejected(
-        &["merge", "--out", o, s(&a0), s(&meta)],
+    rejected(
+        &line(&format!("merge --out {} {} {}", o, s(&a0), s(&meta))),
         &["precision"],
         &[&out],
     );
     // The good pair merges.
-    run_ok(&["merge", "--out", o, s(&a0), s(&a1)]);
+    ok(&line(&format!("merge --out {} {} {}", o, s(&a0), s(&a1))));
     assert_eq!(read_rows(&out).len(), 4);
 }
 

@@ -3,8 +3,6 @@
 //! not only the controller's own beliefs.
 
 use host_sim::config::Setup;
-use host_sim::config::{Profile, RigOpts};
-use host_sim::precision::Precision;
 use host_sim::rig::scenario::{Scenario, TimedCommand, TimedFault};
 use host_sim::rig::{CycleRow, HilRun, HilSetup, run};
 use host_sim::selection::compute;
@@ -31,14 +29,7 @@ fn command(at_s: f64, line: &str) -> TimedCommand {
 
 /// `host-sim select`'s target for the wire rig at 0.0 mm (the analysis profile).
 fn select_target_hz() -> f64 {
-    let setup = Setup::from_opts(&RigOpts {
-        rig: RigId::Wires,
-        law: None,
-        config: None,
-        precision: Precision::F32,
-        profile: Profile::Host,
-    })
-    .unwrap();
+    let setup = Setup::preset(RigId::Wires).unwrap();
     compute(&setup, 0.0).unwrap().0.freq_hz
 }
 

@@ -16,62 +16,45 @@
 //!   seeds 1–16 3.3–5.4 % with the profile, 6.4–9.1 % from the peaks.
 
 use host_sim::identify::contact::{
-    DropSetup, DropTest, FIT_STEPS, Fit, Weights, analyse_drop, fit_law, fit_law_joint,
-    simulate_drop,
+    DropTest, FIT_STEPS, Fit, Weights, fit_law, fit_law_joint, simulate_drop,
 };
 use host_sim::identify::free::identify_free;
-use host_sim::identify::synth::{Sensor, TRUTH_STEPS, synthetic_drop};
+use host_sim::identify::synth::LabDrop;
 use host_sim::trace::Trace;
 use shared::analysis::drop::DropSpec;
 use shared::model::{ContactLaw, RigId, RigParams, Suspension};
 
-const PEAKS: Weights = Weights {
-    time: 1.0,
-    profile: 0.0,
-};
-const PROFILE: Weights = Weights {
-    time: 1.0,
-    profile: 1.0,
-};
+const PEAKS: Weights = Weights::PEAKS;
+const PROFILE: Weights = Weights::PROFILE;
 /// Reference penetration for the power laws' identifiable stiffness, m (the order of the
 /// maximum penetration of these drops).
 const DELTA_REF_M: f64 = 1e-5;
 
 fn rig(law: ContactLaw) -> RigParams {
-    let mut p = RigId::Wires.preset();
-    p.contact = law;
-    p
+    LabDrop {
+        law,
+        release_mm: 3.0,
+    }
+    .params()
 }
 
-/// Synthetic drop test (3 mm release, 1.2 s at 50 kHz, 1 % noise, 0.5 N offset) and a fit.
-fn fit(law: ContactLaw, weights: Weights, seed: u64) -> Fit {
-    let p = rig(law);
-    let spec = DropSpec {
-        gap_m: 0.0,
-        release_m: 3e-3,
-        duration_s: 1.2,
-        max_impacts: 0,
-    };
-    let sensor = Sensor {
-        sample_rate_hz: 50e3,
-        noise_pct: 1.0,
-        offset_n: 0.5,
-        seed,
-    };
-    let trace = synthetic_drop(&p, &spec, &TRUTH_STEPS, &sensor).unwrap();
-    let data = analyse_drop(&trace, 6).unwrap();
+/// Synthetic drop test ([`LabDrop`]) released `release_mm` from the surface with noise seed
+/// `seed`, preprocessed, with the fit's setup; the offset recovered within 0.02 N.
+fn drop_test(law: ContactLaw, release_mm: f64, seed: u64) -> DropTest {
+    let lab = LabDrop { law, release_mm };
+    let test = lab.measured(&lab.clean().unwrap(), seed).unwrap();
     assert!(
-        (data.offset_n - 0.5).abs() < 0.02,
+        (test.data.offset_n - 0.5).abs() < 0.02,
         "offset {}",
-        data.offset_n
+        test.data.offset_n
     );
-    let setup = DropSetup {
-        params: p,
-        gap_m: 0.0,
-        release_m: 3e-3,
-        steps: FIT_STEPS,
-    };
-    fit_law(&setup, &data, law.kind(), weights, 400).unwrap()
+    test
+}
+
+/// The fit of `law` to its 3 mm drop test with noise seed `seed`.
+fn fit(law: ContactLaw, weights: Weights, seed: u64) -> Fit {
+    let t = drop_test(law, 3.0, seed);
+    fit_law(&t.setup, &t.data, law.kind(), weights, 400).unwrap()
 }
 
 /// A stiffer-damped spring–dashpot law than Table 3.1's.
@@ -190,40 +173,6 @@ fn dissipation_of_the_power_laws_is_recovered_from_peaks_alone() {
         assert!(rel(third, third0) < 0.05, "{truth:?}: {third} vs {third0}");
         assert!(rel(n, n0) < 0.03, "{truth:?}: n {n}");
         assert!(rel(fr, fr0) < 0.03, "{truth:?}: k δ_ref^n {fr} vs {fr0}");
-    }
-}
-
-/// Synthetic drop test released `release_mm` from the surface (1.2 s at 50 kHz, 1 % noise,
-/// 0.5 N offset), preprocessed, with the fit's setup.
-fn drop_test(law: ContactLaw, release_mm: f64, seed: u64) -> DropTest {
-    let p = rig(law);
-    let spec = DropSpec {
-        gap_m: 0.0,
-        release_m: release_mm * 1e-3,
-        duration_s: 1.2,
-        max_impacts: 0,
-    };
-    let sensor = Sensor {
-        sample_rate_hz: 50e3,
-        noise_pct: 1.0,
-        offset_n: 0.5,
-        seed,
-    };
-    let trace = synthetic_drop(&p, &spec, &TRUTH_STEPS, &sensor).unwrap();
-    let data = analyse_drop(&trace, 6).unwrap();
-    assert!(
-        (data.offset_n - 0.5).abs() < 0.02,
-        "offset {}",
-        data.offset_n
-    );
-    DropTest {
-        setup: DropSetup {
-            params: p,
-            gap_m: 0.0,
-            release_m: release_mm * 1e-3,
-            steps: FIT_STEPS,
-        },
-        data,
     }
 }
 

@@ -5,43 +5,9 @@
 use std::fs;
 use std::path::Path;
 
-use assert_cmd::Command;
+mod common;
 
-fn host_sim() -> Command {
-    Command::cargo_bin("host-sim").unwrap()
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = host_sim().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn rejected(args: &[&str], needles: &[&str], outputs: &[&Path]) {
-    let out = host_sim().args(args).output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} succeeded");
-    for n in needles {
-        assert!(
-            stderr.contains(n),
-            "{args:?}: stderr `{stderr}` lacks `{n}`"
-        );
-    }
-    for p in outputs {
-        assert!(!p.exists(), "{} was left behind", p.display());
-        let dir = p.parent().unwrap();
-        let leftovers: Vec<_> = fs::read_dir(dir)
-            .unwrap()
-            .filter_map(Result::ok)
-            .filter(|e| e.file_name().to_string_lossy().starts_with(".host-sim-"))
-            .collect();
-        assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
-    }
-}
+use common::{line, ok, rejected};
 
 #[test]
 fn drop_identify_contact_and_use_the_fit_as_config() {
@@ -52,43 +18,22 @@ fn drop_identify_contact_and_use_the_fit_as_config() {
         "[rig.contact.spring-dashpot]\nstiffness_n_m = 4.0e6\ndamping_n_s_m = 900.0\n",
     )
     .unwrap();
-    ok(&[
-        "drop",
-        "--rig",
-        "wires",
-        "--config",
-        &p("truth.toml"),
-        "--release-mm",
-        "3",
-        "--duration-s",
-        "1.0",
-        "--noise-pct",
-        "1",
-        "--offset-n",
-        "0.5",
-        "--seed",
-        "2",
-        "--out",
-        &p("drop.csv"),
-    ]);
+    ok(&line(&format!(
+        "drop --rig wires --config {} --release-mm 3 --duration-s 1.0 \
+            --noise-pct 1 --offset-n 0.5 --seed 2 --out {}",
+        p("truth.toml"),
+        p("drop.csv")
+    )));
     let text = fs::read_to_string(p("drop.csv")).unwrap();
     assert!(text.starts_with("# host-sim drop"));
     assert!(text.contains("\nt_s,force_n\n"));
-    let json = ok(&[
-        "identify",
-        "contact",
-        "--trace",
-        &p("drop.csv"),
-        "--mass-kg",
-        "0.298",
-        "--law",
-        "spring-dashpot",
-        "--out",
-        &p("fit.toml"),
-        "--plot",
-        &p("fit.png"),
-        "--json",
-    ]);
+    let json = ok(&line(&format!(
+        "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot \
+            --out {} --plot {} --json",
+        p("drop.csv"),
+        p("fit.toml"),
+        p("fit.png")
+    )));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(v["best"], "spring-dashpot");
     assert_eq!(v["impact_peaks_n"].as_array().unwrap().len(), 3);
@@ -103,31 +48,16 @@ fn drop_identify_contact_and_use_the_fit_as_config() {
     let cfg = fs::read_to_string(p("fit.toml")).unwrap();
     assert!(cfg.contains("[rig.contact.spring-dashpot]"), "{cfg}");
     assert!(cfg.contains("mass_kg = 0.298"), "{cfg}");
-    ok(&[
-        "simulate",
-        "--rig",
-        "wires",
-        "--config",
-        &p("fit.toml"),
-        "--gap-mm",
-        "0",
-        "--omega-ratio",
-        "2.0",
-        "--periods",
-        "2",
-    ]);
+    ok(&line(&format!(
+        "simulate --rig wires --config {} --gap-mm 0 --omega-ratio 2.0 --periods 2",
+        p("fit.toml")
+    )));
     // Re-simulating the drop with the fitted law reproduces the first peak (noise-free).
-    ok(&[
-        "drop",
-        "--rig",
-        "wires",
-        "--config",
-        &p("fit.toml"),
-        "--duration-s",
-        "0.3",
-        "--out",
-        &p("refit.csv"),
-    ]);
+    ok(&line(&format!(
+        "drop --rig wires --config {} --duration-s 0.3 --out {}",
+        p("fit.toml"),
+        p("refit.csv")
+    )));
     let max = |path: &str| {
         fs::read_to_string(path)
             .unwrap()
@@ -152,49 +82,24 @@ fn identify_contact_joint_fit_of_two_release_heights() {
     )
     .unwrap();
     for (name, release, seed) in [("low.csv", "0.25", "3"), ("high.csv", "3", "4")] {
-        ok(&[
-            "drop",
-            "--rig",
-            "wires",
-            "--config",
-            &p("truth.toml"),
-            "--release-mm",
+        ok(&line(&format!(
+            "drop --rig wires --config {} --release-mm {} --duration-s 1.0 \
+                --noise-pct 1 --offset-n 0.5 --seed {} --out {}",
+            p("truth.toml"),
             release,
-            "--duration-s",
-            "1.0",
-            "--noise-pct",
-            "1",
-            "--offset-n",
-            "0.5",
-            "--seed",
             seed,
-            "--out",
-            &p(name),
-        ]);
+            p(name)
+        )));
     }
-    let json = ok(&[
-        "identify",
-        "contact",
-        "--trace",
-        &p("low.csv"),
-        "--release-mm",
-        "0.25",
-        "--trace",
-        &p("high.csv"),
-        "--release-mm",
-        "3",
-        "--mass-kg",
-        "0.298",
-        "--law",
-        "hunt-crossley",
-        "--error",
-        "profile",
-        "--out",
-        &p("fit.toml"),
-        "--plot",
-        &p("fit.png"),
-        "--json",
-    ]);
+    let json = ok(&line(&format!(
+        "identify contact --trace {} --release-mm 0.25 --trace {} \
+            --release-mm 3 --mass-kg 0.298 --law hunt-crossley --error \
+            profile --out {} --plot {} --json",
+        p("low.csv"),
+        p("high.csv"),
+        p("fit.toml"),
+        p("fit.png")
+    )));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let traces = v["traces"].as_array().unwrap();
     assert_eq!(traces.len(), 2);
@@ -222,47 +127,24 @@ fn identify_contact_joint_fit_of_two_release_heights() {
     assert!(cfg.contains("release 0.25 + 3 mm"), "{cfg}");
     assert!(fs::metadata(p("fit.png")).unwrap().len() > 10_000);
     // The text output names both traces and the per-trace rows.
-    let text = ok(&[
-        "identify",
-        "contact",
-        "--trace",
-        &p("low.csv"),
-        "--trace",
-        &p("high.csv"),
-        "--release-mm",
-        "0.25",
-        "--release-mm",
-        "3",
-        "--mass-kg",
-        "0.298",
-        "--law",
-        "hunt-crossley",
-    ]);
+    let text = ok(&line(&format!(
+        "identify contact --trace {} --trace {} --release-mm 0.25 \
+            --release-mm 3 --mass-kg 0.298 --law hunt-crossley",
+        p("low.csv"),
+        p("high.csv")
+    )));
     assert!(text.contains("Joint fit"), "{text}");
     assert!(text.contains("of which release 0.25 mm"), "{text}");
     // Three releases for two traces: rejected, naming the field.
     let out = dir.path().join("bad.toml");
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("low.csv"),
-            "--trace",
-            &p("high.csv"),
-            "--release-mm",
-            "0.25",
-            "--release-mm",
-            "3",
-            "--release-mm",
-            "1",
-            "--mass-kg",
-            "0.298",
-            "--law",
-            "all",
-            "--out",
-            &out.to_string_lossy(),
-        ],
+        &line(&format!(
+            "identify contact --trace {} --trace {} --release-mm 0.25 \
+            --release-mm 3 --release-mm 1 --mass-kg 0.298 --law all --out {}",
+            p("low.csv"),
+            p("high.csv"),
+            out.to_string_lossy()
+        )),
         &["release_mm", "3 values for 2 traces"],
         &[&out],
     );
@@ -289,118 +171,65 @@ fn identify_contact_rejects_bad_input() {
     let out = dir.path().join("fit.toml");
     let o = out.to_string_lossy().into_owned();
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("good.csv"),
-            "--mass-kg",
-            "-0.3",
-            "--law",
-            "all",
-            "--out",
-            &o,
-        ],
+        &line(&format!(
+            "identify contact --trace {} --mass-kg -0.3 --law all --out {}",
+            p("good.csv"),
+            o
+        )),
         &["mass_kg", "-0.3", "allowed"],
         &[&out],
     );
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("good.csv"),
-            "--mass-kg",
-            "NaN",
-            "--law",
-            "all",
-            "--out",
-            &o,
-        ],
+        &line(&format!(
+            "identify contact --trace {} --mass-kg NaN --law all --out {}",
+            p("good.csv"),
+            o
+        )),
         &["mass_kg", "finite"],
         &[&out],
     );
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("bad.csv"),
-            "--mass-kg",
-            "0.3",
-            "--law",
-            "all",
-            "--out",
-            &o,
-        ],
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.3 --law all --out {}",
+            p("bad.csv"),
+            o
+        )),
         &["line 15", "force_n", "12..5"],
         &[&out],
     );
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("good.csv"),
-            "--mass-kg",
-            "0.3",
-            "--law",
-            "hertz",
-            "--out",
-            &o,
-        ],
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.3 --law hertz --out {}",
+            p("good.csv"),
+            o
+        )),
         &["no impact"],
         &[&out],
     );
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("good.csv"),
-            "--mass-kg",
-            "0.3",
-            "--law",
-            "spring",
-            "--out",
-            &o,
-        ],
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.3 --law spring --out {}",
+            p("good.csv"),
+            o
+        )),
         &["unknown contact law"],
         &[&out],
     );
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("good.csv"),
-            "--mass-kg",
-            "0.3",
-            "--law",
-            "all",
-            "--release-mm",
-            "-1",
-            "--out",
-            &o,
-        ],
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.3 --law all --release-mm -1 --out {}",
+            p("good.csv"),
+            o
+        )),
         &["release_mm"],
         &[&out],
     );
     rejected(
-        &[
-            "identify",
-            "contact",
-            "--trace",
-            &p("good.csv"),
-            "--mass-kg",
-            "0.3",
-            "--law",
-            "all",
-            "--force-col",
-            "F",
-            "--out",
-            &o,
-        ],
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.3 --law all --force-col F --out {}",
+            p("good.csv"),
+            o
+        )),
         &["no force column `F`"],
         &[&out],
     );
@@ -422,23 +251,12 @@ fn identify_free_gives_the_beam_suspension() {
         })
         .collect();
     fs::write(p("decay.csv"), format!("disp_mm\n{}\n", body.join("\n"))).unwrap();
-    let json = ok(&[
-        "identify",
-        "free",
-        "--trace",
-        &p("decay.csv"),
-        "--mass-kg",
-        "0.298",
-        "--sample-rate-hz",
-        "500",
-        "--value-col",
-        "disp_mm",
-        "--unit",
-        "mm",
-        "--out",
-        &p("free.toml"),
-        "--json",
-    ]);
+    let json = ok(&line(&format!(
+        "identify free --trace {} --mass-kg 0.298 --sample-rate-hz 500 \
+            --value-col disp_mm --unit mm --out {} --json",
+        p("decay.csv"),
+        p("free.toml")
+    )));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert!(
         (v["natural_freq_hz"].as_f64().unwrap() - f).abs() < 1e-4 * f,
@@ -452,32 +270,16 @@ fn identify_free_gives_the_beam_suspension() {
     assert!((k / (0.298 * wn * wn) - 1.0).abs() < 2e-4, "k {k}");
     let cfg = fs::read_to_string(p("free.toml")).unwrap();
     assert!(cfg.contains("[rig.suspension.beam]"), "{cfg}");
-    ok(&[
-        "simulate",
-        "--rig",
-        "beam-170",
-        "--config",
-        &p("free.toml"),
-        "--gap-mm",
-        "0",
-        "--omega-ratio",
-        "1.5",
-        "--periods",
-        "2",
-    ]);
+    ok(&line(&format!(
+        "simulate --rig beam-170 --config {} --gap-mm 0 --omega-ratio 1.5 --periods 2",
+        p("free.toml")
+    )));
     rejected(
-        &[
-            "identify",
-            "free",
-            "--trace",
-            &p("decay.csv"),
-            "--mass-kg",
-            "0.298",
-            "--value-col",
-            "disp_mm",
-            "--out",
-            &p("x.toml"),
-        ],
+        &line(&format!(
+            "identify free --trace {} --mass-kg 0.298 --value-col disp_mm --out {}",
+            p("decay.csv"),
+            p("x.toml")
+        )),
         &["no time base"],
         &[&dir.path().join("x.toml")],
     );
@@ -487,28 +289,15 @@ fn identify_free_gives_the_beam_suspension() {
 fn compare_a_response_with_itself_has_no_error() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
-    ok(&[
-        "response",
-        "--rig",
-        "wires",
-        "--gap-mm",
-        "0",
-        "--omega-ratio",
-        "1.5:2.5:0.5",
-        "--out",
-        &p("exp.csv"),
-    ]);
-    let out = ok(&[
-        "compare",
-        "--rig",
-        "wires",
-        "--gap-mm",
-        "0",
-        "--experiment",
-        &p("exp.csv"),
-        "--out",
-        &p("cmp.png"),
-    ]);
+    ok(&line(&format!(
+        "response --rig wires --gap-mm 0 --omega-ratio 1.5:2.5:0.5 --out {}",
+        p("exp.csv")
+    )));
+    let out = ok(&line(&format!(
+        "compare --rig wires --gap-mm 0 --experiment {} --out {}",
+        p("exp.csv"),
+        p("cmp.png")
+    )));
     assert!(
         out.contains("3 points") && out.contains("RMS 0.00"),
         "{out}"
@@ -524,34 +313,22 @@ fn compare_a_response_with_itself_has_no_error() {
         ),
     )
     .unwrap();
-    let out = ok(&[
-        "compare",
-        "--rig",
-        "wires",
-        "--gap-mm",
-        "0",
-        "--experiment",
-        &p("lab.csv"),
-        "--out",
-        &p("lab.png"),
-    ]);
+    let out = ok(&line(&format!(
+        "compare --rig wires --gap-mm 0 --experiment {} --out {}",
+        p("lab.csv"),
+        p("lab.png")
+    )));
     assert!(
         out.contains("3 points") && out.contains("RMS 0.00"),
         "{out}"
     );
     fs::write(p("bad.csv"), "freq_hz,impact_force_n\n3.0,40\n3.1,x\n").unwrap();
     rejected(
-        &[
-            "compare",
-            "--rig",
-            "wires",
-            "--gap-mm",
-            "0",
-            "--experiment",
-            &p("bad.csv"),
-            "--out",
-            &p("bad.png"),
-        ],
+        &line(&format!(
+            "compare --rig wires --gap-mm 0 --experiment {} --out {}",
+            p("bad.csv"),
+            p("bad.png")
+        )),
         &["line 3", "impact_force_n"],
         &[&dir.path().join("bad.png")],
     );
@@ -562,32 +339,15 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
     // Table 3.1's law (the wire rig's default), one 3 mm drop at 50 kHz, 1 % noise.
-    ok(&[
-        "drop",
-        "--release-mm",
-        "3",
-        "--noise-pct",
-        "1",
-        "--offset-n",
-        "0.5",
-        "--seed",
-        "3",
-        "--out",
-        &p("drop.csv"),
-    ]);
-    let json = ok(&[
-        "identify",
-        "contact",
-        "--trace",
-        &p("drop.csv"),
-        "--mass-kg",
-        "0.298",
-        "--law",
-        "all",
-        "--out",
-        &p("fit.toml"),
-        "--json",
-    ]);
+    ok(&line(&format!(
+        "drop --release-mm 3 --noise-pct 1 --offset-n 0.5 --seed 3 --out {}",
+        p("drop.csv")
+    )));
+    let json = ok(&line(&format!(
+        "identify contact --trace {} --mass-kg 0.298 --law all --out {} --json",
+        p("drop.csv"),
+        p("fit.toml")
+    )));
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     // --error auto: the trace resolves the contact (about 17 samples per contact).
     assert_eq!(v["error_requested"], "auto");
@@ -627,19 +387,11 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
         assert!(cfg.contains(needle), "{needle}: {cfg}");
     }
     // Propagation: the draws' 95 % range of the operating frequency holds the nominal one.
-    let json = ok(&[
-        "select",
-        "--config",
-        &p("fit.toml"),
-        "--gap-mm",
-        "0",
-        "--uncertainty",
-        "--draws",
-        "8",
-        "--json",
-        "--plot",
-        &p("band.png"),
-    ]);
+    let json = ok(&line(&format!(
+        "select --config {} --gap-mm 0 --uncertainty --draws 8 --json --plot {}",
+        p("fit.toml"),
+        p("band.png")
+    )));
     let s: serde_json::Value = serde_json::from_str(&json).unwrap();
     let f = s["freq_hz"].as_f64().unwrap();
     let spread = &s["uncertainty"]["freq_hz"];
@@ -659,19 +411,18 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
     )
     .unwrap();
     rejected(
-        &["select", "--config", &p("plain.toml"), "--uncertainty"],
+        &line(&format!(
+            "select --config {} --uncertainty",
+            p("plain.toml")
+        )),
         &["[uncertainty]"],
         &[],
     );
     rejected(
-        &[
-            "select",
-            "--config",
-            &p("fit.toml"),
-            "--uncertainty",
-            "--draws",
-            "3",
-        ],
+        &line(&format!(
+            "select --config {} --uncertainty --draws 3",
+            p("fit.toml")
+        )),
         &["--draws", "8 ..= 100000"],
         &[],
     );
@@ -687,14 +438,11 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
         .collect();
     fs::write(p("unbounded.toml"), unbounded).unwrap();
     rejected(
-        &[
-            "select",
-            "--config",
-            &p("unbounded.toml"),
-            "--uncertainty",
-            "--plot",
-            &p("u.png"),
-        ],
+        &line(&format!(
+            "select --config {} --uncertainty --plot {}",
+            p("unbounded.toml"),
+            p("u.png")
+        )),
         &["ln_stiffness_n_m", "did not fix"],
         &[Path::new(&p("u.png"))],
     );

@@ -11,8 +11,6 @@ use host_sim::client::RigPort;
 use host_sim::client::log::record;
 use host_sim::client::sweep::parse_range;
 use host_sim::config::Setup;
-use host_sim::config::{Profile, RigOpts};
-use host_sim::precision::Precision;
 use host_sim::rig::scenario::Scenario;
 use host_sim::rig::{HilSetup, Session};
 use host_sim::runner::{OperatingPoint, evaluate_all};
@@ -253,14 +251,7 @@ fn a_captured_drop_identifies_the_contact_law() {
 
 /// `host-sim response`'s F_i/mg and regime at the given frequencies (wire rig, 0.0 mm, f32).
 fn model_response(freqs: &[f64]) -> Vec<(f64, String)> {
-    let setup = Setup::from_opts(&RigOpts {
-        rig: RigId::Wires,
-        law: None,
-        config: None,
-        precision: Precision::F32,
-        profile: Profile::Host,
-    })
-    .unwrap();
+    let setup = Setup::preset(RigId::Wires).unwrap();
     let points: Vec<OperatingPoint> = freqs
         .iter()
         .map(|&f| OperatingPoint {

@@ -8,13 +8,10 @@
 //! - propagation to the main job: ±5 % on Table 3.1's `k_i` and `c_i` gives a 95 % range of
 //!   the operating frequency that contains `select`'s nominal answer.
 
-use host_sim::cli::{Precision, Profile, RigOpts};
 use host_sim::config::{Setup, UncertaintyTable};
-use host_sim::identify::contact::{
-    DropSetup, DropTest, FIT_STEPS, Fit, Weights, analyse_drop, fit_law, fit_law_joint,
-};
+use host_sim::identify::contact::{DropTest, Fit, Weights, fit_law, fit_law_joint};
 use host_sim::identify::free::identify_free;
-use host_sim::identify::synth::{Sensor, TRUTH_STEPS, clean_drop, record};
+use host_sim::identify::synth::LabDrop;
 use host_sim::identify::uncertainty::{Z95, coordinate_names};
 use host_sim::propagate::propagate;
 use host_sim::selection::compute;
@@ -23,55 +20,21 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
-use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams};
+use shared::model::{ContactLaw, ContactLawKind, RigId};
 
-const PEAKS: Weights = Weights {
-    time: 1.0,
-    profile: 0.0,
-};
-const PROFILE: Weights = Weights {
-    time: 1.0,
-    profile: 1.0,
-};
+const PEAKS: Weights = Weights::PEAKS;
+const PROFILE: Weights = Weights::PROFILE;
 /// Noise seeds of the coverage tests.
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=40;
 
-fn rig(law: ContactLaw) -> RigParams {
-    let mut p = RigId::Wires.preset();
-    p.contact = law;
-    p
-}
-
-/// The noise-free drop test of `law` released `release_mm` from the surface (1.2 s at 50 kHz).
 fn clean(law: ContactLaw, release_mm: f64) -> Trace {
-    let spec = shared::analysis::drop::DropSpec {
-        gap_m: 0.0,
-        release_m: release_mm * 1e-3,
-        duration_s: 1.2,
-        max_impacts: 0,
-    };
-    clean_drop(&rig(law), &spec, &TRUTH_STEPS, 50e3).unwrap()
+    LabDrop { law, release_mm }.clean().expect("valid drop")
 }
 
-/// `clean` as the sensor records it with noise seed `seed` (1 % noise, 0.5 N offset),
-/// preprocessed, with the fit's setup.
 fn measured(law: ContactLaw, clean: &Trace, release_mm: f64, seed: u64) -> DropTest {
-    let sensor = Sensor {
-        sample_rate_hz: 50e3,
-        noise_pct: 1.0,
-        offset_n: 0.5,
-        seed,
-    };
-    let trace = record(clean, &sensor).unwrap();
-    DropTest {
-        setup: DropSetup {
-            params: rig(law),
-            gap_m: 0.0,
-            release_m: release_mm * 1e-3,
-            steps: FIT_STEPS,
-        },
-        data: analyse_drop(&trace, 6).unwrap(),
-    }
+    LabDrop { law, release_mm }
+        .measured(clean, seed)
+        .expect("impacts")
 }
 
 /// The true value of the parameter `key` (a [`ContactLaw`] field name) of `law`.
@@ -263,14 +226,7 @@ fn free_decay_intervals_cover_the_truth() {
 
 #[test]
 fn five_percent_on_table_3_1_keeps_the_nominal_frequency_in_range() {
-    let setup = Setup::from_opts(&RigOpts {
-        rig: RigId::Wires,
-        law: None,
-        config: None,
-        precision: Precision::F32,
-        profile: Profile::Host,
-    })
-    .unwrap();
+    let setup = Setup::preset(RigId::Wires).unwrap();
     let (nominal, _) = compute(&setup, 0.0).unwrap();
     let ContactLaw::SpringDashpot {
         stiffness_n_m,

@@ -21,7 +21,6 @@ use shared::error::check_range;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::basins::{self, Basins, BasinsGrid, MAX_U0_MM, MAX_V0_MM_S};
 use crate::grid::{self, CountSweep, Figures};
-use crate::output::Outputs;
 use crate::shard::Shard;
 
 /// Arguments of `basins`.
@@ -94,21 +93,19 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         );
     }
     let shard = Shard::resolve(a.shard.as_deref())?;
-    if shard.is_some() && a.plot.is_some() {
-        bail!("--plot: a shard writes only its CSV; draw the figure with `host-sim merge`");
-    }
-    let mut meta = grid::meta::<Basins>(&setup, &grid, grid.points())?;
-    meta.shard = shard;
-    let mut outputs = Outputs::new();
-    let out = outputs.reserve(&a.out)?;
     let figures = Figures {
         plot: a.plot.as_deref(),
         force_plot: None,
     };
-    grid::run::<Basins, _>(&mut outputs, &meta, &out, figures, |batch| {
-        basins::rows(&setup, &grid, batch)
-    })?;
-    outputs.commit()?;
-    eprintln!("{} → {}", meta.describe(), a.out.display());
-    Ok(())
+    grid::command::<Basins>(
+        &setup,
+        &grid,
+        grid.points(),
+        shard,
+        &a.out,
+        figures,
+        |o, meta, out, f| {
+            grid::run::<Basins, _>(o, meta, out, f, |batch| basins::rows(&setup, &grid, batch))
+        },
+    )
 }

@@ -11,7 +11,6 @@ use super::omega_sweep;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::bifurcation::{self, BifGrid, Bifurcation, Continuation};
 use crate::grid::{self, Figures, per_point};
-use crate::output::Outputs;
 use crate::shard::Shard;
 
 /// Arguments of `bifurcation`.
@@ -62,35 +61,34 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
             crate::shard::SLURM_VARS.1
         );
     }
-    if shard.is_some() && a.plot.is_some() {
-        bail!("--plot: a shard writes only its CSV; draw the figure with `host-sim merge`");
-    }
     let grid = BifGrid {
         gap_mm: a.gap_mm,
         omega_ratio: sweep,
         continuation: a.continuation,
     };
-    let mut meta = grid::meta::<Bifurcation>(&setup, &grid, sweep.len() as u64)?;
-    meta.shard = shard;
-    let mut outputs = Outputs::new();
-    let out = outputs.reserve(&a.out)?;
     let figures = Figures {
         plot: a.plot.as_deref(),
         force_plot: None,
     };
-    match a.continuation {
-        Some(mode) => grid::complete::<Bifurcation>(&mut outputs, &meta, &out, figures, |path| {
-            bifurcation::continuation(&setup, gap_m, &sweep, mode, path)
-        })?,
-        None => grid::run::<Bifurcation, _>(
-            &mut outputs,
-            &meta,
-            &out,
-            figures,
-            per_point(|i| bifurcation::from_rest(&setup, gap_m, &sweep, i)),
-        )?,
-    }
-    outputs.commit()?;
-    eprintln!("{} → {}", meta.describe(), a.out.display());
-    Ok(())
+    let points = sweep.len() as u64;
+    grid::command::<Bifurcation>(
+        &setup,
+        &grid,
+        points,
+        shard,
+        &a.out,
+        figures,
+        |o, meta, out, f| match a.continuation {
+            Some(mode) => grid::complete::<Bifurcation>(o, meta, out, f, |path| {
+                bifurcation::continuation(&setup, gap_m, &sweep, mode, path)
+            }),
+            None => grid::run::<Bifurcation, _>(
+                o,
+                meta,
+                out,
+                f,
+                per_point(|i| bifurcation::from_rest(&setup, gap_m, &sweep, i)),
+            ),
+        },
+    )
 }

@@ -11,7 +11,6 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use crate::config::{MAX_GAP_MM, RigOpts, Setup, parse_sweep};
 use crate::grid::peterka::{self, Axis, AxisUnit, MAX_POINTS, Peterka, PeterkaGrid};
 use crate::grid::{self, Figures};
-use crate::output::Outputs;
 use crate::shard::Shard;
 
 /// Arguments of `peterka`.
@@ -103,23 +102,19 @@ pub fn run(a: &PeterkaArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let grid = parse_axes(a, &setup)?;
     let shard = Shard::resolve(a.shard.as_deref())?;
-    if shard.is_some() && (a.plot.is_some() || a.force_plot.is_some()) {
-        bail!(
-            "--plot/--force-plot: a shard writes only its CSV; draw the figures with `host-sim merge`"
-        );
-    }
-    let mut meta = grid::meta::<Peterka>(&setup, &grid, grid.points())?;
-    meta.shard = shard;
-    let mut outputs = Outputs::new();
-    let out = outputs.reserve(&a.out)?;
     let figures = Figures {
         plot: a.plot.as_deref(),
         force_plot: a.force_plot.as_deref(),
     };
-    grid::run::<Peterka, _>(&mut outputs, &meta, &out, figures, |batch| {
-        peterka::rows(&setup, &grid, batch)
-    })?;
-    outputs.commit()?;
-    eprintln!("{} → {}", meta.describe(), a.out.display());
-    Ok(())
+    grid::command::<Peterka>(
+        &setup,
+        &grid,
+        grid.points(),
+        shard,
+        &a.out,
+        figures,
+        |o, meta, out, f| {
+            grid::run::<Peterka, _>(o, meta, out, f, |batch| peterka::rows(&setup, &grid, batch))
+        },
+    )
 }

@@ -12,7 +12,6 @@
 //! whole grid and happens in [`GridKind::finish`], for a one-run command and `merge` alike.
 
 use std::collections::VecDeque;
-use std::path::Path;
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
@@ -21,10 +20,9 @@ use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
 use shared::integrate::PhaseTable;
 use shared::observe::{Observer, ProtocolRun, Regime, StroboPoint};
 
-use super::{CountSweep, Figures, GridKind};
+use super::{CountSweep, Finish, GridKind};
 use crate::config::Setup;
 use crate::maps::{self, AttractorKey, MapAxis, Raster};
-use crate::output::Outputs;
 use crate::runner::in_order;
 use crate::shard::{Indexed, Kind, Meta, create_csv, open_csv, title_prefix};
 
@@ -302,13 +300,14 @@ impl GridKind for Basins {
 
     /// Groups the ungrouped rows of a complete grid (`raw`) into attractors and writes the
     /// final CSV to `out` and the figure.
-    fn finish(
-        outputs: &mut Outputs,
-        meta: &Meta,
-        raw: &Path,
-        out: &Path,
-        figures: Figures<'_>,
-    ) -> Result<()> {
+    fn finish(job: Finish<'_>) -> Result<()> {
+        let Finish {
+            outputs,
+            meta,
+            rows: raw,
+            out,
+            figures,
+        } = job;
         let grid = meta.grid::<Self::Grid>()?;
         // Pass 1: groups.
         let mut grouping = Grouping::new(meta, &grid);

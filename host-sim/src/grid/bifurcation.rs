@@ -17,13 +17,13 @@ use shared::analysis::response::evaluate_point_observed;
 use shared::integrate::{PhaseTable, Simulator};
 use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
 
-use super::{Figures, GridKind};
+use super::{Finish, GridKind};
 use crate::config::Setup;
 use crate::interrupt;
 use crate::maps::{self, BifDot, BifRanges};
-use crate::output::{Outputs, scratch};
+use crate::output::scratch;
 use crate::runner::progress;
-use crate::shard::{Indexed, Kind, Meta, create_csv, open_csv, title_prefix};
+use crate::shard::{Indexed, Kind, create_csv, open_csv, title_prefix};
 
 /// How the frequencies are visited.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
@@ -262,13 +262,14 @@ impl GridKind for Bifurcation {
 
     /// Draws the figure from the complete CSV, reading it twice (spans, then dots): memory
     /// does not grow with the sweep.
-    fn finish(
-        outputs: &mut Outputs,
-        meta: &Meta,
-        csv: &Path,
-        _out: &Path,
-        figures: Figures<'_>,
-    ) -> Result<()> {
+    fn finish(job: Finish<'_>) -> Result<()> {
+        let Finish {
+            outputs,
+            meta,
+            rows: csv,
+            figures,
+            ..
+        } = job;
         let Some(plot) = figures.plot else {
             return Ok(());
         };

@@ -149,19 +149,26 @@ pub trait GridKind {
     /// One row of a shard file, in point-index order.
     type Row: Serialize + DeserializeOwned + Indexed + Send;
 
-    /// Writes the outputs of a complete grid from its rows file `rows` (plain CSV of
-    /// [`GridKind::Row`]): the CSV `out` (unless the rows are it) and the `figures` asked for,
-    /// reserved in `outputs`.
+    /// Writes the outputs of a complete grid from its rows file: the CSV (unless the rows are
+    /// it) and the figures asked for, reserved in `job.outputs`.
     ///
     /// # Errors
     /// Unreadable rows, drawing or file errors.
-    fn finish(
-        outputs: &mut Outputs,
-        meta: &Meta,
-        rows: &Path,
-        out: &Path,
-        figures: Figures<'_>,
-    ) -> Result<()>;
+    fn finish(job: Finish<'_>) -> Result<()>;
+}
+
+/// What [`GridKind::finish`] works on: a complete grid's rows file and where its outputs go.
+pub struct Finish<'a> {
+    /// Where the outputs are reserved (each written whole or not at all).
+    pub outputs: &'a mut Outputs,
+    /// The grid's metadata.
+    pub meta: &'a Meta,
+    /// The rows file: a plain CSV of [`GridKind::Row`] with header.
+    pub rows: &'a Path,
+    /// The command's CSV (the rows file itself where the rows are the output).
+    pub out: &'a Path,
+    /// The figures asked for.
+    pub figures: Figures<'a>,
 }
 
 /// The metadata of a run of kind `K` over `grid` (`points` points, no shard yet).
@@ -188,11 +195,23 @@ pub fn complete<K: GridKind>(
 ) -> Result<()> {
     if K::ROWS_ARE_OUTPUT {
         fill(out)?;
-        K::finish(outputs, meta, out, out, figures)
+        K::finish(Finish {
+            outputs,
+            meta,
+            rows: out,
+            out,
+            figures,
+        })
     } else {
         let rows = scratch(out, ".raw.csv")?;
         fill(rows.path())?;
-        K::finish(outputs, meta, rows.path(), out, figures)
+        K::finish(Finish {
+            outputs,
+            meta,
+            rows: rows.path(),
+            out,
+            figures,
+        })
     }
 }
 
@@ -220,6 +239,46 @@ where
             write_grid(path, meta, &what, compute)
         })
     }
+}
+
+/// A grid command of kind `K` over `grid` (`points` points), whole or as `shard`: refuses
+/// figures on a shard, reserves `out`, lets `write(outputs, meta, reserved out, figures)`
+/// fill it ([`run`] or [`complete`]), commits the outputs and reports on stderr.
+///
+/// # Errors
+/// A figure asked of a shard (named), and as `write`; nothing is left half-written.
+pub fn command<K: GridKind>(
+    setup: &Setup,
+    grid: &K::Grid,
+    points: u64,
+    shard: Option<Shard>,
+    out: &Path,
+    figures: Figures<'_>,
+    write: impl FnOnce(&mut Outputs, &Meta, &Path, Figures<'_>) -> Result<()>,
+) -> Result<()> {
+    if shard.is_some() {
+        let asked: Vec<&str> = [
+            ("--plot", figures.plot),
+            ("--force-plot", figures.force_plot),
+        ]
+        .iter()
+        .filter_map(|(flag, p)| p.map(|_| *flag))
+        .collect();
+        if !asked.is_empty() {
+            bail!(
+                "{}: a shard writes only its CSV; draw the figures with `host-sim merge`",
+                asked.join(", ")
+            );
+        }
+    }
+    let mut meta = meta::<K>(setup, grid, points)?;
+    meta.shard = shard;
+    let mut outputs = Outputs::new();
+    let reserved = outputs.reserve(out)?;
+    write(&mut outputs, &meta, &reserved, figures)?;
+    outputs.commit()?;
+    eprintln!("{} → {}", meta.describe(), out.display());
+    Ok(())
 }
 
 /// Merges the shard `files` of one grid of kind `K` (their shared metadata `meta`) into the

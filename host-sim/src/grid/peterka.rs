@@ -2,19 +2,16 @@
 //! frequency grid, from rest at every point (canonical protocol), and the `z = 1/1` region
 //! coloured by `F_i/mg`.
 
-use std::path::Path;
-
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::analysis::Sweep;
 use shared::observe::Regime;
 
-use super::{Figures, GridKind};
+use super::{Figures, Finish, GridKind};
 use crate::config::Setup;
 use crate::maps::{self, Cell, MapAxis, Raster};
-use crate::output::Outputs;
 use crate::runner::{OperatingPoint, evaluate_batch};
-use crate::shard::{Indexed, Kind, Meta, open_csv, title_prefix};
+use crate::shard::{Indexed, Kind, open_csv, title_prefix};
 
 /// Largest Peterka grid, points.
 pub const MAX_POINTS: u64 = 100_000_000;
@@ -161,13 +158,14 @@ impl GridKind for Peterka {
     type Grid = PeterkaGrid;
     type Row = PeterkaRow;
 
-    fn finish(
-        outputs: &mut Outputs,
-        meta: &Meta,
-        csv: &Path,
-        _out: &Path,
-        figures: Figures<'_>,
-    ) -> Result<()> {
+    fn finish(job: Finish<'_>) -> Result<()> {
+        let Finish {
+            outputs,
+            meta,
+            rows: csv,
+            figures,
+            ..
+        } = job;
         let Figures { plot, force_plot } = figures;
         if plot.is_none() && force_plot.is_none() {
             return Ok(());

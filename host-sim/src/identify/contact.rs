@@ -404,6 +404,19 @@ pub struct Weights {
     pub profile: f64,
 }
 
+impl Weights {
+    /// Peaks and impact times only (`w_profile = 0`).
+    pub const PEAKS: Self = Self {
+        time: 1.0,
+        profile: 0.0,
+    };
+    /// Peaks, impact times and the force profile, equally weighted.
+    pub const PROFILE: Self = Self {
+        time: 1.0,
+        profile: 1.0,
+    };
+}
+
 /// The parts of the error at one parameter set.
 #[derive(Debug, Clone, Copy, Default, serde::Serialize)]
 pub struct Residual {

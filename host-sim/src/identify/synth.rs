@@ -9,9 +9,9 @@ use rand_distr::{Distribution, Normal};
 use shared::analysis::drop::DropSpec;
 use shared::error::check_range;
 use shared::integrate::StepSettings;
-use shared::model::RigParams;
+use shared::model::{ContactLaw, RigId, RigParams};
 
-use super::contact::simulate_drop;
+use super::contact::{DropSetup, DropTest, FIT_STEPS, analyse_drop, simulate_drop};
 use crate::trace::Trace;
 
 /// Integrator settings of the synthetic "measurements": finer than the fit's
@@ -33,6 +33,77 @@ pub struct Sensor {
     pub offset_n: f64,
     /// Seed of the noise.
     pub seed: u64,
+}
+
+impl Sensor {
+    /// The sensor of the recovery tests and the worked example: 50 kHz, 1 % noise, 0.5 N
+    /// offset, noise seed `seed`.
+    #[must_use]
+    pub fn lab(seed: u64) -> Self {
+        Self {
+            sample_rate_hz: 50e3,
+            noise_pct: 1.0,
+            offset_n: 0.5,
+            seed,
+        }
+    }
+}
+
+/// The drop test of the recovery tests and the worked example: the wire rig with contact law
+/// `law`, released at rest `release_mm` above the surface at 0.0 mm gap, 1.2 s recorded.
+#[derive(Debug, Clone, Copy)]
+pub struct LabDrop {
+    /// The true contact law.
+    pub law: ContactLaw,
+    /// Release distance from the surface, mm.
+    pub release_mm: f64,
+}
+
+impl LabDrop {
+    /// The wire rig's parameters with the true law.
+    #[must_use]
+    pub fn params(&self) -> RigParams {
+        let mut p = RigId::Wires.preset();
+        p.contact = self.law;
+        p
+    }
+
+    /// The drop: 0.0 mm gap, released `release_mm`, 1.2 s, every impact.
+    #[must_use]
+    pub fn spec(&self) -> DropSpec {
+        DropSpec {
+            gap_m: 0.0,
+            release_m: self.release_mm * 1e-3,
+            duration_s: 1.2,
+            max_impacts: 0,
+        }
+    }
+
+    /// The noise-free trace at [`Sensor::lab`]'s 50 kHz, simulated at [`TRUTH_STEPS`].
+    ///
+    /// # Errors
+    /// Invalid law or release distance (named).
+    pub fn clean(&self) -> Result<Trace> {
+        clean_drop(&self.params(), &self.spec(), &TRUTH_STEPS, 50e3)
+    }
+
+    /// `clean` as [`Sensor::lab`] with noise seed `seed` records it, preprocessed (offset,
+    /// the first 6 impacts), with the fit's setup ([`FIT_STEPS`]).
+    ///
+    /// # Errors
+    /// No impact found in the trace.
+    pub fn measured(&self, clean: &Trace, seed: u64) -> Result<DropTest> {
+        let trace = record(clean, &Sensor::lab(seed))?;
+        Ok(DropTest {
+            setup: DropSetup {
+                params: self.params(),
+                gap_m: 0.0,
+                release_m: self.release_mm * 1e-3,
+                steps: FIT_STEPS,
+            },
+            data: analyse_drop(&trace, 6)?,
+        })
+    }
 }
 
 /// The drop test `spec` of `params` recorded by `sensor`: the simulated force (linear

@@ -1,0 +1,65 @@
+//! What the command-line tests share: run `host-sim`, expect success, or expect a rejection
+//! that names the field and leaves nothing behind.
+
+#![allow(dead_code)]
+
+use std::ffi::OsStr;
+use std::fmt::Debug;
+use std::fs;
+use std::path::Path;
+
+use assert_cmd::Command;
+
+/// `host-sim` without the SLURM array variables (so a test's grid is never a shard by chance).
+pub fn host_sim() -> Command {
+    let mut c = Command::cargo_bin("host-sim").unwrap();
+    c.env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("SLURM_ARRAY_TASK_COUNT");
+    c
+}
+
+/// The arguments of a command line written as one string (split at whitespace; the tests'
+/// paths have none).
+pub fn line(s: &str) -> Vec<String> {
+    s.split_whitespace().map(str::to_owned).collect()
+}
+
+/// Runs `host-sim args`, asserts it succeeds and returns its stdout.
+pub fn ok<S: AsRef<OsStr> + Debug>(args: &[S]) -> String {
+    let out = host_sim().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The names of the temporary output files (`.host-sim-*`) left in `dir`.
+pub fn leftovers(dir: &Path) -> Vec<String> {
+    fs::read_dir(dir)
+        .unwrap()
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".host-sim-"))
+        .collect()
+}
+
+/// Runs `host-sim args` and asserts it fails, its stderr contains every needle, and none of
+/// `outputs` nor a temporary file beside them exists.
+pub fn rejected<S: AsRef<OsStr> + Debug>(args: &[S], needles: &[&str], outputs: &[&Path]) {
+    let out = host_sim().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    for n in needles {
+        assert!(
+            stderr.contains(n),
+            "{args:?}: stderr `{stderr}` lacks `{n}`"
+        );
+    }
+    for p in outputs {
+        assert!(!p.exists(), "{} was left behind", p.display());
+        let left = leftovers(p.parent().unwrap());
+        assert!(left.is_empty(), "temporary files left: {left:?}");
+    }
+}
