@@ -11,7 +11,7 @@ use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use shared::observe::Regime;
 
-use crate::plot::{SANS, ensure_font, series_legend};
+use crate::plot::{Chart, SANS, ensure_font, series_legend};
 
 /// Largest raster side, cells: grids finer than this are down-sampled (last cell in index order
 /// wins), which is finer than the figure's pixels anyway.
@@ -175,17 +175,11 @@ fn figure_with_panel<'a>(
     Ok((left, right))
 }
 
-type MapChart<'a, 'b> = ChartContext<
-    'a,
-    BitMapBackend<'b>,
-    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
->;
-
 fn map_chart<'a, 'b>(
     area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
     x: &MapAxis,
     y: &MapAxis,
-) -> Result<MapChart<'a, 'b>> {
+) -> Result<Chart<'a, 'b>> {
     let (x0, x1) = x.range();
     let (y0, y1) = y.range();
     let mut chart = ChartBuilder::on(area)

@@ -1,9 +1,12 @@
 //! PNG figures with plotters (bitmap backend, bundled DejaVu Sans: no system font needed).
 
+use std::ops::Range;
 use std::path::Path;
 use std::sync::Once;
 
 use anyhow::Result;
+use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use shared::observe::Regime;
 
@@ -20,13 +23,44 @@ pub(crate) fn ensure_font() {
     });
 }
 
+/// A chart with linear `f64` axes on a bitmap.
+pub(crate) type Chart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The response figures' chart on `root`: `F_i/mg` from 0 to `ymax` over `Ω/ω` in `x`, the
+/// title at `title_px`, axes labelled.
+///
+/// # Errors
+/// Drawing errors.
+fn force_chart<'a, 'b>(
+    root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    title: &str,
+    title_px: u32,
+    x: Range<f64>,
+    ymax: f64,
+) -> Result<Chart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, (SANS, title_px))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x, 0.0..ymax)?;
+    chart
+        .configure_mesh()
+        .x_desc("Ω/ω")
+        .y_desc("max impact force F_i/mg")
+        .label_style((SANS, 15))
+        .draw()?;
+    Ok(chart)
+}
+
 /// Draws the series legend of `chart`: at `position` (plotters' default if `None`), on a
 /// translucent white box with a black border, labels in [`SANS`] at `font_size` px.
 ///
 /// # Errors
 /// Drawing errors.
-pub(crate) fn series_legend<'a, CT: plotters::coord::CoordTranslate>(
-    chart: &mut ChartContext<'a, BitMapBackend<'a>, CT>,
+pub(crate) fn series_legend<'a, 'b: 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
     position: Option<SeriesLabelPosition>,
     font_size: u32,
 ) -> Result<()> {
@@ -127,18 +161,7 @@ pub fn response(
     let x0 = pts.first().map_or(0.0, |p| p.omega_ratio);
     let x1 = pts.last().map_or(1.0, |p| p.omega_ratio).max(x0 + 1e-6);
     let ymax = pts.iter().map(|p| p.impact_force_mg).fold(1.0, f64::max) * 1.08;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (SANS, 22))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, 0.0..ymax)?;
-    chart
-        .configure_mesh()
-        .x_desc("Ω/ω")
-        .y_desc("max impact force F_i/mg")
-        .label_style((SANS, 15))
-        .draw()?;
+    let mut chart = force_chart(&root, title, 22, x0..x1, ymax)?;
     if let Some(h) = highlight {
         chart
             .draw_series([Rectangle::new(
@@ -234,18 +257,7 @@ pub fn response_band(
         .chain(nominal.iter().map(|p| p.impact_force_mg))
         .fold(1.0, f64::max)
         * 1.15;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, (SANS, 20))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, 0.0..ymax)?;
-    chart
-        .configure_mesh()
-        .x_desc("Ω/ω")
-        .y_desc("max impact force F_i/mg")
-        .label_style((SANS, 15))
-        .draw()?;
+    let mut chart = force_chart(&root, title, 20, x0..x1, ymax)?;
     let blue = RGBColor(43, 131, 186);
     let area: Vec<(f64, f64)> = band
         .iter()

@@ -3,8 +3,11 @@
 //! on the plant (the server's own log of true contact forces and cart amplitude).
 
 use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+mod common;
+use common::{line, ok};
 use std::time::{Duration, Instant};
 
 use host_sim::client::RigPort;
@@ -19,6 +22,28 @@ use nix::unistd::Pid;
 use shared::control::Line;
 use shared::control::serve::{ReplyText, format_answer};
 use shared::model::RigId;
+
+/// `host-sim rig --port PORT ARGS` (ARGS split at whitespace), run to its end.
+fn rig_cmd(port: &Path, args: &str) -> Output {
+    Command::new(bin())
+        .arg("rig")
+        .arg("--port")
+        .arg(port)
+        .args(args.split_whitespace())
+        .output()
+        .unwrap()
+}
+
+/// As [`rig_cmd`], asserting it succeeds; its stdout.
+fn rig_ok(port: &Path, args: &str) -> String {
+    let out = rig_cmd(port, args);
+    assert!(
+        out.status.success(),
+        "{args}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
 
 fn bin() -> PathBuf {
     assert_cmd::cargo::cargo_bin("host-sim")
@@ -201,43 +226,17 @@ fn a_captured_drop_identifies_the_contact_law() {
     let t = port.uptime_s().unwrap();
     assert!(t < 15.0, "the test machine is too slow: rig time {t} s");
     drop(port);
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&server.pty)
-        .args(["capture", "--seconds", "24", "--out"])
-        .arg(&trace)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    rig_ok(
+        &server.pty,
+        &format!("capture --seconds 24 --out {}", trace.display()),
     );
     let fit = dir.path().join("fit.toml");
-    let out = Command::new(bin())
-        .args(["identify", "contact", "--trace"])
-        .arg(&trace)
-        .args([
-            "--mass-kg",
-            "0.298",
-            "--law",
-            "spring-dashpot",
-            "--release-mm",
-            "3",
-            "--error",
-            "profile",
-            "--json",
-            "--out",
-        ])
-        .arg(&fit)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ok(&line(&format!(
+        "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot --release-mm 3 \
+         --error profile --json --out {}",
+        trace.display(),
+        fit.display()
+    )));
     let text = std::fs::read_to_string(&fit).unwrap();
     let v: toml::Value = toml::from_str(&text).unwrap();
     let law = &v["rig"]["contact"]["spring-dashpot"];
@@ -271,18 +270,9 @@ fn a_measured_sweep_follows_the_model_response_and_compare_reads_it() {
     let server = Server::start("40", "");
     let dir = tempfile::tempdir().unwrap();
     let fr = dir.path().join("fr.csv");
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&server.pty)
-        .args(["sweep", "--freq-hz", "2.2:4.6:0.1", "--out"])
-        .arg(&fr)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    rig_ok(
+        &server.pty,
+        &format!("sweep --freq-hz 2.2:4.6:0.1 --out {}", fr.display()),
     );
     server.stop();
     let text = std::fs::read_to_string(&fr).unwrap();
@@ -321,18 +311,11 @@ fn a_measured_sweep_follows_the_model_response_and_compare_reads_it() {
         rows.len()
     );
     let png = dir.path().join("cmp.png");
-    let out = Command::new(bin())
-        .args(["compare", "--rig", "wires", "--gap-mm", "0", "--experiment"])
-        .arg(&fr)
-        .arg("--out")
-        .arg(&png)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    ok(&line(&format!(
+        "compare --rig wires --gap-mm 0 --experiment {} --out {}",
+        fr.display(),
+        png.display()
+    )));
     assert!(png.exists());
 }
 
@@ -341,14 +324,10 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     let server = Server::start("20", "[[faults]]\nat_s = 15.0\nkind = \"sensor-open\"\n");
     let dir = tempfile::tempdir().unwrap();
     let fr = dir.path().join("fr.csv");
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&server.pty)
-        .args(["sweep", "--freq-hz", "2.2:4.6:0.1", "--out"])
-        .arg(&fr)
-        .output()
-        .unwrap();
+    let out = rig_cmd(
+        &server.pty,
+        &format!("sweep --freq-hz 2.2:4.6:0.1 --out {}", fr.display()),
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("`sensor-open`"), "{stderr}");
@@ -363,14 +342,10 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     assert!((1..25).contains(&measured), "{measured} points");
     // The rig stays latched: a new sweep is refused before it writes anything.
     let again = dir.path().join("again.csv");
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&server.pty)
-        .args(["sweep", "--freq-hz", "2.2:4.6:0.1", "--out"])
-        .arg(&again)
-        .output()
-        .unwrap();
+    let out = rig_cmd(
+        &server.pty,
+        &format!("sweep --freq-hz 2.2:4.6:0.1 --out {}", again.display()),
+    );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("clear"));
     assert!(!again.exists() && !host_sim::client::sweep::partial_path(&again).exists());
@@ -482,13 +457,7 @@ fn a_bad_link_is_a_clear_error_never_a_hang() {
     // A port where nothing answers: the command is named.
     let silent = fake_rig(|_| Vec::new());
     let started = Instant::now();
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&silent)
-        .args(["--timeout-s", "0.5", "send", "status"])
-        .output()
-        .unwrap();
+    let out = rig_cmd(&silent, "--timeout-s 0.5 send status");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     assert!(stderr.contains("no reply to `id` within 0.5 s"), "{stderr}");
@@ -505,13 +474,7 @@ fn a_bad_link_is_a_clear_error_never_a_hang() {
         }
         _ => b"error: unknown command (try `help`)\r\n".to_vec(),
     });
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&noisy)
-        .args(["send", "status", "bogus"])
-        .output()
-        .unwrap();
+    let out = rig_cmd(&noisy, "send status bogus");
     let (stdout, stderr) = (
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr),
@@ -538,14 +501,10 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
     )
     .unwrap();
     let server = Server::start("20", "");
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&server.pty)
-        .args(["run", "--scenario"])
-        .arg(&with_faults)
-        .output()
-        .unwrap();
+    let out = rig_cmd(
+        &server.pty,
+        &format!("run --scenario {}", with_faults.display()),
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && stderr.contains("[[faults]] and [[drops]]"),
@@ -557,14 +516,10 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
         "[[commands]]\nat_s = 0.2\nline = \"gap 0.5\"\n[[commands]]\nat_s = 1.0\nline = \"status\"\n",
     )
     .unwrap();
-    let out = Command::new(bin())
-        .arg("rig")
-        .arg("--port")
-        .arg(&server.pty)
-        .args(["run", "--scenario"])
-        .arg(&commands)
-        .output()
-        .unwrap();
+    let out = rig_cmd(
+        &server.pty,
+        &format!("run --scenario {}", commands.display()),
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),

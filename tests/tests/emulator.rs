@@ -26,13 +26,6 @@ const PREDICT_BUDGET_INSNS: f64 = 84e6;
 /// SRAM, bytes.
 const RAM_BYTES: u64 = 128 * 1024;
 
-fn image() -> PathBuf {
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"));
-    target_dir.join("thumbv7em-none-eabihf/release/firmware-qemu")
-}
-
 /// QEMU running the emulator image, its stdout (semihosting) collected.
 struct Qemu {
     child: Child,
@@ -43,22 +36,7 @@ struct Qemu {
 impl Qemu {
     /// `None` (with a note) when the image or QEMU is missing outside CI.
     fn start() -> Option<Qemu> {
-        let elf = image();
-        let qemu_ok = Command::new("qemu-system-arm")
-            .arg("--version")
-            .output()
-            .is_ok();
-        if !elf.exists() || !qemu_ok {
-            let why = format!(
-                "the emulator test needs {} (cargo fw-build) and qemu-system-arm (found: image {}, qemu {})",
-                elf.display(),
-                elf.exists(),
-                qemu_ok
-            );
-            assert!(std::env::var_os("CI").is_none(), "{why}");
-            eprintln!("skipped: {why}");
-            return None;
-        }
+        let elf = e2e_tests::qemu_image("firmware-qemu")?;
         let mut child = Command::new("qemu-system-arm")
             .args([
                 "-machine",

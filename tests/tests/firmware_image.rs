@@ -10,19 +10,11 @@
 //! Skipped with a note without the image or LLVM's tools, except under CI.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
 use std::process::Command;
-
-fn image(name: &str) -> PathBuf {
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"));
-    target_dir.join("thumbv7em-none-eabihf/release").join(name)
-}
 
 /// Symbol → address, or `None` (skipped) without the image or llvm-nm.
 fn symbols(name: &str) -> Option<HashMap<String, u64>> {
-    let elf = image(name);
+    let elf = e2e_tests::firmware_image(name);
     let out = Command::new("llvm-nm").arg(&elf).output();
     let ok = elf.exists() && out.as_ref().is_ok_and(|o| o.status.success());
     if !ok {
@@ -73,7 +65,7 @@ fn sampling_is_triggered_by_hardware_on_the_rig() {
 
 #[test]
 fn the_rig_image_fits_its_flash_budget() {
-    let elf = image("firmware");
+    let elf = e2e_tests::firmware_image("firmware");
     let Ok(out) = Command::new("llvm-size").args(["-A"]).arg(&elf).output() else {
         assert!(std::env::var_os("CI").is_none(), "llvm-size missing");
         return;

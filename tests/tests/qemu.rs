@@ -10,18 +10,10 @@
 //! (`apt-get install qemu-system-arm`); `.ci/run` provides both. Without them the test is
 //! skipped with a note, except under CI (`CI` set), where it fails.
 
-use std::path::PathBuf;
 use std::process::Command;
 
 use shared::control::predict;
 use shared::model::RigId;
-
-fn image() -> PathBuf {
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"));
-    target_dir.join("thumbv7em-none-eabihf/release/qemu-check")
-}
 
 fn field(out: &str, key: &str) -> String {
     out.split_whitespace()
@@ -36,22 +28,9 @@ fn hex(s: &str) -> u32 {
 
 #[test]
 fn on_target_selection_matches_the_host_and_meets_the_budgets() {
-    let elf = image();
-    let qemu_ok = Command::new("qemu-system-arm")
-        .arg("--version")
-        .output()
-        .is_ok();
-    if !elf.exists() || !qemu_ok {
-        let why = format!(
-            "qemu test needs {} (cargo fw-build) and qemu-system-arm (found: image {}, qemu {})",
-            elf.display(),
-            elf.exists(),
-            qemu_ok
-        );
-        assert!(std::env::var_os("CI").is_none(), "{why}");
-        eprintln!("skipped: {why}");
+    let Some(elf) = e2e_tests::qemu_image("qemu-check") else {
         return;
-    }
+    };
     let run = Command::new("timeout")
         .args([
             "300",
