@@ -1,5 +1,5 @@
-//! The grid and basin performance numbers of docs/performance.md, measured on this machine (not a criterion bench: one run
-//! of each workload is long enough to time).
+//! The grid and basin numbers of docs/performance.md, measured on this machine (not a
+//! criterion bench: one run of each workload is long enough to time).
 //!
 //! 1. The thesis' Peterka grid (wire rig, gap 0.00–3.42 mm × 1.00–7.11 Hz, steps 0.01:
 //!    209,916 points, canonical protocol, f32) through the same batched, interleaved,
@@ -9,7 +9,7 @@
 //! 2. A 200 × 200 basin of attraction through the library path of `host-sim basins` (CSV + PNG
 //!    into a temporary directory).
 //!
-//! `cargo bench -p host-sim --bench thesis_grid` (about 3 minutes on 2 cores);
+//! `cargo bench -p host-sim --bench thesis_grid` (about 1 minute on 2 cores after its build);
 //! `-- --quick` runs every 7th gap only.
 
 use std::time::Instant;

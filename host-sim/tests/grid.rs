@@ -9,10 +9,6 @@ mod common;
 
 use common::{host_sim, leftovers, line, ok, rejected};
 
-fn strs(a: &[String]) -> Vec<&str> {
-    a.iter().map(String::as_str).collect()
-}
-
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -300,128 +296,59 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.csv");
     let png = dir.path().join("o.png");
-    let o = s(&out);
-    let p = s(&png);
-    let peterka = |gap: &str, freq: &str| -> Vec<String> {
-        [
-            "peterka",
-            "--gap-mm",
-            gap,
-            "--freq-hz",
-            freq,
-            "--out",
-            o,
-            "--plot",
-            p,
-        ]
-        .iter()
-        .map(|x| x.to_string())
-        .collect()
+    let (o, p) = (s(&out), s(&png));
+    let peterka = |gap: &str, freq: &str| {
+        format!("peterka --gap-mm {gap} --freq-hz {freq} --out {o} --plot {p}")
     };
-    rejected(
-        &strs(&peterka("NaN:1:0.1", "2:3:0.1")),
-        &["--gap-mm", "finite"],
-        &[&out, &png],
-    );
-    rejected(
-        &strs(&peterka("-0.5:1:0.1", "2:3:0.1")),
-        &["--gap-mm", "allowed 0 ..= 50"],
-        &[&out, &png],
-    );
-    rejected(
-        &strs(&peterka("0:1:0.1", "0.01:3:0.1")),
-        &["--freq-hz", "allowed"],
-        &[&out, &png],
-    );
-    rejected(
-        &strs(&peterka("0:1:0.1", "2:200:0.1")),
-        &["--freq-hz", "allowed"],
-        &[&out, &png],
-    );
-    rejected(
-        &line(&format!(
-            "peterka --gap-mm 0:1:0.1 --gap-ratio 0:1:0.1 --freq-hz 2:3:0.1 --out {}",
-            o
-        )),
-        &["--gap-ratio", "cannot be used with"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!("peterka --gap-mm 0:1:0.1 --out {}", o)),
-        &["--freq-hz", "--omega-ratio"],
-        &[&out],
-    );
-    for (shard, needle) in [
-        ("3/3", "allowed 0 ..= 2"),
-        ("0/0", "N ≥ 1"),
-        ("x", "expected I/N"),
-    ] {
-        rejected(
-            &line(&format!(
-                "peterka --gap-mm 0:1:0.1 --freq-hz 2:3:0.1 --out {} --shard {}",
-                o, shard
-            )),
-            &["--shard", needle],
-            &[&out],
-        );
+    let basins = |gap: &str, u0: &str, v0: &str| {
+        format!(
+            "basins --gap-mm {gap} --omega-ratio 1.5 --u0-mm {u0} --v0-mm-s {v0} --out {o} --plot {p}"
+        )
+    };
+    let sharded = |shard: &str| {
+        format!("peterka --gap-mm 0:1:0.1 --freq-hz 2:3:0.1 --out {o} --shard {shard}")
+    };
+    // (command line, what stderr names)
+    let cases: [(String, &[&str]); 15] = [
+        (peterka("NaN:1:0.1", "2:3:0.1"), &["--gap-mm", "finite"]),
+        (
+            peterka("-0.5:1:0.1", "2:3:0.1"),
+            &["--gap-mm", "allowed 0 ..= 50"],
+        ),
+        (peterka("0:1:0.1", "0.01:3:0.1"), &["--freq-hz", "allowed"]),
+        (peterka("0:1:0.1", "2:200:0.1"), &["--freq-hz", "allowed"]),
+        (
+            format!("peterka --gap-mm 0:1:0.1 --gap-ratio 0:1:0.1 --freq-hz 2:3:0.1 --out {o}"),
+            &["--gap-ratio", "cannot be used with"],
+        ),
+        (
+            format!("peterka --gap-mm 0:1:0.1 --out {o}"),
+            &["--freq-hz", "--omega-ratio"],
+        ),
+        (sharded("3/3"), &["--shard", "allowed 0 ..= 2"]),
+        (sharded("0/0"), &["--shard", "N ≥ 1"]),
+        (sharded("x"), &["--shard", "expected I/N"]),
+        (
+            basins("0", "-1:0:0", "-1:1:3"),
+            &["--u0-mm", "COUNT = 0", "allowed 1 ..= 4096"],
+        ),
+        (basins("0", "-1:0:3", "-1:1:0"), &["--v0-mm-s", "COUNT = 0"]),
+        (basins("-1", "-1:0:3", "-1:1:3"), &["--gap-mm", "gap_mm"]),
+        (basins("NaN", "-1:0:3", "-1:1:3"), &["--gap-mm", "finite"]),
+        (basins("0", "-1:1:3", "-1:1:3"), &["--u0-mm", "u0 ≤ gap"]),
+        (
+            format!(
+                "bifurcation --gap-mm 0 --omega-ratio 1:2:0.5 --continuation up --shard 0/2 --out {o}"
+            ),
+            &["--shard", "continuation"],
+        ),
+    ];
+    for (cmd, needles) in &cases {
+        rejected(&line(cmd), needles, &[&out, &png]);
     }
-    let basins = |gap: &str, u0: &str, v0: &str| -> Vec<String> {
-        [
-            "basins",
-            "--gap-mm",
-            gap,
-            "--omega-ratio",
-            "1.5",
-            "--u0-mm",
-            u0,
-            "--v0-mm-s",
-            v0,
-            "--out",
-            o,
-            "--plot",
-            p,
-        ]
-        .iter()
-        .map(|x| x.to_string())
-        .collect()
-    };
-    rejected(
-        &strs(&basins("0", "-1:0:0", "-1:1:3")),
-        &["--u0-mm", "COUNT = 0", "allowed 1 ..= 4096"],
-        &[&out, &png],
-    );
-    rejected(
-        &strs(&basins("0", "-1:0:3", "-1:1:0")),
-        &["--v0-mm-s", "COUNT = 0"],
-        &[&out, &png],
-    );
-    rejected(
-        &strs(&basins("-1", "-1:0:3", "-1:1:3")),
-        &["--gap-mm", "gap_mm"],
-        &[&out, &png],
-    );
-    rejected(
-        &strs(&basins("NaN", "-1:0:3", "-1:1:3")),
-        &["--gap-mm", "finite"],
-        &[&out, &png],
-    );
-    rejected(
-        &strs(&basins("0", "-1:1:3", "-1:1:3")),
-        &["--u0-mm", "u0 ≤ gap"],
-        &[&out, &png],
-    );
     rejected(
         &line(&format!(
-            "bifurcation --gap-mm 0 --omega-ratio 1:2:0.5 --continuation up --shard 0/2 --out {}",
-            o
-        )),
-        &["--shard", "continuation"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!(
-            "bifurcation --gap-mm 0 --omega-ratio 0.001:2:0.5 --out {}",
-            o
+            "bifurcation --gap-mm 0 --omega-ratio 0.001:2:0.5 --out {o}"
         )),
         &["--omega-ratio", "allowed"],
         &[&out],

@@ -57,6 +57,22 @@ fn fit(law: ContactLaw, weights: Weights, seed: u64) -> Fit {
     fit_law(&t.setup, &t.data, law.kind(), weights, 400).unwrap()
 }
 
+/// The power laws' truths of the recovery tests (`k δ_ref^n` = 31.6 N at `δ_ref` = 10 µm).
+const HERTZ: ContactLaw = ContactLaw::Hertz {
+    stiffness: 1.0e9,
+    exponent: 1.5,
+};
+const HUNT_CROSSLEY: ContactLaw = ContactLaw::HuntCrossley {
+    stiffness: 1.0e9,
+    exponent: 1.5,
+    lambda_s_m: 10.0,
+};
+const LANKARANI_NIKRAVESH: ContactLaw = ContactLaw::LankaraniNikravesh {
+    stiffness: 1.0e9,
+    exponent: 1.5,
+    restitution: 0.5,
+};
+
 /// A stiffer-damped spring–dashpot law than Table 3.1's.
 const SD_4E6: ContactLaw = ContactLaw::SpringDashpot {
     stiffness_n_m: 4.0e6,
@@ -125,22 +141,7 @@ fn spring_dashpot_is_recovered_from_peaks_alone_and_from_the_profile() {
 
 #[test]
 fn power_laws_are_recovered_from_the_profile() {
-    for truth in [
-        ContactLaw::Hertz {
-            stiffness: 1.0e9,
-            exponent: 1.5,
-        },
-        ContactLaw::HuntCrossley {
-            stiffness: 1.0e9,
-            exponent: 1.5,
-            lambda_s_m: 10.0,
-        },
-        ContactLaw::LankaraniNikravesh {
-            stiffness: 1.0e9,
-            exponent: 1.5,
-            restitution: 0.5,
-        },
-    ] {
+    for truth in [HERTZ, HUNT_CROSSLEY, LANKARANI_NIKRAVESH] {
         let f = fit(truth, PROFILE, 1);
         let (fr, n, third) = power(&f.law);
         let (fr0, n0, third0) = power(&truth);
@@ -155,18 +156,7 @@ fn power_laws_are_recovered_from_the_profile() {
 
 #[test]
 fn dissipation_of_the_power_laws_is_recovered_from_peaks_alone() {
-    for truth in [
-        ContactLaw::HuntCrossley {
-            stiffness: 1.0e9,
-            exponent: 1.5,
-            lambda_s_m: 10.0,
-        },
-        ContactLaw::LankaraniNikravesh {
-            stiffness: 1.0e9,
-            exponent: 1.5,
-            restitution: 0.5,
-        },
-    ] {
+    for truth in [HUNT_CROSSLEY, LANKARANI_NIKRAVESH] {
         let f = fit(truth, PEAKS, 1);
         let (fr, n, third) = power(&f.law);
         let (fr0, n0, third0) = power(&truth);
@@ -212,21 +202,6 @@ fn power_errors(fit: &ContactLaw, truth: &ContactLaw) -> (f64, f64, f64, f64) {
         },
     )
 }
-
-const HERTZ: ContactLaw = ContactLaw::Hertz {
-    stiffness: 1.0e9,
-    exponent: 1.5,
-};
-const HUNT_CROSSLEY: ContactLaw = ContactLaw::HuntCrossley {
-    stiffness: 1.0e9,
-    exponent: 1.5,
-    lambda_s_m: 10.0,
-};
-const LANKARANI_NIKRAVESH: ContactLaw = ContactLaw::LankaraniNikravesh {
-    stiffness: 1.0e9,
-    exponent: 1.5,
-    restitution: 0.5,
-};
 
 #[test]
 fn two_release_heights_recover_the_power_laws_k_from_the_profile() {

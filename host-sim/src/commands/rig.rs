@@ -43,7 +43,7 @@ pub enum RigCommand {
     Send(SendArgs),
     /// Interactive: lines from stdin, replies (and asynchronous lines) to stdout.
     Console(ConsoleArgs),
-    /// Run the timed [[commands]] of a virtual-rig scenario on the rig (times are rig time,
+    /// Run the timed `[[commands]]` of a virtual-rig scenario on the rig (times are rig time,
     /// by the rig's own clock).
     Run(RunArgs),
     /// Record the per-cycle telemetry for a span of rig time: CSV (the `hil` log's columns for
@@ -76,7 +76,7 @@ pub struct ConsoleArgs {
 /// `rig run`.
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// Scenario TOML; only its [[commands]] are used ([[faults]] and [[drops]] are the virtual
+    /// Scenario TOML; only its `[[commands]]` are used (`[[faults]]` and `[[drops]]` are the virtual
     /// rig's and are refused).
     #[arg(long, value_name = "FILE.toml")]
     pub scenario: PathBuf,

@@ -23,7 +23,7 @@ pub struct SelectArgs {
     /// Gap between the hammer at rest and the impact surface, mm (≥ 0; field use: 0).
     #[arg(long, default_value_t = 0.0)]
     pub gap_mm: f64,
-    /// Frequency-ratio sweep searched, START:END:STEP (default from [selection] or 0.5:5.0:0.01).
+    /// Frequency-ratio sweep searched, START:END:STEP (default from `[selection]` or 0.5:5.0:0.01).
     #[arg(long)]
     pub omega_ratio: Option<String>,
     /// Required robustness in frequency, ± % (default 5).

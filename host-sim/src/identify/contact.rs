@@ -514,7 +514,8 @@ impl CostFunction for Align<'_> {
     }
 }
 
-/// Noise draws of the simulated measurement of a peak ([`TraceCtx::sim_peak`]).
+/// Noise draws of the simulated measurement of a peak (the sensor's peak estimate laid on the
+/// measured samples).
 pub const PEAK_DRAWS: usize = 32;
 
 /// One drop test inside the fit, with its normalisations.
