@@ -20,14 +20,9 @@ const PROFILE: Weights = Weights::PROFILE;
 /// Reference penetration of the power laws' force `k δ_ref^n`, m.
 const DELTA_REF_M: f64 = 1e-5;
 
-fn clean(law: ContactLaw, release_mm: f64) -> Trace {
-    LabDrop { law, release_mm }.clean().expect("valid drop")
-}
-
-fn measured(law: ContactLaw, clean: &Trace, release_mm: f64, seed: u64) -> DropTest {
+/// The [`LabDrop`] of `law` released `release_mm`.
+fn lab(law: ContactLaw, release_mm: f64) -> LabDrop {
     LabDrop { law, release_mm }
-        .measured(clean, seed)
-        .expect("impacts")
 }
 
 /// The law's parameters by name, plus `k δ_ref^n` for the power laws.
@@ -80,7 +75,7 @@ fn fit(truth: ContactLaw, traces: &[(f64, &Trace)], seed: u64, weights: Weights)
                 (_, true) => 10 * seed,
                 (_, false) => 10 * seed + 1,
             };
-            measured(truth, c, *h, s)
+            lab(truth, *h).measured(c, s).expect("impacts")
         })
         .collect();
     fit_law_joint(&tests, truth.kind(), weights, 400).expect("fit")
@@ -115,7 +110,7 @@ fn coverage(truth: ContactLaw, trace: &Trace, weights: Weights) -> String {
     let hits: Vec<Vec<(&'static str, bool)>> = (1..=40u64)
         .into_par_iter()
         .map(|seed| {
-            let t = measured(truth, trace, 3.0, seed);
+            let t = lab(truth, 3.0).measured(trace, seed).expect("impacts");
             let f =
                 fit_law_joint(std::slice::from_ref(&t), truth.kind(), weights, 400).expect("fit");
             let u = f.uncertainty.expect("uncertainty");
@@ -193,7 +188,8 @@ fn main() {
     println!("| law (truth) | error | one height (3 mm) | two heights (0.25 + 3 mm, joint) |");
     println!("|---|---|---|---|");
     for (name, law, errors) in &cases {
-        let (c3, c025) = (clean(*law, 3.0), clean(*law, 0.25));
+        let c3 = lab(*law, 3.0).clean().expect("valid drop");
+        let c025 = lab(*law, 0.25).clean().expect("valid drop");
         for (i, (error, w)) in errors.iter().enumerate() {
             println!(
                 "| {} | {error} | {} | {} |",
@@ -214,7 +210,7 @@ fn main() {
             ContactLaw::preset(ContactLawKind::HuntCrossley),
         ),
     ] {
-        let c3 = clean(law, 3.0);
+        let c3 = lab(law, 3.0).clean().expect("valid drop");
         println!(
             "| {name} | {} | {} |",
             coverage(law, &c3, PEAKS),

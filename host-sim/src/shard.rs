@@ -40,6 +40,26 @@ pub struct Shard {
     pub count: u32,
 }
 
+/// The `--shard I/N` option of the grid commands.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct ShardArg {
+    /// Compute only shard I of N (0-based; the points with index % N == I; bifurcation: from
+    /// rest only); default from SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT. A shard writes only
+    /// its CSV: join the shards with `merge`.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+}
+
+impl ShardArg {
+    /// The shard asked for, from the option or the SLURM array variables ([`Shard::resolve`]).
+    ///
+    /// # Errors
+    /// As [`Shard::resolve`].
+    pub fn resolve(&self) -> Result<Option<Shard>> {
+        Shard::resolve(self.shard.as_deref())
+    }
+}
+
 impl Shard {
     /// Parses `I/N` given to `what`.
     ///

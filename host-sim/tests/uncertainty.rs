@@ -27,14 +27,10 @@ const PROFILE: Weights = Weights::PROFILE;
 /// Noise seeds of the coverage tests.
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=40;
 
-fn clean(law: ContactLaw, release_mm: f64) -> Trace {
-    LabDrop { law, release_mm }.clean().expect("valid drop")
-}
-
-fn measured(law: ContactLaw, clean: &Trace, release_mm: f64, seed: u64) -> DropTest {
-    LabDrop { law, release_mm }
-        .measured(clean, seed)
-        .expect("impacts")
+/// The [`LabDrop`] of `law` released `release_mm`, measured with noise seed `seed`.
+fn lab_test(law: ContactLaw, release_mm: f64, seed: u64) -> DropTest {
+    let lab = LabDrop { law, release_mm };
+    lab.measured(&lab.clean().unwrap(), seed).unwrap()
 }
 
 /// The true value of the parameter `key` (a [`ContactLaw`] field name) of `law`.
@@ -63,12 +59,16 @@ fn truth_of(law: &ContactLaw, key: &str) -> f64 {
 /// Per parameter key: in how many of [`SEEDS`] the 95 % interval of a one-height (3 mm)
 /// fit of `truth` with `weights` contains the true value.
 fn coverage(truth: ContactLaw, weights: Weights) -> Vec<(&'static str, usize)> {
-    let trace = clean(truth, 3.0);
+    let lab = LabDrop {
+        law: truth,
+        release_mm: 3.0,
+    };
+    let trace = lab.clean().unwrap();
     let hits: Vec<Vec<(&'static str, bool)>> = SEEDS
         .collect::<Vec<_>>()
         .par_iter()
         .map(|&seed| {
-            let t = measured(truth, &trace, 3.0, seed);
+            let t = lab.measured(&trace, seed).unwrap();
             let f = fit_law(&t.setup, &t.data, truth.kind(), weights, 400).unwrap();
             let u = f.uncertainty.as_ref().unwrap();
             u.params
@@ -117,7 +117,11 @@ fn hunt_crossley_intervals_cover_the_truth() {
 
 /// A fit of one 3 mm drop test of `truth` (noise seed 1).
 fn one_height(truth: ContactLaw, weights: Weights) -> Fit {
-    let t = measured(truth, &clean(truth, 3.0), 3.0, 1);
+    let lab = LabDrop {
+        law: truth,
+        release_mm: 3.0,
+    };
+    let t = lab.measured(&lab.clean().unwrap(), 1).unwrap();
     fit_law(&t.setup, &t.data, truth.kind(), weights, 400).unwrap()
 }
 
@@ -147,7 +151,7 @@ fn notes_say_what_one_height_does_not_fix() {
     let one = one_height(hc, PROFILE).uncertainty.unwrap();
     let tests: Vec<DropTest> = [(0.25, 11), (3.0, 10)]
         .iter()
-        .map(|&(h, seed)| measured(hc, &clean(hc, h), h, seed))
+        .map(|&(release_mm, seed)| lab_test(hc, release_mm, seed))
         .collect();
     let two = fit_law_joint(&tests, hc.kind(), PROFILE, 400)
         .unwrap()
@@ -166,7 +170,7 @@ fn notes_are_silent_where_two_heights_fix_the_law() {
     let truth = ContactLaw::identified();
     let tests: Vec<DropTest> = [(0.25, 11), (3.0, 10)]
         .iter()
-        .map(|&(h, seed)| measured(truth, &clean(truth, h), h, seed))
+        .map(|&(release_mm, seed)| lab_test(truth, release_mm, seed))
         .collect();
     for weights in [PEAKS, PROFILE] {
         let f = fit_law_joint(&tests, truth.kind(), weights, 400).unwrap();

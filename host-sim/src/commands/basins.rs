@@ -21,7 +21,7 @@ use shared::error::check_range;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::basins::{self, Basins, BasinsGrid, MAX_U0_MM, MAX_V0_MM_S};
 use crate::grid::{self, CountSweep, Figures};
-use crate::shard::Shard;
+use crate::shard::ShardArg;
 
 /// Arguments of `basins`.
 #[derive(Debug, Args)]
@@ -55,10 +55,9 @@ pub struct BasinsArgs {
     /// PNG: u0 (x) × u̇0 (y) coloured by attractor, attractor points marked.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Compute only shard I of N (0-based; points with index % N == I); default from
-    /// SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT. Shards write only the CSV: join with `merge`.
-    #[arg(long, value_name = "I/N")]
-    pub shard: Option<String>,
+    /// Shard of the grid to compute.
+    #[command(flatten)]
+    pub shard: ShardArg,
 }
 
 /// Runs `basins`.
@@ -92,7 +91,7 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
             grid.gap_mm
         );
     }
-    let shard = Shard::resolve(a.shard.as_deref())?;
+    let shard = a.shard.resolve()?;
     let figures = Figures {
         plot: a.plot.as_deref(),
         force_plot: None,

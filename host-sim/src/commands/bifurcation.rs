@@ -11,7 +11,7 @@ use super::omega_sweep;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::bifurcation::{self, BifGrid, Bifurcation, Continuation};
 use crate::grid::{self, Figures, per_point};
-use crate::shard::Shard;
+use crate::shard::ShardArg;
 
 /// Arguments of `bifurcation`.
 #[derive(Debug, Args)]
@@ -38,10 +38,9 @@ pub struct BifurcationArgs {
     /// PNG: Poincaré u (mm) and impact peaks F_i/mg vs Ω/ω, two panels.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// From rest only: compute only shard I of N (0-based; frequencies with index % N == I);
-    /// default from SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT. Join with `merge`.
-    #[arg(long, value_name = "I/N")]
-    pub shard: Option<String>,
+    /// Shard of the grid to compute.
+    #[command(flatten)]
+    pub shard: ShardArg,
 }
 
 /// Runs `bifurcation`.
@@ -52,7 +51,7 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
-    let shard = Shard::resolve(a.shard.as_deref())?;
+    let shard = a.shard.resolve()?;
     if a.continuation.is_some() && shard.is_some() {
         bail!(
             "--shard: a continuation is sequential along the sweep and cannot be sharded \

@@ -11,7 +11,7 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use crate::config::{MAX_GAP_MM, RigOpts, Setup, parse_sweep};
 use crate::grid::peterka::{self, Axis, AxisUnit, MAX_POINTS, Peterka, PeterkaGrid};
 use crate::grid::{self, Figures};
-use crate::shard::Shard;
+use crate::shard::ShardArg;
 
 /// Arguments of `peterka`.
 #[derive(Debug, Args)]
@@ -46,10 +46,9 @@ pub struct PeterkaArgs {
     /// PNG: the z = 1/1 region coloured by F_i/mg, with a colour bar (Fig. 3.26).
     #[arg(long)]
     pub force_plot: Option<PathBuf>,
-    /// Compute only shard I of N (0-based; points with index % N == I); default from
-    /// SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT. Shards write only the CSV: join with `merge`.
-    #[arg(long, value_name = "I/N")]
-    pub shard: Option<String>,
+    /// Shard of the grid to compute.
+    #[command(flatten)]
+    pub shard: ShardArg,
 }
 
 fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
@@ -101,7 +100,7 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
 pub fn run(a: &PeterkaArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let grid = parse_axes(a, &setup)?;
-    let shard = Shard::resolve(a.shard.as_deref())?;
+    let shard = a.shard.resolve()?;
     let figures = Figures {
         plot: a.plot.as_deref(),
         force_plot: a.force_plot.as_deref(),

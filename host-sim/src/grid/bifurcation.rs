@@ -263,13 +263,7 @@ impl GridKind for Bifurcation {
     /// Draws the figure from the complete CSV, reading it twice (spans, then dots): memory
     /// does not grow with the sweep.
     fn finish(job: Finish<'_>) -> Result<()> {
-        let Finish {
-            outputs,
-            meta,
-            rows: csv,
-            figures,
-            ..
-        } = job;
+        let (outputs, meta, csv, figures) = (job.outputs, job.meta, job.rows, job.figures);
         let Some(plot) = figures.plot else {
             return Ok(());
         };

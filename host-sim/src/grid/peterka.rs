@@ -159,13 +159,7 @@ impl GridKind for Peterka {
     type Row = PeterkaRow;
 
     fn finish(job: Finish<'_>) -> Result<()> {
-        let Finish {
-            outputs,
-            meta,
-            rows: csv,
-            figures,
-            ..
-        } = job;
+        let (outputs, meta, csv, figures) = (job.outputs, job.meta, job.rows, job.figures);
         let Figures { plot, force_plot } = figures;
         if plot.is_none() && force_plot.is_none() {
             return Ok(());
