@@ -2,6 +2,14 @@
 //! 168 MHz), thin glue around `shared::control` (the controller, the console service, the
 //! capture): the tasks are in `app.rs`, the peripherals in `board_rig.rs`.
 //!
+//! Data flows one way: the ADC's force samples (TIM2 trigger, 10 kHz, the `sample` task on
+//! the end-of-conversion interrupt) → `shared::control::Controller` (drive cycles, impacts,
+//! regime, faults) → the DAC's drive command. At lower priorities: `model` runs
+//! `shared::control::predict` (rig parameters → switch-model integrator → regime and operating
+//! frequency); `console` (USART2) and `serve` answer the console and send telemetry; `capture`
+//! takes the drop-test force by DMA; `report` logs with defmt once a second and feeds the
+//! watchdog after its health check.
+//!
 //! This binary is the rig image (`cargo fw-build`, flashed with `cargo fw`); the emulator image
 //! (`src/bin/firmware_qemu.rs`) runs the same app on QEMU's `netduinoplus2`. On the host this
 //! crate compiles to a stub so that `cargo build --workspace` works.
