@@ -34,8 +34,9 @@ use shared::control::config::DAC_MID;
 use shared::hal::{DriveOutput, ForceSource, SampleError};
 use stm32f4xx_hal::pac::{self, Interrupt, interrupt};
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::serial::{self, Serial};
+use stm32f4xx_hal::serial::Serial;
 
+use crate::board_common::{Micros64, console_usart, read_byte};
 use crate::config::{CAPTURE_BLOCK, WATCHDOG_MS};
 
 /// Which image this is (`id`).
@@ -56,20 +57,14 @@ static mut CAPTURE_TX: Option<Producer<'static, u16>> = None;
 static DAC_CODE: AtomicU16 = AtomicU16::new(DAC_MID);
 
 /// What the app gets.
-pub struct Parts {
-    /// ADC1 on PA1.
-    pub adc: ForceAdc,
-    /// DAC1 on PA4.
-    pub dac: DacDrive,
-    /// µs time base.
-    pub clock: MicrosClock,
-    /// USART2.
-    pub serial: ConsoleSerial,
-    /// ADC2 at the capture rate.
-    pub capture: CaptureInput,
-    /// The watchdog.
-    pub watchdog: Watchdog,
-}
+pub type Parts = crate::board_common::Parts<
+    ForceAdc,
+    DacDrive,
+    MicrosClock,
+    ConsoleSerial,
+    CaptureInput,
+    Watchdog,
+>;
 
 /// Sets up the emulated board.
 pub fn init(
@@ -99,13 +94,7 @@ pub fn init(
     dp.TIM2.cr1().write(|w| w.cen().set_bit());
     dp.TIM2.arr().write(|w| unsafe { w.bits(arr) });
 
-    // USART2 on PA2/PA3, 115200 8N1, receive interrupt on.
-    let config = serial::Config::default().baudrate(115_200.bps());
-    let mut usart = match Serial::new(dp.USART2, (gpioa.pa2, gpioa.pa3), config, &mut rcc) {
-        Ok(s) => s,
-        Err(_) => defmt::panic!("USART2 configuration rejected"),
-    };
-    usart.listen(serial::Event::RxNotEmpty);
+    let usart = console_usart(dp.USART2, (gpioa.pa2, gpioa.pa3), &mut rcc);
 
     // The capture queue: the TIM3 stand-in produces, the capture task consumes.
     // SAFETY: split once here, before the interrupts that use the halves are enabled.
@@ -197,8 +186,7 @@ impl DriveOutput for DacDrive {
 /// µs since start-up from TIM5 (32-bit, extended to 64 bits at every read).
 #[derive(Default)]
 pub struct MicrosClock {
-    last: u32,
-    high: u64,
+    count: Micros64,
 }
 
 impl MicrosClock {
@@ -206,11 +194,7 @@ impl MicrosClock {
     pub fn now_us(&mut self) -> u64 {
         // SAFETY: a read of TIM5's counter, which only this clock uses.
         let now = unsafe { (*pac::TIM5::ptr()).cnt().read().bits() };
-        if now < self.last {
-            self.high += 1 << 32;
-        }
-        self.last = now;
-        self.high + u64::from(now)
+        self.count.extend(now)
     }
 }
 
@@ -223,12 +207,7 @@ pub struct ConsoleSerial {
 impl ConsoleSerial {
     /// A received byte, a receive error, or `None`.
     pub fn read(&mut self) -> Option<Result<u8, RxError>> {
-        use embedded_hal_nb::serial::Read as _;
-        match self.usart.read() {
-            Ok(b) => Some(Ok(b)),
-            Err(nb::Error::WouldBlock) => None,
-            Err(nb::Error::Other(e)) => Some(Err(rx_error(e))),
-        }
+        read_byte(&mut self.usart)
     }
 
     /// Whether a byte may be written (and one is being sent).
@@ -256,15 +235,6 @@ impl ConsoleSerial {
     pub fn kick_tx(&mut self) {
         self.txing = true;
         NVIC::pend(Interrupt::USART2);
-    }
-}
-
-pub(crate) fn rx_error(e: serial::Error) -> RxError {
-    match e {
-        serial::Error::Overrun => RxError::Overrun,
-        serial::Error::FrameFormat => RxError::Framing,
-        serial::Error::Noise => RxError::Noise,
-        _ => RxError::Parity,
     }
 }
 

@@ -34,26 +34,21 @@ use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::timer::{CounterHz, CounterUs, Timer};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
+use crate::board_common::{Micros64, console_usart, read_byte};
 use crate::config::{CAPTURE_BLOCK, SYSCLK_HZ, WATCHDOG_MS};
 
 /// Which image this is (`id`).
 pub const BOARD: &str = "rig";
 
 /// What the app gets.
-pub struct Parts {
-    /// ADC1 on PA1.
-    pub adc: ForceAdc,
-    /// DAC1 on PA4.
-    pub dac: DacDrive,
-    /// µs time base.
-    pub clock: MicrosClock,
-    /// USART2.
-    pub serial: ConsoleSerial,
-    /// ADC2 at the capture rate.
-    pub capture: CaptureInput,
-    /// The watchdog.
-    pub watchdog: Watchdog,
-}
+pub type Parts = crate::board_common::Parts<
+    ForceAdc,
+    DacDrive,
+    MicrosClock,
+    ConsoleSerial,
+    CaptureInput,
+    Watchdog,
+>;
 
 type CaptureTransfer =
     Transfer<Stream2<DMA2>, 1, pac::ADC2, PeripheralToMemory, &'static mut [u16; CAPTURE_BLOCK]>;
@@ -129,13 +124,7 @@ pub fn init(
         Transfer::init_peripheral_to_memory(streams.2, adc2, a, Some(b), dma);
     transfer.start(|_| {});
 
-    // USART2.
-    let config = serial::Config::default().baudrate(115_200.bps());
-    let mut usart = match Serial::new(dp.USART2, (gpioa.pa2, gpioa.pa3), config, &mut rcc) {
-        Ok(s) => s,
-        Err(_) => defmt::panic!("USART2 configuration rejected"),
-    };
-    usart.listen(serial::Event::RxNotEmpty);
+    let usart = console_usart(dp.USART2, (gpioa.pa2, gpioa.pa3), &mut rcc);
 
     let mut iwdg = IndependentWatchdog::new(dp.IWDG);
     iwdg.start(WATCHDOG_MS.millis());
@@ -145,8 +134,7 @@ pub fn init(
         dac,
         clock: MicrosClock {
             timer: micros,
-            last: 0,
-            high: 0,
+            count: Micros64::default(),
         },
         serial: ConsoleSerial { usart },
         capture: CaptureInput {
@@ -205,19 +193,13 @@ impl DriveOutput for DacDrive {
 /// µs since start-up from TIM5 (32-bit, extended to 64 bits at every read).
 pub struct MicrosClock {
     timer: CounterUs<pac::TIM5>,
-    last: u32,
-    high: u64,
+    count: Micros64,
 }
 
 impl MicrosClock {
     /// Now, µs.
     pub fn now_us(&mut self) -> u64 {
-        let now = self.timer.now().ticks();
-        if now < self.last {
-            self.high += 1 << 32;
-        }
-        self.last = now;
-        self.high + u64::from(now)
+        self.count.extend(self.timer.now().ticks())
     }
 }
 
@@ -229,12 +211,7 @@ pub struct ConsoleSerial {
 impl ConsoleSerial {
     /// A received byte, a receive error, or `None`.
     pub fn read(&mut self) -> Option<Result<u8, RxError>> {
-        use embedded_hal_nb::serial::Read as _;
-        match self.usart.read() {
-            Ok(b) => Some(Ok(b)),
-            Err(nb::Error::WouldBlock) => None,
-            Err(nb::Error::Other(e)) => Some(Err(rx_error(e))),
-        }
+        read_byte(&mut self.usart)
     }
 
     /// Whether the transmit register is empty while sending.
@@ -259,15 +236,6 @@ impl ConsoleSerial {
     /// Bytes were queued: transmit-empty interrupts on.
     pub fn kick_tx(&mut self) {
         self.usart.listen(serial::Event::TxEmpty);
-    }
-}
-
-fn rx_error(e: serial::Error) -> RxError {
-    match e {
-        serial::Error::Overrun => RxError::Overrun,
-        serial::Error::FrameFormat => RxError::Framing,
-        serial::Error::Noise => RxError::Noise,
-        _ => RxError::Parity,
     }
 }
 

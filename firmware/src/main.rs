@@ -18,6 +18,9 @@
 pub mod config;
 
 #[cfg(target_os = "none")]
+mod board_common;
+
+#[cfg(target_os = "none")]
 #[path = "board_rig.rs"]
 mod board;
 

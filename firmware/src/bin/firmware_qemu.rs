@@ -10,6 +10,10 @@
 pub mod config;
 
 #[cfg(target_os = "none")]
+#[path = "../board_common.rs"]
+mod board_common;
+
+#[cfg(target_os = "none")]
 #[path = "../board_emu.rs"]
 mod board;
 
