@@ -9,20 +9,23 @@ use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Rcc;
 use stm32f4xx_hal::serial::{self, Serial};
 
-/// What the app gets from a board; each board names its own peripheral types.
-pub struct Parts<Adc, Dac, Clock, Console, Capture, Dog> {
+use crate::board::{CaptureInput, ConsoleSerial, DacDrive, ForceAdc, MicrosClock, Watchdog};
+
+/// What the app gets from the board this image is built for (`crate::board`, whose types
+/// these are).
+pub struct Parts {
     /// ADC1 on PA1.
-    pub adc: Adc,
+    pub adc: ForceAdc,
     /// DAC1 on PA4.
-    pub dac: Dac,
+    pub dac: DacDrive,
     /// µs time base.
-    pub clock: Clock,
+    pub clock: MicrosClock,
     /// USART2.
-    pub serial: Console,
+    pub serial: ConsoleSerial,
     /// ADC2 at the capture rate.
-    pub capture: Capture,
+    pub capture: CaptureInput,
     /// The watchdog.
-    pub watchdog: Dog,
+    pub watchdog: Watchdog,
 }
 
 /// USART2 on PA2/PA3, 115200 8N1, receive interrupt on.

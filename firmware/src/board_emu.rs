@@ -36,7 +36,7 @@ use stm32f4xx_hal::pac::{self, Interrupt, interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::serial::Serial;
 
-use crate::board_common::{Micros64, console_usart, read_byte};
+use crate::board_common::{Micros64, Parts, console_usart, read_byte};
 use crate::config::{CAPTURE_BLOCK, WATCHDOG_MS};
 
 /// Which image this is (`id`).
@@ -55,16 +55,6 @@ const CAPTURE_QUEUE: usize = 4 * CAPTURE_BLOCK;
 static mut CAPTURE_Q: Queue<u16, CAPTURE_QUEUE> = Queue::new();
 static mut CAPTURE_TX: Option<Producer<'static, u16>> = None;
 static DAC_CODE: AtomicU16 = AtomicU16::new(DAC_MID);
-
-/// What the app gets.
-pub type Parts = crate::board_common::Parts<
-    ForceAdc,
-    DacDrive,
-    MicrosClock,
-    ConsoleSerial,
-    CaptureInput,
-    Watchdog,
->;
 
 /// Sets up the emulated board.
 pub fn init(

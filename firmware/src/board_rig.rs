@@ -34,21 +34,11 @@ use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::timer::{CounterHz, CounterUs, Timer};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use crate::board_common::{Micros64, console_usart, read_byte};
+use crate::board_common::{Micros64, Parts, console_usart, read_byte};
 use crate::config::{CAPTURE_BLOCK, SYSCLK_HZ, WATCHDOG_MS};
 
 /// Which image this is (`id`).
 pub const BOARD: &str = "rig";
-
-/// What the app gets.
-pub type Parts = crate::board_common::Parts<
-    ForceAdc,
-    DacDrive,
-    MicrosClock,
-    ConsoleSerial,
-    CaptureInput,
-    Watchdog,
->;
 
 type CaptureTransfer =
     Transfer<Stream2<DMA2>, 1, pac::ADC2, PeripheralToMemory, &'static mut [u16; CAPTURE_BLOCK]>;
