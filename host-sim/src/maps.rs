@@ -11,7 +11,7 @@ use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use shared::observe::Regime;
 
-use crate::plot::{Chart, SANS, ensure_font, series_legend};
+use crate::plot::{Chart, Frame, SANS, canvas, line_key, panel, series_legend};
 
 /// Largest raster side, cells: grids finer than this are down-sampled (last cell in index order
 /// wins), which is finer than the figure's pixels anyway.
@@ -167,10 +167,7 @@ fn figure_with_panel<'a>(
     DrawingArea<BitMapBackend<'a>, Shift>,
     DrawingArea<BitMapBackend<'a>, Shift>,
 )> {
-    ensure_font();
-    let root = BitMapBackend::new(path, (1280, 860)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (SANS, 20))?;
+    let root = canvas(path, (1280, 860), Some((title, 20)))?;
     let (left, right) = root.split_horizontally(1030);
     Ok((left, right))
 }
@@ -505,10 +502,7 @@ pub fn bifurcation(
     branches: &[&str],
     feed: impl FnOnce(&mut dyn FnMut(&str, BifDot) -> Result<()>) -> Result<()>,
 ) -> Result<()> {
-    ensure_font();
-    let root = BitMapBackend::new(path, (1100, 950)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (SANS, 20))?;
+    let root = canvas(path, (1100, 950), Some((title, 20)))?;
     let (top, bottom) = root.split_vertically(470);
     let pad = |(a, b): (f64, f64)| {
         let d = ((b - a) * 0.04).max(1e-3);
@@ -516,23 +510,19 @@ pub fn bifurcation(
     };
     let (x0, x1) = pad(ranges.x);
     let (u0, u1) = pad((ranges.u.0.min(gap_mm), ranges.u.1.max(gap_mm)));
-    let mut ct = ChartBuilder::on(&top)
-        .margin(10)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, u0..u1)?;
-    ct.configure_mesh()
-        .x_desc("Ω/ω")
-        .y_desc("Poincaré u (mm)")
-        .label_style((SANS, 15))
-        .axis_desc_style((SANS, 17))
-        .draw()?;
+    let mut ct = panel(
+        &top,
+        Frame::new(10, 40, 70, 15).desc_font(17),
+        x0..x1,
+        u0..u1,
+        ("Ω/ω", "Poincaré u (mm)"),
+    )?;
     ct.draw_series(LineSeries::new(
         [(x0, gap_mm), (x1, gap_mm)],
         BLACK.mix(0.4),
     ))?
     .label(format!("impact surface u = gap = {gap_mm} mm"))
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.4)));
+    .legend(line_key(BLACK.mix(0.4)));
     for b in branches {
         let c = branch_color(b);
         let name = match *b {
@@ -544,17 +534,13 @@ pub fn bifurcation(
             .label(name)
             .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
     }
-    let mut cb = ChartBuilder::on(&bottom)
-        .margin(10)
-        .x_label_area_size(45)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, 0.0..(ranges.force_max * 1.06).max(1.0))?;
-    cb.configure_mesh()
-        .x_desc("Ω/ω")
-        .y_desc("impact peak F_i/mg")
-        .label_style((SANS, 15))
-        .axis_desc_style((SANS, 17))
-        .draw()?;
+    let mut cb = panel(
+        &bottom,
+        Frame::new(10, 45, 70, 15).desc_font(17),
+        x0..x1,
+        0.0..(ranges.force_max * 1.06).max(1.0),
+        ("Ω/ω", "impact peak F_i/mg"),
+    )?;
     feed(&mut |branch: &str, dot: BifDot| {
         let c = branch_color(branch).mix(0.75).filled();
         match dot {

@@ -54,6 +54,99 @@ fn force_chart<'a, 'b>(
     Ok(chart)
 }
 
+/// The drawing area of a figure: a white `size` px bitmap written to `path`, with `title` at
+/// `title_px` across the top if given (the area below it is returned).
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn canvas<'a>(
+    path: &'a Path,
+    size: (u32, u32),
+    title: Option<(&str, u32)>,
+) -> Result<DrawingArea<BitMapBackend<'a>, Shift>> {
+    ensure_font();
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE)?;
+    Ok(match title {
+        Some((text, px)) => root.titled(text, (SANS, px))?,
+        None => root,
+    })
+}
+
+/// How a panel is framed, px: the outer margin, the x- and y-label areas, the tick-label font
+/// and, if set, a larger font for the axis descriptions.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Frame {
+    pub margin: u32,
+    pub x_area: u32,
+    pub y_area: u32,
+    pub font: u32,
+    pub desc_font: Option<u32>,
+}
+
+impl Frame {
+    /// A frame with the tick labels and axis descriptions at `font` px.
+    pub(crate) const fn new(margin: u32, x_area: u32, y_area: u32, font: u32) -> Frame {
+        Frame {
+            margin,
+            x_area,
+            y_area,
+            font,
+            desc_font: None,
+        }
+    }
+
+    /// The same frame with the axis descriptions at `px`.
+    pub(crate) const fn desc_font(self, px: u32) -> Frame {
+        Frame {
+            desc_font: Some(px),
+            ..self
+        }
+    }
+}
+
+/// A panel on `area`: `x` × `y` framed by `frame`, its mesh drawn with the axis descriptions
+/// `desc` (x, y).
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn panel<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    frame: Frame,
+    x: Range<f64>,
+    y: Range<f64>,
+    desc: (&str, &str),
+) -> Result<Chart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(frame.margin)
+        .x_label_area_size(frame.x_area)
+        .y_label_area_size(frame.y_area)
+        .build_cartesian_2d(x, y)?;
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(desc.0)
+        .y_desc(desc.1)
+        .label_style((SANS, frame.font));
+    if let Some(px) = frame.desc_font {
+        mesh.axis_desc_style((SANS, px));
+    }
+    mesh.draw()?;
+    Ok(chart)
+}
+
+/// A legend key: a 14 × 10 px swatch in `style`.
+pub(crate) fn swatch_key<S: Into<ShapeStyle> + Clone>(
+    style: S,
+) -> impl Fn((i32, i32)) -> Rectangle<(i32, i32)> {
+    move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], style.clone())
+}
+
+/// A legend key: a 16 px line in `style`.
+pub(crate) fn line_key<S: Into<ShapeStyle> + Clone>(
+    style: S,
+) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new([(x, y), (x + 16, y)], style.clone())
+}
+
 /// Draws the series legend of `chart`: at `position` (plotters' default if `None`), on a
 /// translucent white box with a black border, labels in [`SANS`] at `font_size` px.
 ///
@@ -155,38 +248,26 @@ pub fn response(
     pts: &[ResponsePoint],
     highlight: Option<Highlight>,
 ) -> Result<()> {
-    ensure_font();
-    let root = BitMapBackend::new(path, (1000, 620)).into_drawing_area();
-    root.fill(&WHITE)?;
+    let root = canvas(path, (1000, 620), None)?;
     let x0 = pts.first().map_or(0.0, |p| p.omega_ratio);
     let x1 = pts.last().map_or(1.0, |p| p.omega_ratio).max(x0 + 1e-6);
     let ymax = pts.iter().map(|p| p.impact_force_mg).fold(1.0, f64::max) * 1.08;
     let mut chart = force_chart(&root, title, 22, x0..x1, ymax)?;
     if let Some(h) = highlight {
-        chart
-            .draw_series([Rectangle::new(
-                [(h.band[0], 0.0), (h.band[1], ymax)],
-                RGBColor(215, 25, 28).mix(0.08).filled(),
-            )])?
-            .label("z = 1/1 band")
-            .legend(|(x, y)| {
-                Rectangle::new(
-                    [(x, y - 5), (x + 14, y + 5)],
-                    RGBColor(215, 25, 28).mix(0.2).filled(),
-                )
-            });
-        chart
-            .draw_series([Rectangle::new(
-                [(h.window[0], 0.0), (h.window[1], ymax)],
-                RGBColor(43, 131, 186).mix(0.15).filled(),
-            )])?
-            .label("±margin window")
-            .legend(|(x, y)| {
-                Rectangle::new(
-                    [(x, y - 5), (x + 14, y + 5)],
-                    RGBColor(43, 131, 186).mix(0.3).filled(),
-                )
-            });
+        let red = RGBColor(215, 25, 28);
+        let blue = RGBColor(43, 131, 186);
+        for (x, color, fill, key, label) in [
+            (h.band, red, 0.08, 0.2, "z = 1/1 band"),
+            (h.window, blue, 0.15, 0.3, "±margin window"),
+        ] {
+            chart
+                .draw_series([Rectangle::new(
+                    [(x[0], 0.0), (x[1], ymax)],
+                    color.mix(fill).filled(),
+                )])?
+                .label(label)
+                .legend(swatch_key(color.mix(key).filled()));
+        }
     }
     chart.draw_series(LineSeries::new(
         pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg)),
@@ -237,10 +318,7 @@ pub fn response_band(
     nominal: &[ResponsePoint],
     chosen: &crate::selection::SelectReport,
 ) -> Result<()> {
-    ensure_font();
-    let root = BitMapBackend::new(path, (1000, 620)).into_drawing_area();
-    root.fill(&WHITE)?;
-    // The fitted law's 1/1 band holding the chosen point, widened by a fifth on each side.
+    let root = canvas(path, (1000, 620), None)?; // The fitted law's 1/1 band holding the chosen point, widened by a fifth on each side.
     let [b0, b1] = chosen.band_omega_ratio;
     let pad = 0.2 * (b1 - b0);
     let (x0, x1) = (b0 - pad, b1 + pad);
@@ -271,9 +349,7 @@ pub fn response_band(
     chart
         .draw_series([Polygon::new(area, blue.mix(0.3).filled())])?
         .label(format!("95 % range over {} draws", spread.draws))
-        .legend(move |(x, y)| {
-            Rectangle::new([(x, y - 5), (x + 14, y + 5)], blue.mix(0.3).filled())
-        });
+        .legend(swatch_key(blue.mix(0.3).filled()));
     chart
         .draw_series(LineSeries::new(
             band.iter()
@@ -281,7 +357,7 @@ pub fn response_band(
             blue.stroke_width(2),
         ))?
         .label("median over the draws")
-        .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], blue.stroke_width(2)));
+        .legend(line_key(blue.stroke_width(2)));
     let red = RGBColor(215, 25, 28);
     chart
         .draw_series(
@@ -360,10 +436,7 @@ pub fn time_series(
     strobes: &[(f64, f64)],
     gap_mm: f64,
 ) -> Result<()> {
-    ensure_font();
-    let root = BitMapBackend::new(path, (1000, 1100)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (SANS, 22))?;
+    let root = canvas(path, (1000, 1100), Some((title, 22)))?;
     let panels = root.split_evenly((3, 1));
     let (t0, t1) = (
         ts.first().map_or(0.0, |p| p.t_s),
@@ -372,64 +445,55 @@ pub fn time_series(
     let t1 = t1.max(t0 + 1e-9);
 
     let (ylo, yhi) = span(ts.iter().flat_map(|p| [p.u_mm, p.x_mm]).chain([gap_mm]));
-    let mut c = ChartBuilder::on(&panels[0])
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(60)
-        .build_cartesian_2d(t0..t1, ylo..yhi)?;
-    c.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("displacement (mm)")
-        .label_style((SANS, 14))
-        .draw()?;
+    let mut c = panel(
+        &panels[0],
+        Frame::new(10, 35, 60, 14),
+        t0..t1,
+        ylo..yhi,
+        ("t (s)", "displacement (mm)"),
+    )?;
     c.draw_series(LineSeries::new(ts.iter().map(|p| (p.t_s, p.u_mm)), BLUE))?
         .label("u (relative to cart)")
-        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
+        .legend(line_key(BLUE));
     c.draw_series(LineSeries::new(
         ts.iter().map(|p| (p.t_s, p.x_mm)),
         RGBColor(220, 120, 0),
     ))?
     .label("x (absolute)")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(220, 120, 0)));
+    .legend(line_key(RGBColor(220, 120, 0)));
     c.draw_series(LineSeries::new(
         [(t0, gap_mm), (t1, gap_mm)],
         BLACK.mix(0.5),
     ))?
     .label("impact surface (u = gap)")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
+    .legend(line_key(BLACK.mix(0.5)));
     series_legend(&mut c, None, 13)?;
 
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;
-    let mut c = ChartBuilder::on(&panels[1])
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(60)
-        .build_cartesian_2d(t0..t1, 0.0..fmax)?;
-    c.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("impact force F_i/mg")
-        .label_style((SANS, 14))
-        .draw()?;
+    let mut c = panel(
+        &panels[1],
+        Frame::new(10, 35, 60, 14),
+        t0..t1,
+        0.0..fmax,
+        ("t (s)", "impact force F_i/mg"),
+    )?;
     c.draw_series(LineSeries::new(ts.iter().map(|p| (p.t_s, p.force_mg)), RED))?;
 
     let (ulo, uhi) = span(ts.iter().map(|p| p.u_mm));
     let (vlo, vhi) = span(ts.iter().map(|p| p.du_mm_s));
-    let mut c = ChartBuilder::on(&panels[2])
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(60)
-        .build_cartesian_2d(ulo..uhi, vlo..vhi)?;
-    c.configure_mesh()
-        .x_desc("u (mm)")
-        .y_desc("u̇ (mm/s)")
-        .label_style((SANS, 14))
-        .draw()?;
+    let mut c = panel(
+        &panels[2],
+        Frame::new(10, 35, 60, 14),
+        ulo..uhi,
+        vlo..vhi,
+        ("u (mm)", "u̇ (mm/s)"),
+    )?;
     c.draw_series(LineSeries::new(
         ts.iter().map(|p| (p.u_mm, p.du_mm_s)),
         BLUE.mix(0.6),
     ))?
     .label("phase plane")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
+    .legend(line_key(BLUE));
     c.draw_series(
         strobes
             .iter()

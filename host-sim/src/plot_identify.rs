@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
 use crate::identify::contact::{DropData, Fit, SimDrop};
-use crate::plot::{SANS, ensure_font, series_legend};
+use crate::plot::{Frame, SANS, canvas, line_key, panel, series_legend};
 
 /// Colour of a contact law's curves.
 pub fn law_color(name: &str) -> RGBColor {
@@ -35,11 +35,8 @@ pub fn drop_fit(
     tests: &[(String, &DropData)],
     fits: &[(String, &Fit)],
 ) -> Result<()> {
-    ensure_font();
     let bands = tests.len().max(1);
-    let root = BitMapBackend::new(path, (1300, 30 + 870 * bands as u32)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (SANS, 22))?;
+    let root = canvas(path, (1300, 30 + 870 * bands as u32), Some((title, 22)))?;
     let areas = root.split_evenly((bands, 1));
     for (i, ((caption, data), area)) in tests.iter().zip(areas.iter()).enumerate() {
         let sims: Vec<(String, &SimDrop)> = fits
@@ -74,16 +71,13 @@ fn drop_panel(
     ) * 1.1;
     let fmin = f.iter().copied().fold(0.0, f64::min).min(0.0) * 1.1;
     let (t0, t1) = (t[0], t[t.len() - 1]);
-    let mut c = ChartBuilder::on(&top)
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(t0..t1, fmin..fmax)?;
-    c.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("impact force F_i (N)")
-        .label_style((SANS, 15))
-        .draw()?;
+    let mut c = panel(
+        &top,
+        Frame::new(12, 40, 60, 15),
+        t0..t1,
+        fmin..fmax,
+        ("t (s)", "impact force F_i (N)"),
+    )?;
     // Decimate the measured trace to at most ~4000 points per pixel column group (min/max).
     let cols = 1200usize;
     let per = (t.len() / cols).max(1);
@@ -99,7 +93,7 @@ fn drop_panel(
     }
     c.draw_series(LineSeries::new(env, RGBColor(90, 90, 90)))?
         .label("measured (offset removed)")
-        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(90, 90, 90)));
+        .legend(line_key(RGBColor(90, 90, 90)));
     for (name, fit) in fits {
         let Some(s0) = fit.impacts.first() else {
             continue;
@@ -114,7 +108,7 @@ fn drop_panel(
             col.stroke_width(1),
         ))?
         .label(format!("simulated, {name}"))
-        .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], col.stroke_width(2)));
+        .legend(line_key(col.stroke_width(2)));
     }
     series_legend(&mut c, Some(SeriesLabelPosition::UpperRight), 14)?;
 
@@ -187,10 +181,7 @@ pub fn response_compare(
     o: &ResponseOverlay,
 ) -> Result<()> {
     use crate::plot::{regime_class, regime_color};
-    ensure_font();
-    let root = BitMapBackend::new(path, (1100, 680)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (SANS, 21))?;
+    let root = canvas(path, (1100, 680), Some((title, 21)))?;
     let (head, body) = root.split_vertically(28);
     head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))?;
     let x0 = o.sim.first().map_or(0.0, |p| p.0);
@@ -202,22 +193,19 @@ pub fn response_compare(
         .chain(o.measured.iter().map(|p| p.1))
         .fold(1.0, f64::max)
         * 1.08;
-    let mut c = ChartBuilder::on(&body)
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, 0.0..ymax)?;
-    c.configure_mesh()
-        .x_desc("Ω/ω")
-        .y_desc("max impact force F_i/mg")
-        .label_style((SANS, 15))
-        .draw()?;
+    let mut c = panel(
+        &body,
+        Frame::new(12, 45, 60, 15),
+        x0..x1,
+        0.0..ymax,
+        ("Ω/ω", "max impact force F_i/mg"),
+    )?;
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.0, p.1)),
         RGBColor(150, 150, 150),
     ))?
     .label("simulated")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(150, 150, 150)));
+    .legend(line_key(RGBColor(150, 150, 150)));
     let mut seen: Vec<&str> = Vec::new();
     for p in &o.sim {
         let name = regime_class(p.2);
@@ -271,10 +259,7 @@ pub struct TsOverlay {
 /// # Errors
 /// Drawing or file errors.
 pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverlay) -> Result<()> {
-    ensure_font();
-    let root = BitMapBackend::new(path, (1100, 1000)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (SANS, 21))?;
+    let root = canvas(path, (1100, 1000), Some((title, 21)))?;
     let (head, body) = root.split_vertically(28);
     head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))?;
     let (top, bottom) = body.split_vertically(430);
@@ -291,52 +276,46 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
     };
     let t1 = o.measured.last().map_or(1.0, |p| p.0).max(1e-9);
     let (xlo, xhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.1));
-    let mut c = ChartBuilder::on(&top)
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t1, xlo..xhi)?;
-    c.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("absolute displacement x (mm)")
-        .label_style((SANS, 14))
-        .draw()?;
+    let mut c = panel(
+        &top,
+        Frame::new(12, 40, 60, 14),
+        0.0..t1,
+        xlo..xhi,
+        ("t (s)", "absolute displacement x (mm)"),
+    )?;
     c.draw_series(LineSeries::new(
         o.measured.iter().map(|p| (p.0, p.1)),
         BLACK,
     ))?
     .label("measured")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
+    .legend(line_key(BLACK));
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.0, p.1)),
         BLUE.stroke_width(2),
     ))?
     .label("simulated")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE.stroke_width(2)));
+    .legend(line_key(BLUE.stroke_width(2)));
     series_legend(&mut c, None, 13)?;
     let (vlo, vhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.2));
-    let mut c = ChartBuilder::on(&bottom)
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(xlo..xhi, vlo..vhi)?;
-    c.configure_mesh()
-        .x_desc("x (mm)")
-        .y_desc("ẋ (mm/s)")
-        .label_style((SANS, 14))
-        .draw()?;
+    let mut c = panel(
+        &bottom,
+        Frame::new(12, 40, 60, 14),
+        xlo..xhi,
+        vlo..vhi,
+        ("x (mm)", "ẋ (mm/s)"),
+    )?;
     c.draw_series(LineSeries::new(
         o.measured.iter().map(|p| (p.1, p.2)),
         BLACK.mix(0.5),
     ))?
     .label("measured phase plane")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.mix(0.5)));
+    .legend(line_key(BLACK.mix(0.5)));
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.1, p.2)),
         BLUE.mix(0.7),
     ))?
     .label("simulated phase plane")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
+    .legend(line_key(BLUE));
     c.draw_series(
         o.strobe_measured
             .iter()

@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use shared::control::Prediction;
 
 use super::session::CycleRow;
-use crate::plot::{SANS, ensure_font, series_legend};
+use crate::plot::{Frame, SANS, canvas, line_key, panel, series_legend};
 
 /// Controller states in plotting order (y levels of the state panel).
 const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"];
@@ -25,10 +25,7 @@ pub fn draw(
     prediction: Option<&Prediction>,
     force_limit_n: f64,
 ) -> Result<()> {
-    ensure_font();
-    let root = BitMapBackend::new(path, (1000, 1000)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (SANS, 22))?;
+    let root = canvas(path, (1000, 1000), Some((title, 22)))?;
     let panels = root.split_evenly((3, 1));
     // From the first logged cycle's whole second (a rig log starts mid-session).
     let t0 = rows.first().map_or(0.0, |r| r.t_s.floor());
@@ -57,16 +54,13 @@ pub fn draw(
     } else {
         (0.0, 10.0)
     };
-    let mut c = ChartBuilder::on(&panels[0])
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(80)
-        .build_cartesian_2d(t0..t1, flo..fhi)?;
-    c.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("drive frequency (Hz)")
-        .label_style((SANS, 14))
-        .draw()?;
+    let mut c = panel(
+        &panels[0],
+        Frame::new(10, 35, 80, 14),
+        t0..t1,
+        flo..fhi,
+        ("t (s)", "drive frequency (Hz)"),
+    )?;
     c.draw_series(
         rows.iter()
             .filter(driving)
@@ -82,14 +76,14 @@ pub fn draw(
             RED.stroke_width(1),
         ))?
         .label("model target")
-        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
+        .legend(line_key(RED));
         for edge in p.band_hz {
             let e = f64::from(edge);
             c.draw_series(LineSeries::new([(t0, e), (t1, e)], grey))?;
         }
         c.draw_series(std::iter::empty::<PathElement<(f64, f64)>>())?
             .label("model 1/1 band edges")
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey));
+            .legend(line_key(grey));
     }
     series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
 
@@ -100,16 +94,13 @@ pub fn draw(
         .flatten()
         .fold(force_limit_n, f64::max)
         * 1.08;
-    let mut c = ChartBuilder::on(&panels[1])
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(80)
-        .build_cartesian_2d(t0..t1, 0.0..fmax)?;
-    c.configure_mesh()
-        .x_desc("t (s)")
-        .y_desc("peak impact force per cycle (N)")
-        .label_style((SANS, 14))
-        .draw()?;
+    let mut c = panel(
+        &panels[1],
+        Frame::new(10, 35, 80, 14),
+        t0..t1,
+        0.0..fmax,
+        ("t (s)", "peak impact force per cycle (N)"),
+    )?;
     let orange = RGBColor(230, 120, 0);
     if rows.iter().any(|r| r.true_peak_n.is_some()) {
         c.draw_series(rows.iter().filter_map(|r| {
@@ -130,7 +121,7 @@ pub fn draw(
         RED.mix(0.6),
     ))?
     .label("force limit")
-    .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED.mix(0.6)));
+    .legend(line_key(RED.mix(0.6)));
     series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
 
     // State.
