@@ -125,6 +125,11 @@ const IRREGULAR: RGBColor = RGBColor(0, 0, 0);
 const EMPTY: RGBColor = RGBColor(255, 255, 255);
 const NOT_ONE_ONE: RGBColor = RGBColor(228, 228, 228);
 
+/// The bifurcation diagram's panels: Poincaré `u` above, the impact peaks below.
+const BIF_TOP: Frame = Frame::new(10, 40, 70, 15).desc_font(17);
+
+const BIF_BOTTOM: Frame = Frame::new(10, 45, 70, 15).desc_font(17);
+
 /// Legend class of a regime on a map: its position in the legend order and its name.
 pub fn map_class(r: Regime) -> (usize, String) {
     match r {
@@ -510,13 +515,7 @@ pub fn bifurcation(
     };
     let (x0, x1) = pad(ranges.x);
     let (u0, u1) = pad((ranges.u.0.min(gap_mm), ranges.u.1.max(gap_mm)));
-    let mut ct = panel(
-        &top,
-        Frame::new(10, 40, 70, 15).desc_font(17),
-        x0..x1,
-        u0..u1,
-        ("Ω/ω", "Poincaré u (mm)"),
-    )?;
+    let mut ct = panel(&top, BIF_TOP, x0..x1, u0..u1, ("Ω/ω", "Poincaré u (mm)"))?;
     ct.draw_series(LineSeries::new(
         [(x0, gap_mm), (x1, gap_mm)],
         BLACK.mix(0.4),
@@ -536,7 +535,7 @@ pub fn bifurcation(
     }
     let mut cb = panel(
         &bottom,
-        Frame::new(10, 45, 70, 15).desc_font(17),
+        BIF_BOTTOM,
         x0..x1,
         0.0..(ranges.force_max * 1.06).max(1.0),
         ("Ω/ω", "impact peak F_i/mg"),

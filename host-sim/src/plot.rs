@@ -27,6 +27,9 @@ pub(crate) fn ensure_font() {
 pub(crate) type Chart<'a, 'b> =
     ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
+/// The time-series figure's three stacked panels.
+const STACKED: Frame = Frame::new(10, 35, 60, 14);
+
 /// The response figures' chart on `root`: `F_i/mg` from 0 to `ymax` over `Ω/ω` in `x`, the
 /// title at `title_px`, axes labelled.
 ///
@@ -447,7 +450,7 @@ pub fn time_series(
     let (ylo, yhi) = span(ts.iter().flat_map(|p| [p.u_mm, p.x_mm]).chain([gap_mm]));
     let mut c = panel(
         &panels[0],
-        Frame::new(10, 35, 60, 14),
+        STACKED,
         t0..t1,
         ylo..yhi,
         ("t (s)", "displacement (mm)"),
@@ -472,7 +475,7 @@ pub fn time_series(
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;
     let mut c = panel(
         &panels[1],
-        Frame::new(10, 35, 60, 14),
+        STACKED,
         t0..t1,
         0.0..fmax,
         ("t (s)", "impact force F_i/mg"),
@@ -483,7 +486,7 @@ pub fn time_series(
     let (vlo, vhi) = span(ts.iter().map(|p| p.du_mm_s));
     let mut c = panel(
         &panels[2],
-        Frame::new(10, 35, 60, 14),
+        STACKED,
         ulo..uhi,
         vlo..vhi,
         ("u (mm)", "u̇ (mm/s)"),

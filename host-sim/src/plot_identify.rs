@@ -10,6 +10,9 @@ use shared::model::ContactLawKind;
 use crate::identify::contact::{DropData, Fit, SimDrop};
 use crate::plot::{Frame, SANS, canvas, line_key, panel, series_legend};
 
+/// The time-series comparison's panels.
+const TRACE: Frame = Frame::new(12, 40, 60, 14);
+
 /// Colour of a contact law's curves.
 pub fn law_color(name: &str) -> RGBColor {
     match name.parse::<ContactLawKind>() {
@@ -278,7 +281,7 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
     let (xlo, xhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.1));
     let mut c = panel(
         &top,
-        Frame::new(12, 40, 60, 14),
+        TRACE,
         0.0..t1,
         xlo..xhi,
         ("t (s)", "absolute displacement x (mm)"),
@@ -297,13 +300,7 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
     .legend(line_key(BLUE.stroke_width(2)));
     series_legend(&mut c, None, 13)?;
     let (vlo, vhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.2));
-    let mut c = panel(
-        &bottom,
-        Frame::new(12, 40, 60, 14),
-        xlo..xhi,
-        vlo..vhi,
-        ("x (mm)", "ẋ (mm/s)"),
-    )?;
+    let mut c = panel(&bottom, TRACE, xlo..xhi, vlo..vhi, ("x (mm)", "ẋ (mm/s)"))?;
     c.draw_series(LineSeries::new(
         o.measured.iter().map(|p| (p.1, p.2)),
         BLACK.mix(0.5),

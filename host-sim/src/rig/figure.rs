@@ -13,6 +13,9 @@ use crate::plot::{Frame, SANS, canvas, line_key, panel, series_legend};
 /// Controller states in plotting order (y levels of the state panel).
 const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"];
 
+/// The stacked panels (wide y labels: the state names).
+const PANEL: Frame = Frame::new(10, 35, 80, 14);
+
 /// Three panels over time: frequency (with the model's target and band), per-cycle peak
 /// forces (measured by the controller, true from the plant, the force limit), and the state.
 ///
@@ -56,7 +59,7 @@ pub fn draw(
     };
     let mut c = panel(
         &panels[0],
-        Frame::new(10, 35, 80, 14),
+        PANEL,
         t0..t1,
         flo..fhi,
         ("t (s)", "drive frequency (Hz)"),
@@ -96,7 +99,7 @@ pub fn draw(
         * 1.08;
     let mut c = panel(
         &panels[1],
-        Frame::new(10, 35, 80, 14),
+        PANEL,
         t0..t1,
         0.0..fmax,
         ("t (s)", "peak impact force per cycle (N)"),
