@@ -50,6 +50,18 @@ fn rows_between(r: &HilRun, t0: f64, t1: f64) -> Vec<CycleRow> {
         .collect()
 }
 
+/// The cart's amplitude stays under 0.01 mm (the drive is off) in every cycle in `(t0, t1]`.
+fn assert_cart_still(r: &HilRun, t0: f64, t1: f64) {
+    for row in rows_between(r, t0, t1) {
+        assert!(
+            row.cart_amp_mm < 0.01,
+            "cart {} mm at {} s",
+            row.cart_amp_mm,
+            row.t_s
+        );
+    }
+}
+
 #[test]
 fn wire_rig_at_zero_gap_reaches_one_one_near_the_select_target() {
     let r = hil(0.0, 0.0, 30.0, Scenario::default());
@@ -81,15 +93,22 @@ fn wire_rig_at_zero_gap_reaches_one_one_near_the_select_target() {
     assert!(r.faults.is_empty());
 }
 
-/// The drifted plant's true peak force dwelling at `freq_hz` (manual `freq`, no tracking).
-fn dwell_peak_after_drift(freq_hz: f64) -> f64 {
+/// The default scenario with the rig's natural frequency drifting up 5 %, from `at_s` over
+/// `duration_s`.
+fn drift_up_5pct(at_s: f64, duration_s: f64) -> Scenario {
     let mut sc = Scenario::default();
     sc.faults.push(TimedFault::Drift {
-        at_s: 0.0,
-        duration_s: 0.0,
+        at_s,
+        duration_s,
         natural_freq_pct: 5.0,
         contact_stiffness_pct: 0.0,
     });
+    sc
+}
+
+/// The drifted plant's true peak force dwelling at `freq_hz` (manual `freq`, no tracking).
+fn dwell_peak_after_drift(freq_hz: f64) -> f64 {
+    let mut sc = drift_up_5pct(0.0, 0.0);
     sc.commands = vec![
         command(0.8, &format!("freq {freq_hz}")),
         command(1.0, "start"),
@@ -106,14 +125,7 @@ fn dwell_peak_after_drift(freq_hz: f64) -> f64 {
 
 #[test]
 fn natural_frequency_drift_is_followed_without_losing_one_one() {
-    let mut sc = Scenario::default();
-    sc.faults.push(TimedFault::Drift {
-        at_s: 10.0,
-        duration_s: 60.0,
-        natural_freq_pct: 5.0,
-        contact_stiffness_pct: 0.0,
-    });
-    let r = hil(0.0, 0.0, 75.0, sc);
+    let r = hil(0.0, 0.0, 75.0, drift_up_5pct(10.0, 60.0));
     // Lost cycles counted on the plant, from the ramp's end to the end of the run.
     let rows = rows_between(&r, 3.0, 75.0);
     let lost = rows.iter().filter(|x| x.true_impacts != 1).count();
@@ -177,13 +189,8 @@ fn sensor_fault(fault: TimedFault, expected: &[Fault]) {
     assert!(expected.contains(&f), "{f:?}");
     assert!((15.0..15.5).contains(&t), "fault at {t} s");
     // 4 mm/s from 0.89 mm: 0.22 s, plus the amplifier's lag.
+    assert_cart_still(&r, t + 0.5, 28.0);
     for row in rows_between(&r, t + 0.5, 28.0) {
-        assert!(
-            row.cart_amp_mm < 0.01,
-            "cart {} mm at {} s",
-            row.cart_amp_mm,
-            row.t_s
-        );
         assert!(
             row.state == "fault" || row.t_s >= 25.0,
             "{} at {}",
@@ -309,13 +316,6 @@ fn a_harder_contact_above_the_force_limit_trips_the_abort() {
     // The plant really exceeded the limit in the cycle of the trip.
     let trip = r.rows.iter().find(|x| x.t_s >= t).unwrap();
     assert!(trip.true_peak_n.unwrap() > 280.0, "{:?}", trip.true_peak_n);
-    for row in rows_between(&r, t + 0.5, 8.0) {
-        assert!(
-            row.cart_amp_mm < 0.01,
-            "cart {} mm at {} s",
-            row.cart_amp_mm,
-            row.t_s
-        );
-    }
+    assert_cart_still(&r, t + 0.5, 8.0);
     assert_eq!(r.status.state, State::Fault);
 }

@@ -250,16 +250,19 @@ fn hertz_peaks_alone_do_not_fix_k_and_n() {
         duration_s: 0.5,
         max_impacts: 2,
     };
-    let a = simulate_drop(
-        &rig(ContactLaw::Hertz {
-            stiffness: k1,
-            exponent: n1,
-        }),
-        &spec,
-        &FIT_STEPS,
-        false,
-    )
-    .unwrap();
+    let hertz_drop = |stiffness, exponent| {
+        simulate_drop(
+            &rig(ContactLaw::Hertz {
+                stiffness,
+                exponent,
+            }),
+            &spec,
+            &FIT_STEPS,
+            false,
+        )
+        .unwrap()
+    };
+    let a = hertz_drop(k1, n1);
     let theta0 = (3e-3f64 / 0.075).asin();
     let v = (2.0 * 9.81 * 0.075 * (1.0 - theta0.cos())).sqrt();
     let m = 0.298;
@@ -275,16 +278,7 @@ fn hertz_peaks_alone_do_not_fix_k_and_n() {
     let n2 = 1.6;
     let k2 = f1.powf(n2 + 1.0) / ((n2 + 1.0) * m * v * v / 2.0).powf(n2);
     assert!(k2 / k1 > 2.5, "k2 {k2}");
-    let b = simulate_drop(
-        &rig(ContactLaw::Hertz {
-            stiffness: k2,
-            exponent: n2,
-        }),
-        &spec,
-        &FIT_STEPS,
-        false,
-    )
-    .unwrap();
+    let b = hertz_drop(k2, n2);
     for (x, y) in a.impacts.iter().zip(&b.impacts) {
         assert!(
             rel(x.peak_n, y.peak_n) < 2e-3,

@@ -215,9 +215,27 @@ mod tests {
     use crate::model::{ContactLaw, RigId};
     use std::vec::Vec;
 
-    fn impacts(params: &RigParams, spec: &DropSpec, steps: &StepSettings) -> Vec<DropImpact> {
+    /// The impacts of a drop at gap 0 from `release_m` over `duration_s` (at most
+    /// `max_impacts`), at `steps` = (steps per natural period, sub-steps per contact).
+    fn impacts(
+        params: &RigParams,
+        release_m: f64,
+        duration_s: f64,
+        max_impacts: u32,
+        steps: (u32, u32),
+    ) -> Vec<DropImpact> {
+        let spec = DropSpec {
+            gap_m: 0.0,
+            release_m,
+            duration_s,
+            max_impacts,
+        };
+        let steps = StepSettings {
+            steps_per_period: steps.0,
+            substeps_per_contact: steps.1,
+        };
         let mut out = Vec::new();
-        run_drop::<f64, _>(params, spec, &SwitchBands::default(), steps, |r| {
+        run_drop::<f64, _>(params, &spec, &SwitchBands::default(), &steps, |r| {
             if let DropRecord::Impact(i) = r {
                 out.push(*i);
             }
@@ -234,17 +252,7 @@ mod tests {
         // speed by the closed-form restitution (0.317 for Table 3.1) and the free flight
         // between impacts is half a period.
         let p = RigId::Wires.preset();
-        let spec = DropSpec {
-            gap_m: 0.0,
-            release_m: 3e-3,
-            duration_s: 1.0,
-            max_impacts: 3,
-        };
-        let steps = StepSettings {
-            steps_per_period: 256,
-            substeps_per_contact: 64,
-        };
-        let imp = impacts(&p, &spec, &steps);
+        let imp = impacts(&p, 3e-3, 1.0, 3, (256, 64));
         assert_eq!(imp.len(), 3);
         let w = p.omega_n();
         let quarter = core::f64::consts::FRAC_PI_2 / w;
@@ -267,14 +275,7 @@ mod tests {
             assert!((dt - expect).abs() < 5e-5, "{dt} vs {expect}");
         }
         // The excitation is off: the same drop at another (fictitious) step grid agrees.
-        let coarse = impacts(
-            &p,
-            &spec,
-            &StepSettings {
-                steps_per_period: 128,
-                substeps_per_contact: 32,
-            },
-        );
+        let coarse = impacts(&p, 3e-3, 1.0, 3, (128, 32));
         assert!((coarse[0].peak_n - imp[0].peak_n).abs() < 2e-3 * imp[0].peak_n);
     }
 
@@ -288,17 +289,7 @@ mod tests {
             stiffness_n_m: 4e6,
             damping_n_s_m: 600.0,
         };
-        let spec = DropSpec {
-            gap_m: 0.0,
-            release_m: 2e-3,
-            duration_s: 0.2,
-            max_impacts: 1,
-        };
-        let steps = StepSettings {
-            steps_per_period: 256,
-            substeps_per_contact: 256,
-        };
-        let imp = impacts(&p, &spec, &steps);
+        let imp = impacts(&p, 2e-3, 0.2, 1, (256, 256));
         assert_eq!(imp.len(), 1);
         let v = imp[0].approach_speed_m_s;
         let (k, c, m) = (4e6, 600.0, p.mass_kg);

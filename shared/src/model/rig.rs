@@ -45,20 +45,16 @@ impl RigId {
     /// The thesis' identified parameters for this rig, with the identified spring–dashpot law
     /// (Table 3.1).
     pub fn preset(self) -> RigParams {
+        // Every beam has the same damping ratio; they differ in natural frequency.
+        let beam = |natural_freq_hz| Suspension::Beam {
+            natural_freq_hz,
+            damping_ratio: 0.004,
+        };
         let suspension = match self {
             RigId::Wires => Suspension::Wires { length_m: 0.075 },
-            RigId::Beam170 => Suspension::Beam {
-                natural_freq_hz: 4.50,
-                damping_ratio: 0.004,
-            },
-            RigId::Beam150 => Suspension::Beam {
-                natural_freq_hz: 5.25,
-                damping_ratio: 0.004,
-            },
-            RigId::Beam135 => Suspension::Beam {
-                natural_freq_hz: 6.50,
-                damping_ratio: 0.004,
-            },
+            RigId::Beam170 => beam(4.50),
+            RigId::Beam150 => beam(5.25),
+            RigId::Beam135 => beam(6.50),
         };
         RigParams {
             mass_kg: 0.298,
