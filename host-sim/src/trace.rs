@@ -499,55 +499,27 @@ mod tests {
 
     #[test]
     fn malformed_lines_are_named() {
-        let mut lines: Vec<String> = (0..20).map(|i| format!("{},{}", i, i)).collect();
-        lines[7] = "7,abc".into();
-        let text = format!("t_s,force_n\n{}", lines.join("\n"));
-        let e = format!(
-            "{:#}",
-            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
-        );
-        assert!(
-            e.contains("line 9") && e.contains("force_n") && e.contains("abc"),
-            "{e}"
-        );
-        lines[7] = "3,7".into();
-        let text = format!("t_s,force_n\n{}", lines.join("\n"));
-        let e = format!(
-            "{:#}",
-            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
-        );
-        assert!(
-            e.contains("line 9") && e.contains("does not increase"),
-            "{e}"
-        );
-        lines[7] = "7,NaN".into();
-        let text = format!("t_s,force_n\n{}", lines.join("\n"));
-        let e = format!(
-            "{:#}",
-            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
-        );
-        assert!(e.contains("line 9") && e.contains("not finite"), "{e}");
-        lines[7] = "7".into();
-        let text = format!("t_s,force_n\n{}", lines.join("\n"));
-        let e = format!(
-            "{:#}",
-            parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err()
-        );
-        assert!(e.contains("line 9"), "{e}");
-        let e = format!(
-            "{:#}",
-            parse_trace(
-                "t_s,force_n\n0,1\n1,2",
-                &fmt("t_s", "force_n", None),
-                "force"
+        let error = |text: &str| {
+            format!(
+                "{:#}",
+                parse_trace(text, &fmt("t_s", "force_n", None), "force").unwrap_err()
             )
-            .unwrap_err()
-        );
+        };
+        // Line 9 of the file (the header, then samples 0..20) broken each way in turn.
+        for (bad, expect) in [
+            ("7,abc", &["line 9", "force_n", "abc"][..]),
+            ("3,7", &["line 9", "does not increase"]),
+            ("7,NaN", &["line 9", "not finite"]),
+            ("7", &["line 9"]),
+        ] {
+            let mut lines: Vec<String> = (0..20).map(|i| format!("{},{}", i, i)).collect();
+            lines[7] = bad.into();
+            let e = error(&format!("t_s,force_n\n{}", lines.join("\n")));
+            assert!(expect.iter().all(|x| e.contains(x)), "{bad}: {e}");
+        }
+        let e = error("t_s,force_n\n0,1\n1,2");
         assert!(e.contains("at least"), "{e}");
-        let e = format!(
-            "{:#}",
-            parse_trace("t_s,f\n0,1\n1,2", &fmt("t_s", "force_n", None), "force").unwrap_err()
-        );
+        let e = error("t_s,f\n0,1\n1,2");
         assert!(e.contains("no force column `force_n`"), "{e}");
     }
 }
