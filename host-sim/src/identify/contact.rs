@@ -658,43 +658,36 @@ impl Problem<'_> {
     pub(crate) fn law_at(&self, x: &[f64]) -> Result<ContactLaw, f64> {
         let s = &self.x0_scale;
         let out = |v: f64, lo: f64, hi: f64| (lo - v).max(0.0) + (v - hi).max(0.0);
+        // The bounds: the exponent n in [1, 3], Lankarani–Nikravesh's restitution in [0.01, 1].
+        let d = match self.law {
+            ContactLawKind::SpringDashpot => 0.0,
+            ContactLawKind::Hertz | ContactLawKind::HuntCrossley => out(x[1], 1.0, 3.0),
+            ContactLawKind::LankaraniNikravesh => out(x[1], 1.0, 3.0) + out(x[2], 0.01, 1.0),
+        };
+        if d > 0.0 {
+            return Err(d);
+        }
+        // A power law's stiffness from its force at the reference penetration δ_ref.
+        let stiffness = || s[0] * x[0].exp() / self.delta_ref.powf(x[1]);
         let law = match self.law {
             ContactLawKind::SpringDashpot => ContactLaw::SpringDashpot {
                 stiffness_n_m: s[0] * x[0].exp(),
                 damping_n_s_m: s[1] * x[1].exp(),
             },
-            ContactLawKind::Hertz => {
-                let d = out(x[1], 1.0, 3.0);
-                if d > 0.0 {
-                    return Err(d);
-                }
-                ContactLaw::Hertz {
-                    stiffness: s[0] * x[0].exp() / self.delta_ref.powf(x[1]),
-                    exponent: x[1],
-                }
-            }
-            ContactLawKind::HuntCrossley => {
-                let d = out(x[1], 1.0, 3.0);
-                if d > 0.0 {
-                    return Err(d);
-                }
-                ContactLaw::HuntCrossley {
-                    stiffness: s[0] * x[0].exp() / self.delta_ref.powf(x[1]),
-                    exponent: x[1],
-                    lambda_s_m: s[2] * x[2].exp(),
-                }
-            }
-            ContactLawKind::LankaraniNikravesh => {
-                let d = out(x[1], 1.0, 3.0) + out(x[2], 0.01, 1.0);
-                if d > 0.0 {
-                    return Err(d);
-                }
-                ContactLaw::LankaraniNikravesh {
-                    stiffness: s[0] * x[0].exp() / self.delta_ref.powf(x[1]),
-                    exponent: x[1],
-                    restitution: x[2],
-                }
-            }
+            ContactLawKind::Hertz => ContactLaw::Hertz {
+                stiffness: stiffness(),
+                exponent: x[1],
+            },
+            ContactLawKind::HuntCrossley => ContactLaw::HuntCrossley {
+                stiffness: stiffness(),
+                exponent: x[1],
+                lambda_s_m: s[2] * x[2].exp(),
+            },
+            ContactLawKind::LankaraniNikravesh => ContactLaw::LankaraniNikravesh {
+                stiffness: stiffness(),
+                exponent: x[1],
+                restitution: x[2],
+            },
         };
         law.validate().map_err(|_| 1.0)?;
         Ok(law)
