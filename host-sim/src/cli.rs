@@ -33,10 +33,27 @@ pub enum Command {
     Points(commands::points::PointsArgs),
     /// Bifurcation diagram: Poincaré u and impact peaks F_i/mg vs Ω/ω, from rest or by
     /// continuation (up/down/both).
+    ///
+    /// --out: one row per Poincaré point or impact: index, branch, omega_ratio, freq_hz, regime,
+    /// kind (strobe|impact), k (period of the window), u_mm, du_mm_s (strobes),
+    /// impact_force_mg (impacts).
+    ///
+    /// --plot: Poincaré u (mm) and impact peaks F_i/mg vs Ω/ω, two panels.
     Bifurcation(commands::bifurcation::BifurcationArgs),
     /// Peterka map: the impact regime over a gap × frequency grid, and the z = 1/1 force map.
+    ///
+    /// --out: one row per grid point (gap outer, frequency inner): index, gap_mm, gap_ratio,
+    /// omega_ratio, freq_hz, regime, impacts, impact_force_mg, transient_periods, settled.
+    ///
+    /// --plot: regime over Ω/ω (x) and gap/A0 (y), one colour per regime (Fig. 3.24).
     Peterka(commands::peterka::PeterkaArgs),
     /// Basins of attraction over a grid of initial conditions (u0, u̇0).
+    ///
+    /// --out: one row per initial condition (u0 fastest): index, u0_mm, v0_mm_s, impacting,
+    /// regime, attractor, attractor_u_mm, attractor_v_mm_s, impacts, impact_force_mg, settled
+    /// (a shard writes the ungrouped rows; `merge` groups them).
+    ///
+    /// --plot: u0 (x) × u̇0 (y) coloured by attractor, attractor points marked.
     Basins(commands::basins::BasinsArgs),
     /// Virtual rig: the firmware's controller in closed loop with a simulated hammer (drive and
     /// sensor chains, injected faults, console commands), no hardware.

@@ -11,17 +11,15 @@
 //! A shard stores the ungrouped rows (`strobe_u_mm`, `strobe_v_mm_s`); grouping needs the
 //! whole grid and happens in the one-run command and in `merge`, through the same code.
 
-use std::path::PathBuf;
-
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 
+use super::GridOutArgs;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::basins::{self, Basins, BasinsGrid, MAX_U0_MM, MAX_V0_MM_S};
-use crate::grid::{self, CountSweep, Figures};
-use crate::shard::ShardArg;
+use crate::grid::{self, CountSweep};
 
 /// Arguments of `basins`.
 #[derive(Debug, Args)]
@@ -47,17 +45,9 @@ pub struct BasinsArgs {
     /// max(|Δu|/A0, |Δu̇|/(A0 Ω)) (1e-6 ..= 1).
     #[arg(long, default_value_t = 0.01)]
     pub attractor_tol: f64,
-    /// CSV output, one row per initial condition (u0 fastest): index, u0_mm, v0_mm_s,
-    /// impacting, regime, attractor, attractor_u_mm, attractor_v_mm_s, impacts,
-    /// impact_force_mg, settled. A shard writes ungrouped rows instead (see `merge`).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// PNG: u0 (x) × u̇0 (y) coloured by attractor, attractor points marked.
-    #[arg(long)]
-    pub plot: Option<PathBuf>,
-    /// Shard of the grid to compute.
+    /// CSV and figure.
     #[command(flatten)]
-    pub shard: ShardArg,
+    pub output: GridOutArgs,
 }
 
 /// Runs `basins`.
@@ -91,20 +81,8 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
             grid.gap_mm
         );
     }
-    let shard = a.shard.resolve()?;
-    let figures = Figures {
-        plot: a.plot.as_deref(),
-        force_plot: None,
-    };
-    grid::command::<Basins>(
-        &setup,
-        &grid,
-        grid.points(),
-        shard,
-        &a.out,
-        figures,
-        |o, meta, out, f| {
-            grid::run::<Basins, _>(o, meta, out, f, |batch| basins::rows(&setup, &grid, batch))
-        },
-    )
+    let dest = a.output.destination(None)?;
+    grid::from_rest::<Basins, _>(&setup, &grid, grid.points(), dest, |b| {
+        basins::rows(&setup, &grid, b)
+    })
 }

@@ -1,17 +1,14 @@
 //! `host-sim bifurcation`: the bifurcation diagram over an `Ω/ω` sweep at one gap, from rest
 //! at each frequency (parallel, shardable) or by continuation up, down or both (the
 //! computation: [`crate::grid::bifurcation`]).
-
-use std::path::PathBuf;
-
 use anyhow::{Result, bail};
 use clap::Args;
 
+use super::GridOutArgs;
 use super::omega_sweep;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::grid::bifurcation::{self, BifGrid, Bifurcation, Continuation};
-use crate::grid::{self, Figures, per_point};
-use crate::shard::ShardArg;
+use crate::grid::{self, per_point};
 
 /// Arguments of `bifurcation`.
 #[derive(Debug, Args)]
@@ -30,17 +27,9 @@ pub struct BifurcationArgs {
     /// (default: from rest at each frequency).
     #[arg(long, value_enum)]
     pub continuation: Option<Continuation>,
-    /// CSV output, one row per Poincaré point or impact: index, branch, omega_ratio, freq_hz,
-    /// regime, kind (strobe|impact), k (period of the window), u_mm, du_mm_s (strobes),
-    /// impact_force_mg (impacts).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// PNG: Poincaré u (mm) and impact peaks F_i/mg vs Ω/ω, two panels.
-    #[arg(long)]
-    pub plot: Option<PathBuf>,
-    /// Shard of the grid to compute.
+    /// CSV and diagram.
     #[command(flatten)]
-    pub shard: ShardArg,
+    pub output: GridOutArgs,
 }
 
 /// Runs `bifurcation`.
@@ -51,8 +40,8 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
-    let shard = a.shard.resolve()?;
-    if a.continuation.is_some() && shard.is_some() {
+    let dest = a.output.destination(None)?;
+    if a.continuation.is_some() && dest.shard.is_some() {
         bail!(
             "--shard: a continuation is sequential along the sweep and cannot be sharded \
              (drop --shard, and unset {}/{} if they are set; or run from rest)",
@@ -65,19 +54,9 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
         omega_ratio: sweep,
         continuation: a.continuation,
     };
-    let figures = Figures {
-        plot: a.plot.as_deref(),
-        force_plot: None,
-    };
     let points = sweep.len() as u64;
-    grid::command::<Bifurcation>(
-        &setup,
-        &grid,
-        points,
-        shard,
-        &a.out,
-        figures,
-        |o, meta, out, f| match a.continuation {
+    grid::command::<Bifurcation>(&setup, &grid, points, dest, |o, meta, out, f| {
+        match a.continuation {
             Some(mode) => grid::complete::<Bifurcation>(o, meta, out, f, |path| {
                 bifurcation::continuation(&setup, gap_m, &sweep, mode, path)
             }),
@@ -88,6 +67,6 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
                 f,
                 per_point(|i| bifurcation::from_rest(&setup, gap_m, &sweep, i)),
             ),
-        },
-    )
+        }
+    })
 }

@@ -1,12 +1,16 @@
 //! One module per command: each parses its arguments, calls the library, writes its outputs
 //! and prints.
 
+use std::path::{Path, PathBuf};
+
 use anyhow::Result;
 use clap::Args;
 use shared::analysis::Sweep;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 
 use crate::config::parse_sweep;
+use crate::grid::{Destination, Figures};
+use crate::shard::ShardArg;
 use crate::trace::{TimeUnit, TraceFormat};
 
 pub mod basins;
@@ -34,6 +38,38 @@ pub fn omega_sweep(text: &str) -> Result<Sweep> {
         OMEGA_RATIO_RANGE.0,
         OMEGA_RATIO_RANGE.1,
     )
+}
+
+/// The outputs of a grid command (`peterka`, `basins`, `bifurcation`).
+#[derive(Debug, Args)]
+pub struct GridOutArgs {
+    /// CSV output, one row per point (columns listed in `--help`). With a shard: the shard's
+    /// rows, line 1 `# host-sim-shard {metadata}`, for `merge`.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// PNG: the command's figure (described in `--help`); not with a shard (`merge` draws it).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Shard of the grid to compute.
+    #[command(flatten)]
+    pub shard: ShardArg,
+}
+
+impl GridOutArgs {
+    /// Where the command writes, with `force_plot` (peterka's second figure) if asked.
+    ///
+    /// # Errors
+    /// A malformed `--shard` or SLURM array variables.
+    pub fn destination<'a>(&'a self, force_plot: Option<&'a Path>) -> Result<Destination<'a>> {
+        Ok(Destination {
+            out: &self.out,
+            figures: Figures {
+                plot: self.plot.as_deref(),
+                force_plot,
+            },
+            shard: self.shard.resolve()?,
+        })
+    }
 }
 
 /// Where a lab file's time comes from and its unit (`identify`, `compare`).

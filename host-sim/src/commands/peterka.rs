@@ -8,10 +8,10 @@ use anyhow::{Result, bail};
 use clap::{ArgGroup, Args};
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 
+use super::GridOutArgs;
 use crate::config::{MAX_GAP_MM, RigOpts, Setup, parse_sweep};
+use crate::grid;
 use crate::grid::peterka::{self, Axis, AxisUnit, MAX_POINTS, Peterka, PeterkaGrid};
-use crate::grid::{self, Figures};
-use crate::shard::ShardArg;
 
 /// Arguments of `peterka`.
 #[derive(Debug, Args)]
@@ -35,20 +35,12 @@ pub struct PeterkaArgs {
     /// Frequency-ratio sweep Ω/ω, START:END:STEP.
     #[arg(long, allow_hyphen_values = true)]
     pub omega_ratio: Option<String>,
-    /// CSV output, one row per grid point (gap outer, frequency inner): index, gap_mm,
-    /// gap_ratio, omega_ratio, freq_hz, regime, impacts, impact_force_mg, transient_periods,
-    /// settled. With a shard: line 1 is `# host-sim-shard {metadata}`.
-    #[arg(long)]
-    pub out: PathBuf,
-    /// PNG: regime over Ω/ω (x) and gap/A0 (y), one colour per regime (Fig. 3.24).
-    #[arg(long)]
-    pub plot: Option<PathBuf>,
+    /// CSV and regime map.
+    #[command(flatten)]
+    pub output: GridOutArgs,
     /// PNG: the z = 1/1 region coloured by F_i/mg, with a colour bar (Fig. 3.26).
     #[arg(long)]
     pub force_plot: Option<PathBuf>,
-    /// Shard of the grid to compute.
-    #[command(flatten)]
-    pub shard: ShardArg,
 }
 
 fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
@@ -100,20 +92,8 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
 pub fn run(a: &PeterkaArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let grid = parse_axes(a, &setup)?;
-    let shard = a.shard.resolve()?;
-    let figures = Figures {
-        plot: a.plot.as_deref(),
-        force_plot: a.force_plot.as_deref(),
-    };
-    grid::command::<Peterka>(
-        &setup,
-        &grid,
-        grid.points(),
-        shard,
-        &a.out,
-        figures,
-        |o, meta, out, f| {
-            grid::run::<Peterka, _>(o, meta, out, f, |batch| peterka::rows(&setup, &grid, batch))
-        },
-    )
+    let dest = a.output.destination(a.force_plot.as_deref())?;
+    grid::from_rest::<Peterka, _>(&setup, &grid, grid.points(), dest, |b| {
+        peterka::rows(&setup, &grid, b)
+    })
 }

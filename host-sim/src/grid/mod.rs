@@ -241,9 +241,21 @@ where
     }
 }
 
-/// A grid command of kind `K` over `grid` (`points` points), whole or as `shard`: refuses
-/// figures on a shard, reserves `out`, lets `write(outputs, meta, reserved out, figures)`
-/// fill it ([`run`] or [`complete`]), commits the outputs and reports on stderr.
+/// Where a grid command writes: its CSV, the figures asked for, and the shard it computes
+/// (`None`: the whole grid).
+#[derive(Debug, Clone, Copy)]
+pub struct Destination<'a> {
+    /// The CSV (a shard's rows file with a shard).
+    pub out: &'a Path,
+    /// The figures asked for (refused with a shard).
+    pub figures: Figures<'a>,
+    /// The shard computed.
+    pub shard: Option<Shard>,
+}
+
+/// A grid command of kind `K` over `grid` (`points` points) into `dest`: refuses figures on a
+/// shard, reserves the CSV, lets `write(outputs, meta, reserved out, figures)` fill it ([`run`]
+/// or [`complete`]), commits the outputs and reports on stderr.
 ///
 /// # Errors
 /// A figure asked of a shard (named), and as `write`; nothing is left half-written.
@@ -251,11 +263,14 @@ pub fn command<K: GridKind>(
     setup: &Setup,
     grid: &K::Grid,
     points: u64,
-    shard: Option<Shard>,
-    out: &Path,
-    figures: Figures<'_>,
+    dest: Destination<'_>,
     write: impl FnOnce(&mut Outputs, &Meta, &Path, Figures<'_>) -> Result<()>,
 ) -> Result<()> {
+    let Destination {
+        out,
+        figures,
+        shard,
+    } = dest;
     if shard.is_some() {
         let asked: Vec<&str> = [
             ("--plot", figures.plot),
@@ -279,6 +294,26 @@ pub fn command<K: GridKind>(
     outputs.commit()?;
     eprintln!("{} → {}", meta.describe(), out.display());
     Ok(())
+}
+
+/// A from-rest grid command ([`command`] with [`run`]): `compute(batch)` gives the rows of
+/// each point of `batch`.
+///
+/// # Errors
+/// As [`command`] and [`run`].
+pub fn from_rest<K: GridKind, I>(
+    setup: &Setup,
+    grid: &K::Grid,
+    points: u64,
+    dest: Destination<'_>,
+    compute: impl Fn(&[usize]) -> Vec<Result<I>> + Sync,
+) -> Result<()>
+where
+    I: IntoIterator<Item = K::Row> + Send,
+{
+    command::<K>(setup, grid, points, dest, |outputs, meta, out, figures| {
+        run::<K, I>(outputs, meta, out, figures, compute)
+    })
 }
 
 /// Merges the shard `files` of one grid of kind `K` (their shared metadata `meta`) into the
