@@ -98,18 +98,18 @@ pub fn run_cmd(a: &HilArgs) -> Result<()> {
             println!("pty: {}", path.display());
             let _ = std::io::stdout().flush();
         })?;
-        // Whoever started the server may have stopped reading its stdout: write what it
-        // takes, and the files regardless.
-        let _ = writeln!(
-            std::io::stdout(),
+        // Stdout carries only the `pty:` line: whoever started the server may have stopped
+        // reading it. The summary goes to stderr, after the files.
+        write_outputs(a, &r, actual, force_limit, csv.as_deref(), png.as_deref())?;
+        outputs.commit()?;
+        eprintln!(
             "virtual rig stopped after {:.3} s of rig time ({:.2} s wall); {} bytes received, {} bytes not taken by the client",
             r.samples as f64 / 1e4,
             r.wall_s,
             stats.rx_bytes,
             stats.tx_lost_bytes
         );
-        write_outputs(a, &r, actual, force_limit, csv.as_deref(), png.as_deref())?;
-        return outputs.commit();
+        return Ok(());
     } else {
         let r = run(&setup)?;
         println!(
