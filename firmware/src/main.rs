@@ -1,6 +1,7 @@
 //! Firmware of the vibro-impact rig: an RTIC 2 application for the STM32F407 (Cortex-M4F,
 //! 168 MHz), thin glue around `shared::control` (the controller, the console service, the
-//! capture): the tasks are in `app.rs`, the peripherals in `board_rig.rs`.
+//! capture): the tasks are in `app.rs`, the peripherals in `board_rig.rs` (what it shares with
+//! the emulator image's board in `board_common.rs`).
 //!
 //! Data flows one way: the ADC's force samples (TIM2 trigger, 10 kHz, the `sample` task on
 //! the end-of-conversion interrupt) → `shared::control::Controller` (drive cycles, impacts,
