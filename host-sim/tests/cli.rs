@@ -5,7 +5,7 @@ use std::fs;
 
 mod common;
 
-use common::{host_sim, line, ok, rejected};
+use common::{host_sim, line, ok, rejected, spawn_first_line};
 
 #[test]
 fn select_json_reports_the_operating_point() {
@@ -325,21 +325,11 @@ fn a_reader_that_stops_early_ends_the_command_quietly() {
     // `host-sim response … | head -1`: 4,501 CSV rows on stdout, the reader takes the header
     // and closes the pipe. The command ends by SIGPIPE, as Unix tools do, without a panic or
     // an error message.
-    use std::io::{BufRead, BufReader};
     use std::os::unix::process::ExitStatusExt;
-    use std::process::Stdio;
-    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
-        .args(line(
-            "response --rig wires --gap-mm 0 --omega-ratio 0.5:5.0:0.001",
-        ))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
+    let (child, first) = spawn_first_line(
+        &line("response --rig wires --gap-mm 0 --omega-ratio 0.5:5.0:0.001"),
+        std::process::Stdio::piped(),
+    );
     assert!(first.starts_with("omega_ratio,freq_hz"), "{first}");
     let out = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);

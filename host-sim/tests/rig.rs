@@ -2,12 +2,12 @@
 //! (`host-sim hil --serve-pty`, a separate process, at ≥ 10× real time), every assertion read
 //! on the plant (the server's own log of true contact forces and cart amplitude).
 
-use std::io::{BufRead, BufReader};
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 
 mod common;
-use common::{line, ok};
+use common::{line, ok, spawn_first_line};
 use std::time::{Duration, Instant};
 
 use host_sim::client::RigPort;
@@ -63,19 +63,12 @@ impl Server {
         let sc = dir.path().join("scenario.toml");
         std::fs::write(&sc, scenario).unwrap();
         let log = dir.path().join("truth.csv");
-        let mut child = Command::new(bin())
-            .args(["hil", "--serve-pty", "--speed", speed, "--scenario"])
-            .arg(&sc)
-            .arg("--out")
-            .arg(&log)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let mut first = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut first)
-            .unwrap();
+        let args = ["hil", "--serve-pty", "--speed", speed, "--scenario"]
+            .map(OsStr::new)
+            .into_iter()
+            .chain([sc.as_os_str(), OsStr::new("--out"), log.as_os_str()])
+            .collect::<Vec<_>>();
+        let (child, first) = spawn_first_line(&args, Stdio::inherit());
         let pty = PathBuf::from(first.trim().strip_prefix("pty: ").expect(&first));
         Server {
             child,

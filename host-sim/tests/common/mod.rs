@@ -6,7 +6,9 @@
 use std::ffi::OsStr;
 use std::fmt::Debug;
 use std::fs;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
+use std::process::{Child, Stdio};
 
 use assert_cmd::Command;
 
@@ -16,6 +18,22 @@ pub fn host_sim() -> Command {
     c.env_remove("SLURM_ARRAY_TASK_ID")
         .env_remove("SLURM_ARRAY_TASK_COUNT");
     c
+}
+
+/// Starts `host-sim args` (stderr to `stderr`), reads the first line of its stdout and closes
+/// the pipe: the process and that line.
+pub fn spawn_first_line<S: AsRef<OsStr>>(args: &[S], stderr: Stdio) -> (Child, String) {
+    let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(stderr)
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    (child, first)
 }
 
 /// The arguments of a command line written as one string (split at whitespace; the tests'
