@@ -209,7 +209,13 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
     wait_for("task 1 to run", Duration::from_secs(300), || {
         states(&task1).iter().any(|(_, s, _)| s == "RUNNING")
     });
-    std::thread::sleep(Duration::from_millis(1500));
+    // Half a second into its ~3 s of computing (10.5k points on one core): still computing, with
+    // a wide margin on a faster machine. Its shard must not exist yet, or the race is lost.
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        !run_dir.join("shards/peterka_1.csv").exists(),
+        "task 1 finished before it could be cancelled: use a larger PETERKA_LONG"
+    );
     run(Command::new("scancel").arg(&task1));
     wait_for("the other tasks", Duration::from_secs(600), || {
         states(&array).iter().all(|(_, s, _)| terminal(s))
