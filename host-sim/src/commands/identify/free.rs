@@ -1,0 +1,120 @@
+//! `identify free`: the suspension from a free decay, reported and written as a config.
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+use shared::error::check_range;
+
+use super::FreeArgs;
+use crate::config::config_text;
+use crate::identify::free::{FreeDecay, identify_free};
+use crate::output::Outputs;
+use crate::trace::read_trace;
+
+#[derive(Serialize)]
+struct FreeReport {
+    #[serde(flatten)]
+    decay: FreeDecay,
+    mass_kg: f64,
+    stiffness_n_m: f64,
+    damping_n_s_m: f64,
+    pendulum_length_m: f64,
+}
+
+pub(super) fn run(a: &FreeArgs) -> Result<()> {
+    check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
+    let trace = read_trace(
+        &a.trace,
+        &a.time.format(&a.value_col, a.unit.to_si()),
+        if a.unit.is_acceleration() {
+            "acceleration"
+        } else {
+            "displacement"
+        },
+    )?;
+    let decay =
+        identify_free(&trace).with_context(|| format!("free decay {}", a.trace.display()))?;
+    let mut params = a.rig.preset();
+    params.mass_kg = a.mass_kg;
+    params.suspension = decay.suspension(&params.suspension, params.gravity_m_s2);
+    params
+        .validate()
+        .context("the identified suspension is out of range")?;
+    let report = FreeReport {
+        decay,
+        mass_kg: a.mass_kg,
+        stiffness_n_m: decay.stiffness_n_m(a.mass_kg),
+        damping_n_s_m: decay.damping_n_s_m(a.mass_kg),
+        pendulum_length_m: decay.pendulum_length_m(params.gravity_m_s2),
+    };
+    let mut outputs = Outputs::new();
+    if let Some(p) = &a.out {
+        let tmp = outputs.reserve(p)?;
+        let comment = format!(
+            "host-sim identify free: {} ({:.1} cycles): f_n = {:.5} Hz (95 %: {:.5} .. {:.5}), \
+             zeta = {:.5} (95 %: {:.5} .. {:.5})\n\
+             k = m w^2 = {:.5e} N/m (Eq. 3-34), c = 2 zeta m w = {:.5e} N s/m",
+            a.trace.display(),
+            decay.cycles,
+            decay.natural_freq_hz,
+            decay.natural_freq_ci95_hz[0],
+            decay.natural_freq_ci95_hz[1],
+            decay.damping_ratio,
+            decay.damping_ratio_ci95[0],
+            decay.damping_ratio_ci95[1],
+            report.stiffness_n_m,
+            report.damping_n_s_m
+        );
+        std::fs::write(
+            &tmp,
+            config_text(
+                &comment,
+                &params,
+                &a.rig.preset(),
+                &["mass_kg", "suspension"],
+            )?,
+        )
+        .with_context(|| format!("writing {}", p.display()))?;
+    }
+    outputs.commit()?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "Free decay {}: {} samples, {:.1} cycles, fit residual {:.2} % of the signal rms",
+        a.trace.display(),
+        trace.t_s.len(),
+        decay.cycles,
+        100.0 * decay.residual_rel
+    );
+    println!(
+        "  natural frequency ω/2π = {:.5} Hz (95 %: {:.5} – {:.5}; damped {:.5} Hz)",
+        decay.natural_freq_hz,
+        decay.natural_freq_ci95_hz[0],
+        decay.natural_freq_ci95_hz[1],
+        decay.damped_freq_hz
+    );
+    println!(
+        "  damping ratio ζ = {:.5} (95 %: {:.5} – {:.5}); correlation with ω {:+.3}",
+        decay.damping_ratio,
+        decay.damping_ratio_ci95[0],
+        decay.damping_ratio_ci95[1],
+        decay.correlation_fn_zeta
+    );
+    println!(
+        "  m = {} kg: k = m ω² = {:.5e} N/m (Eq. 3-34), c = 2ζmω = {:.5e} N s/m; as a pendulum l = g/ω² = {:.2} mm",
+        a.mass_kg,
+        report.stiffness_n_m,
+        report.damping_n_s_m,
+        report.pendulum_length_m * 1e3
+    );
+    if let Some(p) = &a.out {
+        println!(
+            "  wrote {} (suspension of the {} rig; use it with --rig {} --config)",
+            p.display(),
+            a.rig,
+            a.rig
+        );
+    }
+    Ok(())
+}
