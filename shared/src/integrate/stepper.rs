@@ -48,7 +48,9 @@ pub const SUBSTEP_REFERENCE_SPEED_M_S: f64 = 0.5;
 /// stability region with room to spare (`|R(λh)|` 0.55 per sub-step at the rig's contact damping
 /// ratio 0.469, exact `e^{Re λh}` 0.48): the contact's own oscillation, which the resting test
 /// has already found below `ε`, keeps dying out, and the slow quasi-static motion (time scale
-/// `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy.
+/// `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy. At the embedded profile's `K = 8` it is
+/// `ω_c · 8 h_c = π`, outside the region (`|R|` 1.94): the contact's oscillation grows until the
+/// resting test fails and the stepper returns to `h_c`.
 pub const RESTING_SUBSTEPS: u32 = 8;
 
 /// `ε` of the resting test: the contact force balances the others to `ε`, and the
