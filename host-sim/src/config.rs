@@ -51,7 +51,8 @@ pub struct RigOpts {
     /// Contact law (default: the identified spring–dashpot of Table 3.1).
     #[arg(long, value_parser = parse_law)]
     pub law: Option<ContactLawKind>,
-    /// TOML file overriding any parameter: tables `[rig]`, `[settings]`, `[selection]`.
+    /// TOML file overriding any parameter: tables `[rig]`, `[settings]`, `[selection]` (and
+    /// `[uncertainty]`, written by `identify contact --out`, for `select --uncertainty`).
     #[arg(long, value_name = "FILE.toml")]
     pub config: Option<PathBuf>,
     /// Float type of the simulation.

@@ -20,11 +20,12 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use serde::Serialize;
+use shared::analysis::SelectionError;
 use shared::model::ContactLawKind;
 
 use crate::config::{Setup, UncertaintyTable};
 use crate::identify::uncertainty::law_from_coordinates;
-use crate::selection::{SelectReport, compute_with};
+use crate::selection::{SelectReport, compute_parts};
 
 /// Median and 95 % range.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -187,16 +188,14 @@ pub fn propagate(
         .map(|law| {
             let mut s = setup.clone();
             s.params.contact = *law;
-            let r = match compute_with(&s, gap_mm, "") {
-                Ok((rep, resp)) => Ok((Some(rep), resp)),
-                // No robust 1/1 point in this draw: its nominal response still counts.
-                Err(_) => {
-                    let sweep = s.selection.omega_ratio;
-                    let gap_m = crate::config::gap_m_from_mm("--gap-mm", gap_mm)?;
-                    crate::response::compute(&s, &[gap_m], &sweep, "")
-                        .map(|mut v| (None, v.swap_remove(0)))
+            // A draw without a robust 1/1 point still counts by its nominal response.
+            let r = compute_parts(&s, gap_mm, "").and_then(|(rep, resp)| match rep {
+                Ok(rep) => Ok((Some(rep), resp)),
+                Err(SelectionError::NoOneToOneBand | SelectionError::NoRobustPoint { .. }) => {
+                    Ok((None, resp))
                 }
-            };
+                Err(e) => Err(anyhow::anyhow!("{e}")),
+            });
             bar.inc(1);
             r
         })

@@ -3,7 +3,7 @@
 
 use anyhow::{Result, anyhow};
 use serde::Serialize;
-use shared::analysis::{ResponseSample, Selection, perturbed_gaps, select};
+use shared::analysis::{ResponseSample, Selection, SelectionError, perturbed_gaps, select};
 
 use crate::config::{Setup, gap_m_from_mm};
 use crate::precision::Precision;
@@ -66,7 +66,7 @@ pub struct OtherBest {
 }
 
 /// The report of selection `sel` at `gap_mm` (responses checked at `gaps_mm`).
-pub fn report(setup: &Setup, gap_mm: f64, gaps_mm: Vec<f64>, sel: &Selection) -> SelectReport {
+fn report(setup: &Setup, gap_mm: f64, gaps_mm: Vec<f64>, sel: &Selection) -> SelectReport {
     SelectReport {
         rig: setup.rig.to_string(),
         law: setup.params.contact.kind().to_string(),
@@ -115,18 +115,9 @@ pub fn compute_with(
     gap_mm: f64,
     what: &str,
 ) -> Result<(SelectReport, Vec<shared::observe::PointResult>)> {
-    let gap_m = gap_m_from_mm("--gap-mm", gap_mm)?;
+    let (selection, nominal) = compute_parts(setup, gap_mm, what)?;
     let spec = setup.selection;
-    let sweep = spec.omega_ratio;
-    let mut gaps = vec![gap_m];
-    gaps.extend(perturbed_gaps(gap_m, spec.gap_margin_mm));
-    let responses = response::compute(setup, &gaps, &sweep, what)?;
-    let samples: Vec<Vec<ResponseSample>> = responses
-        .iter()
-        .map(|r| r.iter().map(ResponseSample::from).collect())
-        .collect();
-    let perturbed: Vec<&[ResponseSample]> = samples[1..].iter().map(Vec::as_slice).collect();
-    let sel = select(&setup.params, &spec, &samples[0], &perturbed).map_err(|e| {
+    let report = selection.map_err(|e| {
         anyhow!(
             "{} rig at {gap_mm} mm gap (±{} % frequency, ±{} mm gap): {e}",
             setup.rig,
@@ -134,10 +125,35 @@ pub fn compute_with(
             spec.gap_margin_mm
         )
     })?;
+    Ok((report, nominal))
+}
+
+/// The selection's two results apart: the report, or why the responses hold no robust `1/1`
+/// point ([`SelectionError`]); and the nominal-gap response, which exists either way.
+///
+/// # Errors
+/// Bad input or a failed response computation.
+pub fn compute_parts(
+    setup: &Setup,
+    gap_mm: f64,
+    what: &str,
+) -> Result<(
+    Result<SelectReport, SelectionError>,
+    Vec<shared::observe::PointResult>,
+)> {
+    let gap_m = gap_m_from_mm("--gap-mm", gap_mm)?;
+    let spec = setup.selection;
+    let sweep = spec.omega_ratio;
+    let mut gaps = vec![gap_m];
+    gaps.extend(perturbed_gaps(gap_m, spec.gap_margin_mm));
+    let mut responses = response::compute(setup, &gaps, &sweep, what)?;
+    let samples: Vec<Vec<ResponseSample>> = responses
+        .iter()
+        .map(|r| r.iter().map(ResponseSample::from).collect())
+        .collect();
+    let perturbed: Vec<&[ResponseSample]> = samples[1..].iter().map(Vec::as_slice).collect();
     let gaps_mm = gaps.iter().map(|g| g * 1e3).collect();
-    let mut responses = responses;
-    Ok((
-        report(setup, gap_mm, gaps_mm, &sel),
-        responses.swap_remove(0),
-    ))
+    let report = select(&setup.params, &spec, &samples[0], &perturbed)
+        .map(|sel| report(setup, gap_mm, gaps_mm, &sel));
+    Ok((report, responses.swap_remove(0)))
 }

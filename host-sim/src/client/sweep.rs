@@ -153,8 +153,6 @@ pub fn sweep(
     Ok(SweepOutcome::Complete(points))
 }
 
-/// Waits until the drive dwells at `f`, skips the settling cycles and returns the dwell's
-/// cycles, or the fault that ended it.
 /// Where a sweep ended by a fault writes what it measured: `fr.csv` → `fr.partial.csv`.
 pub fn partial_path(out: &Path) -> PathBuf {
     let stem = out
@@ -166,6 +164,8 @@ pub fn partial_path(out: &Path) -> PathBuf {
     out.with_file_name(format!("{stem}.partial.{ext}"))
 }
 
+/// Waits until the drive dwells at `f`, skips the settling cycles and returns the dwell's
+/// cycles, or the fault that ended it.
 fn dwell(port: &mut RigPort, spec: &SweepSpec, f: f64) -> Result<Result<Vec<CycleLine>, String>> {
     let mut settled = 0;
     let mut cycles = Vec::new();

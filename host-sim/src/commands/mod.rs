@@ -43,7 +43,7 @@ pub fn omega_sweep(text: &str) -> Result<Sweep> {
 /// The outputs of a grid command (`peterka`, `basins`, `bifurcation`).
 #[derive(Debug, Args)]
 pub struct GridOutArgs {
-    /// CSV output, one row per point (columns listed in `--help`). With a shard: the shard's
+    /// CSV output, its rows and columns as listed in `--help`. With a shard: the shard's
     /// rows, line 1 `# host-sim-shard {metadata}`, for `merge`.
     #[arg(long)]
     pub out: PathBuf,

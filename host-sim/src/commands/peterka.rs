@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 use clap::{ArgGroup, Args};
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 
-use super::GridOutArgs;
+use super::{GridOutArgs, omega_sweep};
 use crate::config::{MAX_GAP_MM, RigOpts, Setup, parse_sweep};
 use crate::grid;
 use crate::grid::peterka::{self, Axis, AxisUnit, MAX_POINTS, Peterka, PeterkaGrid};
@@ -69,7 +69,7 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
         },
         (None, Some(t)) => Axis {
             unit: AxisUnit::OmegaRatio,
-            sweep: parse_sweep("--omega-ratio", t, OMEGA_RATIO_RANGE.0, OMEGA_RATIO_RANGE.1)?,
+            sweep: omega_sweep(t)?,
         },
         _ => bail!("give exactly one of --freq-hz and --omega-ratio"),
     };

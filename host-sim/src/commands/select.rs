@@ -49,10 +49,10 @@ pub struct SelectArgs {
     #[arg(long)]
     pub uncertainty: bool,
     /// With --uncertainty: parameter sets drawn (8 ..= 100000).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, requires = "uncertainty")]
     pub draws: usize,
     /// With --uncertainty: seed of the draws.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, requires = "uncertainty")]
     pub seed: u64,
 }
 

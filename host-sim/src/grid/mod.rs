@@ -281,8 +281,11 @@ pub fn command<K: GridKind>(
         .collect();
         if !asked.is_empty() {
             bail!(
-                "{}: a shard writes only its CSV; draw the figures with `host-sim merge`",
-                asked.join(", ")
+                "{}: a shard (--shard, or {}/{} set) writes only its CSV; draw the figures \
+                 with `host-sim merge`",
+                asked.join(", "),
+                crate::shard::SLURM_VARS.0,
+                crate::shard::SLURM_VARS.1
             );
         }
     }

@@ -12,7 +12,7 @@
 //!   samples; runs closer than twice the previous run's length are one impact (re-contacts).
 //!   At most `max_impacts`, in time order.
 //! - Peak force of an impact: the vertex of a least-squares parabola through the 5 samples
-//!   around the largest one (when all 5 are above half of it), else the largest sample.
+//!   around the largest one (when all 5 are above 80 % of it), else the largest sample.
 //! - Impact time: the force-weighted centroid `∫ t F dt / ∫ F dt` over the impact's window
 //!   (the run plus half its length on each side): robust to noise, unlike the onset or the
 //!   peak of a flat-topped pulse. Only differences to the first impact are used, so the trace's
@@ -176,7 +176,7 @@ fn parabola_vertex(t: &[f64], f: &[f64]) -> Option<(f64, f64)> {
 
 /// The peak force of the impact whose run above the threshold is samples `a..=b` of `f` (times
 /// `t`): the vertex of a least-squares parabola through the 5 samples around the largest one,
-/// when all 5 are above half of it and the vertex lies between the largest one's neighbours;
+/// when all 5 are above 80 % of it and the vertex lies between the largest one's neighbours;
 /// else the largest sample.
 pub(crate) fn peak_estimate(t: &[f64], f: &[f64], a: usize, b: usize) -> f64 {
     let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
@@ -804,9 +804,12 @@ impl Problem<'_> {
         self.traces.len()
     }
 
-    /// Samples per contact of the first trace ([`DropData::samples_per_contact`]).
+    /// Samples per contact of the least resolved trace ([`DropData::samples_per_contact`]).
     pub(crate) fn samples_per_contact(&self) -> f64 {
-        self.traces[0].data.samples_per_contact()
+        self.traces
+            .iter()
+            .map(|tc| tc.data.samples_per_contact())
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// The unweighted terms of one trace's error against its simulated drop (module docs;
@@ -1121,34 +1124,4 @@ pub fn fit_law_joint(
         traces,
         uncertainty,
     })
-}
-
-/// The residual of a given law against `data` (no fit), e.g. to score the generating law.
-///
-/// # Errors
-/// Invalid parameters.
-pub fn residual_of(
-    setup: &DropSetup,
-    data: &DropData,
-    law: &ContactLaw,
-    weights: Weights,
-) -> Result<Residual> {
-    let tests = [DropTest {
-        setup: *setup,
-        data: data.clone(),
-    }];
-    residual_of_joint(&tests, law, weights)
-}
-
-/// The joint residual of a given law against several drop tests (no fit).
-///
-/// # Errors
-/// No test, a test without impacts, or invalid parameters.
-pub fn residual_of_joint(
-    tests: &[DropTest],
-    law: &ContactLaw,
-    weights: Weights,
-) -> Result<Residual> {
-    let problem = problem(tests, law.kind(), weights)?;
-    Ok(problem.residual(law)?.0)
 }

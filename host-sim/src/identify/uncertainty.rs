@@ -101,7 +101,8 @@ pub struct Uncertainty {
     pub notes: Vec<String>,
     /// Sensor noise of each trace, N.
     pub noise_n: Vec<f64>,
-    /// Samples per contact of the first trace (width at half maximum over the sampling step).
+    /// Samples per contact of the least resolved trace (width at half maximum over the sampling
+    /// step).
     pub samples_per_contact: f64,
 }
 

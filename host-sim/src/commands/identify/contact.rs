@@ -93,11 +93,9 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
     check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
     shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
     let setup = Setup::from_opts(&crate::config::RigOpts {
-        rig: a.rig,
-        law: None,
         config: a.config.clone(),
         precision: crate::precision::Precision::F64,
-        profile: crate::config::Profile::Host,
+        ..crate::config::RigOpts::preset(a.rig)
     })?;
     let mut params = setup.params;
     params.mass_kg = a.mass_kg;
