@@ -106,3 +106,42 @@ pub fn main() -> ExitCode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    use super::Cli;
+    use crate::grid::{basins, bifurcation, peterka};
+    use crate::shard::header;
+
+    /// The CSV columns each grid command's `--help` lists are its row's fields, in order.
+    #[test]
+    fn grid_help_lists_the_csv_columns() {
+        let cli = Cli::command();
+        for (name, columns) in [
+            ("peterka", header::<peterka::PeterkaRow>()),
+            ("basins", header::<basins::BasinRow>()),
+            ("bifurcation", header::<bifurcation::BifRow>()),
+        ] {
+            let about = cli
+                .find_subcommand(name)
+                .and_then(|c| c.get_long_about())
+                .unwrap()
+                .to_string();
+            let words: Vec<&str> = about
+                .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+                .filter(|w| !w.is_empty())
+                .collect();
+            let mut at = 0;
+            for col in columns {
+                let found = words[at..].iter().position(|w| w == col);
+                assert!(
+                    found.is_some(),
+                    "{name}: `{col}` not listed in order in {about}"
+                );
+                at += found.unwrap_or(0) + 1;
+            }
+        }
+    }
+}

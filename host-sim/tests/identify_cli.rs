@@ -303,6 +303,28 @@ fn compare_a_response_with_itself_has_no_error() {
         "{out}"
     );
     assert!(fs::metadata(p("cmp.png")).unwrap().len() > 10_000);
+    // The same response measured 1.00 F_i/mg too high: simulated − measured is −1.00 at every
+    // point (bias, RMS and largest difference).
+    let exp = fs::read_to_string(p("exp.csv")).unwrap();
+    let mut lines = exp.lines();
+    let header = lines.next().unwrap();
+    let col = header
+        .split(',')
+        .position(|c| c == "impact_force_mg")
+        .unwrap();
+    let mut shifted = format!("{header}\n");
+    for l in lines {
+        let mut cells: Vec<String> = l.split(',').map(str::to_owned).collect();
+        cells[col] = (cells[col].parse::<f64>().unwrap() + 1.0).to_string();
+        shifted += &(cells.join(",") + "\n");
+    }
+    fs::write(p("shifted.csv"), shifted).unwrap();
+    let out = ok(&line(&format!(
+        "compare --rig wires --gap-mm 0 --experiment {} --out {}",
+        p("shifted.csv"),
+        p("shifted.png")
+    )));
+    assert!(out.contains("bias -1.00, RMS 1.00, largest -1.00"), "{out}");
     // A lab export: `%` and `#` comment lines, `;` as the delimiter (the trace reader's rules).
     let exp = fs::read_to_string(p("exp.csv")).unwrap();
     fs::write(

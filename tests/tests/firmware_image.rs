@@ -85,6 +85,10 @@ fn the_rig_image_fits_its_flash_budget() {
             .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
             .unwrap_or(0)
     };
+    assert!(
+        size(".text") > 0,
+        "no .text in the llvm-size output:\n{text}"
+    );
     let flash = size(".vector_table") + size(".text") + size(".rodata") + size(".data");
     eprintln!(
         "rig image: flash {flash} B ({:.1} KiB)",

@@ -94,4 +94,24 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
     assert!((10 * 1024..96 * 1024).contains(&stack), "stack {stack} B");
     assert_eq!(field(&out, "state"), "track");
     assert_eq!(field(&out, "fault"), "none");
+
+    // sin/cos on the target (docs/model.md, "Dependencies"): the model's polynomial is as
+    // accurate as libm's and no dearer than micromath, whose 1e-3 error is why it is not used.
+    let math = |name: &str| -> (u64, f64) {
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(&format!("math sin_cos {name} ")))
+            .unwrap_or_else(|| panic!("no `math sin_cos {name}` line in:\n{out}"));
+        (
+            field(line, "insns").parse().unwrap(),
+            field(line, "max_err").parse().unwrap(),
+        )
+    };
+    let (model, micro, libm) = (math("model"), math("micromath"), math("libm"));
+    assert!(model.1 < 1e-7 && libm.1 < 1e-7, "{model:?} {libm:?}");
+    assert!(micro.1 > 1e-4, "micromath {micro:?}");
+    assert!(
+        model.0 <= micro.0 && model.0 * 10 < libm.0,
+        "{model:?} {micro:?} {libm:?}"
+    );
 }
