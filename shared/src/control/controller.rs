@@ -298,7 +298,8 @@ impl Controller {
     /// Runs one console command.
     ///
     /// # Errors
-    /// [`CommandError`]: the command was refused and nothing changed.
+    /// [`CommandError`]: the command was refused and nothing changed, except
+    /// [`CommandError::Tripped`]: `start` latched that fault (the controller is in `Fault`).
     pub fn execute(&mut self, cmd: Command) -> Result<Reply, CommandError> {
         match cmd {
             Command::Status => return Ok(Reply::Status(self.status())),

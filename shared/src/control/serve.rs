@@ -5,7 +5,8 @@
 //! lock is released.
 //!
 //! Replies (one line each, no line ending): `ok`, the status line, the help line, `id …`,
-//! `diag …`, `capture …`, `segment …`, or `error: …` (then nothing changed). Asynchronous lines
+//! `diag …`, `capture …`, `segment …`, or `error: …` (then nothing changed, except `error: start
+//! tripped fault …`, which latched the fault). Asynchronous lines
 //! (`!T`, `!E`: [`AsyncRecord`]) are never replies: a reply never starts with `!`.
 
 use core::fmt;

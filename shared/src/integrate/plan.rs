@@ -39,12 +39,7 @@ impl StepSettings {
     /// # Errors
     /// [`ParamError::CountOutOfRange`] naming the field.
     pub fn validate(&self) -> Result<(), ParamError> {
-        check_count(
-            "steps_per_period",
-            self.steps_per_period,
-            16,
-            MAX_STEPS_PER_PERIOD,
-        )?;
+        check_steps_per_period(self.steps_per_period)?;
         check_count("substeps_per_contact", self.substeps_per_contact, 4, 1024)?;
         Ok(())
     }
@@ -74,12 +69,7 @@ impl<T: Real> PhaseTable<T> {
     /// # Errors
     /// [`ParamError::CountOutOfRange`] (`steps_per_period`, `16 ..= 512`).
     pub fn new(steps_per_period: u32) -> Result<Self, ParamError> {
-        let n = check_count(
-            "steps_per_period",
-            steps_per_period,
-            16,
-            MAX_STEPS_PER_PERIOD,
-        )?;
+        let n = check_steps_per_period(steps_per_period)?;
         let mut t = PhaseTable {
             n,
             sin_half: [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize],
@@ -174,6 +164,11 @@ impl<T: Real> StepPlan<T> {
     }
 }
 
+/// `N` within `16 ..= MAX_STEPS_PER_PERIOD` ([`ParamError::CountOutOfRange`] otherwise).
+fn check_steps_per_period(n: u32) -> Result<u32, ParamError> {
+    check_count("steps_per_period", n, 16, MAX_STEPS_PER_PERIOD)
+}
+
 /// `h = (2π/Ω)/N`, s, in f64.
 #[inline]
 pub(crate) fn step_s(omega_exc: f64, steps_per_period: u32) -> f64 {
@@ -212,7 +207,8 @@ mod tests {
             StepPlan::<f64>::new(core::f64::consts::TAU, 1000.0, &StepSettings::default()).unwrap();
         assert_eq!(plan.substeps, 80);
         assert!((plan.h - 1.0 / 64.0).abs() < 1e-15);
-        assert!((plan.h_c * 80.0 - plan.h).abs() < 1e-15);
+        // h_c = h/M, not the upper bound π/ω_c/K it was sized by.
+        assert!((plan.h_c - 1.0 / 64.0 / 80.0).abs() < 1e-18);
         assert!(matches!(
             StepPlan::<f32>::new(1.0, f64::NAN, &StepSettings::default()),
             Err(ParamError::NotFinite { field: "omega_c" })

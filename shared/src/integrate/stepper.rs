@@ -320,14 +320,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     #[inline(always)]
     pub(super) fn lane_finish(&mut self, st: &FreeState<T>, taken: u32) {
         let s = &mut self.state;
-        s.x = Vector2::new(st.x0, st.x1);
-        s.at_x = FieldEval {
-            dx: Vector2::new(st.x1, st.a),
-            force: T::zero(),
-            region: Region::Free,
-            delta: st.d,
-            delta_dot: st.dd,
-        };
+        (s.x, s.at_x) = clear_of_surface(st);
         s.k += taken;
         s.steps += u64::from(taken);
         s.rk4_steps += u64::from(taken);
@@ -455,15 +448,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         let (next, _, near) =
             free_step::<T, bool, FullTrig>(wires, &c, &st, rest, s_mid, s_end, eta);
         self.state.rk4_steps += 1;
-        let x1 = Vector2::new(next.x0, next.x1);
-        // Clear of the surface, the free field is the switch-model field.
-        let end = FieldEval {
-            dx: Vector2::new(next.x1, next.a),
-            force: T::zero(),
-            region: Region::Free,
-            delta: next.d,
-            delta_dot: next.dd,
-        };
+        let (x1, end) = clear_of_surface(&next);
         if !near {
             return Ok((x1, end));
         }
@@ -664,6 +649,20 @@ fn min_approach<T: Real>() -> T {
     T::from_f64(MIN_APPROACH_SPEED_M_S)
 }
 
+/// The state and switch-model field of a free-flight state clear of the surface (there the
+/// free field is the switch-model field): the reverse of [`Simulator::free_state`].
+#[inline(always)]
+fn clear_of_surface<T: Real>(st: &FreeState<T>) -> (Vector2<T>, FieldEval<T>) {
+    let eval = FieldEval {
+        dx: Vector2::new(st.x1, st.a),
+        force: T::zero(),
+        region: Region::Free,
+        delta: st.d,
+        delta_dot: st.dd,
+    };
+    (Vector2::new(st.x0, st.x1), eval)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -674,6 +673,7 @@ mod tests {
         // its step plan and the step state.
         let size = core::mem::size_of::<Simulator<'_, f32>>();
         assert!(size <= 256, "Simulator<f32> is {size} bytes");
-        assert!(core::mem::size_of::<PhaseTable<f32>>() > 6000);
+        // Far smaller than the tables it refers to (holding them by value fails this).
+        assert!(size * 16 < core::mem::size_of::<PhaseTable<f32>>(), "{size} bytes");
     }
 }
