@@ -321,7 +321,8 @@ pub fn response_band(
     nominal: &[ResponsePoint],
     chosen: &crate::selection::SelectReport,
 ) -> Result<()> {
-    let root = canvas(path, (1000, 620), None)?; // The fitted law's 1/1 band holding the chosen point, widened by a fifth on each side.
+    let root = canvas(path, (1000, 620), None)?;
+    // The fitted law's 1/1 band holding the chosen point, widened by a fifth on each side.
     let [b0, b1] = chosen.band_omega_ratio;
     let pad = 0.2 * (b1 - b0);
     let (x0, x1) = (b0 - pad, b1 + pad);

@@ -130,9 +130,9 @@ pub fn draw(
     // State.
     let level = |s: &str| STATES.iter().position(|x| *x == s).unwrap_or(0) as f64;
     let mut c = ChartBuilder::on(&panels[2])
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(80)
+        .margin(PANEL.margin)
+        .x_label_area_size(PANEL.x_area)
+        .y_label_area_size(PANEL.y_area)
         .build_cartesian_2d(t0..t1, -0.5..5.5)?;
     c.configure_mesh()
         .x_desc("t (s)")
@@ -146,7 +146,7 @@ pub fn draw(
                 String::new()
             }
         })
-        .label_style((SANS, 14))
+        .label_style((SANS, PANEL.font))
         .draw()?;
     let mut steps = Vec::with_capacity(rows.len() * 2);
     let mut prev: Option<f64> = None;

@@ -674,6 +674,9 @@ mod tests {
         let size = core::mem::size_of::<Simulator<'_, f32>>();
         assert!(size <= 256, "Simulator<f32> is {size} bytes");
         // Far smaller than the tables it refers to (holding them by value fails this).
-        assert!(size * 16 < core::mem::size_of::<PhaseTable<f32>>(), "{size} bytes");
+        assert!(
+            size * 16 < core::mem::size_of::<PhaseTable<f32>>(),
+            "{size} bytes"
+        );
     }
 }
