@@ -88,13 +88,6 @@ pub struct FieldEval<T> {
     pub delta_dot: T,
 }
 
-/// The pendulum's relative displacement and velocity `(u, u̇) = (l sin θ, l θ̇ cos θ)` (m, m/s)
-/// from its length `l`, `θ̇` and `(sin θ, cos θ)`.
-#[inline(always)]
-fn wires_relative<T: Real>(length: T, theta_dot: T, (st, ct): (T, T)) -> (T, T) {
-    (length * st, length * theta_dot * ct)
-}
-
 /// The pendulum's `θ̈` (1/s²), Eq. (3-26): `excitation − (g/l) sin θ − contact`, with
 /// `excitation` the drive term (`(A0 Ω²/l) cos θ sin Ωt` for the harmonic cart) and `contact`
 /// the contact force's term `F_i/(m l)` (0 in free flight).
@@ -143,8 +136,7 @@ impl<T: Real> FreeFlight<T> {
         if wires {
             let (st, ct) = sin_cos;
             let acc = wires_accel(self.c1, st, self.c2 * ct * sin_phase, T::zero());
-            let (u, du) = wires_relative(self.c0, y1, sin_cos);
-            (acc, u - self.gap, du)
+            (acc, self.c0 * st - self.gap, self.c0 * y1 * ct)
         } else {
             let acc = beam_accel(self.c0, self.c1, y0, y1, self.c2 * sin_phase, T::zero());
             (acc, y0 - self.gap, y1)
@@ -394,8 +386,7 @@ impl<T: Real> Hammer<T> {
         match self.body {
             Body::Wires { length, .. } => {
                 let (st, ct) = x[0].sin_cos();
-                let (u, du) = wires_relative(length, x[1], (st, ct));
-                (u - self.gap, du, st, ct)
+                (length * st - self.gap, length * x[1] * ct, st, ct)
             }
             Body::Beam { .. } => (x[0] - self.gap, x[1], T::zero(), T::from_f64(1.0)),
         }
@@ -405,7 +396,10 @@ impl<T: Real> Hammer<T> {
     #[inline(always)]
     pub fn relative(&self, x: &Vector2<T>) -> (T, T) {
         match self.body {
-            Body::Wires { length, .. } => wires_relative(length, x[1], x[0].sin_cos()),
+            Body::Wires { length, .. } => {
+                let (st, ct) = x[0].sin_cos();
+                (length * st, length * x[1] * ct)
+            }
             Body::Beam { .. } => (x[0], x[1]),
         }
     }
