@@ -3,8 +3,8 @@
 //!
 //! `cargo bench -p host-sim --bench hil`
 
-use host_sim::rig::scenario::Scenario;
-use host_sim::rig::{HilSetup, run};
+use host_sim::virtual_rig::scenario::Scenario;
+use host_sim::virtual_rig::{HilSetup, run};
 use shared::model::RigId;
 
 fn main() {

@@ -21,9 +21,9 @@ use shared::observe::PointResult;
 
 use host_sim::config::Setup;
 use host_sim::grid::basins::{self, Basins, BasinsGrid};
-use host_sim::grid::{self, BATCH, CountSweep, Figures};
+use host_sim::grid::{self, CountSweep, Figures};
 use host_sim::output::Outputs;
-use host_sim::runner::{OperatingPoint, evaluate_batch};
+use host_sim::runner::{BATCH, OperatingPoint, evaluate_batch};
 
 fn peak_rss_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;

@@ -88,7 +88,7 @@ pub fn main() -> ExitCode {
         Command::Peterka(a) => commands::peterka::run(&a),
         Command::Basins(a) => commands::basins::run(&a),
         Command::Merge(a) => commands::merge::run(&a),
-        Command::Hil(a) => commands::hil::run_cmd(&a),
+        Command::Hil(a) => commands::hil::run(&a),
         Command::Rig(a) => commands::rig::run(&a),
         Command::Identify(a) => commands::identify::run(&a),
         Command::Drop(a) => commands::drop::run(&a),

@@ -10,10 +10,31 @@ use shared::error::check_range;
 use shared::observe::Regime;
 
 use crate::config::Setup;
-use crate::plot_identify::{ResponseOverlay, TsOverlay};
 use crate::runner::{OperatingPoint, evaluate_all};
 use crate::series;
 use crate::trace::{LabTable, Trace};
+
+/// A simulated frequency response and the measured points, for the comparison figure.
+#[derive(Debug, Clone, Default)]
+pub struct ResponseOverlay {
+    /// `(Ω/ω, F_i/mg, regime)` of the simulation.
+    pub sim: Vec<(f64, f64, shared::observe::Regime)>,
+    /// `(Ω/ω, F_i/mg)` measured.
+    pub measured: Vec<(f64, f64)>,
+}
+
+/// A measured and a simulated time series, for the comparison figure.
+#[derive(Debug, Clone, Default)]
+pub struct TsOverlay {
+    /// `(t s, x mm, ẋ mm/s)` measured.
+    pub measured: Vec<(f64, f64, f64)>,
+    /// `(t s, x mm, ẋ mm/s)` simulated, on the measured time axis.
+    pub sim: Vec<(f64, f64, f64)>,
+    /// Poincaré points `(x, ẋ)` measured.
+    pub strobe_measured: Vec<(f64, f64)>,
+    /// Poincaré points `(x, ẋ)` simulated.
+    pub strobe_sim: Vec<(f64, f64)>,
+}
 
 /// One measured point of a frequency response.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,7 +1,5 @@
 //! Frequency responses: the canonical protocol from rest at every `Ω/ω` of a sweep, at one or
-//! several gaps, all points in one parallel batch; the CSV rows and the figure of one response.
-
-use std::path::Path;
+//! several gaps, all points in one parallel batch, and the CSV rows of one response.
 
 use anyhow::Result;
 use serde::Serialize;
@@ -9,8 +7,6 @@ use shared::analysis::Sweep;
 use shared::observe::PointResult;
 
 use crate::config::Setup;
-use crate::output::{Outputs, write_csv};
-use crate::plot::{self, Highlight, ResponsePoint};
 use crate::runner::{OperatingPoint, evaluate_all};
 
 /// One CSV row of a frequency response.
@@ -75,53 +71,4 @@ pub fn rows(setup: &Setup, sweep: &Sweep, results: &[PointResult]) -> Vec<Respon
             }
         })
         .collect()
-}
-
-/// The points of a response figure (`results[i]` at `sweep.value(i)`).
-pub fn plot_points(sweep: &Sweep, results: &[PointResult]) -> Vec<ResponsePoint> {
-    results
-        .iter()
-        .enumerate()
-        .map(|(i, r)| ResponsePoint {
-            omega_ratio: sweep.value(i),
-            impact_force_mg: r.impact_force_mg,
-            regime: r.regime,
-        })
-        .collect()
-}
-
-/// Title line of a response figure at gap `gap_mm`, mm.
-pub fn title(setup: &Setup, gap_mm: f64) -> String {
-    format!(
-        "{} rig, gap {:.2} mm, {} law, {} — frequency response",
-        setup.rig,
-        gap_mm,
-        setup.params.contact.kind(),
-        setup.precision.name()
-    )
-}
-
-/// Reserves and writes the CSV (`out`: `rows`) and/or the figure (`plot_path`: `points`) of
-/// one response in `outputs`.
-///
-/// # Errors
-/// File or drawing errors.
-pub fn write(
-    outputs: &mut Outputs,
-    out: Option<&Path>,
-    plot_path: Option<&Path>,
-    title: &str,
-    rows: &[ResponseRow],
-    points: &[ResponsePoint],
-    highlight: Option<Highlight>,
-) -> Result<()> {
-    if let Some(p) = out {
-        let tmp = outputs.reserve(p)?;
-        write_csv(&tmp, rows)?;
-    }
-    if let Some(p) = plot_path {
-        let tmp = outputs.reserve(p)?;
-        plot::response(&tmp, title, points, highlight)?;
-    }
-    Ok(())
 }

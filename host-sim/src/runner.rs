@@ -1,5 +1,6 @@
-//! Parallel evaluation of operating points (rayon over both cores) with a progress bar on a
-//! terminal (indicatif draws nothing when stderr is not a terminal).
+//! The batch runner every parallel computation shares: the batch size, parallel evaluation of
+//! operating points (rayon over both cores) and the progress bar on a terminal (indicatif draws
+//! nothing when stderr is not a terminal).
 
 use anyhow::{Result, anyhow};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -9,7 +10,10 @@ use shared::analysis::{DEFAULT_LANES, evaluate_interleaved};
 use shared::observe::PointResult;
 
 use crate::config::Setup;
-use crate::grid::BATCH;
+
+/// Points per parallel task (a task interleaves its points on one core,
+/// [`shared::analysis::run_interleaved`]): the unit of every parallel evaluation.
+pub const BATCH: usize = 32;
 
 /// One operating point: gap (m) and `Ω/ω`.
 #[derive(Debug, Clone, Copy, PartialEq)]

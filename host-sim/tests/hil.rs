@@ -3,9 +3,9 @@
 //! not only the controller's own beliefs.
 
 use host_sim::config::Setup;
-use host_sim::rig::scenario::{Scenario, TimedCommand, TimedFault};
-use host_sim::rig::{CycleRow, HilRun, HilSetup, run};
 use host_sim::selection::compute;
+use host_sim::virtual_rig::scenario::{Scenario, TimedCommand, TimedFault};
+use host_sim::virtual_rig::{CycleRow, HilRun, HilSetup, run};
 use shared::control::{Fault, State};
 use shared::model::RigId;
 

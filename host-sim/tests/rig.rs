@@ -10,13 +10,13 @@ mod common;
 use common::{line, ok, spawn_first_line};
 use std::time::{Duration, Instant};
 
-use host_sim::client::RigPort;
-use host_sim::client::log::record;
-use host_sim::client::sweep::parse_range;
 use host_sim::config::Setup;
-use host_sim::rig::scenario::Scenario;
-use host_sim::rig::{HilSetup, Session};
+use host_sim::rig_link::RigPort;
+use host_sim::rig_link::log::record;
+use host_sim::rig_link::sweep::parse_range;
 use host_sim::runner::{OperatingPoint, evaluate_all};
+use host_sim::virtual_rig::scenario::Scenario;
+use host_sim::virtual_rig::{HilSetup, Session};
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use shared::control::Line;
@@ -104,7 +104,7 @@ fn wait_for(port: &mut RigPort, key: &str, value: &str, wall: Duration) -> Strin
     let end = Instant::now() + wall;
     loop {
         let s = port.command("status").unwrap();
-        if host_sim::client::protocol::field(&s, key) == Some(value) {
+        if host_sim::rig_link::protocol::field(&s, key) == Some(value) {
             return s;
         }
         assert!(Instant::now() < end, "{key}={value} never came: {s}");
@@ -325,7 +325,7 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     assert!(!out.status.success());
     assert!(stderr.contains("`sensor-open`"), "{stderr}");
     assert!(!fr.exists(), "a half-file under the --out name");
-    let partial = host_sim::client::sweep::partial_path(&fr);
+    let partial = host_sim::rig_link::sweep::partial_path(&fr);
     let text = std::fs::read_to_string(&partial).unwrap();
     assert!(
         text.starts_with("# partial sweep: ended by the fault `sensor-open`"),
@@ -341,7 +341,7 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("clear"));
-    assert!(!again.exists() && !host_sim::client::sweep::partial_path(&again).exists());
+    assert!(!again.exists() && !host_sim::rig_link::sweep::partial_path(&again).exists());
     // Let the rig run on past the abort before reading its log.
     let mut port = server.port();
     while port.uptime_s().unwrap() < 18.0 {

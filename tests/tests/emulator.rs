@@ -1,7 +1,7 @@
 //! The rig's whole firmware image — RTIC app, tasks, priorities, the console over USART2, TIM2
 //! at 10 kHz — on QEMU's `netduinoplus2` (the `firmware-qemu` image: the rig image's app with
 //! stand-ins for what QEMU lacks, listed in `firmware/src/board_emu.rs`), driven through its
-//! USART2 on a pseudo-terminal by the same client as the rig (`host_sim::client::RigPort`).
+//! USART2 on a pseudo-terminal by the same client as the rig (`host_sim::rig_link::RigPort`).
 //!
 //! Needs the image (`cargo fw-build`) and `qemu-system-arm`; without them the tests are skipped
 //! with a note, except under CI (`CI` set), where they fail. `-icount shift=3`: every guest
@@ -14,8 +14,8 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use host_sim::client::protocol::field;
-use host_sim::client::{AsyncLine, RigPort, SeqCounter};
+use host_sim::rig_link::protocol::field;
+use host_sim::rig_link::{AsyncLine, RigPort, SeqCounter};
 use shared::control::{Fixed, predict};
 use shared::model::RigId;
 

@@ -24,7 +24,6 @@ use super::TimeOpts;
 use crate::comparison;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::output::Outputs;
-use crate::plot_identify;
 use crate::trace::{LabTable, MotionUnit, trace_from_table};
 
 /// Arguments of `compare`.
@@ -80,7 +79,7 @@ pub fn run(a: &CompareArgs) -> Result<()> {
         );
         let mut outputs = Outputs::new();
         let tmp = outputs.reserve(&a.out)?;
-        plot_identify::response_compare(&tmp, &title, &summary, &overlay)?;
+        crate::figures::identify::response_compare(&tmp, &title, &summary, &overlay)?;
         outputs.commit()?;
         summary
     } else {
@@ -119,7 +118,7 @@ pub fn run(a: &CompareArgs) -> Result<()> {
         );
         let mut outputs = Outputs::new();
         let tmp = outputs.reserve(&a.out)?;
-        plot_identify::time_series_compare(&tmp, &title, &summary, &overlay)?;
+        crate::figures::identify::time_series_compare(&tmp, &title, &summary, &overlay)?;
         outputs.commit()?;
         summary
     };

@@ -8,10 +8,11 @@ use shared::model::RigId;
 
 use std::io::Write as _;
 
+use crate::figures::rig_log;
 use crate::output::{Outputs, write_csv};
-use crate::rig::pty::{ServeOptions, serve};
-use crate::rig::scenario::Scenario;
-use crate::rig::{HilRun, HilSetup, figure, run};
+use crate::virtual_rig::pty::{ServeOptions, serve};
+use crate::virtual_rig::scenario::Scenario;
+use crate::virtual_rig::{self, HilRun, HilSetup};
 
 /// Arguments of `hil`.
 #[derive(Debug, Args)]
@@ -67,7 +68,7 @@ fn parse_speed(s: &str) -> Result<f64, String> {
 /// # Errors
 /// Bad arguments or scenario (named, checked by [`run`]), or an output that cannot be written
 /// (nothing is left).
-pub fn run_cmd(a: &HilArgs) -> Result<()> {
+pub fn run(a: &HilArgs) -> Result<()> {
     let actual = a.actual_gap_mm.unwrap_or(a.gap_mm);
     let mut scenario = match &a.scenario {
         Some(p) => Scenario::from_file(p)?,
@@ -111,7 +112,7 @@ pub fn run_cmd(a: &HilArgs) -> Result<()> {
         );
         return Ok(());
     } else {
-        let r = run(&setup)?;
+        let r = virtual_rig::run(&setup)?;
         println!(
             "virtual rig: {} configured at {:.2} mm, real gap {:.2} mm, {:.1} s of rig time in {:.2} s wall ({:.0}× real time, one core)",
             a.rig,
@@ -159,7 +160,7 @@ fn write_outputs(
             "virtual rig: {} (configured gap {:.2} mm, real {:.2} mm)",
             a.rig, a.gap_mm, actual
         );
-        figure::draw(path, &title, &r.rows, r.prediction.as_ref(), force_limit)?;
+        rig_log::draw(path, &title, &r.rows, r.prediction.as_ref(), force_limit)?;
     }
     Ok(())
 }

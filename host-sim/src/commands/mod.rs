@@ -9,7 +9,13 @@ use shared::analysis::Sweep;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 
 use crate::config::parse_sweep;
+use crate::figures::{
+    self,
+    response::{Highlight, ResponsePoint},
+};
 use crate::grid::{Destination, Figures};
+use crate::output::{Outputs, write_csv};
+use crate::response::ResponseRow;
 use crate::shard::ShardArg;
 use crate::trace::{TimeUnit, TraceFormat};
 
@@ -98,4 +104,29 @@ impl TimeOpts {
             sample_rate_hz: self.sample_rate_hz,
         }
     }
+}
+
+/// Reserves and writes the CSV (`out`: `rows`) and/or the figure (`plot_path`: `points`) of
+/// one response in `outputs` (`response` and `select`).
+///
+/// # Errors
+/// File or drawing errors.
+pub fn write_response(
+    outputs: &mut Outputs,
+    out: Option<&Path>,
+    plot_path: Option<&Path>,
+    title: &str,
+    rows: &[ResponseRow],
+    points: &[ResponsePoint],
+    highlight: Option<Highlight>,
+) -> Result<()> {
+    if let Some(p) = out {
+        let tmp = outputs.reserve(p)?;
+        write_csv(&tmp, rows)?;
+    }
+    if let Some(p) = plot_path {
+        let tmp = outputs.reserve(p)?;
+        figures::response::response(&tmp, title, points, highlight)?;
+    }
+    Ok(())
 }

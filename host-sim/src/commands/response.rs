@@ -5,8 +5,9 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use super::omega_sweep;
+use super::{omega_sweep, write_response};
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::figures::response::{points, title};
 use crate::output::Outputs;
 use crate::response;
 
@@ -42,13 +43,13 @@ pub fn run(a: &ResponseArgs) -> Result<()> {
     let results = response::compute(&setup, &[gap_m], &sweep, "response")?.remove(0);
     let rows = response::rows(&setup, &sweep, &results);
     let mut outputs = Outputs::new();
-    response::write(
+    write_response(
         &mut outputs,
         a.out.as_deref(),
         a.plot.as_deref(),
-        &response::title(&setup, a.gap_mm),
+        &title(&setup, a.gap_mm),
         &rows,
-        &response::plot_points(&sweep, &results),
+        &points(&sweep, &results),
         None,
     )?;
     outputs.commit()?;

@@ -8,14 +8,17 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
 
-use crate::client::capture::{capture, write_trace};
-use crate::client::log::record;
-use crate::client::sweep::{SweepOutcome, SweepPoint, SweepSpec, parse_range, partial_path, sweep};
-use crate::client::{AsyncLine, RigPort};
+use crate::figures::response::{ResponsePoint, response};
+use crate::figures::rig_log;
 use crate::output::{Outputs, write_csv};
-use crate::plot::{self, ResponsePoint};
-use crate::rig::figure;
-use crate::rig::scenario::Scenario;
+use crate::rig_link::capture::{capture, write_trace};
+use crate::rig_link::log::{Log, record};
+use crate::rig_link::sweep::{
+    SweepOutcome, SweepPoint, SweepSpec, parse_range, partial_path, sweep,
+};
+use crate::rig_link::{AsyncLine, RigPort};
+use crate::virtual_rig::CycleRow;
+use crate::virtual_rig::scenario::Scenario;
 
 /// Arguments of `rig`.
 #[derive(Debug, Args)]
@@ -212,7 +215,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
                     "rig log: {} ({} board, firmware {}), gap {:.2} mm",
                     port.id.rig, port.id.board, port.id.firmware, port.id.gap_mm
                 );
-                figure::draw(p, &title, &log.figure_rows(), None, 280.0)?;
+                rig_log::draw(p, &title, &figure_rows(&log), None, 280.0)?;
             }
             outputs.commit()
         }
@@ -319,7 +322,7 @@ fn write_sweep(
             port.id.gap_mm,
             params.natural_freq_hz()
         );
-        plot::response(p, &title, &pts, None)?;
+        response(p, &title, &pts, None)?;
     }
     outputs.commit()
 }
@@ -414,4 +417,26 @@ fn console(port: &mut RigPort, telemetry: bool) -> Result<()> {
         port.command_ok("stream off").context("stream off")?;
     }
     Ok(())
+}
+
+/// A rig log's rows as the `hil` figure draws them (no plant truth on a rig).
+fn figure_rows(log: &Log) -> Vec<CycleRow> {
+    log.rows
+        .iter()
+        .map(|r| CycleRow {
+            t_s: r.t_s,
+            state: r.state,
+            freq_hz: r.freq_hz,
+            amp_cmd_mm: r.amp_cmd_mm,
+            cart_amp_mm: 0.0,
+            measured_impacts: r.measured_impacts,
+            measured_peak_n: r.measured_peak_n,
+            true_impacts: 0,
+            true_peak_n: None,
+            measured_regime: r.measured_regime.clone(),
+            fault: r.fault,
+            lost_cycles: r.lost_cycles,
+            force_vs_model_pct: None,
+        })
+        .collect()
 }

@@ -7,8 +7,8 @@ use clap::Args;
 
 use super::omega_sweep;
 use crate::config::{RigOpts, Setup};
+use crate::figures::response::{Highlight, points, response_band};
 use crate::output::Outputs;
-use crate::plot::Highlight;
 use crate::propagate::{Propagation, propagate};
 use crate::response;
 pub use crate::selection::{OtherBest, SelectReport, compute};
@@ -109,7 +109,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     let mut outputs = Outputs::new();
     if a.out.is_some() || a.plot.is_some() {
         let rows = response::rows(&setup, &sweep, &nominal);
-        let points = response::plot_points(&sweep, &nominal);
+        let points = points(&sweep, &nominal);
         let p = setup.selection.freq_margin_pct / 100.0;
         let highlight = Highlight {
             chosen: (rep.omega_ratio, rep.impact_force_mg),
@@ -121,7 +121,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
             setup.rig, a.gap_mm, rep.freq_hz, rep.omega_ratio
         );
         match &spread {
-            None => response::write(
+            None => super::write_response(
                 &mut outputs,
                 a.out.as_deref(),
                 a.plot.as_deref(),
@@ -131,7 +131,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
                 Some(highlight),
             )?,
             Some(sp) => {
-                response::write(
+                super::write_response(
                     &mut outputs,
                     a.out.as_deref(),
                     None,
@@ -146,7 +146,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
                         "{} rig, gap {:.2} mm: response over {} draws of the identified law",
                         setup.rig, a.gap_mm, sp.draws
                     );
-                    crate::plot::response_band(&tmp, &title, sp, &points, &rep)?;
+                    response_band(&tmp, &title, sp, &points, &rep)?;
                 }
             }
         }

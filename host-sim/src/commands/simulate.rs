@@ -8,8 +8,8 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::{check_count, check_range};
 
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::figures::response::{TsPoint, time_series};
 use crate::output::{Outputs, write_csv};
-use crate::plot::{self, TsPoint};
 use crate::series::{self, SeriesSpec};
 
 /// Arguments of `simulate`.
@@ -118,7 +118,7 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
             ratio * fn_hz,
             a.periods
         );
-        plot::time_series(&tmp, &title, &ts, &strobes, a.gap_mm)?;
+        time_series(&tmp, &title, &ts, &strobes, a.gap_mm)?;
     }
     outputs.commit()?;
     println!(

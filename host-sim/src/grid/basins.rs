@@ -20,11 +20,11 @@ use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
 use shared::integrate::PhaseTable;
 use shared::observe::{Observer, ProtocolRun, Regime, StroboPoint};
 
+use super::raster::Raster;
 use super::{CountSweep, Finish, GridKind};
 use crate::config::Setup;
-use crate::maps::{self, AttractorKey, MapAxis, Raster};
 use crate::runner::in_order;
-use crate::shard::{Indexed, Kind, Meta, create_csv, open_csv, title_prefix};
+use crate::shard::{Indexed, Kind, Meta, create_csv, open_csv};
 
 /// Largest `|u0|` accepted, mm.
 pub const MAX_U0_MM: f64 = 20.0;
@@ -288,6 +288,29 @@ fn raw_point(r: &BasinRaw) -> Option<(f64, f64)> {
     }
 }
 
+/// An attractor of a basins grid: the steady states its cells reach, grouped.
+#[derive(Debug, Clone)]
+pub struct Attractor {
+    /// Label: regime and letter (`1/1 A`).
+    pub label: String,
+    /// Regime.
+    pub regime: Regime,
+    /// Canonical Poincaré point `(u mm, u̇ mm/s)`, if periodic.
+    pub point: Option<(f64, f64)>,
+    /// Cells in its basin.
+    pub cells: u64,
+}
+
+/// What the basins figure needs: each cell's attractor id (`u32::MAX` for none) and the
+/// attractors, sorted (regime, then Poincaré point).
+#[derive(Debug, Clone)]
+pub struct BasinsSummary {
+    /// Attractor id per cell.
+    pub cells: Raster<u32>,
+    /// The attractors, by id.
+    pub attractors: Vec<Attractor>,
+}
+
 /// The basins map as a [`GridKind`]: shards hold ungrouped rows; the CSV with the attractors
 /// is written from the complete grid.
 pub struct Basins;
@@ -300,14 +323,10 @@ impl GridKind for Basins {
 
     /// Groups the ungrouped rows of a complete grid (`raw`) into attractors and writes the
     /// final CSV to `out` and the figure.
-    fn finish(job: Finish<'_>) -> Result<()> {
-        let Finish {
-            outputs,
-            meta,
-            rows: raw,
-            out,
-            figures,
-        } = job;
+    type Summary = BasinsSummary;
+
+    fn finish(job: &mut Finish<'_>) -> Result<BasinsSummary> {
+        let (meta, raw, out) = (job.meta, job.rows, job.out);
         let grid = meta.grid::<Self::Grid>()?;
         // Pass 1: groups.
         let mut grouping = Grouping::new(meta, &grid);
@@ -329,12 +348,12 @@ impl GridKind for Basins {
         for (id, &k) in order.iter().enumerate() {
             id_of[k] = id as u32;
         }
-        let keys: Vec<AttractorKey> = order
+        let keys: Vec<Attractor> = order
             .iter()
             .enumerate()
             .map(|(id, &k)| {
                 let g = &grouping.groups[k];
-                AttractorKey {
+                Attractor {
                     label: format!("{} {}", g.regime, label(id)),
                     regime: g.regime,
                     point: g.point,
@@ -370,30 +389,10 @@ impl GridKind for Basins {
             })?;
         }
         w.flush()?;
-        if let Some(p) = figures.plot {
-            let tmp = outputs.reserve(p)?;
-            let x = MapAxis {
-                lo: grid.u0_mm.start,
-                step: grid.u0_mm.spacing(),
-                n: nu,
-                label: "initial displacement u0 (mm)".into(),
-            };
-            let y = MapAxis {
-                lo: grid.v0_mm_s.start,
-                step: grid.v0_mm_s.spacing(),
-                n: nv,
-                label: "initial velocity u̇0 (mm/s)".into(),
-            };
-            let title = format!(
-                "{} — basins of attraction, gap {} mm, Ω/ω = {} ({:.3} Hz)",
-                title_prefix(meta),
-                grid.gap_mm,
-                grid.omega_ratio,
-                meta.params.freq_hz_from_ratio(grid.omega_ratio)
-            );
-            maps::basins_map(&tmp, &title, &x, &y, &cells, &keys)?;
-        }
-        Ok(())
+        Ok(BasinsSummary {
+            cells,
+            attractors: keys,
+        })
     }
 }
 

@@ -20,10 +20,9 @@ use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
 use super::{Finish, GridKind};
 use crate::config::Setup;
 use crate::interrupt;
-use crate::maps::{self, BifDot, BifRanges};
 use crate::output::scratch;
 use crate::runner::progress;
-use crate::shard::{Indexed, Kind, create_csv, open_csv, title_prefix};
+use crate::shard::{Indexed, Kind, create_csv};
 
 /// How the frequencies are visited.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
@@ -260,66 +259,9 @@ impl GridKind for Bifurcation {
     type Grid = BifGrid;
     type Row = BifRow;
 
-    /// Draws the figure from the complete CSV, reading it twice (spans, then dots): memory
-    /// does not grow with the sweep.
-    fn finish(job: Finish<'_>) -> Result<()> {
-        let (outputs, meta, csv, figures) = (job.outputs, job.meta, job.rows, job.figures);
-        let Some(plot) = figures.plot else {
-            return Ok(());
-        };
-        let grid = meta.grid::<Self::Grid>()?;
-        let mut ranges = BifRanges {
-            x: (
-                grid.omega_ratio.value(0),
-                grid.omega_ratio.value(grid.omega_ratio.len() - 1),
-            ),
-            u: (f64::INFINITY, f64::NEG_INFINITY),
-            force_max: 0.0,
-        };
-        let mut present = [false; 3];
-        const BRANCHES: [&str; 3] = ["rest", "up", "down"];
-        for row in open_csv::<BifRow>(csv)?.deserialize::<BifRow>() {
-            let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
-            if let Some(k) = BRANCHES.iter().position(|b| *b == row.branch) {
-                present[k] = true;
-            }
-            if let Some(u) = row.u_mm {
-                ranges.u = (ranges.u.0.min(u), ranges.u.1.max(u));
-            }
-            if let Some(f) = row.impact_force_mg {
-                ranges.force_max = ranges.force_max.max(f);
-            }
-        }
-        if !ranges.u.0.is_finite() {
-            ranges.u = (0.0, grid.gap_mm);
-        }
-        let branches: Vec<&str> = BRANCHES
-            .iter()
-            .zip(present)
-            .filter(|(_, p)| *p)
-            .map(|(b, _)| *b)
-            .collect();
-        let tmp = outputs.reserve(plot)?;
-        let title = format!(
-            "{} — bifurcation diagram, gap {} mm{}",
-            title_prefix(meta),
-            grid.gap_mm,
-            match grid.continuation {
-                None => ", from rest at each Ω",
-                Some(_) => ", continuation",
-            }
-        );
-        maps::bifurcation(&tmp, &title, ranges, grid.gap_mm, &branches, |draw| {
-            for row in open_csv::<BifRow>(csv)?.deserialize::<BifRow>() {
-                let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
-                let dot = match (row.u_mm, row.impact_force_mg) {
-                    (Some(u), _) => BifDot::Strobe(row.omega_ratio, u),
-                    (None, Some(f)) => BifDot::Impact(row.omega_ratio, f),
-                    _ => continue,
-                };
-                draw(&row.branch, dot)?;
-            }
-            Ok(())
-        })
+    type Summary = ();
+
+    fn finish(_job: &mut Finish<'_>) -> Result<()> {
+        Ok(())
     }
 }

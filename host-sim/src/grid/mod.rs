@@ -15,19 +15,16 @@ use std::path::Path;
 use crate::config::Setup;
 use crate::interrupt;
 use crate::output::{Outputs, scratch};
-use crate::runner::progress;
+use crate::runner::{BATCH, progress};
 use crate::shard::{Indexed, Kind, Meta, Shard, ShardFile, create_csv, merge_rows};
 
 pub mod basins;
 pub mod bifurcation;
 pub mod peterka;
+pub mod raster;
 
 /// Points evaluated per parallel chunk.
 pub const CHUNK: usize = 4096;
-
-/// Points per parallel task inside a chunk (a task interleaves its points on one core,
-/// [`shared::analysis::run_interleaved`]).
-pub const BATCH: usize = 32;
 
 /// Evaluates `compute(batch)` (the results of the indices in `batch`, in order) over every index
 /// of `indices` (ascending), `CHUNK` at a time with batches of [`BATCH`] in parallel, and passes
@@ -148,13 +145,25 @@ pub trait GridKind {
     type Grid: Serialize + DeserializeOwned;
     /// One row of a shard file, in point-index order.
     type Row: Serialize + DeserializeOwned + Indexed + Send;
+    /// What the figures need besides the rows file (basins: the attractors and their raster).
+    type Summary;
 
-    /// Writes the outputs of a complete grid from its rows file: the CSV (unless the rows are
-    /// it) and the figures asked for, reserved in `job.outputs`.
+    /// Writes the CSV of a complete grid from its rows file (unless the rows are it) and
+    /// returns what the figures need.
+    ///
+    /// # Errors
+    /// Unreadable rows, file errors.
+    fn finish(job: &mut Finish<'_>) -> Result<Self::Summary>;
+}
+
+/// The figures of a grid kind, drawn from a complete grid (implemented where the figures are,
+/// `crate::figures::maps`: the grid computations never import figure code).
+pub trait GridFigures: GridKind {
+    /// Draws the figures asked for in `job.figures`, reserved in `job.outputs`.
     ///
     /// # Errors
     /// Unreadable rows, drawing or file errors.
-    fn finish(job: Finish<'_>) -> Result<()>;
+    fn draw(job: &mut Finish<'_>, summary: Self::Summary) -> Result<()>;
 }
 
 /// What [`GridKind::finish`] works on: a complete grid's rows file and where its outputs go.
@@ -181,38 +190,34 @@ pub fn meta<K: GridKind>(setup: &Setup, grid: &K::Grid, points: u64) -> Result<M
 
 /// The outputs of a complete grid of kind `K`: `fill(path)` writes its rows file (a plain CSV
 /// of `K::Row` with header) at `path`, which is `out` itself or a scratch file next to it; then
-/// [`GridKind::finish`]. The same function serves a one-run command and `merge`, so their
-/// outputs are identical.
+/// [`GridKind::finish`] and [`GridFigures::draw`]. The same function serves a one-run command
+/// and `merge`, so their outputs are identical.
 ///
 /// # Errors
-/// As `fill` and [`GridKind::finish`].
-pub fn complete<K: GridKind>(
+/// As `fill`, [`GridKind::finish`] and [`GridFigures::draw`].
+pub fn complete<K: GridFigures>(
     outputs: &mut Outputs,
     meta: &Meta,
     out: &Path,
     figures: Figures<'_>,
     fill: impl FnOnce(&Path) -> Result<()>,
 ) -> Result<()> {
-    if K::ROWS_ARE_OUTPUT {
-        fill(out)?;
-        K::finish(Finish {
-            outputs,
-            meta,
-            rows: out,
-            out,
-            figures,
-        })
+    let scratch_rows = if K::ROWS_ARE_OUTPUT {
+        None
     } else {
-        let rows = scratch(out, ".raw.csv")?;
-        fill(rows.path())?;
-        K::finish(Finish {
-            outputs,
-            meta,
-            rows: rows.path(),
-            out,
-            figures,
-        })
-    }
+        Some(scratch(out, ".raw.csv")?)
+    };
+    let rows = scratch_rows.as_ref().map_or(out, |f| f.path());
+    fill(rows)?;
+    let mut job = Finish {
+        outputs,
+        meta,
+        rows,
+        out,
+        figures,
+    };
+    let summary = K::finish(&mut job)?;
+    K::draw(&mut job, summary)
 }
 
 /// A from-rest grid run of kind `K` into `out` (a reserved file): the shard file of
@@ -221,7 +226,7 @@ pub fn complete<K: GridKind>(
 ///
 /// # Errors
 /// As [`write_grid`] and [`GridKind::finish`].
-pub fn run<K: GridKind, I>(
+pub fn run<K: GridFigures, I>(
     outputs: &mut Outputs,
     meta: &Meta,
     out: &Path,
@@ -304,7 +309,7 @@ pub fn command<K: GridKind>(
 ///
 /// # Errors
 /// As [`command`] and [`run`].
-pub fn from_rest<K: GridKind, I>(
+pub fn from_rest<K: GridFigures, I>(
     setup: &Setup,
     grid: &K::Grid,
     points: u64,
@@ -324,7 +329,7 @@ where
 ///
 /// # Errors
 /// Malformed shards, a missing or repeated point, I/O or drawing errors, Ctrl-C.
-pub fn merge<K: GridKind>(
+pub fn merge<K: GridFigures>(
     outputs: &mut Outputs,
     meta: &Meta,
     files: Vec<ShardFile>,

@@ -2,16 +2,15 @@
 //! frequency grid, from rest at every point (canonical protocol), and the `z = 1/1` region
 //! coloured by `F_i/mg`.
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use serde::{Deserialize, Serialize};
 use shared::analysis::Sweep;
 use shared::observe::Regime;
 
-use super::{Figures, Finish, GridKind};
+use super::{Finish, GridKind};
 use crate::config::Setup;
-use crate::maps::{self, Cell, MapAxis, Raster};
 use crate::runner::{OperatingPoint, evaluate_batch};
-use crate::shard::{Indexed, Kind, open_csv, title_prefix};
+use crate::shard::{Indexed, Kind};
 
 /// Largest Peterka grid, points.
 pub const MAX_POINTS: u64 = 100_000_000;
@@ -150,7 +149,7 @@ pub fn rows(setup: &Setup, grid: &PeterkaGrid, batch: &[usize]) -> Vec<Result<[P
         .collect()
 }
 
-/// The Peterka map as a [`GridKind`]: its rows are the CSV; the figures are drawn from them.
+/// The Peterka map as a [`GridKind`]: its rows are the CSV (the figures are drawn from them).
 pub struct Peterka;
 
 impl GridKind for Peterka {
@@ -158,62 +157,9 @@ impl GridKind for Peterka {
     type Grid = PeterkaGrid;
     type Row = PeterkaRow;
 
-    fn finish(job: Finish<'_>) -> Result<()> {
-        let (outputs, meta, csv, figures) = (job.outputs, job.meta, job.rows, job.figures);
-        let Figures { plot, force_plot } = figures;
-        if plot.is_none() && force_plot.is_none() {
-            return Ok(());
-        }
-        let grid = meta.grid::<Self::Grid>()?;
-        let a0_mm = meta.params.amplitude_m * 1e3;
-        let fn_hz = meta.params.natural_freq_hz();
-        let (nf, ng) = (grid.freq.sweep.len(), grid.gap.sweep.len());
-        let mut cells = Raster::new(nf, ng, Cell::Empty);
-        let mut force: Option<(f64, f64)> = None;
-        let mut rdr = open_csv::<PeterkaRow>(csv)?;
-        for row in rdr.deserialize::<PeterkaRow>() {
-            let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
-            let (ig, jf) = grid.split(row.index as usize);
-            cells.set(jf, ig, Cell::Regime(row.regime, row.impact_force_mg as f32));
-            if row.regime == Regime::ONE_ONE {
-                let f = row.impact_force_mg;
-                force = Some(force.map_or((f, f), |(lo, hi)| (lo.min(f), hi.max(f))));
-            }
-        }
-        let (x0, _) = grid.freq(0, fn_hz);
-        let (x1, _) = grid.freq(1, fn_hz);
-        let x = MapAxis {
-            lo: x0,
-            step: if nf > 1 { x1 - x0 } else { 0.02 },
-            n: nf,
-            label: format!("Ω/ω (excitation / natural frequency; f = Ω/ω × {fn_hz:.4} Hz)"),
-        };
-        let y = MapAxis {
-            lo: grid.gap(0, a0_mm).1,
-            step: if ng > 1 {
-                grid.gap(1, a0_mm).1 - grid.gap(0, a0_mm).1
-            } else {
-                0.02
-            },
-            n: ng,
-            label: format!("gap/A0 (A0 = {a0_mm:.3} mm)"),
-        };
-        if let Some(p) = plot {
-            let tmp = outputs.reserve(p)?;
-            let title = format!(
-                "{} — impact regime z = p/q (Peterka map)",
-                title_prefix(meta)
-            );
-            maps::regime_map(&tmp, &title, &x, &y, &cells)?;
-        }
-        if let Some(p) = force_plot {
-            let tmp = outputs.reserve(p)?;
-            let title = format!(
-                "{} — max impact force F_i/mg in the z = 1/1 region",
-                title_prefix(meta)
-            );
-            maps::force_map(&tmp, &title, &x, &y, &cells, force)?;
-        }
+    type Summary = ();
+
+    fn finish(_job: &mut Finish<'_>) -> Result<()> {
         Ok(())
     }
 }

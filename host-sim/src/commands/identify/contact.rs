@@ -17,7 +17,6 @@ use crate::identify::contact::{
 };
 use crate::identify::uncertainty::{STRONG_CORRELATION, Uncertainty, WIDE_REL};
 use crate::output::Outputs;
-use crate::plot_identify;
 use crate::trace::read_trace;
 
 #[derive(Serialize)]
@@ -224,7 +223,7 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
             })
             .collect();
         let curves: Vec<(String, &Fit)> = fits.iter().map(|(k, f)| (k.to_string(), f)).collect();
-        plot_identify::drop_fit(&tmp, &title, &panels, &curves)?;
+        crate::figures::identify::drop_fit(&tmp, &title, &panels, &curves)?;
     }
     outputs.commit()?;
     print_contact(a, &run, &loaded, &fits, best)

@@ -5,7 +5,6 @@
 //! the loop with its console on a pseudo-terminal.
 
 pub mod chains;
-pub mod figure;
 pub mod plant;
 pub mod pty;
 pub mod scenario;

@@ -7,8 +7,8 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::control::Prediction;
 
-use super::session::CycleRow;
-use crate::plot::{Frame, SANS, canvas, line_key, panel, series_legend};
+use super::{Frame, SANS, canvas, line_key, panel, series_legend};
+use crate::virtual_rig::CycleRow;
 
 /// Controller states in plotting order (y levels of the state panel).
 const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"];

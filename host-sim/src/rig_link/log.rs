@@ -7,7 +7,6 @@ use serde::Serialize;
 
 use super::RigPort;
 use super::protocol::{AsyncLine, EventLine, SeqCounter};
-use crate::rig::CycleRow;
 
 /// One logged drive cycle. The columns carry the `hil` log's names for what the rig measures
 /// (`t_s`, `state`, `freq_hz`, `amp_cmd_mm`, `measured_*`, `fault`, `lost_cycles`), plus the
@@ -47,30 +46,6 @@ pub struct Log {
     pub events: Vec<EventLine>,
     /// Received and lost asynchronous lines.
     pub seq: SeqCounter,
-}
-
-impl Log {
-    /// The rows as the `hil` figure draws them (no plant truth on a rig).
-    pub fn figure_rows(&self) -> Vec<CycleRow> {
-        self.rows
-            .iter()
-            .map(|r| CycleRow {
-                t_s: r.t_s,
-                state: r.state,
-                freq_hz: r.freq_hz,
-                amp_cmd_mm: r.amp_cmd_mm,
-                cart_amp_mm: 0.0,
-                measured_impacts: r.measured_impacts,
-                measured_peak_n: r.measured_peak_n,
-                true_impacts: 0,
-                true_peak_n: None,
-                measured_regime: r.measured_regime.clone(),
-                fault: r.fault,
-                lost_cycles: r.lost_cycles,
-                force_vs_model_pct: None,
-            })
-            .collect()
-    }
 }
 
 /// Turns streaming on, records `seconds` of rig time (by the telemetry's own clock), turns it

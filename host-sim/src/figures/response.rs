@@ -1,31 +1,22 @@
-//! PNG figures with plotters (bitmap backend, bundled DejaVu Sans: no system font needed).
+//! Frequency responses (thesis Figs. 3.12–3.14), the response under parameter uncertainty, and
+//! time series with their phase plane.
 
 use std::ops::Range;
 use std::path::Path;
-use std::sync::Once;
 
 use anyhow::Result;
 use plotters::coord::Shift;
-use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use shared::observe::Regime;
 
-const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-/// Family name of the bundled font.
-pub(crate) const SANS: &str = "sans-serif";
+use shared::analysis::Sweep;
+use shared::observe::PointResult;
 
-/// Registers the bundled font (once).
-pub(crate) fn ensure_font() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // The bundled font is valid TTF; a failure would only show as missing text.
-        let _ = plotters::style::register_font(SANS, FontStyle::Normal, FONT);
-    });
-}
+use crate::config::Setup;
 
-/// A chart with linear `f64` axes on a bitmap.
-pub(crate) type Chart<'a, 'b> =
-    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+use super::{
+    Chart, Frame, SANS, canvas, line_key, panel, regime_classes, series_legend, swatch_key,
+};
 
 /// The time-series figure's three stacked panels.
 const STACKED: Frame = Frame::new(10, 35, 60, 14);
@@ -57,166 +48,28 @@ fn force_chart<'a, 'b>(
     Ok(chart)
 }
 
-/// The drawing area of a figure: a white `size` px bitmap written to `path`, with `title` at
-/// `title_px` across the top if given (the area below it is returned).
-///
-/// # Errors
-/// Drawing errors.
-pub(crate) fn canvas<'a>(
-    path: &'a Path,
-    size: (u32, u32),
-    title: Option<(&str, u32)>,
-) -> Result<DrawingArea<BitMapBackend<'a>, Shift>> {
-    ensure_font();
-    let root = BitMapBackend::new(path, size).into_drawing_area();
-    root.fill(&WHITE)?;
-    Ok(match title {
-        Some((text, px)) => root.titled(text, (SANS, px))?,
-        None => root,
-    })
+/// The points of a response figure (`results[i]` at `sweep.value(i)`).
+pub fn points(sweep: &Sweep, results: &[PointResult]) -> Vec<ResponsePoint> {
+    results
+        .iter()
+        .enumerate()
+        .map(|(i, r)| ResponsePoint {
+            omega_ratio: sweep.value(i),
+            impact_force_mg: r.impact_force_mg,
+            regime: r.regime,
+        })
+        .collect()
 }
 
-/// How a panel is framed, px: the outer margin, the x- and y-label areas, the tick-label font
-/// and, if set, a larger font for the axis descriptions.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Frame {
-    pub margin: u32,
-    pub x_area: u32,
-    pub y_area: u32,
-    pub font: u32,
-    pub desc_font: Option<u32>,
-}
-
-impl Frame {
-    /// A frame with the tick labels and axis descriptions at `font` px.
-    pub(crate) const fn new(margin: u32, x_area: u32, y_area: u32, font: u32) -> Frame {
-        Frame {
-            margin,
-            x_area,
-            y_area,
-            font,
-            desc_font: None,
-        }
-    }
-
-    /// The same frame with the axis descriptions at `px`.
-    pub(crate) const fn desc_font(self, px: u32) -> Frame {
-        Frame {
-            desc_font: Some(px),
-            ..self
-        }
-    }
-}
-
-/// A panel on `area`: `x` × `y` framed by `frame`, its mesh drawn with the axis descriptions
-/// `desc` (x, y).
-///
-/// # Errors
-/// Drawing errors.
-pub(crate) fn panel<'a, 'b>(
-    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
-    frame: Frame,
-    x: Range<f64>,
-    y: Range<f64>,
-    desc: (&str, &str),
-) -> Result<Chart<'a, 'b>> {
-    let mut chart = ChartBuilder::on(area)
-        .margin(frame.margin)
-        .x_label_area_size(frame.x_area)
-        .y_label_area_size(frame.y_area)
-        .build_cartesian_2d(x, y)?;
-    let mut mesh = chart.configure_mesh();
-    mesh.x_desc(desc.0)
-        .y_desc(desc.1)
-        .label_style((SANS, frame.font));
-    if let Some(px) = frame.desc_font {
-        mesh.axis_desc_style((SANS, px));
-    }
-    mesh.draw()?;
-    Ok(chart)
-}
-
-/// A legend key: a 14 × 10 px swatch in `style`.
-pub(crate) fn swatch_key<S: Into<ShapeStyle> + Clone>(
-    style: S,
-) -> impl Fn((i32, i32)) -> Rectangle<(i32, i32)> {
-    move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], style.clone())
-}
-
-/// A legend key: a 16 px line in `style`.
-pub(crate) fn line_key<S: Into<ShapeStyle> + Clone>(
-    style: S,
-) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
-    move |(x, y)| PathElement::new([(x, y), (x + 16, y)], style.clone())
-}
-
-/// Draws the series legend of `chart`: at `position` (plotters' default if `None`), on a
-/// translucent white box with a black border, labels in [`SANS`] at `font_size` px.
-///
-/// # Errors
-/// Drawing errors.
-pub(crate) fn series_legend<'a, 'b: 'a, CT: plotters::coord::CoordTranslate>(
-    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
-    position: Option<SeriesLabelPosition>,
-    font_size: u32,
-) -> Result<()> {
-    let mut labels = chart.configure_series_labels();
-    if let Some(p) = position {
-        labels.position(p);
-    }
-    labels
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((SANS, font_size))
-        .draw()?;
-    Ok(())
-}
-
-/// Colour of a regime in every figure: `1/1` red, `1/2` green (the thesis' Peterka colours),
-/// `2/2` orange, other periodic blue, irregular black, no impact grey.
-pub fn regime_color(r: Regime) -> RGBColor {
-    match r {
-        Regime::NoImpact => RGBColor(170, 170, 170),
-        Regime::Irregular => RGBColor(0, 0, 0),
-        Regime::Periodic { p: 1, q: 1 } => RGBColor(215, 25, 28),
-        Regime::Periodic { p: 1, q: 2 } => RGBColor(26, 150, 65),
-        Regime::Periodic { p: 2, q: 2 } => RGBColor(253, 174, 97),
-        Regime::Periodic { .. } => RGBColor(43, 131, 186),
-    }
-}
-
-/// Legend classes of regimes, in legend order.
-pub const CLASSES: [&str; 6] = [
-    "z = 1/1",
-    "z = 1/2",
-    "z = 2/2",
-    "other p/q",
-    "irregular",
-    "no impact",
-];
-
-/// The legend class of a regime.
-pub fn regime_class(r: Regime) -> &'static str {
-    match r {
-        Regime::Periodic { p: 1, q: 1 } => CLASSES[0],
-        Regime::Periodic { p: 1, q: 2 } => CLASSES[1],
-        Regime::Periodic { p: 2, q: 2 } => CLASSES[2],
-        Regime::Periodic { .. } => CLASSES[3],
-        Regime::Irregular => CLASSES[4],
-        Regime::NoImpact => CLASSES[5],
-    }
-}
-
-fn class_color(name: &str) -> RGBColor {
-    let r = match name {
-        "z = 1/1" => Regime::ONE_ONE,
-        "z = 1/2" => Regime::Periodic { p: 1, q: 2 },
-        "z = 2/2" => Regime::Periodic { p: 2, q: 2 },
-        "other p/q" => Regime::Periodic { p: 3, q: 1 },
-        "irregular" => Regime::Irregular,
-        _ => Regime::NoImpact,
-    };
-    regime_color(r)
+/// Title line of a response figure at gap `gap_mm`, mm.
+pub fn title(setup: &Setup, gap_mm: f64) -> String {
+    format!(
+        "{} rig, gap {:.2} mm, {} law, {} — frequency response",
+        setup.rig,
+        gap_mm,
+        setup.params.contact.kind(),
+        setup.precision.name()
+    )
 }
 
 /// One point of a frequency-response figure.
@@ -276,20 +129,11 @@ pub fn response(
         pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg)),
         RGBColor(120, 120, 120).stroke_width(1),
     ))?;
-    let mut seen: Vec<&'static str> = Vec::new();
-    for p in pts {
-        let name = regime_class(p.regime);
-        if !seen.contains(&name) {
-            seen.push(name);
-        }
-    }
-    seen.sort_by_key(|n| CLASSES.iter().position(|c| c == n));
-    for name in seen {
-        let c = class_color(name);
+    for (name, c) in regime_classes(pts.iter().map(|p| p.regime)) {
         chart
             .draw_series(
                 pts.iter()
-                    .filter(|p| regime_class(p.regime) == name)
+                    .filter(|p| super::regime_class(p.regime).1 == name)
                     .map(|p| Circle::new((p.omega_ratio, p.impact_force_mg), 3, c.filled())),
             )?
             .label(name)

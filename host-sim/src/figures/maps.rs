@@ -5,71 +5,42 @@
 
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use shared::observe::Regime;
 
-use crate::plot::{Chart, Frame, SANS, canvas, line_key, panel, series_legend};
+use crate::grid::basins::{Attractor, Basins, BasinsGrid, BasinsSummary};
+use crate::grid::bifurcation::{BifRow, Bifurcation};
+use crate::grid::peterka::{Peterka, PeterkaRow};
+use crate::grid::raster::Raster;
+use crate::grid::{Figures, Finish, GridFigures};
+use crate::shard::{open_csv, title_prefix};
 
-/// Largest raster side, cells: grids finer than this are down-sampled (last cell in index order
-/// wins), which is finer than the figure's pixels anyway.
-pub const RASTER_MAX: usize = 1200;
+use super::{
+    Chart, Frame, IRREGULAR, SANS, canvas, line_key, panel, regime_class, regime_color,
+    series_legend,
+};
 
-/// A fixed-size raster over an `nx × ny` cell grid (`x` index fastest in the plot's `x`).
-#[derive(Debug, Clone)]
-pub struct Raster<T: Copy> {
-    nx: usize,
-    ny: usize,
-    rx: usize,
-    ry: usize,
-    data: Vec<T>,
-}
-
-impl<T: Copy> Raster<T> {
-    /// A raster for `nx × ny` cells, at most [`RASTER_MAX`] per side, filled with `fill`.
-    pub fn new(nx: usize, ny: usize, fill: T) -> Self {
-        let (rx, ry) = (nx.clamp(1, RASTER_MAX), ny.clamp(1, RASTER_MAX));
-        Raster {
-            nx: nx.max(1),
-            ny: ny.max(1),
-            rx,
-            ry,
-            data: vec![fill; rx * ry],
+/// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
+fn blit<T: Copy>(
+    raster: &Raster<T>,
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    color: impl Fn(T) -> RGBColor,
+) -> Result<()> {
+    let (pw, ph) = area.dim_in_pixel();
+    let (pw, ph) = (pw as usize, ph as usize);
+    let (rx, ry) = raster.raster_size();
+    for py in 0..ph {
+        let cy = ((ph - 1 - py) * ry / ph).min(ry - 1);
+        for px in 0..pw {
+            let cx = (px * rx / pw).min(rx - 1);
+            let c = color(raster.raster_cell(cx, cy));
+            area.draw_pixel((px as i32, py as i32), &c)?;
         }
     }
-
-    /// Sets cell `(ix, iy)`.
-    pub fn set(&mut self, ix: usize, iy: usize, v: T) {
-        let cx = (ix * self.rx / self.nx).min(self.rx - 1);
-        let cy = (iy * self.ry / self.ny).min(self.ry - 1);
-        self.data[cy * self.rx + cx] = v;
-    }
-
-    /// Every stored value.
-    pub fn values(&self) -> impl Iterator<Item = T> + '_ {
-        self.data.iter().copied()
-    }
-
-    /// Paints the raster onto `area` (its full pixel extent, `y` up), colour by `color`.
-    fn blit(
-        &self,
-        area: &DrawingArea<BitMapBackend<'_>, Shift>,
-        color: impl Fn(T) -> RGBColor,
-    ) -> Result<()> {
-        let (pw, ph) = area.dim_in_pixel();
-        let (pw, ph) = (pw as usize, ph as usize);
-        for py in 0..ph {
-            let cy = ((ph - 1 - py) * self.ry / ph).min(self.ry - 1);
-            for px in 0..pw {
-                let cx = (px * self.rx / pw).min(self.rx - 1);
-                let c = color(self.data[cy * self.rx + cx]);
-                area.draw_pixel((px as i32, py as i32), &c)?;
-            }
-        }
-        Ok(())
-    }
+    Ok(())
 }
 
 /// An axis of a map: cell centres `lo + i·step`, `n` cells.
@@ -104,24 +75,6 @@ pub enum LegendMark {
     Text,
 }
 
-/// The colours and legend names of regimes on maps: the named regimes keep their own colour,
-/// every other periodic regime is "other periodic".
-pub const MAP_REGIMES: [(u16, u16, RGBColor); 11] = [
-    (1, 1, RGBColor(215, 25, 28)),
-    (1, 2, RGBColor(26, 150, 65)),
-    (2, 2, RGBColor(253, 174, 97)),
-    (1, 3, RGBColor(117, 112, 179)),
-    (2, 1, RGBColor(166, 86, 40)),
-    (3, 3, RGBColor(231, 41, 138)),
-    (2, 3, RGBColor(0, 160, 160)),
-    (3, 1, RGBColor(128, 128, 0)),
-    (1, 4, RGBColor(31, 60, 140)),
-    (4, 4, RGBColor(240, 200, 0)),
-    (3, 2, RGBColor(190, 120, 220)),
-];
-const OTHER_PERIODIC: RGBColor = RGBColor(43, 131, 186);
-const NO_IMPACT: RGBColor = RGBColor(190, 190, 190);
-const IRREGULAR: RGBColor = RGBColor(0, 0, 0);
 const EMPTY: RGBColor = RGBColor(255, 255, 255);
 const NOT_ONE_ONE: RGBColor = RGBColor(228, 228, 228);
 
@@ -129,32 +82,6 @@ const NOT_ONE_ONE: RGBColor = RGBColor(228, 228, 228);
 const BIF_TOP: Frame = Frame::new(10, 40, 70, 15).desc_font(17);
 
 const BIF_BOTTOM: Frame = Frame::new(10, 45, 70, 15).desc_font(17);
-
-/// Legend class of a regime on a map: its position in the legend order and its name.
-pub fn map_class(r: Regime) -> (usize, String) {
-    match r {
-        Regime::Periodic { p, q } => {
-            match MAP_REGIMES.iter().position(|&(a, b, _)| a == p && b == q) {
-                Some(k) => (k, format!("z = {p}/{q}")),
-                None => (MAP_REGIMES.len(), "other periodic".into()),
-            }
-        }
-        Regime::Irregular => (MAP_REGIMES.len() + 1, "irregular".into()),
-        Regime::NoImpact => (MAP_REGIMES.len() + 2, "no impact".into()),
-    }
-}
-
-/// Colour of a regime on a map (a fixed function of the regime).
-pub fn map_color(r: Regime) -> RGBColor {
-    match r {
-        Regime::Periodic { p, q } => MAP_REGIMES
-            .iter()
-            .find(|&&(a, b, _)| a == p && b == q)
-            .map_or(OTHER_PERIODIC, |&(_, _, c)| c),
-        Regime::Irregular => IRREGULAR,
-        Regime::NoImpact => NO_IMPACT,
-    }
-}
 
 /// A map cell of a Peterka grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -256,17 +183,21 @@ pub fn regime_map(
 ) -> Result<()> {
     let (left, right) = figure_with_panel(path, title)?;
     let chart = map_chart(&left, x, y)?;
-    cells.blit(&chart.plotting_area().strip_coord_spec(), |c| match c {
-        Cell::Empty => EMPTY,
-        Cell::Regime(r, _) => map_color(r),
-    })?;
+    blit(
+        &cells,
+        &chart.plotting_area().strip_coord_spec(),
+        |c| match c {
+            Cell::Empty => EMPTY,
+            Cell::Regime(r, _) => regime_color(r),
+        },
+    )?;
     drop(chart);
     let mut classes: Vec<(usize, String, RGBColor)> = Vec::new();
     for c in cells.values() {
         if let Cell::Regime(r, _) = c {
-            let (k, name) = map_class(r);
+            let (k, name) = regime_class(r);
             if !classes.iter().any(|(j, _, _)| *j == k) {
-                classes.push((k, name, map_color(r)));
+                classes.push((k, name, regime_color(r)));
             }
         }
     }
@@ -299,11 +230,15 @@ pub fn force_map(
     let hi = if hi > lo { hi } else { lo + 1.0 };
     let color =
         |f: f64| -> RGBColor { ViridisRGB::get_color_normalized(f as f32, lo as f32, hi as f32) };
-    cells.blit(&chart.plotting_area().strip_coord_spec(), |c| match c {
-        Cell::Regime(Regime::Periodic { p: 1, q: 1 }, f) => color(f64::from(f)),
-        Cell::Empty => EMPTY,
-        Cell::Regime(..) => NOT_ONE_ONE,
-    })?;
+    blit(
+        &cells,
+        &chart.plotting_area().strip_coord_spec(),
+        |c| match c {
+            Cell::Regime(Regime::Periodic { p: 1, q: 1 }, f) => color(f64::from(f)),
+            Cell::Empty => EMPTY,
+            Cell::Regime(..) => NOT_ONE_ONE,
+        },
+    )?;
     drop(chart);
     // Colour bar.
     let (bx, by0, by1) = (20, 110, 560);
@@ -364,23 +299,10 @@ pub const ATTRACTOR_PALETTE: [RGBColor; 10] = [
     RGBColor(127, 127, 127),
 ];
 
-/// One attractor of a basin map.
-#[derive(Debug, Clone)]
-pub struct AttractorKey {
-    /// Legend label, e.g. `1/1 A`.
-    pub label: String,
-    /// Regime.
-    pub regime: Regime,
-    /// Canonical Poincaré point `(u mm, u̇ mm/s)`, if periodic.
-    pub point: Option<(f64, f64)>,
-    /// Cells in its basin.
-    pub cells: u64,
-}
-
 /// Colours of the attractors (indexed like `attractors`): no impact light grey, irregular
 /// black; a single impacting periodic attractor takes its regime's colour, several take
 /// [`ATTRACTOR_PALETTE`] in id order (beyond ten: "other attractors", dark grey).
-pub fn attractor_colors(attractors: &[AttractorKey]) -> Vec<RGBColor> {
+pub fn attractor_colors(attractors: &[Attractor]) -> Vec<RGBColor> {
     let periodic = attractors
         .iter()
         .filter(|a| matches!(a.regime, Regime::Periodic { .. }))
@@ -391,7 +313,7 @@ pub fn attractor_colors(attractors: &[AttractorKey]) -> Vec<RGBColor> {
         .map(|a| match a.regime {
             Regime::NoImpact => RGBColor(215, 215, 215),
             Regime::Irregular => IRREGULAR,
-            Regime::Periodic { .. } if periodic == 1 => map_color(a.regime),
+            Regime::Periodic { .. } if periodic == 1 => regime_color(a.regime),
             Regime::Periodic { .. } => {
                 k += 1;
                 ATTRACTOR_PALETTE
@@ -414,12 +336,12 @@ pub fn basins_map(
     x: &MapAxis,
     y: &MapAxis,
     cells: &Raster<u32>,
-    attractors: &[AttractorKey],
+    attractors: &[Attractor],
 ) -> Result<()> {
     let (left, right) = figure_with_panel(path, title)?;
     let colors = attractor_colors(attractors);
     let mut chart = map_chart(&left, x, y)?;
-    cells.blit(&chart.plotting_area().strip_coord_spec(), |id| {
+    blit(&cells, &chart.plotting_area().strip_coord_spec(), |id| {
         colors.get(id as usize).copied().unwrap_or(EMPTY)
     })?;
     let (x0, x1) = x.range();
@@ -555,4 +477,163 @@ pub fn bifurcation(
     series_legend(&mut ct, Some(SeriesLabelPosition::UpperLeft), 14)?;
     root.present()?;
     Ok(())
+}
+
+impl GridFigures for Peterka {
+    fn draw(job: &mut Finish<'_>, _summary: ()) -> Result<()> {
+        let (outputs, meta, csv, figures) = (&mut *job.outputs, job.meta, job.rows, job.figures);
+        let Figures { plot, force_plot } = figures;
+        if plot.is_none() && force_plot.is_none() {
+            return Ok(());
+        }
+        let grid = meta.grid::<Self::Grid>()?;
+        let a0_mm = meta.params.amplitude_m * 1e3;
+        let fn_hz = meta.params.natural_freq_hz();
+        let (nf, ng) = (grid.freq.sweep.len(), grid.gap.sweep.len());
+        let mut cells = Raster::new(nf, ng, Cell::Empty);
+        let mut force: Option<(f64, f64)> = None;
+        let mut rdr = open_csv::<PeterkaRow>(csv)?;
+        for row in rdr.deserialize::<PeterkaRow>() {
+            let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
+            let (ig, jf) = grid.split(row.index as usize);
+            cells.set(jf, ig, Cell::Regime(row.regime, row.impact_force_mg as f32));
+            if row.regime == Regime::ONE_ONE {
+                let f = row.impact_force_mg;
+                force = Some(force.map_or((f, f), |(lo, hi)| (lo.min(f), hi.max(f))));
+            }
+        }
+        let (x0, _) = grid.freq(0, fn_hz);
+        let (x1, _) = grid.freq(1, fn_hz);
+        let x = MapAxis {
+            lo: x0,
+            step: if nf > 1 { x1 - x0 } else { 0.02 },
+            n: nf,
+            label: format!("Ω/ω (excitation / natural frequency; f = Ω/ω × {fn_hz:.4} Hz)"),
+        };
+        let y = MapAxis {
+            lo: grid.gap(0, a0_mm).1,
+            step: if ng > 1 {
+                grid.gap(1, a0_mm).1 - grid.gap(0, a0_mm).1
+            } else {
+                0.02
+            },
+            n: ng,
+            label: format!("gap/A0 (A0 = {a0_mm:.3} mm)"),
+        };
+        if let Some(p) = plot {
+            let tmp = outputs.reserve(p)?;
+            let title = format!(
+                "{} — impact regime z = p/q (Peterka map)",
+                title_prefix(meta)
+            );
+            regime_map(&tmp, &title, &x, &y, &cells)?;
+        }
+        if let Some(p) = force_plot {
+            let tmp = outputs.reserve(p)?;
+            let title = format!(
+                "{} — max impact force F_i/mg in the z = 1/1 region",
+                title_prefix(meta)
+            );
+            force_map(&tmp, &title, &x, &y, &cells, force)?;
+        }
+        Ok(())
+    }
+}
+
+impl GridFigures for Bifurcation {
+    /// Draws the figure from the complete CSV, reading it twice (spans, then dots): memory
+    /// does not grow with the sweep.
+    fn draw(job: &mut Finish<'_>, _summary: ()) -> Result<()> {
+        let (outputs, meta, csv, figures) = (&mut *job.outputs, job.meta, job.rows, job.figures);
+        let Some(plot) = figures.plot else {
+            return Ok(());
+        };
+        let grid = meta.grid::<Self::Grid>()?;
+        let mut ranges = BifRanges {
+            x: (
+                grid.omega_ratio.value(0),
+                grid.omega_ratio.value(grid.omega_ratio.len() - 1),
+            ),
+            u: (f64::INFINITY, f64::NEG_INFINITY),
+            force_max: 0.0,
+        };
+        let mut present = [false; 3];
+        const BRANCHES: [&str; 3] = ["rest", "up", "down"];
+        for row in open_csv::<BifRow>(csv)?.deserialize::<BifRow>() {
+            let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
+            if let Some(k) = BRANCHES.iter().position(|b| *b == row.branch) {
+                present[k] = true;
+            }
+            if let Some(u) = row.u_mm {
+                ranges.u = (ranges.u.0.min(u), ranges.u.1.max(u));
+            }
+            if let Some(f) = row.impact_force_mg {
+                ranges.force_max = ranges.force_max.max(f);
+            }
+        }
+        if !ranges.u.0.is_finite() {
+            ranges.u = (0.0, grid.gap_mm);
+        }
+        let branches: Vec<&str> = BRANCHES
+            .iter()
+            .zip(present)
+            .filter(|(_, p)| *p)
+            .map(|(b, _)| *b)
+            .collect();
+        let tmp = outputs.reserve(plot)?;
+        let title = format!(
+            "{} — bifurcation diagram, gap {} mm{}",
+            title_prefix(meta),
+            grid.gap_mm,
+            match grid.continuation {
+                None => ", from rest at each Ω",
+                Some(_) => ", continuation",
+            }
+        );
+        bifurcation(&tmp, &title, ranges, grid.gap_mm, &branches, |draw| {
+            for row in open_csv::<BifRow>(csv)?.deserialize::<BifRow>() {
+                let row = row.with_context(|| format!("{}: malformed row", csv.display()))?;
+                let dot = match (row.u_mm, row.impact_force_mg) {
+                    (Some(u), _) => BifDot::Strobe(row.omega_ratio, u),
+                    (None, Some(f)) => BifDot::Impact(row.omega_ratio, f),
+                    _ => continue,
+                };
+                draw(&row.branch, dot)?;
+            }
+            Ok(())
+        })
+    }
+}
+
+impl GridFigures for Basins {
+    fn draw(job: &mut Finish<'_>, summary: BasinsSummary) -> Result<()> {
+        let (outputs, meta, figures) = (&mut *job.outputs, job.meta, job.figures);
+        let grid = meta.grid::<BasinsGrid>()?;
+        let (nu, nv) = (grid.u0_mm.len(), grid.v0_mm_s.len());
+        let (cells, keys) = (&summary.cells, &summary.attractors);
+        if let Some(p) = figures.plot {
+            let tmp = outputs.reserve(p)?;
+            let x = MapAxis {
+                lo: grid.u0_mm.start,
+                step: grid.u0_mm.spacing(),
+                n: nu,
+                label: "initial displacement u0 (mm)".into(),
+            };
+            let y = MapAxis {
+                lo: grid.v0_mm_s.start,
+                step: grid.v0_mm_s.spacing(),
+                n: nv,
+                label: "initial velocity u̇0 (mm/s)".into(),
+            };
+            let title = format!(
+                "{} — basins of attraction, gap {} mm, Ω/ω = {} ({:.3} Hz)",
+                title_prefix(meta),
+                grid.gap_mm,
+                grid.omega_ratio,
+                meta.params.freq_hz_from_ratio(grid.omega_ratio)
+            );
+            basins_map(&tmp, &title, &x, &y, cells, keys)?;
+        }
+        Ok(())
+    }
 }

@@ -7,8 +7,9 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
+use super::{Frame, SANS, canvas, line_key, panel, series_legend};
+use crate::comparison::{ResponseOverlay, TsOverlay};
 use crate::identify::contact::{DropData, Fit, SimDrop};
-use crate::plot::{Frame, SANS, canvas, line_key, panel, series_legend};
 
 /// The time-series comparison's panels.
 const TRACE: Frame = Frame::new(12, 40, 60, 14);
@@ -163,15 +164,6 @@ fn drop_panel(
     Ok(())
 }
 
-/// A simulated frequency response and the measured points, for [`response_compare`].
-#[derive(Debug, Clone, Default)]
-pub struct ResponseOverlay {
-    /// `(Ω/ω, F_i/mg, regime)` of the simulation.
-    pub sim: Vec<(f64, f64, shared::observe::Regime)>,
-    /// `(Ω/ω, F_i/mg)` measured.
-    pub measured: Vec<(f64, f64)>,
-}
-
 /// Measured max `F_i/mg` (black crosses) over the simulated response (grey line, dots by
 /// regime), with the error summary under the title (thesis Figs. 3.12–3.14).
 ///
@@ -183,7 +175,6 @@ pub fn response_compare(
     summary: &str,
     o: &ResponseOverlay,
 ) -> Result<()> {
-    use crate::plot::{regime_class, regime_color};
     let root = canvas(path, (1100, 680), Some((title, 21)))?;
     let (head, body) = root.split_vertically(28);
     head.draw_text(summary, &(SANS, 14).into_text_style(&head), (12, 4))?;
@@ -209,23 +200,11 @@ pub fn response_compare(
     ))?
     .label("simulated")
     .legend(line_key(RGBColor(150, 150, 150)));
-    let mut seen: Vec<&str> = Vec::new();
-    for p in &o.sim {
-        let name = regime_class(p.2);
-        if !seen.contains(&name) {
-            seen.push(name);
-        }
-    }
-    for name in seen {
-        let col = o
-            .sim
-            .iter()
-            .find(|p| regime_class(p.2) == name)
-            .map_or(BLACK, |p| regime_color(p.2));
+    for (name, col) in super::regime_classes(o.sim.iter().map(|p| p.2)) {
         c.draw_series(
             o.sim
                 .iter()
-                .filter(|p| regime_class(p.2) == name)
+                .filter(|p| super::regime_class(p.2).1 == name)
                 .map(|p| Circle::new((p.0, p.1), 2, col.filled())),
         )?
         .label(format!("simulated, {name}"))
@@ -241,19 +220,6 @@ pub fn response_compare(
     series_legend(&mut c, Some(SeriesLabelPosition::UpperLeft), 14)?;
     root.present()?;
     Ok(())
-}
-
-/// A measured and a simulated time series, for [`time_series_compare`].
-#[derive(Debug, Clone, Default)]
-pub struct TsOverlay {
-    /// `(t s, x mm, ẋ mm/s)` measured.
-    pub measured: Vec<(f64, f64, f64)>,
-    /// `(t s, x mm, ẋ mm/s)` simulated, on the measured time axis.
-    pub sim: Vec<(f64, f64, f64)>,
-    /// Poincaré points `(x, ẋ)` measured.
-    pub strobe_measured: Vec<(f64, f64)>,
-    /// Poincaré points `(x, ẋ)` simulated.
-    pub strobe_sim: Vec<(f64, f64)>,
 }
 
 /// Absolute displacement vs time, and the phase plane `(x, ẋ)` with the Poincaré points:

@@ -1,0 +1,215 @@
+//! PNG figures with plotters (bitmap backend, bundled DejaVu Sans: no system font needed):
+//! the common canvas, panels, legend keys and the one regime palette here; the figures of each
+//! kind of result in the submodules. Figures read the computations' results; no computation
+//! imports a figure.
+
+pub mod identify;
+pub mod maps;
+pub mod response;
+pub mod rig_log;
+
+use std::ops::Range;
+use std::path::Path;
+use std::sync::Once;
+
+use anyhow::Result;
+use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
+use shared::observe::Regime;
+
+const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+/// Family name of the bundled font.
+pub(crate) const SANS: &str = "sans-serif";
+
+/// Registers the bundled font (once).
+pub(crate) fn ensure_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // The bundled font is valid TTF; a failure would only show as missing text.
+        let _ = plotters::style::register_font(SANS, FontStyle::Normal, FONT);
+    });
+}
+
+/// A chart with linear `f64` axes on a bitmap.
+pub(crate) type Chart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The drawing area of a figure: a white `size` px bitmap written to `path`, with `title` at
+/// `title_px` across the top if given (the area below it is returned).
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn canvas<'a>(
+    path: &'a Path,
+    size: (u32, u32),
+    title: Option<(&str, u32)>,
+) -> Result<DrawingArea<BitMapBackend<'a>, Shift>> {
+    ensure_font();
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE)?;
+    Ok(match title {
+        Some((text, px)) => root.titled(text, (SANS, px))?,
+        None => root,
+    })
+}
+
+/// How a panel is framed, px: the outer margin, the x- and y-label areas, the tick-label font
+/// and, if set, a larger font for the axis descriptions.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Frame {
+    pub margin: u32,
+    pub x_area: u32,
+    pub y_area: u32,
+    pub font: u32,
+    pub desc_font: Option<u32>,
+}
+
+impl Frame {
+    /// A frame with the tick labels and axis descriptions at `font` px.
+    pub(crate) const fn new(margin: u32, x_area: u32, y_area: u32, font: u32) -> Frame {
+        Frame {
+            margin,
+            x_area,
+            y_area,
+            font,
+            desc_font: None,
+        }
+    }
+
+    /// The same frame with the axis descriptions at `px`.
+    pub(crate) const fn desc_font(self, px: u32) -> Frame {
+        Frame {
+            desc_font: Some(px),
+            ..self
+        }
+    }
+}
+
+/// A panel on `area`: `x` × `y` framed by `frame`, its mesh drawn with the axis descriptions
+/// `desc` (x, y).
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn panel<'a, 'b>(
+    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    frame: Frame,
+    x: Range<f64>,
+    y: Range<f64>,
+    desc: (&str, &str),
+) -> Result<Chart<'a, 'b>> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(frame.margin)
+        .x_label_area_size(frame.x_area)
+        .y_label_area_size(frame.y_area)
+        .build_cartesian_2d(x, y)?;
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(desc.0)
+        .y_desc(desc.1)
+        .label_style((SANS, frame.font));
+    if let Some(px) = frame.desc_font {
+        mesh.axis_desc_style((SANS, px));
+    }
+    mesh.draw()?;
+    Ok(chart)
+}
+
+/// A legend key: a 14 × 10 px swatch in `style`.
+pub(crate) fn swatch_key<S: Into<ShapeStyle> + Clone>(
+    style: S,
+) -> impl Fn((i32, i32)) -> Rectangle<(i32, i32)> {
+    move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], style.clone())
+}
+
+/// A legend key: a 16 px line in `style`.
+pub(crate) fn line_key<S: Into<ShapeStyle> + Clone>(
+    style: S,
+) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new([(x, y), (x + 16, y)], style.clone())
+}
+
+/// Draws the series legend of `chart`: at `position` (plotters' default if `None`), on a
+/// translucent white box with a black border, labels in [`SANS`] at `font_size` px.
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn series_legend<'a, 'b: 'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
+    position: Option<SeriesLabelPosition>,
+    font_size: u32,
+) -> Result<()> {
+    let mut labels = chart.configure_series_labels();
+    if let Some(p) = position {
+        labels.position(p);
+    }
+    labels
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((SANS, font_size))
+        .draw()?;
+    Ok(())
+}
+
+/// Colours of the named regimes, in legend order: `1/1` red and `1/2` green (the thesis' Peterka
+/// colours), then the other regimes the maps of this rig show; every other periodic regime is
+/// [`OTHER_PERIODIC`]. The one palette of every figure.
+pub const NAMED_REGIMES: [(u16, u16, RGBColor); 11] = [
+    (1, 1, RGBColor(215, 25, 28)),
+    (1, 2, RGBColor(26, 150, 65)),
+    (2, 2, RGBColor(253, 174, 97)),
+    (1, 3, RGBColor(117, 112, 179)),
+    (2, 1, RGBColor(166, 86, 40)),
+    (3, 3, RGBColor(231, 41, 138)),
+    (2, 3, RGBColor(0, 160, 160)),
+    (3, 1, RGBColor(128, 128, 0)),
+    (1, 4, RGBColor(31, 60, 140)),
+    (4, 4, RGBColor(240, 200, 0)),
+    (3, 2, RGBColor(190, 120, 220)),
+];
+/// A periodic regime not in [`NAMED_REGIMES`].
+pub const OTHER_PERIODIC: RGBColor = RGBColor(43, 131, 186);
+/// No impact.
+pub const NO_IMPACT: RGBColor = RGBColor(190, 190, 190);
+/// Irregular (no period found).
+pub const IRREGULAR: RGBColor = RGBColor(0, 0, 0);
+
+/// Colour of a regime in every figure (a fixed function of the regime: [`NAMED_REGIMES`],
+/// [`OTHER_PERIODIC`], [`IRREGULAR`], [`NO_IMPACT`]).
+pub fn regime_color(r: Regime) -> RGBColor {
+    match r {
+        Regime::Periodic { p, q } => NAMED_REGIMES
+            .iter()
+            .find(|&&(a, b, _)| a == p && b == q)
+            .map_or(OTHER_PERIODIC, |&(_, _, c)| c),
+        Regime::Irregular => IRREGULAR,
+        Regime::NoImpact => NO_IMPACT,
+    }
+}
+
+/// Legend class of a regime in every figure: its position in the legend order and its label
+/// (`z = p/q` for a named regime, `other periodic`, `irregular`, `no impact`).
+pub fn regime_class(r: Regime) -> (usize, String) {
+    match r {
+        Regime::Periodic { p, q } => {
+            match NAMED_REGIMES.iter().position(|&(a, b, _)| a == p && b == q) {
+                Some(k) => (k, format!("z = {p}/{q}")),
+                None => (NAMED_REGIMES.len(), "other periodic".into()),
+            }
+        }
+        Regime::Irregular => (NAMED_REGIMES.len() + 1, "irregular".into()),
+        Regime::NoImpact => (NAMED_REGIMES.len() + 2, "no impact".into()),
+    }
+}
+
+/// The legend classes present among `regimes`, in legend order: `(label, colour)`, each once.
+pub fn regime_classes(regimes: impl Iterator<Item = Regime>) -> Vec<(String, RGBColor)> {
+    let mut seen: Vec<(usize, String, RGBColor)> = Vec::new();
+    for r in regimes {
+        let (k, name) = regime_class(r);
+        if !seen.iter().any(|(j, _, _)| *j == k) {
+            seen.push((k, name, regime_color(r)));
+        }
+    }
+    seen.sort_by_key(|(k, _, _)| *k);
+    seen.into_iter().map(|(_, n, c)| (n, c)).collect()
+}
