@@ -1,5 +1,5 @@
 //! The RTIC application, the same source for the rig image (`firmware`, `src/main.rs`) and the
-//! emulator image (`firmware-qemu`, `src/bin/firmware_qemu.rs`): each binary brings its own
+//! emulator image (`firmware-qemu`, `src/emulator.rs`): each binary brings its own
 //! `board` module (the peripherals), and nothing here differs between them.
 //!
 //! | task      | trigger                                         | priority | does                                            |
@@ -23,15 +23,15 @@ mod app {
     use rtic::Mutex;
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::signal::{SignalReader, SignalWriter};
-    use shared::control::capture::Capture;
-    use shared::control::link::{Link, LinkStats, REPLY_ROOM};
-    use shared::control::serve::{
-        Answer, AsyncText, BoardInfo, ReplyText, RigAccess, answer, format_answer, format_async,
+    use shared::capture::Capture;
+    use shared::console::link::Link;
+    use shared::console::serve::{
+        AsyncText, ReplyText, RigAccess, answer, format_answer, format_async, split_tag,
     };
-    use shared::control::{
-        Controller, ControllerConfig, Event, Health, HealthCheck, Status, predict,
-    };
+    use shared::console::{BoardInfo, Token};
+    use shared::control::{Controller, ControllerConfig, Event, Status, predict};
     use shared::hal::{DriveOutput, ForceSource};
+    use shared::health::{Health, HealthCheck};
     use shared::observe::Regime;
 
     use crate::board;
@@ -108,9 +108,11 @@ mod app {
         };
         let (writer, reader) = rtic_sync::make_signal!(());
         defmt::info!(
-            "vibro-impact rig firmware {=str} ({=str} board): rig {=str}, gap {=f32} mm, sampling at {=u32} Hz",
-            FIRMWARE_VERSION,
-            board::BOARD,
+            "vibro-impact rig firmware {=u16}.{=u16}.{=u16} ({=str} board): rig {=str}, gap {=f32} mm, sampling at {=u32} Hz",
+            FIRMWARE_VERSION.major,
+            FIRMWARE_VERSION.minor,
+            FIRMWARE_VERSION.patch,
+            board::BOARD.token(),
             RIG.name(),
             GAP_MM,
             shared::control::SAMPLE_RATE_HZ
@@ -176,13 +178,15 @@ mod app {
         }
     }
 
-    /// The UART: received bytes (and receive errors) into the link, the next queued byte out.
-    #[task(binds = USART2, priority = 3, shared = [console], local = [wake_from_console])]
+    /// The UART: received bytes (and receive errors) into the link, the next queued byte out;
+    /// every line's end feeds the controller's link-loss watchdog.
+    #[task(binds = USART2, priority = 3, shared = [console, controller], local = [wake_from_console])]
     fn console(mut cx: console::Context) {
-        let ready = cx.shared.console.lock(|con| {
+        let (ready, line_end) = cx.shared.console.lock(|con| {
+            let mut line_end = false;
             while let Some(rx) = con.serial.read() {
                 match rx {
-                    Ok(byte) => con.link.on_rx_byte(byte),
+                    Ok(byte) => line_end |= con.link.on_rx_byte(byte),
                     Err(e) => con.link.on_rx_error(e),
                 }
             }
@@ -195,8 +199,11 @@ mod app {
                     None => con.serial.stop_tx(),
                 }
             }
-            con.link.has_line() && con.link.tx_free() >= REPLY_ROOM
+            (con.link.ready(), line_end)
         });
+        if line_end {
+            cx.shared.controller.lock(Controller::link_alive);
+        }
         if ready {
             cx.local.wake_from_console.write(());
         }
@@ -204,16 +211,17 @@ mod app {
 
     /// [`RigAccess`] over the console service's locks: each closure runs under its resource's
     /// lock only.
-    struct Access<'a, C, K> {
+    struct Access<'a, C, K, L> {
         controller: &'a mut C,
         capture: &'a mut K,
-        link: LinkStats,
+        console: &'a mut L,
     }
 
-    impl<C, K> RigAccess for Access<'_, C, K>
+    impl<C, K, L> RigAccess for Access<'_, C, K, L>
     where
         C: Mutex<T = Controller>,
         K: Mutex<T = CaptureRes>,
+        L: Mutex<T = Console>,
     {
         fn controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
             self.controller.lock(f)
@@ -224,8 +232,8 @@ mod app {
         fn board(&mut self) -> BoardInfo {
             board_info()
         }
-        fn link_stats(&mut self) -> LinkStats {
-            self.link
+        fn link<R>(&mut self, f: impl FnOnce(&mut Link) -> R) -> R {
+            self.console.lock(|c| f(&mut c.link))
         }
     }
 
@@ -238,30 +246,32 @@ mod app {
         loop {
             cx.local.wake.wait().await;
             loop {
-                let next = cx
-                    .shared
-                    .console
-                    .lock(|c| c.link.next_line().map(|l| (l, c.link.stats())));
-                let Some((pending, stats)) = next else {
+                let Some(pending) = cx.shared.console.lock(|c| c.link.next_line()) else {
                     break;
                 };
+                // The board's test hooks see the line without its tag; their reply gets it back.
                 let hooked = match pending.as_line() {
-                    shared::control::Line::Text(t) => board::hook(t, uptime_ms()),
+                    shared::console::Line::Text(t) => split_tag(t)
+                        .ok()
+                        .and_then(|(tag, rest)| Some((tag, board::hook(rest, uptime_ms())?))),
                     _ => None,
                 };
                 match hooked {
-                    Some(text) => {
+                    Some((tag, text)) => {
                         reply.clear();
+                        if let Some(t) = tag {
+                            let _ = core::fmt::Write::write_fmt(&mut reply, format_args!("#{t} "));
+                        }
                         let _ = reply.push_str(&text);
                     }
                     None => {
                         let mut access = Access {
                             controller: &mut cx.shared.controller,
                             capture: &mut cx.shared.capture,
-                            link: stats,
+                            console: &mut cx.shared.console,
                         };
-                        let a: Answer = answer(&mut access, pending.as_line());
-                        format_answer(&a, &mut reply);
+                        let response = answer(&mut access, pending.as_line());
+                        format_answer(&response, &mut reply);
                     }
                 }
                 send(&mut cx.shared.console, reply.as_bytes());
@@ -362,15 +372,15 @@ mod app {
         };
         defmt::info!(
             "status: {=str} rig {=str} gap {=f32} mm, drive {=f32} Hz {=f32} mm, regime {=u16}/{=u16}, peak {=f32} N, fault {=str}, impacts {=u32}, lost cycles {=u32}",
-            s.state.as_str(),
+            s.state.token(),
             s.rig.name(),
             s.gap_mm,
             s.freq_hz,
             s.amplitude_mm,
             p,
             q,
-            s.peak_n.unwrap_or(0.0),
-            s.fault.map_or("none", |f| f.as_str()),
+            s.peak.map_or(0.0, |p| p.n),
+            s.fault.map_or("none", |f| f.token()),
             s.impacts,
             s.lost_cycles
         );
@@ -379,9 +389,9 @@ mod app {
     fn log_event(event: Event) {
         match event {
             Event::State { from, to } => {
-                defmt::info!("state {=str} -> {=str}", from.as_str(), to.as_str())
+                defmt::info!("state {=str} -> {=str}", from.token(), to.token())
             }
-            Event::Fault(f) => defmt::error!("FAULT {=str}: drive ramping to zero", f.as_str()),
+            Event::Fault(f) => defmt::error!("FAULT {=str}: drive ramping to zero", f.token()),
             Event::ModelReady(p) => defmt::info!(
                 "model: target {=f32} Hz, 1/1 band {=f32}..{=f32} Hz, F_i/mg {=f32}",
                 p.target_hz,

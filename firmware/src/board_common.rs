@@ -1,31 +1,29 @@
 //! What the rig board (`board_rig.rs`) and the emulator board (`board_emu.rs`) share: the
-//! parts the app gets, the console's USART2 set-up and receive path, and the 64-bit extension
+//! shape of the parts the app gets, the console's USART2 set-up and receive path, and the 64-bit extension
 //! of TIM5's 32-bit µs count.
 
-use shared::control::RxError;
+use shared::console::RxError;
 use stm32f4xx_hal::gpio::{PA2, PA3};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Rcc;
 use stm32f4xx_hal::serial::{self, Serial};
 
-use crate::board::{CaptureInput, ConsoleSerial, DacDrive, ForceAdc, MicrosClock, Watchdog};
-
-/// What the app gets from the board this image is built for (`crate::board`, whose types
-/// these are).
-pub struct Parts {
+/// What the app gets from the board this image is built for, over that board's types (each
+/// board names its own: `board::Parts`).
+pub struct BoardParts<Adc, Dac, Clock, Serial, Capture, Dog> {
     /// ADC1 on PA1.
-    pub adc: ForceAdc,
+    pub adc: Adc,
     /// DAC1 on PA4.
-    pub dac: DacDrive,
+    pub dac: Dac,
     /// µs time base.
-    pub clock: MicrosClock,
+    pub clock: Clock,
     /// USART2.
-    pub serial: ConsoleSerial,
+    pub serial: Serial,
     /// ADC2 at the capture rate.
-    pub capture: CaptureInput,
+    pub capture: Capture,
     /// The watchdog.
-    pub watchdog: Watchdog,
+    pub watchdog: Dog,
 }
 
 /// USART2 on PA2/PA3, 115200 8N1, receive interrupt on.

@@ -21,26 +21,30 @@
 //! - USART2 transmit: QEMU sends a byte synchronously and raises no transmit-empty interrupt,
 //!   so the UART interrupt is pended in software while bytes wait;
 //! - test hooks on the console, answered before the console service: `emu stall` (TIM2 stops:
-//!   sampling stalls), `emu dac` (the last DAC code), `emu overflow` (recursion until the stack
-//!   overflows).
+//!   sampling stalls), `emu dac` (the last DAC code), `emu adc <code>` (the force ADC reads
+//!   this code instead of QEMU's sawtooth; `emu adc off` gives the sawtooth back), `emu overflow`
+//!   (recursion until the stack overflows).
 
 use core::sync::atomic::{AtomicU16, Ordering};
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_semihosting::hprintln;
 use heapless::spsc::{Consumer, Producer, Queue};
-use shared::control::RxError;
+use shared::console::{Board, RxError};
 use shared::control::config::DAC_MID;
 use shared::hal::{DriveOutput, ForceSource, SampleError};
 use stm32f4xx_hal::pac::{self, Interrupt, interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::serial::Serial;
 
-use crate::board_common::{Micros64, Parts, console_usart, read_byte};
+use crate::board_common::{BoardParts, Micros64, console_usart, read_byte};
 use crate::config::{CAPTURE_BLOCK, WATCHDOG_MS};
 
 /// Which image this is (`id`).
-pub const BOARD: &str = "emulator";
+pub const BOARD: Board = Board::Emulator;
+
+/// What this board gives the app.
+pub type Parts = BoardParts<ForceAdc, DacDrive, MicrosClock, ConsoleSerial, CaptureInput, Watchdog>;
 
 /// QEMU's timer clock: 1 GHz whatever the RCC, and a period of `ARR` ticks as long as the
 /// prescaler and counter are never written (its model adds the tick offset of those writes to
@@ -55,6 +59,10 @@ const CAPTURE_QUEUE: usize = 4 * CAPTURE_BLOCK;
 static mut CAPTURE_Q: Queue<u16, CAPTURE_QUEUE> = Queue::new();
 static mut CAPTURE_TX: Option<Producer<'static, u16>> = None;
 static DAC_CODE: AtomicU16 = AtomicU16::new(DAC_MID);
+/// The code `emu adc` holds the force ADC at ([`ADC_FREE`]: QEMU's sawtooth).
+static ADC_HOLD: AtomicU16 = AtomicU16::new(ADC_FREE);
+/// No code held.
+const ADC_FREE: u16 = u16::MAX;
 
 /// Sets up the emulated board.
 pub fn init(
@@ -101,7 +109,7 @@ pub fn init(
         NVIC::unmask(Interrupt::TIM3);
     }
     let _ = dp.DAC;
-    Parts {
+    BoardParts {
         adc: ForceAdc,
         dac: DacDrive,
         clock: MicrosClock::default(),
@@ -160,7 +168,11 @@ impl ForceSource for ForceAdc {
             adc.sr().modify(|_, w| w.ovr().clear_bit());
             return Err(SampleError::Overrun);
         }
-        Ok((adc.dr().read().bits() & 0x0FFF) as u16)
+        let code = (adc.dr().read().bits() & 0x0FFF) as u16;
+        match ADC_HOLD.load(Ordering::Relaxed) {
+            ADC_FREE => Ok(code),
+            held => Ok(held),
+        }
     }
 }
 
@@ -242,7 +254,7 @@ impl CaptureInput {
             t.dier().write(|w| w.uie().set_bit());
             t.cr1().write(|w| w.cen().set_bit());
             t.arr()
-                .write(|w| unsafe { w.bits(TIMER_CLOCK_HZ / shared::control::CAPTURE_RATE_HZ) });
+                .write(|w| unsafe { w.bits(TIMER_CLOCK_HZ / shared::capture::CAPTURE_RATE_HZ) });
         }
     }
 
@@ -305,6 +317,20 @@ pub fn hook(line: &str, now_ms: u32) -> Option<heapless::String<96>> {
         // SAFETY: TIM2 is the sampling trigger; stopping its interrupt stalls the sampling.
         unsafe { (*pac::TIM2::ptr()).dier().write(|w| w.uie().clear_bit()) };
         let _ = write!(out, "ok sampling stalled at uptime_ms={now_ms}");
+    } else if let Some(arg) = words.strip_prefix("emu adc ") {
+        let held = match arg.trim() {
+            "off" => Some(ADC_FREE),
+            n => n.parse::<u16>().ok().filter(|&c| c <= shared::hal::ADC_MAX),
+        };
+        match held {
+            Some(c) => {
+                ADC_HOLD.store(c, Ordering::Relaxed);
+                let _ = write!(out, "ok adc {}", arg.trim());
+            }
+            None => {
+                let _ = write!(out, "error: emu adc takes a code 0 ..= 4095 or off");
+            }
+        }
     } else if words == "emu dac" {
         let _ = write!(out, "dac_code={}", DAC_CODE.load(Ordering::Relaxed));
     } else if words == "emu overflow" {

@@ -17,7 +17,7 @@
 
 use cortex_m::peripheral::NVIC;
 use panic_probe as _;
-use shared::control::RxError;
+use shared::console::{Board, RxError};
 use shared::control::config::DAC_MID;
 use shared::hal::{DriveOutput, ForceSource, SampleError};
 use stm32f4xx_hal::adc::Adc;
@@ -34,11 +34,14 @@ use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::timer::{CounterHz, CounterUs, Timer};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use crate::board_common::{Micros64, Parts, console_usart, read_byte};
+use crate::board_common::{BoardParts, Micros64, console_usart, read_byte};
 use crate::config::{CAPTURE_BLOCK, SYSCLK_HZ, WATCHDOG_MS};
 
 /// Which image this is (`id`).
-pub const BOARD: &str = "rig";
+pub const BOARD: Board = Board::Rig;
+
+/// What this board gives the app.
+pub type Parts = BoardParts<ForceAdc, DacDrive, MicrosClock, ConsoleSerial, CaptureInput, Watchdog>;
 
 type CaptureTransfer =
     Transfer<Stream2<DMA2>, 1, pac::ADC2, PeripheralToMemory, &'static mut [u16; CAPTURE_BLOCK]>;
@@ -119,7 +122,7 @@ pub fn init(
     let mut iwdg = IndependentWatchdog::new(dp.IWDG);
     iwdg.start(WATCHDOG_MS.millis());
 
-    Parts {
+    BoardParts {
         adc: ForceAdc { adc },
         dac,
         clock: MicrosClock {
@@ -239,7 +242,7 @@ pub struct CaptureInput {
 impl CaptureInput {
     /// Starts the conversions.
     pub fn start(&mut self) {
-        let _ = self.timer.start(shared::control::CAPTURE_RATE_HZ.Hz());
+        let _ = self.timer.start(shared::capture::CAPTURE_RATE_HZ.Hz());
     }
 
     /// Stops them.

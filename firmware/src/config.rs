@@ -1,5 +1,6 @@
 //! Configuration of the rig this board drives at power-up (the console changes rig and gap).
 
+use shared::console::Version;
 use shared::model::RigId;
 
 /// The rig at power-up.
@@ -11,6 +12,6 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 /// Independent watchdog timeout, ms.
 pub const WATCHDOG_MS: u32 = 2_000;
 /// The firmware's version (`id`).
-pub const FIRMWARE_VERSION: &str = env!("CARGO_PKG_VERSION");
+pub const FIRMWARE_VERSION: Version = Version::of(env!("CARGO_PKG_VERSION"));
 /// Samples per capture DMA block (half of the double buffer): 0.64 ms at 100 kHz.
 pub const CAPTURE_BLOCK: usize = 64;

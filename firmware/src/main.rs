@@ -12,21 +12,21 @@
 //! watchdog after its health check.
 //!
 //! This binary is the rig image (`cargo fw-build`, flashed with `cargo fw`); the emulator image
-//! (`src/bin/firmware_qemu.rs`) runs the same app on QEMU's `netduinoplus2`. On the host this
+//! (`src/emulator.rs`) runs the same app on QEMU's `netduinoplus2`. On the host this
 //! crate compiles to a stub so that `cargo build --workspace` works.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
-pub mod config;
+use rig_firmware::config;
+#[cfg(target_os = "none")]
+use rig_firmware::stack;
 
 #[cfg(target_os = "none")]
 mod board_common;
 
 #[cfg(target_os = "none")]
-#[path = "board_rig.rs"]
-mod board;
-
+mod board_rig;
 #[cfg(target_os = "none")]
-mod stack;
+use board_rig as board;
 
 #[cfg(target_os = "none")]
 mod app;

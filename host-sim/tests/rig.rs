@@ -11,17 +11,18 @@ use common::{line, ok, spawn_first_line};
 use std::time::{Duration, Instant};
 
 use host_sim::config::Setup;
-use host_sim::rig_link::RigPort;
 use host_sim::rig_link::log::record;
 use host_sim::rig_link::sweep::parse_range;
+use host_sim::rig_link::{LinkOptions, RigPort};
 use host_sim::runner::{OperatingPoint, evaluate_all};
 use host_sim::virtual_rig::scenario::Scenario;
 use host_sim::virtual_rig::{HilSetup, Session};
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
-use shared::control::Line;
-use shared::control::serve::{ReplyText, format_answer};
+use shared::console::Line;
+use shared::control::{Command as RigCommand, ModelStatus, State, Status};
 use shared::model::RigId;
+use shared::observe::Regime;
 
 /// `host-sim rig --port PORT ARGS` (ARGS split at whitespace), run to its end.
 fn rig_cmd(port: &Path, args: &str) -> Output {
@@ -79,7 +80,7 @@ impl Server {
     }
 
     fn port(&self) -> RigPort {
-        RigPort::open(&self.pty, 115_200, Duration::from_secs(5)).unwrap()
+        RigPort::open(&self.pty, LinkOptions::with_timeout(Duration::from_secs(5))).unwrap()
     }
 
     /// Stops the server (SIGTERM: it writes its log) and returns the log's rows.
@@ -99,17 +100,21 @@ impl Drop for Server {
     }
 }
 
-/// Polls `status` until `key=value` shows (at most `wall` of wall time).
-fn wait_for(port: &mut RigPort, key: &str, value: &str, wall: Duration) -> String {
+/// Polls `status` until `what` holds (at most `wall` of wall time).
+fn wait_for(port: &mut RigPort, what: impl Fn(&Status) -> bool, wall: Duration) -> Status {
     let end = Instant::now() + wall;
     loop {
-        let s = port.command("status").unwrap();
-        if host_sim::rig_link::protocol::field(&s, key) == Some(value) {
+        let s = port.status().unwrap();
+        if what(&s) {
             return s;
         }
-        assert!(Instant::now() < end, "{key}={value} never came: {s}");
+        assert!(Instant::now() < end, "never came: {s}");
         std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+fn model_ready(s: &Status) -> bool {
+    matches!(s.model, ModelStatus::Ready(_))
 }
 
 fn truth_f64(row: &csv::StringRecord, col: usize) -> Option<f64> {
@@ -120,7 +125,7 @@ fn truth_f64(row: &csv::StringRecord, col: usize) -> Option<f64> {
 fn a_console_session_over_the_pty_gives_the_in_process_replies() {
     let server = Server::start("20", "");
     let mut port = server.port();
-    wait_for(&mut port, "model", "ready", Duration::from_secs(20));
+    wait_for(&mut port, model_ready, Duration::from_secs(20));
     // The same session in-process: the same controller code, answered directly.
     let mut sc = Scenario::default();
     sc.commands.clear();
@@ -136,12 +141,7 @@ fn a_console_session_over_the_pty_gives_the_in_process_replies() {
         session.begin_sample().unwrap();
         session.end_sample();
     }
-    let mut local = |line: &str| {
-        let a = session.answer(Line::Text(line), Default::default());
-        let mut t = ReplyText::new();
-        format_answer(&a, &mut t);
-        t.to_string()
-    };
+    let mut local = |line: &str| session.answer(Line::Text(line)).to_string();
     let lines = [
         "id",
         "status",
@@ -157,23 +157,28 @@ fn a_console_session_over_the_pty_gives_the_in_process_replies() {
         "gap 0",
     ];
     for line in lines {
-        let remote = port.command(line).unwrap();
+        let remote = port.send_line(line).unwrap();
         assert_eq!(remote, local(line), "`{line}`");
     }
     // A line longer than the console takes, and a start/stop.
     let long = "x".repeat(100);
-    assert_eq!(
-        port.command(&long).unwrap(),
-        "error: line too long or not text"
+    let err = port.send_line(&long).unwrap_err().to_string();
+    assert!(
+        err.contains("could not read") && err.contains("line too long or not text"),
+        "{err}"
     );
-    wait_for(&mut port, "model", "ready", Duration::from_secs(20));
-    assert_eq!(port.command("start").unwrap(), "ok");
+    wait_for(&mut port, model_ready, Duration::from_secs(20));
+    assert_eq!(port.send_line("start").unwrap(), "ok");
     assert_eq!(
-        port.command("rig beam-170").unwrap(),
-        "error: only while idle: stop first"
+        port.send_line("rig beam-170").unwrap(),
+        "error: only while idle: the drive is ramp, stop first"
     );
-    assert_eq!(port.command("stop").unwrap(), "ok");
-    wait_for(&mut port, "state", "idle", Duration::from_secs(20));
+    assert_eq!(port.send_line("stop").unwrap(), "ok");
+    wait_for(
+        &mut port,
+        |s| s.state == State::Idle,
+        Duration::from_secs(20),
+    );
     let rows = server.stop();
     assert!(!rows.is_empty());
 }
@@ -182,12 +187,16 @@ fn a_console_session_over_the_pty_gives_the_in_process_replies() {
 fn a_log_while_tracking_reads_the_plant_cycle_by_cycle() {
     let server = Server::start("20", "");
     let mut port = server.port();
-    wait_for(&mut port, "model", "ready", Duration::from_secs(20));
-    port.command_ok("start").unwrap();
-    wait_for(&mut port, "regime", "1/1", Duration::from_secs(30));
+    wait_for(&mut port, model_ready, Duration::from_secs(20));
+    port.command(RigCommand::Start).unwrap();
+    wait_for(
+        &mut port,
+        |s| s.regime == Some(Regime::ONE_ONE),
+        Duration::from_secs(30),
+    );
     let log = record(&mut port, 10.0, Duration::from_secs(10)).unwrap();
     assert_eq!(log.seq.lost, 0, "telemetry lines lost at the default rate");
-    port.command_ok("stop").unwrap();
+    port.command(RigCommand::Stop).unwrap();
     let truth = server.stop();
     // Columns of the hil log: t_s 0, true_impacts 7, true_peak_n 8.
     let mut matched = 0;
@@ -349,8 +358,9 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     }
     drop(port);
     let truth = server.stop();
-    // On the plant: the cart stands still from 0.5 s after the fault (cart_amp_mm, column 4),
-    // and it was driven before.
+    // On the plant: the cart was driven before the sensor opened at 15 s, the controller
+    // tripped within a second (no impact for 1.5 periods), and the cart stands still one drive
+    // cycle after the abort ramp (4 mm/s: 0.22 s); columns t_s 0, cart_amp_mm 4, fault 10.
     let amp = |lo: f64, hi: f64| -> Vec<f64> {
         truth
             .iter()
@@ -359,7 +369,13 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
             .collect()
     };
     assert!(amp(10.0, 15.0).iter().all(|&a| a > 0.8));
-    let after = amp(16.0, f64::INFINITY);
+    let tripped = truth
+        .iter()
+        .find(|r| r.get(10) == Some("sensor-open"))
+        .and_then(|r| truth_f64(r, 0))
+        .unwrap();
+    assert!((15.0..16.0).contains(&tripped), "tripped at {tripped} s");
+    let after = amp(tripped + 0.25 + 0.5, f64::INFINITY);
     assert!(!after.is_empty());
     assert!(after.iter().all(|&a| a < 0.01), "{after:?}");
 }
@@ -397,91 +413,6 @@ fn killing_the_rig_mid_log_is_a_clear_error_with_no_csv_left() {
         .filter_map(Result::ok)
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
-}
-
-/// A pseudo-terminal the test plays the rig on: `answer` gets every received line and returns
-/// the raw bytes to send back.
-fn fake_rig(mut answer: impl FnMut(&str) -> Vec<u8> + Send + 'static) -> PathBuf {
-    use std::io::{Read, Write};
-    let pair = nix::pty::openpty(None, None).unwrap();
-    let mut t = nix::sys::termios::tcgetattr(&pair.slave).unwrap();
-    nix::sys::termios::cfmakeraw(&mut t);
-    nix::sys::termios::tcsetattr(&pair.slave, nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
-    let path = nix::unistd::ttyname(&pair.slave).unwrap();
-    let mut master = std::fs::File::from(pair.master);
-    std::thread::spawn(move || {
-        let _slave = pair.slave;
-        let mut buf = Vec::new();
-        let mut chunk = [0u8; 256];
-        while let Ok(n) = master.read(&mut chunk) {
-            if n == 0 {
-                break;
-            }
-            buf.extend_from_slice(&chunk[..n]);
-            while let Some(end) = buf.iter().position(|&b| b == b'\n') {
-                let line: Vec<u8> = buf.drain(..=end).collect();
-                let line = String::from_utf8_lossy(&line).trim().to_string();
-                let out = answer(&line);
-                if master.write_all(&out).is_err() {
-                    return;
-                }
-            }
-        }
-    });
-    path
-}
-
-const ID: &str = "id firmware=0.1.0 board=virtual rig=wires gap_mm=0.00 sample_rate_hz=10000 \
-                  capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 \
-                  adc_full_scale_v=3.3000 mass_kg=0.2980 freq_window_hz=1.00..30.00";
-
-#[test]
-fn a_bad_link_is_a_clear_error_never_a_hang() {
-    // No such port.
-    let out = Command::new(bin())
-        .args(["rig", "--port", "/dev/does-not-exist", "send", "id"])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && stderr.contains("no such device"),
-        "{stderr}"
-    );
-    // A port where nothing answers: the command is named.
-    let silent = fake_rig(|_| Vec::new());
-    let started = Instant::now();
-    let out = rig_cmd(&silent, "--timeout-s 0.5 send status");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{stderr}");
-    assert!(stderr.contains("no reply to `id` within 0.5 s"), "{stderr}");
-    assert!(started.elapsed() < Duration::from_secs(5));
-    // A rig that answers `id`, then a garbled and an unknown asynchronous line before its
-    // reply to `status`: both reported with their text, skipped; the reply goes through.
-    let noisy = fake_rig(|line| match line {
-        "id" => format!("{ID}\r\n").into_bytes(),
-        "diag" => b"diag samples=0 uptime_ms=0\r\n".to_vec(),
-        "status" => {
-            let mut v = b"\xff\xfe\x80garbled\r\n!Z what is this\r\n".to_vec();
-            v.extend_from_slice(b"state=idle rig=wires\r\n");
-            v
-        }
-        _ => b"error: unknown command (try `help`)\r\n".to_vec(),
-    });
-    let out = rig_cmd(&noisy, "send status bogus");
-    let (stdout, stderr) = (
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr),
-    );
-    assert!(stdout.starts_with("state=idle rig=wires\n"), "{stdout}");
-    assert!(stderr.contains("garbled line skipped: ��"), "{stderr}");
-    assert!(
-        stderr.contains("unknown asynchronous line skipped: !Z what is this"),
-        "{stderr}"
-    );
-    // `send` stops with a non-zero exit at the first `error: …` reply.
-    assert!(!out.status.success());
-    assert!(stdout.contains("error: unknown command"), "{stdout}");
-    assert!(stderr.contains("the rig refused `bogus`"), "{stderr}");
 }
 
 #[test]
@@ -522,4 +453,119 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
     assert!(stdout.contains("> gap 0.5\n             ok"), "{stdout}");
     assert!(stdout.contains("gap_mm=0.50"), "{stdout}");
     server.stop();
+}
+
+/// SIGINT, SIGTERM and SIGHUP to `rig sweep`, `rig run` and `rig log` against the virtual rig:
+/// the client stops the drive, says so, and exits non-zero; the rig's status afterwards shows
+/// the drive at zero; no temporary file is left (a sweep's points are in its marked partial
+/// file).
+#[test]
+fn an_interrupted_command_stops_the_drive_and_leaves_no_file() {
+    use std::io::BufRead;
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("sc.toml");
+    std::fs::write(
+        &scenario,
+        "[[commands]]\nat_s = 0.5\nline = \"start\"\n[[commands]]\nat_s = 500.0\nline = \"status\"\n",
+    )
+    .unwrap();
+    let cases = [
+        (
+            Signal::SIGINT,
+            "sweep --freq-hz 2.2:4.6:0.1 --out fr.csv",
+            "Hz  F_i/mg",
+        ),
+        (
+            Signal::SIGTERM,
+            "sweep --freq-hz 2.2:4.6:0.1 --out fr.csv",
+            "Hz  F_i/mg",
+        ),
+        (Signal::SIGINT, "run --scenario sc.toml", "> start"),
+        (Signal::SIGHUP, "run --scenario sc.toml", "> start"),
+        (
+            Signal::SIGINT,
+            "log --seconds 1000 --out run.csv --plot run.png",
+            "",
+        ),
+        (Signal::SIGTERM, "log --seconds 1000 --out run.csv", ""),
+    ];
+    for (signal, args, started) in cases {
+        let server = Server::start("20", "");
+        if started.is_empty() {
+            // `log` does not start the drive: the rig runs already.
+            let mut port = server.port();
+            wait_for(&mut port, model_ready, Duration::from_secs(20));
+            port.command(RigCommand::Start).unwrap();
+        }
+        let mut client = Command::new(bin())
+            .current_dir(dir.path())
+            .arg("rig")
+            .arg("--port")
+            .arg(&server.pty)
+            .args(args.split_whitespace())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdout = std::io::BufReader::new(client.stdout.take().unwrap());
+        if started.is_empty() {
+            std::thread::sleep(Duration::from_millis(1500));
+        } else {
+            let mut line = String::new();
+            while !line.contains(started) {
+                line.clear();
+                assert!(
+                    stdout.read_line(&mut line).unwrap() > 0,
+                    "{args}: no `{started}`"
+                );
+            }
+        }
+        let sent = Instant::now();
+        kill(Pid::from_raw(client.id() as i32), signal).unwrap();
+        let out = client.wait_with_output().unwrap();
+        assert!(
+            sent.elapsed() < Duration::from_secs(10),
+            "{args}: {:?}",
+            sent.elapsed()
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args} ({signal}): exit 0\n{stderr}");
+        assert!(
+            stderr.contains("stopping the drive: `stop` answered `ok`"),
+            "{args} ({signal}): {stderr}"
+        );
+        assert!(
+            stderr.contains("interrupted"),
+            "{args} ({signal}): {stderr}"
+        );
+        let mut port = server.port();
+        let s = wait_for(
+            &mut port,
+            |s| s.state == State::Idle && s.amplitude_mm == 0.0,
+            Duration::from_secs(10),
+        );
+        assert_eq!(s.fault, None, "{args}");
+        drop(port);
+        server.stop();
+        // Nothing half-written: no temporary file; a sweep's points in its partial file only.
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter_map(Result::ok)
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        for n in &names {
+            assert!(
+                n == "sc.toml" || n == "fr.partial.csv",
+                "{args} ({signal}): left {n}"
+            );
+        }
+        if args.starts_with("sweep") {
+            let p = std::fs::read_to_string(dir.path().join("fr.partial.csv")).unwrap();
+            assert!(
+                p.starts_with("# partial sweep: ended by interrupted"),
+                "{p}"
+            );
+            std::fs::remove_file(dir.path().join("fr.partial.csv")).unwrap();
+        }
+    }
 }

@@ -42,6 +42,18 @@ pub enum ParamError {
     },
 }
 
+impl ParamError {
+    /// The field it names.
+    pub fn field(&self) -> &'static str {
+        match self {
+            ParamError::NotFinite { field }
+            | ParamError::OutOfRange { field, .. }
+            | ParamError::CountOutOfRange { field, .. }
+            | ParamError::BadRange { field, .. } => field,
+        }
+    }
+}
+
 impl fmt::Display for ParamError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {

@@ -5,8 +5,11 @@
 //! rig parameters → [`model`] (contact law + suspension + switch model) → [`integrate`]
 //! (fixed-step RK4) → [`observe`] (impacts, Poincaré section, regime, canonical protocol) →
 //! [`analysis`] (frequency response, operating-frequency selection) → [`control`] (the rig
-//! controller: drive, impact detection, measured regime, tracking, faults, console), which talks
-//! to the hardware through [`hal`].
+//! controller, without text: drive, impact detection, measured regime, tracking, faults) →
+//! [`console`] (the console protocol: requests, replies and records as text, both directions,
+//! and the service that answers lines). Beside the loop: [`capture`] (the drop-test force
+//! capture) and [`health`] (the sampling health check behind the watchdog); the hardware is
+//! reached through [`hal`]. Every dependency points down this list.
 //!
 //! Physics: docs/model.md; equation numbers are the thesis'.
 #![cfg_attr(not(test), no_std)]
@@ -16,9 +19,12 @@
 extern crate std;
 
 pub mod analysis;
+pub mod capture;
+pub mod console;
 pub mod control;
 pub mod error;
 pub mod hal;
+pub mod health;
 pub mod integrate;
 pub mod model;
 pub mod observe;

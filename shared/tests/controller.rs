@@ -4,9 +4,10 @@
 
 use proptest::prelude::*;
 use shared::analysis::SelectionError;
+use shared::console::{Line, LineBuffer, Request, parse};
 use shared::control::{
-    Command, CommandError, Controller, ControllerConfig, Fault, Line, LineBuffer, ModelStatus,
-    Prediction, Request, SAMPLE_PERIOD_US, SAMPLE_RATE_HZ, State, parse,
+    Command, CommandError, Controller, ControllerConfig, Fault, ModelStatus, Prediction,
+    SAMPLE_PERIOD_US, SAMPLE_RATE_HZ, State,
 };
 use shared::hal::SampleError;
 use shared::model::RigId;
@@ -119,13 +120,13 @@ fn start_ramps_then_tracks_to_the_force_maximum() {
     // force at the drive frequency to within the sampling of the half-sine (10 kHz over 1.2 ms).
     let f = s.freq_hz;
     assert!(hill(f) >= 0.995 * 96.0, "{f}");
-    let peak = s.peak_n.unwrap();
+    let peak = s.peak.unwrap().n;
     assert!(
         (peak - hill(f)).abs() < 0.02 * hill(f),
         "{peak} vs {}",
         hill(f)
     );
-    assert!((s.peak_mg.unwrap() - peak / 2.9234).abs() < 0.01);
+    assert!((s.peak.unwrap().mg - peak / 2.9234).abs() < 0.01);
     assert_eq!(s.lost_cycles, 0);
     assert_eq!(rig.c.fault(), None);
     // Stop ramps down to idle.
@@ -223,9 +224,12 @@ fn bad_commands_change_nothing() {
     let before = rig.c.status();
     assert_eq!(
         rig.c.execute(Command::Rig(RigId::Beam170)),
-        Err(CommandError::NotIdle)
+        Err(CommandError::NotIdle(State::Track))
     );
-    assert_eq!(rig.c.execute(Command::Gap(1.0)), Err(CommandError::NotIdle));
+    assert_eq!(
+        rig.c.execute(Command::Gap(1.0)),
+        Err(CommandError::NotIdle(State::Track))
+    );
     assert_eq!(
         rig.c.execute(Command::Freq(40.0)),
         Err(CommandError::FreqOutOfWindow {
@@ -249,7 +253,7 @@ fn freq_dwells_and_tune_returns_to_tracking() {
     rig.run(20.0);
     let s = rig.c.status();
     assert!((s.freq_hz - 3.0).abs() < 1e-4);
-    assert!((s.peak_n.unwrap() - hill(3.0)).abs() < 0.02 * hill(3.0));
+    assert!((s.peak.unwrap().n - hill(3.0)).abs() < 0.02 * hill(3.0));
     rig.c.execute(Command::Tune).unwrap();
     assert_eq!(rig.c.status().model, ModelStatus::Pending);
     let req = rig.c.take_model_request().unwrap();
@@ -367,7 +371,7 @@ proptest! {
         let mut c = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
         for byte in bytes {
             if let Some(Line::Text(s)) = b.push(byte) {
-                prop_assert!(s.len() <= shared::control::console::MAX_LINE);
+                prop_assert!(s.len() <= shared::console::MAX_LINE);
                 let before = c.status();
                 match parse(s) {
                     Ok(Request::Control(cmd)) => {
@@ -381,4 +385,158 @@ proptest! {
             }
         }
     }
+}
+
+/// A controller of the toy rig brought into `state`.
+fn rig_in(state: State) -> Rig {
+    let mut rig = Rig::new();
+    match state {
+        State::Idle => {}
+        State::Ramp => {
+            rig.c.execute(Command::Start).unwrap();
+            rig.run(0.5);
+        }
+        State::Dwell => {
+            rig.c.execute(Command::Freq(3.0)).unwrap();
+            rig.c.execute(Command::Start).unwrap();
+            rig.run(5.0);
+        }
+        State::Track => rig = tracking_rig(),
+        State::Stopping => {
+            rig = tracking_rig();
+            rig.c.execute(Command::Stop).unwrap();
+            rig.run(0.2);
+        }
+        State::Fault => {
+            rig = tracking_rig();
+            rig.sensor = Sensor::StuckHigh;
+            rig.run(0.1);
+            rig.sensor = Sensor::Ok;
+        }
+    }
+    assert_eq!(rig.c.state(), state);
+    rig
+}
+
+/// Every (state, command) pair: an `ok` comes only with the command's effect; a refusal changes
+/// nothing (the controller's whole state, compared by its debug text), except a `start` that
+/// trips a fault, which latches it.
+#[test]
+fn no_ok_without_its_effect_in_any_state() {
+    let commands = [
+        Command::Status,
+        Command::Rig(RigId::Beam170),
+        Command::Gap(1.5),
+        Command::Start,
+        Command::Stop,
+        Command::Tune,
+        Command::Freq(3.3),
+        Command::Freq(40.0),
+        Command::Clear,
+        Command::Stream(true),
+        Command::LinkTimeout(2.5),
+    ];
+    let mut refusals = 0;
+    for state in State::ALL {
+        for cmd in commands {
+            let mut rig = rig_in(state);
+            let before = std::format!("{:?}", rig.c);
+            let was = rig.c.status();
+            let reply = rig.c.execute(cmd);
+            let now = rig.c.status();
+            let ctx = std::format!("{state:?} + {cmd:?} → {reply:?}");
+            match reply {
+                Err(CommandError::Tripped(f)) => {
+                    assert_eq!((cmd, rig.c.fault()), (Command::Start, Some(f)), "{ctx}")
+                }
+                Err(e) => {
+                    refusals += 1;
+                    assert_eq!(std::format!("{:?}", rig.c), before, "{ctx}: changed");
+                    match e {
+                        CommandError::NotIdle(s) => assert_eq!(s, state, "{ctx}"),
+                        CommandError::FaultLatched => assert_eq!(state, State::Fault, "{ctx}"),
+                        _ => {}
+                    }
+                }
+                Ok(_) => match cmd {
+                    Command::Status => {
+                        assert_eq!(std::format!("{:?}", rig.c), before, "{ctx}")
+                    }
+                    Command::Rig(r) => {
+                        assert_eq!(now.rig, r, "{ctx}");
+                        assert_eq!(now.model, ModelStatus::Pending, "{ctx}");
+                        assert!(now.regime.is_none() && now.peak.is_none(), "{ctx}: stale");
+                    }
+                    Command::Gap(g) => {
+                        assert_eq!(now.gap_mm, g, "{ctx}");
+                        assert!(now.regime.is_none() && now.peak.is_none(), "{ctx}: stale");
+                    }
+                    Command::Start => {
+                        assert_eq!((was.state, now.state), (State::Idle, State::Ramp), "{ctx}");
+                        assert!(rig.c.generator().target_amplitude_mm() > 0.0, "{ctx}");
+                    }
+                    Command::Stop => {
+                        // The drive is going to zero (or is there) and nothing measured stays.
+                        assert_eq!(rig.c.generator().target_amplitude_mm(), 0.0, "{ctx}");
+                        assert!(
+                            matches!(now.state, State::Idle | State::Stopping | State::Fault),
+                            "{ctx}"
+                        );
+                        assert!(now.regime.is_none() && now.peak.is_none(), "{ctx}: stale");
+                    }
+                    Command::Tune => assert_eq!(now.model, ModelStatus::Pending, "{ctx}"),
+                    Command::Freq(f) => {
+                        if matches!(state, State::Idle | State::Stopping) {
+                            // The next start dwells there.
+                            rig.run(3.0);
+                            assert_eq!(rig.c.state(), State::Idle, "{ctx}");
+                            rig.c.execute(Command::Start).unwrap();
+                            rig.run(5.0);
+                            assert_eq!(rig.c.state(), State::Dwell, "{ctx}");
+                        }
+                        // The generator's frequency step (its phase increment) is 2.3e-6 Hz.
+                        let target = rig.c.generator().target_freq_hz();
+                        assert!((target - f).abs() < 1e-5, "{ctx}: {target}");
+                    }
+                    Command::Clear => assert_eq!(rig.c.fault(), None, "{ctx}"),
+                    Command::Stream(on) => assert_eq!(rig.c.streaming(), on, "{ctx}"),
+                    Command::LinkTimeout(s) => assert_eq!(
+                        rig.c.link_timeout_samples(),
+                        (s * SAMPLE_RATE_HZ as f32) as u32,
+                        "{ctx}"
+                    ),
+                },
+            }
+        }
+    }
+    // The table holds refusals of every kind, not only successes.
+    assert!(refusals >= 15, "{refusals}");
+}
+
+#[test]
+fn a_silent_link_stops_a_running_drive_and_only_then() {
+    let mut rig = tracking_rig();
+    rig.c.execute(Command::LinkTimeout(2.0)).unwrap();
+    // Lines (or keep-alives) every second keep it running.
+    for _ in 0..5 {
+        rig.run(1.0);
+        rig.c.link_alive();
+    }
+    assert_eq!(rig.c.state(), State::Track);
+    // Then silence: the drive is aborted 2 s after the last line.
+    rig.run(1.99);
+    assert_eq!(rig.c.state(), State::Track);
+    rig.run(0.02);
+    assert_eq!(rig.c.fault(), Some(Fault::LinkLost));
+    rig.run(0.3);
+    assert_eq!(rig.c.generator().amplitude_mm(), 0.0);
+    // Idle, a silent link trips nothing; off, nothing either.
+    let mut rig = Rig::new();
+    rig.c.execute(Command::LinkTimeout(0.5)).unwrap();
+    rig.run(3.0);
+    assert_eq!(rig.c.state(), State::Idle);
+    let mut rig = tracking_rig();
+    rig.c.execute(Command::LinkTimeout(0.0)).unwrap();
+    rig.run(5.0);
+    assert_eq!(rig.c.state(), State::Track);
 }

@@ -14,9 +14,10 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use host_sim::rig_link::protocol::field;
-use host_sim::rig_link::{AsyncLine, RigPort, SeqCounter};
-use shared::control::{Fixed, predict};
+use host_sim::rig_link::{LinkOptions, RigPort, SeqCounter};
+use shared::capture::CaptureState;
+use shared::console::{Board, Decimal};
+use shared::control::{AsyncKind, AsyncRecord, Event, Fault, ModelStatus, State, Status, predict};
 use shared::model::RigId;
 
 /// Emulated time per guest instruction at `-icount shift=3`, s.
@@ -80,7 +81,11 @@ impl Qemu {
     }
 
     fn port(&self) -> RigPort {
-        RigPort::open(&self.pty, 115_200, Duration::from_secs(20)).unwrap()
+        RigPort::open(
+            &self.pty,
+            LinkOptions::with_timeout(Duration::from_secs(20)),
+        )
+        .unwrap()
     }
 
     /// Waits for QEMU to end (at most `wall`); its output.
@@ -110,39 +115,41 @@ impl Drop for Qemu {
     }
 }
 
-fn num(line: &str, key: &str) -> f64 {
-    field(line, key)
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("`{key}=` missing in: {line}"))
-}
-
-/// Polls `status` until `key=value`.
-fn wait_status(port: &mut RigPort, key: &str, value: &str) -> String {
+/// Polls `status` until `what` holds.
+fn wait_status(port: &mut RigPort, what: impl Fn(&Status) -> bool) -> Status {
     let end = Instant::now() + Duration::from_secs(60);
     loop {
-        let s = port.command("status").unwrap();
-        if field(&s, key) == Some(value) {
+        let s = port.status().unwrap();
+        if what(&s) {
             return s;
         }
-        assert!(Instant::now() < end, "{key}={value} never came: {s}");
+        assert!(Instant::now() < end, "never came: {s}");
         std::thread::sleep(Duration::from_millis(10));
     }
 }
 
-/// The next `!E` line with `event=name` (other asynchronous lines are counted in `seq`).
-fn wait_event(port: &mut RigPort, name: &str, seq: &mut SeqCounter) -> String {
+/// The next event record that `what` picks (other records are counted in `seq`).
+fn wait_event(
+    port: &mut RigPort,
+    what: impl Fn(&Event) -> bool,
+    seq: &mut SeqCounter,
+) -> AsyncRecord {
     let end = Instant::now() + Duration::from_secs(60);
     loop {
-        assert!(Instant::now() < end, "no `{name}` event");
-        if let Some(a) = port.next_async(Duration::from_millis(200)).unwrap() {
-            seq.see(a.seq());
-            if let AsyncLine::Event(e) = a
-                && e.event == name
+        assert!(Instant::now() < end, "no such event");
+        if let Some(r) = port.next_record(Duration::from_millis(200)).unwrap() {
+            seq.see(r.seq);
+            if let AsyncKind::Event(e) = r.kind
+                && what(&e)
             {
-                return e.text;
+                return r;
             }
         }
     }
+}
+
+fn model_ready(e: &Event) -> bool {
+    matches!(e, Event::ModelReady(_))
 }
 
 /// The host's on-target prediction as the status line prints it.
@@ -151,10 +158,10 @@ fn host_model_text(rig: RigId, gap_mm: f32) -> (String, u32) {
     (
         format!(
             "model=ready target_hz={} band_hz={}..{} predicted_mg={}",
-            Fixed(p.target_hz, 4),
-            Fixed(p.band_hz[0], 3),
-            Fixed(p.band_hz[1], 3),
-            Fixed(p.impact_force_mg, 2)
+            Decimal(p.target_hz, 4),
+            Decimal(p.band_hz[0], 3),
+            Decimal(p.band_hz[1], 3),
+            Decimal(p.impact_force_mg, 2)
         ),
         p.target_hz.to_bits(),
     )
@@ -168,111 +175,111 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
     let mut port = qemu.port();
 
     // Boot to the console.
-    assert_eq!(port.id.board, "emulator");
-    assert_eq!(port.id.rig, RigId::Wires);
+    assert_eq!(port.id().board, Board::Emulator);
+    assert_eq!(port.id().rig, RigId::Wires);
     assert!(
-        port.command("help")
+        port.send_line("help")
             .unwrap()
             .starts_with("commands: status")
     );
     let (host_text, host_bits) = host_model_text(RigId::Wires, 0.0);
-    let status = wait_status(&mut port, "model", "ready");
+    let status = wait_status(&mut port, |s| matches!(s.model, ModelStatus::Ready(_)));
     assert!(
-        status.contains(&host_text),
+        status.to_string().contains(&host_text),
         "{status}\nvs the host: {host_text}"
     );
 
     // The model recomputes on `gap`: pending at once, ready with the host's bits, within the
     // emulated time of the instruction budget, while sampling keeps 10 kHz.
     let mut seq = SeqCounter::default();
-    assert_eq!(port.command("stream on").unwrap(), "ok");
-    assert_eq!(port.command("gap 0.5").unwrap(), "ok");
-    assert!(port.command("status").unwrap().contains("model=pending"));
-    wait_event(&mut port, "model-ready", &mut seq);
-    let d0 = port.command("diag").unwrap();
-    assert_eq!(port.command("gap 0").unwrap(), "ok");
-    let ready = wait_event(&mut port, "model-ready", &mut seq);
-    let d1 = port.command("diag").unwrap();
-    let bits = u32::from_str_radix(
-        field(&ready, "target_bits")
-            .unwrap()
-            .trim_start_matches("0x"),
-        16,
-    )
-    .unwrap();
-    assert_eq!(bits, host_bits, "on-target {ready} vs the host's bits");
-    let took_s = num(&ready, "t_s") - num(&d0, "samples") / 1e4;
+    assert_eq!(port.send_line("stream on").unwrap(), "ok");
+    assert_eq!(port.send_line("gap 0.5").unwrap(), "ok");
+    assert_eq!(port.status().unwrap().model, ModelStatus::Pending);
+    wait_event(&mut port, model_ready, &mut seq);
+    let d0 = port.diag().unwrap();
+    assert_eq!(port.send_line("gap 0").unwrap(), "ok");
+    let ready = wait_event(&mut port, model_ready, &mut seq);
+    let d1 = port.diag().unwrap();
+    let AsyncKind::Event(Event::ModelReady(target)) = ready.kind else {
+        unreachable!()
+    };
+    assert_eq!(
+        target.target_hz.to_bits(),
+        host_bits,
+        "on-target {ready} vs the host's bits"
+    );
+    let took_s = (ready.sample as f64 - d0.samples as f64) / 1e4;
     let budget_s = PREDICT_BUDGET_INSNS * INSN_S / 0.85;
     eprintln!("model computed in {took_s:.3} s of emulated time (budget {budget_s:.3} s)");
     assert!(took_s > 0.0 && took_s < budget_s, "{took_s} s");
     let (samples, ms) = (
-        num(&d1, "samples") - num(&d0, "samples"),
-        num(&d1, "uptime_ms") - num(&d0, "uptime_ms"),
+        (d1.samples - d0.samples) as f64,
+        (d1.uptime_ms - d0.uptime_ms) as f64,
     );
     let rate = samples / ms * 1e3;
     eprintln!("sampling while the model computed: {samples} samples in {ms} ms ({rate:.1} Hz)");
     // 10 samples per ms: `uptime_ms` is whole milliseconds at both ends (±10 samples) and each
     // count may be one sample short of its millisecond.
     assert!((samples - 10.0 * ms).abs() <= 11.0, "{rate} Hz");
-    assert_eq!(num(&d1, "lost_cycles"), 0.0);
-    let status = port.command("status").unwrap();
+    assert_eq!(d1.lost_cycles, 0);
+    let status = port.status().unwrap();
     assert!(
-        status.contains("fault=none") && status.contains(&host_text),
+        status.fault.is_none() && status.to_string().contains(&host_text),
         "{status}"
     );
 
     // `rig` recomputes too.
-    assert_eq!(port.command("rig beam-170").unwrap(), "ok");
-    let beam = wait_event(&mut port, "model-ready", &mut seq);
+    assert_eq!(port.send_line("rig beam-170").unwrap(), "ok");
+    let beam = wait_event(&mut port, model_ready, &mut seq);
     let beam_bits = predict(RigId::Beam170, 0.0).unwrap().target_hz.to_bits();
     assert!(
-        beam.contains(&format!("target_bits={beam_bits:#010x}")),
+        beam.to_string()
+            .contains(&format!("target_bits={beam_bits:#010x}")),
         "{beam}"
     );
-    assert_eq!(port.command("rig wires").unwrap(), "ok");
-    wait_event(&mut port, "model-ready", &mut seq);
+    assert_eq!(port.send_line("rig wires").unwrap(), "ok");
+    wait_event(&mut port, model_ready, &mut seq);
 
     // Bad lines: answered `error: …`, nothing changes.
-    let before = port.command("status").unwrap();
-    port.send_bytes(b"\xff\xfe\x01\x02\x7fgarbage\xc3\n")
-        .unwrap();
-    assert!(port.reply("garbage").unwrap().starts_with("error:"));
-    let long = "gap 0.5".repeat(20);
-    assert_eq!(
-        port.command(&long).unwrap(),
-        "error: line too long or not text"
+    let before = port.send_line("status").unwrap();
+    assert!(
+        port.send_raw_line(b"\xff\xfe\x01\x02\x7fgarbage\xc3")
+            .unwrap()
+            .starts_with("error:")
     );
+    let long = "gap 0.5".repeat(20);
+    let err = port.send_line(&long).unwrap_err().to_string();
+    assert!(err.contains("line too long or not text"), "{err}");
     assert_eq!(
-        port.command("fly").unwrap(),
+        port.send_line("fly").unwrap(),
         "error: unknown command (try `help`)"
     );
     assert!(
-        port.command("gap 11")
+        port.send_line("gap 11")
             .unwrap()
             .starts_with("error: gap (mm) out of range")
     );
     assert!(
-        port.command("freq 0.5")
+        port.send_line("freq 0.5")
             .unwrap()
             .starts_with("error: frequency out of the safe window")
     );
-    // Lines sent while a long reply goes out are answered, in order.
-    port.send_bytes(b"help\ngap 99\nstatus\n").unwrap();
-    assert!(port.reply("help").unwrap().starts_with("commands:"));
-    assert!(port.reply("gap 99").unwrap().starts_with("error: gap (mm)"));
-    assert_eq!(port.reply("status").unwrap(), before);
-    assert_eq!(port.command("status").unwrap(), before);
+    // Lines sent while a long reply goes out are answered, in order, each with its tag.
+    let replies = port.send_lines(&["help", "gap 99", "status"]).unwrap();
+    assert!(replies[0].starts_with("commands:"), "{replies:?}");
+    assert!(replies[1].starts_with("error: gap (mm)"), "{replies:?}");
+    assert_eq!(replies[2], before);
+    assert_eq!(port.send_line("status").unwrap(), before);
 
     // Streaming: consecutive sequence numbers while the console keeps answering.
     let mut cycles = SeqCounter::default();
     let mut t = 0;
     while t < 6 {
-        if let Some(a) = port.next_async(Duration::from_secs(5)).unwrap() {
-            cycles.see(a.seq());
-            if matches!(a, AsyncLine::Cycle(_)) {
+        if let Some(r) = port.next_record(Duration::from_secs(5)).unwrap() {
+            cycles.see(r.seq);
+            if matches!(r.kind, AsyncKind::Cycle(_)) {
                 t += 1;
-                let s = port.command("status").unwrap();
-                assert!(s.starts_with("state=idle"), "{s}");
+                assert_eq!(port.status().unwrap().state, State::Idle);
             }
         }
     }
@@ -280,52 +287,50 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
 
     // `start` on QEMU's synthetic ADC signal: a sawtooth over the whole ADC range (+7 codes
     // per read, 585 reads per sweep) reads up to 310 N within 58.5 ms: the over-force abort.
-    assert_eq!(port.command("start").unwrap(), "ok");
-    let fault = wait_event(&mut port, "fault", &mut seq);
-    assert!(fault.contains("fault=over-force"), "{fault}");
-    let s = wait_status(&mut port, "amp_mm", "0.000");
+    assert_eq!(port.send_line("start").unwrap(), "ok");
+    let fault = wait_event(&mut port, |e| matches!(e, Event::Fault(_)), &mut seq);
     assert!(
-        s.contains("state=fault") && s.contains("fault=over-force"),
+        matches!(fault.kind, AsyncKind::Event(Event::Fault(Fault::OverForce))),
+        "{fault}"
+    );
+    let s = wait_status(&mut port, |s| s.amplitude_mm == 0.0);
+    assert!(
+        s.state == State::Fault && s.fault == Some(Fault::OverForce),
         "{s}"
     );
-    assert_eq!(port.command("emu dac").unwrap(), "dac_code=2048");
+    assert_eq!(port.send_line("emu dac").unwrap(), "dac_code=2048");
     assert_eq!(
-        port.command("start").unwrap(),
+        port.send_line("start").unwrap(),
         "error: fault latched: clear first"
     );
     std::thread::sleep(Duration::from_millis(300));
-    assert!(port.command("status").unwrap().contains("fault=over-force"));
-    assert_eq!(port.command("clear").unwrap(), "ok");
-    let s = port.command("status").unwrap();
-    assert!(
-        s.starts_with("state=idle") && s.contains("fault=none"),
-        "{s}"
-    );
+    assert_eq!(port.status().unwrap().fault, Some(Fault::OverForce));
+    assert_eq!(port.send_line("clear").unwrap(), "ok");
+    let s = port.status().unwrap();
+    assert!(s.state == State::Idle && s.fault.is_none(), "{s}");
 
     // A capture records the sawtooth's crossings.
     assert!(
-        port.command("capture arm 1 0.2")
+        port.send_line("capture arm 1 0.2")
             .unwrap()
             .starts_with("capture state=armed")
     );
     let end = Instant::now() + Duration::from_secs(30);
     let cap = loop {
-        let c = port.command("capture").unwrap();
-        if field(&c, "state") == Some("done") {
+        let c = port
+            .capture_status(shared::capture::CaptureCommand::Status)
+            .unwrap();
+        if c.state == CaptureState::Done {
             break c;
         }
         assert!(Instant::now() < end, "{c}");
     };
-    assert_eq!(num(&cap, "segments"), 32.0, "{cap}");
-    assert!(
-        port.command("capture get 31")
-            .unwrap()
-            .starts_with("segment k=31 ")
-    );
+    assert_eq!(cap.segments, 32, "{cap}");
+    assert_eq!(port.segment(31).unwrap().k, 31);
 
     // The stack after all of the above: the model task's depth with the interrupts on top.
-    let d = port.command("diag").unwrap();
-    let (hwm, size) = (num(&d, "stack_hwm_bytes"), num(&d, "stack_size_bytes"));
+    let d = port.diag().unwrap();
+    let (hwm, size) = (f64::from(d.stack_hwm_bytes), f64::from(d.stack_size_bytes));
     let static_ram = RAM_BYTES as f64 - size;
     eprintln!(
         "stack high-water mark {hwm} B of a {size} B stack; static RAM {static_ram} B; \
@@ -337,22 +342,37 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
         "{d}"
     );
     // Nothing held the sampling task off for long: the longest gap between two samples.
-    let gap = num(&d, "sample_gap_max_us");
+    let gap = f64::from(d.sample_gap_max_us);
     eprintln!("longest gap between samples: {gap} µs (period 100 µs)");
     assert!((100.0..150.0).contains(&gap), "{d}");
 
     // A stalled sampling task stops the watchdog feeding: the health check sees it within a
     // second or two, and 2 s after the last feed the watchdog (stand-in) resets the MCU.
-    let stalled = port.command("emu stall").unwrap();
-    let t_stall = num(&stalled.replace("ok sampling stalled at ", ""), "uptime_ms");
-    let ev = wait_event(&mut port, "stalled", &mut seq);
-    assert!(num(&ev, "expected") >= 9_000.0, "{ev}");
+    let stalled = port.send_line("emu stall").unwrap();
+    let t_stall: f64 = stalled
+        .strip_prefix("ok sampling stalled at uptime_ms=")
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{stalled}"));
+    let ev = wait_event(
+        &mut port,
+        |e| matches!(e, Event::SamplingStalled { .. }),
+        &mut seq,
+    );
+    let AsyncKind::Event(Event::SamplingStalled { expected, .. }) = ev.kind else {
+        unreachable!()
+    };
+    assert!(expected >= 9_000, "{ev}");
     let out = qemu.wait_exit(Duration::from_secs(60));
     let line = out
         .lines()
         .find(|l| l.starts_with("watchdog:"))
         .unwrap_or_else(|| panic!("no watchdog reset:\n{out}"));
-    let (last_feed, now) = (num(line, "last_feed_ms"), num(line, "now_ms"));
+    let num = |key: &str| -> f64 {
+        line.split_whitespace()
+            .find_map(|w| w.strip_prefix(key)?.strip_prefix('=')?.parse().ok())
+            .unwrap_or_else(|| panic!("`{key}=` missing in: {line}"))
+    };
+    let (last_feed, now) = (num("last_feed_ms"), num("now_ms"));
     assert!(
         last_feed - t_stall < 2000.0 && now - last_feed >= 2000.0,
         "stall at {t_stall} ms: {line}"
@@ -365,7 +385,7 @@ fn a_stack_overflow_faults_instead_of_overwriting_static_data() {
         return;
     };
     let mut port = qemu.port();
-    assert!(port.command("emu overflow").is_err());
+    assert!(port.send_line("emu overflow").is_err());
     let out = qemu.wait_exit(Duration::from_secs(60));
     // flip-link: the stack sits at the bottom of RAM, so the overflow reaches 0x1fff_ffff
     // (unmapped) and faults; the fault cannot even be stacked: the CPU locks up (on the rig the
@@ -380,4 +400,68 @@ fn a_stack_overflow_faults_instead_of_overwriting_static_data() {
         sp < 0x2000_0000,
         "stack pointer 0x{sp:08x} at the fault:\n{out}"
     );
+}
+
+/// The rig's own link-loss watchdog on the whole image: started by the client with a 2 s link
+/// timeout and then left without a line, the emulated board stops its drive 2 s (of its own
+/// time) after the last line, and the drive is at zero within the abort ramp.
+#[test]
+fn a_silent_link_brings_the_drive_to_zero() {
+    let Some(qemu) = Qemu::start() else {
+        return;
+    };
+    // No watchdog of the client's own and no keep-alives: this test plays a desktop that dies.
+    let opts = LinkOptions {
+        link_timeout_s: 0.0,
+        ..LinkOptions::with_timeout(Duration::from_secs(20))
+    };
+    let mut port = RigPort::open(&qemu.pty, opts).unwrap();
+    wait_status(&mut port, |s| matches!(s.model, ModelStatus::Ready(_)));
+    // A quiet force signal (QEMU's sawtooth would trip the over-force abort).
+    assert_eq!(port.send_line("emu adc 248").unwrap(), "ok adc 248");
+    assert_eq!(port.send_line("link-timeout 2").unwrap(), "ok");
+    assert_eq!(port.diag().unwrap().link_timeout_ms, 2000);
+    assert_eq!(port.send_line("stream on").unwrap(), "ok");
+    assert_eq!(port.send_line("freq 3").unwrap(), "ok");
+    assert_eq!(port.send_line("start").unwrap(), "ok");
+    // From here on, not a byte is sent: the records tell what the board does.
+    let mut seq = SeqCounter::default();
+    let started = wait_event(
+        &mut port,
+        |e| {
+            matches!(
+                e,
+                Event::State {
+                    to: State::Ramp,
+                    ..
+                }
+            )
+        },
+        &mut seq,
+    );
+    let lost = wait_event(&mut port, |e| matches!(e, Event::Fault(_)), &mut seq);
+    assert!(
+        matches!(lost.kind, AsyncKind::Event(Event::Fault(Fault::LinkLost))),
+        "{lost}"
+    );
+    let after_s = (lost.sample - started.sample) as f64 / 1e4;
+    eprintln!("link lost {after_s:.4} s after the last line");
+    assert!((2.0..2.01).contains(&after_s), "{after_s} s");
+    // The abort ramp (4 mm/s from at most 0.89 mm): the drive at zero within 0.25 s.
+    let end = Instant::now() + Duration::from_secs(60);
+    let zero = loop {
+        assert!(Instant::now() < end, "the drive never reached zero");
+        if let Some(r) = port.next_record(Duration::from_secs(5)).unwrap()
+            && let AsyncKind::Cycle(c) = r.kind
+            && c.amplitude_mm == 0.0
+        {
+            break r;
+        }
+    };
+    let to_zero_s = (zero.sample - lost.sample) as f64 / 1e4;
+    eprintln!("drive at zero {to_zero_s:.3} s after the fault");
+    assert!(to_zero_s < 0.25 + 1.0 / 3.0, "{to_zero_s} s");
+    assert_eq!(port.send_line("emu dac").unwrap(), "dac_code=2048");
+    let s = port.status().unwrap();
+    assert_eq!((s.state, s.fault), (State::Fault, Some(Fault::LinkLost)));
 }

@@ -11,8 +11,7 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
-#[path = "../stack.rs"]
-mod stack;
+use rig_firmware::stack;
 
 #[cfg(target_os = "none")]
 mod target {
@@ -22,6 +21,7 @@ mod target {
     use cortex_m_rt::{entry, exception};
     use cortex_m_semihosting::{debug, hprintln};
     use shared::analysis::{SimSettings, simulator_at};
+    use shared::console::Token;
     use shared::control::{
         Command, Controller, ControllerConfig, Prediction, SensorChain, predict,
     };
@@ -207,8 +207,8 @@ mod target {
         measure("empty", &|x| (x, x));
         hprintln!(
             "state={} fault={}",
-            c.state().as_str(),
-            c.fault().map_or("none", |f| f.as_str())
+            c.state().token(),
+            c.fault().map_or("none", |f| f.token())
         );
         hprintln!(
             "stack_high_water_bytes={} stack_size_bytes={}",

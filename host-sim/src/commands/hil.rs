@@ -8,6 +8,8 @@ use shared::model::RigId;
 
 use std::io::Write as _;
 
+use shared::console::Token;
+
 use crate::figures::rig_log;
 use crate::output::{Outputs, write_csv};
 use crate::virtual_rig::pty::{ServeOptions, serve};
@@ -104,10 +106,11 @@ pub fn run(a: &HilArgs) -> Result<()> {
         write_outputs(a, &r, actual, force_limit, csv.as_deref(), png.as_deref())?;
         outputs.commit()?;
         eprintln!(
-            "virtual rig stopped after {:.3} s of rig time ({:.2} s wall); {} bytes received, {} bytes not taken by the client",
+            "virtual rig stopped after {:.3} s of rig time ({:.2} s wall); {} bytes received ({} dropped: the receive FIFO was full), {} bytes not taken by the client",
             r.samples as f64 / 1e4,
             r.wall_s,
             stats.rx_bytes,
+            stats.rx_dropped_bytes,
             stats.tx_lost_bytes
         );
         return Ok(());
@@ -134,10 +137,10 @@ pub fn run(a: &HilArgs) -> Result<()> {
         println!("[{:8.3} s] > {}\n             {}", c.t_s, c.line, c.reply);
     }
     for (t, s) in &r.states {
-        println!("[{t:8.3} s] state {}", s.as_str());
+        println!("[{t:8.3} s] state {}", s.token());
     }
     for (t, f) in &r.faults {
-        println!("[{t:8.3} s] FAULT {f}");
+        println!("[{t:8.3} s] FAULT {}", f.token());
     }
     println!("final: {}", r.status);
     write_outputs(a, &r, actual, force_limit, csv.as_deref(), png.as_deref())?;

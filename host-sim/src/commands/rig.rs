@@ -7,16 +7,19 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
+use shared::console::Token;
+use shared::control::Command;
 
 use crate::figures::response::{ResponsePoint, response};
 use crate::figures::rig_log;
 use crate::output::{Outputs, write_csv};
 use crate::rig_link::capture::{capture, write_trace};
 use crate::rig_link::log::{Log, record};
+use crate::rig_link::sweep::{SweepEnd, check};
 use crate::rig_link::sweep::{
     SweepOutcome, SweepPoint, SweepSpec, parse_range, partial_path, sweep,
 };
-use crate::rig_link::{AsyncLine, RigPort};
+use crate::rig_link::{DEFAULT_LINK_TIMEOUT_S, LinkOptions, RigPort};
 use crate::virtual_rig::CycleRow;
 use crate::virtual_rig::scenario::Scenario;
 
@@ -33,6 +36,11 @@ pub struct RigArgs {
     /// How long to wait for a reply, s (0.1 ..= 60).
     #[arg(long, default_value_t = 2.0)]
     pub timeout_s: f64,
+    /// The rig's link-loss watchdog while this command runs, s (0: off, else 1 ..= 3600): the
+    /// rig stops its drive when no line comes for this long (this program sends a keep-alive
+    /// every quarter of it), so a desktop that dies never leaves the shaker running.
+    #[arg(long, default_value_t = f64::from(DEFAULT_LINK_TIMEOUT_S))]
+    pub link_timeout_s: f64,
     /// What to do.
     #[command(subcommand)]
     pub what: RigCommand,
@@ -134,10 +142,12 @@ pub struct SweepArgs {
     pub plot: Option<PathBuf>,
 }
 
-/// Runs `rig`.
+/// Runs `rig`. Every subcommand arms the port's drive guard: an error, Ctrl-C, SIGTERM or
+/// SIGHUP stops the drive (the outcome printed) before the command exits non-zero; a command
+/// that ends as planned leaves the drive as it commanded it.
 ///
 /// # Errors
-/// Bad arguments, a link failure, a refused command, or a sweep ended by a fault.
+/// Bad arguments, a link failure, a refused command, a sweep ended early, an interruption.
 pub fn run(a: &RigArgs) -> Result<()> {
     ensure!(
         a.timeout_s.is_finite() && (0.1..=60.0).contains(&a.timeout_s),
@@ -148,6 +158,12 @@ pub fn run(a: &RigArgs) -> Result<()> {
         (300..=4_000_000).contains(&a.baud),
         "--baud = {} is out of range: allowed 300 ..= 4000000",
         a.baud
+    );
+    ensure!(
+        a.link_timeout_s == 0.0
+            || (a.link_timeout_s.is_finite() && (1.0..=3600.0).contains(&a.link_timeout_s)),
+        "--link-timeout-s = {} is out of range: allowed 0 (off) or 1 ..= 3600",
+        a.link_timeout_s
     );
     // Check the subcommand's own arguments before touching the rig.
     match &a.what {
@@ -178,46 +194,65 @@ pub fn run(a: &RigArgs) -> Result<()> {
         RigCommand::Sweep(s) => Some(parse_range(&s.freq_hz)?),
         _ => None,
     };
-    let timeout = Duration::from_secs_f64(a.timeout_s);
-    let mut port = RigPort::open(&a.port, a.baud, timeout)?;
+    let opts = LinkOptions {
+        baud: a.baud,
+        timeout: Duration::from_secs_f64(a.timeout_s),
+        link_timeout_s: a.link_timeout_s as f32,
+    };
+    let mut port = RigPort::open(&a.port, opts)?;
+    port.guard_drive();
     let quiet = Duration::from_secs_f64((5.0f64).max(3.0 * a.timeout_s));
     match &a.what {
         RigCommand::Send(s) => {
             for line in &s.lines {
-                let reply = port.command(line)?;
+                let reply = port.send_line(line)?;
                 println!("{reply}");
                 if reply.starts_with("error:") {
+                    // A refusal is the rig's answer, not a failure of the link: the drive
+                    // stays as the lines left it.
+                    port.release_drive();
                     bail!("the rig refused `{line}`");
                 }
             }
-            Ok(())
         }
-        RigCommand::Console(c) => console(&mut port, c.telemetry),
-        RigCommand::Run(_) => run_scenario(&mut port, scenario.unwrap_or_default()),
+        RigCommand::Console(c) => console(&mut port, c.telemetry)?,
+        RigCommand::Run(_) => run_scenario(&mut port, scenario.unwrap_or_default())?,
         RigCommand::Log(l) => {
             let mut outputs = Outputs::new();
             let csv = outputs.reserve(&l.out)?;
             let png = l.plot.as_ref().map(|p| outputs.reserve(p)).transpose()?;
             let log = record(&mut port, l.seconds, quiet)?;
             println!(
-                "{} cycles over {:.1} s of rig time; {} telemetry/event lines received, {} lost",
+                "{} cycles over {:.1} s of rig time; {} telemetry/event lines received, {} lost, {} duplicated, {} that did not read",
                 log.rows.len(),
                 log.rows.last().map_or(0.0, |r| r.t_s) - log.rows.first().map_or(0.0, |r| r.t_s),
                 log.seq.received,
-                log.seq.lost
+                log.seq.lost,
+                log.seq.duplicates,
+                port.garbled()
             );
             for e in &log.events {
                 println!("{}", e.text);
             }
             write_csv(&csv, &log.rows)?;
             if let Some(p) = &png {
+                let id = port.id();
                 let title = format!(
                     "rig log: {} ({} board, firmware {}), gap {:.2} mm",
-                    port.id.rig, port.id.board, port.id.firmware, port.id.gap_mm
+                    id.rig,
+                    id.board.token(),
+                    id.firmware,
+                    id.gap_mm
                 );
-                rig_log::draw(p, &title, &figure_rows(&log), None, 280.0)?;
+                rig_log::draw(
+                    p,
+                    &title,
+                    &figure_rows(&log),
+                    None,
+                    f64::from(id.force_limit_n),
+                )?;
             }
-            outputs.commit()
+            outputs.commit()?;
         }
         RigCommand::Capture(c) => {
             let mut outputs = Outputs::new();
@@ -229,16 +264,15 @@ pub fn run(a: &RigArgs) -> Result<()> {
                     last = n;
                 }
             })?;
-            write_trace(&tmp, &trace, &port.id.line, c.level_n)?;
+            write_trace(&tmp, &trace, port.id_line(), c.level_n)?;
             outputs.commit()?;
             println!(
                 "wrote {}: {} segments, {} samples at {} Hz",
                 c.out.display(),
                 trace.segments,
                 trace.t_s.len(),
-                port.id.capture_rate_hz
+                port.id().capture_rate_hz
             );
-            Ok(())
         }
         RigCommand::Sweep(s) => {
             let spec = SweepSpec {
@@ -247,36 +281,45 @@ pub fn run(a: &RigArgs) -> Result<()> {
                 settle_cycles: s.settle_cycles,
                 quiet,
             };
+            check(&mut port, &spec)?;
             let n = spec.freqs_hz.len();
             let outcome = sweep(&mut port, &spec, |p| {
                 println!(
                     "{:8.4} Hz  F_i/mg {:7.2}  regime {:>9}  ({} of {} cycles impacted)",
                     p.freq_hz, p.impact_force_mg, p.regime, p.impact_cycles, p.cycles
                 );
-            })?;
+            });
             match outcome {
                 SweepOutcome::Complete(points) => {
-                    write_sweep(&s.out, s.plot.as_deref(), &points, &port, None)
+                    write_sweep(&s.out, s.plot.as_deref(), &points, &port, None)?;
                 }
-                SweepOutcome::Faulted {
-                    points,
-                    fault,
-                    at_hz,
-                } => {
+                SweepOutcome::Ended { points, at_hz, why } => {
                     let partial = partial_path(&s.out);
+                    let (cause, error) = match why {
+                        SweepEnd::Fault(f) => {
+                            // The rig ramps its drive to zero itself.
+                            port.release_drive();
+                            (format!("the fault `{}`", f.token()), None)
+                        }
+                        SweepEnd::Failed(e) => (format!("{e:#}"), Some(e)),
+                    };
                     let note = format!(
-                        "partial sweep: ended by the fault `{fault}` at {at_hz} Hz; {} of {n} points",
+                        "partial sweep: ended by {cause} at {at_hz} Hz; {} of {n} points",
                         points.len()
                     );
                     write_sweep(&partial, None, &points, &port, Some(&note))?;
-                    bail!(
-                        "{note} (the rig ramped its drive to zero); the points so far are in {}",
-                        partial.display()
-                    )
+                    let written = format!("the points so far are in {}", partial.display());
+                    return Err(match error {
+                        // An interruption keeps its kind (exit status 130).
+                        Some(e) if e.is::<crate::interrupt::Interrupted>() => e.context(written),
+                        _ => anyhow::anyhow!("{note} (the drive is ramped to zero); {written}"),
+                    });
                 }
             }
         }
     }
+    port.release_drive();
+    Ok(())
 }
 
 fn write_sweep(
@@ -296,7 +339,7 @@ fn write_sweep(
         if let Some(n) = note {
             writeln!(w, "# {n}")?;
         }
-        writeln!(w, "# host-sim rig sweep: {}", port.id.line)?;
+        writeln!(w, "# host-sim rig sweep: {}", port.id_line())?;
         let mut c = csv::Writer::from_writer(w);
         for p in points {
             c.serialize(p)?;
@@ -304,7 +347,8 @@ fn write_sweep(
         c.flush()?;
     }
     if let Some(p) = &png {
-        let params = port.id.rig.preset();
+        let id = port.id();
+        let params = id.rig.preset();
         let pts: Vec<ResponsePoint> = points
             .iter()
             .map(|q| ResponsePoint {
@@ -318,8 +362,8 @@ fn write_sweep(
             .collect();
         let title = format!(
             "measured frequency response: {} at {:.2} mm (ω/2π = {:.3} Hz, preset)",
-            port.id.rig,
-            port.id.gap_mm,
+            id.rig,
+            id.gap_mm,
             params.natural_freq_hz()
         );
         response(p, &title, &pts, None)?;
@@ -353,7 +397,7 @@ fn run_scenario(port: &mut RigPort, commands: Vec<(f64, String)>) -> Result<()> 
             std::thread::sleep(Duration::from_secs_f64(((at - t) / 4.0).clamp(0.002, 0.05)));
         }
         let t = port.uptime_s()? - t0;
-        let reply = port.command(&line)?;
+        let reply = port.send_line(&line)?;
         println!("[{t:8.3} s] > {line}\n             {reply}");
         if reply.starts_with("error:") {
             refused += 1;
@@ -380,24 +424,13 @@ fn console(port: &mut RigPort, telemetry: bool) -> Result<()> {
         let _ = tx.send(None);
     });
     if telemetry {
-        port.command_ok("stream on")?;
+        port.command(Command::Stream(true))?;
     }
     loop {
-        while let Some(a) = port.next_async(Duration::ZERO)? {
+        crate::interrupt::check()?;
+        while let Some(r) = port.next_record(Duration::ZERO)? {
             if telemetry {
-                match a {
-                    AsyncLine::Cycle(c) => println!(
-                        "!T seq={} t_s={:.4} state={} freq_hz={:.4} impacts={} peak_n={} regime={}",
-                        c.seq,
-                        c.t_s,
-                        c.state.as_str(),
-                        c.freq_hz,
-                        c.impacts,
-                        c.peak_n.map_or("-".into(), |p| format!("{p:.1}")),
-                        c.regime_text
-                    ),
-                    AsyncLine::Event(e) => println!("{}", e.text),
-                }
+                println!("{r}");
             }
         }
         match rx.recv_timeout(Duration::from_millis(50)) {
@@ -406,15 +439,14 @@ fn console(port: &mut RigPort, telemetry: bool) -> Result<()> {
                 if line.is_empty() {
                     continue;
                 }
-                let reply = port.command(&line)?;
-                println!("{reply}");
+                println!("{}", port.send_line(&line)?);
             }
             Ok(None) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
         }
     }
     if telemetry {
-        port.command_ok("stream off").context("stream off")?;
+        port.command(Command::Stream(false)).context("stream off")?;
     }
     Ok(())
 }

@@ -184,7 +184,7 @@ pub fn regime_map(
     let (left, right) = figure_with_panel(path, title)?;
     let chart = map_chart(&left, x, y)?;
     blit(
-        &cells,
+        cells,
         &chart.plotting_area().strip_coord_spec(),
         |c| match c {
             Cell::Empty => EMPTY,
@@ -231,7 +231,7 @@ pub fn force_map(
     let color =
         |f: f64| -> RGBColor { ViridisRGB::get_color_normalized(f as f32, lo as f32, hi as f32) };
     blit(
-        &cells,
+        cells,
         &chart.plotting_area().strip_coord_spec(),
         |c| match c {
             Cell::Regime(Regime::Periodic { p: 1, q: 1 }, f) => color(f64::from(f)),
@@ -341,7 +341,7 @@ pub fn basins_map(
     let (left, right) = figure_with_panel(path, title)?;
     let colors = attractor_colors(attractors);
     let mut chart = map_chart(&left, x, y)?;
-    blit(&cells, &chart.plotting_area().strip_coord_spec(), |id| {
+    blit(cells, &chart.plotting_area().strip_coord_spec(), |id| {
         colors.get(id as usize).copied().unwrap_or(EMPTY)
     })?;
     let (x0, x1) = x.range();

@@ -3,11 +3,12 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, anyhow, bail, ensure};
-use shared::control::capture::decode_codes;
+use anyhow::{Context, Result, bail, ensure};
+use shared::capture::{CaptureCommand, CaptureState, SEGMENTS};
+use shared::console::Token;
+use shared::control::State;
 
 use super::RigPort;
-use super::protocol::field;
 
 /// A drop test off the rig.
 #[derive(Debug, Clone, Default)]
@@ -22,12 +23,22 @@ pub struct CaptureTrace {
     pub segment_len: usize,
 }
 
+/// The longest a capture of `seconds` of rig time may take of wall time: ten times its rig
+/// time (a virtual rig may run slower than real time) and a minute, then `stall`.
+pub fn wall_limit(seconds: f64, stall: Duration) -> Duration {
+    Duration::from_secs_f64((10.0 * seconds).max(60.0)) + stall
+}
+
 /// Arms a capture (trigger `level_n`, `seconds` of rig time), waits until the rig reports it
 /// done, and reads every segment. `on_progress` sees the segment count as it grows.
 ///
+/// Bounds: the capture's sample count must advance (at most `stall` without), stop by the
+/// capture's own end (its `seconds` at the capture rate), and the whole within [`wall_limit`];
+/// the rig holds at most [`SEGMENTS`] segments (a reply claiming more does not read).
+///
 /// # Errors
-/// The drive is not idle, the link failed, the capture stopped advancing for `stall`, a
-/// malformed segment line, or no impact was recorded.
+/// The drive is not idle, the link failed, one of the bounds above, a segment line that does
+/// not read, or no impact was recorded.
 pub fn capture(
     port: &mut RigPort,
     level_n: f64,
@@ -35,35 +46,43 @@ pub fn capture(
     stall: Duration,
     mut on_progress: impl FnMut(usize),
 ) -> Result<CaptureTrace> {
-    let status = port.command_ok("status")?;
-    let state = field(&status, "state").unwrap_or("?");
+    let status = port.status()?;
     ensure!(
-        state == "idle",
-        "capture needs the drive idle: the rig is in `{state}` (`rig send stop`, or `clear` after a fault)"
+        status.state == State::Idle,
+        "capture needs the drive idle: the rig is in `{}` (`rig send stop`, or `clear` after a fault)",
+        status.state.token()
     );
-    let armed = port.command_ok(&format!("capture arm {level_n:.3} {seconds:.3}"))?;
+    let armed = port.capture_status(CaptureCommand::Arm {
+        level_n: level_n as f32,
+        seconds: seconds as f32,
+    })?;
     ensure!(
-        field(&armed, "state") == Some("armed"),
-        "unexpected reply to capture arm: {armed}"
+        armed.state == CaptureState::Armed,
+        "the capture did not arm (state `{}`)",
+        armed.state.token()
     );
-    let rate: f64 = field(&armed, "rate_hz")
-        .and_then(|v| v.parse().ok())
-        .ok_or_else(|| anyhow!("no rate_hz in: {armed}"))?;
+    let rate = f64::from(port.id().capture_rate_hz);
+    let end_samples = (seconds * rate).ceil() as u64;
+    let started = Instant::now();
+    let limit = wall_limit(seconds, stall);
     let mut last = (0u64, Instant::now());
-    let mut segments;
-    loop {
+    let status = loop {
         std::thread::sleep(Duration::from_millis(50));
-        let s = port.command_ok("capture")?;
-        let samples: u64 = field(&s, "samples")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(0);
-        segments = field(&s, "segments")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(0usize);
-        on_progress(segments);
-        if field(&s, "state") == Some("done") {
-            break;
+        let s = port.capture_status(CaptureCommand::Status)?;
+        on_progress(usize::from(s.segments));
+        if s.state == CaptureState::Done {
+            break s;
         }
+        let samples = u64::from(s.samples);
+        ensure!(
+            s.state == CaptureState::Armed,
+            "the capture ended in state `{}` without being done",
+            s.state.token()
+        );
+        ensure!(
+            samples <= end_samples + 1,
+            "the capture reports `armed` at {samples} samples, past its end ({end_samples} at {rate} Hz)"
+        );
         if samples != last.0 {
             last = (samples, Instant::now());
         } else if last.1.elapsed() > stall {
@@ -72,30 +91,39 @@ pub fn capture(
                 stall.as_secs_f64()
             );
         }
-    }
+        ensure!(
+            started.elapsed() <= limit,
+            "the capture took longer than {:.0} s of wall time for {seconds} s of rig time",
+            limit.as_secs_f64()
+        );
+    };
+    let segments = usize::from(status.segments);
     ensure!(
         segments > 0,
         "no impact reached the trigger level of {level_n} N within {seconds} s of rig time"
     );
+    debug_assert!(segments <= SEGMENTS);
     let mut trace = CaptureTrace {
         segments,
         ..CaptureTrace::default()
     };
-    for k in 0..segments {
-        let line = port.command_ok(&format!("capture get {k}"))?;
-        let bad = || anyhow!("malformed segment line for segment {k}: {line}");
-        let start: u64 = field(&line, "start")
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(bad)?;
-        let codes = decode_codes(field(&line, "codes").ok_or_else(bad)?).ok_or_else(bad)?;
-        trace.segment_len = codes.len();
-        for (i, &c) in codes.iter().enumerate() {
-            let t = (start + i as u64) as f64 / rate;
+    let sensor = port.id().sensor;
+    for k in 0..status.segments {
+        let seg = port
+            .segment(k)
+            .with_context(|| format!("segment {k} of {segments}"))?;
+        trace.segment_len = seg.codes.len();
+        for (i, &c) in seg.codes.iter().enumerate() {
+            let t = (u64::from(seg.start) + i as u64) as f64 / rate;
             if let Some(&prev) = trace.t_s.last() {
-                ensure!(t > prev, "segment {k} overlaps the previous one");
+                ensure!(
+                    t > prev,
+                    "segment {k} (start {}) overlaps the previous one",
+                    seg.start
+                );
             }
             trace.t_s.push(t);
-            trace.force_n.push(port.id.force_n(c));
+            trace.force_n.push(f64::from(sensor.force_n(c)));
         }
     }
     Ok(trace)

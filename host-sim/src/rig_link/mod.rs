@@ -1,246 +1,695 @@
-//! The desktop side of the rig's serial console (`host-sim rig --port …`): a connection that
-//! sends one line and waits for its one reply ([`RigPort::command`]), while a reader thread
-//! sorts the asynchronous `!T`/`!E` lines ([`AsyncLine`]) from the replies; and what is built on
-//! it: the log ([`log`]), the drop-test capture ([`capture`]) and the measured frequency
-//! response ([`sweep`]). The same code talks to the board over USB-serial, to the firmware
-//! under QEMU and to the virtual rig (`hil --serve-pty`), all through a serial device path.
+//! The desktop side of the rig's serial console (`host-sim rig --port …`): the transport only.
+//! Every line and reply is `shared::console`'s (the firmware's own types and text); this module
+//! sends requests, matches each reply to its request by a tag, sorts the asynchronous records
+//! from the replies, counts sequence numbers, and bounds every wait. Built on it: the log
+//! ([`log`]), the drop-test capture ([`capture`]) and the measured frequency response ([`sweep`]).
+//! The same code talks to the board over USB-serial, to the firmware under QEMU and to the
+//! virtual rig (`hil --serve-pty`), all through a serial device path.
 //!
-//! Link failures are errors that say what happened, never hangs: a port that does not open, no
-//! reply within the timeout (naming the command), the rig gone (the device closed). A line
-//! that is neither a reply nor a well-formed asynchronous line is reported on stderr with its
-//! text and skipped.
+//! What the link guarantees:
+//! - **Replies matched to requests.** Every request goes out as `#<n> <line>`; a reply with
+//!   another tag, or an untagged one, is a link error naming both lines, never taken as the
+//!   answer.
+//! - **Every wait has a bound** (the reply timeout, the telemetry's quiet time, or a deadline the
+//!   caller derives from what it waits for), and every wait ends early on Ctrl-C, SIGTERM or
+//!   SIGHUP ([`crate::interrupt`]).
+//! - **The drive is never left on by a failure.** [`RigPort::guard_drive`] arms a guard: when
+//!   the port is dropped while armed (an error, an interruption, a panic), it sends `stop`, waits
+//!   for the reply (bounded) and prints the outcome. On top, the rig's own link-loss watchdog
+//!   (`link-timeout`, armed at connection, fed by keep-alive empty lines) stops the drive if this
+//!   program dies without a word.
+//! - **Values checked at the edge**: replies and records are parsed by `shared::console`, which
+//!   refuses non-finite and out-of-range numbers; a line that does not read is reported on stderr
+//!   (escaped, at most [`SHOWN_GARBLED`] of them shown, all counted) and skipped.
 
 pub mod capture;
 pub mod log;
-pub mod protocol;
 pub mod sweep;
 
 use std::io::{ErrorKind, Read, Write};
 use std::path::Path;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
+use shared::capture::{CaptureCommand, CaptureStatus, SegmentView};
+use shared::console::serve::split_tag;
+use shared::console::{Answer, AnswerError, DiagInfo, IdInfo, Request, WireError};
+use shared::control::{AsyncRecord, Command, Reply, Status};
 
-pub use protocol::{AsyncLine, CycleLine, EventLine, RigIdentity, SeqCounter};
+use crate::interrupt;
+
+/// Garbled or malformed lines shown on stderr (the rest are counted).
+pub const SHOWN_GARBLED: u64 = 10;
+/// Characters of a garbled line shown.
+const SHOWN_CHARS: usize = 120;
+/// Bytes without a line end after which the reader discards what it holds and the rest of
+/// that line.
+const MAX_PENDING_BYTES: usize = 1 << 16;
+/// Granularity of every wait (how soon Ctrl-C is seen).
+const POLL: Duration = Duration::from_millis(50);
 
 /// What the reader thread hands over.
 enum Incoming {
-    Reply(String),
+    Reply { tag: Option<u32>, text: String },
+    Record(AsyncRecord),
     Closed(String),
+}
+
+/// How to talk to the rig.
+#[derive(Debug, Clone, Copy)]
+pub struct LinkOptions {
+    /// Baud rate (8N1).
+    pub baud: u32,
+    /// Longest wait for one reply.
+    pub timeout: Duration,
+    /// The rig's link-loss watchdog while connected, s (0: off): the rig stops its drive when
+    /// no line arrives for this long; the port sends a keep-alive empty line every quarter of it.
+    pub link_timeout_s: f32,
+}
+
+impl LinkOptions {
+    /// The options of the tests and the examples: 115200 baud, `timeout`, a 10 s watchdog.
+    pub fn with_timeout(timeout: Duration) -> Self {
+        LinkOptions {
+            baud: 115_200,
+            timeout,
+            link_timeout_s: DEFAULT_LINK_TIMEOUT_S,
+        }
+    }
+}
+
+/// The link-loss watchdog armed while a `host-sim rig` command runs, s.
+pub const DEFAULT_LINK_TIMEOUT_S: f32 = 10.0;
+
+/// A refused request: the rig answered `error: …`.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the rig refused `{line}`: {error}")]
+pub struct Refused {
+    /// The request.
+    pub line: String,
+    /// Why.
+    pub error: AnswerError,
+}
+
+/// Counts asynchronous records, and those lost on the way (gaps in the sequence numbers).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SeqCounter {
+    last: Option<u32>,
+    /// Records received (duplicates excluded).
+    pub received: u64,
+    /// Records missing between the first and the last received.
+    pub lost: u64,
+    /// Records received twice (dropped).
+    pub duplicates: u64,
+}
+
+/// What a sequence number says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Seq {
+    /// In order (possibly after a gap, counted as lost).
+    Next,
+    /// The same as the last one: a duplicate.
+    Duplicate,
+    /// Behind the last one: the rig restarted, or the link replays old lines.
+    Back {
+        /// The last number seen.
+        last: u32,
+    },
+}
+
+impl SeqCounter {
+    /// Notes a received sequence number.
+    pub fn see(&mut self, seq: u32) -> Seq {
+        if let Some(last) = self.last {
+            let step = seq.wrapping_sub(last);
+            if step == 0 {
+                self.duplicates += 1;
+                return Seq::Duplicate;
+            }
+            if step > u32::MAX / 2 {
+                return Seq::Back { last };
+            }
+            self.lost += u64::from(step - 1);
+        }
+        self.received += 1;
+        self.last = Some(seq);
+        Seq::Next
+    }
 }
 
 /// A connection to the rig's console.
 pub struct RigPort {
     writer: Box<dyn serialport::SerialPort>,
-    replies: Receiver<Incoming>,
-    asyncs: Receiver<AsyncLine>,
+    incoming: Receiver<Incoming>,
     reader: Option<JoinHandle<()>>,
     stop: Arc<AtomicBool>,
-    timeout: Duration,
+    garbled: Arc<AtomicU64>,
+    records: std::collections::VecDeque<AsyncRecord>,
+    opts: LinkOptions,
+    next_tag: u32,
+    /// Tags of requests given up (interrupted, timed out): their late replies are dropped.
+    abandoned: std::collections::VecDeque<u32>,
+    last_write: Instant,
+    /// The rig's time (samples) of the latest record, and what it was at the last line sent:
+    /// a rig that runs faster than real time (the virtual rig) is kept alive by its own clock.
+    rig_now: Option<u64>,
+    rig_at_write: Option<u64>,
+    guard: bool,
     /// What `id` said when the connection was made.
-    pub id: RigIdentity,
+    id: IdInfo,
+    /// The `id` reply as received (for file headers).
+    id_line: String,
     closed: Option<String>,
 }
 
 impl RigPort {
-    /// Opens `path` at `baud`, discards whatever the rig was sending, and synchronises on an
-    /// `id` exchange (so a stale reply cannot be taken for the next command's).
+    /// Opens `path`, discards whatever the rig was sending, synchronises on an `id` exchange
+    /// (so a stale reply cannot be taken for the next command's) and arms the rig's link-loss
+    /// watchdog.
     ///
     /// # Errors
-    /// The port does not exist or cannot be opened; no `id` reply within `timeout`.
-    pub fn open(path: &Path, baud: u32, timeout: Duration) -> Result<Self> {
+    /// The port does not exist or cannot be opened; no `id` reply within the timeout; an `id`
+    /// reply that does not read (a calibration of 0 or NaN, another protocol's rates).
+    pub fn open(path: &Path, opts: LinkOptions) -> Result<Self> {
         anyhow::ensure!(
             path.exists(),
             "--port {}: no such device (is the rig connected, or the virtual rig running?)",
             path.display()
         );
-        let port = serialport::new(path.to_string_lossy(), baud)
-            .timeout(Duration::from_millis(50))
+        interrupt::install();
+        let port = serialport::new(path.to_string_lossy(), opts.baud)
+            .timeout(POLL)
             .open()
             .with_context(|| format!("--port {}: cannot open", path.display()))?;
         let _ = port.clear(serialport::ClearBuffer::All);
         let reader_port = port
             .try_clone()
             .with_context(|| format!("--port {}", path.display()))?;
-        let (reply_tx, replies) = channel();
-        let (async_tx, asyncs) = channel();
+        let (tx, incoming) = channel();
         let stop = Arc::new(AtomicBool::new(false));
-        let stop_reader = Arc::clone(&stop);
-        let reader = std::thread::spawn(move || {
-            read_lines(reader_port, &stop_reader, reply_tx, async_tx);
-        });
+        let garbled = Arc::new(AtomicU64::new(0));
+        let reader = {
+            let (stop, garbled) = (Arc::clone(&stop), Arc::clone(&garbled));
+            std::thread::spawn(move || read_lines(reader_port, &stop, &garbled, &tx))
+        };
         let mut rig = RigPort {
             writer: port,
-            replies,
-            asyncs,
+            incoming,
             reader: Some(reader),
             stop,
-            timeout,
-            id: RigIdentity::default(),
+            garbled,
+            records: std::collections::VecDeque::new(),
+            opts,
+            next_tag: 1,
+            abandoned: std::collections::VecDeque::new(),
+            last_write: Instant::now(),
+            rig_now: None,
+            rig_at_write: None,
+            guard: false,
+            id: placeholder_id(),
+            id_line: String::new(),
             closed: None,
         };
         rig.sync()?;
+        if opts.link_timeout_s > 0.0 {
+            rig.command(Command::LinkTimeout(opts.link_timeout_s))?;
+        }
         Ok(rig)
     }
 
     /// Sends `id` (again every second: a board still starting up drops what it receives)
-    /// until its reply comes, and keeps it; then one `diag` exchange, whose reply comes after
-    /// any duplicate `id` replies, so that every later reply answers its own line.
+    /// until a reply to one of them comes, then one `diag`, whose reply comes after any late
+    /// replies to the other `id`s: from then on every reply answers its own line.
     fn sync(&mut self) -> Result<()> {
-        let deadline = Instant::now() + self.timeout;
+        let deadline = Instant::now() + self.opts.timeout;
+        let first = self.next_tag;
         let mut next_send = Instant::now();
         loop {
             if Instant::now() >= next_send {
-                self.write_line("id")?;
+                let tag = self.take_tag();
+                self.write(&format!("#{tag} id"))?;
                 next_send = Instant::now() + Duration::from_secs(1);
             }
-            let left = deadline
-                .min(next_send)
-                .saturating_duration_since(Instant::now());
-            match self.replies.recv_timeout(left) {
-                Ok(Incoming::Reply(r)) if r.starts_with("id ") => {
-                    self.id = protocol::parse_id(&r)?;
+            match self.recv(deadline.min(next_send), true)? {
+                Some(Incoming::Reply { tag: Some(t), text })
+                    if (first..self.next_tag).contains(&t) =>
+                {
+                    let id = match text.parse::<Answer>() {
+                        Ok(Answer::Id(id)) => id,
+                        Ok(_) => continue,
+                        Err(e) => bail!(
+                            "the rig's `id` reply does not read ({e}): {}",
+                            escaped(&text)
+                        ),
+                    };
+                    self.id = id;
+                    self.id_line = text;
                     break;
                 }
-                Ok(Incoming::Reply(_)) => {}
-                Ok(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
-                Err(RecvTimeoutError::Timeout) if Instant::now() < deadline => {}
-                Err(RecvTimeoutError::Timeout) => bail!(
+                Some(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
+                Some(_) => {}
+                None if Instant::now() >= deadline => bail!(
                     "no reply to `id` within {:.1} s: is this the rig's console (115200 8N1)?",
-                    self.timeout.as_secs_f64()
+                    self.opts.timeout.as_secs_f64()
                 ),
-                Err(RecvTimeoutError::Disconnected) => bail!("the link closed"),
+                None => {}
             }
         }
-        self.write_line("diag")?;
+        let tag = self.take_tag();
+        self.write(&format!("#{tag} diag"))?;
+        let deadline = Instant::now() + self.opts.timeout;
         loop {
-            let left = deadline.saturating_duration_since(Instant::now()) + self.timeout;
-            match self.replies.recv_timeout(left) {
-                Ok(Incoming::Reply(r)) if r.starts_with("diag ") => return Ok(()),
-                Ok(Incoming::Reply(_)) => {}
-                Ok(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
-                Err(_) => bail!("no reply to `diag` after `id`"),
+            match self.recv(deadline, true)? {
+                Some(Incoming::Reply { tag: Some(t), .. }) if t == tag => return Ok(()),
+                Some(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
+                Some(_) => {}
+                None => bail!("no reply to `diag` after `id`"),
             }
         }
     }
 
-    fn write_line(&mut self, line: &str) -> Result<()> {
+    fn take_tag(&mut self) -> u32 {
+        let t = self.next_tag;
+        // Tags have at most 9 digits.
+        self.next_tag = if t >= 999_999_999 { 1 } else { t + 1 };
+        t
+    }
+
+    fn write(&mut self, line: &str) -> Result<()> {
         if let Some(why) = &self.closed {
             bail!("the rig closed the link: {why}");
         }
-        self.writer
+        self.last_write = Instant::now();
+        self.rig_at_write = self.rig_now;
+        let sent = self
+            .writer
             .write_all(format!("{line}\n").as_bytes())
-            .and_then(|()| self.writer.flush())
-            .with_context(|| format!("sending `{line}`"))
-    }
-
-    /// Sends `line` and returns its reply (`ok`, a status line, `error: …`, …).
-    ///
-    /// # Errors
-    /// No reply within the timeout, or the link closed.
-    pub fn command(&mut self, line: &str) -> Result<String> {
-        self.write_line(line)?;
-        self.reply(line)
-    }
-
-    /// Sends raw bytes (which should end a line) without waiting: pair with
-    /// [`RigPort::reply`], once per line sent.
-    ///
-    /// # Errors
-    /// The link closed.
-    pub fn send_bytes(&mut self, bytes: &[u8]) -> Result<()> {
-        if let Some(why) = &self.closed {
-            bail!("the rig closed the link: {why}");
+            .and_then(|()| self.writer.flush());
+        if let Err(e) = sent {
+            let what = if line.is_empty() {
+                "a keep-alive"
+            } else {
+                line
+            };
+            let why = format!("sending `{what}`: {e}");
+            self.closed = Some(why.clone());
+            bail!("the rig closed the link ({why})");
         }
-        self.writer
-            .write_all(bytes)
-            .and_then(|()| self.writer.flush())
-            .context("sending bytes")
+        Ok(())
     }
 
-    /// The next reply; `what` names the line it answers in errors.
-    ///
-    /// # Errors
-    /// No reply within the timeout, or the link closed.
-    pub fn reply(&mut self, line: &str) -> Result<String> {
-        match self.replies.recv_timeout(self.timeout) {
-            Ok(Incoming::Reply(r)) => Ok(r),
-            Ok(Incoming::Closed(why)) => {
-                self.closed = Some(why.clone());
-                bail!("the rig closed the link while `{line}` waited for its reply: {why}")
+    /// Sends a keep-alive (an empty line: no reply) when a quarter of the link timeout has
+    /// passed since the last line, by the wall clock or by the rig's (whichever is faster).
+    fn keep_alive(&mut self) -> Result<()> {
+        if self.opts.link_timeout_s <= 0.0 {
+            return Ok(());
+        }
+        let quarter = self.opts.link_timeout_s / 4.0;
+        let by_wall = self.last_write.elapsed() >= Duration::from_secs_f32(quarter);
+        let by_rig = match (self.rig_now, self.rig_at_write) {
+            (Some(now), Some(then)) => {
+                now.saturating_sub(then) as f32 >= quarter * shared::control::SAMPLE_RATE_HZ as f32
             }
-            Err(RecvTimeoutError::Timeout) => bail!(
-                "no reply to `{line}` within {:.1} s (the rig stopped answering)",
-                self.timeout.as_secs_f64()
-            ),
-            Err(RecvTimeoutError::Disconnected) => bail!("the link closed during `{line}`"),
+            (Some(_), None) => true,
+            _ => false,
+        };
+        if by_wall || by_rig {
+            self.write("")?;
         }
+        Ok(())
     }
 
-    /// [`RigPort::command`], with an `error: …` reply turned into an error.
-    ///
-    /// # Errors
-    /// As [`RigPort::command`], or the rig refused the command.
-    pub fn command_ok(&mut self, line: &str) -> Result<String> {
-        let r = self.command(line)?;
-        if let Some(e) = r.strip_prefix("error: ") {
-            bail!("the rig refused `{line}`: {e}");
-        }
-        Ok(r)
-    }
-
-    /// The next asynchronous line, waiting at most `wait`.
-    ///
-    /// # Errors
-    /// The link closed (the rig went away).
-    pub fn next_async(&mut self, wait: Duration) -> Result<Option<AsyncLine>> {
-        match self.asyncs.recv_timeout(wait) {
-            Ok(a) => Ok(Some(a)),
-            Err(RecvTimeoutError::Timeout) => Ok(None),
-            Err(RecvTimeoutError::Disconnected) => {
-                // The reader ended: say why if it told the reply channel.
-                let why = match self.replies.try_recv() {
-                    Ok(Incoming::Closed(w)) => w,
-                    _ => self
+    /// The next incoming item before `deadline` (`None` at the deadline), keeping the link
+    /// alive; ends early on an interruption unless `ignore_interrupt`.
+    fn recv(&mut self, deadline: Instant, ignore_interrupt: bool) -> Result<Option<Incoming>> {
+        loop {
+            if !ignore_interrupt {
+                interrupt::check()?;
+            }
+            self.keep_alive()?;
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Ok(None);
+            }
+            match self.incoming.recv_timeout(left.min(POLL)) {
+                Ok(Incoming::Closed(why)) => {
+                    self.closed = Some(why.clone());
+                    return Ok(Some(Incoming::Closed(why)));
+                }
+                Ok(Incoming::Record(r)) => {
+                    self.rig_now = Some(self.rig_now.map_or(r.sample, |n| n.max(r.sample)));
+                    self.keep_alive()?;
+                    return Ok(Some(Incoming::Record(r)));
+                }
+                Ok(i) => return Ok(Some(i)),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => {
+                    let why = self
                         .closed
                         .clone()
-                        .unwrap_or_else(|| "device closed".into()),
-                };
-                self.closed = Some(why.clone());
-                Err(anyhow!("the rig closed the link: {why}"))
+                        .unwrap_or_else(|| "device closed".into());
+                    self.closed = Some(why.clone());
+                    return Ok(Some(Incoming::Closed(why)));
+                }
             }
         }
     }
 
-    /// Drops the asynchronous lines received so far.
-    pub fn drain_async(&mut self) {
-        while self.asyncs.try_recv().is_ok() {}
+    /// Sends `line` tagged and returns the text of its reply (without the tag). `lenient` (the
+    /// drive guard's last words): an interruption does not end the wait, and a reply to another
+    /// line is skipped rather than an error.
+    fn exchange(&mut self, line: &str, lenient: bool) -> Result<String> {
+        let sent = self.take_tag();
+        self.write(&format!("#{sent} {line}"))?;
+        let deadline = Instant::now() + self.opts.timeout;
+        let result = self.await_reply(sent, line, deadline, lenient);
+        if result.is_err() {
+            // Its reply may still come: it must not be taken for another line's.
+            if self.abandoned.len() >= 64 {
+                self.abandoned.pop_front();
+            }
+            self.abandoned.push_back(sent);
+        }
+        result
+    }
+
+    fn await_reply(
+        &mut self,
+        sent: u32,
+        line: &str,
+        deadline: Instant,
+        lenient: bool,
+    ) -> Result<String> {
+        loop {
+            match self.recv(deadline, lenient)? {
+                Some(Incoming::Reply { tag: Some(t), .. })
+                    if t != sent && (lenient || self.abandoned.contains(&t)) => {}
+                Some(Incoming::Record(r)) => self.records.push_back(r),
+                Some(Incoming::Reply { tag: Some(t), text }) if t == sent => return Ok(text),
+                Some(Incoming::Reply { tag: None, text })
+                    if matches!(
+                        text.parse::<Answer>(),
+                        Ok(Answer::Error(AnswerError::Lost | AnswerError::Bad))
+                    ) =>
+                {
+                    bail!(
+                        "the rig could not read `{line}` ({}): a damaged link (see `diag rx_errors`)",
+                        text.trim_start_matches("error: ")
+                    )
+                }
+                Some(Incoming::Reply { tag, text }) => bail!(
+                    "link error: `{}` arrived while `#{sent} {line}` waited for its reply (the rig and this client disagree on the conversation)",
+                    escaped(&match tag {
+                        Some(t) => format!("#{t} {text}"),
+                        None => text,
+                    })
+                ),
+                Some(Incoming::Closed(why)) => {
+                    bail!("the rig closed the link while `{line}` waited for its reply: {why}")
+                }
+                None => bail!(
+                    "no reply to `{line}` within {:.1} s (the rig stopped answering)",
+                    self.opts.timeout.as_secs_f64()
+                ),
+            }
+        }
+    }
+
+    /// Sends a console line as it is (tagged on the way) and returns the reply's text: for
+    /// `rig send` and `rig console`, which print what the rig says.
+    ///
+    /// # Errors
+    /// No reply within the timeout, a reply to another line, the link closed, Ctrl-C.
+    pub fn send_line(&mut self, line: &str) -> Result<String> {
+        self.exchange(line, false)
+    }
+
+    /// Sends several console lines at once (pipelined, each tagged) and returns the texts of their replies
+    /// in order: every reply must come, in order, each with its line's tag.
+    ///
+    /// # Errors
+    /// As [`RigPort::send_line`], for the first line whose reply fails.
+    pub fn send_lines(&mut self, lines: &[&str]) -> Result<Vec<String>> {
+        let tags: Vec<u32> = lines.iter().map(|_| self.take_tag()).collect();
+        let text: String = lines
+            .iter()
+            .zip(&tags)
+            .map(|(l, t)| format!("#{t} {l}\n"))
+            .collect();
+        self.write(text.trim_end_matches('\n'))?;
+        let mut out = Vec::new();
+        for (line, &tag) in lines.iter().zip(&tags) {
+            let deadline = Instant::now() + self.opts.timeout;
+            out.push(self.await_reply(tag, line, deadline, false)?);
+        }
+        Ok(out)
+    }
+
+    /// Sends `bytes` as one tagged line (they need not be text) and returns the reply's text
+    /// (an `error: …` for bytes the rig cannot read): how the rig treats garbage.
+    ///
+    /// # Errors
+    /// No reply within the timeout, a reply to another line, the link closed, Ctrl-C.
+    pub fn send_raw_line(&mut self, bytes: &[u8]) -> Result<String> {
+        let tag = self.take_tag();
+        if let Some(why) = &self.closed {
+            bail!("the rig closed the link: {why}");
+        }
+        let mut line = format!("#{tag} ").into_bytes();
+        line.extend_from_slice(bytes);
+        line.push(b'\n');
+        self.last_write = Instant::now();
+        self.writer
+            .write_all(&line)
+            .and_then(|()| self.writer.flush())?;
+        let deadline = Instant::now() + self.opts.timeout;
+        loop {
+            match self.recv(deadline, false)? {
+                Some(Incoming::Record(r)) => self.records.push_back(r),
+                Some(Incoming::Reply { tag: t, text }) if t == Some(tag) || t.is_none() => {
+                    return Ok(text);
+                }
+                Some(Incoming::Reply { text, .. }) => bail!("unexpected reply `{text}`"),
+                Some(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
+                None => bail!("no reply to a raw line"),
+            }
+        }
+    }
+
+    /// Sends a request and reads its reply.
+    ///
+    /// # Errors
+    /// As [`RigPort::send_line`], or a reply that does not read.
+    pub fn request(&mut self, request: &Request) -> Result<Answer> {
+        let line = request.to_string();
+        let text = self.exchange(&line, false)?;
+        read_answer(&line, &text)
+    }
+
+    /// [`RigPort::request`], with an `error: …` reply turned into [`Refused`].
+    ///
+    /// # Errors
+    /// As [`RigPort::request`], or the rig refused.
+    pub fn request_ok(&mut self, request: &Request) -> Result<Answer> {
+        match self.request(request)? {
+            Answer::Error(error) => Err(Refused {
+                line: request.to_string(),
+                error,
+            }
+            .into()),
+            a => Ok(a),
+        }
+    }
+
+    /// Runs a controller command.
+    ///
+    /// # Errors
+    /// As [`RigPort::request_ok`], or a reply of another kind.
+    pub fn command(&mut self, command: Command) -> Result<Reply> {
+        match self.request_ok(&Request::Control(command))? {
+            Answer::Reply(r) => Ok(r),
+            a => bail!("unexpected reply to `{}`: {a}", Request::Control(command)),
+        }
+    }
+
+    /// The rig's status.
+    ///
+    /// # Errors
+    /// As [`RigPort::command`].
+    pub fn status(&mut self) -> Result<Status> {
+        match self.command(Command::Status)? {
+            Reply::Status(s) => Ok(s),
+            r => bail!("unexpected reply to `status`: {}", Answer::Reply(r)),
+        }
+    }
+
+    /// The rig's diagnostics.
+    ///
+    /// # Errors
+    /// As [`RigPort::request_ok`].
+    pub fn diag(&mut self) -> Result<DiagInfo> {
+        match self.request_ok(&Request::Diag)? {
+            Answer::Diag(d) => Ok(d),
+            a => bail!("unexpected reply to `diag`: {a}"),
+        }
+    }
+
+    /// A capture command whose reply is the capture's state.
+    ///
+    /// # Errors
+    /// As [`RigPort::request_ok`].
+    pub fn capture_status(&mut self, c: CaptureCommand) -> Result<CaptureStatus> {
+        match self.request_ok(&Request::Capture(c))? {
+            Answer::Capture(s) => Ok(s),
+            a => bail!("unexpected reply to `{}`: {a}", Request::Capture(c)),
+        }
+    }
+
+    /// Segment `k` of the capture.
+    ///
+    /// # Errors
+    /// As [`RigPort::request_ok`].
+    pub fn segment(&mut self, k: u16) -> Result<SegmentView> {
+        let req = Request::Capture(CaptureCommand::Get(k));
+        match self.request_ok(&req)? {
+            Answer::Segment(s) if s.k == k => Ok(s),
+            a => bail!("unexpected reply to `{req}`: {a}"),
+        }
+    }
+
+    /// The next asynchronous record, waiting at most `wait` (`None` then). A reply that
+    /// arrives while no request waits is a link error.
+    ///
+    /// # Errors
+    /// The link closed, an unexpected reply, Ctrl-C.
+    pub fn next_record(&mut self, wait: Duration) -> Result<Option<AsyncRecord>> {
+        if let Some(r) = self.records.pop_front() {
+            return Ok(Some(r));
+        }
+        let deadline = Instant::now() + wait;
+        loop {
+            return match self.recv(deadline, false)? {
+                None => Ok(None),
+                Some(Incoming::Record(r)) => Ok(Some(r)),
+                Some(Incoming::Closed(why)) => Err(anyhow!("the rig closed the link: {why}")),
+                Some(Incoming::Reply { tag: Some(t), .. }) if self.abandoned.contains(&t) => {
+                    continue;
+                }
+                Some(Incoming::Reply { tag, text }) => bail!(
+                    "link error: a reply arrived while no request waited: {}",
+                    escaped(&match tag {
+                        Some(t) => format!("#{t} {text}"),
+                        None => text,
+                    })
+                ),
+            };
+        }
+    }
+
+    /// Drops the records received so far.
+    pub fn drain_records(&mut self) {
+        self.records.clear();
+        while let Ok(i) = self.incoming.try_recv() {
+            if let Incoming::Closed(why) = i {
+                self.closed = Some(why);
+            }
+        }
     }
 
     /// The rig's own clock (`diag uptime_ms`), s.
     ///
     /// # Errors
-    /// As [`RigPort::command`], or a malformed `diag` reply.
+    /// As [`RigPort::diag`].
     pub fn uptime_s(&mut self) -> Result<f64> {
-        let d = self.command_ok("diag")?;
-        let ms: u64 = protocol::field(&d, "uptime_ms")
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(|| anyhow!("malformed diag reply: {d}"))?;
-        Ok(ms as f64 / 1e3)
+        Ok(self.diag()?.uptime_ms as f64 / 1e3)
+    }
+
+    /// What `id` said at the connection.
+    pub fn id(&self) -> &IdInfo {
+        &self.id
+    }
+
+    /// The `id` reply as received.
+    pub fn id_line(&self) -> &str {
+        &self.id_line
+    }
+
+    /// The hammer's weight `m g` of the rig's model, N.
+    pub fn weight_n(&self) -> f64 {
+        f64::from(self.id.mass_kg) * shared::model::rig::GRAVITY_M_S2
     }
 
     /// Reply timeout.
     pub fn timeout(&self) -> Duration {
-        self.timeout
+        self.opts.timeout
+    }
+
+    /// Lines that did not read, so far (reported on stderr as they came, the first
+    /// [`SHOWN_GARBLED`] of them).
+    pub fn garbled(&self) -> u64 {
+        self.garbled.load(Ordering::Relaxed)
+    }
+
+    /// Arms the drive guard: from now on, dropping the port (an error, an interruption, a
+    /// panic) stops the drive first, until [`RigPort::release_drive`].
+    pub fn guard_drive(&mut self) {
+        self.guard = true;
+    }
+
+    /// Disarms the drive guard: the command ended as planned and leaves the drive as it is.
+    pub fn release_drive(&mut self) {
+        self.guard = false;
+    }
+
+    /// Stops the drive (the guard's action): sends `stop`, waits for its reply and the status
+    /// after it, and says on stderr what happened.
+    fn stop_drive(&mut self) {
+        // A capture being armed ends too (its segments stay readable).
+        let _ = self.exchange("capture stop", true);
+        match self.exchange("stop", true) {
+            Ok(reply) => {
+                let state = self
+                    .exchange("status", true)
+                    .ok()
+                    .and_then(|s| s.parse::<Status>().ok())
+                    .map_or("the status did not read".to_string(), |s| {
+                        format!(
+                            "the rig is {} at {:.3} mm, ramping to 0",
+                            shared::console::Token::token(s.state),
+                            s.amplitude_mm
+                        )
+                    });
+                eprintln!("stopping the drive: `stop` answered `{reply}`; {state}");
+            }
+            Err(e) => eprintln!(
+                "stopping the drive: `stop` failed ({e:#}); the rig's link-loss watchdog stops \
+                 it {:.0} s after the last line",
+                self.opts.link_timeout_s
+            ),
+        }
     }
 }
 
 impl Drop for RigPort {
     fn drop(&mut self) {
+        if self.closed.is_none() {
+            if self.guard {
+                self.stop_drive();
+            }
+            // Leave the rig as a terminal finds it: no telemetry, no watchdog.
+            let _ = self.exchange("stream off", true);
+            if self.opts.link_timeout_s > 0.0 {
+                let _ = self.exchange("link-timeout 0", true);
+            }
+        }
+        let n = self.garbled();
+        if n > SHOWN_GARBLED {
+            eprintln!("warning: {n} lines from the rig did not read and were skipped");
+        }
         // Stop the reader (it polls with a short timeout) so that its handle on the device is
         // closed too: the port is free for the next program.
         self.stop.store(true, Ordering::Relaxed);
@@ -250,23 +699,81 @@ impl Drop for RigPort {
     }
 }
 
-/// The reader thread: splits the byte stream into lines; replies to one channel, parsed
-/// asynchronous lines to the other, garbled lines to stderr.
+/// An `IdInfo` until the real one arrives.
+fn placeholder_id() -> IdInfo {
+    IdInfo {
+        firmware: shared::console::Version::of(""),
+        board: shared::console::Board::Rig,
+        rig: shared::model::RigId::Wires,
+        gap_mm: 0.0,
+        sample_rate_hz: shared::control::SAMPLE_RATE_HZ,
+        capture_rate_hz: shared::capture::CAPTURE_RATE_HZ,
+        sensor: shared::control::SensorChain::default(),
+        mass_kg: 0.0,
+        freq_window_hz: [0.0, 0.0],
+        slew_hz_per_s: 0.0,
+        ramp_mm_per_s: 0.0,
+        force_limit_n: 0.0,
+    }
+}
+
+/// The reply `text` to `line`, read.
+fn read_answer(line: &str, text: &str) -> Result<Answer> {
+    text.parse::<Answer>().map_err(|e: WireError| {
+        anyhow!(
+            "the reply to `{line}` does not read ({e}): {}",
+            escaped(text)
+        )
+    })
+}
+
+/// `text` escaped (control characters and non-ASCII shown as escapes) and cut at
+/// 120 characters.
+pub fn escaped(text: &str) -> String {
+    let mut out: String = text
+        .chars()
+        .take(SHOWN_CHARS)
+        .flat_map(char::escape_debug)
+        .collect();
+    if text.chars().count() > SHOWN_CHARS {
+        out.push_str(&format!("… ({} characters)", text.chars().count()));
+    }
+    out
+}
+
+/// Reports a line that does not read (the first [`SHOWN_GARBLED`] on stderr), counting it.
+fn garbled_line(garbled: &AtomicU64, why: &str, raw: &[u8]) {
+    let n = garbled.fetch_add(1, Ordering::Relaxed) + 1;
+    if n <= SHOWN_GARBLED {
+        eprintln!(
+            "warning: {why} skipped: {}",
+            escaped(&String::from_utf8_lossy(raw))
+        );
+        if n == SHOWN_GARBLED {
+            eprintln!("warning: further lines that do not read are counted, not shown");
+        }
+    }
+}
+
+/// The reader thread: splits the byte stream into lines; replies (with their tag) and parsed
+/// records to the channel, lines that do not read to stderr (bounded).
 fn read_lines(
     mut port: Box<dyn serialport::SerialPort>,
     stop: &AtomicBool,
-    replies: Sender<Incoming>,
-    asyncs: Sender<AsyncLine>,
+    garbled: &AtomicU64,
+    out: &Sender<Incoming>,
 ) {
     let mut buf: Vec<u8> = Vec::new();
     let mut chunk = [0u8; 4096];
     let mut zero_reads = 0u32;
+    // After an over-long run without a line end: drop bytes up to the next line end.
+    let mut skipping = false;
     while !stop.load(Ordering::Relaxed) {
         match port.read(&mut chunk) {
             Ok(0) => {
                 zero_reads += 1;
                 if zero_reads > 20 {
-                    let _ = replies.send(Incoming::Closed("device closed".into()));
+                    let _ = out.send(Incoming::Closed("device closed".into()));
                     return;
                 }
                 std::thread::sleep(Duration::from_millis(5));
@@ -278,39 +785,95 @@ fn read_lines(
             }
             Err(e) if e.kind() == ErrorKind::TimedOut || e.kind() == ErrorKind::Interrupted => {}
             Err(e) => {
-                let _ = replies.send(Incoming::Closed(e.to_string()));
+                let _ = out.send(Incoming::Closed(e.to_string()));
                 return;
             }
         }
         while let Some(end) = buf.iter().position(|&b| b == b'\n' || b == b'\r') {
             let raw: Vec<u8> = buf.drain(..=end).collect();
             let raw = &raw[..raw.len() - 1];
-            if raw.is_empty() {
+            if std::mem::take(&mut skipping) || raw.is_empty() {
                 continue;
             }
-            let Ok(text) = std::str::from_utf8(raw) else {
-                eprintln!(
-                    "warning: garbled line skipped: {}",
-                    String::from_utf8_lossy(raw)
-                );
-                continue;
-            };
-            if text.starts_with('!') {
-                match protocol::parse_async(text) {
-                    Some(a) => {
-                        if asyncs.send(a).is_err() {
-                            return;
-                        }
-                    }
-                    None => eprintln!("warning: unknown asynchronous line skipped: {text}"),
+            let item = match std::str::from_utf8(raw) {
+                Err(_) => {
+                    garbled_line(garbled, "a line that is not text", raw);
+                    continue;
                 }
-            } else if replies.send(Incoming::Reply(text.to_string())).is_err() {
+                Ok(text) if text.starts_with('!') => match text.parse::<AsyncRecord>() {
+                    Ok(r) => Incoming::Record(r),
+                    Err(e) => {
+                        garbled_line(
+                            garbled,
+                            &format!("an asynchronous line that does not read ({e})"),
+                            raw,
+                        );
+                        continue;
+                    }
+                },
+                Ok(text) => match split_tag(text) {
+                    Ok((tag, rest)) => Incoming::Reply {
+                        tag,
+                        text: rest.trim_start().to_string(),
+                    },
+                    Err(_) => {
+                        garbled_line(garbled, "a reply with a malformed tag", raw);
+                        continue;
+                    }
+                },
+            };
+            if out.send(item).is_err() {
                 return;
             }
         }
-        if buf.len() > 1 << 16 {
-            eprintln!("warning: 64 KiB without a line end discarded");
+        if buf.len() > MAX_PENDING_BYTES {
+            garbled_line(
+                garbled,
+                &format!(
+                    "{} bytes without a line end (the rest of that line too)",
+                    buf.len()
+                ),
+                &buf[..SHOWN_CHARS.min(buf.len())],
+            );
             buf.clear();
+            skipping = true;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sequence_numbers_count_gaps_duplicates_and_going_back() {
+        let mut s = SeqCounter::default();
+        let seen: Vec<Seq> = [5, 6, 9, 9, 10, 3].into_iter().map(|q| s.see(q)).collect();
+        assert_eq!(
+            seen,
+            [
+                Seq::Next,
+                Seq::Next,
+                Seq::Next,
+                Seq::Duplicate,
+                Seq::Next,
+                Seq::Back { last: 10 }
+            ]
+        );
+        assert_eq!((s.received, s.lost, s.duplicates), (4, 2, 1));
+        // Wrapping at u32::MAX is in order.
+        let mut s = SeqCounter::default();
+        assert_eq!(s.see(u32::MAX), Seq::Next);
+        assert_eq!(s.see(0), Seq::Next);
+        assert_eq!(s.lost, 0);
+    }
+
+    #[test]
+    fn garbage_is_shown_escaped_and_bounded() {
+        let e = escaped("a\u{1b}[2J\u{7}\u{0}b");
+        assert_eq!(e, "a\\u{1b}[2J\\u{7}\\0b");
+        let long = "x".repeat(1000);
+        let e = escaped(&long);
+        assert!(e.len() < 200 && e.ends_with("(1000 characters)"), "{e}");
     }
 }

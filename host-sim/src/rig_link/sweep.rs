@@ -1,18 +1,19 @@
 //! `rig sweep`: the thesis' experimental frequency response (§3.3.4, Figs. 3.12–3.14) measured
 //! on the rig: the drive dwells at each frequency (`freq`, inside the rig's safe window), and
 //! after the transient the mean peak impact force (`F_i/mg`) and the measured regime of the
-//! dwell's cycles are recorded. A fault ends the sweep (the rig ramps its drive to zero itself).
+//! dwell's cycles are recorded. A fault ends the sweep (the rig ramps its drive to zero itself);
+//! so does a failure or an interruption (the port's drive guard stops the drive).
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Result, bail, ensure};
 use serde::Serialize;
-use shared::control::State;
+use shared::console::Token;
 use shared::control::meter::{METER_CYCLES, RegimeMeter};
+use shared::control::{AsyncKind, Command, CycleTelemetry, Event, Fault, State};
 
 use super::RigPort;
-use super::protocol::{AsyncLine, CycleLine, field};
 
 /// What to sweep.
 #[derive(Debug, Clone)]
@@ -46,19 +47,28 @@ pub struct SweepPoint {
 }
 
 /// How a sweep ended.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug)]
 pub enum SweepOutcome {
     /// Every frequency measured.
     Complete(Vec<SweepPoint>),
-    /// A fault ended it: the points measured before it.
-    Faulted {
-        /// Measured points.
+    /// It ended early: a fault on the rig, a link failure or deadline, or an interruption.
+    Ended {
+        /// The points measured before.
         points: Vec<SweepPoint>,
-        /// The fault's name.
-        fault: String,
         /// Frequency being measured, Hz.
         at_hz: f64,
+        /// Why.
+        why: SweepEnd,
     },
+}
+
+/// Why a sweep ended early.
+#[derive(Debug)]
+pub enum SweepEnd {
+    /// The rig tripped this fault (it ramps its drive to zero itself).
+    Fault(Fault),
+    /// A failure on this side or of the link (the drive guard stops the drive).
+    Failed(anyhow::Error),
 }
 
 /// `lo:hi:step` as frequencies (inclusive of `hi` within a tenth of a step).
@@ -89,71 +99,110 @@ pub fn parse_range(s: &str) -> Result<Vec<f64>> {
         .collect())
 }
 
-/// Runs the sweep. `on_point` sees each point as it is measured.
+/// Checks what can be checked before the rig moves: the frequencies inside the rig's safe
+/// window, the dwell and settle counts, and the rig idle.
 ///
 /// # Errors
-/// A frequency outside the rig's window, the rig not idle at the start, a refused command, or
-/// a link failure (telemetry stopped for `quiet`).
-pub fn sweep(
-    port: &mut RigPort,
-    spec: &SweepSpec,
-    mut on_point: impl FnMut(&SweepPoint),
-) -> Result<SweepOutcome> {
+/// Each named.
+pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
     ensure!(!spec.freqs_hz.is_empty(), "no frequency to sweep");
     ensure!(
         (1..=10_000).contains(&spec.dwell_cycles) && spec.settle_cycles <= 10_000,
         "--dwell-cycles must be in 1 ..= 10000 and --settle-cycles ≤ 10000"
     );
-    let [lo, hi] = port.id.freq_window_hz;
+    let [lo, hi] = port.id().freq_window_hz.map(f64::from);
     for &f in &spec.freqs_hz {
         ensure!(
             (lo..=hi).contains(&f),
             "--freq-hz: {f} Hz is outside the rig's safe window {lo} ..= {hi} Hz"
         );
     }
-    let status = port.command_ok("status")?;
-    match field(&status, "state") {
-        Some("idle") => {}
-        Some("fault") => bail!(
+    let status = port.status()?;
+    match status.state {
+        State::Idle => Ok(()),
+        State::Fault => bail!(
             "the rig is in fault ({}): `rig send clear` first",
-            field(&status, "fault").unwrap_or("?")
+            status.fault.map_or("?", Token::token)
         ),
-        Some(s) => bail!("the drive is running (`{s}`): `rig send stop` first"),
-        None => bail!("malformed status reply: {status}"),
+        s => bail!(
+            "the drive is running (`{}`): `rig send stop` first",
+            s.token()
+        ),
     }
-    let weight = port.id.weight_n();
-    port.drain_async();
-    port.command_ok("stream on")?;
-    let first = spec.freqs_hz[0];
-    port.command_ok(&format!("freq {first:.6}"))?;
-    port.command_ok("start")?;
+}
+
+/// Runs the sweep (after [`check`]). `on_point` sees each point as it is measured. A fault,
+/// a failure or an interruption ends it with the points measured so far.
+///
+/// Each frequency has a deadline in the rig's time, derived from what it waits for: the soft
+/// start (the rig's amplitude at its `ramp_mm_per_s`), the slew from the previous frequency (at
+/// its `slew_hz_per_s`), and the settling and dwell cycles, twice over and 5 s more.
+pub fn sweep(
+    port: &mut RigPort,
+    spec: &SweepSpec,
+    mut on_point: impl FnMut(&SweepPoint),
+) -> SweepOutcome {
     let mut points = Vec::new();
-    for (i, &f) in spec.freqs_hz.iter().enumerate() {
-        if i > 0 {
-            port.command_ok(&format!("freq {f:.6}"))?;
+    let mut at_hz = spec.freqs_hz.first().copied().unwrap_or(0.0);
+    match run(port, spec, &mut points, &mut at_hz, &mut on_point) {
+        Ok(None) => SweepOutcome::Complete(points),
+        Ok(Some(fault)) => SweepOutcome::Ended {
+            points,
+            at_hz,
+            why: SweepEnd::Fault(fault),
+        },
+        Err(e) => SweepOutcome::Ended {
+            points,
+            at_hz,
+            why: SweepEnd::Failed(e),
+        },
+    }
+}
+
+fn run(
+    port: &mut RigPort,
+    spec: &SweepSpec,
+    points: &mut Vec<SweepPoint>,
+    at_hz: &mut f64,
+    on_point: &mut impl FnMut(&SweepPoint),
+) -> Result<Option<Fault>> {
+    let weight = port.weight_n();
+    let id = *port.id();
+    let amplitude_mm = id.rig.preset().amplitude_m * 1e3;
+    port.drain_records();
+    port.command(Command::Stream(true))?;
+    let mut previous: Option<f64> = None;
+    for &f in &spec.freqs_hz {
+        *at_hz = f;
+        port.command(Command::Freq(f as f32))?;
+        if previous.is_none() {
+            port.command(Command::Start)?;
         }
-        match dwell(port, spec, f)? {
+        let approach = match previous {
+            None => amplitude_mm / f64::from(id.ramp_mm_per_s),
+            Some(p) => (f - p).abs() / f64::from(id.slew_hz_per_s),
+        };
+        let cycles = f64::from(spec.settle_cycles + spec.dwell_cycles + 2);
+        let deadline_s = 2.0 * (approach + cycles / f) + 5.0;
+        match dwell(port, spec, f, deadline_s)? {
             Ok(cycles) => {
                 let p = point(f, &cycles, weight);
                 on_point(&p);
                 points.push(p);
             }
             Err(fault) => {
-                let _ = port.command("stream off");
-                return Ok(SweepOutcome::Faulted {
-                    points,
-                    fault,
-                    at_hz: f,
-                });
+                let _ = port.command(Command::Stream(false));
+                return Ok(Some(fault));
             }
         }
+        previous = Some(f);
     }
-    port.command_ok("stop")?;
-    port.command_ok("stream off")?;
-    Ok(SweepOutcome::Complete(points))
+    port.command(Command::Stop)?;
+    port.command(Command::Stream(false))?;
+    Ok(None)
 }
 
-/// Where a sweep ended by a fault writes what it measured: `fr.csv` → `fr.partial.csv`.
+/// Where a sweep that ended early writes what it measured: `fr.csv` → `fr.partial.csv`.
 pub fn partial_path(out: &Path) -> PathBuf {
     let stem = out
         .file_stem()
@@ -165,28 +214,43 @@ pub fn partial_path(out: &Path) -> PathBuf {
 }
 
 /// Waits until the drive dwells at `f`, skips the settling cycles and returns the dwell's
-/// cycles, or the fault that ended it.
-fn dwell(port: &mut RigPort, spec: &SweepSpec, f: f64) -> Result<Result<Vec<CycleLine>, String>> {
+/// cycles, or the fault that ended it; at most `deadline_s` of the rig's time (counted from the
+/// first telemetry line) and `spec.quiet` between two lines.
+fn dwell(
+    port: &mut RigPort,
+    spec: &SweepSpec,
+    f: f64,
+    deadline_s: f64,
+) -> Result<Result<Vec<CycleTelemetry>, Fault>> {
+    let rate = f64::from(shared::control::SAMPLE_RATE_HZ);
     let mut settled = 0;
     let mut cycles = Vec::new();
+    let mut first: Option<u64> = None;
+    let mut last_seen = String::from("no telemetry yet");
     loop {
-        let Some(line) = port.next_async(spec.quiet)? else {
+        let Some(rec) = port.next_record(spec.quiet)? else {
             bail!(
                 "no telemetry for {:.1} s at {f} Hz (the rig stopped sending)",
                 spec.quiet.as_secs_f64()
             );
         };
-        let c = match line {
-            AsyncLine::Cycle(c) => c,
-            AsyncLine::Event(e) if e.event == "fault" => {
-                return Ok(Err(field(&e.text, "fault").unwrap_or("?").to_string()));
-            }
-            AsyncLine::Event(_) => continue,
+        let since = (rec.sample.saturating_sub(*first.get_or_insert(rec.sample))) as f64 / rate;
+        if since > deadline_s {
+            bail!(
+                "the rig did not dwell {} cycles at {f} Hz within {deadline_s:.1} s of its time (last seen: {last_seen})",
+                spec.settle_cycles + spec.dwell_cycles
+            );
+        }
+        let c = match rec.kind {
+            AsyncKind::Cycle(c) => c,
+            AsyncKind::Event(Event::Fault(fault)) => return Ok(Err(fault)),
+            AsyncKind::Event(_) => continue,
         };
         if let Some(fault) = c.fault {
-            return Ok(Err(fault.as_str().to_string()));
+            return Ok(Err(fault));
         }
-        let there = (c.freq_hz - f).abs() < 5e-4 && c.state == State::Dwell;
+        last_seen = format!("state={} freq_hz={:.4}", c.state.token(), c.freq_hz);
+        let there = (f64::from(c.freq_hz) - f).abs() < 5e-4 && c.state == State::Dwell;
         if !there {
             settled = 0;
             cycles.clear();
@@ -203,8 +267,12 @@ fn dwell(port: &mut RigPort, spec: &SweepSpec, f: f64) -> Result<Result<Vec<Cycl
     }
 }
 
-fn point(f: f64, cycles: &[CycleLine], weight_n: f64) -> SweepPoint {
-    let peaks: Vec<f64> = cycles.iter().filter_map(|c| c.peak_n).collect();
+fn point(f: f64, cycles: &[CycleTelemetry], weight_n: f64) -> SweepPoint {
+    let peaks: Vec<f64> = cycles
+        .iter()
+        .filter(|c| c.impacts > 0)
+        .map(|c| super::log::as_sent(c.peak_n, 1))
+        .collect();
     let mean = if peaks.is_empty() {
         0.0
     } else {
@@ -213,10 +281,8 @@ fn point(f: f64, cycles: &[CycleLine], weight_n: f64) -> SweepPoint {
     // The firmware's regime meter over the dwell's last cycles.
     let mut meter = RegimeMeter::new();
     for c in cycles {
-        let n = c.impacts.min(255);
-        for _ in 0..n {
-            let impulse = c.impulse_n_s.unwrap_or(0.0) / f64::from(n.max(1));
-            meter.on_impact(c.peak_n.unwrap_or(0.0) as f32, impulse as f32);
+        for _ in 0..c.impacts {
+            meter.on_impact(c.peak_n, c.impulse_n_s / f32::from(c.impacts));
         }
         meter.on_cycle_end();
     }

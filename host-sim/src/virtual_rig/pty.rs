@@ -1,7 +1,7 @@
 //! The virtual rig behind a pseudo-terminal (`host-sim hil --serve-pty`): the session of
 //! [`super::session`] with its console on a pty instead of the scenario's timed lines, so that
 //! `host-sim rig --port /dev/pts/N` (or any serial terminal) talks to it as to the board over
-//! USB-serial. Bytes in and out are the firmware's: the same [`Link`] and console service.
+//! USB-serial. Bytes in and out are the firmware's: the same `shared::console::Link` and console service.
 //!
 //! The serial line is modelled at 115200 8N1 (11,520 bytes per second of rig time, both ways);
 //! bytes the client does not take (a full pty buffer) are lost as on a real wire. Rig time runs
@@ -17,9 +17,9 @@ use anyhow::{Context, Result};
 use nix::fcntl::{FcntlArg, OFlag, fcntl};
 use nix::pty::openpty;
 use nix::sys::termios::{SetArg, cfmakeraw, tcgetattr, tcsetattr};
+use shared::console::RxError;
+use shared::console::serve::{AsyncText, ReplyText, format_answer, format_async};
 use shared::control::SAMPLE_RATE_HZ;
-use shared::control::link::Link;
-use shared::control::serve::{AsyncText, ReplyText, format_answer, format_async};
 
 use super::session::{HilRun, HilSetup, Session};
 
@@ -64,16 +64,17 @@ impl Pty {
         &self.path
     }
 
-    /// Appends what the client sent since the last call.
+    /// Takes what the client sent since the last call into the receive FIFO (what does not
+    /// fit is dropped and counted there).
     ///
     /// # Errors
     /// A read error other than "nothing there".
-    pub fn read_into(&mut self, buf: &mut Vec<u8>) -> Result<()> {
+    pub fn read_into(&mut self, fifo: &mut RxFifo) -> Result<()> {
         let mut chunk = [0u8; 4096];
         loop {
             match self.master.read(&mut chunk) {
                 Ok(0) => return Ok(()),
-                Ok(n) => buf.extend_from_slice(&chunk[..n]),
+                Ok(n) => fifo.push(&chunk[..n]),
                 Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(()),
                 Err(e) if e.kind() == ErrorKind::Interrupted => {}
                 // EIO: no client has the slave open.
@@ -98,6 +99,44 @@ impl Pty {
     }
 }
 
+/// The receive side of the virtual rig's UART: a bounded FIFO (what a USB-serial adapter
+/// holds) drained at the line rate; bytes that find it full are dropped and counted, and the
+/// line they belong to is lost (a receive overrun, as the board's UART flags it).
+#[derive(Debug, Default)]
+pub struct RxFifo {
+    bytes: std::collections::VecDeque<u8>,
+    /// Bytes received.
+    pub received: usize,
+    /// Bytes dropped because the FIFO was full.
+    pub dropped: usize,
+    /// Bytes were dropped since the link was last told.
+    overrun: bool,
+}
+
+/// Capacity of the receive FIFO, bytes.
+pub const RX_FIFO: usize = 256;
+
+impl RxFifo {
+    fn push(&mut self, bytes: &[u8]) {
+        self.received += bytes.len();
+        let room = RX_FIFO - self.bytes.len();
+        let (keep, drop) = bytes.split_at(bytes.len().min(room));
+        self.bytes.extend(keep);
+        if !drop.is_empty() {
+            self.dropped += drop.len();
+            self.overrun = true;
+        }
+    }
+
+    /// The next byte for the UART, or an overrun to report first (`Err`).
+    fn pop(&mut self) -> Option<Result<u8, RxError>> {
+        if std::mem::take(&mut self.overrun) {
+            return Some(Err(RxError::Overrun));
+        }
+        self.bytes.pop_front().map(Ok)
+    }
+}
+
 /// How the served rig runs.
 #[derive(Debug, Clone, Copy)]
 pub struct ServeOptions {
@@ -114,6 +153,8 @@ pub struct ServeStats {
     pub tx_lost_bytes: usize,
     /// Bytes received.
     pub rx_bytes: usize,
+    /// Bytes received that found the receive FIFO full (dropped).
+    pub rx_dropped_bytes: usize,
 }
 
 /// Serves the virtual rig on a new pty: `ready` gets its path once it is open (the command
@@ -145,8 +186,7 @@ pub fn serve(
     let fs = f64::from(SAMPLE_RATE_HZ);
     let per_sample = UART_BYTES_PER_S / fs;
     let end = opts.seconds.map(|s| (s * fs).round() as u64);
-    let mut link = Link::new();
-    let (mut rx, mut rx_next) = (Vec::<u8>::new(), 0usize);
+    let mut rx = RxFifo::default();
     let mut tx: Vec<u8> = Vec::new();
     let (mut rx_credit, mut tx_credit) = (0.0f64, 0.0f64);
     let mut reply = ReplyText::new();
@@ -163,9 +203,7 @@ pub fn serve(
             if crate::interrupt::requested() {
                 break;
             }
-            let before = rx.len();
             pty.read_into(&mut rx)?;
-            stats.rx_bytes += rx.len() - before;
             if !tx.is_empty() {
                 stats.tx_lost_bytes += pty.write_lossy(&tx);
                 tx.clear();
@@ -179,37 +217,39 @@ pub fn serve(
             }
         }
         session.begin_sample()?;
-        // UART receive at the line rate.
+        // UART receive at the line rate; every line's end feeds the link-loss watchdog.
         rx_credit = (rx_credit + per_sample).min(1.0 + per_sample);
         while rx_credit >= 1.0 {
-            let Some(&b) = rx.get(rx_next) else {
+            let Some(b) = rx.pop() else {
                 rx_credit = rx_credit.min(1.0);
                 break;
             };
-            rx_next += 1;
-            link.on_rx_byte(b);
-            rx_credit -= 1.0;
-        }
-        if rx_next == rx.len() {
-            rx.clear();
-            rx_next = 0;
+            match b {
+                Ok(b) => {
+                    if session.link_mut().on_rx_byte(b) {
+                        session.controller_mut().link_alive();
+                    }
+                    rx_credit -= 1.0;
+                }
+                Err(e) => session.link_mut().on_rx_error(e),
+            }
         }
         // The console service: every line it can answer now.
-        while let Some(pending) = link.next_line() {
-            let a = session.answer(pending.as_line(), link.stats());
+        while let Some(pending) = session.link_mut().next_line() {
+            let a = session.answer(pending.as_line());
             format_answer(&a, &mut reply);
-            link.push_reply(&reply);
+            session.link_mut().push_reply(&reply);
         }
         session.end_sample();
         while let Some(rec) = session.controller_mut().pop_async() {
             if format_async(&rec, &mut line) {
-                link.push_async(&line);
+                session.link_mut().push_async(&line);
             }
         }
         // UART transmit at the line rate.
         tx_credit = (tx_credit + per_sample).min(1.0 + per_sample);
         while tx_credit >= 1.0 {
-            let Some(b) = link.pop_tx() else {
+            let Some(b) = session.link_mut().pop_tx() else {
                 tx_credit = tx_credit.min(1.0);
                 break;
             };
@@ -217,6 +257,8 @@ pub fn serve(
             tx_credit -= 1.0;
         }
     }
+    stats.rx_bytes = rx.received;
+    stats.rx_dropped_bytes = rx.dropped;
     stats.tx_lost_bytes += pty.write_lossy(&tx);
     Ok((session.finish(), stats))
 }

@@ -8,9 +8,11 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use shared::analysis::SelectionError;
+use shared::capture::{CAPTURE_RATE_HZ, Capture};
+use shared::console::serve::Response;
+use shared::console::{Board, BoardInfo, Direct, Line, Link, Token, Version, answer};
 use shared::control::{
-    Answer, BoardInfo, CAPTURE_RATE_HZ, Capture, Controller, Direct, Event, Fault, Line, LinkStats,
-    ModelRequest, Prediction, SAMPLE_RATE_HZ, State, Status, answer, predict,
+    Controller, Event, Fault, ModelRequest, Prediction, SAMPLE_RATE_HZ, State, Status, predict,
 };
 use shared::hal::{DriveOutput, ForceSource, TimeBase};
 use shared::model::{ContactLaw, RigId, RigParams, Suspension};
@@ -179,8 +181,8 @@ const CAPTURE_PER_SAMPLE: usize = (CAPTURE_RATE_HZ / SAMPLE_RATE_HZ) as usize;
 /// The board as the virtual rig reports it (`id`, `diag`).
 pub fn virtual_board(uptime_ms: u64) -> BoardInfo {
     BoardInfo {
-        firmware: env!("CARGO_PKG_VERSION"),
-        board: "virtual",
+        firmware: Version::of(env!("CARGO_PKG_VERSION")),
+        board: Board::Virtual,
         uptime_ms,
         stack_hwm_bytes: 0,
         stack_size_bytes: 0,
@@ -197,6 +199,8 @@ pub struct Session {
     sc: Scenario,
     controller: Controller,
     capture: Capture,
+    /// The console's link (the pty server feeds it; scenario lines bypass it).
+    link: Link,
     plant: Plant,
     base: RigParams,
     adc: MockAdc,
@@ -270,6 +274,7 @@ impl Session {
             sc,
             controller,
             capture: Capture::new(),
+            link: Link::new(),
             plant,
             base,
             adc,
@@ -327,20 +332,25 @@ impl Session {
         &self.out.rows
     }
 
+    /// The console's link.
+    pub fn link_mut(&mut self) -> &mut Link {
+        &mut self.link
+    }
+
     /// Answers a console line now (through the same service as the firmware's).
-    pub fn answer(&mut self, line: Line<'_>, link: LinkStats) -> Answer {
+    pub fn answer(&mut self, line: Line<'_>) -> Response {
         let mut access = Direct {
             controller: &mut self.controller,
             capture: &mut self.capture,
             board: virtual_board(self.k / 10),
-            link,
+            link: &mut self.link,
         };
         answer(&mut access, line)
     }
 
     /// Runs a timed console line and records the exchange.
     pub fn say(&mut self, line: &str) {
-        let a = self.answer(Line::Text(line), LinkStats::default());
+        let a = self.answer(Line::Text(line));
         self.out.console.push(ConsoleLine {
             t_s: self.t_s(),
             line: line.to_string(),
@@ -459,7 +469,7 @@ impl Session {
             let last = self.controller.last_cycle();
             self.out.rows.push(CycleRow {
                 t_s: self.plant.t_s(),
-                state: s.state.as_str(),
+                state: s.state.token(),
                 freq_hz: f64::from(s.freq_hz),
                 amp_cmd_mm: f64::from(s.amplitude_mm),
                 cart_amp_mm: self.cart_max * 1e3,
@@ -468,7 +478,7 @@ impl Session {
                 true_impacts: self.true_n,
                 true_peak_n: self.true_peak,
                 measured_regime: s.regime.map_or("-".into(), |r| r.to_string()),
-                fault: s.fault.map_or("none", Fault::as_str),
+                fault: s.fault.map_or("none", Fault::token),
                 lost_cycles: s.lost_cycles,
                 force_vs_model_pct: s.force_vs_model_pct.map(f64::from),
             });

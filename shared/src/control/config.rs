@@ -10,6 +10,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{ParamError, check_range};
 
+/// Largest gap the controller takes, mm.
+pub const MAX_GAP_MM: f32 = 10.0;
+
 /// Force sampling rate, Hz: the ADC is triggered from a hardware timer at this rate and the
 /// sampling task runs once per sample.
 pub const SAMPLE_RATE_HZ: u32 = 10_000;
@@ -83,6 +86,17 @@ impl SensorChain {
     /// ADC code (unclamped, fractional) of a force (N): the inverse of [`SensorChain::force_n`].
     pub fn code_of(&self, force_n: f32) -> f32 {
         (force_n * self.volts_per_n + self.offset_v) * (CODE_FULL_SCALE / self.adc_full_scale_v)
+    }
+
+    /// Checks the calibration.
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the field and its allowed range.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let f = |name, v: f32, lo, hi| check_range(name, f64::from(v), lo, hi).map(|_| ());
+        f("volts_per_n", self.volts_per_n, 1e-5, 1.0)?;
+        f("offset_v", self.offset_v, 0.0, 1.65)?;
+        f("adc_full_scale_v", self.adc_full_scale_v, 0.5, 10.0)
     }
 
     /// Largest force before the ADC's upper rail, N.
@@ -232,9 +246,7 @@ impl ControllerConfig {
         let f = |name, v: f32, lo, hi| check_range(name, f64::from(v), lo, hi).map(|_| ());
         f("dac_full_scale_v", self.drive.dac_full_scale_v, 0.5, 10.0)?;
         f("cart_mm_per_v", self.drive.cart_mm_per_v, 0.01, 100.0)?;
-        f("volts_per_n", self.sensor.volts_per_n, 1e-5, 1.0)?;
-        f("offset_v", self.sensor.offset_v, 0.0, 1.65)?;
-        f("adc_full_scale_v", self.sensor.adc_full_scale_v, 0.5, 10.0)?;
+        self.sensor.validate()?;
         let l = &self.limits;
         f("freq_min_hz", l.freq_min_hz, 0.1, 100.0)?;
         f(

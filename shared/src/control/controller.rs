@@ -10,16 +10,16 @@
 
 use heapless::Deque;
 
+use super::command::{Command, CommandError, Reply};
 use super::config::ControllerConfig;
-use super::console::Command;
 use super::detector::ImpactDetector;
 use super::faults::{Fault, SensorMonitor};
 use super::meter::RegimeMeter;
 use super::prediction::Prediction;
 use super::sine::SineGenerator;
 use super::status::{
-    AsyncKind, AsyncRecord, CommandError, CycleTelemetry, Event, ModelRequest, ModelStatus, Reply,
-    State, Status,
+    AsyncKind, AsyncRecord, CycleTelemetry, Event, ModelRequest, ModelStatus, PeakForce, State,
+    Status, Target,
 };
 use super::tracker::HillClimber;
 use crate::analysis::SelectionError;
@@ -30,7 +30,7 @@ use crate::observe::Regime;
 
 /// Events kept for the logger.
 pub const EVENT_QUEUE: usize = 8;
-/// Asynchronous lines kept for the console service while streaming.
+/// Asynchronous records kept for the console service while streaming.
 pub const OUTBOX: usize = 8;
 
 /// Where a measurement at one drive frequency stands, in drive cycles.
@@ -53,6 +53,14 @@ impl Measurement {
             Measurement::Measuring(w) => Measurement::Measuring(w.saturating_add(1)),
         }
     }
+}
+
+/// The model's latest answer, as the controller keeps it.
+#[derive(Debug, Clone, Copy)]
+enum Model {
+    Pending,
+    Ready(Prediction),
+    Failed,
 }
 
 /// What the controller is doing, with the data that means something only there.
@@ -82,6 +90,11 @@ impl Mode {
         }
     }
 
+    /// Whether the drive was started and not yet stopped (ramping up, dwelling or tracking).
+    fn driving(&self) -> bool {
+        matches!(self, Mode::Ramp | Mode::Dwell(_) | Mode::Track { .. })
+    }
+
     /// Whether the drive runs at its full amplitude and the response is measured.
     fn measuring(&self) -> bool {
         matches!(self, Mode::Dwell(_) | Mode::Track { .. })
@@ -96,7 +109,7 @@ pub struct Controller {
     gap_mm: f32,
     mode: Mode,
     manual_hz: Option<f32>,
-    model: ModelStatus,
+    model: Model,
     generation: u32,
     request_open: bool,
     generator: SineGenerator,
@@ -116,6 +129,11 @@ pub struct Controller {
     impacts: u32,
     lost_cycles: u32,
     events: Deque<Event, EVENT_QUEUE>,
+    /// The link-loss watchdog: samples without a received line after which a running drive is
+    /// stopped ([`Fault::LinkLost`]); 0: off.
+    link_timeout: u32,
+    /// Samples since the last received line.
+    link_quiet: u32,
     streaming: bool,
     seq: u32,
     outbox: Deque<AsyncRecord, OUTBOX>,
@@ -132,7 +150,7 @@ impl Controller {
             "gap_mm",
             f64::from(gap_mm),
             0.0,
-            f64::from(super::console::MAX_GAP_MM),
+            f64::from(super::MAX_GAP_MM),
         )?;
         Ok(Controller {
             generator: SineGenerator::new(&config.limits, &config.drive),
@@ -144,7 +162,7 @@ impl Controller {
             gap_mm,
             mode: Mode::Idle,
             manual_hz: None,
-            model: ModelStatus::Pending,
+            model: Model::Pending,
             generation: 0,
             request_open: true,
             sample: 0,
@@ -157,6 +175,8 @@ impl Controller {
             impacts: 0,
             lost_cycles: 0,
             events: Deque::new(),
+            link_timeout: 0,
+            link_quiet: 0,
             streaming: false,
             seq: 0,
             outbox: Deque::new(),
@@ -211,11 +231,14 @@ impl Controller {
             freq_hz: self.generator.freq_hz(),
             amplitude_mm: self.generator.amplitude_mm(),
             regime: self.regime,
-            peak_n: self.peak_n,
-            peak_mg: self.peak_n.map(|n| n / weight),
-            model: self.model,
+            peak: self.peak_n.map(|n| PeakForce { n, mg: n / weight }),
+            model: match &self.model {
+                Model::Pending => ModelStatus::Pending,
+                Model::Ready(p) => ModelStatus::Ready(Target::from(p)),
+                Model::Failed => ModelStatus::Failed,
+            },
             force_vs_model_pct: match (self.peak_n, self.model) {
-                (Some(n), ModelStatus::Ready(p)) if p.impact_force_n > 0.0 => {
+                (Some(n), Model::Ready(p)) if p.impact_force_n > 0.0 => {
                     Some((n / p.impact_force_n - 1.0) * 100.0)
                 }
                 _ => None,
@@ -224,6 +247,17 @@ impl Controller {
             impacts: self.impacts,
             lost_cycles: self.lost_cycles,
         }
+    }
+
+    /// A line (or a keep-alive: an empty line) arrived on the console: the link-loss watchdog
+    /// starts counting afresh.
+    pub fn link_alive(&mut self) {
+        self.link_quiet = 0;
+    }
+
+    /// The link-loss watchdog's time, samples (0: off).
+    pub fn link_timeout_samples(&self) -> u32 {
+        self.link_timeout
     }
 
     /// The oldest unlogged event.
@@ -277,8 +311,8 @@ impl Controller {
         }
         match result {
             Ok(p) => {
-                self.model = ModelStatus::Ready(p);
-                self.push(Event::ModelReady(p));
+                self.model = Model::Ready(p);
+                self.push(Event::ModelReady(Target::from(&p)));
                 if self.mode.measuring() && self.manual_hz.is_none() {
                     if self.target_in_window(&p) {
                         let mode = self.begin_tracking(&p);
@@ -289,7 +323,7 @@ impl Controller {
                 }
             }
             Err(_) => {
-                self.model = ModelStatus::Failed;
+                self.model = Model::Failed;
                 self.push(Event::ModelFailed);
             }
         }
@@ -303,33 +337,34 @@ impl Controller {
     pub fn execute(&mut self, cmd: Command) -> Result<Reply, CommandError> {
         match cmd {
             Command::Status => return Ok(Reply::Status(self.status())),
-            Command::Help => return Ok(Reply::Help),
             Command::Stream(on) => self.streaming = on,
             Command::Rig(rig) => {
                 self.require_idle()?;
                 self.rig = rig;
+                self.reset_measurement();
                 self.request_model();
             }
             Command::Gap(gap_mm) => {
                 self.require_idle()?;
                 self.gap_mm = gap_mm;
+                self.reset_measurement();
                 self.request_model();
+            }
+            Command::LinkTimeout(seconds) => {
+                self.link_timeout = super::config::samples(seconds, 0);
+                self.link_quiet = 0;
             }
             Command::Tune => {
                 self.manual_hz = None;
                 self.request_model();
             }
             Command::Start => {
-                match self.mode {
-                    Mode::Idle => {}
-                    Mode::Fault(_) => return Err(CommandError::FaultLatched),
-                    _ => return Ok(Reply::Ok), // already running
-                }
+                self.require_idle()?;
                 let start_hz = match (self.manual_hz, self.model) {
                     (Some(f), _) => f,
-                    (None, ModelStatus::Ready(p)) => p.target_hz,
-                    (None, ModelStatus::Pending) => return Err(CommandError::ModelPending),
-                    (None, ModelStatus::Failed) => return Err(CommandError::NoTarget),
+                    (None, Model::Ready(p)) => p.target_hz,
+                    (None, Model::Pending) => return Err(CommandError::ModelPending),
+                    (None, Model::Failed) => return Err(CommandError::NoTarget),
                 };
                 let amplitude = (self.rig.preset().amplitude_m * 1e3) as f32;
                 let l = self.config.limits;
@@ -345,7 +380,9 @@ impl Controller {
                 self.set_mode(Mode::Ramp);
             }
             Command::Stop => {
-                if matches!(self.mode, Mode::Ramp | Mode::Dwell(_) | Mode::Track { .. }) {
+                // What was measured is no longer current, whatever the state.
+                self.reset_measurement();
+                if self.mode.driving() {
                     self.generator.set_amplitude_mm(0.0);
                     self.set_mode(Mode::Stopping);
                 }
@@ -360,8 +397,8 @@ impl Controller {
                 }
                 match self.mode {
                     Mode::Fault(_) => return Err(CommandError::FaultLatched),
-                    Mode::Stopping => return Err(CommandError::NotIdle),
-                    Mode::Idle => {}
+                    // For the next start, as while idle.
+                    Mode::Stopping | Mode::Idle => {}
                     Mode::Ramp => {
                         self.generator.set_freq_hz(freq_hz);
                         self.reset_measurement();
@@ -394,6 +431,10 @@ impl Controller {
     /// The sampling task: one ADC result in (`now_us` from the time base), one DAC code out.
     pub fn on_sample(&mut self, code: Result<u16, SampleError>, now_us: u64) -> u16 {
         self.sample = self.sample.wrapping_add(1);
+        self.link_quiet = self.link_quiet.saturating_add(1);
+        if self.link_timeout != 0 && self.link_quiet > self.link_timeout && self.mode.driving() {
+            self.trip(Fault::LinkLost);
+        }
         if let Some(last) = self.last_us.replace(now_us)
             && now_us.wrapping_sub(last) > u64::from(self.config.faults.deadline_us)
         {
@@ -436,7 +477,7 @@ impl Controller {
             Mode::Ramp if self.generator.settled() => {
                 self.reset_measurement();
                 let mode = match (self.manual_hz, self.model) {
-                    (None, ModelStatus::Ready(p)) => self.begin_tracking(&p),
+                    (None, Model::Ready(p)) => self.begin_tracking(&p),
                     _ => Mode::Dwell(Measurement::Settling(0)),
                 };
                 self.set_mode(mode);
@@ -580,13 +621,13 @@ impl Controller {
         match self.mode {
             Mode::Idle => Ok(()),
             Mode::Fault(_) => Err(CommandError::FaultLatched),
-            _ => Err(CommandError::NotIdle),
+            _ => Err(CommandError::NotIdle(self.mode.state())),
         }
     }
 
     fn request_model(&mut self) {
         self.generation = self.generation.wrapping_add(1);
-        self.model = ModelStatus::Pending;
+        self.model = Model::Pending;
         self.request_open = true;
     }
 

@@ -2,8 +2,6 @@
 //! latched by the controller (the drive ramps to zero at the abort rate) until the operator
 //! sends `clear`.
 
-use core::fmt;
-
 use super::config::{FaultSettings, samples};
 
 /// Why the controller aborted.
@@ -22,40 +20,22 @@ pub enum Fault {
     MissedDeadline,
     /// The configuration or the model's target is outside the allowed window.
     BadConfig,
+    /// No console line (nor keep-alive) for the link timeout while the drive ran: the desktop
+    /// that drove the rig is gone.
+    LinkLost,
 }
 
 impl Fault {
-    /// Short name for logs and the console.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Fault::OverForce => "over-force",
-            Fault::SensorOpen => "sensor-open",
-            Fault::SensorStuck => "sensor-stuck",
-            Fault::AdcOverrun => "adc-overrun",
-            Fault::MissedDeadline => "missed-deadline",
-            Fault::BadConfig => "bad-config",
-        }
-    }
-
-    /// The fault of a name from [`Fault::as_str`].
-    pub fn from_name(name: &str) -> Option<Fault> {
-        [
-            Fault::OverForce,
-            Fault::SensorOpen,
-            Fault::SensorStuck,
-            Fault::AdcOverrun,
-            Fault::MissedDeadline,
-            Fault::BadConfig,
-        ]
-        .into_iter()
-        .find(|f| f.as_str() == name)
-    }
-}
-
-impl fmt::Display for Fault {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
+    /// Every fault.
+    pub const ALL: [Fault; 7] = [
+        Fault::OverForce,
+        Fault::SensorOpen,
+        Fault::SensorStuck,
+        Fault::AdcOverrun,
+        Fault::MissedDeadline,
+        Fault::BadConfig,
+        Fault::LinkLost,
+    ];
 }
 
 /// Per-sample sensor checks: pinned at a rail, and no signal.

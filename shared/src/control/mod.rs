@@ -1,49 +1,44 @@
-//! The rig controller, hardware-free: the drive's sine generator, the impact detector, the
-//! online regime meter, the fault checks, the tracking hill climber, the console parser and the
-//! state machine that ties them together. The firmware calls it from its RTIC tasks through the
-//! traits of [`crate::hal`]; host-sim runs the same code against a simulated rig.
-//!
-//! The console: [`Link`] (bytes ↔ lines, bounded queues) → [`serve::answer`] (one answer per
-//! line); [`Capture`] records drop tests at [`CAPTURE_RATE_HZ`].
+//! The rig controller, hardware-free and without text: the drive's sine generator, the impact
+//! detector, the online regime meter, the fault checks, the tracking hill climber and the state
+//! machine that ties them together. It takes and returns types ([`Command`], [`Reply`],
+//! [`Status`], [`AsyncRecord`]); the console ([`crate::console`]) maps text to and from them.
+//! The firmware calls it from its RTIC tasks through the traits of [`crate::hal`]; host-sim runs
+//! the same code against a simulated rig.
 //!
 //! Data flow per force sample: ADC code → [`SensorChain`] (N) → [`ImpactDetector`] →
 //! [`RegimeMeter`] (per excitation cycle) → [`HillClimber`] (per evaluation) →
 //! [`SineGenerator`] → DAC code.
 
-pub mod capture;
+pub mod command;
 pub mod config;
-pub mod console;
 pub mod controller;
 pub mod detector;
 pub mod faults;
-pub mod fixed;
-pub mod health;
-pub mod link;
 pub mod meter;
 pub mod prediction;
-pub mod serve;
 pub mod sine;
 pub mod status;
 pub mod tracker;
 
-pub use capture::{CAPTURE_RATE_HZ, Capture, CaptureCommand, CaptureState, CaptureStatus};
+pub use command::{Command, CommandError, Reply};
 pub use config::{
-    ControllerConfig, DetectorSettings, DriveChain, FaultSettings, Limits, SAMPLE_PERIOD_US,
-    SAMPLE_RATE_HZ, SensorChain, TrackSettings,
+    ControllerConfig, DetectorSettings, DriveChain, FaultSettings, Limits, MAX_GAP_MM,
+    SAMPLE_PERIOD_US, SAMPLE_RATE_HZ, SensorChain, TrackSettings,
 };
-pub use console::{Command, Line, LineBuffer, ParseError, Request, RxError, parse};
 pub use controller::Controller;
 pub use detector::{DetectedImpact, ImpactDetector};
 pub use faults::{Fault, SensorMonitor};
-pub use fixed::{Fixed, parse_decimal};
-pub use health::{Health, HealthCheck};
-pub use link::{Link, LinkStats, PendingLine};
 pub use meter::RegimeMeter;
 pub use prediction::{Prediction, predict};
-pub use serve::{Answer, AnswerError, BoardInfo, Direct, RigAccess, answer};
 pub use sine::{DriveSample, SineGenerator, sin_turn};
 pub use status::{
-    AsyncKind, AsyncRecord, CommandError, CycleTelemetry, Event, ModelRequest, ModelStatus, Reply,
-    State, Status,
+    AsyncKind, AsyncRecord, CycleTelemetry, Event, ModelRequest, ModelStatus, PeakForce, State,
+    Status, Target,
 };
 pub use tracker::HillClimber;
+
+/// `x` limited to `lo ..= hi` without `f32::clamp`'s panic (when `lo > hi` or either is NaN):
+/// `hi` wins over `lo`, and a NaN `x` gives `lo`. Used on the control path, which must not panic.
+pub fn within(x: f32, lo: f32, hi: f32) -> f32 {
+    x.max(lo).min(hi)
+}

@@ -5,7 +5,7 @@
 //! [`Limits`] window.
 
 use super::config::{DAC_MID, DriveChain, Limits, SAMPLE_RATE_HZ};
-use super::fixed::within;
+use super::within;
 
 /// One full turn of the phase accumulator.
 const TURN: f32 = 4_294_967_296.0;

@@ -8,7 +8,7 @@
 //! `min_step_hz`, so the frequency ends up dithering by `min_step_hz` around the force maximum.
 
 use super::config::TrackSettings;
-use super::fixed::within;
+use super::within;
 use crate::observe::Regime;
 
 /// The hill climber.

@@ -15,7 +15,7 @@
 
 use heapless::{Deque, String};
 
-use super::console::{Line, LineBuffer, MAX_LINE, RxError};
+use super::framing::{BACKSPACE, DELETE, Line, LineBuffer, MAX_LINE, RxError};
 
 /// Transmit queue, bytes.
 pub const TX_CAPACITY: usize = 2048;
@@ -70,6 +70,8 @@ pub struct Link {
     overflowed: u32,
     tx: Deque<u8, TX_CAPACITY>,
     stats: LinkStats,
+    /// Received characters are echoed back (`echo on`).
+    echo: bool,
 }
 
 impl Link {
@@ -78,10 +80,15 @@ impl Link {
         Self::default()
     }
 
-    /// A received byte.
-    pub fn on_rx_byte(&mut self, byte: u8) {
+    /// A received byte; `true` at a line's end (`\n` or `\r`, an empty line too: what
+    /// keeps the controller's link-loss watchdog fed).
+    pub fn on_rx_byte(&mut self, byte: u8) -> bool {
+        let end = byte == b'\n' || byte == b'\r';
+        if self.echo {
+            self.echo_byte(byte);
+        }
         let pending = match self.rx.push(byte) {
-            None => return,
+            None => return end,
             Some(Line::Text(s)) => {
                 let mut owned = String::new();
                 // `s` is at most MAX_LINE bytes: it fits.
@@ -96,6 +103,32 @@ impl Link {
         } else {
             let _ = self.pending.push_back(pending);
         }
+        end
+    }
+
+    /// Echoes a received byte for a terminal program: printable text as it is, a line's end as
+    /// `\r\n`, a backspace that removed a character as `BS SPACE BS`. Only while that leaves
+    /// room for a reply (an echo is never worth a reply).
+    fn echo_byte(&mut self, byte: u8) {
+        let echo: &[u8] = match byte {
+            b'\n' | b'\r' => b"\r\n",
+            BACKSPACE | DELETE if !self.rx.is_empty() => b"\x08 \x08",
+            0x20..=0x7e => core::slice::from_ref(&byte),
+            _ => return,
+        };
+        if self.tx_free() >= echo.len() + REPLY_ROOM {
+            self.push_bytes(echo);
+        }
+    }
+
+    /// Turns the echo on or off.
+    pub fn set_echo(&mut self, on: bool) {
+        self.echo = on;
+    }
+
+    /// Whether received characters are echoed.
+    pub fn echo(&self) -> bool {
+        self.echo
     }
 
     /// A byte received with an error (the byte, if any, is discarded).
@@ -186,11 +219,6 @@ impl Link {
     /// Free transmit space, bytes.
     pub fn tx_free(&self) -> usize {
         TX_CAPACITY - self.tx.len()
-    }
-
-    /// Bytes waiting to be transmitted.
-    pub fn tx_len(&self) -> usize {
-        self.tx.len()
     }
 
     /// The counters.
@@ -284,5 +312,30 @@ mod tests {
         );
         assert_eq!(link.stats().rx_errors, 1);
         assert_eq!(link.stats().lines_lost, 1);
+    }
+
+    #[test]
+    fn line_ends_are_reported_and_the_echo_shows_what_was_typed() {
+        let mut link = Link::new();
+        let ends: Vec<bool> = b"ab\r\n".iter().map(|&b| link.on_rx_byte(b)).collect();
+        assert_eq!(ends, [false, false, true, true]);
+        assert_eq!(drain(&mut link), "", "no echo by default");
+        link.set_echo(true);
+        feed(&mut link, b"statx\x7fus\r");
+        assert_eq!(drain(&mut link), "statx\x08 \x08us\r\n");
+        // A backspace with nothing to erase, and control bytes, are not echoed.
+        feed(&mut link, b"\x7f\x1b\x07");
+        assert_eq!(drain(&mut link), "");
+        let l = link.next_line();
+        assert_eq!(l, Some(PendingLine::Text(String::try_from("ab").unwrap())));
+        let l = link.next_line();
+        assert_eq!(
+            l,
+            Some(PendingLine::Text(String::try_from("status").unwrap()))
+        );
+        // The echo never takes a reply's room.
+        while link.push_async(&"z".repeat(100)) {}
+        feed(&mut link, b"xyz");
+        assert!(link.tx_free() >= REPLY_ROOM);
     }
 }

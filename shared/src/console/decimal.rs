@@ -1,18 +1,18 @@
-//! Small helpers that keep the control path lean on the MCU: [`Fixed`] prints an `f32` with a
+//! Decimal numbers as the console writes and reads them: [`Decimal`] prints an `f32` with a
 //! fixed number of decimals through integer formatting and [`parse_decimal`] reads a plain
 //! decimal number (both avoid `core`'s float formatting and parsing machinery, tens of KiB of
-//! flash); [`within`] limits a value without `f32::clamp`'s panic.
+//! flash on the MCU).
 
 use core::fmt;
 
 /// An `f32` shown with `decimals` (0..=6) decimals, rounded half away from zero. NaN prints
 /// `nan`, infinities `inf`/`-inf`, and magnitudes ≥ 1e12 `big`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Fixed(pub f32, pub u8);
+pub struct Decimal(pub f32, pub u8);
 
-impl fmt::Display for Fixed {
+impl fmt::Display for Decimal {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let Fixed(x, decimals) = *self;
+        let Decimal(x, decimals) = *self;
         if x.is_nan() {
             return f.write_str("nan");
         }
@@ -35,12 +35,6 @@ impl fmt::Display for Fixed {
         }
         Ok(())
     }
-}
-
-/// `x` limited to `lo ..= hi` without `f32::clamp`'s panic (when `lo > hi` or either is NaN):
-/// `hi` wins over `lo`, and a NaN `x` gives `lo`. Used on the control path, which must not panic.
-pub fn within(x: f32, lo: f32, hi: f32) -> f32 {
-    x.max(lo).min(hi)
 }
 
 /// Parses `[+-]digits[.digits]` (at most 9 significant digits) into an `f32`, correctly
@@ -99,16 +93,16 @@ mod tests {
             (-7.25, 3),
         ] {
             assert_eq!(
-                format!("{}", Fixed(x, d)),
+                format!("{}", Decimal(x, d)),
                 format!("{:.*}", usize::from(d), f64::from(x)),
                 "{x} {d}"
             );
         }
-        assert_eq!(format!("{}", Fixed(f32::NAN, 2)), "nan");
-        assert_eq!(format!("{}", Fixed(-f32::INFINITY, 2)), "-inf");
+        assert_eq!(format!("{}", Decimal(f32::NAN, 2)), "nan");
+        assert_eq!(format!("{}", Decimal(-f32::INFINITY, 2)), "-inf");
         // Half away from zero (core rounds half to even: "12"), and no negative zero.
-        assert_eq!(format!("{}", Fixed(12.5, 0)), "13");
-        assert_eq!(format!("{}", Fixed(-0.001, 2)), "0.00");
+        assert_eq!(format!("{}", Decimal(12.5, 0)), "13");
+        assert_eq!(format!("{}", Decimal(-0.001, 2)), "0.00");
     }
 
     #[test]

@@ -6,23 +6,18 @@
 //! target/thumbv7em-none-eabihf/release/firmware-qemu` (USART2 on the pty).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
-#[path = "../config.rs"]
-pub mod config;
+#[cfg(target_os = "none")]
+use rig_firmware::{config, stack};
 
 #[cfg(target_os = "none")]
-#[path = "../board_common.rs"]
 mod board_common;
 
 #[cfg(target_os = "none")]
-#[path = "../board_emu.rs"]
-mod board;
+mod board_emu;
+#[cfg(target_os = "none")]
+use board_emu as board;
 
 #[cfg(target_os = "none")]
-#[path = "../stack.rs"]
-mod stack;
-
-#[cfg(target_os = "none")]
-#[path = "../app.rs"]
 mod app;
 
 #[cfg(not(target_os = "none"))]

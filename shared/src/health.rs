@@ -3,7 +3,7 @@
 //! stops feeding the watchdog. Counting samples per report alone cannot see this when the
 //! sampling task itself triggers the report.
 
-use super::config::SAMPLE_RATE_HZ;
+use crate::control::SAMPLE_RATE_HZ;
 
 /// What a check found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

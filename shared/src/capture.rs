@@ -9,10 +9,7 @@
 //! when every segment is used, when its time is up, or on `capture stop`; the desktop then
 //! reads the segments one per `capture get <k>` line ([`SegmentView`]'s text).
 
-use core::fmt;
-
-use super::config::SensorChain;
-use super::fixed::{Fixed, within};
+use crate::control::{SensorChain, within};
 
 /// Capture sample rate, Hz.
 pub const CAPTURE_RATE_HZ: u32 = 100_000;
@@ -58,18 +55,7 @@ pub enum CaptureState {
     Done,
 }
 
-impl CaptureState {
-    /// Short name for the console.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            CaptureState::Off => "off",
-            CaptureState::Armed => "armed",
-            CaptureState::Done => "done",
-        }
-    }
-}
-
-/// The capture's state line (`capture`).
+/// The capture's state (the `capture` reply).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CaptureStatus {
     /// State.
@@ -82,26 +68,7 @@ pub struct CaptureStatus {
     pub level_n: f32,
 }
 
-impl fmt::Display for CaptureStatus {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "capture state={} segments={} samples={} level_n={} rate_hz={} segment_len={} pre_trigger={} max_segments={}",
-            self.state.as_str(),
-            self.segments,
-            self.samples,
-            Fixed(self.level_n, 2),
-            CAPTURE_RATE_HZ,
-            SEGMENT_LEN,
-            PRE_TRIGGER,
-            SEGMENTS
-        )
-    }
-}
-
-/// One recorded segment, copied out for formatting (`capture get <k>`):
-/// `segment k=<k> start=<index of the first sample at CAPTURE_RATE_HZ> n=<len> codes=<3 hex
-/// digits per 12-bit ADC code>`.
+/// One recorded segment, copied out (the `capture get <k>` reply).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SegmentView {
     /// Segment number.
@@ -110,48 +77,6 @@ pub struct SegmentView {
     pub start: u32,
     /// ADC codes.
     pub codes: [u16; SEGMENT_LEN],
-}
-
-impl fmt::Display for SegmentView {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "segment k={} start={} n={} codes=",
-            self.k, self.start, SEGMENT_LEN
-        )?;
-        const HEX: &[u8; 16] = b"0123456789abcdef";
-        let mut digits = [0u8; 3];
-        for &c in &self.codes {
-            for (i, d) in digits.iter_mut().enumerate() {
-                let nibble = (c >> (8 - 4 * i)) & 0xF;
-                *d = HEX.get(usize::from(nibble)).copied().unwrap_or(b'0');
-            }
-            // Three ASCII hex digits are always valid UTF-8.
-            f.write_str(core::str::from_utf8(&digits).unwrap_or("000"))?;
-        }
-        Ok(())
-    }
-}
-
-/// Decodes the `codes=` field of a [`SegmentView`] line: 3 hex digits per code.
-///
-/// # Errors
-/// `None` for a length that is not a multiple of 3 or a non-hex digit.
-pub fn decode_codes(hex: &str) -> Option<heapless::Vec<u16, SEGMENT_LEN>> {
-    let b = hex.as_bytes();
-    if !b.len().is_multiple_of(3) || b.len() / 3 > SEGMENT_LEN {
-        return None;
-    }
-    let mut out = heapless::Vec::new();
-    for chunk in b.chunks_exact(3) {
-        let mut v = 0u16;
-        for &d in chunk {
-            let n = (d as char).to_digit(16)?;
-            v = (v << 4) | n as u16;
-        }
-        out.push(v).ok()?;
-    }
-    Some(out)
 }
 
 /// The segmented capture. Feed every capture-rate sample to [`Capture::push`] (or blocks to
@@ -394,27 +319,5 @@ mod tests {
         c.stop();
         assert_eq!(c.status().segments, 2);
         assert!(!c.active());
-    }
-
-    #[test]
-    fn segment_lines_round_trip() {
-        let mut v = SegmentView {
-            k: 3,
-            start: 1234,
-            codes: [0; SEGMENT_LEN],
-        };
-        for (i, c) in v.codes.iter_mut().enumerate() {
-            *c = (i * 37 % 4096) as u16;
-        }
-        let line = std::format!("{v}");
-        assert!(
-            line.starts_with("segment k=3 start=1234 n=160 codes="),
-            "{line}"
-        );
-        let hex = line.split("codes=").nth(1).unwrap();
-        let back = decode_codes(hex).unwrap();
-        assert_eq!(&back[..], &v.codes[..]);
-        assert!(decode_codes("12").is_none());
-        assert!(decode_codes("12g").is_none());
     }
 }

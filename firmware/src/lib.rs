@@ -1,0 +1,13 @@
+//! What the firmware's images share and that carries no interrupt handler: the power-up
+//! configuration ([`config`]) and the stack measurement (`stack`, on the MCU only). The images are the
+//! binaries of this package: `firmware` (the rig board, `src/main.rs`), `firmware-qemu` (the
+//! same RTIC app on QEMU, `src/emulator.rs`) and `qemu-check` (the `shared` computations on an
+//! emulated Cortex-M4F, `src/bin/qemu_check.rs`). Each image brings its own board module (its
+//! peripherals and interrupt stand-ins), so the app (`src/app.rs`) and the board code
+//! (`src/board_common.rs`) are modules of the binaries, not of this library.
+#![cfg_attr(target_os = "none", no_std)]
+
+pub mod config;
+
+#[cfg(target_os = "none")]
+pub mod stack;

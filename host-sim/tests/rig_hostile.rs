@@ -1,0 +1,512 @@
+//! `host-sim rig` against a hostile peer: a pseudo-terminal played by the test as a rig that
+//! drops, delays, duplicates, garbles, floods, sends NaN, lies about sizes, goes quiet, goes
+//! back in sequence and in time. Every case ends in bounded time, with a non-zero exit and a
+//! message naming what failed, and leaves no file but a marked partial one.
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use shared::capture::{CaptureState, CaptureStatus};
+use shared::console::serve::split_tag;
+use shared::console::{Answer, Board, DiagInfo, IdInfo, LinkStats, Version};
+use shared::control::{
+    AsyncKind, AsyncRecord, CycleTelemetry, ModelStatus, Reply, SAMPLE_RATE_HZ, SensorChain, State,
+    Status, Target,
+};
+use shared::model::RigId;
+
+mod common;
+use common::leftovers;
+
+/// What the fake rig does besides answering like a rig.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Misbehaviour {
+    /// Never answers `status`.
+    DropsStatus,
+    /// Answers `status` 1.5 s late (the client waits 0.5 s).
+    DelaysStatus,
+    /// Sends every reply twice.
+    Duplicates,
+    /// Answers `status` with escape codes, bells and NUL bytes.
+    Garbles,
+    /// After `stream on`: 20 MB without a line end.
+    FloodsAfterStream,
+    /// Telemetry whose time is NaN.
+    NanTelemetry,
+    /// Telemetry whose sequence numbers go back.
+    SequenceBack,
+    /// Telemetry whose time goes back.
+    TimeBack,
+    /// The capture claims 100,000 segments.
+    CaptureTooManySegments,
+    /// The capture stays armed forever (its sample count still advancing).
+    CaptureStaysArmed,
+    /// A calibration of 0 V/N in `id`.
+    ZeroCalibration,
+    /// An unexpected untagged `ok` before the reply to `status`.
+    UnexpectedOk,
+    /// 70 KiB of garbage without a line end, then an untagged `ok`, before the reply to `status`.
+    LongGarbageThenOk,
+    /// The drive never reaches `dwell` (telemetry stays in `ramp`).
+    NeverDwells,
+    /// Stops answering after connecting.
+    GoesQuiet,
+}
+
+/// The fake rig's state.
+struct Fake {
+    bad: Misbehaviour,
+    streaming: bool,
+    seq: u32,
+    sample: u64,
+    capture_samples: u32,
+    lines: usize,
+}
+
+fn id_info(bad: Misbehaviour) -> IdInfo {
+    IdInfo {
+        firmware: Version::of("0.1.0"),
+        board: Board::Virtual,
+        rig: RigId::Wires,
+        gap_mm: 0.0,
+        sample_rate_hz: SAMPLE_RATE_HZ,
+        capture_rate_hz: 100_000,
+        sensor: SensorChain {
+            volts_per_n: if bad == Misbehaviour::ZeroCalibration {
+                0.0
+            } else {
+                0.01
+            },
+            ..SensorChain::default()
+        },
+        mass_kg: 0.298,
+        freq_window_hz: [1.0, 30.0],
+        slew_hz_per_s: 0.5,
+        ramp_mm_per_s: 0.5,
+        force_limit_n: 280.0,
+    }
+}
+
+fn status(state: State) -> Status {
+    Status {
+        state,
+        rig: RigId::Wires,
+        gap_mm: 0.0,
+        freq_hz: 1.0,
+        amplitude_mm: 0.0,
+        regime: None,
+        peak: None,
+        model: ModelStatus::Ready(Target {
+            target_hz: 3.64,
+            band_hz: [2.1, 4.7],
+            impact_force_mg: 32.8,
+        }),
+        force_vs_model_pct: None,
+        fault: None,
+        impacts: 0,
+        lost_cycles: 0,
+    }
+}
+
+impl Fake {
+    /// The reply text to `line` (tag stripped), or `None` for no reply.
+    fn reply(&mut self, line: &str) -> Option<String> {
+        use Misbehaviour::*;
+        self.lines += 1;
+        if self.bad == GoesQuiet && self.lines > 3 {
+            return None;
+        }
+        let word = line.split_whitespace().next().unwrap_or("");
+        let answer = match word {
+            "id" => Answer::Id(id_info(self.bad)),
+            "diag" => Answer::Diag(DiagInfo {
+                samples: self.sample,
+                uptime_ms: self.sample / 10,
+                sample_gap_max_us: 100,
+                link: LinkStats::default(),
+                lost_cycles: 0,
+                stack_hwm_bytes: 0,
+                stack_size_bytes: 0,
+                link_timeout_ms: 0,
+            }),
+            "status" => {
+                if self.bad == DropsStatus {
+                    return None;
+                }
+                Answer::Reply(Reply::Status(status(State::Idle)))
+            }
+            "stream" => {
+                self.streaming = line.ends_with("on");
+                Answer::Reply(Reply::Ok)
+            }
+            "capture" => {
+                let armed = line.contains("arm");
+                Answer::Capture(CaptureStatus {
+                    state: if armed || self.bad == CaptureStaysArmed {
+                        CaptureState::Armed
+                    } else {
+                        CaptureState::Done
+                    },
+                    segments: 0,
+                    samples: self.capture_samples,
+                    level_n: 1.0,
+                })
+            }
+            _ => Answer::Reply(Reply::Ok),
+        };
+        let mut text = answer.to_string();
+        if self.bad == CaptureTooManySegments && word == "capture" && !line.contains("arm") {
+            text = text.replace(" segments=0 ", " segments=100000 ");
+        }
+        Some(text)
+    }
+
+    /// What the rig sends on its own every 20 ms.
+    fn tick(&mut self) -> Vec<u8> {
+        use Misbehaviour::*;
+        self.sample += 200;
+        self.capture_samples = self.capture_samples.saturating_add(2000);
+        if !self.streaming {
+            return Vec::new();
+        }
+        if self.bad == FloodsAfterStream {
+            self.streaming = false;
+            return vec![b'x'; 20 << 20];
+        }
+        let state = if self.bad == NeverDwells {
+            State::Ramp
+        } else {
+            State::Dwell
+        };
+        let rec = AsyncRecord {
+            seq: self.seq,
+            sample: self.sample,
+            kind: AsyncKind::Cycle(CycleTelemetry {
+                state,
+                freq_hz: 3.0,
+                amplitude_mm: 0.89,
+                impacts: 1,
+                peak_n: 90.0,
+                impulse_n_s: 0.028,
+                regime: None,
+                fault: None,
+                lost_cycles: 0,
+            }),
+        };
+        self.seq += 1;
+        let mut text = rec.to_string();
+        match self.bad {
+            SequenceBack if self.seq > 105 => {
+                text = text.replacen(&format!("seq={}", rec.seq), "seq=1", 1)
+            }
+            TimeBack if self.seq > 105 => {
+                let t = format!("t_s={:.4}", rec.sample as f64 / 1e4);
+                text = text.replacen(&t, "t_s=0.0100", 1);
+            }
+            _ => {}
+        }
+        if self.bad == NanTelemetry {
+            // `t_s=nan` in place of the time.
+            let t = format!("t_s={:.4}", rec.sample as f64 / 1e4);
+            text = rec.to_string().replacen(&t, "t_s=nan", 1);
+        }
+        format!("{text}\r\n").into_bytes()
+    }
+}
+
+/// A pseudo-terminal the test plays the rig on, misbehaving as `bad`.
+fn fake_rig(bad: Misbehaviour) -> PathBuf {
+    let pair = nix::pty::openpty(None, None).unwrap();
+    let mut t = nix::sys::termios::tcgetattr(&pair.slave).unwrap();
+    nix::sys::termios::cfmakeraw(&mut t);
+    nix::sys::termios::tcsetattr(&pair.slave, nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
+    let path = nix::unistd::ttyname(&pair.slave).unwrap();
+    let master = std::fs::File::from(pair.master);
+    let flags = nix::fcntl::fcntl(&master, nix::fcntl::FcntlArg::F_GETFL).unwrap();
+    nix::fcntl::fcntl(
+        &master,
+        nix::fcntl::FcntlArg::F_SETFL(
+            nix::fcntl::OFlag::from_bits_truncate(flags) | nix::fcntl::OFlag::O_NONBLOCK,
+        ),
+    )
+    .unwrap();
+    let fake = Arc::new(Mutex::new(Fake {
+        bad,
+        streaming: false,
+        seq: 100,
+        sample: 0,
+        capture_samples: 0,
+        lines: 0,
+    }));
+    std::thread::spawn(move || {
+        let _slave = pair.slave;
+        let mut master = master;
+        let mut buf = Vec::new();
+        let mut chunk = [0u8; 4096];
+        let mut delayed: Vec<(Instant, Vec<u8>)> = Vec::new();
+        let send = |master: &mut std::fs::File, bytes: &[u8]| {
+            let mut rest = bytes;
+            let end = Instant::now() + Duration::from_secs(30);
+            while !rest.is_empty() && Instant::now() < end {
+                match master.write(rest) {
+                    Ok(n) => rest = &rest[n..],
+                    Err(_) => std::thread::sleep(Duration::from_millis(1)),
+                }
+            }
+        };
+        loop {
+            std::thread::sleep(Duration::from_millis(20));
+            match master.read(&mut chunk) {
+                Ok(0) => return,
+                Ok(n) => buf.extend_from_slice(&chunk[..n]),
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(e) if e.raw_os_error() == Some(nix::libc::EIO) => {}
+                Err(_) => return,
+            }
+            while let Some(end) = buf.iter().position(|&b| b == b'\n') {
+                let raw: Vec<u8> = buf.drain(..=end).collect();
+                let line = String::from_utf8_lossy(&raw).trim().to_string();
+                if line.is_empty() {
+                    continue; // a keep-alive
+                }
+                let (tag, rest) = split_tag(&line).unwrap();
+                let rest = rest.trim();
+                let Some(text) = fake.lock().unwrap().reply(rest) else {
+                    continue;
+                };
+                let tagged = match tag {
+                    Some(t) => format!("#{t} {text}\r\n"),
+                    None => format!("{text}\r\n"),
+                };
+                let word = rest.split_whitespace().next().unwrap_or("");
+                use Misbehaviour::*;
+                match (bad, word) {
+                    (DelaysStatus, "status") => delayed.push((
+                        Instant::now() + Duration::from_millis(1500),
+                        tagged.into_bytes(),
+                    )),
+                    (Duplicates, _) => {
+                        send(&mut master, tagged.as_bytes());
+                        send(&mut master, tagged.as_bytes());
+                    }
+                    (Garbles, "status") => send(
+                        &mut master,
+                        b"\x1b[2J\x07\x00\xff garbage\x1b]0;title\x07\r\n",
+                    ),
+                    (UnexpectedOk, "status") => {
+                        send(&mut master, b"ok\r\n");
+                        send(&mut master, tagged.as_bytes());
+                    }
+                    (LongGarbageThenOk, "status") => {
+                        let mut v = vec![b'g'; 70 << 10];
+                        v.extend_from_slice(b"ok\r\n");
+                        send(&mut master, &v);
+                        send(&mut master, tagged.as_bytes());
+                    }
+                    _ => send(&mut master, tagged.as_bytes()),
+                }
+            }
+            let now = Instant::now();
+            for (_, bytes) in delayed.iter().filter(|(t, _)| *t <= now) {
+                send(&mut master, bytes);
+            }
+            delayed.retain(|(t, _)| *t > now);
+            let spontaneous = fake.lock().unwrap().tick();
+            if !spontaneous.is_empty() {
+                send(&mut master, &spontaneous);
+            }
+        }
+    });
+    path
+}
+
+/// `host-sim rig --port PORT --timeout-s 0.5 ARGS` in `dir`, run to its end; asserts it ended
+/// non-zero within `wall`.
+fn rig_fails(port: &Path, dir: &Path, args: &str, wall: Duration) -> String {
+    let started = Instant::now();
+    let out: Output = Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
+        .current_dir(dir)
+        .arg("rig")
+        .arg("--port")
+        .arg(port)
+        .args(["--timeout-s", "0.5"])
+        .args(args.split_whitespace())
+        .output()
+        .unwrap();
+    let took = started.elapsed();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "{args}: succeeded\n{stderr}");
+    assert!(took < wall, "{args}: {took:?} (bound {wall:?})\n{stderr}");
+    // Garbage is shown escaped and bounded: no control character reaches the terminal.
+    assert!(
+        !stderr.chars().any(|c| c.is_control() && c != '\n'),
+        "{args}: raw control characters on stderr"
+    );
+    assert!(
+        stderr.len() < 20_000,
+        "{args}: {} bytes on stderr",
+        stderr.len()
+    );
+    stderr
+}
+
+/// Runs a case in a fresh directory; asserts the message and that no file is left.
+fn case(bad: Misbehaviour, args: &str, expect: &[&str], wall_s: u64) {
+    let dir = tempfile::tempdir().unwrap();
+    let port = fake_rig(bad);
+    let stderr = rig_fails(&port, dir.path(), args, Duration::from_secs(wall_s));
+    for e in expect {
+        assert!(stderr.contains(e), "{bad:?}: `{e}` not in:\n{stderr}");
+    }
+    let left: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.contains(".partial."))
+        .collect();
+    assert!(left.is_empty(), "{bad:?}: files left: {left:?}");
+    assert!(leftovers(dir.path()).is_empty());
+}
+
+#[test]
+fn a_peer_that_drops_delays_or_goes_quiet_is_a_timeout_naming_the_command() {
+    case(
+        Misbehaviour::DropsStatus,
+        "send status",
+        &["no reply to `status` within 0.5 s"],
+        10,
+    );
+    // The late reply is not taken for the next command's.
+    case(
+        Misbehaviour::DelaysStatus,
+        "send status",
+        &["no reply to `status` within 0.5 s"],
+        10,
+    );
+    case(
+        Misbehaviour::GoesQuiet,
+        "send status",
+        &["no reply to `status`"],
+        10,
+    );
+}
+
+#[test]
+fn replies_are_matched_to_their_commands() {
+    // A duplicated reply arrives while the next command waits: a link error naming both.
+    case(
+        Misbehaviour::Duplicates,
+        "send status diag",
+        &["link error", "waited for its reply", "diag"],
+        10,
+    );
+    case(
+        Misbehaviour::UnexpectedOk,
+        "send status",
+        &["link error: `ok` arrived while", "status"],
+        10,
+    );
+    // The tail of an over-long garbage line is discarded with it, never read as a reply: the
+    // status line that follows is the reply, with a warning.
+    let port = fake_rig(Misbehaviour::LongGarbageThenOk);
+    let out = Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
+        .arg("rig")
+        .arg("--port")
+        .arg(&port)
+        .args(["--timeout-s", "2", "send", "status"])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stderr}");
+    assert!(stdout.starts_with("state=idle "), "{stdout}");
+    assert!(stderr.contains("bytes without a line end"), "{stderr}");
+}
+
+#[test]
+fn garbled_lines_are_shown_escaped_and_bounded() {
+    case(
+        Misbehaviour::Garbles,
+        "send status",
+        &["\\u{1b}[2J\\u{7}\\0", "no reply to `status`"],
+        10,
+    );
+    // 20 MB without a line end: discarded by the 64 KiB, reported a bounded number of times;
+    // the log ends for want of telemetry.
+    case(
+        Misbehaviour::FloodsAfterStream,
+        "log --seconds 5 --out log.csv",
+        &["without a line end", "no telemetry"],
+        40,
+    );
+}
+
+#[test]
+fn bad_numbers_and_lies_are_refused_at_the_edge() {
+    case(
+        Misbehaviour::ZeroCalibration,
+        "send status",
+        &["`id` reply does not read", "volts_per_n"],
+        10,
+    );
+    case(
+        Misbehaviour::NanTelemetry,
+        "log --seconds 2 --out log.csv",
+        &["t_s=", "no telemetry"],
+        40,
+    );
+    case(
+        Misbehaviour::CaptureTooManySegments,
+        "capture --seconds 0.5 --out drop.csv",
+        &["`capture`", "segments="],
+        20,
+    );
+    case(
+        Misbehaviour::CaptureStaysArmed,
+        "capture --seconds 0.05 --out drop.csv",
+        &["past its end"],
+        20,
+    );
+}
+
+#[test]
+fn sequences_and_clocks_that_go_back_are_errors() {
+    case(
+        Misbehaviour::SequenceBack,
+        "log --seconds 60 --out log.csv",
+        &["sequence numbers went back"],
+        30,
+    );
+    case(
+        Misbehaviour::TimeBack,
+        "log --seconds 60 --out log.csv",
+        &["clock went back"],
+        30,
+    );
+}
+
+#[test]
+fn a_sweep_whose_rig_never_dwells_ends_with_a_partial_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = fake_rig(Misbehaviour::NeverDwells);
+    let stderr = rig_fails(
+        &port,
+        dir.path(),
+        "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 1 --out fr.csv",
+        Duration::from_secs(60),
+    );
+    assert!(stderr.contains("did not dwell"), "{stderr}");
+    assert!(stderr.contains("last seen: state=ramp"), "{stderr}");
+    assert!(!dir.path().join("fr.csv").exists());
+    let partial = std::fs::read_to_string(dir.path().join("fr.partial.csv")).unwrap();
+    assert!(
+        partial.starts_with("# partial sweep: ended by"),
+        "{partial}"
+    );
+    assert!(leftovers(dir.path()).is_empty());
+}

@@ -1,0 +1,513 @@
+//! The request grammar: one console line → one [`Request`] ([`parse`]), or a [`ParseError`]
+//! that says what is wrong (and changes nothing). [`Request`]'s [`fmt::Display`] writes the line
+//! that parses back to it, which is how the desktop sends requests.
+//!
+//! Commands: `status`, `rig <wires|beam-170|beam-150|beam-135>`, `gap <mm>`, `start`, `stop`,
+//! `tune`, `freq <Hz>`, `clear`, `stream <on|off>` (the controller's, [`Command`]); `id`,
+//! `diag`, `capture [arm [level_N] [seconds] | stop | get <k>]`, `help` (answered by
+//! [`super::serve`]). Case-insensitive; extra spaces and a trailing `\r` are ignored.
+
+use core::fmt;
+use core::str::FromStr;
+
+use super::decimal::{Decimal, parse_decimal};
+use crate::capture::{CAPTURE_MAX_S, CaptureCommand, DEFAULT_LEVEL_N, DEFAULT_SECONDS, SEGMENTS};
+use crate::control::{Command, MAX_GAP_MM};
+use crate::model::RigId;
+
+/// Largest trigger level of `capture arm`, N.
+pub const MAX_CAPTURE_LEVEL_N: f32 = 100.0;
+/// Smallest trigger level of `capture arm`, N.
+pub const MIN_CAPTURE_LEVEL_N: f32 = 0.1;
+/// Shortest capture of `capture arm`, s.
+pub const MIN_CAPTURE_S: f32 = 0.01;
+/// Longest link timeout, s.
+pub const MAX_LINK_TIMEOUT_S: f32 = 3600.0;
+/// Largest number `freq` takes before the controller's own window check, Hz.
+pub const MAX_FREQ_HZ: f32 = 1000.0;
+
+/// One console line, parsed: a controller command or one of the console's own.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Request {
+    /// For the controller.
+    Control(Command),
+    /// Identify the firmware, rig and sensor calibration.
+    Id,
+    /// Link and board diagnostics (samples, lost lines, stack).
+    Diag,
+    /// The force capture for drop tests.
+    Capture(CaptureCommand),
+    /// List the commands.
+    Help,
+    /// Echo received characters back (for a terminal program; off at power-up).
+    Echo(bool),
+}
+
+/// An argument of a command, as named in [`ParseError`]s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arg {
+    /// `rig`'s name.
+    RigName,
+    /// `gap`'s value, mm.
+    GapMm,
+    /// `freq`'s value, Hz.
+    FreqHz,
+    /// `stream`'s `on` or `off`.
+    OnOff,
+    /// `capture arm`'s trigger level, N.
+    LevelN,
+    /// `capture arm`'s time, s.
+    Seconds,
+    /// `capture get`'s segment number.
+    Segment,
+    /// `link-timeout`'s time, s.
+    LinkTimeoutS,
+}
+
+impl Arg {
+    /// Every argument.
+    pub const ALL: [Arg; 8] = [
+        Arg::RigName,
+        Arg::GapMm,
+        Arg::FreqHz,
+        Arg::OnOff,
+        Arg::LevelN,
+        Arg::Seconds,
+        Arg::Segment,
+        Arg::LinkTimeoutS,
+    ];
+
+    /// Its name in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Arg::RigName => "rig name",
+            Arg::GapMm => "gap (mm)",
+            Arg::FreqHz => "frequency (Hz)",
+            Arg::OnOff => "on or off",
+            Arg::LevelN => "level (N)",
+            Arg::Seconds => "seconds",
+            Arg::Segment => "segment",
+            Arg::LinkTimeoutS => "link timeout (s)",
+        }
+    }
+}
+
+/// Why a line was rejected.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ParseError {
+    /// Nothing but spaces.
+    Empty,
+    /// The line was longer than [`super::MAX_LINE`] bytes or not UTF-8.
+    TooLong,
+    /// The first word is not a command.
+    UnknownCommand,
+    /// The command needs an argument.
+    MissingArgument(Arg),
+    /// An argument was given to a command that takes none, or too many.
+    UnexpectedArgument,
+    /// The rig name is not one of the four.
+    UnknownRig,
+    /// `stream` and `echo` take `on` or `off`.
+    OnOff,
+    /// `capture` takes `arm`, `stop` or `get`.
+    UnknownCapture,
+    /// The number is not a finite decimal number (or not a whole one where one is needed).
+    BadNumber(Arg),
+    /// A `#` at the line's start not followed by a tag: 1 to 9 digits, then a space.
+    BadTag,
+    /// The number is outside its range.
+    OutOfRange {
+        /// The argument.
+        field: Arg,
+        /// Smallest allowed.
+        min: f32,
+        /// Largest allowed.
+        max: f32,
+    },
+}
+
+const EMPTY: &str = "empty line";
+const UNKNOWN_COMMAND: &str = "unknown command (try `help`)";
+const UNEXPECTED: &str = "unexpected argument";
+const UNKNOWN_RIG: &str = "rig must be wires, beam-170, beam-150 or beam-135";
+const ON_OFF: &str = "stream and echo take on or off";
+const UNKNOWN_CAPTURE: &str = "capture takes arm [level_N] [seconds], stop or get <k>";
+const BAD_TAG: &str = "a tag is # and 1 to 9 digits, then a space";
+const MISSING: &str = "missing argument: ";
+const NOT_A_NUMBER: &str = " must be a number";
+const OUT_OF_RANGE: (&str, &str) = (" out of range: allowed ", " ..= ");
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParseError::Empty => f.write_str(EMPTY),
+            ParseError::TooLong => write!(f, "line longer than {} characters", super::MAX_LINE),
+            ParseError::UnknownCommand => f.write_str(UNKNOWN_COMMAND),
+            ParseError::MissingArgument(a) => write!(f, "{MISSING}{}", a.name()),
+            ParseError::UnexpectedArgument => f.write_str(UNEXPECTED),
+            ParseError::UnknownRig => f.write_str(UNKNOWN_RIG),
+            ParseError::OnOff => f.write_str(ON_OFF),
+            ParseError::UnknownCapture => f.write_str(UNKNOWN_CAPTURE),
+            ParseError::BadTag => f.write_str(BAD_TAG),
+            ParseError::BadNumber(a) => write!(f, "{}{NOT_A_NUMBER}", a.name()),
+            ParseError::OutOfRange { field, min, max } => write!(
+                f,
+                "{}{}{}{}{}",
+                field.name(),
+                OUT_OF_RANGE.0,
+                Decimal(*min, 2),
+                OUT_OF_RANGE.1,
+                Decimal(*max, 2)
+            ),
+        }
+    }
+}
+
+impl FromStr for ParseError {
+    type Err = ();
+
+    /// The error of a text [`fmt::Display`] wrote.
+    fn from_str(s: &str) -> Result<Self, ()> {
+        let unit = [
+            ParseError::Empty,
+            ParseError::TooLong,
+            ParseError::UnknownCommand,
+            ParseError::UnexpectedArgument,
+            ParseError::UnknownRig,
+            ParseError::OnOff,
+            ParseError::UnknownCapture,
+            ParseError::BadTag,
+        ];
+        if let Some(e) = unit.into_iter().find(|e| super::displays_as(e, s)) {
+            return Ok(e);
+        }
+        if let Some(name) = s.strip_prefix(MISSING) {
+            return arg_named(name).map(ParseError::MissingArgument);
+        }
+        if let Some(name) = s.strip_suffix(NOT_A_NUMBER) {
+            return arg_named(name).map(ParseError::BadNumber);
+        }
+        let (name, range) = s.split_once(OUT_OF_RANGE.0).ok_or(())?;
+        let (min, max) = range.split_once(OUT_OF_RANGE.1).ok_or(())?;
+        Ok(ParseError::OutOfRange {
+            field: arg_named(name)?,
+            min: parse_decimal(min).ok_or(())?,
+            max: parse_decimal(max).ok_or(())?,
+        })
+    }
+}
+
+fn arg_named(name: &str) -> Result<Arg, ()> {
+    Arg::ALL.into_iter().find(|a| a.name() == name).ok_or(())
+}
+
+/// The help text, one line.
+pub const HELP: &str = "commands: status | rig <wires|beam-170|beam-150|beam-135> | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k>] | help; a line may start with #<n>, its reply then does too";
+
+/// Parses one line.
+///
+/// # Errors
+/// [`ParseError`] saying what is wrong; no state is touched.
+pub fn parse(line: &str) -> Result<Request, ParseError> {
+    let mut words = line.split_ascii_whitespace();
+    let Some(word) = words.next() else {
+        return Err(ParseError::Empty);
+    };
+    let args: [Option<&str>; 3] = [words.next(), words.next(), words.next()];
+    if words.next().is_some() {
+        return Err(ParseError::UnexpectedArgument);
+    }
+    let n_args = args.iter().flatten().count();
+    let takes = |max: usize, r: Request| {
+        if n_args > max {
+            Err(ParseError::UnexpectedArgument)
+        } else {
+            Ok(r)
+        }
+    };
+    let control = |c: Command| takes(0, Request::Control(c));
+    let arg = args[0];
+    let eq = |name: &str| word.eq_ignore_ascii_case(name);
+    if eq("status") {
+        control(Command::Status)
+    } else if eq("start") {
+        control(Command::Start)
+    } else if eq("stop") {
+        control(Command::Stop)
+    } else if eq("tune") {
+        control(Command::Tune)
+    } else if eq("clear") {
+        control(Command::Clear)
+    } else if eq("help") {
+        takes(0, Request::Help)
+    } else if eq("id") {
+        takes(0, Request::Id)
+    } else if eq("diag") {
+        takes(0, Request::Diag)
+    } else if eq("rig") {
+        let name = arg.ok_or(ParseError::MissingArgument(Arg::RigName))?;
+        let rig = RigId::ALL
+            .into_iter()
+            .find(|r| r.name().eq_ignore_ascii_case(name))
+            .ok_or(ParseError::UnknownRig)?;
+        takes(1, Request::Control(Command::Rig(rig)))
+    } else if eq("gap") {
+        let g = in_range(number(arg, Arg::GapMm)?, Arg::GapMm, 0.0, MAX_GAP_MM)?;
+        takes(1, Request::Control(Command::Gap(g)))
+    } else if eq("freq") {
+        // The window check is the controller's (it depends on the configuration).
+        let f = in_range(number(arg, Arg::FreqHz)?, Arg::FreqHz, 0.0, MAX_FREQ_HZ)?;
+        takes(1, Request::Control(Command::Freq(f)))
+    } else if eq("stream") {
+        takes(1, Request::Control(Command::Stream(on_off(arg)?)))
+    } else if eq("echo") {
+        takes(1, Request::Echo(on_off(arg)?))
+    } else if eq("link-timeout") {
+        let s = in_range(
+            number(arg, Arg::LinkTimeoutS)?,
+            Arg::LinkTimeoutS,
+            0.0,
+            MAX_LINK_TIMEOUT_S,
+        )?;
+        takes(1, Request::Control(Command::LinkTimeout(s)))
+    } else if eq("capture") {
+        parse_capture(args, n_args)
+    } else {
+        Err(ParseError::UnknownCommand)
+    }
+}
+
+fn parse_capture(args: [Option<&str>; 3], n_args: usize) -> Result<Request, ParseError> {
+    let Some(sub) = args[0] else {
+        return Ok(Request::Capture(CaptureCommand::Status));
+    };
+    let too_many = |max: usize| n_args > max;
+    let cmd = if sub.eq_ignore_ascii_case("arm") {
+        let level_n = match args[1] {
+            Some(_) => in_range(
+                number(args[1], Arg::LevelN)?,
+                Arg::LevelN,
+                MIN_CAPTURE_LEVEL_N,
+                MAX_CAPTURE_LEVEL_N,
+            )?,
+            None => DEFAULT_LEVEL_N,
+        };
+        let seconds = match args[2] {
+            Some(_) => in_range(
+                number(args[2], Arg::Seconds)?,
+                Arg::Seconds,
+                MIN_CAPTURE_S,
+                CAPTURE_MAX_S,
+            )?,
+            None => DEFAULT_SECONDS,
+        };
+        CaptureCommand::Arm { level_n, seconds }
+    } else if sub.eq_ignore_ascii_case("stop") {
+        if too_many(1) {
+            return Err(ParseError::UnexpectedArgument);
+        }
+        CaptureCommand::Stop
+    } else if sub.eq_ignore_ascii_case("get") {
+        if too_many(2) {
+            return Err(ParseError::UnexpectedArgument);
+        }
+        let k = number(args[1], Arg::Segment)?;
+        let max = (SEGMENTS - 1) as f32;
+        let k = in_range(k, Arg::Segment, 0.0, max)?;
+        if k != libm::floorf(k) {
+            return Err(ParseError::BadNumber(Arg::Segment));
+        }
+        CaptureCommand::Get(k as u16)
+    } else {
+        return Err(ParseError::UnknownCapture);
+    };
+    Ok(Request::Capture(cmd))
+}
+
+fn on_off(arg: Option<&str>) -> Result<bool, ParseError> {
+    match arg {
+        Some(a) if a.eq_ignore_ascii_case("on") => Ok(true),
+        Some(a) if a.eq_ignore_ascii_case("off") => Ok(false),
+        Some(_) => Err(ParseError::OnOff),
+        None => Err(ParseError::MissingArgument(Arg::OnOff)),
+    }
+}
+
+fn number(arg: Option<&str>, what: Arg) -> Result<f32, ParseError> {
+    let s = arg.ok_or(ParseError::MissingArgument(what))?;
+    parse_decimal(s).ok_or(ParseError::BadNumber(what))
+}
+
+fn in_range(v: f32, field: Arg, min: f32, max: f32) -> Result<f32, ParseError> {
+    if (min..=max).contains(&v) {
+        Ok(v)
+    } else {
+        Err(ParseError::OutOfRange { field, min, max })
+    }
+}
+
+fn on_off_text(on: bool) -> &'static str {
+    if on { "on" } else { "off" }
+}
+
+/// The line of a request: what [`parse`] reads back as the same request (numbers in their
+/// shortest exact decimal form; meant for the desktop, which sends requests).
+impl fmt::Display for Request {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Request::Control(c) => match c {
+                Command::Status => f.write_str("status"),
+                Command::Rig(r) => write!(f, "rig {}", r.name()),
+                Command::Gap(g) => write!(f, "gap {g}"),
+                Command::Start => f.write_str("start"),
+                Command::Stop => f.write_str("stop"),
+                Command::Tune => f.write_str("tune"),
+                Command::Freq(hz) => write!(f, "freq {hz}"),
+                Command::Clear => f.write_str("clear"),
+                Command::Stream(on) => write!(f, "stream {}", on_off_text(on)),
+                Command::LinkTimeout(s) => write!(f, "link-timeout {s}"),
+            },
+            Request::Echo(on) => write!(f, "echo {}", on_off_text(on)),
+            Request::Id => f.write_str("id"),
+            Request::Diag => f.write_str("diag"),
+            Request::Help => f.write_str("help"),
+            Request::Capture(c) => match c {
+                CaptureCommand::Status => f.write_str("capture"),
+                CaptureCommand::Arm { level_n, seconds } => {
+                    write!(f, "capture arm {level_n} {seconds}")
+                }
+                CaptureCommand::Stop => f.write_str("capture stop"),
+                CaptureCommand::Get(k) => write!(f, "capture get {k}"),
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::string::ToString;
+
+    #[test]
+    fn commands_parse() {
+        let c = |cmd| Ok(Request::Control(cmd));
+        assert_eq!(parse("status"), c(Command::Status));
+        assert_eq!(parse("  START \r"), c(Command::Start));
+        assert_eq!(parse("rig beam-170"), c(Command::Rig(RigId::Beam170)));
+        assert_eq!(parse("RIG Wires"), c(Command::Rig(RigId::Wires)));
+        assert_eq!(parse("gap 0.3"), c(Command::Gap(0.3)));
+        assert_eq!(parse("freq 3.66"), c(Command::Freq(3.66)));
+        assert_eq!(parse("tune"), c(Command::Tune));
+        assert_eq!(parse("clear"), c(Command::Clear));
+        assert_eq!(parse("stop"), c(Command::Stop));
+        assert_eq!(parse("stream ON"), c(Command::Stream(true)));
+        assert_eq!(parse("stream off"), c(Command::Stream(false)));
+        assert_eq!(parse("id"), Ok(Request::Id));
+        assert_eq!(parse("diag"), Ok(Request::Diag));
+        assert_eq!(parse("HELP"), Ok(Request::Help));
+        assert_eq!(
+            parse("capture"),
+            Ok(Request::Capture(CaptureCommand::Status))
+        );
+        assert_eq!(
+            parse("capture arm"),
+            Ok(Request::Capture(CaptureCommand::Arm {
+                level_n: DEFAULT_LEVEL_N,
+                seconds: DEFAULT_SECONDS
+            }))
+        );
+        assert_eq!(
+            parse("capture arm 2.5 1.5"),
+            Ok(Request::Capture(CaptureCommand::Arm {
+                level_n: 2.5,
+                seconds: 1.5
+            }))
+        );
+        assert_eq!(
+            parse("capture get 7"),
+            Ok(Request::Capture(CaptureCommand::Get(7)))
+        );
+        assert_eq!(
+            parse("capture stop"),
+            Ok(Request::Capture(CaptureCommand::Stop))
+        );
+    }
+
+    #[test]
+    fn bad_lines_are_named() {
+        assert_eq!(parse(""), Err(ParseError::Empty));
+        assert_eq!(parse("go"), Err(ParseError::UnknownCommand));
+        assert_eq!(parse("gap"), Err(ParseError::MissingArgument(Arg::GapMm)));
+        assert_eq!(
+            parse("gap -1"),
+            Err(ParseError::OutOfRange {
+                field: Arg::GapMm,
+                min: 0.0,
+                max: 10.0
+            })
+        );
+        assert_eq!(parse("gap nan"), Err(ParseError::BadNumber(Arg::GapMm)));
+        assert_eq!(parse("gap inf"), Err(ParseError::BadNumber(Arg::GapMm)));
+        assert_eq!(parse("freq 3 4"), Err(ParseError::UnexpectedArgument));
+        assert_eq!(parse("start now"), Err(ParseError::UnexpectedArgument));
+        assert_eq!(parse("rig beam-200"), Err(ParseError::UnknownRig));
+        assert_eq!(
+            parse("stream"),
+            Err(ParseError::MissingArgument(Arg::OnOff))
+        );
+        assert_eq!(parse("stream maybe"), Err(ParseError::OnOff));
+        assert_eq!(parse("id now"), Err(ParseError::UnexpectedArgument));
+        assert_eq!(parse("capture fire"), Err(ParseError::UnknownCapture));
+        assert_eq!(
+            parse("capture get 1.5"),
+            Err(ParseError::BadNumber(Arg::Segment))
+        );
+        assert!(matches!(
+            parse("capture get 99"),
+            Err(ParseError::OutOfRange {
+                field: Arg::Segment,
+                ..
+            })
+        ));
+        assert!(matches!(
+            parse("capture arm 0"),
+            Err(ParseError::OutOfRange {
+                field: Arg::LevelN,
+                ..
+            })
+        ));
+        assert_eq!(
+            parse("capture stop now"),
+            Err(ParseError::UnexpectedArgument)
+        );
+        assert_eq!(parse("gap 1 2 3 4"), Err(ParseError::UnexpectedArgument));
+    }
+
+    #[test]
+    fn error_texts_read_back() {
+        for line in [
+            "",
+            "go",
+            "gap",
+            "gap -1",
+            "gap nan",
+            "freq 3 4",
+            "rig beam-200",
+            "stream",
+            "stream maybe",
+            "capture fire",
+            "capture get 1.5",
+            "capture get 99",
+            "capture arm 0",
+            "capture arm 1 100",
+        ] {
+            let e = parse(line).unwrap_err();
+            assert_eq!(e.to_string().parse::<ParseError>(), Ok(e), "{line}");
+        }
+        assert_eq!(
+            "line longer than 64 characters".parse(),
+            Ok(ParseError::TooLong)
+        );
+        assert!("gap (mm) must be a numbr".parse::<ParseError>().is_err());
+    }
+}

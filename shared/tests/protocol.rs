@@ -1,0 +1,496 @@
+//! The console protocol's round trip: for every reply, record and request type,
+//! `parse(format(x)) == x` over generated values (at the resolution the wire carries: the
+//! decimals each field is written with), and what the parsers refuse at the edge.
+
+use proptest::prelude::*;
+use shared::capture::{CAPTURE_RATE_HZ, CaptureCommand};
+use shared::capture::{CaptureState, CaptureStatus, SEGMENT_LEN, SEGMENTS, SegmentView};
+use shared::console::link::LinkStats;
+use shared::console::serve::Response;
+use shared::console::{
+    Answer, AnswerError, Arg, Board, CaptureError, DiagInfo, IdInfo, ParseError, Request, Version,
+    WireError, parse,
+};
+use shared::control::{
+    AsyncKind, AsyncRecord, Command, CommandError, CycleTelemetry, Event, Fault, ModelStatus,
+    PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
+};
+use shared::model::RigId;
+use shared::observe::Regime;
+
+/// A decimal with `d` decimals in `lo ..= hi` (at most 7 significant digits: what the wire
+/// writes and reads exactly).
+fn dec(d: u32, lo: f64, hi: f64) -> impl Strategy<Value = f32> {
+    let s = 10f64.powi(d as i32);
+    let (a, b) = ((lo * s).ceil() as i64, (hi * s).floor() as i64);
+    assert!(
+        b.abs() < 10_000_000 && a.abs() < 10_000_000,
+        "{lo} {hi} {d}"
+    );
+    (a..=b).prop_map(move |k| k as f32 / s as f32)
+}
+
+fn state() -> impl Strategy<Value = State> {
+    proptest::sample::select(State::ALL.to_vec())
+}
+
+fn rig() -> impl Strategy<Value = RigId> {
+    proptest::sample::select(RigId::ALL.to_vec())
+}
+
+fn fault() -> impl Strategy<Value = Option<Fault>> {
+    proptest::option::of(proptest::sample::select(Fault::ALL.to_vec()))
+}
+
+fn regime() -> impl Strategy<Value = Option<Regime>> {
+    prop_oneof![
+        Just(None),
+        Just(Some(Regime::NoImpact)),
+        Just(Some(Regime::Irregular)),
+        (1u16..200, 1u16..200).prop_map(|(p, q)| Some(Regime::Periodic { p, q })),
+    ]
+}
+
+fn target() -> impl Strategy<Value = Target> {
+    (
+        dec(4, 0.0, 999.9),
+        dec(3, 0.0, 999.9),
+        dec(3, 0.0, 999.9),
+        dec(2, 0.0, 99_999.0),
+    )
+        .prop_map(|(t, a, b, mg)| Target {
+            target_hz: t,
+            band_hz: [a.min(b), a.max(b)],
+            impact_force_mg: mg,
+        })
+}
+
+fn status() -> impl Strategy<Value = Status> {
+    (
+        (
+            state(),
+            rig(),
+            dec(2, 0.0, 10.0),
+            dec(4, 0.0, 999.9),
+            dec(3, 0.0, 99.999),
+        ),
+        (
+            regime(),
+            proptest::option::of((dec(1, 0.0, 999_999.0), dec(2, 0.0, 99_999.0))),
+            prop_oneof![
+                Just(ModelStatus::Pending),
+                Just(ModelStatus::Failed),
+                target().prop_map(ModelStatus::Ready)
+            ],
+            proptest::option::of(dec(1, -99_999.0, 99_999.0)),
+            fault(),
+            any::<u32>(),
+            any::<u32>(),
+        ),
+    )
+        .prop_map(
+            |(
+                (state, rig, gap_mm, freq_hz, amplitude_mm),
+                (regime, peak, model, pct, fault, impacts, lost),
+            )| Status {
+                state,
+                rig,
+                gap_mm,
+                freq_hz,
+                amplitude_mm,
+                regime,
+                peak: peak.map(|(n, mg)| PeakForce { n, mg }),
+                model,
+                force_vs_model_pct: pct,
+                fault,
+                impacts,
+                lost_cycles: lost,
+            },
+        )
+}
+
+fn id() -> impl Strategy<Value = IdInfo> {
+    (
+        (any::<u16>(), any::<u16>(), any::<u16>()),
+        proptest::sample::select(vec![Board::Rig, Board::Emulator, Board::Virtual]),
+        rig(),
+        dec(2, 0.0, 10.0),
+        (dec(6, 1e-5, 1.0), dec(4, 0.0, 1.65), dec(4, 0.5, 10.0)),
+        dec(4, 1e-3, 999.0),
+        (dec(2, 0.0, 999.99), dec(2, 0.0, 999.99)),
+        (
+            dec(3, 0.001, 999.0),
+            dec(3, 0.001, 99.0),
+            dec(1, 0.1, 999_999.0),
+        ),
+    )
+        .prop_map(
+            |(v, board, rig, gap_mm, (vpn, off, fs), mass_kg, (a, b), (slew, ramp, lim))| IdInfo {
+                firmware: Version {
+                    major: v.0,
+                    minor: v.1,
+                    patch: v.2,
+                },
+                board,
+                rig,
+                gap_mm,
+                sample_rate_hz: SAMPLE_RATE_HZ,
+                capture_rate_hz: CAPTURE_RATE_HZ,
+                sensor: SensorChain {
+                    volts_per_n: vpn,
+                    offset_v: off,
+                    adc_full_scale_v: fs,
+                },
+                mass_kg,
+                freq_window_hz: [a.min(b), a.max(b)],
+                slew_hz_per_s: slew,
+                ramp_mm_per_s: ramp,
+                force_limit_n: lim,
+            },
+        )
+}
+
+fn diag() -> impl Strategy<Value = DiagInfo> {
+    (any::<[u64; 2]>(), any::<[u32; 9]>()).prop_map(|(a, b)| DiagInfo {
+        samples: a[0],
+        uptime_ms: a[1],
+        sample_gap_max_us: b[0],
+        link: LinkStats {
+            rx_errors: b[1],
+            lines_lost: b[2],
+            async_sent: b[3],
+            async_dropped: b[4],
+        },
+        lost_cycles: b[5],
+        stack_hwm_bytes: b[6],
+        stack_size_bytes: b[7],
+        link_timeout_ms: b[8],
+    })
+}
+
+fn capture_status() -> impl Strategy<Value = CaptureStatus> {
+    (
+        proptest::sample::select(vec![
+            CaptureState::Off,
+            CaptureState::Armed,
+            CaptureState::Done,
+        ]),
+        0..=SEGMENTS as u16,
+        any::<u32>(),
+        dec(2, 0.0, 99_999.0),
+    )
+        .prop_map(|(state, segments, samples, level_n)| CaptureStatus {
+            state,
+            segments,
+            samples,
+            level_n,
+        })
+}
+
+fn segment() -> impl Strategy<Value = SegmentView> {
+    (
+        0..SEGMENTS as u16,
+        any::<u32>(),
+        proptest::collection::vec(0u16..=4095, SEGMENT_LEN),
+    )
+        .prop_map(|(k, start, codes)| SegmentView {
+            k,
+            start,
+            codes: codes.try_into().unwrap(),
+        })
+}
+
+fn parse_error() -> impl Strategy<Value = ParseError> {
+    let arg = proptest::sample::select(Arg::ALL.to_vec());
+    prop_oneof![
+        Just(ParseError::Empty),
+        Just(ParseError::TooLong),
+        Just(ParseError::UnknownCommand),
+        Just(ParseError::UnexpectedArgument),
+        Just(ParseError::UnknownRig),
+        Just(ParseError::OnOff),
+        Just(ParseError::UnknownCapture),
+        Just(ParseError::BadTag),
+        arg.clone().prop_map(ParseError::MissingArgument),
+        arg.clone().prop_map(ParseError::BadNumber),
+        (arg, dec(2, -9999.0, 9999.0), dec(2, -9999.0, 9999.0))
+            .prop_map(|(field, min, max)| ParseError::OutOfRange { field, min, max }),
+    ]
+}
+
+fn answer_error() -> impl Strategy<Value = AnswerError> {
+    prop_oneof![
+        Just(AnswerError::Lost),
+        Just(AnswerError::Bad),
+        parse_error().prop_map(AnswerError::Parse),
+        prop_oneof![
+            proptest::sample::select(Fault::ALL.to_vec()).prop_map(CommandError::Tripped),
+            state().prop_map(CommandError::NotIdle),
+            Just(CommandError::FaultLatched),
+            Just(CommandError::ModelPending),
+            Just(CommandError::NoTarget),
+            (dec(2, 0.0, 999.0), dec(2, 0.0, 999.0))
+                .prop_map(|(min, max)| CommandError::FreqOutOfWindow { min, max }),
+        ]
+        .prop_map(AnswerError::Command),
+        prop_oneof![
+            Just(CaptureError::NotIdle),
+            Just(CaptureError::Running),
+            (any::<u16>(), any::<u16>())
+                .prop_map(|(k, recorded)| CaptureError::NoSegment { k, recorded }),
+        ]
+        .prop_map(AnswerError::Capture),
+    ]
+}
+
+fn answer() -> impl Strategy<Value = Answer> {
+    prop_oneof![
+        Just(Answer::Reply(Reply::Ok)),
+        Just(Answer::Help),
+        status().prop_map(|s| Answer::Reply(Reply::Status(s))),
+        id().prop_map(Answer::Id),
+        diag().prop_map(Answer::Diag),
+        capture_status().prop_map(Answer::Capture),
+        segment().prop_map(Answer::Segment),
+        answer_error().prop_map(Answer::Error),
+    ]
+}
+
+fn cycle() -> impl Strategy<Value = CycleTelemetry> {
+    (
+        (
+            state(),
+            dec(4, 0.0, 999.9),
+            dec(3, 0.0, 9_999.0),
+            any::<u8>(),
+        ),
+        (dec(1, 0.0, 999_999.0), dec(5, 0.0, 99.99999)),
+        (regime(), fault(), any::<u32>()),
+    )
+        .prop_map(
+            |((state, freq_hz, amplitude_mm, impacts), (peak, impulse), (regime, fault, lost))| {
+                let hit = impacts > 0;
+                CycleTelemetry {
+                    state,
+                    freq_hz,
+                    amplitude_mm,
+                    impacts,
+                    peak_n: if hit { peak } else { 0.0 },
+                    impulse_n_s: if hit { impulse } else { 0.0 },
+                    regime,
+                    fault,
+                    lost_cycles: lost,
+                }
+            },
+        )
+}
+
+fn event() -> impl Strategy<Value = Event> {
+    prop_oneof![
+        (state(), state()).prop_map(|(from, to)| Event::State { from, to }),
+        proptest::sample::select(Fault::ALL.to_vec()).prop_map(Event::Fault),
+        // The target travels as its bits: any frequency.
+        (0.0f32..999.9, target()).prop_map(|(t, mut tg)| {
+            tg.target_hz = t;
+            Event::ModelReady(tg)
+        }),
+        Just(Event::ModelFailed),
+        (any::<u32>(), any::<u32>())
+            .prop_map(|(samples, expected)| Event::SamplingStalled { samples, expected }),
+    ]
+}
+
+fn record() -> impl Strategy<Value = AsyncRecord> {
+    (
+        any::<u32>(),
+        any::<u64>(),
+        prop_oneof![
+            cycle().prop_map(AsyncKind::Cycle),
+            event().prop_map(AsyncKind::Event)
+        ],
+    )
+        .prop_map(|(seq, sample, kind)| AsyncRecord { seq, sample, kind })
+}
+
+fn request() -> impl Strategy<Value = Request> {
+    prop_oneof![
+        Just(Request::Id),
+        Just(Request::Diag),
+        Just(Request::Help),
+        any::<bool>().prop_map(Request::Echo),
+        prop_oneof![
+            Just(Command::Status),
+            Just(Command::Start),
+            Just(Command::Stop),
+            Just(Command::Tune),
+            Just(Command::Clear),
+            any::<bool>().prop_map(Command::Stream),
+            rig().prop_map(Command::Rig),
+            (0u32..=10_000_000).prop_map(|k| Command::Gap(k as f32 / 1e6)),
+            (0u32..=10_000_000).prop_map(|k| Command::Freq(k as f32 / 1e4)),
+            (0u32..=3_600_000).prop_map(|k| Command::LinkTimeout(k as f32 / 1e3)),
+        ]
+        .prop_map(Request::Control),
+        prop_oneof![
+            Just(CaptureCommand::Status),
+            Just(CaptureCommand::Stop),
+            (0..SEGMENTS as u16).prop_map(CaptureCommand::Get),
+            (100u32..=100_000, 10u32..=60_000).prop_map(|(l, s)| CaptureCommand::Arm {
+                level_n: l as f32 / 1e3,
+                seconds: s as f32 / 1e3
+            }),
+        ]
+        .prop_map(Request::Capture),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    #[test]
+    fn every_reply_reads_back(a in answer(), tag in proptest::option::of(0u32..1_000_000_000)) {
+        let text = a.to_string();
+        prop_assert_eq!(text.parse::<Answer>(), Ok(a), "{}", text);
+        let r = Response { tag, answer: a };
+        let text = r.to_string();
+        prop_assert_eq!(text.parse::<Response>(), Ok(r), "{}", text);
+    }
+
+    #[test]
+    fn every_record_reads_back(r in record()) {
+        let text = r.to_string();
+        prop_assert_eq!(text.parse::<AsyncRecord>(), Ok(r), "{}", text);
+    }
+
+    #[test]
+    fn every_request_reads_back(r in request()) {
+        let text = r.to_string();
+        prop_assert_eq!(parse(&text), Ok(r), "{}", text);
+    }
+
+    /// Any text is a reply, an error, or refused; never a panic.
+    #[test]
+    fn any_text_reads_or_is_refused(s in ".{0,200}") {
+        let _ = s.parse::<Answer>();
+        let _ = s.parse::<AsyncRecord>();
+    }
+}
+
+#[test]
+fn bad_numbers_are_refused_at_the_edge_and_named() {
+    let t = "!T seq=41 t_s=12.3456 state=track freq_hz=3.7000 amp_mm=0.890 impacts=1 peak_n=95.4 \
+             impulse_n_s=0.02851 regime=1/1 fault=none lost_cycles=0";
+    assert!(t.parse::<AsyncRecord>().is_ok());
+    for (bad, field) in [
+        ("t_s=12.3456", "t_s=nan"),
+        ("freq_hz=3.7000", "freq_hz=inf"),
+        ("peak_n=95.4", "peak_n=1e308"),
+        ("peak_n=95.4", "peak_n=-5.0"),
+        ("impacts=1", "impacts=-1"),
+        ("seq=41", "seq=4294967296"),
+    ] {
+        let line = t.replace(bad, field);
+        let key: &'static str = Box::leak(
+            field
+                .split('=')
+                .next()
+                .unwrap()
+                .to_string()
+                .into_boxed_str(),
+        );
+        assert_eq!(
+            line.parse::<AsyncRecord>(),
+            Err(WireError::Bad(key)),
+            "{line}"
+        );
+    }
+    // Peak given without impacts, and impacts without a peak.
+    assert_eq!(
+        t.replace("impacts=1", "impacts=0").parse::<AsyncRecord>(),
+        Err(WireError::Mismatch("impacts"))
+    );
+    assert!(
+        t.replace(" lost_cycles=0", "")
+            .parse::<AsyncRecord>()
+            .is_err()
+    );
+    assert_eq!(
+        format!("{t} extra=1").parse::<AsyncRecord>(),
+        Err(WireError::Trailing)
+    );
+    let id = "id firmware=0.1.0 board=rig rig=wires gap_mm=0.00 sample_rate_hz=10000 \
+              capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 \
+              adc_full_scale_v=3.3000 mass_kg=0.2980 freq_window_hz=1.00..30.00 slew_hz_per_s=0.500 \
+              ramp_mm_per_s=0.500 force_limit_n=280.0";
+    assert!(id.parse::<IdInfo>().is_ok());
+    for (from, to, err) in [
+        (
+            "volts_per_n=0.010000",
+            "volts_per_n=0",
+            WireError::Bad("volts_per_n"),
+        ),
+        (
+            "volts_per_n=0.010000",
+            "volts_per_n=nan",
+            WireError::Bad("volts_per_n"),
+        ),
+        ("mass_kg=0.2980", "mass_kg=0", WireError::Bad("mass_kg")),
+        (
+            "sample_rate_hz=10000",
+            "sample_rate_hz=5000",
+            WireError::Mismatch("sample_rate_hz"),
+        ),
+        (
+            "freq_window_hz=1.00..30.00",
+            "freq_window_hz=30.00..1.00",
+            WireError::Bad("freq_window_hz"),
+        ),
+    ] {
+        assert_eq!(id.replace(from, to).parse::<IdInfo>(), Err(err), "{to}");
+    }
+    let cap = "capture state=done segments=3 samples=1200000 level_n=1.00 rate_hz=100000 \
+               segment_len=160 pre_trigger=32 max_segments=32";
+    assert!(cap.parse::<CaptureStatus>().is_ok());
+    assert_eq!(
+        cap.replace(" segments=3 ", " segments=100000 ")
+            .parse::<CaptureStatus>(),
+        Err(WireError::Bad("segments"))
+    );
+    assert_eq!(
+        cap.replace(" segments=3 ", " segments=40 ")
+            .parse::<CaptureStatus>(),
+        Err(WireError::Mismatch("segments"))
+    );
+    assert_eq!(
+        cap.replace("rate_hz=100000", "rate_hz=0")
+            .parse::<CaptureStatus>(),
+        Err(WireError::Mismatch("rate_hz"))
+    );
+    let seg = SegmentView {
+        k: 2,
+        start: 5,
+        codes: [0x7ff; SEGMENT_LEN],
+    }
+    .to_string();
+    assert_eq!(
+        seg.replacen("7ff", "", 1).parse::<SegmentView>(),
+        Err(WireError::Mismatch("codes"))
+    );
+    assert_eq!(
+        seg.replace("n=160", "n=100").parse::<SegmentView>(),
+        Err(WireError::Mismatch("n"))
+    );
+    assert_eq!(
+        seg.replacen("7ff", "7fg", 1).parse::<SegmentView>(),
+        Err(WireError::Bad("codes"))
+    );
+    // A model-ready event whose bits and text disagree.
+    let ev = "!E seq=44 t_s=0.5000 event=model-ready target_hz=3.6404 target_bits=0x4068fcfc \
+              band_hz=2.107..4.720 predicted_mg=32.76";
+    assert!(ev.parse::<AsyncRecord>().is_ok());
+    assert_eq!(
+        ev.replace("3.6404", "3.7404").parse::<AsyncRecord>(),
+        Err(WireError::Mismatch("target_bits"))
+    );
+    assert_eq!("ok sure".parse::<Answer>(), Err(WireError::Kind));
+}
