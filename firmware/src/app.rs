@@ -35,7 +35,7 @@ mod app {
     use shared::observe::Regime;
 
     use crate::board;
-    use crate::config::{CAPTURE_BLOCK, FIRMWARE_VERSION, GAP_MM, RIG, SYSCLK_HZ};
+    use rig_firmware::config::{CAPTURE_BLOCK, FIRMWARE_VERSION, GAP_MM, RIG, SYSCLK_HZ};
 
     systick_monotonic!(Mono, 1_000);
 
@@ -86,8 +86,8 @@ mod app {
             firmware: FIRMWARE_VERSION,
             board: board::BOARD,
             uptime_ms: u64::from(uptime_ms()),
-            stack_hwm_bytes: crate::stack::high_water_bytes(),
-            stack_size_bytes: crate::stack::size_bytes(),
+            stack_hwm_bytes: rig_firmware::stack::high_water_bytes(),
+            stack_size_bytes: rig_firmware::stack::size_bytes(),
             sample_gap_max_us: SAMPLE_GAP_MAX_US.load(Ordering::Relaxed),
         }
     }
@@ -97,7 +97,7 @@ mod app {
         capture_bufs: [[u16; CAPTURE_BLOCK]; 3] = [[0; CAPTURE_BLOCK]; 3],
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        crate::stack::paint();
+        rig_firmware::stack::paint();
         let mut core = cx.core;
         let [a, b, c] = cx.local.capture_bufs;
         let parts = board::init(cx.device, &mut core.NVIC, [a, b, c]);

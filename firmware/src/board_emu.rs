@@ -37,8 +37,8 @@ use stm32f4xx_hal::pac::{self, Interrupt, interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::serial::Serial;
 
-use crate::board_common::{BoardParts, Micros64, console_usart, read_byte};
-use crate::config::{CAPTURE_BLOCK, WATCHDOG_MS};
+use rig_firmware::board_common::{BoardParts, Micros64, console_usart, read_byte};
+use rig_firmware::config::{CAPTURE_BLOCK, WATCHDOG_MS};
 
 /// Which image this is (`id`).
 pub const BOARD: Board = Board::Emulator;

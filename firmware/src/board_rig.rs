@@ -34,8 +34,8 @@ use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::timer::{CounterHz, CounterUs, Timer};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use crate::board_common::{BoardParts, Micros64, console_usart, read_byte};
-use crate::config::{CAPTURE_BLOCK, SYSCLK_HZ, WATCHDOG_MS};
+use rig_firmware::board_common::{BoardParts, Micros64, console_usart, read_byte};
+use rig_firmware::config::{CAPTURE_BLOCK, SYSCLK_HZ, WATCHDOG_MS};
 
 /// Which image this is (`id`).
 pub const BOARD: Board = Board::Rig;

@@ -7,12 +7,6 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
-use rig_firmware::{config, stack};
-
-#[cfg(target_os = "none")]
-mod board_common;
-
-#[cfg(target_os = "none")]
 mod board_emu;
 #[cfg(target_os = "none")]
 use board_emu as board;

@@ -16,13 +16,6 @@
 //! crate compiles to a stub so that `cargo build --workspace` works.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
-use rig_firmware::config;
-#[cfg(target_os = "none")]
-use rig_firmware::stack;
-
-#[cfg(target_os = "none")]
-mod board_common;
-
 #[cfg(target_os = "none")]
 mod board_rig;
 #[cfg(target_os = "none")]
@@ -35,7 +28,7 @@ mod app;
 fn main() {
     println!(
         "firmware for {} at {} mm gap: build it for the MCU with `cargo fw-build` (thumbv7em-none-eabihf)",
-        config::RIG,
-        config::GAP_MM
+        rig_firmware::config::RIG,
+        rig_firmware::config::GAP_MM
     );
 }

@@ -78,7 +78,7 @@ pub enum Command {
 /// Runs the CLI; errors are printed as `error: …` with a non-zero exit status (130 after
 /// Ctrl-C).
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = Cli::parse_from(negative_values_attached(std::env::args_os()));
     let result = match cli.command {
         Command::Select(a) => commands::select::run(&a),
         Command::Response(a) => commands::response::run(&a),
@@ -105,6 +105,33 @@ pub fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// The command line with every value that starts like a negative number (`-3.2e-05`,
+/// `-4:1.335:200`, `-.5`) attached to the long option before it (`--u0-mm=-3.2e-05`): clap
+/// takes `-3.2` as a value but not `-3.2e-05`, which it reads as an unknown option.
+pub fn negative_values_attached(
+    args: impl IntoIterator<Item = std::ffi::OsString>,
+) -> Vec<std::ffi::OsString> {
+    let mut out: Vec<std::ffi::OsString> = Vec::new();
+    for arg in args {
+        let negative = arg.to_str().is_some_and(|s| {
+            let mut c = s.chars();
+            c.next() == Some('-') && c.next().is_some_and(|d| d.is_ascii_digit() || d == '.')
+        });
+        let after_option = out
+            .last()
+            .and_then(|p| p.to_str())
+            .is_some_and(|p| p.starts_with("--") && p.len() > 2 && !p.contains('='));
+        match (negative, after_option, out.last_mut()) {
+            (true, true, Some(prev)) => {
+                prev.push("=");
+                prev.push(&arg);
+            }
+            _ => out.push(arg),
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -143,5 +170,23 @@ mod tests {
                 at += found.unwrap_or(0) + 1;
             }
         }
+    }
+
+    #[test]
+    fn negative_numbers_in_e_notation_are_values() {
+        use clap::Parser;
+        let words = |s: &str| super::negative_values_attached(s.split(' ').map(Into::into));
+        let args = words(
+            "host-sim simulate --gap-mm 1 --omega-ratio 2 --u0-mm -3.2e-05 --v0-mm-s -.5 --out x.csv",
+        );
+        let cli = Cli::try_parse_from(&args).unwrap();
+        let super::Command::Simulate(a) = cli.command else {
+            panic!("{args:?}")
+        };
+        assert_eq!((a.u0_mm, a.v0_mm_s), (-3.2e-5, -0.5));
+        // A sweep starting below zero, and an option that already has its value.
+        let args = words("host-sim basins --u0-mm -4e-1:1:3 --v0-mm-s=-1:1:3");
+        assert_eq!(args[2], "--u0-mm=-4e-1:1:3");
+        assert_eq!(args[3], "--v0-mm-s=-1:1:3");
     }
 }

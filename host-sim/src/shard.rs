@@ -31,7 +31,7 @@ pub const MAGIC: &str = "# host-sim-shard ";
 /// Environment variables read when `--shard` is not given.
 pub const SLURM_VARS: (&str, &str) = ("SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT");
 
-/// One slice of a grid: the points with `index % count == index`.
+/// One slice of a grid: the points whose index `i` has `i % count == index`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Shard {
     /// 0-based shard index `I < count`.

@@ -127,14 +127,6 @@ pub struct Trace {
     pub value: Vec<f64>,
 }
 
-impl Trace {
-    /// Mean sample interval, s.
-    pub fn mean_dt(&self) -> f64 {
-        let n = self.t_s.len();
-        (self.t_s[n - 1] - self.t_s[0]) / (n - 1) as f64
-    }
-}
-
 /// The delimiter of a lab file, detected once from its first data line: the first of `,`,
 /// `;` and tab that the line contains, else runs of spaces.
 fn detect_delimiter(line: &str) -> Option<u8> {

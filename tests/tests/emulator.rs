@@ -194,7 +194,13 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
     let mut seq = SeqCounter::default();
     assert_eq!(port.send_line("stream on").unwrap(), "ok");
     assert_eq!(port.send_line("gap 0.5").unwrap(), "ok");
-    assert_eq!(port.status().unwrap().model, ModelStatus::Pending);
+    // Pending at once (or, on a loaded machine, already the new gap's target: never the old).
+    let gap_half = predict(RigId::Wires, 0.5).unwrap().target_hz;
+    match port.status().unwrap().model {
+        ModelStatus::Pending => {}
+        ModelStatus::Ready(t) => assert_eq!(t.target_hz, gap_half),
+        m => panic!("{m:?}"),
+    }
     wait_event(&mut port, model_ready, &mut seq);
     let d0 = port.diag().unwrap();
     assert_eq!(port.send_line("gap 0").unwrap(), "ok");

@@ -30,7 +30,7 @@ mod target {
     // The device crate provides the interrupt vector table.
     use stm32f4xx_hal as _;
 
-    /// Budgets of the issue: the target computation ≤ 84 M instructions (0.5 s at 168 MHz),
+    /// The budgets (docs/operator.md): the target computation ≤ 84 M instructions (0.5 s at 168 MHz),
     /// the sampling task ≤ 1,500 instructions per sample.
     const PREDICT_BUDGET: u64 = 84_000_000;
     const SAMPLE_BUDGET: u64 = 1_500;

@@ -15,7 +15,7 @@ use shared::control::{
     Controller, Event, Fault, ModelRequest, Prediction, SAMPLE_RATE_HZ, State, Status, predict,
 };
 use shared::hal::{DriveOutput, ForceSource, TimeBase};
-use shared::model::{ContactLaw, RigId, RigParams, Suspension};
+use shared::model::{RigId, RigParams};
 
 use super::chains::{MockAdc, MockClock, MockDac, SensorChainSim, SensorState};
 use super::plant::Plant;
@@ -114,66 +114,6 @@ impl HilRun {
     }
 }
 
-/// `params` with the contact stiffness scaled by `factor` (spring–dashpot damping by
-/// `sqrt(factor)`, which keeps its restitution).
-pub fn scale_contact(params: &RigParams, factor: f64) -> RigParams {
-    let mut p = *params;
-    p.contact = match p.contact {
-        ContactLaw::SpringDashpot {
-            stiffness_n_m,
-            damping_n_s_m,
-        } => ContactLaw::SpringDashpot {
-            stiffness_n_m: stiffness_n_m * factor,
-            damping_n_s_m: damping_n_s_m * factor.sqrt(),
-        },
-        ContactLaw::Hertz {
-            stiffness,
-            exponent,
-        } => ContactLaw::Hertz {
-            stiffness: stiffness * factor,
-            exponent,
-        },
-        ContactLaw::HuntCrossley {
-            stiffness,
-            exponent,
-            lambda_s_m,
-        } => ContactLaw::HuntCrossley {
-            stiffness: stiffness * factor,
-            exponent,
-            lambda_s_m,
-        },
-        ContactLaw::LankaraniNikravesh {
-            stiffness,
-            exponent,
-            restitution,
-        } => ContactLaw::LankaraniNikravesh {
-            stiffness: stiffness * factor,
-            exponent,
-            restitution,
-        },
-    };
-    p
-}
-
-/// `params` with the natural frequency scaled by `factor` (wires: the pendulum length by
-/// `1/factor²`; beams: `natural_freq_hz`).
-pub fn scale_natural_freq(params: &RigParams, factor: f64) -> RigParams {
-    let mut p = *params;
-    p.suspension = match p.suspension {
-        Suspension::Wires { length_m } => Suspension::Wires {
-            length_m: length_m / (factor * factor),
-        },
-        Suspension::Beam {
-            natural_freq_hz,
-            damping_ratio,
-        } => Suspension::Beam {
-            natural_freq_hz: natural_freq_hz * factor,
-            damping_ratio,
-        },
-    };
-    p
-}
-
 /// Sample rate of the capture ADC in the virtual rig: the plant's steps, `CAPTURE_RATE_HZ /
 /// SAMPLE_RATE_HZ` per control sample.
 const CAPTURE_PER_SAMPLE: usize = (CAPTURE_RATE_HZ / SAMPLE_RATE_HZ) as usize;
@@ -252,7 +192,10 @@ impl Session {
         }
         let controller = Controller::new(sc.controller, setup.rig, setup.gap_mm)
             .map_err(|e| anyhow::anyhow!("--gap-mm / [controller]: {e}"))?;
-        let base = scale_contact(&setup.rig.preset(), sc.plant.contact_stiffness_factor);
+        let base = setup
+            .rig
+            .preset()
+            .with_contact_scaled(sc.plant.contact_stiffness_factor);
         let plant = Plant::new(
             &base,
             setup.actual_gap_mm * 1e-3,
@@ -408,7 +351,10 @@ impl Session {
                 nat *= 1.0 + np / 100.0 * x;
                 stiff *= 1.0 + sp / 100.0 * x;
             }
-            let p = scale_contact(&scale_natural_freq(&self.base, nat), stiff);
+            let p = self
+                .base
+                .with_natural_freq_scaled(nat)
+                .with_contact_scaled(stiff);
             self.plant.set_params(&p)?;
         }
         Ok(())

@@ -46,7 +46,7 @@ impl SimSettings {
         }
     }
 
-    /// The convergence reference of the issue: steps and sub-steps `factor`× finer and both
+    /// The convergence reference (docs/accuracy.md): steps and sub-steps `factor`× finer and both
     /// bands `factor`× narrower.
     pub fn refined(&self, factor: u32) -> Self {
         SimSettings {

@@ -66,6 +66,16 @@ impl<'a> Fields<'a> {
             .ok_or(WireError::Missing(key))
     }
 
+    /// The fields of a line of the kind that starts with `kind` (`"id "`, `"diag "`, …).
+    ///
+    /// # Errors
+    /// [`WireError::Kind`] for a line of another kind.
+    pub fn after(line: &'a str, kind: &str) -> Result<Self, WireError> {
+        line.strip_prefix(kind)
+            .map(Fields::new)
+            .ok_or(WireError::Kind)
+    }
+
     /// The value of the next field if it is `key` (an optional field), else `None` (and the
     /// field stays next).
     pub fn optional(&mut self, key: &'static str) -> Option<&'a str> {

@@ -191,8 +191,7 @@ impl FromStr for IdInfo {
     /// Reads an `id` line; the calibration must pass the controller's own checks
     /// ([`SensorChain::validate`]), the rates must be this protocol's.
     fn from_str(s: &str) -> Result<Self, WireError> {
-        let rest = s.strip_prefix("id ").ok_or(WireError::Kind)?;
-        let mut w = Fields::new(rest);
+        let mut w = Fields::after(s, "id ")?;
         let id = IdInfo {
             firmware: w.with("firmware", |v| v.parse().ok())?,
             board: w.token("board")?,
@@ -271,8 +270,7 @@ impl fmt::Display for DiagInfo {
 impl FromStr for DiagInfo {
     type Err = WireError;
     fn from_str(s: &str) -> Result<Self, WireError> {
-        let rest = s.strip_prefix("diag ").ok_or(WireError::Kind)?;
-        let mut w = Fields::new(rest);
+        let mut w = Fields::after(s, "diag ")?;
         let d = DiagInfo {
             samples: w.int("samples")?,
             uptime_ms: w.int("uptime_ms")?,
@@ -316,8 +314,7 @@ impl FromStr for CaptureStatus {
     /// Reads a `capture` line; its rate, segment length, pre-trigger and capacity must be this
     /// protocol's, and the segments within the capacity.
     fn from_str(s: &str) -> Result<Self, WireError> {
-        let rest = s.strip_prefix("capture ").ok_or(WireError::Kind)?;
-        let mut w = Fields::new(rest);
+        let mut w = Fields::after(s, "capture ")?;
         let c = CaptureStatus {
             state: w.token("state")?,
             segments: w.int("segments")?,
@@ -372,8 +369,7 @@ impl FromStr for SegmentView {
     /// Reads a `segment` line: `n` must be this protocol's segment length and the codes exactly
     /// `n` 12-bit values.
     fn from_str(s: &str) -> Result<Self, WireError> {
-        let rest = s.strip_prefix("segment ").ok_or(WireError::Kind)?;
-        let mut w = Fields::new(rest);
+        let mut w = Fields::after(s, "segment ")?;
         let k: u16 = w.int("k")?;
         let start = w.int("start")?;
         if w.int::<usize>("n")? != SEGMENT_LEN {

@@ -282,26 +282,28 @@ fn parse_capture(args: [Option<&str>; 3], n_args: usize) -> Result<Request, Pars
         return Ok(Request::Capture(CaptureCommand::Status));
     };
     let too_many = |max: usize| n_args > max;
+    // An optional number: its default when absent, else in `min ..= max`.
+    let optional = |arg: Option<&str>, what: Arg, default: f32, min: f32, max: f32| match arg {
+        Some(_) => in_range(number(arg, what)?, what, min, max),
+        None => Ok(default),
+    };
     let cmd = if sub.eq_ignore_ascii_case("arm") {
-        let level_n = match args[1] {
-            Some(_) => in_range(
-                number(args[1], Arg::LevelN)?,
+        CaptureCommand::Arm {
+            level_n: optional(
+                args[1],
                 Arg::LevelN,
+                DEFAULT_LEVEL_N,
                 MIN_CAPTURE_LEVEL_N,
                 MAX_CAPTURE_LEVEL_N,
             )?,
-            None => DEFAULT_LEVEL_N,
-        };
-        let seconds = match args[2] {
-            Some(_) => in_range(
-                number(args[2], Arg::Seconds)?,
+            seconds: optional(
+                args[2],
                 Arg::Seconds,
+                DEFAULT_SECONDS,
                 MIN_CAPTURE_S,
                 CAPTURE_MAX_S,
             )?,
-            None => DEFAULT_SECONDS,
-        };
-        CaptureCommand::Arm { level_n, seconds }
+        }
     } else if sub.eq_ignore_ascii_case("stop") {
         if too_many(1) {
             return Err(ParseError::UnexpectedArgument);

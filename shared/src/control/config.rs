@@ -43,7 +43,7 @@ impl Default for DriveChain {
 }
 
 impl DriveChain {
-    /// DAC codes of sine amplitude that give a cart amplitude of `amplitude_mm`.
+    /// DAC codes of sine amplitude per mm of cart amplitude.
     pub fn codes_per_mm(&self) -> f32 {
         CODE_FULL_SCALE / self.dac_full_scale_v / self.cart_mm_per_v
     }

@@ -68,11 +68,6 @@ impl ImpactDetector {
         }
     }
 
-    /// Whether an impact is open (force above the release level) or closing.
-    pub fn busy(&self) -> bool {
-        self.state != State::Idle
-    }
-
     /// Forgets any impact in progress.
     pub fn reset(&mut self) {
         self.state = State::Idle;

@@ -130,6 +130,67 @@ pub struct RigParams {
 }
 
 impl RigParams {
+    /// These parameters with the contact stiffness scaled by `factor` (spring–dashpot damping
+    /// by `sqrt(factor)`, which keeps its restitution): a harder or softer contact than
+    /// identified (the virtual rig's drifts and hard-contact scenario).
+    pub fn with_contact_scaled(&self, factor: f64) -> RigParams {
+        let mut p = *self;
+        p.contact = match p.contact {
+            ContactLaw::SpringDashpot {
+                stiffness_n_m,
+                damping_n_s_m,
+            } => ContactLaw::SpringDashpot {
+                stiffness_n_m: stiffness_n_m * factor,
+                damping_n_s_m: damping_n_s_m * libm::sqrt(factor),
+            },
+            ContactLaw::Hertz {
+                stiffness,
+                exponent,
+            } => ContactLaw::Hertz {
+                stiffness: stiffness * factor,
+                exponent,
+            },
+            ContactLaw::HuntCrossley {
+                stiffness,
+                exponent,
+                lambda_s_m,
+            } => ContactLaw::HuntCrossley {
+                stiffness: stiffness * factor,
+                exponent,
+                lambda_s_m,
+            },
+            ContactLaw::LankaraniNikravesh {
+                stiffness,
+                exponent,
+                restitution,
+            } => ContactLaw::LankaraniNikravesh {
+                stiffness: stiffness * factor,
+                exponent,
+                restitution,
+            },
+        };
+        p
+    }
+
+    /// These parameters with the natural frequency scaled by `factor` (wires: the pendulum
+    /// length by `1/factor²`; beams: `natural_freq_hz`).
+    pub fn with_natural_freq_scaled(&self, factor: f64) -> RigParams {
+        let mut p = *self;
+        p.suspension = match p.suspension {
+            Suspension::Wires { length_m } => Suspension::Wires {
+                length_m: length_m / (factor * factor),
+            },
+            Suspension::Beam {
+                natural_freq_hz,
+                damping_ratio,
+            } => Suspension::Beam {
+                natural_freq_hz: natural_freq_hz * factor,
+                damping_ratio,
+            },
+        };
+        p
+    }
+
     /// Checks every field against its physical range.
     ///
     /// # Errors
@@ -246,5 +307,36 @@ mod tests {
             Err(ParamError::NotFinite { field: "mass_kg" })
         );
         assert!("beam-171".parse::<RigId>().is_err());
+    }
+
+    #[test]
+    fn scaled_parameters_keep_what_they_should() {
+        use crate::model::contact::spring_dashpot_restitution;
+        for rig in RigId::ALL {
+            let p = rig.preset();
+            let q = p.with_natural_freq_scaled(1.05);
+            assert!((q.natural_freq_hz() / p.natural_freq_hz() - 1.05).abs() < 1e-12);
+            let h = p.with_contact_scaled(4.0);
+            let (
+                ContactLaw::SpringDashpot {
+                    stiffness_n_m: k0,
+                    damping_n_s_m: c0,
+                },
+                ContactLaw::SpringDashpot {
+                    stiffness_n_m: k1,
+                    damping_n_s_m: c1,
+                },
+            ) = (p.contact, h.contact)
+            else {
+                panic!("the presets are spring-dashpot")
+            };
+            assert_eq!(k1, 4.0 * k0);
+            // The restitution (the contact's damping ratio) does not change.
+            let (e0, t0) = spring_dashpot_restitution(k0, c0, p.mass_kg).unwrap();
+            let (e1, t1) = spring_dashpot_restitution(k1, c1, p.mass_kg).unwrap();
+            assert!((e0 - e1).abs() < 1e-12, "{e0} {e1}");
+            // … while the contact lasts half as long (ω of the contact doubled).
+            assert!((t1 / t0 - 0.5).abs() < 1e-12, "{t0} {t1}");
+        }
     }
 }

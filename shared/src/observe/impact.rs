@@ -84,7 +84,7 @@ impl<T: Real> ImpactTracker<T> {
 
     /// Records that the hammer is clear of the surface at penetration `delta` (m, `< 0`) after
     /// steps that were not fed to [`ImpactTracker::update`] (`crate::integrate::lanes`):
-    /// outside an episode, what `update(delta, 0)` would have done for each of them.
+    /// outside an episode, what `update(delta, delta_min, 0)` would have done for each of them.
     #[inline(always)]
     pub fn clear_at(&mut self, delta: T) {
         debug_assert!(!self.in_episode && delta <= T::zero());
