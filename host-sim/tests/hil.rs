@@ -272,8 +272,14 @@ fn console_session_gives_the_expected_lines_and_bad_commands_change_nothing() {
             "error: frequency out of the safe window: allowed 1.00 ..= 30.00 Hz",
         ),
         ("launch", "error: unknown command (try `help`)"),
-        ("rig beam-170", "error: only while idle: the drive is track, stop first"),
-        ("gap 0.5", "error: only while idle: the drive is track, stop first"),
+        (
+            "rig beam-170",
+            "error: only while idle: the drive is track, stop first",
+        ),
+        (
+            "gap 0.5",
+            "error: only while idle: the drive is track, stop first",
+        ),
     ];
     for (i, (line, reply)) in expect.iter().enumerate() {
         assert_eq!(replies[i], (*line, *reply), "exchange {i}");

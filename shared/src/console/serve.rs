@@ -51,19 +51,33 @@ const TAG_DIGITS: usize = 9;
 /// # Errors
 /// [`ParseError::BadTag`]: a `#` not followed by 1 to 9 digits and a space (or the line's end).
 pub fn split_tag(line: &str) -> Result<(Option<u32>, &str), ParseError> {
-    let Some(rest) = line.trim_start().strip_prefix('#') else {
+    // Bytes, not chars: no Unicode tables on the MCU for the ASCII this reads.
+    let start = line.bytes().take_while(u8::is_ascii_whitespace).count();
+    let Some(rest) = line.get(start..).and_then(|l| l.strip_prefix('#')) else {
         return Ok((None, line));
     };
-    let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+    let mut tag: u32 = 0;
+    let mut digits = 0;
+    for b in rest.bytes() {
+        if !b.is_ascii_digit() {
+            break;
+        }
+        // At most 9 digits: below 10⁹, no overflow.
+        tag = tag.wrapping_mul(10).wrapping_add(u32::from(b - b'0'));
+        digits += 1;
+    }
     let after = rest.get(digits..).unwrap_or("");
     if digits == 0
         || digits > TAG_DIGITS
-        || !(after.is_empty() || after.starts_with(|c: char| c.is_ascii_whitespace()))
+        || !(after.is_empty()
+            || after
+                .as_bytes()
+                .first()
+                .is_some_and(u8::is_ascii_whitespace))
     {
         return Err(ParseError::BadTag);
     }
-    let tag = rest.get(..digits).and_then(|d| d.parse().ok());
-    Ok((tag, after))
+    Ok((Some(tag), after))
 }
 
 impl fmt::Display for Response {

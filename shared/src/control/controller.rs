@@ -103,39 +103,43 @@ impl Mode {
 
 /// The controller.
 #[derive(Debug, Clone)]
+// `repr(C)`, the fields in this order: what the sampling task touches at every sample first, so
+// that its loads and stores reach them at short offsets from the controller's address (the
+// Cortex-M4's floating-point loads take offsets up to 1020 bytes); the large buffers last.
+#[repr(C)]
 pub struct Controller {
-    config: ControllerConfig,
-    rig: RigId,
-    gap_mm: f32,
-    mode: Mode,
-    manual_hz: Option<f32>,
-    model: Model,
-    generation: u32,
-    request_open: bool,
-    generator: SineGenerator,
-    detector: ImpactDetector,
-    meter: RegimeMeter,
-    monitor: SensorMonitor,
     sample: u64,
     last_us: Option<u64>,
-    /// Drive cycles completed.
-    cycles: u32,
+    /// The sample after which a running drive is stopped for want of a line (`u64::MAX`: off).
+    link_deadline: u64,
     /// Sample index where the current drive cycle began.
     cycle_start_sample: u64,
+    mode: Mode,
+    generator: SineGenerator,
+    detector: ImpactDetector,
+    monitor: SensorMonitor,
+    /// Drive cycles completed.
+    cycles: u32,
     /// Longest impact-free stretch the measured regime allows, samples (updated per cycle).
     regime_gap_samples: u32,
     regime: Option<Regime>,
     peak_n: Option<f32>,
     impacts: u32,
     lost_cycles: u32,
-    events: Deque<Event, EVENT_QUEUE>,
+    streaming: bool,
+    seq: u32,
     /// The link-loss watchdog: samples without a received line after which a running drive is
     /// stopped ([`Fault::LinkLost`]); 0: off.
     link_timeout: u32,
-    /// Samples since the last received line.
-    link_quiet: u32,
-    streaming: bool,
-    seq: u32,
+    manual_hz: Option<f32>,
+    generation: u32,
+    request_open: bool,
+    rig: RigId,
+    gap_mm: f32,
+    config: ControllerConfig,
+    model: Model,
+    meter: RegimeMeter,
+    events: Deque<Event, EVENT_QUEUE>,
     outbox: Deque<AsyncRecord, OUTBOX>,
 }
 
@@ -176,7 +180,7 @@ impl Controller {
             lost_cycles: 0,
             events: Deque::new(),
             link_timeout: 0,
-            link_quiet: 0,
+            link_deadline: u64::MAX,
             streaming: false,
             seq: 0,
             outbox: Deque::new(),
@@ -252,7 +256,10 @@ impl Controller {
     /// A line (or a keep-alive: an empty line) arrived on the console: the link-loss watchdog
     /// starts counting afresh.
     pub fn link_alive(&mut self) {
-        self.link_quiet = 0;
+        self.link_deadline = match self.link_timeout {
+            0 => u64::MAX,
+            t => self.sample.saturating_add(u64::from(t)),
+        };
     }
 
     /// The link-loss watchdog's time, samples (0: off).
@@ -352,7 +359,7 @@ impl Controller {
             }
             Command::LinkTimeout(seconds) => {
                 self.link_timeout = super::config::samples(seconds, 0);
-                self.link_quiet = 0;
+                self.link_alive();
             }
             Command::Tune => {
                 self.manual_hz = None;
@@ -431,8 +438,7 @@ impl Controller {
     /// The sampling task: one ADC result in (`now_us` from the time base), one DAC code out.
     pub fn on_sample(&mut self, code: Result<u16, SampleError>, now_us: u64) -> u16 {
         self.sample = self.sample.wrapping_add(1);
-        self.link_quiet = self.link_quiet.saturating_add(1);
-        if self.link_timeout != 0 && self.link_quiet > self.link_timeout && self.mode.driving() {
+        if self.sample > self.link_deadline && self.mode.driving() {
             self.trip(Fault::LinkLost);
         }
         if let Some(last) = self.last_us.replace(now_us)
