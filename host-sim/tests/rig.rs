@@ -569,3 +569,43 @@ fn an_interrupted_command_stops_the_drive_and_leaves_no_file() {
         }
     }
 }
+
+/// The virtual rig receives like a UART: 20 MB written at once are dropped past its FIFO and
+/// counted as a receive overrun; its memory does not grow, and it answers the next line.
+#[test]
+fn a_flood_costs_the_virtual_rig_its_lines_not_its_memory() {
+    use std::io::Write;
+    let server = Server::start("20", "");
+    let rss_kib = |pid: u32| -> u64 {
+        std::fs::read_to_string(format!("/proc/{pid}/status"))
+            .unwrap()
+            .lines()
+            .find_map(|l| l.strip_prefix("VmRSS:"))
+            .and_then(|v| v.split_whitespace().next()?.parse().ok())
+            .unwrap()
+    };
+    let before = rss_kib(server.child.id());
+    {
+        let mut raw = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&server.pty)
+            .unwrap();
+        let chunk = vec![b'x'; 1 << 20];
+        for _ in 0..20 {
+            raw.write_all(&chunk).unwrap();
+        }
+        raw.write_all(b"\n").unwrap();
+    }
+    let after = rss_kib(server.child.id());
+    assert!(
+        after < before + 4096,
+        "the virtual rig grew from {before} to {after} KiB"
+    );
+    // It answers at once, and says the flood cost a receive overrun.
+    let mut port = server.port();
+    let d = port.diag().unwrap();
+    assert!(d.link.rx_errors >= 1, "{d}");
+    assert_eq!(port.status().unwrap().state, State::Idle);
+    drop(port);
+    server.stop();
+}
