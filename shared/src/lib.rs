@@ -22,6 +22,7 @@ pub mod analysis;
 pub mod capture;
 pub mod console;
 pub mod control;
+pub mod dual;
 pub mod error;
 pub mod hal;
 pub mod health;

@@ -73,6 +73,15 @@ pub trait Real:
     fn min_of(self, other: Self) -> Self {
         if other < self { other } else { self }
     }
+    /// A root `self` of `g(t) = 0` located by iteration, with `residual = g(self)` (≈ 0) and
+    /// `slope = ∂g/∂t` there: plain floats return it as it is; a [`crate::dual::Dual`] takes the
+    /// implicit derivative `−(∂g/∂s)/(∂g/∂t)` (the sensitivity of a switching event's time,
+    /// whatever iteration found the root).
+    #[inline(always)]
+    fn root_derivative(self, residual: Self, slope: Self) -> Self {
+        let _ = (residual, slope);
+        self
+    }
 }
 
 /// Taylor coefficients `(-1)^k/(2k+1)!` of `sin x / x` and `(-1)^k/(2k)!` of `cos x` in `x²`,
