@@ -79,7 +79,7 @@ impl<T: Real, const N: usize> Add for Dual<T, N> {
     fn add(self, o: Self) -> Self {
         let mut d = self.d;
         for (x, y) in d.iter_mut().zip(o.d) {
-            *x = *x + y;
+            *x += y;
         }
         Dual { v: self.v + o.v, d }
     }
@@ -91,7 +91,7 @@ impl<T: Real, const N: usize> Sub for Dual<T, N> {
     fn sub(self, o: Self) -> Self {
         let mut d = self.d;
         for (x, y) in d.iter_mut().zip(o.d) {
-            *x = *x - y;
+            *x -= y;
         }
         Dual { v: self.v - o.v, d }
     }
@@ -204,7 +204,7 @@ impl<T: Real, const N: usize> Real for Dual<T, N> {
         if e.d.iter().any(|&x| x != T::zero()) && self.v > T::zero() {
             let ln = T::from_f64(libm::log(self.v.to_f64()));
             for (x, y) in out.d.iter_mut().zip(e.d) {
-                *x = *x + value * ln * y;
+                *x += value * ln * y;
             }
         }
         out
