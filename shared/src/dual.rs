@@ -237,6 +237,8 @@ mod tests {
     use super::*;
 
     type D = Dual<f64, 2>;
+    /// A function written twice: on duals and on plain floats.
+    type Pair<'a> = (&'a dyn Fn(D) -> D, &'a dyn Fn(f64) -> f64);
 
     /// Central differences of `f` at `x` (step `h`).
     fn fd(f: impl Fn(f64) -> f64, x: f64, h: f64) -> f64 {
@@ -246,7 +248,7 @@ mod tests {
     #[test]
     fn derivatives_match_central_differences() {
         let x = 0.37;
-        let cases: [(&dyn Fn(D) -> D, &dyn Fn(f64) -> f64); 6] = [
+        let cases: [Pair; 6] = [
             (&|a: D| a * a * a - a / (a + D::from_f64(2.0)), &|a: f64| {
                 a * a * a - a / (a + 2.0)
             }),
