@@ -151,6 +151,7 @@ assign_op!(DivAssign, div_assign, /);
 
 impl<T: Real, const N: usize> Real for Dual<T, N> {
     const NAME: &'static str = "dual";
+    const EPSILON: f64 = T::EPSILON;
 
     #[inline(always)]
     fn from_f64(x: f64) -> Self {

@@ -29,6 +29,7 @@ pub mod health;
 pub mod integrate;
 pub mod model;
 pub mod observe;
+pub mod orbit;
 pub mod real;
 
 pub use error::ParamError;

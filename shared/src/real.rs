@@ -28,6 +28,8 @@ pub trait Real:
 {
     /// Short name for reports (`"f32"` / `"f64"`).
     const NAME: &'static str;
+    /// The type's machine epsilon (`f32::EPSILON`, `f64::EPSILON`), as an `f64`.
+    const EPSILON: f64;
     /// Converts from `f64` (rounding to nearest for `f32`).
     fn from_f64(x: f64) -> Self;
     /// Widens to `f64` (exact).
@@ -142,6 +144,7 @@ macro_rules! impl_real {
     ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
         impl Real for $t {
             const NAME: &'static str = $name;
+            const EPSILON: f64 = <$t>::EPSILON as f64;
             #[inline(always)]
             fn from_f64(x: f64) -> Self {
                 x as $t

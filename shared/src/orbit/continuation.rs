@@ -1,0 +1,563 @@
+//! Pseudo-arclength continuation of a branch of periodic orbits in one parameter (`Ω/ω` or the
+//! gap), with step control, round folds and along unstable branches, locating the bifurcations
+//! it passes (Dankowicz & Schilder, *Recipes for Continuation*, SIAM 2013, ch. 10; Kuznetsov,
+//! *Elements of Applied Bifurcation Theory*, ch. 10).
+//!
+//! Unknowns `z = (x₀/s₀, x₁/s₁, λ/s_λ)`: the orbit's state on the section scaled by the cart's
+//! motion (`s`: [`MapPoint::scales`] at the start) and the parameter (`s_λ` = 1 for `Ω/ω`, `A0`
+//! for the gap). The branch solves `F(z) = (P^q_λ(x) − x)/s = 0`; its tangent `t` is the null
+//! vector of `DF = [S⁻¹(M − I)S | ∂F/∂λ]` (the monodromy from dual numbers, `∂F/∂λ` by central
+//! differences). Each step predicts `z + h t` and corrects by Newton's method on
+//! `F(z) = 0, t·(z − z_pred) = 0`.
+//!
+//! Events between two accepted points, located by bisection on the step to `locate_tol` in the
+//! parameter: a fold (`det(M − I)` changes sign), a period doubling (`det(M + I)`), a
+//! Neimark–Sacker bifurcation (`det M − 1` while the multipliers are a complex pair), and a
+//! grazing (the orbit's impact count changes: an impact appears or disappears; the map's
+//! derivative is singular there, Nordmark 1991, so the branch ends at it).
+
+use core::fmt;
+
+use nalgebra::Vector2;
+
+use super::floquet::{Floquet, Multiplier};
+use super::map::{MapPoint, Param, iterate, tangent};
+use super::shooting::{Orbit, ShootSettings, scaled_norm};
+use crate::real::Real;
+
+/// How a branch is continued.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContinuationSettings {
+    /// The parameter.
+    pub param: Param,
+    /// Its range (gap in m); the branch ends where it leaves it.
+    pub range: [f64; 2],
+    /// First step, in the scaled unknowns (0.02).
+    pub step: f64,
+    /// Smallest step: below it the branch ends (1e-6).
+    pub step_min: f64,
+    /// Largest step (0.05).
+    pub step_max: f64,
+    /// Points at most (10,000).
+    pub max_points: u32,
+    /// An event is located to this much in the parameter (1e-7).
+    pub locate_tol: f64,
+    /// Newton's tolerance and iterations for every corrector.
+    pub newton: ShootSettings,
+}
+
+impl ContinuationSettings {
+    /// The defaults for `param` over `range` in the float type `T`: steps 0.02 (1e-6 ..= 0.05)
+    /// in the scaled unknowns, events located to 1e-7 in the parameter (f64; f32: 1e-5, its
+    /// own resolution), Newton as [`ShootSettings::for_type`].
+    pub fn new<T: Real>(param: Param, range: [f64; 2]) -> Self {
+        let f64_like = T::EPSILON < 1e-10;
+        ContinuationSettings {
+            param,
+            range,
+            step: 0.02,
+            step_min: if f64_like { 1e-6 } else { 1e-4 },
+            step_max: 0.05,
+            max_points: 10_000,
+            locate_tol: if f64_like { 1e-7 } else { 1e-5 },
+            newton: ShootSettings::for_type::<T>(),
+        }
+    }
+}
+
+/// A point of a branch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BranchPoint<T> {
+    /// The parameter's value (gap in m).
+    pub value: f64,
+    /// The orbit there.
+    pub orbit: Orbit<T>,
+}
+
+/// Kinds of bifurcation along a branch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EventKind {
+    /// A real multiplier through +1: the branch turns (a jump of the response).
+    Fold,
+    /// A real multiplier through −1: the orbit of period `2q` branches off.
+    PeriodDoubling,
+    /// A complex pair through the unit circle: a torus (quasi-periodic motion) branches off.
+    NeimarkSacker,
+    /// An impact appears or disappears (zero arrival speed): the branch of this `p/q` ends.
+    Grazing,
+}
+
+impl EventKind {
+    /// Its name in reports and CSV.
+    pub fn name(self) -> &'static str {
+        match self {
+            EventKind::Fold => "fold",
+            EventKind::PeriodDoubling => "period-doubling",
+            EventKind::NeimarkSacker => "neimark-sacker",
+            EventKind::Grazing => "grazing",
+        }
+    }
+}
+
+impl fmt::Display for EventKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A located bifurcation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BifEvent<T> {
+    /// What it is.
+    pub kind: EventKind,
+    /// The parameter's value there (gap in m).
+    pub value: f64,
+    /// The orbit at it (for a grazing: the last orbit of the branch's `p`, within
+    /// `locate_tol` of the grazing).
+    pub orbit: Orbit<T>,
+    /// The critical multiplier (nearest +1 for a fold, −1 for a doubling, the pair's upper
+    /// member for a torus); for a grazing the larger one.
+    pub critical: Multiplier,
+    /// For a grazing: the impacts per `q` periods beyond it.
+    pub impacts_beyond: u32,
+}
+
+/// Why a branch ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BranchEnd {
+    /// It reached the end of the parameter range (the value there).
+    RangeEnd(f64),
+    /// At a grazing (the value): the orbit's impact count changes beyond it.
+    Grazing(f64),
+    /// The step fell below the minimum (the last value): Newton could not follow the branch.
+    StepTooSmall(f64),
+    /// The point budget was spent (the last value).
+    MaxPoints(f64),
+}
+
+impl fmt::Display for BranchEnd {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BranchEnd::RangeEnd(v) => write!(f, "the end of the range at {v}"),
+            BranchEnd::Grazing(v) => write!(f, "a grazing at {v}"),
+            BranchEnd::StepTooSmall(v) => write!(f, "a step below the minimum at {v}"),
+            BranchEnd::MaxPoints(v) => write!(f, "the point budget at {v}"),
+        }
+    }
+}
+
+/// The branch's scaled frame.
+#[derive(Debug, Clone, Copy)]
+struct Frame {
+    at: MapPoint,
+    param: Param,
+    q: u32,
+    s: [f64; 2],
+    s_lambda: f64,
+}
+
+impl Frame {
+    fn point(&self, z: &[f64; 3]) -> MapPoint {
+        self.at.with(self.param, z[2] * self.s_lambda)
+    }
+
+    fn state<T: Real>(&self, z: &[f64; 3]) -> Vector2<T> {
+        Vector2::new(T::from_f64(z[0] * self.s[0]), T::from_f64(z[1] * self.s[1]))
+    }
+
+    fn z_of<T: Real>(&self, x: &Vector2<T>, value: f64) -> [f64; 3] {
+        [
+            x[0].to_f64() / self.s[0],
+            x[1].to_f64() / self.s[1],
+            value / self.s_lambda,
+        ]
+    }
+}
+
+/// An evaluation of the branch's equations at `z`.
+#[derive(Debug, Clone, Copy)]
+struct Eval<T> {
+    f: [f64; 2],
+    jac: [[f64; 3]; 2],
+    orbit: Orbit<T>,
+}
+
+/// `F(z)`, `DF(z)` and the orbit data at `z`; `None` where the map cannot be evaluated.
+fn evaluate<T: Real>(fr: &Frame, z: &[f64; 3], fd_step: f64) -> Option<Eval<T>> {
+    let at = fr.point(z);
+    let x = fr.state::<T>(z);
+    let (img, m) = tangent(&at, fr.q, x).ok()?;
+    let f = [
+        (img.x[0].to_f64() - x[0].to_f64()) / fr.s[0],
+        (img.x[1].to_f64() - x[1].to_f64()) / fr.s[1],
+    ];
+    // ∂F/∂λ̂ by central differences of the plain map.
+    let lam = z[2] * fr.s_lambda;
+    let d = fd_step * fr.s_lambda;
+    let plus = iterate(&fr.at.with(fr.param, lam + d), fr.q, x).ok()?;
+    let minus = iterate(&fr.at.with(fr.param, lam - d), fr.q, x).ok()?;
+    let mut jac = [[0.0; 3]; 2];
+    for i in 0..2 {
+        for j in 0..2 {
+            let ident = if i == j { 1.0 } else { 0.0 };
+            jac[i][j] = (m[i][j] - ident) * fr.s[j] / fr.s[i];
+        }
+        jac[i][2] = (plus.x[i].to_f64() - minus.x[i].to_f64()) / (2.0 * fd_step) / fr.s[i];
+    }
+    if !(f.iter().chain(jac.iter().flatten()).all(|v| v.is_finite())) {
+        return None;
+    }
+    let orbit = Orbit {
+        at,
+        q: fr.q,
+        x,
+        trace: img.trace,
+        monodromy: m,
+        floquet: Floquet::of(&m),
+        residual: scaled_norm(f, [1.0, 1.0]),
+        iterations: 0,
+    };
+    Some(Eval { f, jac, orbit })
+}
+
+/// The unit null vector of the 2 × 3 matrix `j` (the cross product of its rows).
+fn null_vector(j: &[[f64; 3]; 2]) -> Option<[f64; 3]> {
+    let (a, b) = (j[0], j[1]);
+    let t = [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ];
+    let n = libm::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    (n > 0.0 && n.is_finite()).then(|| [t[0] / n, t[1] / n, t[2] / n])
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Solves `a z = b` (3 × 3) by Gaussian elimination with partial pivoting.
+fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
+    for c in 0..3 {
+        let p = (c..3).max_by(|&i, &k| a[i][c].abs().total_cmp(&a[k][c].abs()))?;
+        if a[p][c].abs().partial_cmp(&1e-300) != Some(core::cmp::Ordering::Greater) {
+            return None;
+        }
+        a.swap(c, p);
+        b.swap(c, p);
+        let pivot = a[c];
+        for r in c + 1..3 {
+            let f = a[r][c] / pivot[c];
+            for (x, p) in a[r].iter_mut().zip(pivot).skip(c) {
+                *x -= f * p;
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut z = [0.0; 3];
+    for r in (0..3).rev() {
+        let s: f64 = (r + 1..3).map(|k| a[r][k] * z[k]).sum();
+        z[r] = (b[r] - s) / a[r][r];
+    }
+    z.iter().all(|v| v.is_finite()).then_some(z)
+}
+
+/// Newton's corrector from the predictor `zp` on `F(z) = 0`, `t·(z − zp) = 0`: the corrected
+/// point and its evaluation, with the iterations taken.
+fn correct<T: Real>(
+    fr: &Frame,
+    zp: [f64; 3],
+    t: &[f64; 3],
+    s: &ContinuationSettings,
+    fd_step: f64,
+) -> Option<([f64; 3], Eval<T>, u32)> {
+    let mut z = zp;
+    for it in 0..s.newton.max_iterations {
+        let e = evaluate::<T>(fr, &z, fd_step)?;
+        let res = scaled_norm(e.f, [1.0, 1.0]);
+        if res <= s.newton.tolerance {
+            return Some((z, e, it));
+        }
+        let a = [e.jac[0], e.jac[1], *t];
+        let g = [-e.f[0], -e.f[1], -(dot(t, &z) - dot(t, &zp))];
+        let dz = solve3(a, g)?;
+        for k in 0..3 {
+            z[k] += dz[k];
+        }
+        if dz.iter().any(|v| v.abs() > 1.0) {
+            return None;
+        }
+    }
+    let e = evaluate::<T>(fr, &z, fd_step)?;
+    (scaled_norm(e.f, [1.0, 1.0]) <= s.newton.tolerance).then_some((z, e, s.newton.max_iterations))
+}
+
+/// The state of the walk along a branch.
+#[derive(Debug, Clone, Copy)]
+struct Node<T> {
+    z: [f64; 3],
+    t: [f64; 3],
+    e: Eval<T>,
+}
+
+fn tests<T: Real>(o: &Orbit<T>) -> [f64; 3] {
+    let f = &o.floquet;
+    [
+        f.fold_test(),
+        f.doubling_test(),
+        if f.complex() {
+            f.torus_test()
+        } else {
+            f64::NAN
+        },
+    ]
+}
+
+fn critical(kind: EventKind, f: &Floquet) -> Multiplier {
+    let near = |target: f64| {
+        if (f.mu[0].re - target).abs() + f.mu[0].im.abs()
+            <= (f.mu[1].re - target).abs() + f.mu[1].im.abs()
+        {
+            f.mu[0]
+        } else {
+            f.mu[1]
+        }
+    };
+    match kind {
+        EventKind::Fold => near(1.0),
+        EventKind::PeriodDoubling => near(-1.0),
+        EventKind::NeimarkSacker | EventKind::Grazing => f.mu[0],
+    }
+}
+
+/// Continues the branch through `start` (a converged orbit) in `settings.param`, towards
+/// increasing values if `direction > 0` (else decreasing), or along `initial_tangent` if given
+/// (in the scaled unknowns `(x₀/s₀, x₁/s₁, λ/s_λ)`: branch switching). Every accepted point goes
+/// to `on_point` (the start first), every located bifurcation to `on_event`.
+pub fn continue_branch<T: Real>(
+    start: &Orbit<T>,
+    settings: &ContinuationSettings,
+    direction: f64,
+    initial_tangent: Option<[f64; 3]>,
+    mut on_point: impl FnMut(&BranchPoint<T>),
+    mut on_event: impl FnMut(&BifEvent<T>),
+) -> BranchEnd {
+    let s_lambda = match settings.param {
+        Param::OmegaRatio => 1.0,
+        Param::GapM => start.at.params.amplitude_m,
+    };
+    let fr = Frame {
+        at: start.at,
+        param: settings.param,
+        q: start.q,
+        s: start.at.scales(),
+        s_lambda,
+    };
+    let fd_step = if T::EPSILON < 1e-10 { 1e-6 } else { 1e-3 };
+    let value0 = start.at.get(settings.param);
+    let z0 = fr.z_of(&start.x, value0);
+    let Some(e0) = evaluate::<T>(&fr, &z0, fd_step) else {
+        return BranchEnd::StepTooSmall(value0);
+    };
+    let Some(mut t0) = initial_tangent.or_else(|| null_vector(&e0.jac)) else {
+        return BranchEnd::StepTooSmall(value0);
+    };
+    if initial_tangent.is_none() && t0[2] * direction < 0.0 {
+        t0 = t0.map(|v| -v);
+    }
+    let mut node = Node {
+        z: z0,
+        t: t0,
+        e: e0,
+    };
+    let mut first = *start;
+    first.at = fr.point(&z0);
+    on_point(&BranchPoint {
+        value: value0,
+        orbit: first,
+    });
+    let mut h = settings.step;
+    let in_range = |v: f64| v >= settings.range[0] && v <= settings.range[1];
+    let mut previous: Option<Node<T>> = None;
+    for _ in 0..settings.max_points {
+        let value_a = node.z[2] * s_lambda;
+        // A step: predict, correct, check the tangent turned little and the impacts held.
+        let next = loop {
+            if h < settings.step_min {
+                // Newton cannot follow the branch: at a grazing the map's derivative is
+                // singular (an impact about to appear or vanish), said as such.
+                if let Some(value) = grazing_end(&fr, &node, previous.as_ref()) {
+                    on_event(&BifEvent {
+                        kind: EventKind::Grazing,
+                        value,
+                        orbit: node.e.orbit,
+                        critical: critical(EventKind::Grazing, &node.e.orbit.floquet),
+                        impacts_beyond: node.e.orbit.trace.impacts,
+                    });
+                    return BranchEnd::Grazing(value);
+                }
+                return BranchEnd::StepTooSmall(value_a);
+            }
+            let zp = [
+                node.z[0] + h * node.t[0],
+                node.z[1] + h * node.t[1],
+                node.z[2] + h * node.t[2],
+            ];
+            match correct::<T>(&fr, zp, &node.t, settings, fd_step) {
+                Some((z, e, iters)) => {
+                    let Some(mut t) = null_vector(&e.jac) else {
+                        h *= 0.5;
+                        continue;
+                    };
+                    if dot(&t, &node.t) < 0.0 {
+                        t = t.map(|v| -v);
+                    }
+                    if dot(&t, &node.t) < 0.9 {
+                        h *= 0.5;
+                        continue;
+                    }
+                    break (Node { z, t, e }, iters);
+                }
+                None => h *= 0.5,
+            }
+        };
+        let (b, iters) = next;
+        let value_b = b.z[2] * s_lambda;
+        // The range's end: the last point inside is reported, the branch ends.
+        if !in_range(value_b) {
+            return BranchEnd::RangeEnd(value_a);
+        }
+        // A grazing: the impact count changed between a and b.
+        if b.e.orbit.trace.impacts != node.e.orbit.trace.impacts {
+            let (ev, _) = locate(&fr, &node, h, settings, fd_step, |e, _| {
+                e.orbit.trace.impacts == node.e.orbit.trace.impacts
+            });
+            let value = ev.z[2] * s_lambda;
+            on_event(&BifEvent {
+                kind: EventKind::Grazing,
+                value,
+                orbit: ev.e.orbit,
+                critical: critical(EventKind::Grazing, &ev.e.orbit.floquet),
+                impacts_beyond: b.e.orbit.trace.impacts,
+            });
+            return BranchEnd::Grazing(value);
+        }
+        // Multiplier events.
+        let (ta, tb) = (tests(&node.e.orbit), tests(&b.e.orbit));
+        for (k, kind) in [
+            EventKind::Fold,
+            EventKind::PeriodDoubling,
+            EventKind::NeimarkSacker,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            if ta[k].is_finite() && tb[k].is_finite() && (ta[k] > 0.0) != (tb[k] > 0.0) {
+                let side_a = ta[k] > 0.0;
+                let (ev, _) = locate(&fr, &node, h, settings, fd_step, |e, _| {
+                    let v = tests(&e.orbit)[k];
+                    !v.is_finite() || (v > 0.0) == side_a
+                });
+                on_event(&BifEvent {
+                    kind,
+                    value: ev.z[2] * s_lambda,
+                    orbit: ev.e.orbit,
+                    critical: critical(kind, &ev.e.orbit.floquet),
+                    impacts_beyond: ev.e.orbit.trace.impacts,
+                });
+            }
+        }
+        on_point(&BranchPoint {
+            value: value_b,
+            orbit: b.e.orbit,
+        });
+        previous = Some(node);
+        node = b;
+        h = if iters <= 2 {
+            (h * 1.5).min(settings.step_max)
+        } else if iters >= 5 {
+            h * 0.7
+        } else {
+            h
+        };
+    }
+    BranchEnd::MaxPoints(node.z[2] * s_lambda)
+}
+
+/// Whether a branch whose steps fell below the minimum at `last` ends at a grazing, and where:
+/// the free flight's closest approach within `1e-4 A0` of the surface (an impact appears), or
+/// the slowest arrival below `1e-3 A0 Ω` (one vanishes). The value is the monitor's zero,
+/// extrapolated linearly from the last two points when it lies ahead, else the last value.
+fn grazing_end<T: Real>(fr: &Frame, last: &Node<T>, before: Option<&Node<T>>) -> Option<f64> {
+    let a0 = fr.at.params.amplitude_m;
+    let v0 = a0 * fr.at.omega_ratio * fr.at.params.omega_n();
+    let monitor = |n: &Node<T>| {
+        let t = &n.e.orbit.trace;
+        if t.closest_free_m > -1e-4 * a0 {
+            Some(t.closest_free_m)
+        } else if t.slowest_arrival_m_s < 1e-3 * v0 {
+            Some(t.slowest_arrival_m_s)
+        } else {
+            None
+        }
+    };
+    let g1 = monitor(last)?;
+    let v1 = last.z[2] * fr.s_lambda;
+    let Some(b) = before else {
+        return Some(v1);
+    };
+    let t = &b.e.orbit.trace;
+    let g0 = if g1 <= 0.0 {
+        t.closest_free_m
+    } else {
+        t.slowest_arrival_m_s
+    };
+    let v0b = b.z[2] * fr.s_lambda;
+    let zero = v1 - g1 * (v1 - v0b) / (g1 - g0);
+    // Ahead of the last point, and not beyond its last step.
+    let ahead = (zero - v1) * (v1 - v0b) >= 0.0 && (zero - v1).abs() <= (v1 - v0b).abs();
+    Some(if zero.is_finite() && ahead { zero } else { v1 })
+}
+
+/// Bisects the step from `a` (where `same(a)` holds) to the step `h` (where it does not) until
+/// the parameter is known to `locate_tol`; returns the last point where `same` holds, and the
+/// first where it does not.
+fn locate<T: Real>(
+    fr: &Frame,
+    a: &Node<T>,
+    h: f64,
+    s: &ContinuationSettings,
+    fd_step: f64,
+    same: impl Fn(&Eval<T>, &[f64; 3]) -> bool,
+) -> (Node<T>, f64) {
+    let (mut lo, mut hi) = (0.0, h);
+    let mut best = *a;
+    let mut beyond = h;
+    for _ in 0..60 {
+        let lam_lo = (a.z[2] + lo * a.t[2]) * fr.s_lambda;
+        let lam_hi = (a.z[2] + hi * a.t[2]) * fr.s_lambda;
+        if (lam_hi - lam_lo).abs() <= s.locate_tol && hi - lo < 1e-3 {
+            break;
+        }
+        if hi - lo < 1e-14 {
+            break;
+        }
+        let mid = 0.5 * (lo + hi);
+        let zp = [
+            a.z[0] + mid * a.t[0],
+            a.z[1] + mid * a.t[1],
+            a.z[2] + mid * a.t[2],
+        ];
+        match correct::<T>(fr, zp, &a.t, s, fd_step) {
+            Some((z, e, _)) if same(&e, &z) => {
+                lo = mid;
+                best = Node { z, t: a.t, e };
+            }
+            _ => {
+                hi = mid;
+                beyond = mid;
+            }
+        }
+    }
+    (best, beyond)
+}

@@ -1,0 +1,17 @@
+//! Periodic orbits of the stroboscopic map and their stability, on the same simulator the
+//! analyses and the MCU run (no second model): the map and its derivative ([`map`]: dual
+//! numbers through the simulator), Floquet multipliers and bifurcation test functions
+//! ([`floquet`]), shooting ([`shooting`]), pseudo-arclength continuation with located
+//! bifurcations ([`continuation`]).
+
+pub mod continuation;
+pub mod floquet;
+pub mod map;
+pub mod shooting;
+
+pub use continuation::{
+    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, continue_branch,
+};
+pub use floquet::{Floquet, Multiplier};
+pub use map::{Image, MapPoint, Param, Trace, iterate, samples, tangent};
+pub use shooting::{Orbit, OrbitError, ShootSettings, shoot};

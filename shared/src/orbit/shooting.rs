@@ -1,0 +1,211 @@
+//! Shooting: Newton's method on `P^q(x) − x = 0` for a periodic orbit of period `q` (a `p/q`
+//! regime), from a state near it (Dankowicz & Schilder, *Recipes for Continuation*, SIAM 2013,
+//! ch. 7). Each iteration runs `q` periods in dual numbers ([`super::map::tangent`]), which give
+//! the residual and the Jacobian `M − I` together; steps that do not reduce the residual are
+//! halved (at most four times).
+//!
+//! Distances are scaled by the cart's motion ([`MapPoint::scales`]): a residual of 1e-11 is
+//! 1e-11 of `A0` (and of `A0 Ω` for the velocity).
+
+use core::fmt;
+
+use nalgebra::Vector2;
+
+use super::floquet::Floquet;
+use super::map::{Image, MapPoint, Trace, tangent};
+use crate::error::ParamError;
+use crate::real::Real;
+
+/// Newton's settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShootSettings {
+    /// Iterations at most (20).
+    pub max_iterations: u32,
+    /// Scaled residual `|P^q(x) − x|` (largest component over its scale) that counts as
+    /// converged: [`ShootSettings::for_type`].
+    pub tolerance: f64,
+}
+
+impl ShootSettings {
+    /// The defaults for the float type `T`: 20 iterations, a tolerance of 1e-11 in f64 and
+    /// 1e-5 in f32 (a few hundred times the rounding of one period's map in each).
+    pub fn for_type<T: Real>() -> Self {
+        ShootSettings {
+            max_iterations: 20,
+            tolerance: if T::EPSILON < 1e-10 { 1e-11 } else { 1e-5 },
+        }
+    }
+}
+
+/// A periodic orbit: a fixed point of `P^q`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orbit<T> {
+    /// Where it was found.
+    pub at: MapPoint,
+    /// Its period, excitation periods.
+    pub q: u32,
+    /// Its state on the stroboscopic section (phase 0).
+    pub x: Vector2<T>,
+    /// What one period `q` of it does: impacts `p`, largest force, slowest arrival.
+    pub trace: Trace,
+    /// The monodromy matrix `DP^q` (row-major).
+    pub monodromy: [[f64; 2]; 2],
+    /// Its multipliers.
+    pub floquet: Floquet,
+    /// Scaled residual at convergence.
+    pub residual: f64,
+    /// Newton iterations taken.
+    pub iterations: u32,
+}
+
+impl<T: Real> Orbit<T> {
+    /// Impacts per `q` periods (`p` of `z = p/q`).
+    pub fn p(&self) -> u32 {
+        self.trace.impacts
+    }
+
+    /// Largest impact force over `m g`.
+    pub fn impact_force_mg(&self) -> f64 {
+        self.trace.max_force_n / self.at.params.weight_n()
+    }
+}
+
+/// Why shooting found no orbit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OrbitError {
+    /// The point or the state is invalid.
+    Param(ParamError),
+    /// Newton did not converge: the iterations taken and the scaled residual reached.
+    NotConverged {
+        /// Iterations.
+        iterations: u32,
+        /// Scaled residual.
+        residual: f64,
+    },
+    /// `M − I` is singular at the iterate (a fold, or `μ = 1`): no Newton step.
+    Singular {
+        /// Iterations before.
+        iterations: u32,
+    },
+}
+
+impl From<ParamError> for OrbitError {
+    fn from(e: ParamError) -> Self {
+        OrbitError::Param(e)
+    }
+}
+
+impl fmt::Display for OrbitError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            OrbitError::Param(e) => write!(f, "{e}"),
+            OrbitError::NotConverged {
+                iterations,
+                residual,
+            } => write!(
+                f,
+                "Newton did not converge in {iterations} iterations (scaled residual {residual:.3e})"
+            ),
+            OrbitError::Singular { iterations } => write!(
+                f,
+                "M − I is singular after {iterations} iterations (a multiplier at +1: a fold?)"
+            ),
+        }
+    }
+}
+
+/// The scaled size `max_i |v_i| / s_i`.
+pub(crate) fn scaled_norm(v: [f64; 2], s: [f64; 2]) -> f64 {
+    (v[0] / s[0]).abs().max((v[1] / s[1]).abs())
+}
+
+/// The residual `P^q(x) − x` in f64.
+fn residual<T: Real>(img: &Image<T>, x: &Vector2<T>) -> [f64; 2] {
+    [
+        img.x[0].to_f64() - x[0].to_f64(),
+        img.x[1].to_f64() - x[1].to_f64(),
+    ]
+}
+
+/// Solves `a z = b` (2 × 2); `None` if singular.
+pub(crate) fn solve2(a: &[[f64; 2]; 2], b: [f64; 2]) -> Option<[f64; 2]> {
+    let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
+    let size = (a[0][0].abs() + a[0][1].abs()) * (a[1][0].abs() + a[1][1].abs());
+    if det.abs().partial_cmp(&(1e-14 * size)) != Some(core::cmp::Ordering::Greater) {
+        return None;
+    }
+    Some([
+        (b[0] * a[1][1] - a[0][1] * b[1]) / det,
+        (a[0][0] * b[1] - b[0] * a[1][0]) / det,
+    ])
+}
+
+/// Finds the period-`q` orbit through a state near `x0` by Newton's method.
+///
+/// # Errors
+/// [`OrbitError`]: an invalid point, no convergence within `settings.max_iterations` (with the
+/// residual reached), or a singular `M − I`.
+pub fn shoot<T: Real>(
+    at: &MapPoint,
+    q: u32,
+    x0: Vector2<T>,
+    settings: &ShootSettings,
+) -> Result<Orbit<T>, OrbitError> {
+    let scales = at.scales();
+    let mut x = x0;
+    let (mut img, mut m) = tangent(at, q, x)?;
+    let mut r = residual(&img, &x);
+    let mut norm = scaled_norm(r, scales);
+    for iteration in 0..=settings.max_iterations {
+        if norm <= settings.tolerance {
+            return Ok(Orbit {
+                at: *at,
+                q,
+                x,
+                trace: img.trace,
+                monodromy: m,
+                floquet: Floquet::of(&m),
+                residual: norm,
+                iterations: iteration,
+            });
+        }
+        if iteration == settings.max_iterations {
+            break;
+        }
+        let jac = [[m[0][0] - 1.0, m[0][1]], [m[1][0], m[1][1] - 1.0]];
+        let Some(dx) = solve2(&jac, [-r[0], -r[1]]) else {
+            return Err(OrbitError::Singular {
+                iterations: iteration,
+            });
+        };
+        // Halve a step that does not reduce the residual (at most four times).
+        let mut step = 1.0;
+        let mut accepted = None;
+        for _ in 0..5 {
+            let trial = Vector2::new(
+                T::from_f64(x[0].to_f64() + step * dx[0]),
+                T::from_f64(x[1].to_f64() + step * dx[1]),
+            );
+            if let Ok((ti, tm)) = tangent(at, q, trial) {
+                let tr = residual(&ti, &trial);
+                let tn = scaled_norm(tr, scales);
+                if tn.is_finite() && tn < norm {
+                    accepted = Some((trial, ti, tm, tr, tn));
+                    break;
+                }
+            }
+            step *= 0.5;
+        }
+        let Some((nx, ni, nm, nr, nn)) = accepted else {
+            return Err(OrbitError::NotConverged {
+                iterations: iteration + 1,
+                residual: norm,
+            });
+        };
+        (x, img, m, r, norm) = (nx, ni, nm, nr, nn);
+    }
+    Err(OrbitError::NotConverged {
+        iterations: settings.max_iterations,
+        residual: norm,
+    })
+}
