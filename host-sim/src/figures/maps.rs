@@ -19,7 +19,7 @@ use crate::grid::{Figures, Finish, GridFigures};
 use crate::shard::{open_csv, title_prefix};
 
 use super::{
-    Chart, Frame, IRREGULAR, SANS, canvas, line_key, panel, regime_class, regime_color,
+    Chart, Frame, SANS, canvas, line_key, panel, regime_class, regime_color,
     series_legend,
 };
 
@@ -312,7 +312,7 @@ pub fn attractor_colors(attractors: &[Attractor]) -> Vec<RGBColor> {
         .iter()
         .map(|a| match a.regime {
             Regime::NoImpact => RGBColor(215, 215, 215),
-            Regime::Irregular => IRREGULAR,
+            Regime::Irregular | Regime::Chaotic => regime_color(a.regime),
             Regime::Periodic { .. } if periodic == 1 => regime_color(a.regime),
             Regime::Periodic { .. } => {
                 k += 1;

@@ -172,9 +172,11 @@ pub const OTHER_PERIODIC: RGBColor = RGBColor(43, 131, 186);
 pub const NO_IMPACT: RGBColor = RGBColor(190, 190, 190);
 /// Irregular (no period found).
 pub const IRREGULAR: RGBColor = RGBColor(0, 0, 0);
+/// Chaotic (irregular with a positive largest Lyapunov exponent).
+pub const CHAOTIC: RGBColor = RGBColor(120, 0, 90);
 
 /// Colour of a regime in every figure (a fixed function of the regime: [`NAMED_REGIMES`],
-/// [`OTHER_PERIODIC`], [`IRREGULAR`], [`NO_IMPACT`]).
+/// [`OTHER_PERIODIC`], [`IRREGULAR`], [`CHAOTIC`], [`NO_IMPACT`]).
 pub fn regime_color(r: Regime) -> RGBColor {
     match r {
         Regime::Periodic { p, q } => NAMED_REGIMES
@@ -182,12 +184,13 @@ pub fn regime_color(r: Regime) -> RGBColor {
             .find(|&&(a, b, _)| a == p && b == q)
             .map_or(OTHER_PERIODIC, |&(_, _, c)| c),
         Regime::Irregular => IRREGULAR,
+        Regime::Chaotic => CHAOTIC,
         Regime::NoImpact => NO_IMPACT,
     }
 }
 
 /// Legend class of a regime in every figure: its position in the legend order and its label
-/// (`z = p/q` for a named regime, `other periodic`, `irregular`, `no impact`).
+/// (`z = p/q` for a named regime, `other periodic`, `irregular`, `chaotic`, `no impact`).
 pub fn regime_class(r: Regime) -> (usize, String) {
     match r {
         Regime::Periodic { p, q } => {
@@ -197,7 +200,8 @@ pub fn regime_class(r: Regime) -> (usize, String) {
             }
         }
         Regime::Irregular => (NAMED_REGIMES.len() + 1, "irregular".into()),
-        Regime::NoImpact => (NAMED_REGIMES.len() + 2, "no impact".into()),
+        Regime::Chaotic => (NAMED_REGIMES.len() + 2, "chaotic".into()),
+        Regime::NoImpact => (NAMED_REGIMES.len() + 3, "no impact".into()),
     }
 }
 

@@ -102,6 +102,7 @@ pub(crate) fn write_regime(f: &mut fmt::Formatter<'_>, regime: Option<Regime>) -
         Some(r @ Regime::Periodic { .. }) => write!(f, "{r}"),
         Some(Regime::NoImpact) => f.write_str("none"),
         Some(Regime::Irregular) => f.write_str("irregular"),
+        Some(Regime::Chaotic) => f.write_str("chaotic"),
         None => f.write_str("-"),
     }
 }
@@ -112,6 +113,7 @@ pub(crate) fn read_regime(s: &str) -> Option<Option<Regime>> {
         "-" => Some(None),
         "none" => Some(Some(Regime::NoImpact)),
         "irregular" => Some(Some(Regime::Irregular)),
+        "chaotic" => Some(Some(Regime::Chaotic)),
         pq => match pq.parse::<Regime>() {
             Ok(r @ Regime::Periodic { p, .. }) if p > 0 => Some(Some(r)),
             _ => None,

@@ -1,5 +1,6 @@
 //! The impact regime `z = p/q` (Peterka): `p` impacts per `q` excitation periods on a periodic
-//! steady state; `no impact`; or `irregular` (no period `q ≤ 16` found: chaotic or quasi-periodic).
+//! steady state; `no impact`; `irregular` (no period `q ≤ 16` found in the protocol's window);
+//! or `chaotic` (irregular with a positive largest Lyapunov exponent, `crate::orbit::label`).
 
 use core::fmt;
 use core::str::FromStr;
@@ -22,6 +23,8 @@ pub enum Regime {
     },
     /// Impacts, but no period `q ≤ max_q`.
     Irregular,
+    /// Irregular with a largest Lyapunov exponent positive beyond its uncertainty.
+    Chaotic,
 }
 
 impl Regime {
@@ -40,6 +43,7 @@ impl fmt::Display for Regime {
             Regime::NoImpact => f.write_str("no impact"),
             Regime::Periodic { p, q } => write!(f, "{p}/{q}"),
             Regime::Irregular => f.write_str("irregular"),
+            Regime::Chaotic => f.write_str("chaotic"),
         }
     }
 }
@@ -50,7 +54,7 @@ pub struct BadRegime;
 
 impl fmt::Display for BadRegime {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("regime must be `p/q` (1 ≤ q ≤ 65535), `no impact` or `irregular`")
+        f.write_str("regime must be `p/q` (1 ≤ q ≤ 65535), `no impact`, `irregular` or `chaotic`")
     }
 }
 
@@ -60,6 +64,7 @@ impl FromStr for Regime {
         match s.trim() {
             "no impact" => Ok(Regime::NoImpact),
             "irregular" => Ok(Regime::Irregular),
+            "chaotic" => Ok(Regime::Chaotic),
             other => {
                 let (p, q) = other.split_once('/').ok_or(BadRegime)?;
                 let p: u16 = p.trim().parse().map_err(|_| BadRegime)?;

@@ -2,10 +2,13 @@
 //! analyses and the MCU run (no second model): the map and its derivative ([`map`]: dual
 //! numbers through the simulator), Floquet multipliers and bifurcation test functions
 //! ([`floquet`]), shooting ([`shooting`]), pseudo-arclength continuation with located
-//! bifurcations ([`continuation`]).
+//! bifurcations ([`continuation`]), the largest Lyapunov exponent ([`lyapunov`]) and what it
+//! adds to a regime label ([`label`]).
 
 pub mod continuation;
 pub mod floquet;
+pub mod label;
+pub mod lyapunov;
 pub mod map;
 pub mod shooting;
 
@@ -13,5 +16,7 @@ pub use continuation::{
     BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, continue_branch,
 };
 pub use floquet::{Floquet, Multiplier};
+pub use label::{Label, LabelSettings, label};
+pub use lyapunov::{Exponent, largest_exponent};
 pub use map::{Image, MapPoint, Param, Trace, iterate, samples, tangent};
 pub use shooting::{Orbit, OrbitError, ShootSettings, shoot};

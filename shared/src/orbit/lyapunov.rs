@@ -1,0 +1,157 @@
+//! The largest Lyapunov exponent of a trajectory of the stroboscopic map, per excitation
+//! period, from the same tangent dynamics as the monodromy (Benettin et al., Meccanica 15
+//! (1980) 9–20; through impacts: Müller, Chaos Solitons Fractals 5 (1995) 1671–1681):
+//! a tangent vector `v` is carried through each period by `DP` (dual numbers through the
+//! simulator) and renormalised, `λ = (1/n) Σ ln ‖DP(x_k) v_k‖` in the scaled norm of
+//! [`MapPoint::scales`]. Its convergence is judged by the two halves of the window: on a
+//! periodic orbit both give `ln max|μ| / q`, on a chaotic one they scatter around a positive
+//! value.
+
+use nalgebra::Vector2;
+
+use super::map::{MapPoint, Trace};
+use crate::dual::Dual;
+use crate::error::{ParamError, check_count};
+use crate::integrate::{PhaseTable, StepSample};
+use crate::observe::impact::{ImpactEvent, ImpactTracker};
+use crate::real::Real;
+
+/// An estimate of the largest Lyapunov exponent, per excitation period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exponent {
+    /// Over the whole window.
+    pub per_period: f64,
+    /// Over its first half.
+    pub first_half: f64,
+    /// Over its second half.
+    pub second_half: f64,
+    /// Periods in the window.
+    pub periods: u32,
+}
+
+impl Exponent {
+    /// Its uncertainty: half the difference of the halves' estimates.
+    pub fn uncertainty(&self) -> f64 {
+        0.5 * (self.first_half - self.second_half).abs()
+    }
+
+    /// Whether it is positive beyond `sigmas` uncertainties (and beyond 1e-3 per period).
+    pub fn clearly_positive(&self, sigmas: f64) -> bool {
+        self.per_period > (sigmas * self.uncertainty()).max(1e-3)
+    }
+
+    /// Whether it is negative beyond `sigmas` uncertainties (and beyond 1e-3 per period).
+    pub fn clearly_negative(&self, sigmas: f64) -> bool {
+        self.per_period < -(sigmas * self.uncertainty()).max(1e-3)
+    }
+}
+
+/// One period at a time from a state, with the impacts of each period.
+pub(crate) struct Periods<'t, U: Real> {
+    sim: crate::integrate::Simulator<'t, U>,
+    separation: U,
+}
+
+impl<'t, U: Real> Periods<'t, U> {
+    pub(crate) fn new(at: &MapPoint, table: &'t PhaseTable<U>) -> Result<Self, ParamError> {
+        Ok(Periods {
+            sim: crate::analysis::simulator_at(
+                &at.params,
+                at.gap_m,
+                at.omega_ratio,
+                &at.settings,
+                table,
+            )?,
+            separation: U::from_f64(at.settings.protocol.separation_m),
+        })
+    }
+
+    /// `(u, u̇)` of the current state, m and m/s.
+    pub(crate) fn relative(&self) -> (U, U) {
+        self.sim.relative()
+    }
+
+    /// One period from `x` (phase 0): the state after it and its impacts and largest force.
+    pub(crate) fn run(&mut self, x: Vector2<U>) -> (Vector2<U>, Trace) {
+        self.sim.reset_state(x);
+        let (delta0, _) = self.sim.hammer().penetration(&x);
+        let mut tracker = ImpactTracker::new(self.separation, delta0);
+        let mut trace = Trace {
+            impacts: 0,
+            max_force_n: 0.0,
+            slowest_arrival_m_s: f64::INFINITY,
+            closest_free_m: f64::NEG_INFINITY,
+        };
+        let mut done = false;
+        while !done {
+            self.sim.step(&mut |s: &StepSample<U>| {
+                if let Some(ImpactEvent::Arrival) = tracker.update(s.delta, s.delta_min, s.force)
+                {
+                    trace.impacts += 1;
+                }
+                trace.max_force_n = trace.max_force_n.max(s.force.to_f64());
+                done |= s.period_end;
+            });
+        }
+        (self.sim.state(), trace)
+    }
+}
+
+/// The largest Lyapunov exponent over `periods` (2 ..= 100,000) iterations of the map from
+/// `x0`, and the state reached.
+///
+/// # Errors
+/// [`ParamError`]: an invalid point, `periods` out of range.
+pub fn largest_exponent<T: Real>(
+    at: &MapPoint,
+    x0: Vector2<T>,
+    periods: u32,
+) -> Result<(Exponent, Vector2<T>), ParamError> {
+    check_count("periods", periods, 2, 100_000)?;
+    let s = at.scales();
+    let table = PhaseTable::<Dual<T, 1>>::new(at.settings.steps.steps_per_period)?;
+    let mut run = Periods::new(at, &table)?;
+    // The tangent vector, scaled components; it starts along the diagonal.
+    let mut v = [libm::sqrt(0.5), libm::sqrt(0.5)];
+    let mut x = x0;
+    let half = periods / 2;
+    let (mut sum1, mut sum2) = (0.0, 0.0);
+    for k in 0..periods {
+        let seeded = Vector2::new(
+            Dual {
+                v: x[0],
+                d: [T::from_f64(v[0] * s[0])],
+            },
+            Dual {
+                v: x[1],
+                d: [T::from_f64(v[1] * s[1])],
+            },
+        );
+        let (y, _) = run.run(seeded);
+        x = Vector2::new(y[0].v, y[1].v);
+        let d = [y[0].d[0].to_f64() / s[0], y[1].d[0].to_f64() / s[1]];
+        let n = libm::hypot(d[0], d[1]);
+        if !(n > 0.0 && n.is_finite()) {
+            // The tangent vanished (or overflowed): nothing more to learn.
+            return Err(ParamError::NotFinite {
+                field: "tangent vector",
+            });
+        }
+        v = [d[0] / n, d[1] / n];
+        if k < half {
+            sum1 += libm::log(n);
+        } else {
+            sum2 += libm::log(n);
+        }
+    }
+    let second = periods - half;
+    Ok((
+        Exponent {
+            per_period: (sum1 + sum2) / f64::from(periods),
+            first_half: sum1 / f64::from(half.max(1)),
+            second_half: sum2 / f64::from(second),
+            periods,
+        },
+        x,
+    ))
+}
