@@ -55,6 +55,13 @@ pub enum Command {
     ///
     /// --plot: u0 (x) × u̇0 (y) coloured by attractor, attractor points marked.
     Basins(commands::basins::BasinsArgs),
+    /// The periodic orbit at one point: Newton's method (shooting) from where the protocol
+    /// settles, with its Floquet multipliers, stability margin and Lyapunov exponent.
+    Orbit(commands::orbit::OrbitArgs),
+    /// Continue a branch of periodic orbits in Ω/ω or the gap from the orbit at a point (stable
+    /// and unstable, round folds), locating its bifurcations: fold, period doubling,
+    /// Neimark–Sacker, grazing; CSV, figure over the brute-force diagram, JSON.
+    Continue(commands::continuation::ContinueArgs),
     /// Virtual rig: the firmware's controller in closed loop with a simulated hammer (drive and
     /// sensor chains, injected faults, console commands), no hardware.
     Hil(commands::hil::HilArgs),
@@ -88,6 +95,8 @@ pub fn main() -> ExitCode {
         Command::Peterka(a) => commands::peterka::run(&a),
         Command::Basins(a) => commands::basins::run(&a),
         Command::Merge(a) => commands::merge::run(&a),
+        Command::Orbit(a) => commands::orbit::run(&a),
+        Command::Continue(a) => commands::continuation::run(&a),
         Command::Hil(a) => commands::hil::run(&a),
         Command::Rig(a) => commands::rig::run(&a),
         Command::Identify(a) => commands::identify::run(&a),

@@ -11,7 +11,7 @@
 //!    [`series`] (time series), [`grid`] (Peterka maps, basins, bifurcation; shards in
 //!    [`shard`]), [`propagate`] (the selection under parameter uncertainty), [`identify`]
 //!    (parameters from drop tests and free decays), [`comparison`] (model against a measured
-//!    response or time series);
+//!    response or time series), [`orbits`] (periodic orbits, their branches and bifurcations);
 //! 3. the rig: [`rig_link`] (the real rig's serial console, from the desktop) and
 //!    [`virtual_rig`] (the firmware's controller against a simulated plant through mock
 //!    hardware, and its pseudo-terminal);
@@ -28,6 +28,7 @@ pub mod figures;
 pub mod grid;
 pub mod identify;
 pub mod interrupt;
+pub mod orbits;
 pub mod output;
 pub mod precision;
 pub mod propagate;

@@ -5,7 +5,11 @@ use anyhow::{Result, anyhow};
 use serde::Serialize;
 use shared::analysis::{ResponseSample, Selection, SelectionError, perturbed_gaps, select};
 
+use shared::Real;
+use shared::orbit::{ContinuationSettings, Edge, Orbit, Param, band_edges};
+
 use crate::config::{Setup, gap_m_from_mm};
+use crate::orbits::{self, OrbitReport, Start};
 use crate::precision::Precision;
 use crate::response;
 
@@ -34,7 +38,8 @@ pub struct SelectReport {
     pub band_hz: [f64; 2],
     /// The same in `Ω/ω`.
     pub band_omega_ratio: [f64; 2],
-    /// Distance to the nearer band edge, % of the chosen frequency.
+    /// Distance to the nearer band edge, % of the chosen frequency: to the edges located on the
+    /// orbit's branch once [`check_band`] ran (`band_check`), else to the sweep's.
     pub margin_freq_pct: f64,
     /// Frequency robustness required and verified, ± %.
     pub required_margin_freq_pct: f64,
@@ -50,6 +55,51 @@ pub struct SelectReport {
     pub bands_omega_ratio: Vec<[f64; 2]>,
     /// Strongest point of another periodic regime, for information.
     pub other_best: Option<OtherBest>,
+    /// The chosen orbit and its band's edges located on its branch ([`check_band`]); absent
+    /// until checked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub band_check: Option<BandCheck>,
+}
+
+/// The chosen point's periodic orbit and the edges of its `1/1` band located on its branch
+/// (`shared::orbit::band_edges`), against the sweep's.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandCheck {
+    /// The orbit: multipliers, stability margin `1 − max|μ|`.
+    pub orbit: OrbitReport,
+    /// The lower edge.
+    pub lower: EdgeReport,
+    /// The upper edge.
+    pub upper: EdgeReport,
+    /// Distance from the chosen frequency to the nearer located edge, % (the report's
+    /// `margin_freq_pct` is this one).
+    pub margin_freq_pct: f64,
+    /// The same to the sweep's band edges (the cross-check).
+    pub sweep_margin_freq_pct: f64,
+    /// The sweep's step in `Ω/ω`.
+    pub sweep_step: f64,
+}
+
+/// One located edge of the band.
+#[derive(Debug, Clone, Serialize)]
+pub struct EdgeReport {
+    /// `grazing`, `period-doubling`, `fold`, `neimark-sacker`, or `open` (none within the
+    /// sweep's range: the edge is the range's end).
+    pub kind: String,
+    /// Where, `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Where, Hz.
+    pub freq_hz: f64,
+    /// The critical multiplier `(re, im)` (a period doubling's is −1), if a bifurcation.
+    pub multiplier: Option<[f64; 2]>,
+    /// The sweep's edge: its last `1/1` point on that side, `Ω/ω`.
+    pub sweep_omega_ratio: f64,
+    /// Whether the located edge lies within one sweep step beyond the sweep's edge (between
+    /// it and the first point outside the band, with one step's slack).
+    pub agrees: bool,
+    /// If not, what the sweep shows there and why.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub disagreement: Option<String>,
 }
 
 /// The strongest non-`1/1` periodic point.
@@ -92,7 +142,88 @@ fn report(setup: &Setup, gap_mm: f64, gaps_mm: Vec<f64>, sel: &Selection) -> Sel
             omega_ratio: c.omega_ratio,
             impact_force_mg: c.impact_force_mg,
         }),
+        band_check: None,
     }
+}
+
+/// One side's edge report: `edge` located, `sweep_edge` the sweep's last `1/1` point on
+/// that side, `outward` +1 (upper) or −1 (lower).
+fn edge_report<T: Real>(
+    setup: &Setup,
+    edge: &Edge<T>,
+    sweep_edge: f64,
+    outward: f64,
+    step: f64,
+) -> EdgeReport {
+    let value = edge.value();
+    let (kind, multiplier) = match edge {
+        Edge::Event(e) => (e.kind.name().to_string(), Some([e.critical.re, e.critical.im])),
+        Edge::Open(_) => ("open".to_string(), None),
+    };
+    // The located edge should lie beyond the sweep's last 1/1 point by less than a step
+    // (plus a step of slack), and not inside it by more than a step.
+    let beyond = (value - sweep_edge) * outward;
+    let agrees = beyond > -step && beyond <= 2.0 * step;
+    let disagreement = (!agrees).then(|| {
+        let why = match kind.as_str() {
+            "period-doubling" => {
+                "near a period doubling the orbit's multiplier nears −1: its transient \
+                 alternates slowly, and the protocol's window reads it as 2/2 or runs out"
+            }
+            "grazing" => "near a grazing the orbit's new impact is shallow and slow to settle",
+            "fold" => "near a fold the orbit's multiplier nears +1: its transient is slow",
+            "open" => "the branch goes on beyond the sweep's edge: the protocol from rest \
+                 settles on another attractor there (coexistence)",
+            _ => "the protocol's label depends on its transient there",
+        };
+        format!(
+            "the located {kind} at Ω/ω {value:.5} lies {:.4} {} the sweep's last 1/1 point \
+             {sweep_edge:.4} (step {step}): {why}",
+            beyond.abs(),
+            if beyond >= 0.0 { "beyond" } else { "inside" },
+        )
+    });
+    EdgeReport {
+        kind,
+        omega_ratio: value,
+        freq_hz: setup.params.freq_hz_from_ratio(value),
+        multiplier,
+        sweep_omega_ratio: sweep_edge,
+        agrees,
+        disagreement,
+    }
+}
+
+/// Finds the chosen point's orbit (shooting from where the protocol settles at rest), locates
+/// its band's edges on its branch over the sweep's range, and measures the report's frequency
+/// margin to them (the sweep's margin stays as the cross-check).
+///
+/// # Errors
+/// No orbit at the chosen point (the reason).
+pub fn check_band(setup: &Setup, rep: &mut SelectReport) -> Result<()> {
+    let gap_m = gap_m_from_mm("--gap-mm", rep.gap_mm)?;
+    let at = orbits::map_point(setup, gap_m, rep.omega_ratio);
+    let sweep = setup.selection.omega_ratio;
+    let range = [sweep.lo, sweep.hi];
+    let check = crate::with_precision!(setup.precision, T => {
+        let (_, orbit): (_, Orbit<T>) = orbits::find::<T>(&at, Start::Rest, Some(1))?;
+        let edges = band_edges(&orbit, &ContinuationSettings::new::<T>(Param::OmegaRatio, range));
+        let lower = edge_report(setup, &edges[0], rep.band_omega_ratio[0], -1.0, sweep.step);
+        let upper = edge_report(setup, &edges[1], rep.band_omega_ratio[1], 1.0, sweep.step);
+        let r = rep.omega_ratio;
+        let pct = |lo: f64, hi: f64| 100.0 * ((r - lo).min(hi - r)) / r;
+        BandCheck {
+            orbit: orbits::report(&orbit)?,
+            margin_freq_pct: pct(lower.omega_ratio, upper.omega_ratio),
+            sweep_margin_freq_pct: rep.margin_freq_pct,
+            lower,
+            upper,
+            sweep_step: sweep.step,
+        }
+    });
+    rep.margin_freq_pct = check.margin_freq_pct;
+    rep.band_check = Some(check);
+    Ok(())
 }
 
 /// Computes the selection (responses at the nominal and perturbed gaps, in parallel).

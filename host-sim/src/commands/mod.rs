@@ -3,12 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use shared::analysis::Sweep;
+use shared::error::check_range;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 
-use crate::config::parse_sweep;
+use crate::config::{Setup, parse_sweep};
 use crate::figures::{
     self,
     response::{Highlight, ResponsePoint},
@@ -22,10 +23,12 @@ use crate::trace::{TimeUnit, TraceFormat};
 pub mod basins;
 pub mod bifurcation;
 pub mod compare;
+pub mod continuation;
 pub mod drop;
 pub mod hil;
 pub mod identify;
 pub mod merge;
+pub mod orbit;
 pub mod peterka;
 pub mod points;
 pub mod response;
@@ -44,6 +47,37 @@ pub fn omega_sweep(text: &str) -> Result<Sweep> {
         OMEGA_RATIO_RANGE.0,
         OMEGA_RATIO_RANGE.1,
     )
+}
+
+/// The excitation as `Ω/ω` from `--omega-ratio` or `--freq-hz` (exactly one given), within
+/// the analyses' range.
+///
+/// # Errors
+/// Neither or both given, or out of range (the flag and the range named).
+pub fn excitation_ratio(setup: &Setup, omega_ratio: Option<f64>, freq_hz: Option<f64>) -> Result<f64> {
+    let fn_hz = setup.params.natural_freq_hz();
+    let ratio = match (omega_ratio, freq_hz) {
+        (Some(r), None) => r,
+        (None, Some(f)) => {
+            check_range(
+                "freq_hz",
+                f,
+                OMEGA_RATIO_RANGE.0 * fn_hz,
+                OMEGA_RATIO_RANGE.1 * fn_hz,
+            )
+            .context("--freq-hz")?;
+            f / fn_hz
+        }
+        _ => bail!("give the excitation frequency with --omega-ratio or --freq-hz"),
+    };
+    check_range(
+        "omega_ratio",
+        ratio,
+        OMEGA_RATIO_RANGE.0,
+        OMEGA_RATIO_RANGE.1,
+    )
+    .context("--omega-ratio")?;
+    Ok(ratio)
 }
 
 /// The outputs of a grid command (`peterka`, `basins`, `bifurcation`).

@@ -2,11 +2,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
-use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::{check_count, check_range};
 
+use super::excitation_ratio;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
 use crate::figures::response::{TsPoint, time_series};
 use crate::output::{Outputs, write_csv};
@@ -53,27 +53,7 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
     let fn_hz = setup.params.natural_freq_hz();
-    let ratio = match (a.omega_ratio, a.freq_hz) {
-        (Some(r), None) => r,
-        (None, Some(f)) => {
-            check_range(
-                "freq_hz",
-                f,
-                OMEGA_RATIO_RANGE.0 * fn_hz,
-                OMEGA_RATIO_RANGE.1 * fn_hz,
-            )
-            .context("--freq-hz")?;
-            f / fn_hz
-        }
-        _ => bail!("give the excitation frequency with --omega-ratio or --freq-hz"),
-    };
-    check_range(
-        "omega_ratio",
-        ratio,
-        OMEGA_RATIO_RANGE.0,
-        OMEGA_RATIO_RANGE.1,
-    )
-    .context("--omega-ratio")?;
+    let ratio = excitation_ratio(&setup, a.omega_ratio, a.freq_hz)?;
     check_count("periods", a.periods, 1, 100_000).context("--periods")?;
     check_range("u0_mm", a.u0_mm, -20.0, 20.0).context("--u0-mm")?;
     check_range("v0_mm_s", a.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;

@@ -5,6 +5,7 @@
 
 pub mod identify;
 pub mod maps;
+pub mod orbits;
 pub mod response;
 pub mod rig_log;
 

@@ -17,6 +17,7 @@
 //! derivative is singular there, Nordmark 1991, so the branch ends at it).
 
 use core::fmt;
+use core::ops::ControlFlow;
 
 use nalgebra::Vector2;
 
@@ -44,12 +45,16 @@ pub struct ContinuationSettings {
     pub locate_tol: f64,
     /// Newton's tolerance and iterations for every corrector.
     pub newton: ShootSettings,
+    /// Where Newton stalls, a grazing monitor within this much of 0 (in units of the cart's
+    /// motion) says the branch ends at a grazing (1e-4; f32: 1e-2).
+    pub grazing_near: f64,
 }
 
 impl ContinuationSettings {
     /// The defaults for `param` over `range` in the float type `T`: steps 0.02 (1e-6 ..= 0.05)
     /// in the scaled unknowns, events located to 1e-7 in the parameter (f64; f32: 1e-5, its
-    /// own resolution), Newton as [`ShootSettings::for_type`].
+    /// own resolution), Newton as [`ShootSettings::for_type`], grazing monitors near 0 within
+    /// 1e-4 (f32: 1e-2).
     pub fn new<T: Real>(param: Param, range: [f64; 2]) -> Self {
         let f64_like = T::EPSILON < 1e-10;
         ContinuationSettings {
@@ -61,6 +66,7 @@ impl ContinuationSettings {
             max_points: 10_000,
             locate_tol: if f64_like { 1e-7 } else { 1e-5 },
             newton: ShootSettings::for_type::<T>(),
+            grazing_near: if f64_like { 1e-4 } else { 1e-2 },
         }
     }
 }
@@ -133,6 +139,8 @@ pub enum BranchEnd {
     StepTooSmall(f64),
     /// The point budget was spent (the last value).
     MaxPoints(f64),
+    /// The caller stopped it at an event (its value).
+    Stopped(f64),
 }
 
 impl fmt::Display for BranchEnd {
@@ -142,6 +150,7 @@ impl fmt::Display for BranchEnd {
             BranchEnd::Grazing(v) => write!(f, "a grazing at {v}"),
             BranchEnd::StepTooSmall(v) => write!(f, "a step below the minimum at {v}"),
             BranchEnd::MaxPoints(v) => write!(f, "the point budget at {v}"),
+            BranchEnd::Stopped(v) => write!(f, "an event at {v}"),
         }
     }
 }
@@ -333,14 +342,15 @@ fn critical(kind: EventKind, f: &Floquet) -> Multiplier {
 /// Continues the branch through `start` (a converged orbit) in `settings.param`, towards
 /// increasing values if `direction > 0` (else decreasing), or along `initial_tangent` if given
 /// (in the scaled unknowns `(x₀/s₀, x₁/s₁, λ/s_λ)`: branch switching). Every accepted point goes
-/// to `on_point` (the start first), every located bifurcation to `on_event`.
+/// to `on_point` (the start first), every located bifurcation to `on_event` (in the order met;
+/// [`ControlFlow::Break`] ends the branch there: [`BranchEnd::Stopped`]).
 pub fn continue_branch<T: Real>(
     start: &Orbit<T>,
     settings: &ContinuationSettings,
     direction: f64,
     initial_tangent: Option<[f64; 3]>,
     mut on_point: impl FnMut(&BranchPoint<T>),
-    mut on_event: impl FnMut(&BifEvent<T>),
+    mut on_event: impl FnMut(&BifEvent<T>) -> ControlFlow<()>,
 ) -> BranchEnd {
     let s_lambda = match settings.param {
         Param::OmegaRatio => 1.0,
@@ -354,6 +364,7 @@ pub fn continue_branch<T: Real>(
         s_lambda,
     };
     let fd_step = if T::EPSILON < 1e-10 { 1e-6 } else { 1e-3 };
+    let switched = initial_tangent.is_some();
     let value0 = start.at.get(settings.param);
     let z0 = fr.z_of(&start.x, value0);
     let Some(e0) = evaluate::<T>(&fr, &z0, fd_step) else {
@@ -386,13 +397,14 @@ pub fn continue_branch<T: Real>(
             if h < settings.step_min {
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
-                if let Some(value) = grazing_end(&fr, &node, previous.as_ref()) {
-                    on_event(&BifEvent {
+                if let Some((value, beyond)) = grazing_end(&fr, settings, &node, previous.as_ref())
+                {
+                    let _ = on_event(&BifEvent {
                         kind: EventKind::Grazing,
                         value,
                         orbit: node.e.orbit,
                         critical: critical(EventKind::Grazing, &node.e.orbit.floquet),
-                        impacts_beyond: node.e.orbit.trace.impacts,
+                        impacts_beyond: beyond,
                     });
                     return BranchEnd::Grazing(value);
                 }
@@ -433,7 +445,7 @@ pub fn continue_branch<T: Real>(
                 e.orbit.trace.impacts == node.e.orbit.trace.impacts
             });
             let value = ev.z[2] * s_lambda;
-            on_event(&BifEvent {
+            let _ = on_event(&BifEvent {
                 kind: EventKind::Grazing,
                 value,
                 orbit: ev.e.orbit,
@@ -442,8 +454,13 @@ pub fn continue_branch<T: Real>(
             });
             return BranchEnd::Grazing(value);
         }
-        // Multiplier events.
-        let (ta, tb) = (tests(&node.e.orbit), tests(&b.e.orbit));
+        // Multiplier events. After a branch switch the start is a pitchfork of `P^q` (a
+        // multiplier at +1 there by construction): the first step's fold test is not an event.
+        let (mut ta, tb) = (tests(&node.e.orbit), tests(&b.e.orbit));
+        if switched && previous.is_none() {
+            ta[0] = f64::NAN;
+        }
+        let mut found: heapless::Vec<BifEvent<T>, 3> = heapless::Vec::new();
         for (k, kind) in [
             EventKind::Fold,
             EventKind::PeriodDoubling,
@@ -458,13 +475,24 @@ pub fn continue_branch<T: Real>(
                     let v = tests(&e.orbit)[k];
                     !v.is_finite() || (v > 0.0) == side_a
                 });
-                on_event(&BifEvent {
+                let _ = found.push(BifEvent {
                     kind,
                     value: ev.z[2] * s_lambda,
                     orbit: ev.e.orbit,
                     critical: critical(kind, &ev.e.orbit.floquet),
                     impacts_beyond: ev.e.orbit.trace.impacts,
                 });
+            }
+        }
+        // In the order met along the step.
+        found.sort_unstable_by(|x, y| {
+            (x.value - value_a)
+                .abs()
+                .total_cmp(&(y.value - value_a).abs())
+        });
+        for ev in &found {
+            if on_event(ev).is_break() {
+                return BranchEnd::Stopped(ev.value);
             }
         }
         on_point(&BranchPoint {
@@ -484,39 +512,58 @@ pub fn continue_branch<T: Real>(
     BranchEnd::MaxPoints(node.z[2] * s_lambda)
 }
 
-/// Whether a branch whose steps fell below the minimum at `last` ends at a grazing, and where:
-/// the free flight's closest approach within `1e-4 A0` of the surface (an impact appears), or
-/// the slowest arrival below `1e-3 A0 Ω` (one vanishes). The value is the monitor's zero,
-/// extrapolated linearly from the last two points when it lies ahead, else the last value.
-fn grazing_end<T: Real>(fr: &Frame, last: &Node<T>, before: Option<&Node<T>>) -> Option<f64> {
+/// Whether a branch whose steps fell below the minimum at `last` ends at a grazing, where, and
+/// the impacts per period beyond it. The monitors, in units of the cart's motion: the free
+/// flight's closest approach `g = δ_max/A0` (an impact appears at `g = 0`), and the slowest
+/// arrival `g = −(v/(A0 Ω))²` (one vanishes; its square is linear in the parameter). The one
+/// nearer 0 must lie within `settings.grazing_near` of it; the grazing is its zero extrapolated
+/// linearly from the last two points if that lies ahead within two of their distances, else
+/// the last value.
+fn grazing_end<T: Real>(
+    fr: &Frame,
+    s: &ContinuationSettings,
+    last: &Node<T>,
+    before: Option<&Node<T>>,
+) -> Option<(f64, u32)> {
     let a0 = fr.at.params.amplitude_m;
     let v0 = a0 * fr.at.omega_ratio * fr.at.params.omega_n();
+    // (monitor value, an impact appears)
     let monitor = |n: &Node<T>| {
         let t = &n.e.orbit.trace;
-        if t.closest_free_m > -1e-4 * a0 {
-            Some(t.closest_free_m)
-        } else if t.slowest_arrival_m_s < 1e-3 * v0 {
-            Some(t.slowest_arrival_m_s)
+        let free = t.closest_free_m / a0;
+        let arrival = if t.slowest_arrival_m_s.is_finite() {
+            -(t.slowest_arrival_m_s / v0) * (t.slowest_arrival_m_s / v0)
         } else {
-            None
+            f64::NEG_INFINITY
+        };
+        if free >= arrival {
+            (free, true)
+        } else {
+            (arrival, false)
         }
     };
-    let g1 = monitor(last)?;
+    let (g1, appears) = monitor(last);
+    if !(g1 > -s.grazing_near) {
+        return None;
+    }
+    let impacts = last.e.orbit.trace.impacts;
+    let beyond = if appears {
+        impacts + 1
+    } else {
+        impacts.saturating_sub(1)
+    };
     let v1 = last.z[2] * fr.s_lambda;
     let Some(b) = before else {
-        return Some(v1);
+        return Some((v1, beyond));
     };
-    let t = &b.e.orbit.trace;
-    let g0 = if g1 <= 0.0 {
-        t.closest_free_m
-    } else {
-        t.slowest_arrival_m_s
-    };
+    let (g0, same) = monitor(b);
     let v0b = b.z[2] * fr.s_lambda;
+    if same != appears || g1 == g0 {
+        return Some((v1, beyond));
+    }
     let zero = v1 - g1 * (v1 - v0b) / (g1 - g0);
-    // Ahead of the last point, and not beyond its last step.
-    let ahead = (zero - v1) * (v1 - v0b) >= 0.0 && (zero - v1).abs() <= (v1 - v0b).abs();
-    Some(if zero.is_finite() && ahead { zero } else { v1 })
+    let ahead = (zero - v1) * (v1 - v0b) >= 0.0 && (zero - v1).abs() <= 2.0 * (v1 - v0b).abs();
+    Some((if zero.is_finite() && ahead { zero } else { v1 }, beyond))
 }
 
 /// Bisects the step from `a` (where `same(a)` holds) to the step `h` (where it does not) until
@@ -560,4 +607,38 @@ fn locate<T: Real>(
         }
     }
     (best, beyond)
+}
+
+/// Branch switching at a period doubling (`event`, of a branch of period `q`): the orbit of
+/// period `2q` at the doubling point (the same state: a fixed point of `P^{2q}` too) with the
+/// tangent of the doubled branch there, the critical eigenvector at fixed parameter (in the
+/// scaled unknowns of [`continue_branch`]: `(v₀/s₀, v₁/s₁, 0)`, `s` the cart's scales). The
+/// doubled branch is the other half of `P^{2q}`'s pitchfork (Kuznetsov 2004, §10.3); pass both
+/// to [`continue_branch`]. `None` if `event` is not a period doubling, `2q` exceeds
+/// [`super::map::MAX_Q`] or the map cannot be evaluated.
+pub fn doubling_start<T: Real>(event: &BifEvent<T>) -> Option<(Orbit<T>, [f64; 3])> {
+    if event.kind != EventKind::PeriodDoubling || 2 * event.orbit.q > super::map::MAX_Q {
+        return None;
+    }
+    let o = &event.orbit;
+    let v = Floquet::eigenvector(&o.monodromy, event.critical.re)?;
+    let s = o.at.scales();
+    let t = [v[0] / s[0], v[1] / s[1], 0.0];
+    let n = libm::sqrt(t[0] * t[0] + t[1] * t[1]);
+    let (img, m) = tangent(&o.at, 2 * o.q, o.x).ok()?;
+    let f = [
+        img.x[0].to_f64() - o.x[0].to_f64(),
+        img.x[1].to_f64() - o.x[1].to_f64(),
+    ];
+    let doubled = Orbit {
+        at: o.at,
+        q: 2 * o.q,
+        x: o.x,
+        trace: img.trace,
+        monodromy: m,
+        floquet: Floquet::of(&m),
+        residual: scaled_norm(f, s),
+        iterations: 0,
+    };
+    Some((doubled, [t[0] / n, t[1] / n, 0.0]))
 }

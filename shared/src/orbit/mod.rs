@@ -6,17 +6,22 @@
 //! adds to a regime label ([`label`]).
 
 pub mod continuation;
+pub mod edges;
 pub mod floquet;
 pub mod label;
 pub mod lyapunov;
 pub mod map;
 pub mod shooting;
+pub mod start;
 
 pub use continuation::{
     BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, continue_branch,
+    doubling_start,
 };
+pub use edges::{Edge, band_edges};
 pub use floquet::{Floquet, Multiplier};
 pub use label::{Label, LabelSettings, label};
 pub use lyapunov::{Exponent, largest_exponent};
-pub use map::{Image, MapPoint, Param, Trace, iterate, samples, tangent};
+pub use map::{Image, MAX_Q, MapPoint, Param, Trace, iterate, samples, tangent};
 pub use shooting::{Orbit, OrbitError, ShootSettings, shoot};
+pub use start::{orbit_from, relative, settle, state_of};

@@ -87,6 +87,11 @@ pub enum OrbitError {
         /// Iterations before.
         iterations: u32,
     },
+    /// The protocol saw no period to shoot for (and none was given).
+    NoPeriod {
+        /// What it saw.
+        regime: crate::observe::Regime,
+    },
 }
 
 impl From<ParamError> for OrbitError {
@@ -109,6 +114,10 @@ impl fmt::Display for OrbitError {
             OrbitError::Singular { iterations } => write!(
                 f,
                 "M − I is singular after {iterations} iterations (a multiplier at +1: a fold?)"
+            ),
+            OrbitError::NoPeriod { regime } => write!(
+                f,
+                "the protocol settled on no period (regime {regime}): give the period q"
             ),
         }
     }

@@ -1,0 +1,164 @@
+//! `host-sim orbit`: the periodic orbit at one operating point, with its Floquet multipliers
+//! (the computation: [`crate::orbits`]).
+
+use anyhow::{Context, Result};
+use clap::Args;
+use shared::error::{check_count, check_range};
+use shared::orbit::{MAX_Q, MapPoint, Orbit};
+
+use super::excitation_ratio;
+use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::orbits::{self, OrbitReport, Start};
+
+/// Where an orbit is sought: the rig, the point, the start and the period.
+#[derive(Debug, Args)]
+pub struct PointArgs {
+    /// Rig and numerics (`--precision f64` for the reference; f32 is the MCU's arithmetic).
+    #[command(flatten)]
+    pub rig: RigOpts,
+    /// Gap, mm (≥ 0).
+    #[arg(long, default_value_t = 0.0)]
+    pub gap_mm: f64,
+    /// Excitation frequency as Ω/ω (give this or --freq-hz).
+    #[arg(long, conflicts_with = "freq_hz")]
+    pub omega_ratio: Option<f64>,
+    /// Excitation frequency, Hz.
+    #[arg(long)]
+    pub freq_hz: Option<f64>,
+    /// Period q of the orbit sought, excitation periods (1..=256; default: the period the
+    /// protocol settles on from the start).
+    #[arg(long)]
+    pub q: Option<u32>,
+    /// Initial relative displacement u0, mm, of the protocol run the search starts from
+    /// (default: at rest, 0).
+    #[arg(long, default_value_t = 0.0)]
+    pub u0_mm: f64,
+    /// Initial relative velocity u̇0, mm/s.
+    #[arg(long, default_value_t = 0.0)]
+    pub v0_mm_s: f64,
+}
+
+impl PointArgs {
+    /// The setup, the map point and the start, checked.
+    ///
+    /// # Errors
+    /// Bad input (the flag and its range named).
+    pub fn resolve(&self) -> Result<(Setup, MapPoint, Start)> {
+        let setup = Setup::from_opts(&self.rig)?;
+        let gap_m = gap_m_from_mm("--gap-mm", self.gap_mm)?;
+        let ratio = excitation_ratio(&setup, self.omega_ratio, self.freq_hz)?;
+        if let Some(q) = self.q {
+            check_count("q", q, 1, MAX_Q).context("--q")?;
+        }
+        check_range("u0_mm", self.u0_mm, -20.0, 20.0).context("--u0-mm")?;
+        check_range("v0_mm_s", self.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
+        let start = if self.u0_mm == 0.0 && self.v0_mm_s == 0.0 {
+            Start::Rest
+        } else {
+            Start::Relative {
+                u_m: self.u0_mm * 1e-3,
+                du_m_s: self.v0_mm_s * 1e-3,
+            }
+        };
+        let at = orbits::map_point(&setup, gap_m, ratio);
+        Ok((setup, at, start))
+    }
+}
+
+/// Arguments of `orbit`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct OrbitArgs {
+    /// The point.
+    #[command(flatten)]
+    pub point: PointArgs,
+    /// Print one JSON object instead of the report.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The orbit found and what the protocol saw, for JSON.
+#[derive(serde::Serialize)]
+struct OrbitJson<'a> {
+    rig: String,
+    precision: &'static str,
+    protocol_regime: String,
+    orbit: &'a OrbitReport,
+}
+
+/// The report's text: the orbit, its multipliers and stability.
+pub fn describe(o: &OrbitReport) -> String {
+    let mu = |m: [f64; 2]| {
+        if m[1] == 0.0 {
+            format!("{:+.6}", m[0])
+        } else {
+            format!("{:+.6} {} {:.6}i", m[0], if m[1] < 0.0 { '−' } else { '+' }, m[1].abs())
+        }
+    };
+    let mut s = format!(
+        "orbit {} at Ω/ω {:.6} ({:.4} Hz), gap {} mm\n",
+        o.regime, o.omega_ratio, o.freq_hz, o.gap_mm
+    );
+    for (k, p) in o.section.iter().enumerate() {
+        s += &format!(
+            "  Poincaré point {}: u = {:+.6} mm, u̇ = {:+.4} mm/s\n",
+            k + 1,
+            p[0],
+            p[1]
+        );
+    }
+    s += &format!("  impact peak F_i/mg = {:.3}\n", o.impact_force_mg);
+    s += &format!(
+        "  Floquet multipliers μ1 = {}, μ2 = {}; max |μ| = {:.6}: {}, margin 1 − max|μ| = {:.4}\n",
+        mu(o.multipliers[0]),
+        mu(o.multipliers[1]),
+        o.max_abs_multiplier,
+        if o.stable { "stable" } else { "unstable" },
+        o.margin
+    );
+    s += &format!(
+        "  largest Lyapunov exponent ln max|μ| / q = {:.5} per period\n",
+        o.lyapunov_per_period
+    );
+    s += &format!(
+        "  Newton: {} iterations, scaled residual {:.2e}",
+        o.iterations, o.residual
+    );
+    s
+}
+
+/// Runs `orbit`.
+///
+/// # Errors
+/// Bad input, or no orbit at the point (the reason, with the point).
+pub fn run(a: &OrbitArgs) -> Result<()> {
+    let (setup, at, start) = a.point.resolve()?;
+    let (protocol, report) = crate::with_precision!(setup.precision, T => {
+        let (r, o): (_, Orbit<T>) = orbits::find::<T>(&at, start, a.point.q)?;
+        (r, orbits::report(&o)?)
+    });
+    if a.json {
+        let j = OrbitJson {
+            rig: setup.rig.to_string(),
+            precision: setup.precision.name(),
+            protocol_regime: protocol.regime.to_string(),
+            orbit: &report,
+        };
+        println!("{}", serde_json::to_string_pretty(&j)?);
+    } else {
+        println!(
+            "{} rig, {}: the protocol from {} settled on {} ({} periods)",
+            setup.rig,
+            setup.precision.name(),
+            match start {
+                Start::Rest => "rest".to_string(),
+                Start::Relative { u_m, du_m_s } =>
+                    format!("u0 = {} mm, u̇0 = {} mm/s", u_m * 1e3, du_m_s * 1e3),
+            },
+            protocol.regime,
+            protocol.transient_periods
+        );
+        println!("{}", describe(&report));
+    }
+    Ok(())
+}

@@ -1,0 +1,260 @@
+//! The branch figure of `continue`: branches of periodic orbits over a parameter (stable solid,
+//! unstable dashed, coloured by regime), their located bifurcations marked, over the brute-force
+//! bifurcation diagram of the same range (grey dots); Poincaré `u` on top, `F_i/mg` below.
+
+use std::path::Path;
+
+use anyhow::Result;
+use plotters::prelude::*;
+use shared::observe::Regime;
+use shared::orbit::Param;
+
+use super::{Chart, Frame, canvas, line_key, panel, regime_classes, regime_color, series_legend};
+use crate::orbits::{BranchOut, OrbitReport, param_value};
+
+const TOP: Frame = Frame::new(10, 40, 70, 15).desc_font(17);
+const BOTTOM: Frame = Frame::new(10, 45, 70, 15).desc_font(17);
+
+/// Dots of a brute-force diagram behind the branches.
+#[derive(Debug, Clone)]
+pub struct Dots {
+    /// Legend label.
+    pub label: String,
+    /// Colour.
+    pub color: RGBColor,
+    /// Poincaré points `(parameter, u mm)`.
+    pub strobes: Vec<(f64, f64)>,
+    /// Impact peaks `(parameter, F_i/mg)`.
+    pub impacts: Vec<(f64, f64)>,
+}
+
+fn regime_of(o: &OrbitReport) -> Regime {
+    o.regime()
+}
+
+/// A marker of a bifurcation type: its shape drawn at a pixel, and its legend label.
+fn event_mark(kind: &str) -> (&'static str, RGBColor) {
+    match kind {
+        "fold" => ("fold (μ = +1)", RGBColor(0, 0, 0)),
+        "period-doubling" => ("period doubling (μ = −1)", RGBColor(120, 0, 160)),
+        "neimark-sacker" => ("Neimark–Sacker (|μ| = 1)", RGBColor(0, 110, 0)),
+        _ => ("grazing (impact appears/vanishes)", RGBColor(0, 90, 200)),
+    }
+}
+
+/// Draws the marker of a bifurcation type at `at` on `chart`.
+fn marker(chart: &mut Chart<'_, '_>, kind: &str, at: (f64, f64), color: RGBColor) -> Result<()> {
+    let style = ShapeStyle::from(color).stroke_width(2);
+    match kind {
+        "fold" => chart.draw_series([TriangleMarker::new(at, 8, style)])?,
+        "grazing" => chart.draw_series([EmptyElement::at(at) + Rectangle::new([(-6, -6), (6, 6)], style)])?,
+        "neimark-sacker" => chart.draw_series([Cross::new(at, 7, style)])?,
+        _ => chart.draw_series([Circle::new(at, 7, style)])?,
+    };
+    Ok(())
+}
+
+/// Draws the runs of `pts` (`(x, y, stable, regime)`) with equal stability and regime: solid
+/// (2 px) where stable, dashed where not.
+fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, bool, Regime)]) -> Result<()> {
+    let mut start = 0;
+    while start + 1 < pts.len() {
+        let (stable, regime) = (pts[start + 1].2, pts[start + 1].3);
+        let mut end = start + 1;
+        while end + 1 < pts.len() && pts[end + 1].2 == stable && pts[end + 1].3 == regime {
+            end += 1;
+        }
+        let line: Vec<(f64, f64)> = pts[start..=end].iter().map(|p| (p.0, p.1)).collect();
+        let c = regime_color(regime);
+        if stable {
+            chart.draw_series(LineSeries::new(line, c.stroke_width(2)))?;
+        } else {
+            chart.draw_series(DashedLineSeries::new(
+                line,
+                6,
+                5,
+                c.stroke_width(2),
+            ))?;
+        }
+        start = end;
+    }
+    Ok(())
+}
+
+/// The figure: `branches` over `param` with `background` behind, the impact surface at
+/// `surface_mm` (a line on the top panel, for `Ω/ω` branches).
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn branches(
+    path: &Path,
+    title: &str,
+    param: Param,
+    x_label: &str,
+    surface_mm: Option<f64>,
+    branches: &[BranchOut],
+    background: &[Dots],
+) -> Result<()> {
+    let value = |o: &OrbitReport| param_value(param, o);
+    let mut xr = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut ur = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut fmax: f64 = 0.0;
+    let mut grow = |x: f64, u: Option<f64>, f: Option<f64>| {
+        xr = (xr.0.min(x), xr.1.max(x));
+        if let Some(u) = u {
+            ur = (ur.0.min(u), ur.1.max(u));
+        }
+        if let Some(f) = f {
+            fmax = fmax.max(f);
+        }
+    };
+    for b in branches {
+        for p in &b.points {
+            for s in &p.orbit.section {
+                grow(value(&p.orbit), Some(s[0]), Some(p.orbit.impact_force_mg));
+            }
+        }
+    }
+    for d in background {
+        for &(x, u) in &d.strobes {
+            grow(x, Some(u), None);
+        }
+        for &(x, f) in &d.impacts {
+            grow(x, None, Some(f));
+        }
+    }
+    if let Some(s) = surface_mm {
+        ur = (ur.0.min(s), ur.1.max(s));
+    }
+    if !xr.0.is_finite() {
+        xr = (0.0, 1.0);
+    }
+    if !ur.0.is_finite() {
+        ur = (-1.0, 1.0);
+    }
+    let pad = |(a, b): (f64, f64)| {
+        let d = ((b - a) * 0.04).max(1e-3);
+        (a - d, b + d)
+    };
+    let (x0, x1) = pad(xr);
+    let (u0, u1) = pad(ur);
+    let root = canvas(path, (1100, 950), Some((title, 20)))?;
+    let (top, bottom) = root.split_vertically(470);
+    let mut ct = panel(&top, TOP, x0..x1, u0..u1, (x_label, "Poincaré u (mm)"))?;
+    let mut cb = panel(
+        &bottom,
+        BOTTOM,
+        x0..x1,
+        0.0..(fmax * 1.06).max(1.0),
+        (x_label, "impact peak F_i/mg"),
+    )?;
+    if let Some(s) = surface_mm {
+        ct.draw_series(LineSeries::new([(x0, s), (x1, s)], BLACK.mix(0.4)))?
+            .label(format!("impact surface u = gap = {s} mm"))
+            .legend(line_key(BLACK.mix(0.4)));
+    }
+    for d in background {
+        let c = d.color;
+        ct.draw_series(
+            d.strobes
+                .iter()
+                .map(|&p| Circle::new(p, 1, c.mix(0.8).filled())),
+        )?
+        .label(d.label.clone())
+        .legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled()));
+        cb.draw_series(
+            d.impacts
+                .iter()
+                .map(|&p| Circle::new(p, 1, c.mix(0.8).filled())),
+        )?;
+    }
+    for b in branches {
+        let q = b.points.first().map_or(0, |p| p.orbit.section.len());
+        for k in 0..q {
+            let pts: Vec<(f64, f64, bool, Regime)> = b
+                .points
+                .iter()
+                .filter_map(|p| {
+                    p.orbit
+                        .section
+                        .get(k)
+                        .map(|s| (value(&p.orbit), s[0], p.orbit.stable, regime_of(&p.orbit)))
+                })
+                .collect();
+            draw_runs(&mut ct, &pts)?;
+        }
+        let forces: Vec<(f64, f64, bool, Regime)> = b
+            .points
+            .iter()
+            .map(|p| {
+                (
+                    value(&p.orbit),
+                    p.orbit.impact_force_mg,
+                    p.orbit.stable,
+                    regime_of(&p.orbit),
+                )
+            })
+            .collect();
+        draw_runs(&mut cb, &forces)?;
+    }
+    // Legend: the regimes of the branches, the line styles, the event types present.
+    let regimes = regime_classes(
+        branches
+            .iter()
+            .flat_map(|b| b.points.iter().map(|p| regime_of(&p.orbit))),
+    );
+    for (name, c) in regimes {
+        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(format!("{name} branch"))
+            .legend(line_key(c.stroke_width(3)));
+    }
+    ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+        .label("stable orbit")
+        .legend(line_key(BLACK.stroke_width(2)));
+    ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+        .label("unstable orbit")
+        .legend(|(x, y)| {
+            EmptyElement::at((x, y))
+                + PathElement::new(vec![(0, 0), (5, 0)], BLACK.stroke_width(2))
+                + PathElement::new(vec![(10, 0), (16, 0)], BLACK.stroke_width(2))
+        });
+    let mut kinds: Vec<&str> = Vec::new();
+    for b in branches {
+        for e in &b.events {
+            if !kinds.contains(&e.kind.as_str()) {
+                kinds.push(&e.kind);
+            }
+            let (_, c) = event_mark(&e.kind);
+            let x = value(&e.orbit);
+            for s in &e.orbit.section {
+                marker(&mut ct, &e.kind, (x, s[0]), c)?;
+            }
+            marker(&mut cb, &e.kind, (x, e.orbit.impact_force_mg), c)?;
+        }
+    }
+    for kind in kinds {
+        let (label, c) = event_mark(kind);
+        let k = kind.to_string();
+        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(label)
+            .legend(move |(x, y)| marker_px(&k, (x + 8, y), c));
+    }
+    series_legend(&mut ct, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    root.present()?;
+    Ok(())
+}
+
+/// [`marker`] as a legend key at pixel `at`.
+fn marker_px<'b>(
+    kind: &str,
+    at: (i32, i32),
+    color: RGBColor,
+) -> DynElement<'static, BitMapBackend<'b>, (i32, i32)> {
+    let style = ShapeStyle::from(color).stroke_width(2);
+    match kind {
+        "fold" => TriangleMarker::new(at, 6, style).into_dyn(),
+        "grazing" => Rectangle::new([(at.0 - 5, at.1 - 5), (at.0 + 5, at.1 + 5)], style).into_dyn(),
+        "neimark-sacker" => Cross::new(at, 5, style).into_dyn(),
+        _ => Circle::new(at, 5, style).into_dyn(),
+    }
+}

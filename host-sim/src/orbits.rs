@@ -1,0 +1,521 @@
+//! Periodic orbits on the desktop: found from a protocol run, continued in `Ω/ω` or the gap
+//! (both directions, branch switching at period doublings), as reports and CSV rows. The
+//! computations are `shared::orbit`'s; this module picks the float type, collects the branches
+//! and converts to the units of the reports (mm, Hz).
+
+use std::ops::ControlFlow;
+
+use anyhow::{Result, anyhow};
+use clap::ValueEnum;
+use serde::Serialize;
+use shared::Real;
+use shared::observe::Regime;
+use shared::orbit::{
+    BifEvent, BranchPoint, ContinuationSettings, EventKind, MapPoint, Multiplier, Orbit, Param,
+    ShootSettings, continue_branch, doubling_start, iterate, orbit_from, relative, state_of,
+};
+
+use crate::config::Setup;
+use crate::grid::bifurcation::WindowSamples;
+use crate::interrupt;
+use crate::runner::progress;
+
+/// Where an orbit search starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Start {
+    /// At rest at phase 0.
+    Rest,
+    /// From a relative displacement `u` (m) and velocity `u̇` (m/s) at phase 0.
+    Relative {
+        /// `u`, m.
+        u_m: f64,
+        /// `u̇`, m/s.
+        du_m_s: f64,
+    },
+}
+
+/// A periodic orbit as the host reports it (mm, mm/s, Hz).
+#[derive(Debug, Clone, Serialize)]
+pub struct OrbitReport {
+    /// `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Excitation frequency, Hz.
+    pub freq_hz: f64,
+    /// Gap, mm.
+    pub gap_mm: f64,
+    /// `p/q`, or `no impact`.
+    pub regime: String,
+    /// Impacts per period `q`.
+    pub p: u32,
+    /// Period, excitation periods.
+    pub q: u32,
+    /// The orbit's `q` points on the Poincaré section, `(u mm, u̇ mm/s)`, from the state found.
+    pub section: Vec<[f64; 2]>,
+    /// Largest impact force, `F_i/mg`.
+    pub impact_force_mg: f64,
+    /// The Floquet multipliers `(re, im)`, the larger modulus first.
+    pub multipliers: [[f64; 2]; 2],
+    /// `max |μ|`.
+    pub max_abs_multiplier: f64,
+    /// `max |μ| < 1`.
+    pub stable: bool,
+    /// Stability margin `1 − max |μ|`.
+    pub margin: f64,
+    /// Its largest Lyapunov exponent, per excitation period: `ln max|μ| / q`.
+    pub lyapunov_per_period: f64,
+    /// Newton's scaled residual at convergence (a fraction of the cart's amplitude).
+    pub residual: f64,
+    /// Newton iterations.
+    pub iterations: u32,
+}
+
+impl OrbitReport {
+    /// Its regime (`no impact` for `p = 0`).
+    pub fn regime(&self) -> Regime {
+        regime_of(self.p, self.q)
+    }
+}
+
+/// The regime `p/q` (`no impact` for `p = 0`).
+fn regime_of(p: u32, q: u32) -> Regime {
+    if p == 0 {
+        Regime::NoImpact
+    } else {
+        Regime::Periodic {
+            p: u16::try_from(p).unwrap_or(u16::MAX),
+            q: u16::try_from(q).unwrap_or(u16::MAX),
+        }
+    }
+}
+
+fn mu_pair(m: &[Multiplier; 2]) -> [[f64; 2]; 2] {
+    [[m[0].re, m[0].im], [m[1].re, m[1].im]]
+}
+
+/// The `q` points of `o` on the section, `(u mm, u̇ mm/s)`.
+fn section_points<T: Real>(o: &Orbit<T>) -> Result<Vec<[f64; 2]>> {
+    let mut x = o.x;
+    let mut out = Vec::with_capacity(o.q as usize);
+    for k in 0..o.q {
+        let (u, du) = relative(&o.at, &x)?;
+        out.push([u * 1e3, du * 1e3]);
+        if k + 1 < o.q {
+            x = iterate(&o.at, 1, x)?.x;
+        }
+    }
+    Ok(out)
+}
+
+/// The report of `o`.
+///
+/// # Errors
+/// The map cannot be evaluated along it (not for a converged orbit).
+pub fn report<T: Real>(o: &Orbit<T>) -> Result<OrbitReport> {
+    let f = &o.floquet;
+    Ok(OrbitReport {
+        omega_ratio: o.at.omega_ratio,
+        freq_hz: o.at.params.freq_hz_from_ratio(o.at.omega_ratio),
+        gap_mm: o.at.gap_m * 1e3,
+        regime: regime_of(o.p(), o.q).to_string(),
+        p: o.p(),
+        q: o.q,
+        section: section_points(o)?,
+        impact_force_mg: o.impact_force_mg(),
+        multipliers: mu_pair(&f.mu),
+        max_abs_multiplier: f.max_abs(),
+        stable: f.stable(),
+        margin: f.margin(),
+        lyapunov_per_period: f.max_abs().ln() / f64::from(o.q),
+        residual: o.residual,
+        iterations: o.iterations,
+    })
+}
+
+/// Where the map is evaluated for `setup` at `gap_m` (m) and `omega_ratio`.
+pub fn map_point(setup: &Setup, gap_m: f64, omega_ratio: f64) -> MapPoint {
+    MapPoint {
+        params: setup.params,
+        settings: setup.settings,
+        gap_m,
+        omega_ratio,
+    }
+}
+
+/// The protocol's regime from the start, and the orbit shooting found from where it stopped
+/// (period `q` if given, else the protocol's).
+///
+/// # Errors
+/// An invalid point or start, or no orbit (the reason, with the point).
+pub fn find<T: Real>(
+    at: &MapPoint,
+    start: Start,
+    q: Option<u32>,
+) -> Result<(shared::observe::PointResult, Orbit<T>)> {
+    let (u, du) = match start {
+        Start::Rest => (0.0, 0.0),
+        Start::Relative { u_m, du_m_s } => {
+            // Checked here, where the state's range is known.
+            state_of::<T>(at, u_m, du_m_s)?;
+            (u_m, du_m_s)
+        }
+    };
+    orbit_from::<T>(at, u, du, q, &ShootSettings::for_type::<T>()).map_err(|e| {
+        anyhow!(
+            "no periodic orbit at Ω/ω {}, gap {} mm: {e}",
+            at.omega_ratio,
+            at.gap_m * 1e3
+        )
+    })
+}
+
+/// Which ways a branch is followed from its start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Direction {
+    /// Increasing parameter.
+    Up,
+    /// Decreasing parameter.
+    Down,
+    /// Both, as two branches.
+    Both,
+}
+
+/// What to continue.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BranchSpec {
+    /// The parameter.
+    pub param: Param,
+    /// Its range (`Ω/ω`, or the gap in m).
+    pub range: [f64; 2],
+    /// Directions from the start.
+    pub direction: Direction,
+    /// Period doublings to switch at, in cascade (0: none).
+    pub follow_doublings: u32,
+}
+
+/// A point of a branch, as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct PointOut {
+    /// The orbit.
+    pub orbit: OrbitReport,
+}
+
+/// A located bifurcation, as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct EventOut {
+    /// Its type.
+    pub kind: String,
+    /// The orbit there (for a grazing: the last orbit of the branch's `p`).
+    pub orbit: OrbitReport,
+    /// The critical multiplier `(re, im)`.
+    pub critical: [f64; 2],
+    /// Impacts per period `q` beyond it (grazing).
+    pub impacts_beyond: u32,
+}
+
+/// A continued branch.
+#[derive(Debug, Clone, Serialize)]
+pub struct BranchOut {
+    /// Its number (0, 1, …: the order computed).
+    pub id: usize,
+    /// The branch it switched from at a period doubling.
+    pub parent: Option<usize>,
+    /// `up`, `down`, or `doubled` (from a period doubling).
+    pub direction: &'static str,
+    /// Its period.
+    pub q: u32,
+    /// Its points, in the order followed.
+    pub points: Vec<PointOut>,
+    /// The bifurcations located on it, in order.
+    pub events: Vec<EventOut>,
+    /// Why it ended.
+    pub end: String,
+}
+
+/// Continues the branch of `start` as `spec` says: the start's branch in the asked
+/// directions, then (up to `spec.follow_doublings` deep) the doubled branch of every period
+/// doubling found.
+///
+/// # Errors
+/// Ctrl-C; a report that cannot be made (not for converged orbits).
+pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<BranchOut>> {
+    let settings = ContinuationSettings::new::<T>(spec.param, spec.range);
+    let mut todo: Vec<(Orbit<T>, Option<[f64; 3]>, f64, Option<usize>, u32)> = Vec::new();
+    if matches!(spec.direction, Direction::Up | Direction::Both) {
+        todo.push((*start, None, 1.0, None, 0));
+    }
+    if matches!(spec.direction, Direction::Down | Direction::Both) {
+        todo.push((*start, None, -1.0, None, 0));
+    }
+    todo.reverse();
+    let mut out = Vec::new();
+    while let Some((orbit, tangent, dir, parent, depth)) = todo.pop() {
+        interrupt::check()?;
+        let mut points: Vec<BranchPoint<T>> = Vec::new();
+        let mut events: Vec<BifEvent<T>> = Vec::new();
+        let end = continue_branch(
+            &orbit,
+            &settings,
+            dir,
+            tangent,
+            |p| points.push(*p),
+            |e| {
+                events.push(*e);
+                ControlFlow::Continue(())
+            },
+        );
+        let id = out.len();
+        if depth < spec.follow_doublings {
+            for e in &events {
+                if let Some((o, t)) = doubling_start(e) {
+                    todo.insert(0, (o, Some(t), 1.0, Some(id), depth + 1));
+                }
+            }
+        }
+        out.push(BranchOut {
+            id,
+            parent,
+            direction: match (tangent.is_some(), dir > 0.0) {
+                (true, _) => "doubled",
+                (false, true) => "up",
+                (false, false) => "down",
+            },
+            q: orbit.q,
+            points: points
+                .iter()
+                .map(|p| Ok(PointOut { orbit: report(&p.orbit)? }))
+                .collect::<Result<_>>()?,
+            events: events
+                .iter()
+                .map(|e| {
+                    Ok(EventOut {
+                        kind: e.kind.name().to_string(),
+                        orbit: report(&e.orbit)?,
+                        critical: [e.critical.re, e.critical.im],
+                        impacts_beyond: e.impacts_beyond,
+                    })
+                })
+                .collect::<Result<_>>()?,
+            end: end.to_string(),
+        });
+    }
+    Ok(out)
+}
+
+/// The value of `param` in a report (`Ω/ω`, or the gap in mm).
+pub fn param_value(param: Param, o: &OrbitReport) -> f64 {
+    match param {
+        Param::OmegaRatio => o.omega_ratio,
+        Param::GapM => o.gap_mm,
+    }
+}
+
+/// One CSV row of `continue`: a point of a branch, or a located bifurcation (`event` set).
+#[derive(Debug, Clone, Serialize)]
+pub struct BranchRow {
+    /// Branch number.
+    pub branch: usize,
+    /// The branch it switched from at a period doubling (empty: none).
+    pub parent: Option<usize>,
+    /// `up`, `down` or `doubled`.
+    pub direction: &'static str,
+    /// `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Excitation frequency, Hz.
+    pub freq_hz: f64,
+    /// Gap, mm.
+    pub gap_mm: f64,
+    /// `u` on the section, mm (the orbit's first point).
+    pub u_mm: f64,
+    /// `u̇` on the section, mm/s.
+    pub du_mm_s: f64,
+    /// `p/q`.
+    pub regime: String,
+    /// Largest impact force, `F_i/mg`.
+    pub impact_force_mg: f64,
+    /// Multiplier 1 (the larger modulus), real part.
+    pub mu1_re: f64,
+    /// Multiplier 1, imaginary part.
+    pub mu1_im: f64,
+    /// Multiplier 2, real part.
+    pub mu2_re: f64,
+    /// Multiplier 2, imaginary part.
+    pub mu2_im: f64,
+    /// `max |μ|`.
+    pub max_abs_mu: f64,
+    /// `max |μ| < 1`.
+    pub stable: bool,
+    /// Empty for a point; `fold`, `period-doubling`, `neimark-sacker` or `grazing` for a
+    /// located bifurcation.
+    pub event: String,
+}
+
+fn row(b: &BranchOut, o: &OrbitReport, event: &str) -> BranchRow {
+    let first = o.section.first().copied().unwrap_or([f64::NAN, f64::NAN]);
+    BranchRow {
+        branch: b.id,
+        parent: b.parent,
+        direction: b.direction,
+        omega_ratio: o.omega_ratio,
+        freq_hz: o.freq_hz,
+        gap_mm: o.gap_mm,
+        u_mm: first[0],
+        du_mm_s: first[1],
+        regime: o.regime.clone(),
+        impact_force_mg: o.impact_force_mg,
+        mu1_re: o.multipliers[0][0],
+        mu1_im: o.multipliers[0][1],
+        mu2_re: o.multipliers[1][0],
+        mu2_im: o.multipliers[1][1],
+        max_abs_mu: o.max_abs_multiplier,
+        stable: o.stable,
+        event: event.to_string(),
+    }
+}
+
+/// The CSV rows of `branches`: each branch's points in order, its events after them.
+pub fn rows(branches: &[BranchOut]) -> Vec<BranchRow> {
+    let mut out = Vec::new();
+    for b in branches {
+        out.extend(b.points.iter().map(|p| row(b, &p.orbit, "")));
+        out.extend(b.events.iter().map(|e| row(b, &e.orbit, &e.kind)));
+    }
+    out
+}
+
+/// `true` if `kind` names a located bifurcation type.
+pub fn is_event_kind(kind: &str) -> bool {
+    [
+        EventKind::Fold,
+        EventKind::PeriodDoubling,
+        EventKind::NeimarkSacker,
+        EventKind::Grazing,
+    ]
+    .iter()
+    .any(|k| k.name() == kind)
+}
+
+/// The brute-force diagram drawn behind a branch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Background {
+    /// None.
+    None,
+    /// From rest at each value (in parallel).
+    Rest,
+    /// Two sweeps, up and down, each value starting from the previous one's final state (the
+    /// jumps and hysteresis show).
+    Sweeps,
+}
+
+/// One brute-force run behind a branch: the protocol's window at each value of the sweep.
+#[derive(Debug, Clone)]
+pub struct BackgroundRun {
+    /// `rest`, `up` or `down`.
+    pub branch: &'static str,
+    /// Poincaré points `(parameter, u mm)` (parameter: `Ω/ω`, or the gap in mm).
+    pub strobes: Vec<(f64, f64)>,
+    /// Impact peaks `(parameter, F_i/mg)`.
+    pub impacts: Vec<(f64, f64)>,
+}
+
+/// One protocol run at `at` (from `x` if given, else rest): its window's samples and the final
+/// state.
+fn window<T: Real>(
+    at: &MapPoint,
+    x: Option<nalgebra::Vector2<T>>,
+) -> Result<(WindowSamples, nalgebra::Vector2<T>)> {
+    let table = shared::integrate::PhaseTable::<T>::new(at.settings.steps.steps_per_period)?;
+    let mut sim = shared::analysis::simulator_at(
+        &at.params,
+        at.gap_m,
+        at.omega_ratio,
+        &at.settings,
+        &table,
+    )?;
+    if let Some(x) = x {
+        sim.reset_state(x);
+    }
+    let mut s = WindowSamples::default();
+    shared::observe::run_protocol(
+        &mut sim,
+        &at.settings.protocol,
+        at.params.weight_n(),
+        &mut s,
+    )?;
+    Ok((s, sim.state()))
+}
+
+/// The brute-force diagram over `values` of `param` around `at` (gap values in m).
+///
+/// # Errors
+/// An invalid point, or Ctrl-C.
+pub fn background<T: Real>(
+    at: &MapPoint,
+    param: Param,
+    values: &[f64],
+    mode: Background,
+) -> Result<Vec<BackgroundRun>> {
+    use rayon::prelude::*;
+    let mg = at.params.weight_n();
+    let shown = |v: f64| match param {
+        Param::OmegaRatio => v,
+        Param::GapM => v * 1e3,
+    };
+    let collect = |run: &mut BackgroundRun, v: f64, s: &WindowSamples| {
+        let x = shown(v);
+        run.strobes
+            .extend(s.strobes.iter().map(|&(u, _)| (x, u * 1e3)));
+        run.impacts
+            .extend(s.impacts.iter().map(|&(_, f)| (x, f / mg)));
+    };
+    let bar = progress(
+        values.len() * if mode == Background::Sweeps { 2 } else { 1 },
+        "brute-force diagram",
+    );
+    let sweep = |branch: &'static str, order: Vec<f64>| -> Result<BackgroundRun> {
+        let mut run = BackgroundRun {
+            branch,
+            strobes: Vec::new(),
+            impacts: Vec::new(),
+        };
+        let mut x = None;
+        for v in order {
+            interrupt::check()?;
+            let (s, end) = window::<T>(&at.with(param, v), x)?;
+            x = Some(end);
+            collect(&mut run, v, &s);
+            bar.inc(1);
+        }
+        Ok(run)
+    };
+    let out = match mode {
+        Background::None => Vec::new(),
+        Background::Rest => {
+            let windows: Vec<Result<(f64, WindowSamples)>> = values
+                .par_iter()
+                .map(|&v| {
+                    interrupt::check()?;
+                    let (s, _) = window::<T>(&at.with(param, v), None)?;
+                    bar.inc(1);
+                    Ok((v, s))
+                })
+                .collect();
+            let mut run = BackgroundRun {
+                branch: "rest",
+                strobes: Vec::new(),
+                impacts: Vec::new(),
+            };
+            for w in windows {
+                let (v, s) = w?;
+                collect(&mut run, v, &s);
+            }
+            vec![run]
+        }
+        Background::Sweeps => {
+            let down: Vec<f64> = values.iter().rev().copied().collect();
+            let (a, b) = rayon::join(|| sweep("up", values.to_vec()), || sweep("down", down));
+            vec![a?, b?]
+        }
+    };
+    bar.finish_and_clear();
+    Ok(out)
+}
