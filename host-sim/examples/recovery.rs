@@ -9,7 +9,8 @@
 //! `cargo run --release -p host-sim --example recovery` (about 3 minutes on 2 cores); the tables
 //! of docs/identification.md.
 
-use host_sim::identify::contact::{DropTest, Fit, Weights, fit_law_joint};
+use host_sim::identify::cost::{DropTest, Weights};
+use host_sim::identify::fit::{Fit, fit_law_joint};
 use host_sim::identify::synth::LabDrop;
 use host_sim::trace::Trace;
 use rayon::prelude::*;

@@ -15,9 +15,8 @@
 //!   to about 5 % (the impact speeds span a factor ~12, which separates `k` from `n`): worst of
 //!   seeds 1–16 3.3–5.4 % with the profile, 6.4–9.1 % from the peaks.
 
-use host_sim::identify::contact::{
-    DropTest, FIT_STEPS, Fit, Weights, fit_law, fit_law_joint, simulate_drop,
-};
+use host_sim::identify::cost::{DropTest, FIT_STEPS, Weights, simulate_drop};
+use host_sim::identify::fit::{Fit, fit_law, fit_law_joint};
 use host_sim::identify::free::identify_free;
 use host_sim::identify::synth::LabDrop;
 use host_sim::trace::Trace;
@@ -287,7 +286,7 @@ fn hertz_peaks_alone_do_not_fix_k_and_n() {
             y.peak_n
         );
     }
-    let width = |s: &host_sim::identify::contact::SimImpact| {
+    let width = |s: &host_sim::identify::cost::SimImpact| {
         let p = &s.profile;
         p[p.len() - 1].0 - p[0].0
     };

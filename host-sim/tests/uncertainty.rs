@@ -8,11 +8,12 @@
 //! - propagation to the main job: ±5 % on Table 3.1's `k_i` and `c_i` gives a 95 % range of
 //!   the operating frequency that contains `select`'s nominal answer.
 
-use host_sim::config::{Setup, UncertaintyTable};
-use host_sim::identify::contact::{DropTest, Fit, Weights, fit_law, fit_law_joint};
+use host_sim::config::{Setup, UncertaintyTable, coordinate_names};
+use host_sim::identify::cost::{DropTest, Weights};
+use host_sim::identify::fit::{Fit, fit_law, fit_law_joint};
 use host_sim::identify::free::identify_free;
 use host_sim::identify::synth::LabDrop;
-use host_sim::identify::uncertainty::{Z95, coordinate_names};
+use host_sim::identify::uncertainty::Z95;
 use host_sim::propagate::propagate;
 use host_sim::selection::compute;
 use host_sim::trace::Trace;
@@ -242,7 +243,7 @@ fn five_percent_on_table_3_1_keeps_the_nominal_frequency_in_range() {
     // ±5 % as a 95 % interval: σ of ln k and ln c = ln(1.05)/1.96 (uncorrelated).
     let var = (1.05f64.ln() / Z95).powi(2);
     let table = UncertaintyTable {
-        law: ContactLawKind::SpringDashpot.to_string(),
+        law: ContactLawKind::SpringDashpot,
         coordinates: coordinate_names(ContactLawKind::SpringDashpot)
             .iter()
             .map(|c| c.to_string())
@@ -250,9 +251,7 @@ fn five_percent_on_table_3_1_keeps_the_nominal_frequency_in_range() {
         mean: vec![stiffness_n_m.ln(), damping_n_s_m.ln()],
         covariance: vec![vec![var, 0.0], vec![0.0, var]],
         method: None,
-        ci95: None,
-        noise_n: None,
-        notes: None,
+        lack_of_fit: None,
     };
     table.validate(&setup.params).unwrap();
     let p = propagate(&setup, 0.0, &table, &nominal, 64, 1).unwrap();
