@@ -10,11 +10,15 @@
 //! steps_per_period = 512
 //! [selection]                # shared::analysis::SelectionSpec
 //! freq_margin_pct = 4.0
-//! [uncertainty]              # written by `identify contact --out`: for `select --uncertainty`
+//! [uncertainty]              # UncertaintyTable: written by `identify contact --out`, read by `select`
 //! law = "spring-dashpot"
 //! coordinates = ["ln_stiffness_n_m", "ln_damping_n_s_m"]
 //! mean = [15.52, 7.09]
 //! covariance = [[2.7e-5, 2.8e-5], [2.8e-5, 1.5e-4]]
+//! method = "parametric bootstrap: …"   # optional
+//! [uncertainty.lack_of_fit]  # optional: the fit misses its data (`select` warns)
+//! residual_over_noise = 21.2
+//! note = "the spring-dashpot law does not fit these data: …"
 //! ```
 
 use std::fmt::Write as _;
@@ -48,7 +52,8 @@ pub struct RigOpts {
     /// Rig: hammer on wires, or on beam springs with 170/150/135 mm couplings distance.
     #[arg(long, value_parser = parse_rig, default_value = "wires")]
     pub rig: RigId,
-    /// Contact law (default: the identified spring–dashpot of Table 3.1).
+    /// Contact law (default: the identified spring–dashpot of Table 3.1). Lankarani–Nikravesh
+    /// is valid near e = 1 only: it rebounds at 0.663 or more whatever its e (docs/model.md).
     #[arg(long, value_parser = parse_law)]
     pub law: Option<ContactLawKind>,
     /// TOML file overriding any parameter: tables `[rig]`, `[settings]`, `[selection]` (and

@@ -169,6 +169,14 @@ pub struct FitCheck {
 }
 
 impl FitCheck {
+    /// The part that misses the data by the largest ratio, if any.
+    pub fn worst_part(&self) -> Option<&PartCheck> {
+        self.parts
+            .iter()
+            .filter(|p| p.misses)
+            .max_by(|a, b| a.ratio.total_cmp(&b.ratio))
+    }
+
     /// The residual over what the noise explains, in one number: the fitted error's ratio, or
     /// an unfitted part's (the profile of a peaks fit) if that one misses the data by more.
     pub fn headline_ratio(&self) -> f64 {
@@ -645,7 +653,7 @@ fn check_fit(
             })
             .collect();
         format!(
-            "the {} law does not fit these data: the residual is {worst:.0}× what the sensor \
+            "the {} law does not fit these data: the residual is {worst:.1}× what the sensor \
              noise explains (reduced χ²: {}; about 1 when a law fits); its parameters describe \
              this drop test only, and its intervals are widened √{:.1}×",
             problem.law,

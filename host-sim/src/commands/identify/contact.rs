@@ -588,7 +588,17 @@ fn print_contact(
     if !miss.is_empty() {
         let said: Vec<String> = miss
             .iter()
-            .map(|(k, c)| format!("{k} (residual {:.0}× the noise)", c.headline_ratio()))
+            .map(|(k, c)| {
+                format!(
+                    "{k} (residual {:.1}× the noise{})",
+                    c.headline_ratio(),
+                    c.worst_part().map_or_else(String::new, |p| format!(
+                        ", its {} {:.0}×",
+                        p.part.name(),
+                        p.ratio
+                    ))
+                )
+            })
             .collect();
         let fine: Vec<String> = fit
             .iter()
@@ -599,8 +609,10 @@ fn print_contact(
              law fits; ! beyond {LACK_OF_FIT_FACTOR}× and the noise's reach): {} {} not fit these data{}",
             said.join(", "),
             if miss.len() == 1 { "does" } else { "do" },
-            if fine.is_empty() {
+            if fine.is_empty() && fits.len() > 1 {
                 String::from("; no law fits to the noise")
+            } else if fine.is_empty() {
+                String::new()
             } else {
                 format!(
                     "; {} {} to the noise",
