@@ -324,11 +324,12 @@ impl ContactLaw {
     /// `None` for a non-positive or non-finite mass or speed, invalid parameters, or a contact
     /// that does not end within 100 half-periods.
     pub fn restitution(&self, mass_kg: f64, impact_speed_m_s: f64) -> Option<f64> {
-        if !(mass_kg > 0.0 && impact_speed_m_s > 0.0)
-            || !mass_kg.is_finite()
-            || !impact_speed_m_s.is_finite()
-            || self.validate().is_err()
-        {
+        let usable = mass_kg > 0.0
+            && impact_speed_m_s > 0.0
+            && mass_kg.is_finite()
+            && impact_speed_m_s.is_finite()
+            && self.validate().is_ok();
+        if !usable {
             return None;
         }
         let law = self.compile::<f64>();
