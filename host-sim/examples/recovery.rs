@@ -4,13 +4,18 @@
 //!
 //! - Recovery: the worst relative error over noise seeds 1–16 of each parameter, one release
 //!   height (3 mm) and two (0.25 mm and 3 mm, fitted jointly), peaks and profile errors.
-//! - Coverage: in how many of noise seeds 1–40 the 95 % interval holds the truth (one 3 mm drop).
+//! - Coverage: in how many of noise seeds 1–40 the 95 % interval holds the truth (one 3 mm drop),
+//!   and on how many the lack-of-fit note fires.
+//! - The wrong law: Hunt–Crossley drops fitted with the spring–dashpot law, 3, 1 and 0.25 mm:
+//!   the lack-of-fit note, and how often the intervals hold the centre of the estimates' spread.
 //!
 //! `cargo run --release -p host-sim --example recovery` (about 3 minutes on 2 cores); the tables
 //! of docs/identification.md.
 
-use host_sim::identify::contact::{DropTest, Fit, Weights, fit_law_joint};
+use host_sim::identify::cost::{DropTest, Weights};
+use host_sim::identify::fit::{Fit, fit_law_joint};
 use host_sim::identify::synth::LabDrop;
+use host_sim::identify::uncertainty::IntervalMethod;
 use host_sim::trace::Trace;
 use rayon::prelude::*;
 use shared::model::{ContactLaw, ContactLawKind};
@@ -105,9 +110,16 @@ fn worst(truth: ContactLaw, traces: &[(f64, &Trace)], weights: Weights) -> Strin
         .join(", ")
 }
 
-/// In how many of seeds 1–40 each parameter's 95 % interval holds the truth.
-fn coverage(truth: ContactLaw, trace: &Trace, weights: Weights) -> String {
-    let hits: Vec<Vec<(&'static str, bool)>> = (1..=40u64)
+/// In how many of seeds `seeds` each parameter's 95 % interval holds the truth, and on how
+/// many seeds the lack-of-fit note fires.
+fn coverage(
+    truth: ContactLaw,
+    trace: &Trace,
+    weights: Weights,
+    seeds: std::ops::RangeInclusive<u64>,
+) -> String {
+    let n = seeds.clone().count();
+    let hits: Vec<(Vec<(&'static str, bool)>, bool)> = seeds
         .into_par_iter()
         .map(|seed| {
             let t = lab(truth, 3.0).measured(trace, seed).expect("impacts");
@@ -115,22 +127,96 @@ fn coverage(truth: ContactLaw, trace: &Trace, weights: Weights) -> String {
                 fit_law_joint(std::slice::from_ref(&t), truth.kind(), weights, 400).expect("fit");
             let u = f.uncertainty.expect("uncertainty");
             let p = params(&truth);
-            u.params
+            let h = u
+                .params
                 .iter()
                 .map(|q| {
                     let v = p.iter().find(|x| x.0 == q.name).expect("parameter").1;
                     (q.name, q.ci95[0] <= v && v <= q.ci95[1])
                 })
-                .collect()
+                .collect();
+            (h, u.fit_check.misses)
         })
         .collect();
-    (0..hits[0].len())
+    let mut out: Vec<String> = (0..hits[0].0.len())
         .map(|i| {
-            let n = hits.iter().filter(|h| h[i].1).count();
-            format!("`{}` {n}/40", hits[0][i].0)
+            let k = hits.iter().filter(|h| h.0[i].1).count();
+            format!("`{}` {k}/{n}", hits[0].0[i].0)
         })
-        .collect::<Vec<_>>()
-        .join(", ")
+        .collect();
+    out.push(format!(
+        "lack of fit {}/{n}",
+        hits.iter().filter(|h| h.1).count()
+    ));
+    out.join(", ")
+}
+
+/// Hunt–Crossley drops (Fig. 3.3) released `release_mm` fitted with the spring–dashpot law over
+/// seeds 1–40: the flagged seeds, the reduced χ² range, and for `k_i`, `c_i` the spread over the
+/// seeds and in how many seeds the scaled (and the noise-only) interval holds the median.
+fn wrong_law(release_mm: f64, weights: Weights) -> String {
+    let truth = ContactLaw::preset(ContactLawKind::HuntCrossley);
+    let clean = lab(truth, release_mm).clean().expect("valid drop");
+    let fits: Vec<Fit> = (1..=40u64)
+        .into_par_iter()
+        .map(|seed| {
+            let t = lab(truth, release_mm)
+                .measured(&clean, seed)
+                .expect("impacts");
+            fit_law_joint(
+                std::slice::from_ref(&t),
+                ContactLawKind::SpringDashpot,
+                weights,
+                400,
+            )
+            .expect("fit")
+        })
+        .collect();
+    let ratios: Vec<f64> = fits
+        .iter()
+        .map(|f| f.uncertainty.as_ref().expect("uncertainty").fit_check.ratio)
+        .collect();
+    let flagged = fits
+        .iter()
+        .filter(|f| {
+            f.uncertainty
+                .as_ref()
+                .expect("uncertainty")
+                .fit_check
+                .misses
+        })
+        .count();
+    let mut s = format!(
+        "| {release_mm} mm | {flagged}/40 | {:.1}–{:.1} |",
+        ratios.iter().copied().fold(f64::INFINITY, f64::min),
+        ratios.iter().copied().fold(0.0, f64::max)
+    );
+    for (i, name) in ["k_i", "c_i"].iter().enumerate() {
+        let mut v: Vec<f64> = fits.iter().map(|f| params(&f.law)[i].1).collect();
+        v.sort_by(f64::total_cmp);
+        let centre = v[v.len() / 2];
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64).sqrt();
+        let holds = |method| {
+            fits.iter()
+                .filter(|f| {
+                    let u = f
+                        .uncertainty
+                        .as_ref()
+                        .expect("uncertainty")
+                        .with_intervals(method);
+                    u.params[i].ci95[0] <= centre && centre <= u.params[i].ci95[1]
+                })
+                .count()
+        };
+        s.push_str(&format!(
+            " `{name}` {centre:.4e}, spread {:.2} %: {}/40 (noise only {}/40) |",
+            100.0 * sd / mean,
+            holds(IntervalMethod::Scaled),
+            holds(IntervalMethod::Noise)
+        ));
+    }
+    s
 }
 
 /// A row group of the recovery table: name, true law, the errors fitted.
@@ -213,8 +299,21 @@ fn main() {
         let c3 = lab(law, 3.0).clean().expect("valid drop");
         println!(
             "| {name} | {} | {} |",
-            coverage(law, &c3, PEAKS),
-            coverage(law, &c3, PROFILE)
+            coverage(law, &c3, PEAKS, 1..=40),
+            coverage(law, &c3, PROFILE, 1..=40)
         );
+    }
+    let hc = ContactLaw::preset(ContactLawKind::HuntCrossley);
+    let c3 = lab(hc, 3.0).clean().expect("valid drop");
+    println!(
+        "Hunt–Crossley, profile, seeds 1–160: {}",
+        coverage(hc, &c3, PROFILE, 1..=160)
+    );
+    println!();
+    println!("The wrong law: Hunt–Crossley (Fig. 3.3) drops fitted with the spring–dashpot law");
+    println!("| release | flagged | reduced χ² | `k_i` | `c_i` |");
+    println!("|---|---|---|---|---|");
+    for release_mm in [3.0, 1.0, 0.25] {
+        println!("{}", wrong_law(release_mm, PROFILE));
     }
 }

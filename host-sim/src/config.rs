@@ -10,11 +10,15 @@
 //! steps_per_period = 512
 //! [selection]                # shared::analysis::SelectionSpec
 //! freq_margin_pct = 4.0
-//! [uncertainty]              # written by `identify contact --out`: for `select --uncertainty`
+//! [uncertainty]              # UncertaintyTable: written by `identify contact --out`, read by `select`
 //! law = "spring-dashpot"
 //! coordinates = ["ln_stiffness_n_m", "ln_damping_n_s_m"]
 //! mean = [15.52, 7.09]
 //! covariance = [[2.7e-5, 2.8e-5], [2.8e-5, 1.5e-4]]
+//! method = "parametric bootstrap: …"   # optional
+//! [uncertainty.lack_of_fit]  # optional: the fit misses its data (`select` warns)
+//! residual_over_noise = 21.2
+//! note = "the spring-dashpot law does not fit these data: …"
 //! ```
 
 use std::fmt::Write as _;
@@ -22,7 +26,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use shared::analysis::{SelectionSpec, SimSettings, Sweep};
 use shared::error::check_range;
 use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams};
@@ -48,7 +52,8 @@ pub struct RigOpts {
     /// Rig: hammer on wires, or on beam springs with 170/150/135 mm couplings distance.
     #[arg(long, value_parser = parse_rig, default_value = "wires")]
     pub rig: RigId,
-    /// Contact law (default: the identified spring–dashpot of Table 3.1).
+    /// Contact law (default: the identified spring–dashpot of Table 3.1). Lankarani–Nikravesh
+    /// is valid near e = 1 only: it rebounds at 0.663 or more whatever its e (docs/model.md).
     #[arg(long, value_parser = parse_law)]
     pub law: Option<ContactLawKind>,
     /// TOML file overriding any parameter: tables `[rig]`, `[settings]`, `[selection]` (and
@@ -114,34 +119,91 @@ pub struct Setup {
     pub uncertainty: Option<UncertaintyTable>,
 }
 
-/// The `[uncertainty]` table: the contact law's parameters as a normal distribution in the
-/// coordinates `identify contact` reports (`ln` of the scale parameters), for
-/// `select --uncertainty`. Other keys it writes (`ci95`, `notes`, …) are for the reader.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+/// The `[uncertainty]` table of a config file, written by `identify contact --out` and read by
+/// `select` (`--uncertainty` draws from it; a flagged fit is warned about with or without it):
+/// the contact law's parameters as a normal distribution in the coordinates of
+/// [`coordinate_names`] (`ln` of the scale parameters).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct UncertaintyTable {
-    /// The law (`spring-dashpot`, …): the same as `[rig.contact]`'s.
-    pub law: String,
-    /// Coordinate names, in the law's order.
+    /// The law: the same as `[rig.contact]`'s.
+    pub law: ContactLawKind,
+    /// Coordinate names, in the law's order ([`coordinate_names`]).
     pub coordinates: Vec<String>,
     /// Mean.
     pub mean: Vec<f64>,
-    /// Covariance (symmetric, finite, positive semi-definite).
+    /// Covariance (symmetric, finite, positive semi-definite; `inf` on the diagonal for a
+    /// coordinate the identification did not fix).
     pub covariance: Vec<Vec<f64>>,
-    /// How it was estimated.
-    #[serde(default)]
+    /// How the covariance was estimated (`select --uncertainty` says it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub method: Option<String>,
-    /// The 95 % intervals, by parameter key.
-    #[serde(default)]
-    pub ci95: Option<toml::Table>,
-    /// Sensor noise of each trace, N.
-    #[serde(default)]
-    pub noise_n: Option<Vec<f64>>,
-    /// Identifiability notes.
-    #[serde(default)]
-    pub notes: Option<Vec<String>>,
+    /// Set when the identification found that the law does not fit its data (`select` warns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lack_of_fit: Option<LackOfFit>,
+}
+
+/// The lack-of-fit verdict of an identification, as its config file carries it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LackOfFit {
+    /// The error at the fit over what the sensor noise alone explains (1 when the law fits).
+    pub residual_over_noise: f64,
+    /// The identification's words for it.
+    pub note: String,
+}
+
+/// The coordinates of the `[uncertainty]` table for `law`, in the law's parameter order: the
+/// logarithm of each scale parameter (stiffness, `c_i`, `λ_i`), the others as they are (`n`, `e`).
+pub fn coordinate_names(law: ContactLawKind) -> &'static [&'static str] {
+    match law {
+        ContactLawKind::SpringDashpot => &["ln_stiffness_n_m", "ln_damping_n_s_m"],
+        ContactLawKind::Hertz => &["ln_stiffness", "exponent"],
+        ContactLawKind::HuntCrossley => &["ln_stiffness", "exponent", "ln_lambda_s_m"],
+        ContactLawKind::LankaraniNikravesh => &["ln_stiffness", "exponent", "restitution"],
+    }
+}
+
+/// The law at coordinates `rep` of [`coordinate_names`] (e.g. a draw of `select --uncertainty`);
+/// `None` if `rep` is short or the law is invalid.
+pub fn law_from_coordinates(law: ContactLawKind, rep: &[f64]) -> Option<ContactLaw> {
+    let get = |i: usize| rep.get(i).copied();
+    let l = match law {
+        ContactLawKind::SpringDashpot => ContactLaw::SpringDashpot {
+            stiffness_n_m: get(0)?.exp(),
+            damping_n_s_m: get(1)?.exp(),
+        },
+        ContactLawKind::Hertz => ContactLaw::Hertz {
+            stiffness: get(0)?.exp(),
+            exponent: get(1)?,
+        },
+        ContactLawKind::HuntCrossley => ContactLaw::HuntCrossley {
+            stiffness: get(0)?.exp(),
+            exponent: get(1)?,
+            lambda_s_m: get(2)?.exp(),
+        },
+        ContactLawKind::LankaraniNikravesh => ContactLaw::LankaraniNikravesh {
+            stiffness: get(0)?.exp(),
+            exponent: get(1)?,
+            restitution: get(2)?,
+        },
+    };
+    l.validate().is_ok().then_some(l)
 }
 
 impl UncertaintyTable {
+    /// The table as TOML (`[uncertainty]` and its `[uncertainty.lack_of_fit]`).
+    ///
+    /// # Errors
+    /// Serialisation failure.
+    pub fn to_toml(&self) -> Result<String> {
+        #[derive(Serialize)]
+        struct Root<'a> {
+            uncertainty: &'a UncertaintyTable,
+        }
+        toml::to_string(&Root { uncertainty: self }).context("writing the [uncertainty] table")
+    }
+
     /// Checks the table against the rig's contact law.
     ///
     /// # Errors
@@ -149,11 +211,11 @@ impl UncertaintyTable {
     pub fn validate(&self, params: &RigParams) -> Result<()> {
         let law = params.contact.kind();
         anyhow::ensure!(
-            self.law == law.to_string(),
+            self.law == law,
             "[uncertainty] `law` = {} but [rig.contact] is {law}",
             self.law
         );
-        let expected = crate::identify::uncertainty::coordinate_names(law);
+        let expected = coordinate_names(law);
         anyhow::ensure!(
             self.coordinates
                 .iter()

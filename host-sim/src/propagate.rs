@@ -23,8 +23,7 @@ use serde::Serialize;
 use shared::analysis::SelectionError;
 use shared::model::ContactLawKind;
 
-use crate::config::{Setup, UncertaintyTable};
-use crate::identify::uncertainty::law_from_coordinates;
+use crate::config::{Setup, UncertaintyTable, law_from_coordinates};
 use crate::selection::{SelectReport, compute_parts};
 
 /// Median and 95 % range.
@@ -143,10 +142,7 @@ pub fn propagate(
         (8..=100_000).contains(&draws),
         "--draws = {draws} is out of range: allowed 8 ..= 100000"
     );
-    let kind: ContactLawKind = table
-        .law
-        .parse()
-        .map_err(|e| anyhow::anyhow!("[uncertainty] law: {e}"))?;
+    let kind: ContactLawKind = table.law;
     let l = factor(&table.covariance);
     let mean = DVector::from_column_slice(&table.mean);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -4,6 +4,8 @@
 use anyhow::{Result, anyhow};
 use serde::Serialize;
 use shared::analysis::{ResponseSample, Selection, SelectionError, perturbed_gaps, select};
+use shared::model::ContactLaw;
+use shared::model::rig::IMPACT_SPEEDS_M_S;
 
 use shared::Real;
 use shared::orbit::{ContinuationSettings, Edge, Orbit, Param, band_edges};
@@ -59,6 +61,10 @@ pub struct SelectReport {
     /// until checked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub band_check: Option<BandCheck>,
+    /// What the answer rests on that the user should know (a contact law its identification
+    /// flagged); absent when empty.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// The chosen point's periodic orbit and the edges of its `1/1` band located on its branch
@@ -143,6 +149,7 @@ fn report(setup: &Setup, gap_mm: f64, gaps_mm: Vec<f64>, sel: &Selection) -> Sel
             impact_force_mg: c.impact_force_mg,
         }),
         band_check: None,
+        warnings: Vec::new(),
     }
 }
 
@@ -225,6 +232,72 @@ pub fn check_band(setup: &Setup, rep: &mut SelectReport) -> Result<()> {
     rep.band_check = Some(check);
     Ok(())
 }
+
+/// The warning for a config whose `[uncertainty]` table carries a lack-of-fit verdict
+/// (`identify contact` found that the law does not fit its drop tests); `None` otherwise.
+pub fn lack_of_fit_warning(setup: &Setup, config: &str) -> Option<String> {
+    let l = setup.uncertainty.as_ref()?.lack_of_fit.as_ref()?;
+    Some(format!(
+        "{config} was flagged by identify contact ({:.1}× the noise): {}; this answer rests on \
+         a law that does not fit its drop test",
+        l.residual_over_noise, l.note
+    ))
+}
+
+/// What in the parameters can leave the rig without a robust `1/1` point: the contact law's
+/// effective restitution at the rigs' impact speeds ([`IMPACT_SPEEDS_M_S`], one simulated
+/// impact each) against the rig's identified law (Table 3.1), and what a nearly elastic
+/// contact does.
+pub fn no_one_to_one_diagnosis(setup: &Setup) -> String {
+    let m = setup.params.mass_kg;
+    let es = |law: &ContactLaw| -> Vec<Option<f64>> {
+        IMPACT_SPEEDS_M_S
+            .iter()
+            .map(|&v| law.restitution(m, v))
+            .collect()
+    };
+    let text = |v: &[Option<f64>]| {
+        v.iter()
+            .map(|e| e.map_or_else(|| "–".to_string(), |e| format!("{e:.3}")))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let speeds: Vec<String> = IMPACT_SPEEDS_M_S
+        .iter()
+        .map(|v| format!("{:.0}", 1e3 * v))
+        .collect();
+    let law = setup.params.contact;
+    let own = es(&law);
+    let reference = es(&ContactLaw::identified());
+    let lowest = own.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+    let mut s = format!(
+        "the {} law rebounds at e = {} at the rig's impact speeds {} mm/s (one simulated \
+         impact each; Table 3.1's identified law: {})",
+        law.kind(),
+        text(&own),
+        speeds.join(", "),
+        text(&reference)
+    );
+    if lowest >= ELASTIC_RESTITUTION {
+        s.push_str(&format!(
+            ": a contact this elastic leaves the hammer no steady one-impact-per-period motion \
+             near the surface (on the wire rig at 0.0 mm gap a spring–dashpot law with e ≥ \
+             0.96 has no robust 1/1 point, with e = 0.92 a band: docs/identification.md); check \
+             the law's dissipation ({})",
+            match law.kind() {
+                shared::model::ContactLawKind::SpringDashpot => "c_i",
+                shared::model::ContactLawKind::HuntCrossley => "λ_i",
+                shared::model::ContactLawKind::LankaraniNikravesh => "e",
+                shared::model::ContactLawKind::Hertz => "none: Hertz is elastic",
+            }
+        ));
+    }
+    s
+}
+
+/// A contact whose restitution is at least this at every impact speed is called nearly
+/// elastic by [`no_one_to_one_diagnosis`].
+pub const ELASTIC_RESTITUTION: f64 = 0.95;
 
 /// Computes the selection (responses at the nominal and perturbed gaps, in parallel).
 ///

@@ -380,9 +380,9 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
     assert_eq!(fits.len(), 4);
     assert_eq!(v["best"], "spring-dashpot");
     let best = fits.iter().find(|f| f["law"] == "spring-dashpot").unwrap();
-    assert_eq!(best["delta_aic"].as_f64().unwrap(), 0.0);
+    assert_eq!(best["delta_aicc"].as_f64().unwrap(), 0.0);
     for f in fits.iter().filter(|f| f["law"] != "spring-dashpot") {
-        assert!(f["delta_aic"].as_f64().unwrap() > 2.0, "{f}");
+        assert!(f["delta_aicc"].as_f64().unwrap() > 2.0, "{f}");
     }
     // Intervals hold the truth (k_i = 5.5e6 N/m, c_i = 1.2e3 N s/m) and are narrow; no note.
     let u = &best["uncertainty"];
@@ -467,5 +467,102 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
         )),
         &["ln_stiffness_n_m", "did not fix"],
         &[Path::new(&p("u.png"))],
+    );
+}
+
+#[test]
+fn a_wrong_law_is_called_so_and_select_warns_before_using_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    // A strongly dissipative Hunt–Crossley contact (e = 0.81 at the drop's 34 mm/s), one 3 mm
+    // drop, fitted with the spring–dashpot law and with every law.
+    fs::write(
+        p("hc.toml"),
+        "[rig.contact.hunt-crossley]\nstiffness = 1.0e9\nexponent = 1.5\nlambda_s_m = 10.0\n",
+    )
+    .unwrap();
+    ok(&line(&format!(
+        "drop --config {} --release-mm 3 --duration-s 1.2 --noise-pct 1 --offset-n 0.5 --seed 1 --out {}",
+        p("hc.toml"),
+        p("hc.csv")
+    )));
+    let text = ok(&line(&format!(
+        "identify contact --trace {} --mass-kg 0.298 --law all",
+        p("hc.csv")
+    )));
+    assert!(text.contains("! lack of fit"), "{text}");
+    assert!(
+        text.contains("spring-dashpot (residual") && text.contains("hunt-crossley ("),
+        "{text}"
+    );
+    let json = ok(&line(&format!(
+        "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot --out {} --json",
+        p("hc.csv"),
+        p("fit.toml")
+    )));
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let fit = &v["fits"][0];
+    let check = &fit["uncertainty"]["fit_check"];
+    assert_eq!(check["misses"], true, "{check}");
+    assert!(check["ratio"].as_f64().unwrap() > 5.0, "{check}");
+    // The printed restitution is the closed form of the fitted k_i, c_i.
+    let sd = &fit["contact"]["spring-dashpot"];
+    let (e, _) = shared::model::contact::spring_dashpot_restitution(
+        sd["stiffness_n_m"].as_f64().unwrap(),
+        sd["damping_n_s_m"].as_f64().unwrap(),
+        0.298,
+    )
+    .unwrap();
+    let printed = fit["restitution"]["at_first_impact"].as_f64().unwrap();
+    assert!((printed / e - 1.0).abs() < 0.005, "{printed} vs {e}");
+    let cfg = fs::read_to_string(p("fit.toml")).unwrap();
+    assert!(cfg.contains("[uncertainty.lack_of_fit]"), "{cfg}");
+    // select warns, in text and in JSON.
+    let text = ok(&line(&format!(
+        "select --config {} --gap-mm 0",
+        p("fit.toml")
+    )));
+    assert!(
+        text.contains("! warning: ") && text.contains("flagged by identify contact"),
+        "{text}"
+    );
+    let json = ok(&line(&format!(
+        "select --config {} --gap-mm 0 --json",
+        p("fit.toml")
+    )));
+    let s: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let w = s["warnings"][0].as_str().unwrap();
+    assert!(w.contains("does not fit these data"), "{w}");
+    // Table 3.1's own law: no warning in the JSON at all.
+    let plain = ok(&line("select --gap-mm 0 --json --omega-ratio 1.8:2.2:0.05"));
+    assert!(!plain.contains("warnings"), "{plain}");
+}
+
+#[test]
+fn select_says_why_a_fit_has_no_one_to_one_point() {
+    // Fig. 3.3's Hunt–Crossley drop fitted with the spring–dashpot law: an almost elastic
+    // contact (e = 0.987 at every speed), for which the wire rig has no 1/1 point; select says
+    // so, with the restitution and the identification's verdict.
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    ok(&line(&format!(
+        "drop --law hunt-crossley --release-mm 3 --duration-s 1.2 --noise-pct 1 --offset-n 0.5 --seed 1 --out {}",
+        p("hc.csv")
+    )));
+    ok(&line(&format!(
+        "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot --out {}",
+        p("hc.csv"),
+        p("fit.toml")
+    )));
+    rejected(
+        &line(&format!("select --config {} --gap-mm 0", p("fit.toml"))),
+        &[
+            "no z = 1/1 point",
+            "why: the spring-dashpot law rebounds at e = 0.98",
+            "Table 3.1's identified law: 0.317",
+            "warning: ",
+            "does not fit these data",
+        ],
+        &[],
     );
 }

@@ -12,6 +12,7 @@ use crate::output::Outputs;
 use crate::propagate::{Propagation, propagate};
 use crate::response;
 pub use crate::selection::{OtherBest, SelectReport, compute};
+use crate::selection::{lack_of_fit_warning, no_one_to_one_diagnosis};
 
 /// Arguments of `select`.
 #[derive(Debug, Args)]
@@ -100,7 +101,20 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     } else {
         None
     };
-    let (rep, nominal) = compute(&setup, a.gap_mm)?;
+    let config = a.config_name();
+    let warning = lack_of_fit_warning(&setup, &config);
+    let (mut rep, nominal) = compute(&setup, a.gap_mm).map_err(|e| {
+        // Say what in the parameters can cause it, and the identification's verdict.
+        let mut text = format!("{e:#}");
+        if text.contains("z = 1/1 point") {
+            text.push_str(&format!("\n  why: {}", no_one_to_one_diagnosis(&setup)));
+        }
+        if let Some(w) = &warning {
+            text.push_str(&format!("\n  warning: {w}"));
+        }
+        anyhow!(text)
+    })?;
+    rep.warnings.extend(warning);
     let spread = match &table {
         Some(t) => Some(propagate(&setup, a.gap_mm, t, &rep, a.draws, a.seed)?),
         None => None,
@@ -166,7 +180,10 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     } else {
         print_report(&rep);
         if let Some(sp) = &spread {
-            print_spread(&rep, sp, a.config_name());
+            print_spread(&rep, sp, config, setup.uncertainty.as_ref());
+        }
+        for w in &rep.warnings {
+            println!("  ! warning: {w}");
         }
     }
     Ok(())
@@ -181,10 +198,18 @@ impl SelectArgs {
     }
 }
 
-fn print_spread(r: &SelectReport, sp: &Propagation, config: String) {
+fn print_spread(
+    r: &SelectReport,
+    sp: &Propagation,
+    config: String,
+    table: Option<&crate::config::UncertaintyTable>,
+) {
     println!(
-        "  with the identified law's uncertainty ({} draws from {config}'s [uncertainty], seed {}{}):",
+        "  with the identified law's uncertainty ({} draws from {config}'s [uncertainty]{}, seed {}{}):",
         sp.draws,
+        table
+            .and_then(|t| t.method.as_deref())
+            .map_or_else(String::new, |m| format!(" ({m})")),
         sp.seed,
         if sp.redrawn > 0 {
             format!(", {} invalid draws redrawn", sp.redrawn)

@@ -9,7 +9,9 @@ use shared::model::ContactLawKind;
 
 use super::{Frame, SANS, canvas, line_key, panel, series_legend};
 use crate::comparison::{ResponseOverlay, TsOverlay};
-use crate::identify::contact::{DropData, Fit, SimDrop};
+use crate::identify::cost::SimDrop;
+use crate::identify::data::DropData;
+use crate::identify::fit::Fit;
 
 /// The time-series comparison's panels.
 const TRACE: Frame = Frame::new(12, 40, 60, 14);

@@ -1,9 +1,18 @@
-//! Parameter identification and comparison with measurements (thesis §3.3.2–3.3.4, §3.4.1):
-//! the contact law from a drop test ([`contact`]), the suspension from a free decay
-//! ([`free`]), synthetic drop tests made by the plant simulation ([`synth`]), and the fitted
-//! parameters' uncertainty ([`uncertainty`]).
+//! Parameter identification and comparison with measurements (thesis §3.3.2–3.3.4, §3.4.1).
+//!
+//! The contact law from drop tests, by concern (each module uses only those listed before it):
+//! - [`data`]: the measured drop test — offset, noise, impacts, their peaks and times;
+//! - [`cost`]: the simulated drop and the error a law makes on the measured ones, in the search
+//!   coordinates of the fit;
+//! - [`uncertainty`]: the fitted parameters' intervals and the lack-of-fit check (bootstrap);
+//! - [`fit`]: Nelder–Mead on the error, several laws compared;
+//! - [`synth`]: synthetic drop tests made by the plant simulation, for tests and examples.
+//!
+//! The suspension from a free decay: [`free`].
 
-pub mod contact;
+pub mod cost;
+pub mod data;
+pub mod fit;
 pub mod free;
 pub mod synth;
 pub mod uncertainty;

@@ -11,11 +11,12 @@ use shared::error::check_range;
 use shared::integrate::StepSettings;
 use shared::model::{ContactLaw, RigId, RigParams};
 
-use super::contact::{DropSetup, DropTest, FIT_STEPS, analyse_drop, simulate_drop};
+use super::cost::{DropSetup, DropTest, FIT_STEPS, resample, simulate_drop};
+use super::data::analyse_drop;
 use crate::trace::Trace;
 
 /// Integrator settings of the synthetic "measurements": finer than the fit's
-/// ([`super::contact::FIT_STEPS`]), so that a recovery test does not fit the integrator's own
+/// ([`super::cost::FIT_STEPS`]), so that a recovery test does not fit the integrator's own
 /// discretisation (512 steps per natural period, 256 sub-steps per contact half-period).
 pub const TRUTH_STEPS: StepSettings = StepSettings {
     steps_per_period: 512,
@@ -143,31 +144,6 @@ pub fn clean_drop(
     let t_s: Vec<f64> = (0..samples_n).map(|i| i as f64 / sample_rate_hz).collect();
     let value = resample(&sim.samples, t_s.iter().copied());
     Ok(Trace { t_s, value })
-}
-
-/// `(t, F)` samples (times increasing) linearly interpolated at `times` (increasing); the
-/// first or last sample's force outside them.
-pub(crate) fn resample(samples: &[(f64, f64)], times: impl Iterator<Item = f64>) -> Vec<f64> {
-    let s = samples;
-    let mut j = 0;
-    times
-        .map(|t| {
-            while j + 1 < s.len() && s[j + 1].0 < t {
-                j += 1;
-            }
-            if j + 1 < s.len() {
-                let (t0, f0) = s[j];
-                let (t1, f1) = s[j + 1];
-                if t1 > t0 {
-                    f0 + (f1 - f0) * ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
-                } else {
-                    f1
-                }
-            } else {
-                s.last().map_or(0.0, |p| p.1)
-            }
-        })
-        .collect()
 }
 
 /// A clean trace ([`clean_drop`], at `sensor`'s rate) as `sensor` records it: plus its offset

@@ -1,37 +1,64 @@
-//! The fitted contact law's uncertainty: 95 % intervals, correlations, and what the data leave
+//! The fitted contact law's uncertainty: whether the law fits the data at all (lack of fit),
+//! 95 % intervals that include its misfit, correlations, and what the data leave
 //! undetermined, said in words.
 //!
-//! ## Method (parametric bootstrap, linearised in the parameters)
+//! ## The noise bootstrap (parametric, linearised in the parameters)
 //! The fit minimises `J(x) = Σ r̃_i(x, F)²` over the search coordinates `x` (module
-//! [`super::contact`]), where the terms `r̃` depend on the measured samples `F` through the
+//! [`super::cost`]), where the terms `r̃` depend on the measured samples `F` through the
 //! preprocessing: thresholds, impact windows, peak estimates and centroids. Those are not
 //! smooth in `F` (a noisy sample crosses the threshold, the largest sample of a flat top
 //! changes), so the noise is propagated by simulation rather than by derivatives:
 //! - the drop at the fit is simulated and sampled at each trace's sample times; [`REDRAWS`]
-//!   times, white noise of the trace's own `σ` is added (ChaCha8, seeded: the same result on
-//!   every machine) and the redrawn trace is preprocessed like the measurement;
+//!   times, white noise of the trace's own `σ` is added (ChaCha8, one key per trace and
+//!   redraw: the same result on every machine) and the redrawn trace is preprocessed like the
+//!   measurement;
 //! - for each redraw `b`, one Gauss–Newton step from the fit gives where a fit of that trace
 //!   would land: `δx_b = −R_b⁺ r̃_b`, with `r̃_b` the terms of the redrawn trace against the
-//!   fitted drop and `R_b = ∂r̃_b/∂x` (central differences, step 1e-3, on drops simulated
-//!   once for all redraws; `R⁺` from nalgebra's SVD);
-//! - `Cov(x)` is the covariance of the `δx_b`.
+//!   fitted drop and `R_b = ∂r̃_b/∂x` (central differences, [`super::cost::Around`], on drops
+//!   simulated once for all redraws; `R⁺` from nalgebra's SVD);
+//! - the noise covariance `C_noise` is the covariance of the `δx_b`.
 //!
-//! Redraws whose trace does not show the measured number of impacts are dropped (counted in
-//! the method); fewer than half usable is an error.
+//! Redraws that give no usable data are dropped and counted by cause ([`RedrawFailure`]),
+//! among them those whose error after the step is beyond 20× the median redraw's (a window or
+//! peak taken from noise: one such redraw would dominate the covariance); fewer than half
+//! usable is an error.
+//!
+//! ## Lack of fit
+//! The same redraws say what the error at a fit is when the law is right and only the sensor
+//! noise is left: after its Gauss–Newton step, redraw `b`'s terms `r̃_b + R_b δx_b` have the
+//! sums of squares `J_b` of each part of the error (peaks, times, profile — the profile even
+//! when the fit uses the peaks only) and of the error as fitted. The measured fit's sums over
+//! their mean over the redraws are the reduced χ² of each part, `ρ = J / E[J]` (1 when the law
+//! fits; the redraws' relative standard deviation is its expected spread). A part misses the
+//! data when `ρ > LACK_OF_FIT_FACTOR` and `J` lies above every redraw's: then the law does not
+//! fit these data, and the notes say so instead of asking for more data.
+//!
+//! ## Intervals ([`IntervalMethod`])
+//! - `scaled` (default): `C = max(1, ρ) · C_noise`, `ρ` the reduced χ² of the error as fitted
+//!   — the misfit counted as noise (Birge's ratio; the Particle Data Group's scale factor).
+//!   When the law fits, `ρ ≈ 1` and these are the noise intervals; when it misses the data
+//!   `ρ`-fold, the intervals widen `√ρ`-fold.
+//! - `noise`: `C_noise` alone (the sensor noise, no model error).
 //!
 //! The reported coordinates are linear in `x`: `ln k_i` (the stiffness), `n`, `ln c_i`,
 //! `ln λ_i`, `e`. Scale parameters (`k_i`, `c_i`, `λ_i`) get log-normal intervals
 //! `[v e^{−1.96 s}, v e^{1.96 s}]`, the others `v ± 1.96 s`. Where the linearisation does not
 //! hold (a parameter the data barely fix), the interval says so by its width; a direction
 //! along which the error does not change at all (singular `R`) is reported as not identifiable.
-//! Coverage on synthetic drop tests with known truth: `host-sim/tests/uncertainty.rs`.
+//! Coverage on synthetic drop tests with known truth, and with the wrong law:
+//! `host-sim/tests/uncertainty.rs`.
+
+use std::collections::BTreeMap;
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
-use shared::model::{ContactLaw, ContactLawKind};
+use shared::model::ContactLawKind;
 
-use super::contact::{Problem, SimDrop};
+use super::cost::{
+    BROKEN_REDRAW, Linear, PROFILE_MIN_SAMPLES, Part, Problem, RedrawFailure, weighted,
+};
+use crate::config::{LackOfFit, UncertaintyTable, coordinate_names};
 
 /// The normal quantile of a two-sided 95 % interval.
 pub const Z95: f64 = 1.959_963_984_540_054;
@@ -41,10 +68,35 @@ pub const WIDE_REL: f64 = 0.10;
 pub const STRONG_CORRELATION: f64 = 0.95;
 /// Noise redraws of the parametric bootstrap.
 pub const REDRAWS: usize = 100;
+/// A part of the error this many times what the noise explains (and beyond what the noise
+/// gives with probability [`LACK_OF_FIT_P`]) means the law does not fit the data.
+pub const LACK_OF_FIT_FACTOR: f64 = 3.0;
+/// The chance below which a part's misfit is not the noise's.
+pub const LACK_OF_FIT_P: f64 = 1e-4;
 /// The step of the central differences in the search coordinates.
-const JACOBIAN_STEP: f64 = 1e-3;
 /// A singular value below this fraction of the largest marks a direction the data do not fix.
 const SINGULAR: f64 = 1e-9;
+
+/// How the intervals are made from the bootstrap (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum IntervalMethod {
+    /// The noise bootstrap's covariance scaled by the reduced χ² of the fit when above 1:
+    /// intervals that widen with the law's misfit.
+    #[default]
+    Scaled,
+    /// The noise bootstrap alone: the sensor noise, no model error.
+    Noise,
+}
+
+impl std::fmt::Display for IntervalMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            IntervalMethod::Scaled => "scaled",
+            IntervalMethod::Noise => "noise",
+        })
+    }
+}
 
 /// One fitted parameter with its 95 % interval.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -77,97 +129,201 @@ impl ParamEstimate {
     }
 }
 
+/// One part of the error at the fit against what the sensor noise explains.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PartCheck {
+    /// Which part.
+    pub part: Part,
+    /// Its terms.
+    pub terms: usize,
+    /// Whether the fit minimised it (the profile of a peaks fit is only checked).
+    pub fitted: bool,
+    /// Its sum of squares at the fit, `J` (unweighted terms).
+    pub j: f64,
+    /// Its mean over the noise redraws after their Gauss–Newton step, `E[J]`.
+    pub expected: f64,
+    /// `J / E[J]`: the reduced χ² (1 when the law fits).
+    pub ratio: f64,
+    /// The redraws' relative standard deviation of `J`: the ratio's expected spread.
+    pub spread: f64,
+    /// The largest of the redraws' `J / E[J]`.
+    pub redraw_max: f64,
+    /// The chance of a ratio this large from the noise alone (`χ²_ν/ν` with the redraws'
+    /// spread, `ν = 2/spread²`).
+    pub p_value: f64,
+    /// `ratio > LACK_OF_FIT_FACTOR` and `p_value < LACK_OF_FIT_P`.
+    pub misses: bool,
+}
+
+/// Whether the law fits the data to the sensor noise.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FitCheck {
+    /// Every part of the error with terms.
+    pub parts: Vec<PartCheck>,
+    /// The error as fitted (`J`, weighted) over its mean over the redraws.
+    pub ratio: f64,
+    /// Whether some part misses the data.
+    pub misses: bool,
+    /// What it means, in words (`None` when the law fits).
+    pub note: Option<String>,
+}
+
+impl FitCheck {
+    /// The part that misses the data by the largest ratio, if any.
+    pub fn worst_part(&self) -> Option<&PartCheck> {
+        self.parts
+            .iter()
+            .filter(|p| p.misses)
+            .max_by(|a, b| a.ratio.total_cmp(&b.ratio))
+    }
+
+    /// The residual over what the noise explains, in one number: the fitted error's ratio, or
+    /// an unfitted part's (the profile of a peaks fit) if that one misses the data by more.
+    pub fn headline_ratio(&self) -> f64 {
+        self.parts
+            .iter()
+            .filter(|p| p.misses && !p.fitted)
+            .map(|p| p.ratio)
+            .fold(self.ratio, f64::max)
+    }
+}
+
+/// What became of the bootstrap's noise redraws.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Redraws {
+    /// Redraws made.
+    pub made: usize,
+    /// Redraws used.
+    pub used: usize,
+    /// Redraws dropped, by cause.
+    pub failed: BTreeMap<RedrawFailure, usize>,
+}
+
+impl Redraws {
+    /// `"100 of 100 noise redraws"`, with the dropped ones by cause.
+    pub fn describe(&self) -> String {
+        let mut s = format!("{} of {} noise redraws", self.used, self.made);
+        if !self.failed.is_empty() {
+            let causes: Vec<String> = self
+                .failed
+                .iter()
+                .map(|(c, n)| format!("{n}: {}", c.describe()))
+                .collect();
+            s.push_str(&format!(" (dropped {})", causes.join("; ")));
+        }
+        s
+    }
+}
+
 /// The uncertainty of a fitted law.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Uncertainty {
-    /// How it was estimated.
+    /// How the intervals were made, in words.
     pub method: String,
+    /// How the intervals were made.
+    pub intervals: IntervalMethod,
     /// The law.
     pub law: ContactLawKind,
-    /// The reported coordinates (`ln_stiffness`, `exponent`, `ln_damping_n_s_m`, …): what
-    /// `select --uncertainty` draws in.
+    /// The reported coordinates ([`coordinate_names`]): what `select --uncertainty` draws in.
     pub coordinates: Vec<&'static str>,
     /// Their values at the fit.
     pub mean: Vec<f64>,
-    /// Their covariance.
+    /// Their covariance (of [`Self::intervals`]).
     pub covariance: Vec<Vec<f64>>,
+    /// The noise bootstrap's covariance alone.
+    pub noise_covariance: Vec<Vec<f64>>,
     /// The parameters, in the law's order.
     pub params: Vec<ParamEstimate>,
     /// Correlations of the coordinates.
     pub correlation: Vec<Vec<f64>>,
     /// Whether every direction is fixed by the data.
     pub identifiable: bool,
-    /// What the data leave undetermined, why, and what fixes it (empty when all is fixed).
+    /// Whether the law fits the data.
+    pub fit_check: FitCheck,
+    /// The bootstrap's bookkeeping.
+    pub redraws: Redraws,
+    /// Lack of fit, what the data leave undetermined, why, and what fixes it (empty when all is
+    /// fixed and the law fits).
     pub notes: Vec<String>,
     /// Sensor noise of each trace, N.
     pub noise_n: Vec<f64>,
     /// Samples per contact of the least resolved trace (width at half maximum over the sampling
     /// step).
     pub samples_per_contact: f64,
+    /// Whether the error fits the profile (for the notes' advice).
+    #[serde(skip)]
+    profile_fitted: bool,
+    /// Traces in the fit (for the notes' advice).
+    #[serde(skip)]
+    traces: usize,
 }
 
 impl Uncertainty {
-    /// The `[uncertainty]` table of a fit's config file: the coordinates `select --uncertainty`
-    /// draws in, their mean and covariance, the 95 % intervals and the notes.
-    ///
-    /// # Errors
-    /// Serialisation failure.
-    pub fn toml_table(&self) -> anyhow::Result<String> {
-        let u = self;
-        let mut t = toml::Table::new();
-        t.insert("method".into(), u.method.clone().into());
-        t.insert("law".into(), u.law.to_string().into());
-        t.insert(
-            "coordinates".into(),
-            toml::Value::Array(u.coordinates.iter().map(|c| (*c).into()).collect()),
-        );
-        t.insert(
-            "mean".into(),
-            toml::Value::Array(u.mean.iter().map(|&v| v.into()).collect()),
-        );
-        t.insert(
-            "covariance".into(),
-            toml::Value::Array(
-                u.covariance
-                    .iter()
-                    .map(|row| toml::Value::Array(row.iter().map(|&v| v.into()).collect()))
-                    .collect(),
-            ),
-        );
-        let mut ci = toml::Table::new();
-        for p in &u.params {
-            ci.insert(
-                p.key.into(),
-                toml::Value::Array(vec![p.ci95[0].into(), p.ci95[1].into()]),
-            );
+    /// The `[uncertainty]` table of a fit's config file: the coordinates `select
+    /// --uncertainty` draws in, their mean and covariance, how they were made, and the
+    /// lack-of-fit verdict when the law misses the data.
+    pub fn table(&self) -> UncertaintyTable {
+        UncertaintyTable {
+            law: self.law,
+            coordinates: self.coordinates.iter().map(|c| (*c).to_string()).collect(),
+            mean: self.mean.clone(),
+            covariance: self.covariance.clone(),
+            method: Some(self.method.clone()),
+            lack_of_fit: self.fit_check.note.as_ref().map(|note| LackOfFit {
+                residual_over_noise: self.fit_check.headline_ratio(),
+                note: note.clone(),
+            }),
         }
-        t.insert("ci95".into(), toml::Value::Table(ci));
-        t.insert(
-            "noise_n".into(),
-            toml::Value::Array(u.noise_n.iter().map(|&v| v.into()).collect()),
-        );
-        t.insert(
-            "notes".into(),
-            toml::Value::Array(u.notes.iter().map(|n| n.clone().into()).collect()),
-        );
-        let mut root = toml::Table::new();
-        root.insert("uncertainty".into(), toml::Value::Table(t));
-        anyhow::Context::context(toml::to_string(&root), "writing the [uncertainty] table")
+    }
+
+    /// The same uncertainty with its intervals made by `method` (from the same bootstrap).
+    #[must_use]
+    pub fn with_intervals(&self, method: IntervalMethod) -> Uncertainty {
+        let mut u = self.clone();
+        let p = u.mean.len();
+        let scale = match method {
+            IntervalMethod::Noise => 1.0,
+            IntervalMethod::Scaled => self.fit_check.ratio.max(1.0),
+        };
+        let cov = DMatrix::from_fn(p, p, |i, j| self.noise_covariance[i][j] * scale);
+        u.intervals = method;
+        u.method = describe_method(method, &self.redraws, self.fit_check.ratio);
+        u.covariance = rows(&cov);
+        let cs = coords(self.law);
+        let free: Vec<bool> = (0..p).map(|i| !cov[(i, i)].is_finite()).collect();
+        u.params = params(&cs, &u.mean, &cov, self.law);
+        u.correlation = correlation(&cov, &free);
+        u.notes = notes(&u, &cs);
+        u
+    }
+}
+
+fn describe_method(method: IntervalMethod, redraws: &Redraws, ratio: f64) -> String {
+    let boot = format!(
+        "parametric bootstrap: {}, one Gauss–Newton step each",
+        redraws.describe()
+    );
+    match method {
+        IntervalMethod::Noise => format!("{boot}; sensor noise only"),
+        IntervalMethod::Scaled if ratio > 1.0 => {
+            format!("{boot}; widened by √(reduced χ²) = √{ratio:.2}")
+        }
+        IntervalMethod::Scaled => {
+            format!("{boot}; the fit is within the noise (reduced χ² {ratio:.2})")
+        }
     }
 }
 
 struct Coord {
-    name: &'static str,
     key: &'static str,
     symbol: &'static str,
     log: bool,
-    /// The fit's bounds on a coordinate that has them (module [`super::contact`]).
+    /// The fit's bounds on a coordinate that has them (module [`super::cost`]).
     bounds: Option<(f64, f64)>,
 }
 
 fn coords(law: ContactLawKind) -> Vec<Coord> {
-    let c = |name, key, symbol, log| Coord {
-        name,
+    let c = |key, symbol, log| Coord {
         key,
         symbol,
         log,
@@ -179,29 +335,21 @@ fn coords(law: ContactLawKind) -> Vec<Coord> {
     };
     match law {
         ContactLawKind::SpringDashpot => vec![
-            c("ln_stiffness_n_m", "stiffness_n_m", "k_i", true),
-            c("ln_damping_n_s_m", "damping_n_s_m", "c_i", true),
+            c("stiffness_n_m", "k_i", true),
+            c("damping_n_s_m", "c_i", true),
         ],
-        ContactLawKind::Hertz => vec![
-            c("ln_stiffness", "stiffness", "k_i", true),
-            c("exponent", "exponent", "n", false),
-        ],
+        ContactLawKind::Hertz => vec![c("stiffness", "k_i", true), c("exponent", "n", false)],
         ContactLawKind::HuntCrossley => vec![
-            c("ln_stiffness", "stiffness", "k_i", true),
-            c("exponent", "exponent", "n", false),
-            c("ln_lambda_s_m", "lambda_s_m", "λ_i", true),
+            c("stiffness", "k_i", true),
+            c("exponent", "n", false),
+            c("lambda_s_m", "λ_i", true),
         ],
         ContactLawKind::LankaraniNikravesh => vec![
-            c("ln_stiffness", "stiffness", "k_i", true),
-            c("exponent", "exponent", "n", false),
-            c("restitution", "restitution", "e", false),
+            c("stiffness", "k_i", true),
+            c("exponent", "n", false),
+            c("restitution", "e", false),
         ],
     }
-}
-
-/// The names of the law's reported coordinates (the `[uncertainty]` table's `coordinates`).
-pub fn coordinate_names(law: ContactLawKind) -> Vec<&'static str> {
-    coords(law).iter().map(|c| c.name).collect()
 }
 
 /// The reported coordinates as a linear map of the search coordinates: `rep = G x + b`.
@@ -228,130 +376,22 @@ fn linear_map(problem: &Problem<'_>) -> (DMatrix<f64>, DVector<f64>) {
     }
 }
 
-/// The law at reported coordinates `rep` (e.g. a draw of `select --uncertainty`).
-pub fn law_from_coordinates(law: ContactLawKind, rep: &[f64]) -> Option<ContactLaw> {
-    let get = |i: usize| rep.get(i).copied();
-    let l = match law {
-        ContactLawKind::SpringDashpot => ContactLaw::SpringDashpot {
-            stiffness_n_m: get(0)?.exp(),
-            damping_n_s_m: get(1)?.exp(),
-        },
-        ContactLawKind::Hertz => ContactLaw::Hertz {
-            stiffness: get(0)?.exp(),
-            exponent: get(1)?,
-        },
-        ContactLawKind::HuntCrossley => ContactLaw::HuntCrossley {
-            stiffness: get(0)?.exp(),
-            exponent: get(1)?,
-            lambda_s_m: get(2)?.exp(),
-        },
-        ContactLawKind::LankaraniNikravesh => ContactLaw::LankaraniNikravesh {
-            stiffness: get(0)?.exp(),
-            exponent: get(1)?,
-            restitution: get(2)?,
-        },
-    };
-    l.validate().is_ok().then_some(l)
+/// A matrix as rows.
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+        .collect()
 }
 
-/// The uncertainty of the fit at search coordinates `x` of `problem` (module docs); `Err`
-/// with the reason when it cannot be estimated (e.g. the law at `x` is invalid or a drop
-/// simulation fails).
-pub(crate) fn estimate(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty, String> {
-    let law = problem
-        .law_at(x)
-        .map_err(|_| "the fit is outside the parameter bounds".to_string())?;
-    let p = x.len();
-    let center = problem.simulate(&law, true).map_err(|e| format!("{e:#}"))?;
-    // The drops one step up and down each coordinate (None beyond a bound).
-    let around: Vec<[Option<Vec<SimDrop>>; 2]> = (0..p)
-        .map(|j| {
-            [1.0, -1.0].map(|sign| {
-                let mut xs = x.to_vec();
-                xs[j] += sign * JACOBIAN_STEP;
-                problem.simulate(&problem.law_at(&xs).ok()?, false).ok()
-            })
-        })
-        .collect();
-    // The terms at the fit and their Jacobian for one data set (the measured or a redrawn one).
-    let linear = |pr: &Problem<'_>| -> Option<(DVector<f64>, DMatrix<f64>)> {
-        let r0 = pr.terms(&center);
-        let n = r0.len();
-        let mut jac = DMatrix::<f64>::zeros(n, p);
-        for (j, [up, down]) in around.iter().enumerate() {
-            let at =
-                |s: &Option<Vec<SimDrop>>| s.as_ref().map(|s| pr.terms(s)).filter(|t| t.len() == n);
-            let (col, span): (Vec<f64>, f64) = match (at(up), at(down)) {
-                (Some(u), Some(d)) => (u.iter().zip(&d).map(|(u, d)| u - d).collect(), 2.0),
-                (Some(u), None) => (u.iter().zip(&r0).map(|(u, c)| u - c).collect(), 1.0),
-                (None, Some(d)) => (r0.iter().zip(&d).map(|(c, d)| c - d).collect(), 1.0),
-                (None, None) => return None,
-            };
-            for (i, v) in col.iter().enumerate() {
-                jac[(i, j)] = v / (span * JACOBIAN_STEP);
-            }
-        }
-        Some((DVector::from_vec(r0), jac))
-    };
-    let (_, jac) = linear(problem)
-        .ok_or_else(|| "the error cannot be evaluated around the fit".to_string())?;
-    let svd = jac.svd(true, true);
-    let s_max = svd.singular_values.max();
-    let s_min = svd.singular_values.min();
-    let identifiable = s_max > 0.0 && s_min > SINGULAR * s_max;
-    // The redraws, each one Gauss–Newton step from the fit.
-    let steps: Vec<DVector<f64>> = (0..REDRAWS as u64)
-        .into_par_iter()
-        .filter_map(|b| {
-            let data = problem.synthetic_data(&center, b)?;
-            let (r, jac) = linear(&problem.with_data(&data))?;
-            let svd = jac.svd(true, true);
-            let tol = SINGULAR * svd.singular_values.max().max(1e-300);
-            Some(-(svd.pseudo_inverse(tol).ok()? * r))
-        })
-        .collect();
-    let used = steps.len();
-    if 2 * used < REDRAWS {
-        return Err(format!(
-            "only {used} of {REDRAWS} noise redraws of the fitted drop show the measured impacts"
-        ));
-    }
-    let mean_x = steps.iter().fold(DVector::zeros(p), |acc, d| acc + d) / used as f64;
-    let cov_x = steps.iter().fold(DMatrix::zeros(p, p), |acc, d| {
-        let c = d - &mean_x;
-        acc + &c * c.transpose()
-    }) / (used - 1) as f64;
-    let noise = problem.noise_n();
-    let (g, b) = linear_map(problem);
-    let xv = DVector::from_column_slice(x);
-    let mean = &g * xv + b;
-    let mut cov = &g * cov_x * g.transpose();
-    // Directions the data do not fix: unbounded along the right singular vectors of the
-    // vanishing singular values (mapped to the reported coordinates).
-    let mut free = vec![false; p];
-    if !identifiable {
-        for (k, &sv) in svd.singular_values.iter().enumerate() {
-            if sv <= SINGULAR * s_max
-                && let Some(vt) = &svd.v_t
-            {
-                let dir = &g * vt.row(k).transpose();
-                let norm = dir.norm().max(1e-300);
-                for i in 0..p {
-                    if (dir[i] / norm).abs() > 0.1 {
-                        free[i] = true;
-                    }
-                }
-            }
-        }
-        for i in 0..p {
-            if free[i] {
-                cov[(i, i)] = f64::INFINITY;
-            }
-        }
-    }
-    let cs = coords(problem.law);
+/// The parameters with their 95 % intervals from the coordinates' `mean` and covariance.
+fn params(
+    cs: &[Coord],
+    mean: &[f64],
+    cov: &DMatrix<f64>,
+    law: ContactLawKind,
+) -> Vec<ParamEstimate> {
     let unit = |c: &Coord| -> String {
-        match (problem.law, c.key) {
+        match (law, c.key) {
             (ContactLawKind::SpringDashpot, "stiffness_n_m") => "N/m".into(),
             (ContactLawKind::SpringDashpot, _) => "N s/m".into(),
             (_, "stiffness") => format!("N/m^{:.3}", mean[1]),
@@ -359,60 +399,348 @@ pub(crate) fn estimate(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty, 
             _ => String::new(),
         }
     };
-    let mut params = Vec::with_capacity(p);
-    for (i, c) in cs.iter().enumerate() {
-        let sd = cov[(i, i)].sqrt();
-        let (value, ci95) = if c.log {
-            let v = mean[i].exp();
-            (v, [(mean[i] - Z95 * sd).exp(), (mean[i] + Z95 * sd).exp()])
-        } else {
-            let (lo, hi) = c.bounds.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-            (
-                mean[i],
-                [(mean[i] - Z95 * sd).max(lo), (mean[i] + Z95 * sd).min(hi)],
-            )
-        };
-        params.push(ParamEstimate {
-            name: c.symbol,
-            key: c.key,
-            unit: unit(c),
-            value,
-            ci95,
-            sd,
-            log: c.log,
-        });
-    }
-    let mut correlation = vec![vec![0.0; p]; p];
-    for i in 0..p {
-        for j in 0..p {
-            correlation[i][j] = if i == j {
-                1.0
-            } else if free[i] || free[j] {
-                f64::NAN
+    cs.iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let sd = cov[(i, i)].sqrt();
+            let (value, ci95) = if c.log {
+                let v = mean[i].exp();
+                (v, [(mean[i] - Z95 * sd).exp(), (mean[i] + Z95 * sd).exp()])
             } else {
-                cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt()
+                let (lo, hi) = c.bounds.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+                (
+                    mean[i],
+                    [(mean[i] - Z95 * sd).max(lo), (mean[i] + Z95 * sd).min(hi)],
+                )
             };
+            ParamEstimate {
+                name: c.symbol,
+                key: c.key,
+                unit: unit(c),
+                value,
+                ci95,
+                sd,
+                log: c.log,
+            }
+        })
+        .collect()
+}
+
+/// The correlations of `cov` (NaN for a coordinate the data do not fix, `free`).
+fn correlation(cov: &DMatrix<f64>, free: &[bool]) -> Vec<Vec<f64>> {
+    let p = cov.nrows();
+    (0..p)
+        .map(|i| {
+            (0..p)
+                .map(|j| {
+                    if i == j {
+                        1.0
+                    } else if free[i] || free[j] {
+                        f64::NAN
+                    } else {
+                        cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt()
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// One usable redraw: its Gauss–Newton step and, after it, the sums of squares of each part
+/// (unweighted, in the order of [`Part::ALL`]) and of the error as fitted.
+struct Redrawn {
+    step: DVector<f64>,
+    parts: [f64; 3],
+    cost: f64,
+}
+
+/// The sums of squares of `r` by part (in the order of [`Part::ALL`]), and of `w ∘ r`.
+fn sums(r: &DVector<f64>, parts: &[Part], w: &[f64]) -> ([f64; 3], f64) {
+    let mut by = [0.0; 3];
+    let mut cost = 0.0;
+    for ((v, part), wi) in r.iter().zip(parts).zip(w) {
+        by[Part::ALL.iter().position(|p| p == part).unwrap_or(0)] += v * v;
+        cost += (wi * v).powi(2);
+    }
+    (by, cost)
+}
+
+/// The uncertainty of the fit at search coordinates `x` of `problem` (module docs), its
+/// intervals made by [`IntervalMethod::default`]; `Err` with the reason when it cannot be
+/// estimated (e.g. the law at `x` is invalid, a drop simulation fails, or fewer than half the
+/// redraws are usable).
+pub(crate) fn estimate(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty, String> {
+    let law = problem
+        .law_at(x)
+        .map_err(|_| "the fit is outside the parameter bounds".to_string())?;
+    let p = x.len();
+    let around = problem.around(x, &law).map_err(|e| format!("{e:#}"))?;
+    let center = &around.center;
+    let linear = |pr: &Problem<'_>| pr.linearise(&around);
+    let Linear {
+        r: r_meas,
+        jac,
+        parts: parts_meas,
+        w: w_meas,
+    } = linear(problem)
+        .ok_or_else(|| "the error cannot be evaluated around the fit".to_string())?;
+    let svd = weighted(&jac, &w_meas).svd(true, true);
+    let s_max = svd.singular_values.max();
+    let s_min = svd.singular_values.min();
+    let identifiable = s_max > 0.0 && s_min > SINGULAR * s_max;
+    // The redraws, each one Gauss–Newton step from the fit on the terms of the error, and the
+    // sums of squares of every part after it.
+    let outcomes: Vec<Result<Redrawn, RedrawFailure>> = (0..REDRAWS as u64)
+        .into_par_iter()
+        .map(|b| {
+            let data = problem.synthetic_data(center, b)?;
+            let pr = problem.with_data(&data);
+            let Linear { r, jac, parts, w } = linear(&pr).ok_or(RedrawFailure::Terms)?;
+            let rw = DVector::from_iterator(r.len(), r.iter().zip(&w).map(|(v, wi)| v * wi));
+            let svd = weighted(&jac, &w).svd(true, true);
+            let tol = SINGULAR * svd.singular_values.max().max(1e-300);
+            let step = -(svd
+                .pseudo_inverse(tol)
+                .map_err(|_| RedrawFailure::Singular)?
+                * rw);
+            if !step.iter().all(|v| v.is_finite()) {
+                return Err(RedrawFailure::Singular);
+            }
+            let after = &r + &jac * &step;
+            let (parts, cost) = sums(&after, &parts, &w);
+            Ok(Redrawn { step, parts, cost })
+        })
+        .collect();
+    let mut costs: Vec<f64> = outcomes
+        .iter()
+        .filter_map(|o| o.as_ref().ok().map(|r| r.cost))
+        .collect();
+    let median = if costs.is_empty() {
+        0.0
+    } else {
+        let n = costs.len();
+        *costs.select_nth_unstable_by(n / 2, f64::total_cmp).1
+    };
+    let mut failed = BTreeMap::new();
+    let mut used = Vec::with_capacity(REDRAWS);
+    for o in outcomes {
+        match o {
+            Ok(r) if r.cost <= BROKEN_REDRAW * median => used.push(r),
+            Ok(_) => *failed.entry(RedrawFailure::Broken).or_insert(0) += 1,
+            Err(cause) => *failed.entry(cause).or_insert(0) += 1,
         }
     }
-    let mut u = Uncertainty {
-        method: format!(
-            "parametric bootstrap: {used} of {REDRAWS} noise redraws, one Gauss–Newton step each"
-        ),
-        law: problem.law,
-        coordinates: cs.iter().map(|c| c.name).collect(),
-        mean: mean.iter().copied().collect(),
-        covariance: (0..p)
-            .map(|i| (0..p).map(|j| cov[(i, j)]).collect())
-            .collect(),
-        params,
-        correlation,
-        identifiable,
-        notes: Vec::new(),
-        noise_n: noise,
-        samples_per_contact: problem.samples_per_contact(),
+    let redraws = Redraws {
+        made: REDRAWS,
+        used: used.len(),
+        failed,
     };
-    u.notes = notes(&u, &cs, problem);
-    Ok(u)
+    if 2 * used.len() < REDRAWS {
+        return Err(format!(
+            "the bootstrap used only {} (fewer than half)",
+            redraws.describe()
+        ));
+    }
+    let nu = used.len() as f64;
+    let mean_x = used.iter().fold(DVector::zeros(p), |acc, d| acc + &d.step) / nu;
+    let cov_x = used.iter().fold(DMatrix::zeros(p, p), |acc, d| {
+        let c = &d.step - &mean_x;
+        acc + &c * c.transpose()
+    }) / (nu - 1.0);
+    let fit_check = check_fit(problem, &r_meas, &parts_meas, &w_meas, &used);
+    let (g, b) = linear_map(problem);
+    let mean = &g * DVector::from_column_slice(x) + b;
+    let mut cov = &g * cov_x * g.transpose();
+    // Directions the data do not fix: unbounded along the right singular vectors of the
+    // vanishing singular values (mapped to the reported coordinates).
+    if !identifiable && let Some(vt) = &svd.v_t {
+        for (k, &sv) in svd.singular_values.iter().enumerate() {
+            if sv <= SINGULAR * s_max {
+                let dir = &g * vt.row(k).transpose();
+                let norm = dir.norm().max(1e-300);
+                for i in 0..p {
+                    if (dir[i] / norm).abs() > 0.1 {
+                        cov[(i, i)] = f64::INFINITY;
+                    }
+                }
+            }
+        }
+    }
+    let u = Uncertainty {
+        method: String::new(),
+        intervals: IntervalMethod::Noise,
+        law: problem.law,
+        coordinates: coordinate_names(problem.law).to_vec(),
+        mean: mean.iter().copied().collect(),
+        covariance: Vec::new(),
+        noise_covariance: rows(&cov),
+        params: Vec::new(),
+        correlation: Vec::new(),
+        identifiable,
+        fit_check,
+        redraws,
+        notes: Vec::new(),
+        noise_n: problem.noise_n(),
+        samples_per_contact: problem.samples_per_contact(),
+        profile_fitted: problem.weights.profile > 0.0,
+        traces: problem.trace_count(),
+    };
+    Ok(u.with_intervals(IntervalMethod::default()))
+}
+
+/// The lack-of-fit check (module docs): the measured terms `r` at the fit (parts `parts`,
+/// weights `w`) against the redraws after their Gauss–Newton steps.
+fn check_fit(
+    problem: &Problem<'_>,
+    r: &DVector<f64>,
+    parts: &[Part],
+    w: &[f64],
+    used: &[Redrawn],
+) -> FitCheck {
+    let (measured, cost) = sums(r, parts, w);
+    let nu = used.len() as f64;
+    let stats = |values: &mut dyn Iterator<Item = f64>| {
+        let v: Vec<f64> = values.collect();
+        let mean = v.iter().sum::<f64>() / nu;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (nu - 1.0);
+        let max = v.iter().copied().fold(0.0, f64::max);
+        (mean, var.sqrt(), max)
+    };
+    let mut checks = Vec::new();
+    for (k, part) in Part::ALL.iter().enumerate() {
+        let terms = parts.iter().filter(|p| *p == part).count();
+        if terms == 0 {
+            continue;
+        }
+        let (mean, sd, max) = stats(&mut used.iter().map(|u| u.parts[k]));
+        let ratio = measured[k] / mean.max(1e-300);
+        let spread = sd / mean.max(1e-300);
+        // The redraws' J/E[J] as χ²_ν/ν with the same spread (Satterthwaite): ν = 2/spread².
+        let nu = 2.0 / spread.max(1e-6).powi(2);
+        let p_value = chi2_sf(nu * ratio, nu);
+        let misses = ratio > LACK_OF_FIT_FACTOR && p_value < LACK_OF_FIT_P;
+        checks.push(PartCheck {
+            part: *part,
+            terms,
+            fitted: parts.iter().zip(w).any(|(p, wi)| p == part && *wi > 0.0),
+            j: measured[k],
+            expected: mean,
+            ratio,
+            spread,
+            redraw_max: max / mean.max(1e-300),
+            p_value,
+            misses,
+        });
+    }
+    let (mean, _, _) = stats(&mut used.iter().map(|u| u.cost));
+    let ratio = cost / mean.max(1e-300);
+    let misses = checks.iter().any(|c| c.misses);
+    let note = misses.then(|| {
+        let worst = checks
+            .iter()
+            .filter(|c| c.misses && !c.fitted)
+            .map(|c| c.ratio)
+            .fold(ratio, f64::max);
+        let each: Vec<String> = checks
+            .iter()
+            .map(|c| {
+                format!(
+                    "{} {:.1}×{}",
+                    c.part.name(),
+                    c.ratio,
+                    if c.fitted { "" } else { " (not fitted)" }
+                )
+            })
+            .collect();
+        format!(
+            "the {} law does not fit these data: the residual is {worst:.1}× what the sensor \
+             noise explains (reduced χ²: {}; about 1 when a law fits); its parameters describe \
+             this drop test only, and its intervals are widened √{:.1}×",
+            problem.law,
+            each.join(", "),
+            ratio.max(1.0)
+        )
+    });
+    FitCheck {
+        parts: checks,
+        ratio,
+        misses,
+        note,
+    }
+}
+
+/// `ln Γ(x)`, `x > 0` (Lanczos, g = 7, 9 terms: 1e-15 relative).
+fn ln_gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let t = x + 7.5;
+    let sum = G[1..]
+        .iter()
+        .enumerate()
+        .fold(G[0], |acc, (i, g)| acc + g / (x + 1.0 + i as f64));
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + sum.ln()
+}
+
+/// The survival function of the χ² distribution with `nu` degrees of freedom at `x`: the
+/// regularised upper incomplete gamma `Q(ν/2, x/2)` (series below `a + 1`, Lentz's continued
+/// fraction above; Numerical Recipes §6.2).
+fn chi2_sf(x: f64, nu: f64) -> f64 {
+    let (a, x) = (0.5 * nu, 0.5 * x);
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let front = (-x + a * x.ln() - ln_gamma(a)).exp();
+    if x < a + 1.0 {
+        let (mut term, mut sum, mut ap) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..10_000 {
+            ap += 1.0;
+            term *= x / ap;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-15 {
+                break;
+            }
+        }
+        (1.0 - sum * front).clamp(0.0, 1.0)
+    } else {
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-15 {
+                break;
+            }
+        }
+        (front * h).clamp(0.0, 1.0)
+    }
 }
 
 /// How a change of coordinate `c` reads (`Δk_i/k_i` for a scale parameter, `Δn` otherwise).
@@ -424,18 +752,30 @@ fn delta(c: &Coord) -> String {
     }
 }
 
-/// The identifiability notes: each poorly fixed parameter and each strong trade-off, why, and
+/// The notes: the lack of fit, each poorly fixed parameter and each strong trade-off, why, and
 /// what fixes it.
-fn notes(u: &Uncertainty, cs: &[Coord], problem: &Problem<'_>) -> Vec<String> {
+fn notes(u: &Uncertainty, cs: &[Coord]) -> Vec<String> {
     let mut out = Vec::new();
+    if let Some(n) = &u.fit_check.note {
+        out.push(n.clone());
+    }
     for (c, par) in cs.iter().zip(&u.params) {
         if let Some((lo, hi)) = c.bounds
             && (par.value <= lo + 1e-3 * (hi - lo) || par.value >= hi - 1e-3 * (hi - lo))
         {
             out.push(format!(
                 "{} = {:.4} sits on the fit's bound ({lo} ≤ {} ≤ {hi}): the {} law does not \
-                 describe these data (its interval is cut at the bound)",
-                par.name, par.value, par.name, u.law
+                 describe these data (its interval is cut at the bound){}",
+                par.name,
+                par.value,
+                par.name,
+                u.law,
+                if u.law == ContactLawKind::LankaraniNikravesh && c.key == "restitution" {
+                    "; its damping term holds near e = 1 only: whatever its e, the law \
+                     rebounds at 0.66 or more (docs/model.md)"
+                } else {
+                    ""
+                }
             ));
         }
     }
@@ -491,26 +831,34 @@ fn notes(u: &Uncertainty, cs: &[Coord], problem: &Problem<'_>) -> Vec<String> {
     if !out.is_empty() {
         let mut fixes = Vec::new();
         let spc = u.samples_per_contact;
-        if problem.weights.profile == 0.0 {
-            if spc >= super::contact::PROFILE_MIN_SAMPLES {
-                fixes.push(format!(
-                    "the profile error (--error profile): the trace resolves the contact \
-                     ({spc:.0} samples per contact)"
-                ));
-            } else {
-                fixes.push(format!(
-                    "a faster capture (≥ {:.0} samples per contact, this trace {spc:.1}; \
-                     `rig capture` records at 100 kHz), then the profile error",
-                    super::contact::PROFILE_MIN_SAMPLES
-                ));
-            }
-        }
-        if problem.trace_count() == 1 && problem.law != ContactLawKind::SpringDashpot {
+        if u.fit_check.misses {
+            // More data would fix a wrong law's parameters more tightly, not make it right.
             fixes.push(
-                "a second drop test from another height (--trace … --release-mm …, fitted \
-                 jointly): impact speeds a factor ~10 apart separate k_i from n"
-                    .into(),
+                "a law that fits (--law all ranks them, and marks those that miss the data); \
+                 more data or another error would only fix this law more tightly"
+                    .to_string(),
             );
+        } else {
+            if !u.profile_fitted {
+                if spc >= PROFILE_MIN_SAMPLES {
+                    fixes.push(format!(
+                        "the profile error (--error profile): the trace resolves the contact \
+                         ({spc:.0} samples per contact)"
+                    ));
+                } else {
+                    fixes.push(format!(
+                        "a faster capture (≥ {PROFILE_MIN_SAMPLES:.0} samples per contact, this \
+                         trace {spc:.1}; `rig capture` records at 100 kHz), then the profile error"
+                    ));
+                }
+            }
+            if u.traces == 1 && u.law != ContactLawKind::SpringDashpot {
+                fixes.push(
+                    "a second drop test from another height (--trace … --release-mm …, fitted \
+                     jointly): impact speeds a factor ~10 apart separate k_i from n"
+                        .into(),
+                );
+            }
         }
         if fixes.is_empty() {
             fixes.push("more impacts or less noise (a larger release, more drop tests)".into());
@@ -518,4 +866,25 @@ fn notes(u: &Uncertainty, cs: &[Coord], problem: &Problem<'_>) -> Vec<String> {
         out.push(format!("what fixes it: {}", fixes.join("; or ")));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chi2_survival_matches_closed_forms() {
+        // ν = 2: e^{−x/2}; ν = 1: erfc(√(x/2)) (P(|z| > 1.96) = 0.05); ν = 4: (1 + x/2) e^{−x/2}.
+        for x in [0.1, 1.0, 5.0, 30.0] {
+            assert!((chi2_sf(x, 2.0) - (-x / 2.0).exp()).abs() < 1e-12, "{x}");
+            let four = (1.0 + x / 2.0) * (-x / 2.0).exp();
+            assert!(
+                (chi2_sf(x, 4.0) - four).abs() < 1e-12 * four.max(1e-3),
+                "{x}"
+            );
+        }
+        assert!((chi2_sf(Z95 * Z95, 1.0) - 0.05).abs() < 1e-12);
+        assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-13);
+        assert!((ln_gamma(0.5) - std::f64::consts::PI.sqrt().ln()).abs() < 1e-13);
+    }
 }

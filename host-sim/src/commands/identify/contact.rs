@@ -11,13 +11,13 @@ use shared::model::{ContactLaw, ContactLawKind};
 
 use super::{ContactArgs, LawChoice, describe_law, pair_releases};
 use crate::config::{MAX_GAP_MM, Setup, config_text};
-use crate::identify::contact::{
-    DropData, DropSetup, DropTest, FIT_STEPS, Fit, FitError, Residual, Weights, analyse_drop,
-    best_by_aic, fit_laws,
-};
-use crate::identify::uncertainty::{STRONG_CORRELATION, Uncertainty, WIDE_REL};
+use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, Weights};
+use crate::identify::data::{DropData, analyse_drop};
+use crate::identify::fit::{Fit, best_by_aicc, fit_laws};
+use crate::identify::uncertainty::{LACK_OF_FIT_FACTOR, STRONG_CORRELATION, Uncertainty, WIDE_REL};
 use crate::output::Outputs;
 use crate::trace::read_trace;
+use shared::model::rig::IMPACT_SPEEDS_M_S;
 
 #[derive(Serialize)]
 struct LawReport {
@@ -28,11 +28,64 @@ struct LawReport {
     /// Per trace, in the order of `traces`.
     trace_residuals: Vec<Residual>,
     evaluations: u64,
-    /// Akaike's information criterion on the error's terms, and its difference to the best.
+    /// Akaike's information criterion on the error's terms, its small-sample correction (the
+    /// laws are ranked by it), and that one's difference to the best.
     aic: f64,
-    delta_aic: f64,
-    /// 95 % intervals, correlations and identifiability notes (absent if not estimated).
+    aicc: f64,
+    delta_aicc: f64,
+    /// The effective coefficient of restitution of the fitted law.
+    restitution: Restitution,
+    /// Lack of fit, 95 % intervals, correlations and identifiability notes (absent if not
+    /// estimated).
     uncertainty: Option<Uncertainty>,
+}
+
+/// A law's effective coefficient of restitution (one simulated impact of the hammer's mass,
+/// `ContactLaw::restitution`).
+#[derive(Serialize)]
+struct Restitution {
+    /// The first drop test's first impact speed (the fitted simulation's), m/s.
+    first_impact_speed_m_s: f64,
+    /// `e` at that speed.
+    at_first_impact: Option<f64>,
+    /// `(speed m/s, e)` at the rigs' impact speeds (`shared::model::rig::IMPACT_SPEEDS_M_S`).
+    at_rig_speeds: Vec<(f64, Option<f64>)>,
+}
+
+impl Restitution {
+    fn of(fit: &Fit, mass_kg: f64) -> Self {
+        let v1 = fit
+            .traces
+            .first()
+            .and_then(|t| t.sim.impacts.first())
+            .map_or(f64::NAN, |i| i.approach_speed_m_s);
+        Restitution {
+            first_impact_speed_m_s: v1,
+            at_first_impact: fit.law.restitution(mass_kg, v1),
+            at_rig_speeds: IMPACT_SPEEDS_M_S
+                .iter()
+                .map(|&v| (v, fit.law.restitution(mass_kg, v)))
+                .collect(),
+        }
+    }
+
+    /// `"e = 0.987 at the first impact (34 mm/s); at 10, 30, 100, 300 mm/s: 0.996, …"`.
+    fn describe(&self) -> String {
+        let e = |x: Option<f64>| x.map_or_else(|| "–".to_string(), |e| format!("{e:.3}"));
+        let speeds: Vec<String> = self
+            .at_rig_speeds
+            .iter()
+            .map(|(v, _)| format!("{:.0}", 1e3 * v))
+            .collect();
+        let es: Vec<String> = self.at_rig_speeds.iter().map(|(_, x)| e(*x)).collect();
+        format!(
+            "e = {} at the first impact ({:.0} mm/s); at the rig's impact speeds {} mm/s: {}",
+            e(self.at_first_impact),
+            1e3 * self.first_impact_speed_m_s,
+            speeds.join(", "),
+            es.join(", ")
+        )
+    }
 }
 
 #[derive(Serialize)]
@@ -142,8 +195,13 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         LawChoice::One(k) => vec![k],
         LawChoice::All => ContactLawKind::ALL.to_vec(),
     };
-    let fits = fit_laws(&tests, &laws, weights, 400)?;
-    let best = best_by_aic(&fits).context("no fit")?;
+    let mut fits = fit_laws(&tests, &laws, weights, 400)?;
+    for (_, f) in &mut fits {
+        if let Ok(u) = &f.uncertainty {
+            f.uncertainty = Ok(u.with_intervals(a.intervals));
+        }
+    }
+    let best = best_by_aicc(&fits).context("no fit")?;
     let run = ContactRun {
         error,
         requested: a.error,
@@ -176,7 +234,13 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
             best_fit.residual.time_rms_us,
             best_fit.residual.cost
         );
+        let _ = write!(
+            comment,
+            "\n{}",
+            Restitution::of(best_fit, a.mass_kg).describe()
+        );
         if let Ok(u) = &best_fit.uncertainty {
+            let _ = write!(comment, "\nintervals: {}", u.method);
             for par in &u.params {
                 let _ = write!(
                     comment,
@@ -196,7 +260,7 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         )?;
         if let Ok(u) = &best_fit.uncertainty {
             text.push('\n');
-            text.push_str(&u.toml_table()?);
+            text.push_str(&u.table().to_toml()?);
         }
         std::fs::write(&tmp, text).with_context(|| format!("writing {}", p.display()))?;
     }
@@ -239,12 +303,13 @@ struct ContactRun {
     samples_per_contact: f64,
 }
 
-/// The intervals, correlations and identifiability notes of one fit, as printed.
-fn print_uncertainty(label: &str, u: &Result<Uncertainty, String>) {
+/// The intervals, correlations, restitution and notes of one fit, as printed.
+fn print_uncertainty(label: &str, u: &Result<Uncertainty, String>, restitution: &Restitution) {
     let u = match u {
         Ok(u) => u,
         Err(why) => {
             println!("  {label}: no uncertainty estimate ({why})");
+            println!("    restitution: {}", restitution.describe());
             return;
         }
     };
@@ -284,9 +349,12 @@ fn print_uncertainty(label: &str, u: &Result<Uncertainty, String>) {
         }
     }
     println!("    correlations: {}", corr.join(", "));
+    println!("    restitution: {}", restitution.describe());
     if u.notes.is_empty() {
         println!(
-            "    every parameter fixed to ±{:.0} % or better, no two correlated beyond {}",
+            "    fits to the noise (reduced χ² {:.2}); every parameter fixed to ±{:.0} % or \
+             better, no two correlated beyond {}",
+            u.fit_check.ratio,
             100.0 * WIDE_REL,
             STRONG_CORRELATION
         );
@@ -303,7 +371,10 @@ fn print_contact(
     fits: &[(ContactLawKind, Fit)],
     best: ContactLawKind,
 ) -> Result<()> {
-    let best_aic = fits.iter().map(|f| f.1.aic()).fold(f64::INFINITY, f64::min);
+    let best_aicc = fits
+        .iter()
+        .map(|f| f.1.aicc())
+        .fold(f64::INFINITY, f64::min);
     if a.json {
         let traces: Vec<TraceReport> = loaded.iter().map(LoadedTrace::report).collect();
         let report = ContactReport {
@@ -321,7 +392,9 @@ fn print_contact(
                     trace_residuals: f.traces.iter().map(|t| t.residual).collect(),
                     evaluations: f.evaluations,
                     aic: f.aic(),
-                    delta_aic: f.aic() - best_aic,
+                    aicc: f.aicc(),
+                    delta_aicc: f.aicc() - best_aicc,
+                    restitution: Restitution::of(f, a.mass_kg),
                     uncertainty: f.uncertainty.as_ref().ok().cloned(),
                 })
                 .collect(),
@@ -403,52 +476,87 @@ fn print_contact(
             format!(
                 " (auto: {:.1} samples per contact; the profile from {})",
                 run.samples_per_contact,
-                crate::identify::contact::PROFILE_MIN_SAMPLES
+                crate::identify::cost::PROFILE_MIN_SAMPLES
             )
         } else {
             String::new()
         }
     );
     println!(
-        "  {:<20} {:<62} {:>9} {:>10} {:>11} {:>10} {:>7} {:>6}",
-        "law", "parameters", "peak rms", "time rms", "profile rms", "J", "ΔAIC", "evals"
+        "  {:<20} {:<50} {:>9} {:>10} {:>11} {:>10} {:>9} {:>6} {:>7} {:>6}",
+        "law",
+        "parameters",
+        "peak rms",
+        "time rms",
+        "profile rms",
+        "J",
+        "χ²/noise",
+        "e(v₁)",
+        "ΔAICc",
+        "evals"
     );
-    let row = |label: String, params: String, r: &Residual, aic: String, evals: String| {
+    struct Row<'r> {
+        label: String,
+        params: String,
+        r: &'r Residual,
+        chi2: String,
+        e: String,
+        aicc: String,
+        evals: String,
+    }
+    let row = |w: Row<'_>| {
         println!(
-            "  {:<20} {:<62} {:>7.2} % {:>7.1} µs {:>9} {:>10.3e} {:>7} {:>6}",
-            label,
-            params,
-            r.peak_rms_pct,
-            r.time_rms_us,
+            "  {:<20} {:<50} {:>7.2} % {:>7.1} µs {:>11} {:>10.3e} {:>9} {:>6} {:>7} {:>6}",
+            w.label,
+            w.params,
+            w.r.peak_rms_pct,
+            w.r.time_rms_us,
             if run.error == FitError::Profile {
-                format!("{:.2} %", r.profile_rms_pct)
+                format!("{:.2} %", w.r.profile_rms_pct)
             } else {
                 "–".to_string()
             },
-            r.cost,
-            aic,
-            evals
+            w.r.cost,
+            w.chi2,
+            w.e,
+            w.aicc,
+            w.evals
         );
     };
     let mut ranked: Vec<&(ContactLawKind, Fit)> = fits.iter().collect();
-    ranked.sort_by(|x, y| x.1.aic().total_cmp(&y.1.aic()));
+    ranked.sort_by(|x, y| x.1.aicc().total_cmp(&y.1.aicc()));
+    let check = |f: &Fit| f.uncertainty.as_ref().ok().map(|u| u.fit_check.clone());
     for (k, f) in &ranked {
-        row(
-            k.to_string(),
-            describe_law(&f.law, a.mass_kg),
-            &f.residual,
-            format!("{:.1}", f.aic() - best_aic),
-            f.evaluations.to_string(),
-        );
+        let e = Restitution::of(f, a.mass_kg).at_first_impact;
+        row(Row {
+            label: k.to_string(),
+            params: describe_law(&f.law),
+            r: &f.residual,
+            chi2: check(f).map_or_else(
+                || "–".to_string(),
+                |c| {
+                    format!(
+                        "{:.1}{}",
+                        c.headline_ratio(),
+                        if c.misses { " !" } else { "" }
+                    )
+                },
+            ),
+            e: e.map_or_else(|| "–".to_string(), |e| format!("{e:.3}")),
+            aicc: format!("{:.1}", f.aicc() - best_aicc),
+            evals: f.evaluations.to_string(),
+        });
         if loaded.len() > 1 {
             for (l, t) in loaded.iter().zip(&f.traces) {
-                row(
-                    String::new(),
-                    format!("  of which release {} mm", l.release_mm),
-                    &t.residual,
-                    String::new(),
-                    String::new(),
-                );
+                row(Row {
+                    label: String::new(),
+                    params: format!("  of which release {} mm", l.release_mm),
+                    r: &t.residual,
+                    chi2: String::new(),
+                    e: String::new(),
+                    aicc: String::new(),
+                    evals: String::new(),
+                });
             }
         }
     }
@@ -456,24 +564,70 @@ fn print_contact(
         let close: Vec<String> = ranked
             .iter()
             .skip(1)
-            .filter(|f| f.1.aic() - best_aic < 2.0)
+            .filter(|f| f.1.aicc() - best_aicc < 2.0)
             .map(|f| f.0.to_string())
             .collect();
         println!(
-            "  ranked by AIC (n ln(J/n) + 2p over the {} terms of the error): {best}{}",
+            "  ranked by AICc (n ln(J/n) + 2p + 2p(p+1)/(n−p−1) over the {} terms of the error): {best}{}",
             ranked[0].1.terms,
             if close.is_empty() {
                 String::from(" is best by more than 2")
             } else {
                 format!(
-                    "; the data cannot tell it from {} (ΔAIC < 2)",
+                    "; the data cannot tell it from {} (ΔAICc < 2)",
                     close.join(", ")
                 )
             }
         );
     }
+    // Lack of fit, said for every law: which miss the data, which fit to the noise.
+    let (miss, fit): (Vec<_>, Vec<_>) = ranked
+        .iter()
+        .filter_map(|(k, f)| check(f).map(|c| (*k, c)))
+        .partition(|(_, c)| c.misses);
+    if !miss.is_empty() {
+        let said: Vec<String> = miss
+            .iter()
+            .map(|(k, c)| {
+                format!(
+                    "{k} (residual {:.1}× the noise{})",
+                    c.headline_ratio(),
+                    c.worst_part().map_or_else(String::new, |p| format!(
+                        ", its {} {:.0}×",
+                        p.part.name(),
+                        p.ratio
+                    ))
+                )
+            })
+            .collect();
+        let fine: Vec<String> = fit
+            .iter()
+            .map(|(k, c)| format!("{k} ({:.1}×)", c.headline_ratio()))
+            .collect();
+        println!(
+            "  ! lack of fit (χ²/noise: the residual over what the sensor noise explains, 1 when a \
+             law fits; ! beyond {LACK_OF_FIT_FACTOR}× and the noise's reach): {} {} not fit these data{}",
+            said.join(", "),
+            if miss.len() == 1 { "does" } else { "do" },
+            if fine.is_empty() && fits.len() > 1 {
+                String::from("; no law fits to the noise")
+            } else if fine.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; {} {} to the noise",
+                    fine.join(", "),
+                    if fine.len() == 1 { "fits" } else { "fit" }
+                )
+            }
+        );
+    }
     for (k, f) in &ranked {
-        print_uncertainty(&k.to_string(), &f.uncertainty);
+        print_uncertainty(
+            &k.to_string(),
+            &f.uncertainty,
+            &Restitution::of(f, a.mass_kg),
+        );
     }
     if let Some(p) = &a.out {
         println!("  wrote {} ({best} law; use it with --config)", p.display());

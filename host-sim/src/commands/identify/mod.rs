@@ -1,7 +1,6 @@
 //! `host-sim identify contact|free`: the contact law from a drop test, the suspension from a
 //! free decay (thesis §3.3.2, Eq. 3-34).
 
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::Result;
@@ -9,7 +8,8 @@ use clap::{Args, Subcommand};
 use shared::model::{ContactLaw, ContactLawKind, RigId};
 
 use super::TimeOpts;
-use crate::identify::contact::FitError;
+use crate::identify::cost::FitError;
+use crate::identify::uncertainty::IntervalMethod;
 use crate::trace::{ForceUnit, MotionUnit};
 
 mod contact;
@@ -64,7 +64,8 @@ pub struct ContactArgs {
     /// Hammer mass, kg (0 < m ≤ 1000).
     #[arg(long)]
     pub mass_kg: f64,
-    /// Contact law to fit: hertz, spring-dashpot, hunt-crossley, lankarani-nikravesh, or all.
+    /// Contact law to fit: hertz, spring-dashpot, hunt-crossley, lankarani-nikravesh (valid
+    /// near e = 1 only: it rebounds at 0.663 or more whatever its e), or all.
     #[arg(long, value_parser = parse_law_choice)]
     pub law: LawChoice,
     /// Distance from the surface at which the hammer was released at rest, mm. One value for
@@ -85,6 +86,10 @@ pub struct ContactArgs {
     /// resolves the contact (≥ 8 samples per contact), peaks otherwise.
     #[arg(long, value_enum, default_value = "auto")]
     pub error: FitError,
+    /// How the 95 % intervals are made: scaled (the noise bootstrap widened by the reduced χ²
+    /// when the law misses the data) or noise (the sensor noise alone, no model error).
+    #[arg(long, value_enum, default_value = "scaled")]
+    pub intervals: IntervalMethod,
     /// Weight of the impact-time term (0 ignores the times).
     #[arg(long, default_value_t = 1.0)]
     pub time_weight: f64,
@@ -156,22 +161,12 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
 }
 
 /// The fitted parameters of a law as text, with units.
-pub fn describe_law(law: &ContactLaw, mass_kg: f64) -> String {
+pub fn describe_law(law: &ContactLaw) -> String {
     match *law {
         ContactLaw::SpringDashpot {
             stiffness_n_m,
             damping_n_s_m,
-        } => {
-            let mut s = format!("k_i = {stiffness_n_m:.4e} N/m, c_i = {damping_n_s_m:.4e} N s/m");
-            if let Some((e, _)) = shared::model::contact::spring_dashpot_restitution(
-                stiffness_n_m,
-                damping_n_s_m,
-                mass_kg,
-            ) {
-                let _ = write!(s, " (e = {e:.3})");
-            }
-            s
-        }
+        } => format!("k_i = {stiffness_n_m:.4e} N/m, c_i = {damping_n_s_m:.4e} N s/m"),
         ContactLaw::Hertz {
             stiffness,
             exponent,

@@ -1,22 +1,7 @@
-//! Contact-law identification from a drop test (thesis §3.3.2, Figs. 3.8–3.10).
-//!
-//! The measured force–time trace of a drop test (the hammer released at rest `release` from
-//! the surface; several impacts) is compared with the drop simulation of `shared`
-//! ([`shared::analysis::drop`]) and the law's parameters are fitted by Nelder–Mead (argmin),
-//! as the thesis did with MATLAB's `fminsearch`.
-//!
-//! ## Preprocessing of the measured trace
-//! - Sensor offset: the median of the trace (most samples are free flight, `F = 0`); it is
-//!   subtracted. Noise level `σ`: 1.4826 × the median absolute deviation.
-//! - Impacts: runs of samples above `max(5σ, 3 % of the largest force)` with at least 3
-//!   samples; runs closer than twice the previous run's length are one impact (re-contacts).
-//!   At most `max_impacts`, in time order.
-//! - Peak force of an impact: the vertex of a least-squares parabola through the 5 samples
-//!   around the largest one (when all 5 are above 80 % of it), else the largest sample.
-//! - Impact time: the force-weighted centroid `∫ t F dt / ∫ F dt` over the impact's window
-//!   (the run plus half its length on each side): robust to noise, unlike the onset or the
-//!   peak of a flat-topped pulse. Only differences to the first impact are used, so the trace's
-//!   time origin need not be the release.
+//! The error a contact law makes on drop tests (thesis §3.3.2: the simulated drop against the
+//! measured one), in the search coordinates of the fit: the drop simulation ([`simulate_drop`],
+//! `shared`'s switch-model integrator with the excitation off), the terms of the error and
+//! the data a sensor would give if a simulated drop were the truth (for the bootstrap).
 //!
 //! ## The error (documented for `identify contact --error`)
 //! With `F_ref` the largest measured peak, `τ_ref` the first impact's width at half maximum,
@@ -37,7 +22,7 @@
 //!
 //! A simulated impact that is missing counts with zero force and a time error of `τ_ref`.
 //!
-//! ## Several drop tests (joint fit, [`fit_law_joint`])
+//! ## Several drop tests (joint fit)
 //! One parameter set is fitted to several drop tests (e.g. two release heights, as the thesis
 //! did): `J = Σ_traces J_trace`, each trace's `J_trace` as above with its own `F_ref`, `τ_ref`,
 //! release distance and impacts (so every trace counts alike, whatever its force level). With
@@ -50,21 +35,19 @@
 //!   `n` are not strongly correlated; damping `c_i` and `λ_i` by their logarithms; `n` and `e`
 //!   directly, bounded to `1 ≤ n ≤ 3`, `0.01 ≤ e ≤ 1` by a penalty.
 
-use anyhow::{Context, Result, bail, ensure};
+use anyhow::{Context, Result, ensure};
 use argmin::core::{CostFunction, Executor, State};
 use argmin::solver::brent::BrentOpt;
-use argmin::solver::neldermead::NelderMead;
 use nalgebra::{DMatrix, DVector};
-use rand::SeedableRng;
+use rand::SeedableRng as _;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use rayon::prelude::*;
 use shared::analysis::drop::{DropRecord, DropSpec, run_drop};
 use shared::integrate::StepSettings;
 use shared::model::contact::spring_dashpot_restitution;
 use shared::model::{ContactLaw, ContactLawKind, RigParams, SwitchBands};
 
-use super::least_squares;
+use super::data::{DropData, analyse_drop, peak_estimate};
 use crate::trace::Trace;
 
 /// Which error the fit minimises.
@@ -84,18 +67,6 @@ pub enum FitError {
 /// which the profile error pays: a 0.57 ms contact sampled at 10 kHz has 4, at 50 kHz 19, at
 /// the rig's 100 kHz capture 38.
 pub const PROFILE_MIN_SAMPLES: f64 = 8.0;
-
-impl DropData {
-    /// Samples per contact: the first impact's width at half maximum over the sampling step.
-    pub fn samples_per_contact(&self) -> f64 {
-        let dt = self
-            .t_s
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .fold(f64::INFINITY, f64::min);
-        self.impacts.first().map_or(0.0, |i| i.fwhm_s / dt)
-    }
-}
 
 impl std::fmt::Display for FitError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -118,170 +89,11 @@ impl FitError {
     }
 }
 
-/// One impact found in the measured trace.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MeasuredImpact {
-    /// Peak force (offset removed), N.
-    pub peak_n: f64,
-    /// Force-weighted centroid time, s.
-    pub centroid_s: f64,
-    /// Width at half maximum, s.
-    pub fwhm_s: f64,
-    /// Sample index range `[first, last]` of the impact's window.
-    pub window: (usize, usize),
-    /// Sample index range `[first, last]` of the run above the threshold (the peak's search).
-    pub run: (usize, usize),
-}
-
-/// A measured drop test after preprocessing.
-#[derive(Debug, Clone)]
-pub struct DropData {
-    /// Sample times, s.
-    pub t_s: Vec<f64>,
-    /// Force with the offset removed, N.
-    pub force_n: Vec<f64>,
-    /// Removed sensor offset, N.
-    pub offset_n: f64,
-    /// Noise standard deviation, N.
-    pub noise_n: f64,
-    /// Impacts, in time order.
-    pub impacts: Vec<MeasuredImpact>,
-}
-
-/// The median of `v` (reordered; selection, not a sort).
-fn median(v: &mut [f64]) -> f64 {
-    let n = v.len();
-    let (below, mid, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
-    let mid = *mid;
-    if n % 2 == 1 {
-        mid
-    } else {
-        0.5 * (below.iter().copied().fold(f64::NEG_INFINITY, f64::max) + mid)
-    }
-}
-
-/// Least-squares parabola through `(t, f)`: the vertex `(t*, f*)` if it opens downward.
-fn parabola_vertex(t: &[f64], f: &[f64]) -> Option<(f64, f64)> {
-    let t0 = t[t.len() / 2];
-    // f = a + b x + c x², x = t − t0.
-    let design = DMatrix::from_fn(t.len(), 3, |i, k| (t[i] - t0).powi(k as i32));
-    let a = least_squares(design, DVector::from_column_slice(f))?;
-    let (b, c) = (a[1], a[2]);
-    if c >= 0.0 {
-        return None;
-    }
-    let x = -b / (2.0 * c);
-    Some((t0 + x, a[0] + b * x + c * x * x))
-}
-
-/// The peak force of the impact whose run above the threshold is samples `a..=b` of `f` (times
-/// `t`): the vertex of a least-squares parabola through the 5 samples around the largest one,
-/// when all 5 are above 80 % of it and the vertex lies between the largest one's neighbours;
-/// else the largest sample.
-pub(crate) fn peak_estimate(t: &[f64], f: &[f64], a: usize, b: usize) -> f64 {
-    let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
-    let mut peak = f[imax];
-    if imax >= a + 2
-        && imax + 2 <= b
-        && (imax - 2..=imax + 2).all(|i| f[i] > 0.8 * f[imax])
-        && let Some((tv, fv)) = parabola_vertex(&t[imax - 2..=imax + 2], &f[imax - 2..=imax + 2])
-        && tv >= t[imax - 1]
-        && tv <= t[imax + 1]
-    {
-        peak = fv;
-    }
-    peak
-}
-
-/// Finds the sensor offset, the noise level and the impacts of a measured drop test.
-///
-/// # Errors
-/// No impact stands out of the noise (largest force below 10 σ).
-pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
-    let mut sorted = trace.value.clone();
-    let offset = median(&mut sorted);
-    let mut dev: Vec<f64> = trace.value.iter().map(|v| (v - offset).abs()).collect();
-    let fmax = trace
-        .value
-        .iter()
-        .map(|v| v - offset)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let noise = (1.4826 * median(&mut dev)).max(1e-12 * fmax.abs());
-    ensure!(
-        fmax > 10.0 * noise,
-        "no impact stands out of the noise: largest force {fmax:.4} N above the offset \
-         {offset:.4} N, noise {noise:.4} N"
-    );
-    let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
-    let t = &trace.t_s;
-    let threshold = (5.0 * noise).max(0.03 * fmax);
-    // Runs above the threshold.
-    let mut runs: Vec<(usize, usize)> = Vec::new();
-    let mut start = None;
-    for (i, &fi) in f.iter().enumerate() {
-        match (fi > threshold, start) {
-            (true, None) => start = Some(i),
-            (false, Some(a)) => {
-                runs.push((a, i - 1));
-                start = None;
-            }
-            _ => {}
-        }
-    }
-    if let Some(a) = start {
-        runs.push((a, f.len() - 1));
-    }
-    // Merge re-contacts, drop isolated noise spikes.
-    let mut merged: Vec<(usize, usize)> = Vec::new();
-    for r in runs {
-        if let Some(last) = merged.last_mut() {
-            let len = t[last.1] - t[last.0];
-            if t[r.0] - t[last.1] < 2.0 * len.max(t[1] - t[0]) {
-                last.1 = r.1;
-                continue;
-            }
-        }
-        merged.push(r);
-    }
-    merged.retain(|&(a, b)| b >= a + 2);
-    let n = f.len();
-    let mut impacts = Vec::new();
-    for (a, b) in merged.into_iter().take(max_impacts) {
-        let pad = (b - a).div_ceil(2).max(3);
-        let window = (a.saturating_sub(pad), (b + pad).min(n - 1));
-        let peak = peak_estimate(t, &f, a, b);
-        let (mut sf, mut stf) = (0.0, 0.0);
-        for i in window.0..=window.1 {
-            sf += f[i];
-            stf += t[i] * f[i];
-        }
-        let half: Vec<usize> = (a..=b).filter(|&i| f[i] > 0.5 * peak).collect();
-        let dt = t[1] - t[0];
-        let fwhm = match (half.first(), half.last()) {
-            (Some(&i), Some(&j)) => t[j] - t[i] + dt,
-            _ => dt,
-        };
-        impacts.push(MeasuredImpact {
-            peak_n: peak,
-            centroid_s: stf / sf,
-            fwhm_s: fwhm,
-            window,
-            run: (a, b),
-        });
-    }
-    ensure!(!impacts.is_empty(), "no impact found in the trace");
-    Ok(DropData {
-        t_s: t.clone(),
-        force_n: f,
-        offset_n: offset,
-        noise_n: noise,
-        impacts,
-    })
-}
-
 /// One simulated impact: its peak, centroid and force samples.
 #[derive(Debug, Clone, Default)]
 pub struct SimImpact {
+    /// Approach speed at the arrival, m/s.
+    pub approach_speed_m_s: f64,
     /// Peak force, N.
     pub peak_n: f64,
     /// Force-weighted centroid time, s.
@@ -356,6 +168,7 @@ pub fn simulate_drop(
                 stf += 0.5 * dt * (w[0].0 * w[0].1 + w[1].0 * w[1].1);
             }
             out.impacts.push(SimImpact {
+                approach_speed_m_s: i.approach_speed_m_s,
                 peak_n: i.peak_n,
                 centroid_s: if sf > 0.0 { stf / sf } else { i.arrival_s },
                 profile,
@@ -364,6 +177,31 @@ pub fn simulate_drop(
     })
     .context("drop simulation")?;
     Ok(out)
+}
+
+/// `(t, F)` samples (times increasing) linearly interpolated at `times` (increasing); the
+/// first or last sample's force outside them.
+pub(crate) fn resample(samples: &[(f64, f64)], times: impl Iterator<Item = f64>) -> Vec<f64> {
+    let s = samples;
+    let mut j = 0;
+    times
+        .map(|t| {
+            while j + 1 < s.len() && s[j + 1].0 < t {
+                j += 1;
+            }
+            if j + 1 < s.len() {
+                let (t0, f0) = s[j];
+                let (t1, f1) = s[j + 1];
+                if t1 > t0 {
+                    f0 + (f1 - f0) * ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+                } else {
+                    f1
+                }
+            } else {
+                s.last().map_or(0.0, |p| p.1)
+            }
+        })
+        .collect()
 }
 
 /// One drop test of a (joint) fit: how it was made and what was measured.
@@ -514,6 +352,68 @@ impl CostFunction for Align<'_> {
     }
 }
 
+/// What a stream of seeded noise is for ([`noise_rng`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Stream {
+    /// The fixed draws of the simulated peak measurement ([`PEAK_DRAWS`] per impact).
+    PeakDraws = 1,
+    /// A noise redraw of the bootstrap ([`Problem::synthetic_data`]).
+    Redraw = 2,
+}
+
+/// The ChaCha8 generator of `stream` for trace `trace` and index `index` (the impact, or the
+/// redraw): the three make its 256-bit key, so no two streams share draws, and every machine
+/// draws the same.
+pub(crate) fn noise_rng(stream: Stream, trace: usize, index: u64) -> ChaCha8Rng {
+    let mut key = [0u8; 32];
+    key[..8].copy_from_slice(&(stream as u64).to_le_bytes());
+    key[8..16].copy_from_slice(&(trace as u64).to_le_bytes());
+    key[16..24].copy_from_slice(&index.to_le_bytes());
+    ChaCha8Rng::from_seed(key)
+}
+
+/// Why a noise redraw of the fitted drop gives no usable data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RedrawFailure {
+    /// The simulated drop at the fit has no impact.
+    NoSimulatedImpact,
+    /// No impact stands out of the redrawn noise.
+    NoImpact,
+    /// The redrawn trace shows fewer impacts than the measured one (a small impact below the
+    /// threshold, or two impacts merged).
+    FewerImpacts,
+    /// The simulated drops around the fit miss an impact of the redrawn trace.
+    Terms,
+    /// The error's Jacobian on the redrawn trace is not usable (singular or not finite).
+    Singular,
+    /// The redrawn trace's error after its step is beyond [`BROKEN_REDRAW`] times the median
+    /// redraw's: its preprocessing broke down (an impact's window or peak taken from noise),
+    /// and one such redraw would dominate the covariance.
+    Broken,
+}
+
+/// A redraw whose error after its Gauss–Newton step exceeds this many times the median
+/// redraw's is [`RedrawFailure::Broken`] (for `J ~ χ²_1`, 1 redraw in 400 passes 20× the
+/// median; for more terms, far fewer).
+pub const BROKEN_REDRAW: f64 = 20.0;
+
+impl RedrawFailure {
+    /// Words for a report.
+    pub const fn describe(self) -> &'static str {
+        match self {
+            RedrawFailure::NoSimulatedImpact => "the fitted drop has no impact",
+            RedrawFailure::NoImpact => "no impact stands out of the noise",
+            RedrawFailure::FewerImpacts => {
+                "fewer impacts than measured (a small one below the threshold or two merged)"
+            }
+            RedrawFailure::Terms => "the drops around the fit miss an impact",
+            RedrawFailure::Singular => "singular Jacobian",
+            RedrawFailure::Broken => "preprocessing broke down (error 20× the median redraw's)",
+        }
+    }
+}
+
 /// Noise draws of the simulated measurement of a peak (the sensor's peak estimate laid on the
 /// measured samples).
 pub const PEAK_DRAWS: usize = 32;
@@ -528,20 +428,23 @@ struct TraceCtx<'a> {
     duration_s: f64,
     /// Per impact: [`PEAK_DRAWS`] draws of the sensor noise over its run, draw-major, N.
     peak_noise: Vec<Vec<f64>>,
+    /// The trace's number in the fit.
+    index: usize,
 }
 
 impl<'a> TraceCtx<'a> {
-    fn new(setup: &'a DropSetup, data: &'a DropData) -> Self {
+    /// The context of trace number `index` (which seeds its peak draws).
+    fn new(setup: &'a DropSetup, data: &'a DropData, index: usize) -> Self {
         let i0 = &data.impacts[0];
         let span = data.impacts[data.impacts.len() - 1].centroid_s - i0.centroid_s;
         // Fixed draws (common to every parameter set, so the simulated peak is a smooth
-        // function of the parameters), seeded per impact: the same on every machine.
+        // function of the parameters), seeded per trace and impact: the same on every machine.
         let peak_noise = data
             .impacts
             .iter()
             .enumerate()
             .map(|(j, m)| {
-                let mut rng = ChaCha8Rng::seed_from_u64(j as u64);
+                let mut rng = noise_rng(Stream::PeakDraws, index, j as u64);
                 let n = PEAK_DRAWS * (m.run.1 + 1 - m.run.0);
                 (0..n)
                     .map(|_| {
@@ -561,6 +464,7 @@ impl<'a> TraceCtx<'a> {
             tau_ref: i0.fwhm_s,
             duration_s: 1.25 * span + 2.0 * std::f64::consts::PI / setup.params.omega_n() + 0.01,
             peak_noise,
+            index,
         }
     }
 
@@ -653,6 +557,43 @@ enum Term {
     Profile(f64),
 }
 
+/// The part of the error a term belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Part {
+    /// Peak forces.
+    Peak,
+    /// Impact times.
+    Time,
+    /// Force profiles.
+    Profile,
+}
+
+impl Part {
+    /// All parts, in the order of the terms.
+    pub const ALL: [Part; 3] = [Part::Peak, Part::Time, Part::Profile];
+
+    /// Its name in reports (`peaks`, `times`, `profile`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Part::Peak => "peaks",
+            Part::Time => "times",
+            Part::Profile => "profile",
+        }
+    }
+}
+
+/// Where a term of the error comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct TermInfo {
+    /// Its part of the error.
+    pub part: Part,
+    /// Trace index.
+    pub trace: usize,
+    /// Impact index within the trace.
+    pub impact: usize,
+}
+
 impl Problem<'_> {
     /// The law at search coordinates `x`, or `None` outside the bounds (with the distance).
     pub(crate) fn law_at(&self, x: &[f64]) -> Result<ContactLaw, f64> {
@@ -693,6 +634,22 @@ impl Problem<'_> {
         Ok(law)
     }
 
+    /// The whole simulated drop of each trace for `law` (every impact within the trace's
+    /// duration, all samples kept: for plots).
+    ///
+    /// # Errors
+    /// Invalid parameters.
+    pub(crate) fn simulate_whole(&self, law: &ContactLaw) -> Result<Vec<SimDrop>> {
+        self.traces
+            .iter()
+            .map(|tc| {
+                let mut params = tc.setup.params;
+                params.contact = *law;
+                simulate_drop(&params, &tc.spec(0), &tc.setup.steps, true)
+            })
+            .collect()
+    }
+
     /// The simulated drop of each trace for `law` (all samples kept with `keep_samples`).
     pub(crate) fn simulate(&self, law: &ContactLaw, keep_samples: bool) -> Result<Vec<SimDrop>> {
         self.traces
@@ -707,37 +664,75 @@ impl Problem<'_> {
     }
 
     /// The joint residual of `law` and each trace's (in order).
-    fn residual(&self, law: &ContactLaw) -> Result<(Residual, Vec<Residual>)> {
+    pub(crate) fn residual(&self, law: &ContactLaw) -> Result<(Residual, Vec<Residual>)> {
         let sims = self.simulate(law, false)?;
         let mut total = Sums::default();
         let mut each = Vec::with_capacity(self.traces.len());
         for (tc, sim) in self.traces.iter().zip(&sims) {
-            let sums = Sums::of(&Self::trace_terms(tc, sim, self.weights), tc.tau_ref);
+            let sums = Sums::of(
+                &Self::trace_terms(tc, sim, self.weights.profile > 0.0),
+                tc.tau_ref,
+            );
             total.add(&sums);
             each.push(sums.residual(self.weights));
         }
         Ok((total.residual(self.weights), each))
     }
 
-    /// The weighted terms `r̃` of the error (`J = Σ r̃²`) against the simulated drops `sims`
-    /// (one per trace, [`Self::simulate`]): per impact of each trace in order, its peak term,
-    /// its time term (`√w_time Δt/τ_ref`, impacts after the first, when `w_time > 0`) and its
-    /// profile terms (`√w_profile`, one per window sample).
-    pub(crate) fn terms(&self, sims: &[SimDrop]) -> Vec<f64> {
-        let (wt, wp) = (self.weights.time.sqrt(), self.weights.profile.sqrt());
+    /// Every term of the error, unweighted, against the simulated drops `sims` (one per trace,
+    /// [`Self::simulate`]), in the order of [`Self::term_info`]: per impact of each trace, its
+    /// peak term, its time term (`Δt/τ_ref`, impacts after the first, when `w_time > 0`) and
+    /// its profile terms (one per window sample, whether or not `w_profile > 0`: the
+    /// lack-of-fit check looks at the profile of a peaks fit too).
+    pub(crate) fn terms_all(&self, sims: &[SimDrop]) -> Vec<f64> {
         let mut out = Vec::new();
         for (tc, sim) in self.traces.iter().zip(sims) {
             out.extend(
-                Self::trace_terms(tc, sim, self.weights)
+                Self::trace_terms(tc, sim, true)
                     .into_iter()
                     .filter_map(|t| match t {
-                        Term::Peak(v) => Some(v),
-                        Term::Time(dt) => (wt > 0.0).then_some(wt * dt / tc.tau_ref),
-                        Term::Profile(v) => Some(wp * v),
+                        Term::Peak(v) | Term::Profile(v) => Some(v),
+                        Term::Time(dt) => (self.weights.time > 0.0).then_some(dt / tc.tau_ref),
                     }),
             );
         }
         out
+    }
+
+    /// What each term of [`Self::terms_all`] is: its part of the error, trace and impact.
+    pub(crate) fn term_info(&self) -> Vec<TermInfo> {
+        let mut out = Vec::new();
+        for (trace, tc) in self.traces.iter().enumerate() {
+            for (impact, m) in tc.data.impacts.iter().enumerate() {
+                let mut push = |part| {
+                    out.push(TermInfo {
+                        part,
+                        trace,
+                        impact,
+                    })
+                };
+                push(Part::Peak);
+                if impact > 0 && self.weights.time > 0.0 {
+                    push(Part::Time);
+                }
+                for _ in m.window.0..=m.window.1 {
+                    push(Part::Profile);
+                }
+            }
+        }
+        out
+    }
+
+    /// The factor of each term of [`Self::terms_all`] in the error `J = Σ (w r)²`: 1 for a peak,
+    /// `√w_time` for a time, `√w_profile` for a profile sample (0: not in the error).
+    pub(crate) fn term_weights(&self, info: &[TermInfo]) -> Vec<f64> {
+        info.iter()
+            .map(|t| match t.part {
+                Part::Peak => 1.0,
+                Part::Time => self.weights.time.sqrt(),
+                Part::Profile => self.weights.profile.sqrt(),
+            })
+            .collect()
     }
 
     /// The same problem on other data (one [`DropData`] per trace, in order): the same law,
@@ -748,7 +743,7 @@ impl Problem<'_> {
                 .traces
                 .iter()
                 .zip(data)
-                .map(|(tc, d)| TraceCtx::new(tc.setup, d))
+                .map(|(tc, d)| TraceCtx::new(tc.setup, d, tc.index))
                 .collect(),
             law: self.law,
             weights: self.weights,
@@ -759,21 +754,28 @@ impl Problem<'_> {
 
     /// Drop data as the sensor would give them if `sims` (one per trace, with samples) were
     /// the truth: each simulated drop at the trace's sample times (aligned on the first
-    /// impact's centroid) plus white noise of the trace's `σ` (ChaCha8 seeded with `seed` and
-    /// the trace's index), preprocessed like the measurement. `None` if a trace does not show
-    /// as many impacts as the measured one.
-    pub(crate) fn synthetic_data(&self, sims: &[SimDrop], seed: u64) -> Option<Vec<DropData>> {
+    /// impact) plus white noise of the trace's `σ` ([`noise_rng`] of the trace and `redraw`),
+    /// preprocessed like the measurement.
+    ///
+    /// # Errors
+    /// Why the redraw is not usable: a trace without the measured number of impacts.
+    pub(crate) fn synthetic_data(
+        &self,
+        sims: &[SimDrop],
+        redraw: u64,
+    ) -> Result<Vec<DropData>, RedrawFailure> {
         self.traces
             .iter()
             .zip(sims)
-            .enumerate()
-            .map(|(i, (tc, sim))| {
+            .map(|(tc, sim)| {
                 let n = tc.data.impacts.len();
-                let shift = tc.shift_onto(0, sim.impacts.first()?);
-                let clean =
-                    super::synth::resample(&sim.samples, tc.data.t_s.iter().map(|t| t + shift));
-                let mut rng =
-                    ChaCha8Rng::seed_from_u64(seed.wrapping_mul(64).wrapping_add(i as u64));
+                let first = sim
+                    .impacts
+                    .first()
+                    .ok_or(RedrawFailure::NoSimulatedImpact)?;
+                let shift = tc.shift_onto(0, first);
+                let clean = resample(&sim.samples, tc.data.t_s.iter().map(|t| t + shift));
+                let mut rng = noise_rng(Stream::Redraw, tc.index, redraw);
                 let value = clean
                     .iter()
                     .map(|f| {
@@ -788,8 +790,11 @@ impl Problem<'_> {
                     t_s: tc.data.t_s.clone(),
                     value,
                 };
-                let d = analyse_drop(&trace, n).ok()?;
-                (d.impacts.len() == n).then_some(d)
+                let d = analyse_drop(&trace, n).map_err(|_| RedrawFailure::NoImpact)?;
+                if d.impacts.len() < n {
+                    return Err(RedrawFailure::FewerImpacts);
+                }
+                Ok(d)
             })
             .collect()
     }
@@ -797,6 +802,15 @@ impl Problem<'_> {
     /// The noise standard deviation of each trace's samples, N.
     pub(crate) fn noise_n(&self) -> Vec<f64> {
         self.traces.iter().map(|t| t.data.noise_n).collect()
+    }
+
+    /// Terms of the error (those of [`Self::terms_all`] with a non-zero weight).
+    pub(crate) fn cost_term_count(&self) -> usize {
+        let info = self.term_info();
+        self.term_weights(&info)
+            .iter()
+            .filter(|w| **w > 0.0)
+            .count()
     }
 
     /// Traces in the fit.
@@ -813,8 +827,8 @@ impl Problem<'_> {
     }
 
     /// The unweighted terms of one trace's error against its simulated drop (module docs;
-    /// profile terms only when `w_profile > 0`).
-    fn trace_terms(tc: &TraceCtx<'_>, sim: &SimDrop, weights: Weights) -> Vec<Term> {
+    /// profile terms only with `profile`).
+    fn trace_terms(tc: &TraceCtx<'_>, sim: &SimDrop, profile: bool) -> Vec<Term> {
         let meas = &tc.data.impacts;
         let mut out = Vec::new();
         let c_m0 = meas[0].centroid_s;
@@ -828,7 +842,7 @@ impl Problem<'_> {
                     _ => tc.tau_ref,
                 }));
             }
-            if weights.profile > 0.0 {
+            if profile {
                 for i in m.window.0..=m.window.1 {
                     let fsim = s.map_or(0.0, |s| {
                         s.force_at(tc.data.t_s[i] - m.centroid_s + s.centroid_s)
@@ -838,6 +852,109 @@ impl Problem<'_> {
             }
         }
         out
+    }
+}
+
+/// The step of the central differences in the search coordinates ([`Problem::around`]).
+pub(crate) const JACOBIAN_STEP: f64 = 1e-3;
+
+/// The simulated drops at a point of the search and one [`JACOBIAN_STEP`] up and down each
+/// coordinate (`None` beyond a bound): what [`Problem::linearise`] needs, for any data.
+pub(crate) struct Around {
+    /// At the point, all samples kept.
+    pub center: Vec<SimDrop>,
+    /// Per coordinate: one step up, one step down.
+    pub steps: Vec<[Option<Vec<SimDrop>>; 2]>,
+}
+
+/// The error linearised at a point: every term ([`Problem::terms_all`]), its Jacobian in the
+/// search coordinates, each term's part and weight in the error.
+pub(crate) struct Linear {
+    /// Terms, unweighted.
+    pub r: DVector<f64>,
+    /// `∂r/∂x`.
+    pub jac: DMatrix<f64>,
+    /// Each term's part.
+    pub parts: Vec<Part>,
+    /// Each term's factor in the error ([`Problem::term_weights`]).
+    pub w: Vec<f64>,
+}
+
+/// `jac` with row `i` scaled by `w[i]`.
+pub(crate) fn weighted(jac: &DMatrix<f64>, w: &[f64]) -> DMatrix<f64> {
+    let mut jw = jac.clone();
+    for (i, wi) in w.iter().enumerate() {
+        jw.row_mut(i).scale_mut(*wi);
+    }
+    jw
+}
+
+impl Problem<'_> {
+    /// The drops around `x` (whose law is `law`).
+    ///
+    /// # Errors
+    /// A failed simulation at `x`.
+    pub(crate) fn around(&self, x: &[f64], law: &ContactLaw) -> Result<Around> {
+        let center = self.simulate(law, true)?;
+        let steps = (0..x.len())
+            .map(|j| {
+                [1.0, -1.0].map(|sign| {
+                    let mut xs = x.to_vec();
+                    xs[j] += sign * JACOBIAN_STEP;
+                    self.simulate(&self.law_at(&xs).ok()?, false).ok()
+                })
+            })
+            .collect();
+        Ok(Around { center, steps })
+    }
+
+    /// The error on this problem's data linearised with the drops `around` a point (central
+    /// differences, one-sided next to a bound); `None` if a coordinate has no drop on either
+    /// side or the terms do not match.
+    pub(crate) fn linearise(&self, around: &Around) -> Option<Linear> {
+        let info = self.term_info();
+        let w = self.term_weights(&info);
+        let r0 = self.terms_all(&around.center);
+        let n = r0.len();
+        if n != info.len() {
+            return None;
+        }
+        let mut jac = DMatrix::<f64>::zeros(n, around.steps.len());
+        for (j, [up, down]) in around.steps.iter().enumerate() {
+            let at = |s: &Option<Vec<SimDrop>>| {
+                s.as_ref()
+                    .map(|s| self.terms_all(s))
+                    .filter(|t| t.len() == n)
+            };
+            let (col, span): (Vec<f64>, f64) = match (at(up), at(down)) {
+                (Some(u), Some(d)) => (u.iter().zip(&d).map(|(u, d)| u - d).collect(), 2.0),
+                (Some(u), None) => (u.iter().zip(&r0).map(|(u, c)| u - c).collect(), 1.0),
+                (None, Some(d)) => (r0.iter().zip(&d).map(|(c, d)| c - d).collect(), 1.0),
+                (None, None) => return None,
+            };
+            for (i, v) in col.iter().enumerate() {
+                jac[(i, j)] = v / (span * JACOBIAN_STEP);
+            }
+        }
+        Some(Linear {
+            r: DVector::from_vec(r0),
+            jac,
+            parts: info.iter().map(|t| t.part).collect(),
+            w,
+        })
+    }
+
+    /// The Gauss–Newton step from the point of `around` on this problem's data: `−(W R)⁺ W r`
+    /// (pseudo-inverse by SVD, singular values below `1e-9` of the largest dropped).
+    pub(crate) fn gauss_newton(&self, around: &Around) -> Option<Vec<f64>> {
+        let l = self.linearise(around)?;
+        let rw = DVector::from_iterator(l.r.len(), l.r.iter().zip(&l.w).map(|(v, w)| v * w));
+        let svd = weighted(&l.jac, &l.w).svd(true, true);
+        let tol = 1e-9 * svd.singular_values.max().max(1e-300);
+        let step = -(svd.pseudo_inverse(tol).ok()? * rw);
+        step.iter()
+            .all(|v| v.is_finite())
+            .then(|| step.iter().copied().collect())
     }
 }
 
@@ -853,48 +970,6 @@ impl CostFunction for Problem<'_> {
             },
         }
     }
-}
-
-/// A fitted law.
-#[derive(Debug, Clone)]
-pub struct Fit {
-    /// The law with its fitted parameters.
-    pub law: ContactLaw,
-    /// The error at the fit (all traces together: `J` is the sum of the traces' errors, the
-    /// RMS values are over all their impacts and samples).
-    pub residual: Residual,
-    /// Cost evaluations (each one drop simulation per trace) spent.
-    pub evaluations: u64,
-    /// Per trace, in the order given: its own error and the simulated drop at the fit (all
-    /// samples kept, for plots).
-    pub traces: Vec<TraceFit>,
-    /// The parameters' uncertainty at the fit, or why it could not be estimated.
-    pub uncertainty: Result<super::uncertainty::Uncertainty, String>,
-    /// Terms of the error (`J = Σ r̃²`): peaks, times and profile samples of all traces.
-    pub terms: usize,
-}
-
-impl Fit {
-    /// Akaike's information criterion on the error's terms, `n ln(J/n) + 2p` (`n` terms, `p`
-    /// parameters): the same terms for every law of one identification, so laws with more
-    /// parameters pay for them. Differences below 2 do not tell two laws apart.
-    pub fn aic(&self) -> f64 {
-        let n = self.terms.max(1) as f64;
-        let p = match self.law.kind() {
-            ContactLawKind::SpringDashpot | ContactLawKind::Hertz => 2.0,
-            _ => 3.0,
-        };
-        n * (self.residual.cost / n).max(1e-300).ln() + 2.0 * p
-    }
-}
-
-/// One trace's part of a [`Fit`].
-#[derive(Debug, Clone)]
-pub struct TraceFit {
-    /// This trace's error at the fit.
-    pub residual: Residual,
-    /// The simulated drop of this trace's setup at the fit (all samples kept).
-    pub sim: SimDrop,
 }
 
 /// Initial guesses from the data: `(x0 scales, δ_ref)` for the law, see the module docs.
@@ -937,191 +1012,49 @@ fn initial(law: ContactLawKind, data: &DropData, mass_kg: f64) -> ([f64; 3], f64
     }
 }
 
-fn start_point(law: ContactLawKind, data: &DropData) -> Vec<f64> {
-    let e = data
-        .impacts
-        .get(1)
-        .map_or(0.5, |i1| {
-            (i1.peak_n / data.impacts[0].peak_n).powf(2.5 / 3.0)
-        })
-        .clamp(0.05, 0.95);
-    match law {
-        ContactLawKind::SpringDashpot => vec![0.0, 0.0],
-        ContactLawKind::Hertz => vec![0.0, 1.5],
-        ContactLawKind::HuntCrossley => vec![0.0, 1.5, 0.0],
-        ContactLawKind::LankaraniNikravesh => vec![0.0, 1.5, e],
-    }
-}
-
-fn simplex(law: ContactLawKind, x0: &[f64]) -> Vec<Vec<f64>> {
-    let steps: &[f64] = match law {
-        ContactLawKind::SpringDashpot => &[0.4, 0.4],
-        ContactLawKind::Hertz => &[0.3, 0.2],
-        ContactLawKind::HuntCrossley => &[0.3, 0.2, 0.5],
-        ContactLawKind::LankaraniNikravesh => &[0.3, 0.2, 0.1],
-    };
-    let mut s = vec![x0.to_vec()];
-    for (i, &h) in steps.iter().enumerate() {
-        let mut p = x0.to_vec();
-        // Step inward for a bounded coordinate near its upper bound.
-        p[i] += if law == ContactLawKind::LankaraniNikravesh && i == 2 && x0[2] + h > 1.0 {
-            -h
-        } else {
-            h
-        };
-        s.push(p);
-    }
-    s
-}
-
-/// Fits `law` to the measured drop `data` with Nelder–Mead (argmin), restarting from the best
-/// point with a fresh simplex until a restart improves the error by less than 0.1 % (at most 4
-/// runs of at most `max_iters` iterations). One trace of [`fit_law_joint`].
-///
-/// # Errors
-/// Invalid rig parameters or drop setup (checked with the preset law before fitting), or an
-/// optimiser failure.
-pub fn fit_law(
-    setup: &DropSetup,
-    data: &DropData,
-    law: ContactLawKind,
-    weights: Weights,
-    max_iters: u64,
-) -> Result<Fit> {
-    let tests = [DropTest {
-        setup: *setup,
-        data: data.clone(),
-    }];
-    fit_law_joint(&tests, law, weights, max_iters)
-}
-
-fn problem(tests: &[DropTest], law: ContactLawKind, weights: Weights) -> Result<Problem<'_>> {
-    ensure!(!tests.is_empty(), "no drop test to fit");
-    for (i, t) in tests.iter().enumerate() {
-        ensure!(
-            !t.data.impacts.is_empty(),
-            "drop test {}: no measured impact",
-            i + 1
-        );
-    }
-    // The search coordinates are scaled by the first trace.
-    let (x0_scale, delta_ref) = initial(law, &tests[0].data, tests[0].setup.params.mass_kg);
-    Ok(Problem {
-        traces: tests
-            .iter()
-            .map(|t| TraceCtx::new(&t.setup, &t.data))
-            .collect(),
-        law,
-        weights,
-        delta_ref,
-        x0_scale,
-    })
-}
-
-/// Fits every law of `laws` to the drop tests `tests` jointly (one parameter set per law, the
-/// error summed over the tests; at most `max_iters` Nelder–Mead iterations), the laws in
-/// parallel; results in the order of `laws`.
-///
-/// # Errors
-/// The first law whose fit fails (named).
-pub fn fit_laws(
-    tests: &[DropTest],
-    laws: &[ContactLawKind],
-    weights: Weights,
-    max_iters: u64,
-) -> Result<Vec<(ContactLawKind, Fit)>> {
-    laws.par_iter()
-        .map(|&k| {
-            fit_law_joint(tests, k, weights, max_iters)
-                .with_context(|| format!("fitting the {k} law"))
-                .map(|f| (k, f))
-        })
-        .collect()
-}
-
-/// The law of `fits` with the lowest AIC (the same error terms for every law); `None` if
-/// `fits` is empty.
-pub fn best_by_aic(fits: &[(ContactLawKind, Fit)]) -> Option<ContactLawKind> {
-    fits.iter()
-        .min_by(|x, y| x.1.aic().total_cmp(&y.1.aic()))
-        .map(|f| f.0)
-}
-
-/// Fits one parameter set of `law` to several drop tests at once (e.g. two release heights):
-/// the error is the sum of the traces' errors (module docs). Nelder–Mead as in [`fit_law`],
-/// started from the first trace's data-based guess.
-///
-/// # Errors
-/// No test, a test without impacts, invalid rig parameters or drop setup of any test (checked
-/// with the preset law before fitting, named with the test's number), or an optimiser failure.
-pub fn fit_law_joint(
-    tests: &[DropTest],
-    law: ContactLawKind,
-    weights: Weights,
-    max_iters: u64,
-) -> Result<Fit> {
-    let problem = problem(tests, law, weights)?;
-    // Fails early (with the field) if a rig or a drop setup is invalid.
-    for (i, tc) in problem.traces.iter().enumerate() {
-        let mut check = tc.setup.params;
-        check.contact = ContactLaw::preset(law);
-        check
-            .validate()
-            .with_context(|| format!("drop test {}: rig parameters", i + 1))?;
-        tc.spec(1)
-            .validate()
-            .with_context(|| format!("drop test {}", i + 1))?;
-    }
-
-    let mut x = start_point(law, &tests[0].data);
-    let mut best = problem.cost(&x).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut evaluations = 1u64;
-    for _ in 0..4 {
-        let solver = NelderMead::new(simplex(law, &x))
-            .with_sd_tolerance(1e-12)
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-        let res = Executor::new(problem.clone(), solver)
-            .configure(|s| s.max_iters(max_iters).counting(true))
-            .run()
-            .map_err(|e| anyhow::anyhow!("Nelder–Mead: {e}"))?;
-        evaluations += res
-            .state()
-            .get_func_counts()
-            .get("cost_count")
-            .copied()
-            .unwrap_or(0);
-        let cost = res.state().get_best_cost();
-        let Some(p) = res.state().get_best_param().cloned() else {
-            break;
-        };
-        let improved = cost < best * (1.0 - 1e-3);
-        if cost < best {
-            best = cost;
-            x = p;
+impl<'a> Problem<'a> {
+    /// The problem of fitting `law` to `tests` with `weights`, its search coordinates scaled by
+    /// the first test's data ([`initial`]).
+    ///
+    /// # Errors
+    /// No test, a test without impacts, or invalid rig parameters or drop setup of any test
+    /// (checked with the preset law, named with the test's number).
+    pub(crate) fn new(
+        tests: &'a [DropTest],
+        law: ContactLawKind,
+        weights: Weights,
+    ) -> Result<Self> {
+        ensure!(!tests.is_empty(), "no drop test to fit");
+        for (i, t) in tests.iter().enumerate() {
+            ensure!(
+                !t.data.impacts.is_empty(),
+                "drop test {}: no measured impact",
+                i + 1
+            );
         }
-        if !improved {
-            break;
+        let (x0_scale, delta_ref) = initial(law, &tests[0].data, tests[0].setup.params.mass_kg);
+        let problem = Problem {
+            traces: tests
+                .iter()
+                .enumerate()
+                .map(|(i, t)| TraceCtx::new(&t.setup, &t.data, i))
+                .collect(),
+            law,
+            weights,
+            delta_ref,
+            x0_scale,
+        };
+        // Fails early (with the field) if a rig or a drop setup is invalid.
+        for (i, tc) in problem.traces.iter().enumerate() {
+            let mut check = tc.setup.params;
+            check.contact = ContactLaw::preset(law);
+            check
+                .validate()
+                .with_context(|| format!("drop test {}: rig parameters", i + 1))?;
+            tc.spec(1)
+                .validate()
+                .with_context(|| format!("drop test {}", i + 1))?;
         }
+        Ok(problem)
     }
-    let Ok(law_fit) = problem.law_at(&x) else {
-        bail!("the fit left the parameter bounds");
-    };
-    let (residual, each) = problem.residual(&law_fit)?;
-    let mut traces = Vec::with_capacity(each.len());
-    for (tc, r) in problem.traces.iter().zip(each) {
-        let mut params = tc.setup.params;
-        params.contact = law_fit;
-        let sim = simulate_drop(&params, &tc.spec(0), &tc.setup.steps, true)?;
-        traces.push(TraceFit { residual: r, sim });
-    }
-    let uncertainty = super::uncertainty::estimate(&problem, &x);
-    let terms = problem.terms(&problem.simulate(&law_fit, false)?).len();
-    Ok(Fit {
-        terms,
-        law: law_fit,
-        residual,
-        evaluations,
-        traces,
-        uncertainty,
-    })
 }

@@ -1,0 +1,194 @@
+//! The measured drop test (thesis §3.3.2, Figs. 3.8–3.10): the force–time trace of the hammer
+//! released at rest from the surface and bouncing several times, reduced to its sensor offset,
+//! noise level and impacts.
+//!
+//! - Sensor offset: the median of the trace (most samples are free flight, `F = 0`); it is
+//!   subtracted. Noise level `σ`: 1.4826 × the median absolute deviation.
+//! - Impacts: runs of samples above `max(5σ, 3 % of the largest force)` with at least 3
+//!   samples; runs closer than twice the previous run's length are one impact (re-contacts).
+//!   At most `max_impacts`, in time order.
+//! - Peak force of an impact: the vertex of a least-squares parabola through the 5 samples
+//!   around the largest one (when all 5 are above 80 % of it), else the largest sample.
+//! - Impact time: the force-weighted centroid `∫ t F dt / ∫ F dt` over the impact's window
+//!   (the run plus half its length on each side): robust to noise, unlike the onset or the
+//!   peak of a flat-topped pulse. Only differences to the first impact are used, so the trace's
+//!   time origin need not be the release.
+
+use anyhow::{Result, ensure};
+use nalgebra::{DMatrix, DVector};
+
+use super::least_squares;
+use crate::trace::Trace;
+
+impl DropData {
+    /// Samples per contact: the first impact's width at half maximum over the sampling step.
+    pub fn samples_per_contact(&self) -> f64 {
+        let dt = self
+            .t_s
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(f64::INFINITY, f64::min);
+        self.impacts.first().map_or(0.0, |i| i.fwhm_s / dt)
+    }
+}
+
+/// One impact found in the measured trace.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeasuredImpact {
+    /// Peak force (offset removed), N.
+    pub peak_n: f64,
+    /// Force-weighted centroid time, s.
+    pub centroid_s: f64,
+    /// Width at half maximum, s.
+    pub fwhm_s: f64,
+    /// Sample index range `[first, last]` of the impact's window.
+    pub window: (usize, usize),
+    /// Sample index range `[first, last]` of the run above the threshold (the peak's search).
+    pub run: (usize, usize),
+}
+
+/// A measured drop test after preprocessing.
+#[derive(Debug, Clone)]
+pub struct DropData {
+    /// Sample times, s.
+    pub t_s: Vec<f64>,
+    /// Force with the offset removed, N.
+    pub force_n: Vec<f64>,
+    /// Removed sensor offset, N.
+    pub offset_n: f64,
+    /// Noise standard deviation, N.
+    pub noise_n: f64,
+    /// Impacts, in time order.
+    pub impacts: Vec<MeasuredImpact>,
+}
+
+/// The median of `v` (reordered; selection, not a sort).
+fn median(v: &mut [f64]) -> f64 {
+    let n = v.len();
+    let (below, mid, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
+    let mid = *mid;
+    if n % 2 == 1 {
+        mid
+    } else {
+        0.5 * (below.iter().copied().fold(f64::NEG_INFINITY, f64::max) + mid)
+    }
+}
+
+/// Least-squares parabola through `(t, f)`: the vertex `(t*, f*)` if it opens downward.
+fn parabola_vertex(t: &[f64], f: &[f64]) -> Option<(f64, f64)> {
+    let t0 = t[t.len() / 2];
+    // f = a + b x + c x², x = t − t0.
+    let design = DMatrix::from_fn(t.len(), 3, |i, k| (t[i] - t0).powi(k as i32));
+    let a = least_squares(design, DVector::from_column_slice(f))?;
+    let (b, c) = (a[1], a[2]);
+    if c >= 0.0 {
+        return None;
+    }
+    let x = -b / (2.0 * c);
+    Some((t0 + x, a[0] + b * x + c * x * x))
+}
+
+/// The peak force of the impact whose run above the threshold is samples `a..=b` of `f` (times
+/// `t`): the vertex of a least-squares parabola through the 5 samples around the largest one,
+/// when all 5 are above 80 % of it and the vertex lies between the largest one's neighbours;
+/// else the largest sample.
+pub(crate) fn peak_estimate(t: &[f64], f: &[f64], a: usize, b: usize) -> f64 {
+    let imax = (a..=b).max_by(|&i, &j| f[i].total_cmp(&f[j])).unwrap_or(a);
+    let mut peak = f[imax];
+    if imax >= a + 2
+        && imax + 2 <= b
+        && (imax - 2..=imax + 2).all(|i| f[i] > 0.8 * f[imax])
+        && let Some((tv, fv)) = parabola_vertex(&t[imax - 2..=imax + 2], &f[imax - 2..=imax + 2])
+        && tv >= t[imax - 1]
+        && tv <= t[imax + 1]
+    {
+        peak = fv;
+    }
+    peak
+}
+
+/// Finds the sensor offset, the noise level and the impacts of a measured drop test.
+///
+/// # Errors
+/// No impact stands out of the noise (largest force below 10 σ).
+pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
+    let mut sorted = trace.value.clone();
+    let offset = median(&mut sorted);
+    let mut dev: Vec<f64> = trace.value.iter().map(|v| (v - offset).abs()).collect();
+    let fmax = trace
+        .value
+        .iter()
+        .map(|v| v - offset)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let noise = (1.4826 * median(&mut dev)).max(1e-12 * fmax.abs());
+    ensure!(
+        fmax > 10.0 * noise,
+        "no impact stands out of the noise: largest force {fmax:.4} N above the offset \
+         {offset:.4} N, noise {noise:.4} N"
+    );
+    let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
+    let t = &trace.t_s;
+    let threshold = (5.0 * noise).max(0.03 * fmax);
+    // Runs above the threshold.
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    let mut start = None;
+    for (i, &fi) in f.iter().enumerate() {
+        match (fi > threshold, start) {
+            (true, None) => start = Some(i),
+            (false, Some(a)) => {
+                runs.push((a, i - 1));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(a) = start {
+        runs.push((a, f.len() - 1));
+    }
+    // Merge re-contacts, drop isolated noise spikes.
+    let mut merged: Vec<(usize, usize)> = Vec::new();
+    for r in runs {
+        if let Some(last) = merged.last_mut() {
+            let len = t[last.1] - t[last.0];
+            if t[r.0] - t[last.1] < 2.0 * len.max(t[1] - t[0]) {
+                last.1 = r.1;
+                continue;
+            }
+        }
+        merged.push(r);
+    }
+    merged.retain(|&(a, b)| b >= a + 2);
+    let n = f.len();
+    let mut impacts = Vec::new();
+    for (a, b) in merged.into_iter().take(max_impacts) {
+        let pad = (b - a).div_ceil(2).max(3);
+        let window = (a.saturating_sub(pad), (b + pad).min(n - 1));
+        let peak = peak_estimate(t, &f, a, b);
+        let (mut sf, mut stf) = (0.0, 0.0);
+        for i in window.0..=window.1 {
+            sf += f[i];
+            stf += t[i] * f[i];
+        }
+        let half: Vec<usize> = (a..=b).filter(|&i| f[i] > 0.5 * peak).collect();
+        let dt = t[1] - t[0];
+        let fwhm = match (half.first(), half.last()) {
+            (Some(&i), Some(&j)) => t[j] - t[i] + dt,
+            _ => dt,
+        };
+        impacts.push(MeasuredImpact {
+            peak_n: peak,
+            centroid_s: stf / sf,
+            fwhm_s: fwhm,
+            window,
+            run: (a, b),
+        });
+    }
+    ensure!(!impacts.is_empty(), "no impact found in the trace");
+    Ok(DropData {
+        t_s: t.clone(),
+        force_n: f,
+        offset_n: offset,
+        noise_n: noise,
+        impacts,
+    })
+}
