@@ -1,22 +1,24 @@
 //! Many operating points on one core, interleaved.
 //!
 //! One protocol run is a chain of dependent floating-point operations (each RK4 stage needs the
-//! previous one), so a single run leaves most of an out-of-order core idle. Stepping `L`
-//! independent runs in turn lets the core overlap their chains. Each round first takes, for the
-//! runs clear of the surface, whole free-flight steps in lockstep
-//! ([`crate::integrate::lanes::free_flight`], vectorised across the lanes; only for observers
-//! that ignore per-step samples), then one ordinary step of every run (Poincaré sections,
-//! contact sub-steps). Results are exactly those of [`super::evaluate_point`] (each run is the
-//! same computation, only the order of instructions between runs changes; tested). No
+//! previous one), so a single run leaves most of an out-of-order core idle. `L` runs share the
+//! core: those clear of the surface take their whole free-flight steps together in lockstep
+//! lanes (`crate::integrate::lanes`, vectorised across the lanes; only for observers that
+//! ignore per-step samples). As soon as one lane stops (its period's last step: the Poincaré
+//! section; near the surface; an angle the lanes' short sine does not cover), that run alone
+//! takes ordinary steps ([`ProtocolRun::step`]: the section, contact sub-steps) until it can
+//! rejoin the lanes or is done, when the next point takes its lane; the other lanes wait
+//! without losing their place. Results are exactly those of [`super::evaluate_point`] (each run
+//! is the same computation, only the order of instructions between runs changes; tested). No
 //! allocation; an in-order MCU gains nothing from it.
 
 use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
-use heapless::Vec;
 
-use crate::integrate::lanes::free_flight;
+use crate::integrate::lanes::{LaneField, Lockstep};
 use crate::integrate::{PhaseTable, Simulator};
 use crate::model::RigParams;
+use crate::model::hammer::{BeamFree, WiresFree};
 use crate::observe::{Observer, PointResult, ProtocolRun};
 use crate::real::Real;
 
@@ -34,11 +36,26 @@ struct Lane<'t, T: Real, O> {
 /// run, and the observer that will watch it.
 pub type Started<'t, T, O> = (Simulator<'t, T>, ProtocolRun<T>, O);
 
-/// Runs one protocol per item of `items`, `L` at a time interleaved step by step. `start` turns
-/// an item into a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the
-/// `i`-th item's result with its observer and final simulator as soon as it is done (so not in
-/// order).
-pub fn run_interleaved<'t, T, O, const L: usize, I, S, F>(items: I, mut start: S, mut emit: F)
+/// How full the lockstep lanes of an interleaved run were (cost diagnostics).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LaneStats {
+    /// Lanes per round, `L`.
+    pub lanes: u64,
+    /// Lockstep rounds run (each offers `L` lane-steps).
+    pub rounds: u64,
+    /// Whole free-flight steps taken in them.
+    pub lane_steps: u64,
+}
+
+/// Runs one protocol per item of `items`, `L` at a time interleaved. `start` turns an item into
+/// a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the `i`-th
+/// item's result with its observer and final simulator as soon as it is done (so not in
+/// order). Returns how full the lanes were.
+pub fn run_interleaved<'t, T, O, const L: usize, I, S, F>(
+    items: I,
+    mut start: S,
+    mut emit: F,
+) -> LaneStats
 where
     T: Real + 't,
     O: Observer<T>,
@@ -67,49 +84,93 @@ where
     for lane in lanes.iter_mut() {
         *lane = launch(&mut emit);
     }
-    loop {
-        // Whole free-flight steps in lockstep for the lanes clear of the surface.
-        let mut taking_part = [false; L];
-        let mut sims: Vec<&mut Simulator<'t, T>, L> = Vec::new();
-        for (slot, part) in lanes.iter_mut().zip(taking_part.iter_mut()) {
-            if let Some(lane) = slot
-                && lane.run.free_flight_allowed::<O>()
-            {
-                *part = true;
-                let _ = sims.push(&mut lane.sim);
+    // The lockstep kernel's suspension is the first run's (runs of another one, if any, take
+    // ordinary steps only).
+    let wires = match lanes.iter().flatten().next() {
+        Some(lane) => lane.sim.hammer().is_wires(),
+        None => return LaneStats::default(),
+    };
+    let mut driver = Driver {
+        lanes,
+        launch,
+        emit,
+    };
+    if wires {
+        driver.drive::<WiresFree<T>>()
+    } else {
+        driver.drive::<BeamFree<T>>()
+    }
+}
+
+/// The lanes of [`run_interleaved`] with its `launch` and `emit`.
+struct Driver<'t, T: Real, O, const L: usize, N, F> {
+    lanes: [Option<Lane<'t, T, O>>; L],
+    launch: N,
+    emit: F,
+}
+
+impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
+where
+    T: Real + 't,
+    O: Observer<T>,
+    N: FnMut(&mut F) -> Option<Lane<'t, T, O>>,
+    F: FnMut(usize, Result<(PointResult, O, &Simulator<'t, T>), ParamError>),
+{
+    fn drive<K: LaneField<T>>(&mut self) -> LaneStats {
+        let Some(first) = self.lanes.iter().flatten().next() else {
+            return LaneStats::default();
+        };
+        let mut kernel = Lockstep::<T, K, L>::for_simulator(&first.sim);
+        for i in 0..L {
+            self.settle(i, &mut kernel, false);
+        }
+        while kernel.any_running() {
+            let stopped = kernel.run();
+            for (i, &s) in stopped.iter().enumerate() {
+                if s {
+                    if let Some(lane) = &mut self.lanes[i]
+                        && kernel.unload(i, &mut lane.sim) > 0
+                    {
+                        lane.run.after_free_flight(&lane.sim);
+                    }
+                    // Its next step is one the lanes do not take.
+                    self.settle(i, &mut kernel, true);
+                }
             }
         }
-        let taken = free_flight::<T, L>(&mut sims);
-        drop(sims);
-        let mut j = 0;
-        for (slot, part) in lanes.iter_mut().zip(taking_part) {
-            if let (Some(lane), true) = (slot, part) {
-                if taken[j] > 0 {
-                    lane.run.after_free_flight(&lane.sim);
-                }
-                j += 1;
-            }
+        let (rounds, lane_steps) = kernel.stats();
+        LaneStats {
+            lanes: L as u64,
+            rounds,
+            lane_steps,
         }
-        let mut active = false;
-        for slot in lanes.iter_mut() {
-            let done = match slot {
-                Some(lane) => {
-                    active = true;
-                    lane.run
-                        .step(&mut lane.sim, &mut lane.obs)
-                        .map(|r| (lane.index, r))
-                }
-                None => None,
+    }
+
+    /// Ordinary steps for the run in lane `i` (at least one if `step_first`) until it can take
+    /// whole free-flight steps in lockstep (then loaded into the kernel) or is done (then
+    /// emitted, and the next item takes the lane); the lane stays empty when the items are
+    /// exhausted.
+    fn settle<K: LaneField<T>>(
+        &mut self,
+        i: usize,
+        kernel: &mut Lockstep<'t, T, K, L>,
+        step_first: bool,
+    ) {
+        let mut may_load = !step_first;
+        loop {
+            let Some(lane) = &mut self.lanes[i] else {
+                return;
             };
-            if let Some((index, result)) = done {
-                if let Some(lane) = slot.take() {
-                    emit(index, Ok((result, lane.obs, &lane.sim)));
-                }
-                *slot = launch(&mut emit);
+            if may_load && lane.run.free_flight_allowed::<O>() && kernel.load(i, &lane.sim) {
+                return;
             }
-        }
-        if !active {
-            return;
+            may_load = true;
+            if let Some(result) = lane.run.step(&mut lane.sim, &mut lane.obs) {
+                if let Some(lane) = self.lanes[i].take() {
+                    (self.emit)(lane.index, Ok((result, lane.obs, &lane.sim)));
+                }
+                self.lanes[i] = (self.launch)(&mut self.emit);
+            }
         }
     }
 }
@@ -117,13 +178,14 @@ where
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),
 /// `L` at a time interleaved ([`run_interleaved`]), and calls `emit(i, result)` for the `i`-th
 /// point as soon as it is done (so not in order; invalid points are emitted at once with their
-/// error).
+/// error). Returns how full the lanes were.
 pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
     params: &RigParams,
     settings: &SimSettings,
     points: I,
     mut emit: F,
-) where
+) -> LaneStats
+where
     I: IntoIterator<Item = (f64, f64)>,
     F: FnMut(usize, Result<PointResult, ParamError>),
 {
@@ -134,7 +196,7 @@ pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
             for (i, _) in points.into_iter().enumerate() {
                 emit(i, Err(e));
             }
-            return;
+            return LaneStats::default();
         }
     };
     run_interleaved::<T, (), L, _, _, _>(
@@ -145,7 +207,7 @@ pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
             Ok((sim, run, ()))
         },
         |i, r| emit(i, r.map(|(result, (), _)| result)),
-    );
+    )
 }
 
 #[cfg(test)]

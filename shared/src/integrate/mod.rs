@@ -20,4 +20,4 @@ pub mod rk4;
 pub mod stepper;
 
 pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings};
-pub use stepper::{Simulator, StepSample};
+pub use stepper::{Simulator, StepCounts, StepSample};

@@ -129,8 +129,6 @@ pub struct StepPlan<T> {
     pub(crate) h: T,
     /// `h_c`, s.
     pub(crate) h_c: T,
-    /// `M`, sub-steps per step.
-    pub(crate) substeps: u32,
     /// `Ω` rounded to `T`, rad/s (the phase inside a step).
     pub(crate) omega: T,
     /// `ω_c`, rad/s: the contact frequency that sets `h_c`.
@@ -156,7 +154,6 @@ impl<T: Real> StepPlan<T> {
         Ok(StepPlan {
             h: T::from_f64(h),
             h_c: T::from_f64(h / m),
-            substeps: m as u32,
             omega: T::from_f64(omega_exc),
             omega_c: T::from_f64(omega_c),
             receding_max: T::from_f64(0.5 * core::f64::consts::PI / omega_c),
@@ -205,7 +202,7 @@ mod tests {
         // h_c ≤ π/1000/16 ≈ 196 µs → M = ceil(15.625 ms / 196 µs) = 80.
         let plan =
             StepPlan::<f64>::new(core::f64::consts::TAU, 1000.0, &StepSettings::default()).unwrap();
-        assert_eq!(plan.substeps, 80);
+        assert_eq!(libm::round(plan.h / plan.h_c), 80.0);
         assert!((plan.h - 1.0 / 64.0).abs() < 1e-15);
         // h_c = h/M, not the upper bound π/ω_c/K it was sized by.
         assert!((plan.h_c - 1.0 / 64.0 / 80.0).abs() < 1e-18);

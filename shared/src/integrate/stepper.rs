@@ -92,6 +92,32 @@ impl<T: Real> StepSample<T> {
     }
 }
 
+/// What a simulator's RK4 steps were, by kind (cost diagnostics: [`Simulator::counts`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StepCounts {
+    /// Whole free-flight steps `h = T/N` taken in lockstep lanes ([`super::lanes`]).
+    pub lane_steps: u64,
+    /// Free-flight trials over the rest of a step taken one at a time (one RK4 step each,
+    /// accepted or split).
+    pub free_trials: u64,
+    /// Of those, the trials that came near the surface: the step was split and the trial's
+    /// RK4 step discarded.
+    pub split_trials: u64,
+    /// Free-flight segments up to half a sub-step before the surface.
+    pub segments: u64,
+    /// Contact sub-steps (the switch model near and in contact; one RK4 step each).
+    pub substeps: u64,
+    /// Sub-steps with a switching event inside (one more RK4 step each).
+    pub events: u64,
+}
+
+impl StepCounts {
+    /// All RK4 steps: lane steps, trials, segments, sub-steps and the events' second steps.
+    pub fn rk4_steps(&self) -> u64 {
+        self.lane_steps + self.free_trials + self.segments + self.substeps + self.events
+    }
+}
+
 /// Penetration and its rate where a segment (a free-flight step or segment, or a sub-step)
 /// starts, `offset` s into the current step.
 struct SegmentStart<T> {
@@ -115,8 +141,8 @@ struct StepState<T> {
     steps: u64,
     /// Approach speed of the current impact, m/s (Lankarani–Nikravesh).
     approach_speed: T,
-    /// RK4 steps and sub-steps since construction.
-    rk4_steps: u64,
+    /// RK4 steps and sub-steps since construction, by kind.
+    counts: StepCounts,
 }
 
 /// Fixed-step switch-model integrator for one rig, gap and excitation frequency: the compiled
@@ -188,7 +214,7 @@ impl<'t, T: Real> Simulator<'t, T> {
                 k: 0,
                 steps: 0,
                 approach_speed,
-                rk4_steps: 0,
+                counts: StepCounts::default(),
             },
         })
     }
@@ -213,7 +239,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             k: 0,
             steps: 0,
             approach_speed,
-            rk4_steps: self.state.rk4_steps,
+            counts: self.state.counts,
         };
     }
 
@@ -241,17 +267,17 @@ impl<'t, T: Real> Simulator<'t, T> {
     pub fn step_s(&self) -> f64 {
         step_s(self.hammer.omega_exc(), self.steps_per_period())
     }
-    /// Contact sub-step `h_c = h/M`, s (f64).
-    pub fn substep_s(&self) -> f64 {
-        self.step_s() / f64::from(self.plan.substeps)
-    }
     /// Completed excitation periods since the last reset.
     pub fn periods_done(&self) -> u32 {
         (self.state.steps / u64::from(self.steps_per_period())) as u32
     }
     /// RK4 steps and sub-steps executed since construction (cost diagnostics).
     pub fn rk4_steps(&self) -> u64 {
-        self.state.rk4_steps
+        self.state.counts.rk4_steps()
+    }
+    /// The same by kind.
+    pub fn counts(&self) -> StepCounts {
+        self.state.counts
     }
 
     /// `sin Ωt` at `dt` seconds (`0 ≤ Ω dt ≤ 2π/N`) after the start of the current step.
@@ -294,15 +320,6 @@ impl<'t, T: Real> Simulator<'t, T> {
         }
     }
 
-    /// Whether `other` can run in the same lockstep batch as `self`: the same step grid,
-    /// suspension type and `η_δ`.
-    #[inline(always)]
-    pub(super) fn lane_compatible(&self, other: &Self) -> bool {
-        self.steps_per_period() == other.steps_per_period()
-            && self.hammer.is_wires() == other.hammer.is_wires()
-            && self.hammer.eta_delta() == other.hammer.eta_delta()
-    }
-
     /// The constants of a lockstep lane: free-flight coefficients and `h`.
     #[inline(always)]
     pub(super) fn lane_constants(&self) -> (crate::model::hammer::FreeFlight<T>, T) {
@@ -323,7 +340,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         (s.x, s.at_x) = clear_of_surface(st);
         s.k += taken;
         s.steps += u64::from(taken);
-        s.rk4_steps += u64::from(taken);
+        s.counts.lane_steps += u64::from(taken);
     }
 
     /// Advances one step of `h = T/N`, calling `observe` after every segment of it (the whole
@@ -444,14 +461,13 @@ impl<'t, T: Real> Simulator<'t, T> {
         // free-flight step is a tenth of the state, not small enough for compensation to pay,
         // and the lockstep lanes take the same steps without carrying a second state.
         let c = hammer.free_flight();
-        let wires = hammer.is_wires();
-        let (next, _, near) =
-            free_step::<T, bool, FullTrig>(wires, &c, &st, rest, s_mid, s_end, eta);
-        self.state.rk4_steps += 1;
+        let (next, _, near) = free_step::<T, _, FullTrig>(&c, &st, rest, s_mid, s_end, eta);
+        self.state.counts.free_trials += 1;
         let (x1, end) = clear_of_surface(&next);
         if !near {
             return Ok((x1, end));
         }
+        self.state.counts.split_trials += 1;
         // Where the free-flight dense output first comes near the surface (or peaks).
         let dense = DenseStep {
             x0,
@@ -494,7 +510,7 @@ impl<'t, T: Real> Simulator<'t, T> {
                 hammer.field_in(FieldMode::Free, y, s, v_in).dx
             });
         s.at_x = hammer.field(&s.x, s_end, v_in);
-        s.rk4_steps += 1;
+        s.counts.segments += 1;
     }
 
     /// One sub-step of `len` seconds from `offset` (s into the current step) with the full
@@ -515,7 +531,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         let half = T::from_f64(0.5);
         let s_mid = self.sin_at(offset + len * half);
         let start = self.state.at_x;
-        self.state.rk4_steps += 1;
+        self.state.counts.substeps += 1;
         let touching = start.region.touching();
         if !touching && start.delta <= T::zero() {
             self.state.approach_speed = start.delta_dot.max_of(min_approach());
@@ -595,7 +611,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         );
         s.at_x = hammer.field(&s.x, s_end, v_in);
         // The trial and the rest of the sub-step.
-        s.rk4_steps += 1;
+        s.counts.events += 1;
     }
 
     /// Ends the current step: advances the step counters and reports the sample.
@@ -640,6 +656,16 @@ impl<'t, T: Real> Simulator<'t, T> {
                 return;
             }
         }
+    }
+}
+
+#[cfg(test)]
+impl<T: Real> Simulator<'_, T> {
+    /// This simulator with `other`'s step counts (to compare everything else).
+    pub(crate) fn with_counts_of(&self, other: &Self) -> Self {
+        let mut s = self.clone();
+        s.state.counts = other.state.counts;
+        s
     }
 }
 
