@@ -19,5 +19,5 @@ pub mod plan;
 pub mod rk4;
 pub mod stepper;
 
-pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings};
+pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings, resting_substeps};
 pub use stepper::{Simulator, StepCounts, StepSample};

@@ -21,9 +21,13 @@
 //! - After a departure the hammer flies clear in one free-flight sub-step (twice the time to
 //!   `δ = −η_δ`, at most a quarter of the contact period); while it rests on or creeps along
 //!   the surface (slow relative to it, contact force balancing the others) a sub-step is
-//!   [`RESTING_SUBSTEPS`] `h_c` long.
+//!   [`resting_substeps`]`(K) = min(8, K/2)` sub-steps `h_c` long: `ω_c · R h_c ≤ π/2`,
+//!   inside RK4's stability region at every `K` (`|R(λh)|` 0.55 per sub-step at the rig's contact
+//!   damping ratio 0.469, exact `e^{Re λh}` 0.48), so the contact's own oscillation, which the
+//!   resting test has already found below `ε`, keeps dying out, and the slow quasi-static motion
+//!   (time scale `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy.
 //! - An impact therefore costs about `K` sub-steps plus a few free-flight segments, whatever `N`;
-//!   resting contact costs one sub-step per `8 h_c`. The cost of a period is bounded by
+//!   resting contact costs one sub-step per `R h_c`. The cost of a period is bounded by
 //!   `N (2 + 2M)` RK4 steps with `M = ceil(h/h_c)`.
 
 use nalgebra::Vector2;
@@ -31,6 +35,8 @@ use nalgebra::Vector2;
 use super::bracket::{Rule, bracket_rising};
 use super::dense::{DenseStep, hermite_min, root_in_unit};
 use super::free::{FreeState, FullTrig, free_step};
+#[cfg(doc)]
+use super::plan::resting_substeps;
 use super::plan::{PhaseTable, StepPlan, StepSettings, step_s};
 use super::rk4::rk4_step_compensated;
 use crate::error::ParamError;
@@ -42,16 +48,6 @@ use crate::real::Real;
 /// faster than any impact of the thesis' rigs (≤ 0.2 m/s), so real contacts get at least `K`
 /// sub-steps per half-period.
 pub const SUBSTEP_REFERENCE_SPEED_M_S: f64 = 0.5;
-
-/// Contact sub-steps `h_c` per sub-step while the hammer rests on the surface
-/// ([`Simulator`]). At the production `K = 16` that is `ω_c · 8 h_c = π/2`, inside RK4's
-/// stability region with room to spare (`|R(λh)|` 0.55 per sub-step at the rig's contact damping
-/// ratio 0.469, exact `e^{Re λh}` 0.48): the contact's own oscillation, which the resting test
-/// has already found below `ε`, keeps dying out, and the slow quasi-static motion (time scale
-/// `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy. At the embedded profile's `K = 8` it is
-/// `ω_c · 8 h_c = π`, outside the region (`|R|` 1.94): the contact's oscillation grows until the
-/// resting test fails and the stepper returns to `h_c`.
-pub const RESTING_SUBSTEPS: u32 = 8;
 
 /// `ε` of the resting test: the contact force balances the others to `ε`, and the
 /// penetration rate is below `ε ω_c δ`.
@@ -391,7 +387,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             first = false;
             let len = match self.receding_len(rest) {
                 Some(len) => len,
-                None if self.resting() => h_c * T::from_u32(RESTING_SUBSTEPS),
+                None if self.resting() => self.plan.h_rest,
                 None => h_c,
             };
             if rest <= len {
@@ -408,7 +404,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     }
 
     /// Whether the hammer rests on (or creeps along) the surface, so that the sub-step may be
-    /// [`RESTING_SUBSTEPS`] times longer: it moves slowly relative to the surface
+    /// [`resting_substeps`] times longer: it moves slowly relative to the surface
     /// (`|δ̇| ≤ ε ω_c max(|δ|, η_δ)`: an arrival at that speed is a touch, not an impact), and in
     /// contact (`Γ+`) the contact's own fast motion has died out (the contact force balances the
     /// others: `|ẍ| ≤ ε F/m` in the state's units); `ε` = [`RESTING_TOLERANCE`]. In the bands
