@@ -107,6 +107,8 @@ fn grid() -> Grid {
         lanes.lanes = l.lanes;
         lanes.rounds += l.rounds;
         lanes.lane_steps += l.lane_steps;
+        lanes.contact_rounds += l.contact_rounds;
+        lanes.contact_steps += l.contact_steps;
     }
     Grid {
         wall: t.elapsed().as_secs_f64(),
@@ -183,6 +185,14 @@ fn main() {
         100.0 * useful / g.wall,
         100.0 * (busy - useful) / g.wall,
         100.0 * (g.wall - busy) / g.wall
+    );
+    println!(
+        "  contact lanes: {} rounds × {} lanes, {:.1} % of the lane slots busy ({:.1} % of the sub-steps)",
+        g.lanes.contact_rounds,
+        g.lanes.lanes,
+        100.0 * g.lanes.contact_steps as f64
+            / (g.lanes.contact_rounds * g.lanes.lanes).max(1) as f64,
+        100.0 * g.lanes.contact_steps as f64 / c.substeps.max(1) as f64
     );
     let scalar_steps = c.rk4_steps() - c.lane_steps;
     println!(

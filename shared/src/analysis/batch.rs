@@ -15,7 +15,9 @@
 use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 
-use crate::integrate::lanes::{LaneField, Lockstep};
+use crate::integrate::contact_lanes::{ContactLanes, LaneContact};
+use crate::integrate::lanes::Lockstep;
+use crate::integrate::stepper::{Cursor, SubPlan};
 use crate::integrate::{PhaseTable, Simulator};
 use crate::model::RigParams;
 use crate::model::hammer::{BeamFree, WiresFree};
@@ -45,6 +47,10 @@ pub struct LaneStats {
     pub rounds: u64,
     /// Whole free-flight steps taken in them.
     pub lane_steps: u64,
+    /// Rounds of contact sub-steps (each offers `L` lanes).
+    pub contact_rounds: u64,
+    /// Sub-steps taken in them.
+    pub contact_steps: u64,
 }
 
 /// Runs one protocol per item of `items`, `L` at a time interleaved. `start` turns an item into
@@ -94,6 +100,8 @@ where
         lanes,
         launch,
         emit,
+        mode: [Mode::Idle; L],
+        cursor: [None; L],
     };
     if wires {
         driver.drive::<WiresFree<T>>()
@@ -102,11 +110,25 @@ where
     }
 }
 
+/// What a lane of [`run_interleaved`] is doing between two kernel calls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    /// No run (the items are exhausted).
+    Idle,
+    /// Loaded into the free-flight lanes.
+    Free,
+    /// Its next segment is a sub-step set into the contact lanes.
+    Contact,
+}
+
 /// The lanes of [`run_interleaved`] with its `launch` and `emit`.
 struct Driver<'t, T: Real, O, const L: usize, N, F> {
     lanes: [Option<Lane<'t, T, O>>; L],
     launch: N,
     emit: F,
+    mode: [Mode; L],
+    /// Where each `Contact` lane stands in its step, and its sub-step.
+    cursor: [Option<(Cursor<T>, SubPlan<T>)>; L],
 }
 
 impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
@@ -116,61 +138,144 @@ where
     N: FnMut(&mut F) -> Option<Lane<'t, T, O>>,
     F: FnMut(usize, Result<(PointResult, O, &Simulator<'t, T>), ParamError>),
 {
-    fn drive<K: LaneField<T>>(&mut self) -> LaneStats {
+    fn drive<K: LaneContact<T>>(&mut self) -> LaneStats {
         let Some(first) = self.lanes.iter().flatten().next() else {
             return LaneStats::default();
         };
-        let mut kernel = Lockstep::<T, K, L>::for_simulator(&first.sim);
+        let mut free = Lockstep::<T, K, L>::for_simulator(&first.sim);
+        let mut contact = ContactLanes::<T, K, L>::new();
         for i in 0..L {
-            self.settle(i, &mut kernel, false);
+            self.settle(i, &mut free, &mut contact, None, true);
         }
-        while kernel.any_running() {
-            let stopped = kernel.run();
-            for (i, &s) in stopped.iter().enumerate() {
-                if s {
-                    if let Some(lane) = &mut self.lanes[i]
-                        && kernel.unload(i, &mut lane.sim) > 0
-                    {
-                        lane.run.after_free_flight(&lane.sim);
+        let mut contact_rounds = 0u64;
+        let mut contact_steps = 0u64;
+        loop {
+            let n_free = self.mode.iter().filter(|&&m| m == Mode::Free).count();
+            let n_contact = self.mode.iter().filter(|&&m| m == Mode::Contact).count();
+            if n_free == 0 && n_contact == 0 {
+                break;
+            }
+            if n_contact > 0 && n_contact >= n_free {
+                // One sub-step of every lane in contact.
+                contact.run();
+                contact_rounds += 1;
+                contact_steps += n_contact as u64;
+                for i in 0..L {
+                    if self.mode[i] == Mode::Contact {
+                        self.commit(i, &mut free, &mut contact);
                     }
-                    // Its next step is one the lanes do not take.
-                    self.settle(i, &mut kernel, true);
+                }
+            } else {
+                // Whole free-flight steps until a lane stops.
+                let stopped = free.run();
+                for (i, &s) in stopped.iter().enumerate() {
+                    if s {
+                        if let Some(lane) = &mut self.lanes[i]
+                            && free.unload(i, &mut lane.sim) > 0
+                        {
+                            lane.run.after_free_flight(&lane.sim);
+                        }
+                        // Its next step is one the free-flight lanes do not take.
+                        self.settle(i, &mut free, &mut contact, None, false);
+                    }
                 }
             }
         }
-        let (rounds, lane_steps) = kernel.stats();
+        let (rounds, lane_steps) = free.stats();
         LaneStats {
             lanes: L as u64,
             rounds,
             lane_steps,
+            contact_rounds,
+            contact_steps,
         }
     }
 
-    /// Ordinary steps for the run in lane `i` (at least one if `step_first`) until it can take
-    /// whole free-flight steps in lockstep (then loaded into the kernel) or is done (then
-    /// emitted, and the next item takes the lane); the lane stays empty when the items are
-    /// exhausted.
-    fn settle<K: LaneField<T>>(
+    /// Ends the sub-step of `Contact` lane `i` with the contact lanes' result and goes on.
+    fn commit<K: LaneContact<T>>(
         &mut self,
         i: usize,
-        kernel: &mut Lockstep<'t, T, K, L>,
-        step_first: bool,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut ContactLanes<T, K, L>,
     ) {
-        let mut may_load = !step_first;
+        let (Some(lane), Some((mut c, p))) = (&mut self.lanes[i], self.cursor[i].take()) else {
+            self.mode[i] = Mode::Idle;
+            return;
+        };
+        let mut period_end = false;
+        let done = lane
+            .sim
+            .commit_substep(&mut c, &p, contact.result(i), &mut |s| {
+                period_end |= lane.run.sample(s, &mut lane.obs)
+            });
+        if done {
+            self.end_step(i, period_end);
+            self.settle(i, free, contact, None, true);
+        } else {
+            self.settle(i, free, contact, Some(c), true);
+        }
+    }
+
+    /// Ends the step of lane `i` for its protocol; a run that is done is emitted and the next
+    /// item takes the lane.
+    fn end_step(&mut self, i: usize, period_end: bool) {
+        let Some(lane) = &mut self.lanes[i] else {
+            return;
+        };
+        if let Some(result) = lane.run.end_step(&lane.sim, &mut lane.obs, period_end) {
+            if let Some(lane) = self.lanes[i].take() {
+                (self.emit)(lane.index, Ok((result, lane.obs, &lane.sim)));
+            }
+            self.lanes[i] = (self.launch)(&mut self.emit);
+        }
+    }
+
+    /// Ordinary segments for the run in lane `i`, from inside its step at `cursor` or from a
+    /// step boundary, until its next segment is one the lanes take: whole free-flight steps
+    /// (then loaded into the free-flight lanes; not at once if `may_load` is false) or an
+    /// ordinary sub-step (then set into the contact lanes). A run that is done is emitted and
+    /// the next item takes the lane; the lane stays idle when the items are exhausted.
+    fn settle<K: LaneContact<T>>(
+        &mut self,
+        i: usize,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut ContactLanes<T, K, L>,
+        mut cursor: Option<Cursor<T>>,
+        mut may_load: bool,
+    ) {
         loop {
             let Some(lane) = &mut self.lanes[i] else {
+                self.mode[i] = Mode::Idle;
                 return;
             };
-            if may_load && lane.run.free_flight_allowed::<O>() && kernel.load(i, &lane.sim) {
-                return;
-            }
-            may_load = true;
-            if let Some(result) = lane.run.step(&mut lane.sim, &mut lane.obs) {
-                if let Some(lane) = self.lanes[i].take() {
-                    (self.emit)(lane.index, Ok((result, lane.obs, &lane.sim)));
+            let mut c = match cursor.take() {
+                Some(c) => c,
+                None => {
+                    if may_load && lane.run.free_flight_allowed::<O>() && free.load(i, &lane.sim) {
+                        self.mode[i] = Mode::Free;
+                        return;
+                    }
+                    may_load = true;
+                    lane.sim.begin_step()
                 }
-                self.lanes[i] = (self.launch)(&mut self.emit);
+            };
+            let mut period_end = false;
+            loop {
+                if !O::SAMPLES
+                    && let Some(p) = lane.sim.plain_substep(&c)
+                    && contact.set(i, &lane.sim, &p)
+                {
+                    self.cursor[i] = Some((c, p));
+                    self.mode[i] = Mode::Contact;
+                    return;
+                }
+                if lane.sim.advance(&mut c, &mut |s| {
+                    period_end |= lane.run.sample(s, &mut lane.obs)
+                }) {
+                    break;
+                }
             }
+            self.end_step(i, period_end);
         }
     }
 }

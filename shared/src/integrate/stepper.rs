@@ -40,6 +40,7 @@ use super::plan::resting_substeps;
 use super::plan::{PhaseTable, StepPlan, StepSettings, step_s};
 use super::rk4::rk4_step_compensated;
 use crate::error::ParamError;
+use crate::model::contact::LawCoeffs;
 use crate::model::hammer::{FieldEval, FieldMode};
 use crate::model::{Hammer, Region, RigParams, SwitchBands};
 use crate::real::Real;
@@ -120,6 +121,35 @@ struct SegmentStart<T> {
     offset: T,
     delta: T,
     delta_dot: T,
+}
+
+/// Where a simulator stands inside its current step, between two segments
+/// ([`Simulator::advance`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Cursor<T> {
+    /// Time since the step's start, s.
+    offset: T,
+    /// Time to the step's end, s.
+    rest: T,
+    /// Whether no segment has been taken yet.
+    first: bool,
+    /// `sin Ωt` at the step's midpoint and end.
+    s_mid: T,
+    s_end: T,
+}
+
+/// An ordinary sub-step that the contact lanes take ([`Simulator::plain_substep`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SubPlan<T> {
+    /// Length, s.
+    pub(crate) len: T,
+    /// Whether it ends the step.
+    pub(crate) last: bool,
+    /// `sin Ωt` at its midpoint and end.
+    pub(crate) s_mid: T,
+    pub(crate) s_end: T,
+    /// Whether it starts touching (then in the contact mode `f+`, else free flight `f−`).
+    pub(crate) touching: bool,
 }
 
 /// What changes from step to step.
@@ -343,64 +373,176 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// step in free flight, or the free-flight segments and contact sub-steps it was split into).
     #[inline]
     pub fn step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
+        let mut c = self.begin_step();
+        while !self.advance(&mut c, observe) {}
+    }
+
+    /// Where the next step starts (its first segment).
+    #[inline(always)]
+    pub(crate) fn begin_step(&self) -> Cursor<T> {
         let (s_mid, s_end) = self.phases.step_mid_end(self.state.k);
+        Cursor {
+            offset: T::zero(),
+            rest: self.plan.h,
+            first: true,
+            s_mid,
+            s_end,
+        }
+    }
+
+    /// One segment of the current step from `c` (a free-flight trial over the rest of the
+    /// step, a free-flight segment, or a sub-step), reported to `observe`. Returns whether the
+    /// step is done.
+    #[inline(always)]
+    pub(crate) fn advance<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        observe: &mut O,
+    ) -> bool {
         let h_c = self.plan.h_c;
-        let mut offset = T::zero();
-        let mut rest = self.plan.h;
-        let mut first = true;
-        loop {
-            // Where this segment starts (for the smallest δ over it, reported with its sample).
-            let seg = SegmentStart {
-                offset,
-                delta: self.state.at_x.delta,
-                delta_dot: self.state.at_x.delta_dot,
+        // Where this segment starts (for the smallest δ over it, reported with its sample).
+        let seg = self.segment_start(c.offset);
+        if self.clear() {
+            let (sm, se) = if c.first {
+                (c.s_mid, c.s_end)
+            } else {
+                (self.sin_at(c.offset + c.rest * T::from_f64(0.5)), c.s_end)
             };
-            if self.clear() {
-                let (sm, se) = if first {
-                    (s_mid, s_end)
-                } else {
-                    (self.sin_at(offset + rest * T::from_f64(0.5)), s_end)
-                };
-                match self.free_trial(rest, sm, se) {
-                    Ok((x1, end)) => {
-                        self.state.x = x1;
-                        self.state.at_x = end;
-                        self.finish_step(&seg, observe);
-                        return;
-                    }
-                    Err(t_near) => {
-                        // Stop half a sub-step short of the surface, so that the arrival
-                        // falls inside the next sub-step (not on its boundary, where the
-                        // switch would go through the Σ_α band instead of being located).
-                        let tau = t_near - h_c * T::from_f64(0.5);
-                        if tau > h_c * T::from_f64(0.25) {
-                            self.free_segment(offset, tau);
-                            offset += tau;
-                            rest -= tau;
-                            first = false;
-                            observe(&self.sample(offset, false, &seg));
-                            continue;
-                        }
+            match self.free_trial(c.rest, sm, se) {
+                Ok((x1, end)) => {
+                    self.state.x = x1;
+                    self.state.at_x = end;
+                    self.finish_step(&seg, observe);
+                    return true;
+                }
+                Err(t_near) => {
+                    // Stop half a sub-step short of the surface, so that the arrival
+                    // falls inside the next sub-step (not on its boundary, where the
+                    // switch would go through the Σ_α band instead of being located).
+                    let tau = t_near - h_c * T::from_f64(0.5);
+                    if tau > h_c * T::from_f64(0.25) {
+                        self.free_segment(c.offset, tau);
+                        c.offset += tau;
+                        c.rest -= tau;
+                        c.first = false;
+                        observe(&self.sample(c.offset, false, &seg));
+                        return false;
                     }
                 }
             }
-            first = false;
-            let len = match self.receding_len(rest) {
-                Some(len) => len,
-                None if self.resting() => self.plan.h_rest,
-                None => h_c,
-            };
-            if rest <= len {
-                self.substep(offset, rest, s_end);
-                self.finish_step(&seg, observe);
-                return;
-            }
-            let s_next = self.sin_at(offset + len);
-            self.substep(offset, len, s_next);
-            offset += len;
-            rest -= len;
-            observe(&self.sample(offset, false, &seg));
         }
+        c.first = false;
+        let (len, last) = self.substep_len(c);
+        if last {
+            self.substep(c.offset, len, c.s_end);
+            self.finish_step(&seg, observe);
+            return true;
+        }
+        let s_next = self.sin_at(c.offset + len);
+        self.substep(c.offset, len, s_next);
+        c.offset += len;
+        c.rest -= len;
+        observe(&self.sample(c.offset, false, &seg));
+        false
+    }
+
+    /// Where a segment starts `offset` s into the current step.
+    #[inline(always)]
+    fn segment_start(&self, offset: T) -> SegmentStart<T> {
+        SegmentStart {
+            offset,
+            delta: self.state.at_x.delta,
+            delta_dot: self.state.at_x.delta_dot,
+        }
+    }
+
+    /// The next sub-step's length from `c` and whether it ends the step (then it is the rest
+    /// of the step).
+    #[inline(always)]
+    fn substep_len(&self, c: &Cursor<T>) -> (T, bool) {
+        let len = match self.receding_len(c.rest) {
+            Some(len) => len,
+            None if self.resting() => self.plan.h_rest,
+            None => self.plan.h_c,
+        };
+        if c.rest <= len {
+            (c.rest, true)
+        } else {
+            (len, false)
+        }
+    }
+
+    /// The next segment from `c` if it is an ordinary sub-step that the contact lanes
+    /// ([`super::contact_lanes`]) can take: not clear of the surface, starting in free flight
+    /// or in contact (not in a band), with the linear contact law. Its length, whether it ends
+    /// the step, `sin Ωt` at its midpoint and end, and whether it starts touching.
+    #[inline(always)]
+    pub(crate) fn plain_substep(&self, c: &Cursor<T>) -> Option<SubPlan<T>> {
+        let e = &self.state.at_x;
+        if self.clear()
+            || !matches!(e.region, Region::Free | Region::Contact)
+            || !matches!(self.hammer.switch().law, LawCoeffs::Linear { .. })
+        {
+            return None;
+        }
+        let (len, last) = self.substep_len(c);
+        let s_mid = self.sin_at(c.offset + len * T::from_f64(0.5));
+        let s_end = if last {
+            c.s_end
+        } else {
+            self.sin_at(c.offset + len)
+        };
+        Some(SubPlan {
+            len,
+            last,
+            s_mid,
+            s_end,
+            touching: e.region.touching(),
+        })
+    }
+
+    /// Ends the sub-step `p` ([`Simulator::plain_substep`]) from `c` with the contact lanes'
+    /// trial: `Some((x, carry, end))` when its end stays in the mode of its start (what
+    /// [`Simulator::substep`] computes then, bit for bit), `None` when a switching event falls
+    /// inside it (then it is taken here). Reports the sample; returns whether the step is done.
+    #[inline(always)]
+    pub(crate) fn commit_substep<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        p: &SubPlan<T>,
+        trial: Option<(Vector2<T>, Vector2<T>, FieldEval<T>)>,
+        observe: &mut O,
+    ) -> bool {
+        let seg = self.segment_start(c.offset);
+        c.first = false;
+        match trial {
+            Some((x, carry, end)) => {
+                let start = self.state.at_x;
+                let s = &mut self.state;
+                s.counts.substeps += 1;
+                if !p.touching && start.delta <= T::zero() {
+                    s.approach_speed = start.delta_dot.max_of(min_approach());
+                }
+                s.x = x;
+                s.carry = carry;
+                s.at_x = end;
+            }
+            None => self.substep(c.offset, p.len, p.s_end),
+        }
+        if p.last {
+            self.finish_step(&seg, observe);
+            return true;
+        }
+        c.offset += p.len;
+        c.rest -= p.len;
+        observe(&self.sample(c.offset, false, &seg));
+        false
+    }
+
+    /// The state a contact lane starts a sub-step from: `x`, its carry, and the field there.
+    #[inline(always)]
+    pub(crate) fn substep_start(&self) -> (Vector2<T>, Vector2<T>, FieldEval<T>) {
+        (self.state.x, self.state.carry, self.state.at_x)
     }
 
     /// Whether the hammer rests on (or creeps along) the surface, so that the sub-step may be
