@@ -127,8 +127,10 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     carry1: [T; L],
     a: [T; L],
     len: [T; L],
+    s_start: [T; L],
     s_mid: [T; L],
     s_end: [T; L],
+    band: [u32; L],
     touching: [u32; L],
     // The result: end state, carry, switch-model field there, and whether the lane's result
     // stands (the end in the start's mode, every sine exact).
@@ -156,8 +158,10 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             carry1: z,
             a: z,
             len: z,
+            s_start: z,
             s_mid: z,
             s_end: z,
+            band: [0; L],
             touching: [0; L],
             out: [[T::zero(); 9]; L],
             region: [0; L],
@@ -193,8 +197,10 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         self.carry1[i] = carry[1];
         self.a[i] = start.dx[1];
         self.len[i] = p.len;
+        self.s_start[i] = p.s_start;
         self.s_mid[i] = p.s_mid;
         self.s_end[i] = p.s_end;
+        self.band[i] = u32::from(p.band);
         self.touching[i] = u32::from(p.touching);
         true
     }
@@ -262,24 +268,33 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             let field = &self.field[i];
             let inv_mass = self.inv_mass[i];
             let mut ex = true;
+            // The mode's field: the law continued (`f+`, `LawCoeffs::unswitched_force`) or
+            // free flight (`f−`, no force).
+            let mut mode_field = |y: &Vector2<T>, s: T| {
+                let (acc, _, _, _, ok) =
+                    field.contact_field::<SmallTrig, _>(inv_mass, y[0], y[1], s, |d, dd| {
+                        let f = kk * d + cc * dd;
+                        if touching { f } else { zero }
+                    });
+                ex &= ok;
+                Vector2::new(y[1], acc)
+            };
+            let x = Vector2::new(self.x0[i], self.x1[i]);
+            // RK4's first stage: the switch model's field at the start, or in a band the
+            // mode's.
+            let k1 = if self.band[i] != 0 {
+                mode_field(&x, self.s_start[i])
+            } else {
+                Vector2::new(self.x1[i], self.a[i])
+            };
             let (trial, carry) = rk4_step_compensated(
-                &Vector2::new(self.x0[i], self.x1[i]),
+                &x,
                 &Vector2::new(self.carry0[i], self.carry1[i]),
-                &Vector2::new(self.x1[i], self.a[i]),
+                &k1,
                 self.len[i],
                 self.s_mid[i],
                 self.s_end[i],
-                |y, s| {
-                    // The mode's field: the law continued (`f+`,
-                    // `LawCoeffs::unswitched_force`) or free flight (`f−`, no force).
-                    let (acc, _, _, _, ok) =
-                        field.contact_field::<SmallTrig, _>(inv_mass, y[0], y[1], s, |d, dd| {
-                            let f = kk * d + cc * dd;
-                            if touching { f } else { zero }
-                        });
-                    ex &= ok;
-                    Vector2::new(y[1], acc)
-                },
+                mode_field,
             );
             tx0[i] = trial[0];
             tx1[i] = trial[1];

@@ -145,7 +145,10 @@ pub(crate) struct SubPlan<T> {
     pub(crate) len: T,
     /// Whether it ends the step.
     pub(crate) last: bool,
-    /// `sin Ωt` at its midpoint and end.
+    /// Whether it starts in a band (then RK4's first stage is the mode's field at `s_start`).
+    pub(crate) band: bool,
+    /// `sin Ωt` at its start (if `band`), midpoint and end.
+    pub(crate) s_start: T,
     pub(crate) s_mid: T,
     pub(crate) s_end: T,
     /// Whether it starts touching (then in the contact mode `f+`, else free flight `f−`).
@@ -473,18 +476,22 @@ impl<'t, T: Real> Simulator<'t, T> {
     }
 
     /// The next segment from `c` if it is an ordinary sub-step that the contact lanes
-    /// ([`super::contact_lanes`]) can take: not clear of the surface, starting in free flight
-    /// or in contact (not in a band), with the linear contact law. Its length, whether it ends
-    /// the step, `sin Ωt` at its midpoint and end, and whether it starts touching.
+    /// ([`super::contact_lanes`]) can take: not clear of the surface, with the linear contact
+    /// law. Its length, whether it ends the step, `sin Ωt` at its start (used if it starts in
+    /// a band, where RK4's first stage is the mode's field, not the switch model's), midpoint
+    /// and end, and whether it starts touching.
     #[inline(always)]
     pub(crate) fn plain_substep(&self, c: &Cursor<T>) -> Option<SubPlan<T>> {
         let e = &self.state.at_x;
-        if self.clear()
-            || !matches!(e.region, Region::Free | Region::Contact)
-            || !matches!(self.hammer.switch().law, LawCoeffs::Linear { .. })
-        {
+        if self.clear() || !matches!(self.hammer.switch().law, LawCoeffs::Linear { .. }) {
             return None;
         }
+        let band = matches!(e.region, Region::BandAlpha | Region::BandBeta);
+        let s_start = if band {
+            self.sin_at(c.offset)
+        } else {
+            T::zero()
+        };
         let (len, last) = self.substep_len(c);
         let s_mid = self.sin_at(c.offset + len * T::from_f64(0.5));
         let s_end = if last {
@@ -495,6 +502,8 @@ impl<'t, T: Real> Simulator<'t, T> {
         Some(SubPlan {
             len,
             last,
+            band,
+            s_start,
             s_mid,
             s_end,
             touching: e.region.touching(),
