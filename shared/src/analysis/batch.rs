@@ -102,6 +102,7 @@ where
         emit,
         mode: [Mode::Idle; L],
         cursor: [None; L],
+        constants_set: [false; L],
     };
     if wires {
         driver.drive::<WiresFree<T>>()
@@ -129,6 +130,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     mode: [Mode; L],
     /// Where each `Contact` lane stands in its step, and its sub-step.
     cursor: [Option<(Cursor<T>, SubPlan<T>)>; L],
+    /// Whether the contact lanes hold the constants of the lane's run.
+    constants_set: [bool; L],
 }
 
 impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
@@ -227,6 +230,7 @@ where
                 (self.emit)(lane.index, Ok((result, lane.obs, &lane.sim)));
             }
             self.lanes[i] = (self.launch)(&mut self.emit);
+            self.constants_set[i] = false;
         }
     }
 
@@ -263,8 +267,9 @@ where
             loop {
                 if !O::SAMPLES
                     && let Some(p) = lane.sim.plain_substep(&c)
-                    && contact.set(i, &lane.sim, &p)
+                    && contact.set(i, &lane.sim, &p, !self.constants_set[i])
                 {
+                    self.constants_set[i] = true;
                     self.cursor[i] = Some((c, p));
                     self.mode[i] = Mode::Contact;
                     return;

@@ -171,25 +171,37 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         }
     }
 
-    /// Puts `sim`'s next sub-step `p` ([`Simulator::plain_substep`]) into lane `i`. Returns
-    /// `false` (nothing set) if `sim` is not of this suspension or not of the linear law.
+    /// Puts `sim`'s next sub-step `p` ([`Simulator::plain_substep`]) into lane `i`, with
+    /// `sim`'s constants if `constants` (else the lane keeps those of its last [`set`], which
+    /// must be `sim`'s). Returns `false` (nothing set) if `sim` is not of this suspension or not
+    /// of the linear law.
+    ///
+    /// [`set`]: ContactLanes::set
     #[inline]
-    pub(crate) fn set(&mut self, i: usize, sim: &Simulator<'_, T>, p: &SubPlan<T>) -> bool {
-        let hammer = sim.hammer();
-        let (Some(field), Some(inv_mass)) =
-            (F::of(&hammer.free_flight()), F::inv_mass(hammer.body()))
-        else {
-            return false;
-        };
-        let LawCoeffs::Linear { k, c } = hammer.switch().law else {
-            return false;
-        };
-        self.field[i] = field;
-        self.inv_mass[i] = inv_mass;
-        self.k[i] = k;
-        self.c[i] = c;
-        self.eta_d[i] = hammer.switch().eta_delta;
-        self.eta_f[i] = hammer.switch().eta_force;
+    pub(crate) fn set(
+        &mut self,
+        i: usize,
+        sim: &Simulator<'_, T>,
+        p: &SubPlan<T>,
+        constants: bool,
+    ) -> bool {
+        if constants {
+            let hammer = sim.hammer();
+            let (Some(field), Some(inv_mass)) =
+                (F::of(&hammer.free_flight()), F::inv_mass(hammer.body()))
+            else {
+                return false;
+            };
+            let LawCoeffs::Linear { k, c } = hammer.switch().law else {
+                return false;
+            };
+            self.field[i] = field;
+            self.inv_mass[i] = inv_mass;
+            self.k[i] = k;
+            self.c[i] = c;
+            self.eta_d[i] = hammer.switch().eta_delta;
+            self.eta_f[i] = hammer.switch().eta_force;
+        }
         let (x, carry, start) = sim.substep_start();
         self.x0[i] = x[0];
         self.x1[i] = x[1];

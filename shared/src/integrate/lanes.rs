@@ -240,7 +240,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         let mut k = self.k;
         let mut rem = self.rem;
         let mut taken = self.taken;
-        let (mut rounds, mut lane_steps) = (0u64, 0u64);
+        let taken_before = taken;
+        let mut rounds = 0u64;
         loop {
             let mut s_mid = [T::zero(); L];
             let mut s_end = [T::zero(); L];
@@ -252,7 +253,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
                 s_end[i] = table.sin_half(j + 2);
             }
             let mut next = States::<T, L>::new();
-            let mut ok = [false; L];
+            let mut ok = [0u32; L];
             for i in 0..L {
                 let (nx, exact, near) = free_step::<T, F, SmallTrig>(
                     &self.coef[i],
@@ -263,29 +264,27 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
                     eta,
                 );
                 next.set(i, nx);
-                ok[i] = exact & !near;
+                ok[i] = u32::from(exact & !near);
             }
-            // Branch-free, one array at a time (so that it vectorises too).
+            // Branch-free, one array at a time (so that it vectorises too): a running lane
+            // takes the step if it may, and stops if it may not or if that was its last one
+            // before the section.
             let mut go = [0u32; L];
             let mut stop = [0u32; L];
             for i in 0..L {
                 let running = u32::from(rem[i] > 0);
-                go[i] = running & u32::from(ok[i]);
-                // Stops: could not take the step, or took the last one before the section.
-                stop[i] = running & (u32::from(!ok[i]) | u32::from(rem[i] == 1));
+                go[i] = running & ok[i];
+                stop[i] = running & ((ok[i] ^ 1) | u32::from(rem[i] == 1));
             }
             state.select(&go, &next);
             let mut any_stop = 0u32;
-            let mut took = 0u32;
             for i in 0..L {
                 k[i] += go[i];
                 taken[i] += go[i];
-                rem[i] = (rem[i] - go[i]) * (1 - stop[i]);
+                rem[i] = (rem[i] - go[i]) * (stop[i] ^ 1);
                 any_stop |= stop[i];
-                took += go[i];
             }
             rounds += 1;
-            lane_steps += u64::from(took);
             if any_stop != 0 {
                 for i in 0..L {
                     stopped[i] = stop[i] != 0;
@@ -293,6 +292,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
                 break;
             }
         }
+        let lane_steps: u64 = (0..L).map(|i| u64::from(taken[i] - taken_before[i])).sum();
         self.state = state;
         self.k = k;
         self.rem = rem;
