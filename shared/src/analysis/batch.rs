@@ -24,6 +24,9 @@ use crate::model::hammer::{BeamFree, WiresFree};
 use crate::observe::{Observer, PointResult, ProtocolRun};
 use crate::real::Real;
 
+/// Free-flight rounds between two rounds of contact sub-steps while lanes are in contact.
+const FREE_ROUNDS: u64 = 4;
+
 /// Lanes that the host's analysis commands interleave per core.
 pub const DEFAULT_LANES: usize = 8;
 
@@ -158,7 +161,7 @@ where
             if n_free == 0 && n_contact == 0 {
                 break;
             }
-            if n_contact > 0 && n_contact >= n_free {
+            if n_contact > 0 {
                 // One sub-step of every lane in contact.
                 contact.run();
                 contact_rounds += 1;
@@ -168,9 +171,12 @@ where
                         self.commit(i, &mut free, &mut contact);
                     }
                 }
-            } else {
-                // Whole free-flight steps until a lane stops.
-                let stopped = free.run();
+            }
+            if n_free > 0 {
+                // Whole free-flight steps until a lane stops, or (if lanes wait in contact)
+                // for a few rounds.
+                let max_rounds = if n_contact > 0 { FREE_ROUNDS } else { u64::MAX };
+                let stopped = free.run_at_most(max_rounds);
                 for (i, &s) in stopped.iter().enumerate() {
                     if s {
                         if let Some(lane) = &mut self.lanes[i]

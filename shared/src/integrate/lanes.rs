@@ -211,24 +211,29 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     /// inexact). Returns the stopped lanes (`true`), which must be [`Lockstep::unload`]ed before
     /// they are loaded again. Nothing happens if no lane runs.
     pub(crate) fn run(&mut self) -> [bool; L] {
+        self.run_at_most(u64::MAX)
+    }
+
+    /// [`Lockstep::run`] for at most `rounds` rounds.
+    pub(crate) fn run_at_most(&mut self, rounds: u64) -> [bool; L] {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if self.avx {
             // SAFETY: the CPU supports AVX and AVX2 (checked in `for_simulator`).
-            return unsafe { self.run_avx() };
+            return unsafe { self.run_avx(rounds) };
         }
-        self.run_kernel()
+        self.run_kernel(rounds)
     }
 
     /// [`Lockstep::run`] compiled for AVX2.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[target_feature(enable = "avx,avx2")]
-    fn run_avx(&mut self) -> [bool; L] {
-        self.run_kernel()
+    fn run_avx(&mut self, rounds: u64) -> [bool; L] {
+        self.run_kernel(rounds)
     }
 
     /// The body of [`Lockstep::run`] (inlined into each instruction-set variant).
     #[inline(always)]
-    fn run_kernel(&mut self) -> [bool; L] {
+    fn run_kernel(&mut self, max_rounds: u64) -> [bool; L] {
         let mut stopped = [false; L];
         if !self.any_running() {
             return stopped;
@@ -289,6 +294,9 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
                 for i in 0..L {
                     stopped[i] = stop[i] != 0;
                 }
+                break;
+            }
+            if rounds >= max_rounds {
                 break;
             }
         }
