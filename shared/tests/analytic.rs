@@ -284,7 +284,7 @@ fn contact_mode(params: &RigParams, load_n: f64, approach_m_s: f64) -> (f64, f64
 /// rest under a load from a touch (1 % of the weight) to the weight plus the largest cart
 /// inertia of the sweeps (Ω/ω 5), after a contact that began at 0.01–0.5 m/s (for the
 /// conservative Hertz law the mode is undamped and `|R| < 1` is RK4's own damping). The resting
-/// sub-step of `8 h_c` that the embedded profile had is outside it (spring–dashpot `|R|` 1.9).
+/// sub-step of `8 h_c` at `K = 8` (`ω_c · 8 h_c = π`) is outside it (spring–dashpot `|R|` 1.9).
 #[test]
 fn resting_substep_is_stable() {
     use shared::analysis::SimSettings;
@@ -329,7 +329,7 @@ fn resting_substep_is_stable() {
             }
         }
     }
-    // The previous embedded choice, 8 h_c at K = 8 (ω_c · 8 h_c = π), is unstable.
+    // 8 h_c at K = 8 (ω_c · 8 h_c = π) is unstable: the test can fail.
     let old = worst(&RigId::Wires.preset(), 8, 8);
     assert!((1.5..2.5).contains(&old), "|R| {old}");
 }
