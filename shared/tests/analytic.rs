@@ -227,3 +227,109 @@ fn long_substeps_keep_resting_and_impacting_results() {
         );
     }
 }
+
+/// `|R(z)|` of classical RK4, `R(z) = 1 + z + z²/2 + z³/6 + z⁴/24`, at `z = (re, im)`.
+fn rk4_amplification(re: f64, im: f64) -> f64 {
+    let z = nalgebra::Complex::new(re, im);
+    let r = 1.0 + z * (1.0 + z * (0.5 + z * (1.0 / 6.0 + z / 24.0)));
+    libm::hypot(r.re, r.im)
+}
+
+/// The eigenvalues `(re, ±im)` of the contact mode: the Jacobian of the contact field (the law
+/// continued, `FieldMode::Contact`) at rest on the surface under `load_n` (N), by central
+/// differences in f64, for a contact that began at `approach_m_s`.
+fn contact_mode(params: &RigParams, load_n: f64, approach_m_s: f64) -> (f64, f64) {
+    use shared::model::Hammer;
+    use shared::model::hammer::FieldMode;
+    let omega_exc = params.omega_n();
+    let h = Hammer::<f64>::new(params, 0.0, omega_exc, &SwitchBands::default()).unwrap();
+    // The penetration at which the law's elastic force carries the load.
+    let (mut lo, mut hi) = (0.0f64, 1e-2f64);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        let (e, _) = h.switch().law.parts(mid, 0.0, approach_m_s);
+        if e > load_n { hi = mid } else { lo = mid }
+    }
+    let x = h.state_from_relative(0.5 * (lo + hi), 0.0).unwrap();
+    let f = |x: nalgebra::Vector2<f64>| h.field_in(FieldMode::Contact, &x, 0.0, approach_m_s).dx;
+    let mut j = [[0.0; 2]; 2];
+    for c in 0..2 {
+        let step = if c == 0 {
+            1e-6 * x[0].abs().max(1e-9)
+        } else {
+            1e-6
+        };
+        let mut up = x;
+        let mut down = x;
+        up[c] += step;
+        down[c] -= step;
+        let d = (f(up) - f(down)) / (2.0 * step);
+        j[0][c] = d[0];
+        j[1][c] = d[1];
+    }
+    let (tr, det) = (j[0][0] + j[1][1], j[0][0] * j[1][1] - j[0][1] * j[1][0]);
+    let disc = 0.25 * tr * tr - det;
+    if disc < 0.0 {
+        (0.5 * tr, libm::sqrt(-disc))
+    } else {
+        // Real modes: the faster one decides.
+        (0.5 * tr - libm::sqrt(disc), 0.0)
+    }
+}
+
+/// The resting sub-step `R h_c` ([`shared::integrate::resting_substeps`]) lies inside RK4's
+/// stability region for the contact mode at every shipped profile (production `K = 16`,
+/// embedded `K = 8`, the ×4 and ×8 references), law and rig: `|R(λ h)| < 1` for every
+/// sub-step up to the longest, `R π/(ω_c K)`, `λ` the contact mode's eigenvalue linearised at
+/// rest under a load from a touch (1 % of the weight) to the weight plus the largest cart
+/// inertia of the sweeps (Ω/ω 5), after a contact that began at 0.01–0.5 m/s (for the
+/// conservative Hertz law the mode is undamped and `|R| < 1` is RK4's own damping). The resting
+/// sub-step of `8 h_c` at `K = 8` (`ω_c · 8 h_c = π`) is outside it (spring–dashpot `|R|` 1.9).
+#[test]
+fn resting_substep_is_stable() {
+    use shared::analysis::SimSettings;
+    use shared::integrate::resting_substeps;
+    use shared::integrate::stepper::SUBSTEP_REFERENCE_SPEED_M_S;
+    let worst = |p: &RigParams, k: u32, r: u32| -> f64 {
+        let omega_c = p
+            .contact
+            .contact_omega(p.mass_kg, SUBSTEP_REFERENCE_SPEED_M_S);
+        let h_max = f64::from(r) * core::f64::consts::PI / omega_c / f64::from(k);
+        let a_max = p.gravity_m_s2 + p.amplitude_m * (5.0 * p.omega_n()).powi(2);
+        let mut worst = 0.0f64;
+        for load in [0.01 * p.weight_n(), p.weight_n(), p.mass_kg * a_max] {
+            for v in [0.01, 0.1, 0.5] {
+                let (re, im) = contact_mode(p, load, v);
+                assert!(re < 0.0 || (re == 0.0 && im > 0.0), "{re} {im}");
+                // From a tenth of the longest (shorter ones are closer still to |R| = 1 − O(h⁶),
+                // the conservative law's neutral mode, than f64 resolves).
+                for i in 10..=100 {
+                    let h = h_max * f64::from(i) / 100.0;
+                    worst = worst.max(rk4_amplification(re * h, im * h));
+                }
+            }
+        }
+        worst
+    };
+    let base = SimSettings::default();
+    let profiles = [
+        base,
+        SimSettings::embedded(),
+        base.refined(4),
+        base.refined(8),
+    ];
+    for s in profiles {
+        let k = s.steps.substeps_per_contact;
+        for rig in RigId::ALL {
+            for law in ContactLawKind::ALL {
+                let mut p = rig.preset();
+                p.contact = ContactLaw::preset(law);
+                let a = worst(&p, k, resting_substeps(k));
+                assert!(a < 1.0, "K = {k}, {rig:?}, {law}: |R| {a}");
+            }
+        }
+    }
+    // 8 h_c at K = 8 (ω_c · 8 h_c = π) is unstable: the test can fail.
+    let old = worst(&RigId::Wires.preset(), 8, 8);
+    assert!((1.5..2.5).contains(&old), "|R| {old}");
+}

@@ -1,24 +1,31 @@
 //! Many operating points on one core, interleaved.
 //!
 //! One protocol run is a chain of dependent floating-point operations (each RK4 stage needs the
-//! previous one), so a single run leaves most of an out-of-order core idle. Stepping `L`
-//! independent runs in turn lets the core overlap their chains. Each round first takes, for the
-//! runs clear of the surface, whole free-flight steps in lockstep
-//! ([`crate::integrate::lanes::free_flight`], vectorised across the lanes; only for observers
-//! that ignore per-step samples), then one ordinary step of every run (Poincaré sections,
-//! contact sub-steps). Results are exactly those of [`super::evaluate_point`] (each run is the
-//! same computation, only the order of instructions between runs changes; tested). No
+//! previous one), so a single run leaves most of an out-of-order core idle. `L` runs share the
+//! core: those clear of the surface take their whole free-flight steps together in lockstep
+//! lanes (`crate::integrate::lanes`, vectorised across the lanes; only for observers that
+//! ignore per-step samples). As soon as one lane stops (its period's last step: the Poincaré
+//! section; near the surface; an angle the lanes' short sine does not cover), that run alone
+//! takes ordinary steps ([`ProtocolRun::step`]: the section, contact sub-steps) until it can
+//! rejoin the lanes or is done, when the next point takes its lane; the other lanes wait
+//! without losing their place. Results are exactly those of [`super::evaluate_point`] (each run
+//! is the same computation, only the order of instructions between runs changes; tested). No
 //! allocation; an in-order MCU gains nothing from it.
 
 use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
-use heapless::Vec;
 
-use crate::integrate::lanes::free_flight;
+use crate::integrate::contact_lanes::{ContactLanes, LaneContact};
+use crate::integrate::lanes::Lockstep;
+use crate::integrate::stepper::{Cursor, SubPlan};
 use crate::integrate::{PhaseTable, Simulator};
 use crate::model::RigParams;
+use crate::model::hammer::{BeamFree, WiresFree};
 use crate::observe::{Observer, PointResult, ProtocolRun};
 use crate::real::Real;
+
+/// Free-flight rounds between two rounds of contact sub-steps while lanes are in contact.
+const FREE_ROUNDS: u64 = 4;
 
 /// Lanes that the host's analysis commands interleave per core.
 pub const DEFAULT_LANES: usize = 8;
@@ -34,11 +41,30 @@ struct Lane<'t, T: Real, O> {
 /// run, and the observer that will watch it.
 pub type Started<'t, T, O> = (Simulator<'t, T>, ProtocolRun<T>, O);
 
-/// Runs one protocol per item of `items`, `L` at a time interleaved step by step. `start` turns
-/// an item into a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the
-/// `i`-th item's result with its observer and final simulator as soon as it is done (so not in
-/// order).
-pub fn run_interleaved<'t, T, O, const L: usize, I, S, F>(items: I, mut start: S, mut emit: F)
+/// How full the lockstep lanes of an interleaved run were (cost diagnostics).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LaneStats {
+    /// Lanes per round, `L`.
+    pub lanes: u64,
+    /// Lockstep rounds run (each offers `L` lane-steps).
+    pub rounds: u64,
+    /// Whole free-flight steps taken in them.
+    pub lane_steps: u64,
+    /// Rounds of contact sub-steps (each offers `L` lanes).
+    pub contact_rounds: u64,
+    /// Sub-steps taken in them.
+    pub contact_steps: u64,
+}
+
+/// Runs one protocol per item of `items`, `L` at a time interleaved. `start` turns an item into
+/// a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the `i`-th
+/// item's result with its observer and final simulator as soon as it is done (so not in
+/// order). Returns how full the lanes were.
+pub fn run_interleaved<'t, T, O, const L: usize, I, S, F>(
+    items: I,
+    mut start: S,
+    mut emit: F,
+) -> LaneStats
 where
     T: Real + 't,
     O: Observer<T>,
@@ -67,49 +93,200 @@ where
     for lane in lanes.iter_mut() {
         *lane = launch(&mut emit);
     }
-    loop {
-        // Whole free-flight steps in lockstep for the lanes clear of the surface.
-        let mut taking_part = [false; L];
-        let mut sims: Vec<&mut Simulator<'t, T>, L> = Vec::new();
-        for (slot, part) in lanes.iter_mut().zip(taking_part.iter_mut()) {
-            if let Some(lane) = slot
-                && lane.run.free_flight_allowed::<O>()
-            {
-                *part = true;
-                let _ = sims.push(&mut lane.sim);
+    // The lockstep kernel's suspension is the first run's (runs of another one, if any, take
+    // ordinary steps only).
+    let wires = match lanes.iter().flatten().next() {
+        Some(lane) => lane.sim.hammer().is_wires(),
+        None => return LaneStats::default(),
+    };
+    let mut driver = Driver {
+        lanes,
+        launch,
+        emit,
+        mode: [Mode::Idle; L],
+        cursor: [None; L],
+        constants_set: [false; L],
+    };
+    if wires {
+        driver.drive::<WiresFree<T>>()
+    } else {
+        driver.drive::<BeamFree<T>>()
+    }
+}
+
+/// What a lane of [`run_interleaved`] is doing between two kernel calls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    /// No run (the items are exhausted).
+    Idle,
+    /// Loaded into the free-flight lanes.
+    Free,
+    /// Its next segment is a sub-step set into the contact lanes.
+    Contact,
+}
+
+/// The lanes of [`run_interleaved`] with its `launch` and `emit`.
+struct Driver<'t, T: Real, O, const L: usize, N, F> {
+    lanes: [Option<Lane<'t, T, O>>; L],
+    launch: N,
+    emit: F,
+    mode: [Mode; L],
+    /// Where each `Contact` lane stands in its step, and its sub-step.
+    cursor: [Option<(Cursor<T>, SubPlan<T>)>; L],
+    /// Whether the contact lanes hold the constants of the lane's run.
+    constants_set: [bool; L],
+}
+
+impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
+where
+    T: Real + 't,
+    O: Observer<T>,
+    N: FnMut(&mut F) -> Option<Lane<'t, T, O>>,
+    F: FnMut(usize, Result<(PointResult, O, &Simulator<'t, T>), ParamError>),
+{
+    fn drive<K: LaneContact<T>>(&mut self) -> LaneStats {
+        let Some(first) = self.lanes.iter().flatten().next() else {
+            return LaneStats::default();
+        };
+        let mut free = Lockstep::<T, K, L>::for_simulator(&first.sim);
+        let mut contact = ContactLanes::<T, K, L>::new();
+        for i in 0..L {
+            self.settle(i, &mut free, &mut contact, None, true);
+        }
+        let mut contact_rounds = 0u64;
+        let mut contact_steps = 0u64;
+        loop {
+            let n_free = self.mode.iter().filter(|&&m| m == Mode::Free).count();
+            let n_contact = self.mode.iter().filter(|&&m| m == Mode::Contact).count();
+            if n_free == 0 && n_contact == 0 {
+                break;
+            }
+            if n_contact > 0 {
+                // One sub-step of every lane in contact.
+                contact.run();
+                contact_rounds += 1;
+                contact_steps += n_contact as u64;
+                for i in 0..L {
+                    if self.mode[i] == Mode::Contact {
+                        self.commit(i, &mut free, &mut contact);
+                    }
+                }
+            }
+            if n_free > 0 {
+                // Whole free-flight steps until a lane stops, or (if lanes wait in contact)
+                // for a few rounds.
+                let max_rounds = if n_contact > 0 { FREE_ROUNDS } else { u64::MAX };
+                let stopped = free.run_at_most(max_rounds);
+                for (i, &s) in stopped.iter().enumerate() {
+                    if s {
+                        if let Some(lane) = &mut self.lanes[i]
+                            && free.unload(i, &mut lane.sim) > 0
+                        {
+                            lane.run.after_free_flight(&lane.sim);
+                        }
+                        // Its next step is one the free-flight lanes do not take.
+                        self.settle(i, &mut free, &mut contact, None, false);
+                    }
+                }
             }
         }
-        let taken = free_flight::<T, L>(&mut sims);
-        drop(sims);
-        let mut j = 0;
-        for (slot, part) in lanes.iter_mut().zip(taking_part) {
-            if let (Some(lane), true) = (slot, part) {
-                if taken[j] > 0 {
-                    lane.run.after_free_flight(&lane.sim);
-                }
-                j += 1;
-            }
+        let (rounds, lane_steps) = free.stats();
+        LaneStats {
+            lanes: L as u64,
+            rounds,
+            lane_steps,
+            contact_rounds,
+            contact_steps,
         }
-        let mut active = false;
-        for slot in lanes.iter_mut() {
-            let done = match slot {
-                Some(lane) => {
-                    active = true;
-                    lane.run
-                        .step(&mut lane.sim, &mut lane.obs)
-                        .map(|r| (lane.index, r))
-                }
-                None => None,
-            };
-            if let Some((index, result)) = done {
-                if let Some(lane) = slot.take() {
-                    emit(index, Ok((result, lane.obs, &lane.sim)));
-                }
-                *slot = launch(&mut emit);
-            }
-        }
-        if !active {
+    }
+
+    /// Ends the sub-step of `Contact` lane `i` with the contact lanes' result and goes on.
+    fn commit<K: LaneContact<T>>(
+        &mut self,
+        i: usize,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut ContactLanes<T, K, L>,
+    ) {
+        let (Some(lane), Some((mut c, p))) = (&mut self.lanes[i], self.cursor[i].take()) else {
+            self.mode[i] = Mode::Idle;
             return;
+        };
+        let mut period_end = false;
+        let done = lane
+            .sim
+            .commit_substep(&mut c, &p, contact.result(i), &mut |s| {
+                period_end |= lane.run.sample(s, &mut lane.obs)
+            });
+        if done {
+            self.end_step(i, period_end);
+            self.settle(i, free, contact, None, true);
+        } else {
+            self.settle(i, free, contact, Some(c), true);
+        }
+    }
+
+    /// Ends the step of lane `i` for its protocol; a run that is done is emitted and the next
+    /// item takes the lane.
+    fn end_step(&mut self, i: usize, period_end: bool) {
+        let Some(lane) = &mut self.lanes[i] else {
+            return;
+        };
+        if let Some(result) = lane.run.end_step(&lane.sim, &mut lane.obs, period_end) {
+            if let Some(lane) = self.lanes[i].take() {
+                (self.emit)(lane.index, Ok((result, lane.obs, &lane.sim)));
+            }
+            self.lanes[i] = (self.launch)(&mut self.emit);
+            self.constants_set[i] = false;
+        }
+    }
+
+    /// Ordinary segments for the run in lane `i`, from inside its step at `cursor` or from a
+    /// step boundary, until its next segment is one the lanes take: whole free-flight steps
+    /// (then loaded into the free-flight lanes; not at once if `may_load` is false) or an
+    /// ordinary sub-step (then set into the contact lanes). A run that is done is emitted and
+    /// the next item takes the lane; the lane stays idle when the items are exhausted.
+    fn settle<K: LaneContact<T>>(
+        &mut self,
+        i: usize,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut ContactLanes<T, K, L>,
+        mut cursor: Option<Cursor<T>>,
+        mut may_load: bool,
+    ) {
+        loop {
+            let Some(lane) = &mut self.lanes[i] else {
+                self.mode[i] = Mode::Idle;
+                return;
+            };
+            let mut c = match cursor.take() {
+                Some(c) => c,
+                None => {
+                    if may_load && lane.run.free_flight_allowed::<O>() && free.load(i, &lane.sim) {
+                        self.mode[i] = Mode::Free;
+                        return;
+                    }
+                    may_load = true;
+                    lane.sim.begin_step()
+                }
+            };
+            let mut period_end = false;
+            loop {
+                if !O::SAMPLES
+                    && let Some(p) = lane.sim.plain_substep(&c)
+                    && contact.set(i, &lane.sim, &p, !self.constants_set[i])
+                {
+                    self.constants_set[i] = true;
+                    self.cursor[i] = Some((c, p));
+                    self.mode[i] = Mode::Contact;
+                    return;
+                }
+                if lane.sim.advance(&mut c, &mut |s| {
+                    period_end |= lane.run.sample(s, &mut lane.obs)
+                }) {
+                    break;
+                }
+            }
+            self.end_step(i, period_end);
         }
     }
 }
@@ -117,13 +294,14 @@ where
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),
 /// `L` at a time interleaved ([`run_interleaved`]), and calls `emit(i, result)` for the `i`-th
 /// point as soon as it is done (so not in order; invalid points are emitted at once with their
-/// error).
+/// error). Returns how full the lanes were.
 pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
     params: &RigParams,
     settings: &SimSettings,
     points: I,
     mut emit: F,
-) where
+) -> LaneStats
+where
     I: IntoIterator<Item = (f64, f64)>,
     F: FnMut(usize, Result<PointResult, ParamError>),
 {
@@ -134,7 +312,7 @@ pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
             for (i, _) in points.into_iter().enumerate() {
                 emit(i, Err(e));
             }
-            return;
+            return LaneStats::default();
         }
     };
     run_interleaved::<T, (), L, _, _, _>(
@@ -145,7 +323,7 @@ pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
             Ok((sim, run, ()))
         },
         |i, r| emit(i, r.map(|(result, (), _)| result)),
-    );
+    )
 }
 
 #[cfg(test)]

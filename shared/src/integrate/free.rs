@@ -9,7 +9,7 @@
 use nalgebra::Vector2;
 
 use super::rk4::rk4_step;
-use crate::model::hammer::FreeFlight;
+use crate::model::hammer::{BeamFree, FreeFlight, WiresFree};
 use crate::real::Real;
 
 /// The state a free-flight step carries: `x = (x0, x1)`, the field's second component `a` at
@@ -53,60 +53,40 @@ impl Trig for SmallTrig {
     }
 }
 
-/// The suspension of a free-flight step: a constant ([`Wires`], [`Beam`]: the lanes, one
-/// kernel per suspension) or known at run time (`bool`, `true` for wires: the stepper, one
-/// kernel for both).
-pub(crate) trait Suspension: Copy {
-    /// Whether it is the wire pendulum.
-    fn wires(self) -> bool;
+/// The free-flight field of one suspension, as a step evaluates it: [`WiresFree`] and
+/// [`BeamFree`] (the suspension known at compile time: the lanes, one kernel per suspension)
+/// or [`FreeFlight`] (known at run time: the stepper, one kernel for both).
+pub(crate) trait FreeField<T: Real>: Copy {
+    /// The field at `(y0, y1)` with `sin Ωt = sin_phase`: `(acceleration, δ, δ̇, exact)`,
+    /// `exact` saying whether `G`'s sine was exact there.
+    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool);
 }
 
-/// The wire pendulum, at compile time.
-#[derive(Clone, Copy)]
-pub(crate) struct Wires;
-
-/// The beam springs, at compile time.
-#[derive(Clone, Copy)]
-pub(crate) struct Beam;
-
-impl Suspension for Wires {
+impl<T: Real> FreeField<T> for WiresFree<T> {
     #[inline(always)]
-    fn wires(self) -> bool {
-        true
+    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
+        let (st, ct, exact) = G::sin_cos(y0);
+        let (a, d, dd) = self.eval(y1, (st, ct), sin_phase);
+        (a, d, dd, exact)
     }
 }
 
-impl Suspension for Beam {
+impl<T: Real> FreeField<T> for BeamFree<T> {
     #[inline(always)]
-    fn wires(self) -> bool {
-        false
+    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
+        let (a, d, dd) = self.eval(y0, y1, sin_phase);
+        (a, d, dd, true)
     }
 }
 
-impl Suspension for bool {
+impl<T: Real> FreeField<T> for FreeFlight<T> {
     #[inline(always)]
-    fn wires(self) -> bool {
-        self
+    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
+        match self {
+            FreeFlight::Wires(w) => w.field::<G>(y0, y1, sin_phase),
+            FreeFlight::Beam(b) => b.field::<G>(y0, y1, sin_phase),
+        }
     }
-}
-
-/// The free-flight field at `(y0, y1)`: `(acceleration, δ, δ̇, exact)`.
-#[inline(always)]
-fn field<T: Real, S: Suspension, G: Trig>(
-    kind: S,
-    c: &FreeFlight<T>,
-    y0: T,
-    y1: T,
-    sin_phase: T,
-) -> (T, T, T, bool) {
-    let wires = kind.wires();
-    let (st, ct, exact) = if wires {
-        G::sin_cos(y0)
-    } else {
-        (T::zero(), T::zero(), true)
-    };
-    let (a, d, dd) = c.eval(wires, y0, y1, (st, ct), sin_phase);
-    (a, d, dd, exact)
 }
 
 /// One RK4 stage's field `(y1, acceleration)`, noting whether it came within `−neg_eta` of the
@@ -114,16 +94,15 @@ fn field<T: Real, S: Suspension, G: Trig>(
 /// host inlined.)
 #[cfg_attr(feature = "std", inline(always))]
 #[cfg_attr(not(feature = "std"), inline(never))]
-fn stage<T: Real, S: Suspension, G: Trig>(
-    kind: S,
-    c: &FreeFlight<T>,
+fn stage<T: Real, F: FreeField<T>, G: Trig>(
+    c: &F,
     y: &Vector2<T>,
     s: T,
     neg_eta: T,
     touched: &mut bool,
     exact: &mut bool,
 ) -> Vector2<T> {
-    let (a, d, _, ok) = field::<T, S, G>(kind, c, y[0], y[1], s);
+    let (a, d, _, ok) = c.field::<G>(y[0], y[1], s);
     *touched |= d > neg_eta;
     *exact &= ok;
     Vector2::new(y[1], a)
@@ -134,9 +113,8 @@ fn stage<T: Real, S: Suspension, G: Trig>(
 /// and whether the step comes within `eta` of the surface (then [`super::Simulator::step`]
 /// splits it; module docs).
 #[inline(always)]
-pub(crate) fn free_step<T: Real, S: Suspension, G: Trig>(
-    kind: S,
-    c: &FreeFlight<T>,
+pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig>(
+    c: &F,
     st: &FreeState<T>,
     h: T,
     s_mid: T,
@@ -152,9 +130,9 @@ pub(crate) fn free_step<T: Real, S: Suspension, G: Trig>(
         h,
         s_mid,
         s_end,
-        |y, s| stage::<T, S, G>(kind, c, y, s, neg_eta, &mut touched, &mut exact),
+        |y, s| stage::<T, F, G>(c, y, s, neg_eta, &mut touched, &mut exact),
     );
-    let (a, d, dd, ok) = field::<T, S, G>(kind, c, x1[0], x1[1], s_end);
+    let (a, d, dd, ok) = c.field::<G>(x1[0], x1[1], s_end);
     let mut near = touched | (d > neg_eta);
     // Turned round inside the step: the peak lies under the two tangent lines.
     let turned = (st.dd > T::zero()) & (dd < T::zero());

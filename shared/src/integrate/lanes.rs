@@ -2,19 +2,50 @@
 //!
 //! Far from the surface, the next step of a [`Simulator`] is one RK4 step of `h = T/N` in free
 //! flight (the first branch of [`Simulator::step`]): the same short chain of `+` and `×` for
-//! every simulator of a grid. [`free_flight`] evaluates it for `L` simulators at once, so the
-//! compiler packs the lanes into SIMD registers, and skips the per-step bookkeeping in between.
-//! Each lane runs the stepper's own kernel (`integrate::free`) and stops before the
-//! period's last step (the Poincaré section), before any step that the stepper would split
-//! near the surface, and (wires) before an angle outside the short sine polynomial's range
-//! `|θ| ≤ 1/8`. The caller then takes the next step with [`Simulator::step`] as usual.
+//! every simulator of a grid. [`Lockstep`] holds the free-flight states of up to `L` simulators,
+//! one array per field, and steps them together, so the compiler packs the lanes into SIMD
+//! registers, without the per-step bookkeeping in between. Each lane runs the stepper's own
+//! kernel (`integrate::free`) and stops before the period's last step (the Poincaré section),
+//! before any step that the stepper would split near the surface, and (wires) before an angle
+//! outside the short sine polynomial's range `|θ| ≤ 1/8`. [`Lockstep::run`] returns as soon as
+//! one lane stops; the caller takes that simulator's next steps with [`Simulator::step`] and
+//! loads it (or another simulator) into the lane again, so the other lanes never wait.
 
 use super::Simulator;
-use super::free::{Beam, FreeState, SmallTrig, Suspension, Wires, free_step};
-use crate::model::hammer::FreeFlight;
+use super::free::{FreeField, FreeState, SmallTrig, free_step};
+use super::plan::PhaseTable;
+use crate::model::hammer::{BeamFree, FreeFlight, WiresFree};
 use crate::real::Real;
 
+/// The free-flight coefficients of one suspension as a lockstep lane holds them: [`WiresFree`]
+/// or [`BeamFree`] (one [`Lockstep`] per suspension).
+pub(crate) trait LaneField<T: Real>: FreeField<T> + Default {
+    /// This suspension's coefficients, if `ff` is of it.
+    fn of(ff: &FreeFlight<T>) -> Option<Self>;
+}
+
+impl<T: Real> LaneField<T> for WiresFree<T> {
+    #[inline(always)]
+    fn of(ff: &FreeFlight<T>) -> Option<Self> {
+        match ff {
+            FreeFlight::Wires(w) => Some(*w),
+            FreeFlight::Beam(_) => None,
+        }
+    }
+}
+
+impl<T: Real> LaneField<T> for BeamFree<T> {
+    #[inline(always)]
+    fn of(ff: &FreeFlight<T>) -> Option<Self> {
+        match ff {
+            FreeFlight::Beam(b) => Some(*b),
+            FreeFlight::Wires(_) => None,
+        }
+    }
+}
+
 /// The states of `L` lanes, one array per field (so that the lanes pack into SIMD registers).
+#[derive(Clone, Copy)]
 struct States<T, const L: usize> {
     x0: [T; L],
     x1: [T; L],
@@ -68,126 +99,248 @@ impl<T: Real, const L: usize> States<T, L> {
     }
 }
 
-/// One trial step of every lane (`cst`: its free-flight coefficients and `h`; `s_mid`,
-/// `s_end`: `sin Ωt` at the step's midpoint and end): the states after it, and whether the
-/// stepper would take it in one piece (into `next`, `ok`).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn trials<T: Real, S: Suspension, const L: usize>(
-    kind: S,
-    cst: &[(FreeFlight<T>, T); L],
-    state: &States<T, L>,
-    s_mid: &[T; L],
-    s_end: &[T; L],
-    eta: T,
-    next: &mut States<T, L>,
-    ok: &mut [bool; L],
-) {
-    for i in 0..L {
-        let (c, h) = &cst[i];
-        let (nx, exact, near) =
-            free_step::<T, S, SmallTrig>(kind, c, &state.get(i), *h, s_mid[i], s_end[i], eta);
-        next.set(i, nx);
-        ok[i] = exact & !near;
-    }
-}
-
-/// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further
-/// ones are left alone) in lockstep, as long as at least a quarter of the lanes that started can
-/// go on. A simulator takes part if it has the first one's `N`, suspension type and band
-/// `η_δ`, is clear of the surface, and is not at its period's last step. Returns the steps
-/// each took (0 for those that did not take part). Each simulator ends exactly where the same
-/// number of [`Simulator::step`] calls would have left it.
+/// Up to `L` simulators' whole free-flight steps in lockstep, for one suspension (`F`:
+/// [`WiresFree`] or [`BeamFree`]), one step grid `N` and one band `η_δ`.
+///
+/// A simulator is loaded into a lane ([`Lockstep::load`]) when it is clear of the surface and
+/// not at its period's last step; [`Lockstep::run`] steps every loaded lane until one of them
+/// stops; [`Lockstep::unload`] hands its steps back to the simulator, which ends exactly where
+/// the same number of [`Simulator::step`] calls would have left it.
 ///
 /// With the `std` feature on x86-64 (the host), the kernel runs as AVX2 code when the CPU has
 /// it (chosen at run time: 8 `f32` lanes per register instead of 4): the same operations in the
 /// same order, no fused multiply-add, so the same bits.
-pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
+pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
+    phases: &'t PhaseTable<T>,
+    eta: T,
+    wires: bool,
+    coef: [F; L],
+    h: [T; L],
+    state: States<T, L>,
+    /// Step index within the period of each lane.
+    k: [u32; L],
+    /// Steps a lane may still take before its period's last step (0: the lane is empty or
+    /// stopped).
+    rem: [u32; L],
+    /// Steps taken since the lane was loaded.
+    taken: [u32; L],
+    /// Lockstep rounds run, and lane-steps taken in them (`Lockstep::stats`).
+    rounds: u64,
+    lane_steps: u64,
+    /// Whether the AVX2 kernel can run.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    if std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX and AVX2 (checked just above).
-        return unsafe { free_flight_avx::<T, L>(sims) };
-    }
-    free_flight_kernel::<T, L>(sims)
+    avx: bool,
 }
 
-/// [`free_flight`] compiled for AVX2.
-#[cfg(all(feature = "std", target_arch = "x86_64"))]
-#[target_feature(enable = "avx,avx2")]
-fn free_flight_avx<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
-    free_flight_kernel::<T, L>(sims)
+impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
+    /// Empty lanes for the simulators that share `sim`'s step grid, suspension and band.
+    pub(crate) fn for_simulator(sim: &Simulator<'t, T>) -> Self {
+        let (phases, wires, eta) = sim.lane_kind();
+        Lockstep {
+            phases,
+            eta,
+            wires,
+            coef: [F::default(); L],
+            h: [T::zero(); L],
+            state: States::new(),
+            k: [0; L],
+            rem: [0; L],
+            taken: [0; L],
+            rounds: 0,
+            lane_steps: 0,
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            avx: std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2"),
+        }
+    }
+
+    /// Loads `sim` into lane `i` (`i < L`, the lane empty) if it can take whole free-flight
+    /// steps in lockstep now: the same `N`, suspension and `η_δ` as the others, clear of the
+    /// surface and not at its period's last step. Returns whether it did.
+    #[inline]
+    pub(crate) fn load(&mut self, i: usize, sim: &Simulator<'t, T>) -> bool {
+        let (phases, wires, eta) = sim.lane_kind();
+        if phases.steps_per_period() != self.n() || wires != self.wires || eta != self.eta {
+            return false;
+        }
+        let Some((st, r)) = sim.lane_start() else {
+            return false;
+        };
+        let (ff, h) = sim.lane_constants();
+        let Some(c) = F::of(&ff) else {
+            return false;
+        };
+        self.coef[i] = c;
+        self.h[i] = h;
+        self.state.set(i, st);
+        self.k[i] = self.n() - 1 - r;
+        self.rem[i] = r;
+        self.taken[i] = 0;
+        true
+    }
+
+    /// Ends lane `i`: the steps it took since [`Lockstep::load`] go to `sim` (the simulator
+    /// loaded there). Returns how many (0: `sim` is unchanged).
+    #[inline]
+    pub(crate) fn unload(&mut self, i: usize, sim: &mut Simulator<'t, T>) -> u32 {
+        let taken = self.taken[i];
+        if taken > 0 {
+            sim.lane_finish(&self.state.get(i), taken);
+        }
+        self.rem[i] = 0;
+        self.taken[i] = 0;
+        taken
+    }
+
+    /// Whether any lane is loaded and running.
+    #[inline]
+    pub(crate) fn any_running(&self) -> bool {
+        self.rem.iter().any(|&r| r > 0)
+    }
+
+    /// Lockstep rounds run so far and the lane-steps taken in them (a round offers `L`).
+    pub(crate) fn stats(&self) -> (u64, u64) {
+        (self.rounds, self.lane_steps)
+    }
+
+    fn n(&self) -> u32 {
+        self.phases.steps_per_period()
+    }
+
+    /// Steps every running lane in lockstep until at least one of them stops (at its period's
+    /// last step, or before a step that the stepper would split or that `|θ| > 1/8` makes
+    /// inexact). Returns the stopped lanes (`true`), which must be [`Lockstep::unload`]ed before
+    /// they are loaded again. Nothing happens if no lane runs.
+    pub(crate) fn run(&mut self) -> [bool; L] {
+        self.run_at_most(u64::MAX)
+    }
+
+    /// [`Lockstep::run`] for at most `rounds` rounds.
+    pub(crate) fn run_at_most(&mut self, rounds: u64) -> [bool; L] {
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if self.avx {
+            // SAFETY: the CPU supports AVX and AVX2 (checked in `for_simulator`).
+            return unsafe { self.run_avx(rounds) };
+        }
+        self.run_kernel(rounds)
+    }
+
+    /// [`Lockstep::run`] compiled for AVX2.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx,avx2")]
+    fn run_avx(&mut self, rounds: u64) -> [bool; L] {
+        self.run_kernel(rounds)
+    }
+
+    /// The body of [`Lockstep::run`] (inlined into each instruction-set variant).
+    #[inline(always)]
+    fn run_kernel(&mut self, max_rounds: u64) -> [bool; L] {
+        let mut stopped = [false; L];
+        if !self.any_running() {
+            return stopped;
+        }
+        let n = self.n() as usize;
+        let table = self.phases;
+        let eta = self.eta;
+        let mut state = self.state;
+        let mut k = self.k;
+        let mut rem = self.rem;
+        let mut taken = self.taken;
+        let taken_before = taken;
+        let mut rounds = 0u64;
+        loop {
+            let mut s_mid = [T::zero(); L];
+            let mut s_end = [T::zero(); L];
+            for i in 0..L {
+                // k < N − 1 on running lanes (so the step's end is not the period's); the
+                // others read a valid entry and are discarded.
+                let j = 2 * (k[i] as usize).min(n - 2);
+                s_mid[i] = table.sin_half(j + 1);
+                s_end[i] = table.sin_half(j + 2);
+            }
+            let mut next = States::<T, L>::new();
+            let mut ok = [0u32; L];
+            for i in 0..L {
+                let (nx, exact, near) = free_step::<T, F, SmallTrig>(
+                    &self.coef[i],
+                    &state.get(i),
+                    self.h[i],
+                    s_mid[i],
+                    s_end[i],
+                    eta,
+                );
+                next.set(i, nx);
+                ok[i] = u32::from(exact & !near);
+            }
+            // Branch-free, one array at a time (so that it vectorises too): a running lane
+            // takes the step if it may, and stops if it may not or if that was its last one
+            // before the section.
+            let mut go = [0u32; L];
+            let mut stop = [0u32; L];
+            for i in 0..L {
+                let running = u32::from(rem[i] > 0);
+                go[i] = running & ok[i];
+                stop[i] = running & ((ok[i] ^ 1) | u32::from(rem[i] == 1));
+            }
+            state.select(&go, &next);
+            let mut any_stop = 0u32;
+            for i in 0..L {
+                k[i] += go[i];
+                taken[i] += go[i];
+                rem[i] = (rem[i] - go[i]) * (stop[i] ^ 1);
+                any_stop |= stop[i];
+            }
+            rounds += 1;
+            if any_stop != 0 {
+                for i in 0..L {
+                    stopped[i] = stop[i] != 0;
+                }
+                break;
+            }
+            if rounds >= max_rounds {
+                break;
+            }
+        }
+        let lane_steps: u64 = (0..L).map(|i| u64::from(taken[i] - taken_before[i])).sum();
+        self.state = state;
+        self.k = k;
+        self.rem = rem;
+        self.taken = taken;
+        self.rounds += rounds;
+        self.lane_steps += lane_steps;
+        stopped
+    }
 }
 
-/// The body of [`free_flight`] (inlined into each instruction-set variant).
-#[inline(always)]
-fn free_flight_kernel<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
-    let mut taken = [0u32; L];
-    let lanes = sims.len().min(L);
-    if lanes == 0 {
-        return taken;
+/// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further ones
+/// are left alone) in lockstep until the first of them stops ([`Lockstep`]). A simulator takes
+/// part if it has the first one's `N`, suspension and band `η_δ`, is clear of the surface, and
+/// is not at its period's last step. Returns the steps each took (0 for those that did not take
+/// part); each simulator ends exactly where the same number of [`Simulator::step`] calls would
+/// have left it. (The grid analyses keep their lanes loaded across stops:
+/// `crate::analysis::batch`; this one-shot form serves benchmarks and tests.)
+pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
+    fn go<'t, T: Real, F: LaneField<T>, const L: usize>(
+        sims: &mut [&mut Simulator<'t, T>],
+    ) -> [u32; L] {
+        let mut taken = [0u32; L];
+        let Some(first) = sims.first() else {
+            return taken;
+        };
+        let mut lanes = Lockstep::<T, F, L>::for_simulator(first);
+        for (i, sim) in sims.iter().take(L).enumerate() {
+            lanes.load(i, sim);
+        }
+        lanes.run();
+        for (i, sim) in sims.iter_mut().take(L).enumerate() {
+            taken[i] = lanes.unload(i, sim);
+        }
+        taken
     }
-    let (table, wires, eta) = sims[0].lane_kind();
-    let n = table.steps_per_period();
-    let mut cst = [(FreeFlight::default(), T::zero()); L];
-    let mut state = States::<T, L>::new();
-    let mut k = [0u32; L];
-    let mut rem = [0u32; L];
-    for i in 0..lanes {
-        let sim = &*sims[i];
-        if !sims[0].lane_compatible(sim) {
-            continue;
-        }
-        if let Some((st, r)) = sim.lane_start() {
-            cst[i] = sim.lane_constants();
-            state.set(i, st);
-            k[i] = n - 1 - r;
-            rem[i] = r;
-        }
+    match sims.first().map(|s| s.hammer().is_wires()) {
+        Some(true) => go::<T, WiresFree<T>, L>(sims),
+        Some(false) => go::<T, BeamFree<T>, L>(sims),
+        None => [0; L],
     }
-    let started = rem.iter().filter(|&&r| r > 0).count();
-    if started == 0 {
-        return taken;
-    }
-    let stop_below = started.div_ceil(4);
-    loop {
-        let active = rem.iter().filter(|&&r| r > 0).count();
-        if active == 0 || active < stop_below {
-            break;
-        }
-        let mut s_mid = [T::zero(); L];
-        let mut s_end = [T::zero(); L];
-        for i in 0..L {
-            // k < N − 1 on active lanes (so the step's end is not the period's); idle lanes
-            // read a valid entry and are discarded.
-            let j = 2 * (k[i] as usize).min(n as usize - 2);
-            s_mid[i] = table.sin_half(j + 1);
-            s_end[i] = table.sin_half(j + 2);
-        }
-        let mut next = States::<T, L>::new();
-        let mut ok = [false; L];
-        if wires {
-            trials(Wires, &cst, &state, &s_mid, &s_end, eta, &mut next, &mut ok);
-        } else {
-            trials(Beam, &cst, &state, &s_mid, &s_end, eta, &mut next, &mut ok);
-        }
-        // Branch-free, one array at a time (so that it vectorises too).
-        let mut go = [0u32; L];
-        for i in 0..L {
-            go[i] = u32::from((rem[i] > 0) & ok[i]);
-        }
-        state.select(&go, &next);
-        for i in 0..L {
-            k[i] += go[i];
-            rem[i] = (rem[i] - go[i]) * go[i];
-            taken[i] += go[i];
-        }
-    }
-    for (i, sim) in sims.iter_mut().take(lanes).enumerate() {
-        if taken[i] > 0 {
-            sim.lane_finish(&state.get(i), taken[i]);
-        }
-    }
-    taken
 }
 
 #[cfg(test)]
@@ -199,9 +352,8 @@ mod tests {
     use std::format;
 
     /// Lockstep steps leave every simulator exactly where as many scalar steps do, and they do
-    /// run (from rest, far from the surface, until the period's last step or until fewer than a
-    /// quarter of the lanes that started can go on).
-    fn check(rig: RigId, gap_m: f64) {
+    /// run (from rest, far from the surface, until a lane reaches its period's last step).
+    fn check<F: LaneField<f32>>(rig: RigId, gap_m: f64) {
         let p = rig.preset();
         let s = SimSettings::default();
         let ratios = [0.6, 0.9, 1.3, 1.7, 2.0, 2.6, 3.1, 3.9];
@@ -217,10 +369,29 @@ mod tests {
             }
         }
         let reference = sims.clone();
-        let mut refs: std::vec::Vec<&mut Simulator<f32>> = sims.iter_mut().collect();
-        let taken = free_flight::<f32, 8>(&mut refs);
-        assert!(taken.iter().sum::<u32>() >= 4 * 20, "{rig:?}: {taken:?}");
+        let mut lanes = Lockstep::<f32, F, 8>::for_simulator(&sims[0]);
+        for (i, sim) in sims.iter().enumerate() {
+            assert!(lanes.load(i, sim), "{rig:?}: lane {i}");
+        }
+        let stopped = lanes.run();
+        assert!(stopped.iter().any(|&s| s));
+        let taken: std::vec::Vec<u32> = sims
+            .iter_mut()
+            .enumerate()
+            .map(|(i, sim)| lanes.unload(i, sim))
+            .collect();
+        // Every lane ran until the first stopped: at the latest the last lane (21 steps in),
+        // 64 − 1 − 21 = 42 steps later; a lane that stopped before a step did not take it.
+        let (rounds, lane_steps) = lanes.stats();
+        assert!((10..=42).contains(&rounds), "{rig:?}: {rounds} rounds");
+        assert!(
+            taken
+                .iter()
+                .all(|&t| t == rounds as u32 || t + 1 == rounds as u32)
+        );
+        assert_eq!(lane_steps, taken.iter().map(|&t| u64::from(t)).sum::<u64>());
         for ((sim, mut r), &t) in sims.iter().zip(reference).zip(taken.iter()) {
+            let reference_trials = r.counts().free_trials;
             for _ in 0..t {
                 r.step(&mut |_| {});
             }
@@ -230,13 +401,16 @@ mod tests {
                 (sim.periods_done(), sim.rk4_steps()),
                 (r.periods_done(), r.rk4_steps())
             );
-            assert_eq!(format!("{sim:?}"), format!("{r:?}"), "{rig:?}");
+            assert_eq!(sim.counts().lane_steps, u64::from(t));
+            assert_eq!(r.counts().free_trials, reference_trials + u64::from(t));
+            let same = sim.with_counts_of(&r);
+            assert_eq!(format!("{same:?}"), format!("{r:?}"), "{rig:?}");
         }
     }
 
     #[test]
     fn lockstep_steps_equal_scalar_steps() {
-        check(RigId::Wires, 3.0e-3);
-        check(RigId::Beam170, 3.0e-3);
+        check::<WiresFree<f32>>(RigId::Wires, 3.0e-3);
+        check::<BeamFree<f32>>(RigId::Beam170, 3.0e-3);
     }
 }

@@ -9,9 +9,11 @@
 //! - `bracket`: the bracketing root finder; `dense`: the step's cubic Hermite dense output,
 //!   event location on it, minima between samples.
 //! - [`stepper`]: the period-locked driver ([`Simulator`]).
-//! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids).
+//! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids);
+//!   `contact_lanes`: their ordinary contact sub-steps, several at once.
 
 pub(crate) mod bracket;
+pub(crate) mod contact_lanes;
 pub(crate) mod dense;
 pub(crate) mod free;
 pub mod lanes;
@@ -19,5 +21,5 @@ pub mod plan;
 pub mod rk4;
 pub mod stepper;
 
-pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings};
-pub use stepper::{Simulator, StepSample};
+pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings, resting_substeps};
+pub use stepper::{Simulator, StepCounts, StepSample};

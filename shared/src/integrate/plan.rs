@@ -129,12 +129,13 @@ pub struct StepPlan<T> {
     pub(crate) h: T,
     /// `h_c`, s.
     pub(crate) h_c: T,
-    /// `M`, sub-steps per step.
-    pub(crate) substeps: u32,
     /// `Ω` rounded to `T`, rad/s (the phase inside a step).
     pub(crate) omega: T,
     /// `ω_c`, rad/s: the contact frequency that sets `h_c`.
     pub(crate) omega_c: T,
+    /// The sub-step while the hammer rests on the surface, `R h_c` with
+    /// `R = `[`resting_substeps`]`(K)`, s.
+    pub(crate) h_rest: T,
     /// Longest free-flight sub-step after a departure, `π/(2 ω_c)` s: half the contact
     /// half-period at the reference speed (the shortest contact of the law).
     pub(crate) receding_max: T,
@@ -156,12 +157,23 @@ impl<T: Real> StepPlan<T> {
         Ok(StepPlan {
             h: T::from_f64(h),
             h_c: T::from_f64(h / m),
-            substeps: m as u32,
             omega: T::from_f64(omega_exc),
             omega_c: T::from_f64(omega_c),
+            h_rest: T::from_f64(h / m) * T::from_u32(resting_substeps(steps.substeps_per_contact)),
             receding_max: T::from_f64(0.5 * core::f64::consts::PI / omega_c),
         })
     }
+}
+
+/// Contact sub-steps `h_c` per sub-step while the hammer rests on the surface, for `K`
+/// sub-steps per contact half-period: `R = min(8, K/2)`, so that the resting sub-step is at
+/// most a quarter of the contact period, `ω_c · R h_c ≤ π/2`, inside RK4's stability region for
+/// every `K` (`|R(λh)|` 0.55 per sub-step at the spring–dashpot law's damping ratio 0.469;
+/// test `resting_substep_is_stable` in `shared/tests/analytic.rs`), and no longer than `8 h_c`
+/// for the finer convergence references. The production `K = 16` gives 8, the embedded
+/// `K = 8` gives 4.
+pub fn resting_substeps(substeps_per_contact: u32) -> u32 {
+    (substeps_per_contact / 2).clamp(1, 8)
 }
 
 /// `N` within `16 ..= MAX_STEPS_PER_PERIOD` ([`ParamError::CountOutOfRange`] otherwise).
@@ -205,7 +217,7 @@ mod tests {
         // h_c ≤ π/1000/16 ≈ 196 µs → M = ceil(15.625 ms / 196 µs) = 80.
         let plan =
             StepPlan::<f64>::new(core::f64::consts::TAU, 1000.0, &StepSettings::default()).unwrap();
-        assert_eq!(plan.substeps, 80);
+        assert_eq!(libm::round(plan.h / plan.h_c), 80.0);
         assert!((plan.h - 1.0 / 64.0).abs() < 1e-15);
         // h_c = h/M, not the upper bound π/ω_c/K it was sized by.
         assert!((plan.h_c - 1.0 / 64.0 / 80.0).abs() < 1e-18);

@@ -21,9 +21,13 @@
 //! - After a departure the hammer flies clear in one free-flight sub-step (twice the time to
 //!   `δ = −η_δ`, at most a quarter of the contact period); while it rests on or creeps along
 //!   the surface (slow relative to it, contact force balancing the others) a sub-step is
-//!   [`RESTING_SUBSTEPS`] `h_c` long.
+//!   [`resting_substeps`]`(K) = min(8, K/2)` sub-steps `h_c` long: `ω_c · R h_c ≤ π/2`,
+//!   inside RK4's stability region at every `K` (`|R(λh)|` 0.55 per sub-step at the rig's contact
+//!   damping ratio 0.469, exact `e^{Re λh}` 0.48), so the contact's own oscillation, which the
+//!   resting test has already found below `ε`, keeps dying out, and the slow quasi-static motion
+//!   (time scale `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy.
 //! - An impact therefore costs about `K` sub-steps plus a few free-flight segments, whatever `N`;
-//!   resting contact costs one sub-step per `8 h_c`. The cost of a period is bounded by
+//!   resting contact costs one sub-step per `R h_c`. The cost of a period is bounded by
 //!   `N (2 + 2M)` RK4 steps with `M = ceil(h/h_c)`.
 
 use nalgebra::Vector2;
@@ -31,9 +35,12 @@ use nalgebra::Vector2;
 use super::bracket::{Rule, bracket_rising};
 use super::dense::{DenseStep, hermite_min, root_in_unit};
 use super::free::{FreeState, FullTrig, free_step};
+#[cfg(doc)]
+use super::plan::resting_substeps;
 use super::plan::{PhaseTable, StepPlan, StepSettings, step_s};
 use super::rk4::rk4_step_compensated;
 use crate::error::ParamError;
+use crate::model::contact::LawCoeffs;
 use crate::model::hammer::{FieldEval, FieldMode};
 use crate::model::{Hammer, Region, RigParams, SwitchBands};
 use crate::real::Real;
@@ -42,16 +49,6 @@ use crate::real::Real;
 /// faster than any impact of the thesis' rigs (≤ 0.2 m/s), so real contacts get at least `K`
 /// sub-steps per half-period.
 pub const SUBSTEP_REFERENCE_SPEED_M_S: f64 = 0.5;
-
-/// Contact sub-steps `h_c` per sub-step while the hammer rests on the surface
-/// ([`Simulator`]). At the production `K = 16` that is `ω_c · 8 h_c = π/2`, inside RK4's
-/// stability region with room to spare (`|R(λh)|` 0.55 per sub-step at the rig's contact damping
-/// ratio 0.469, exact `e^{Re λh}` 0.48): the contact's own oscillation, which the resting test
-/// has already found below `ε`, keeps dying out, and the slow quasi-static motion (time scale
-/// `1/Ω`, ≥ 20 ms) is followed to RK4 accuracy. At the embedded profile's `K = 8` it is
-/// `ω_c · 8 h_c = π`, outside the region (`|R|` 1.94): the contact's oscillation grows until the
-/// resting test fails and the stepper returns to `h_c`.
-pub const RESTING_SUBSTEPS: u32 = 8;
 
 /// `ε` of the resting test: the contact force balances the others to `ε`, and the
 /// penetration rate is below `ε ω_c δ`.
@@ -92,12 +89,70 @@ impl<T: Real> StepSample<T> {
     }
 }
 
+/// What a simulator's RK4 steps were, by kind (cost diagnostics: [`Simulator::counts`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StepCounts {
+    /// Whole free-flight steps `h = T/N` taken in lockstep lanes ([`super::lanes`]).
+    pub lane_steps: u64,
+    /// Free-flight trials over the rest of a step taken one at a time (one RK4 step each,
+    /// accepted or split).
+    pub free_trials: u64,
+    /// Of those, the trials that came near the surface: the step was split and the trial's
+    /// RK4 step discarded.
+    pub split_trials: u64,
+    /// Free-flight segments up to half a sub-step before the surface.
+    pub segments: u64,
+    /// Contact sub-steps (the switch model near and in contact; one RK4 step each).
+    pub substeps: u64,
+    /// Sub-steps with a switching event inside (one more RK4 step each).
+    pub events: u64,
+}
+
+impl StepCounts {
+    /// All RK4 steps: lane steps, trials, segments, sub-steps and the events' second steps.
+    pub fn rk4_steps(&self) -> u64 {
+        self.lane_steps + self.free_trials + self.segments + self.substeps + self.events
+    }
+}
+
 /// Penetration and its rate where a segment (a free-flight step or segment, or a sub-step)
 /// starts, `offset` s into the current step.
 struct SegmentStart<T> {
     offset: T,
     delta: T,
     delta_dot: T,
+}
+
+/// Where a simulator stands inside its current step, between two segments
+/// ([`Simulator::advance`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Cursor<T> {
+    /// Time since the step's start, s.
+    offset: T,
+    /// Time to the step's end, s.
+    rest: T,
+    /// Whether no segment has been taken yet.
+    first: bool,
+    /// `sin Ωt` at the step's midpoint and end.
+    s_mid: T,
+    s_end: T,
+}
+
+/// An ordinary sub-step that the contact lanes take ([`Simulator::plain_substep`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SubPlan<T> {
+    /// Length, s.
+    pub(crate) len: T,
+    /// Whether it ends the step.
+    pub(crate) last: bool,
+    /// Whether it starts in a band (then RK4's first stage is the mode's field at `s_start`).
+    pub(crate) band: bool,
+    /// `sin Ωt` at its start (if `band`), midpoint and end.
+    pub(crate) s_start: T,
+    pub(crate) s_mid: T,
+    pub(crate) s_end: T,
+    /// Whether it starts touching (then in the contact mode `f+`, else free flight `f−`).
+    pub(crate) touching: bool,
 }
 
 /// What changes from step to step.
@@ -115,8 +170,8 @@ struct StepState<T> {
     steps: u64,
     /// Approach speed of the current impact, m/s (Lankarani–Nikravesh).
     approach_speed: T,
-    /// RK4 steps and sub-steps since construction.
-    rk4_steps: u64,
+    /// RK4 steps and sub-steps since construction, by kind.
+    counts: StepCounts,
 }
 
 /// Fixed-step switch-model integrator for one rig, gap and excitation frequency: the compiled
@@ -188,7 +243,7 @@ impl<'t, T: Real> Simulator<'t, T> {
                 k: 0,
                 steps: 0,
                 approach_speed,
-                rk4_steps: 0,
+                counts: StepCounts::default(),
             },
         })
     }
@@ -213,7 +268,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             k: 0,
             steps: 0,
             approach_speed,
-            rk4_steps: self.state.rk4_steps,
+            counts: self.state.counts,
         };
     }
 
@@ -241,17 +296,17 @@ impl<'t, T: Real> Simulator<'t, T> {
     pub fn step_s(&self) -> f64 {
         step_s(self.hammer.omega_exc(), self.steps_per_period())
     }
-    /// Contact sub-step `h_c = h/M`, s (f64).
-    pub fn substep_s(&self) -> f64 {
-        self.step_s() / f64::from(self.plan.substeps)
-    }
     /// Completed excitation periods since the last reset.
     pub fn periods_done(&self) -> u32 {
         (self.state.steps / u64::from(self.steps_per_period())) as u32
     }
     /// RK4 steps and sub-steps executed since construction (cost diagnostics).
     pub fn rk4_steps(&self) -> u64 {
-        self.state.rk4_steps
+        self.state.counts.rk4_steps()
+    }
+    /// The same by kind.
+    pub fn counts(&self) -> StepCounts {
+        self.state.counts
     }
 
     /// `sin Ωt` at `dt` seconds (`0 ≤ Ω dt ≤ 2π/N`) after the start of the current step.
@@ -294,15 +349,6 @@ impl<'t, T: Real> Simulator<'t, T> {
         }
     }
 
-    /// Whether `other` can run in the same lockstep batch as `self`: the same step grid,
-    /// suspension type and `η_δ`.
-    #[inline(always)]
-    pub(super) fn lane_compatible(&self, other: &Self) -> bool {
-        self.steps_per_period() == other.steps_per_period()
-            && self.hammer.is_wires() == other.hammer.is_wires()
-            && self.hammer.eta_delta() == other.hammer.eta_delta()
-    }
-
     /// The constants of a lockstep lane: free-flight coefficients and `h`.
     #[inline(always)]
     pub(super) fn lane_constants(&self) -> (crate::model::hammer::FreeFlight<T>, T) {
@@ -323,75 +369,193 @@ impl<'t, T: Real> Simulator<'t, T> {
         (s.x, s.at_x) = clear_of_surface(st);
         s.k += taken;
         s.steps += u64::from(taken);
-        s.rk4_steps += u64::from(taken);
+        s.counts.lane_steps += u64::from(taken);
     }
 
     /// Advances one step of `h = T/N`, calling `observe` after every segment of it (the whole
     /// step in free flight, or the free-flight segments and contact sub-steps it was split into).
     #[inline]
     pub fn step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
+        let mut c = self.begin_step();
+        while !self.advance(&mut c, observe) {}
+    }
+
+    /// Where the next step starts (its first segment).
+    #[inline(always)]
+    pub(crate) fn begin_step(&self) -> Cursor<T> {
         let (s_mid, s_end) = self.phases.step_mid_end(self.state.k);
-        let h_c = self.plan.h_c;
-        let mut offset = T::zero();
-        let mut rest = self.plan.h;
-        let mut first = true;
-        loop {
-            // Where this segment starts (for the smallest δ over it, reported with its sample).
-            let seg = SegmentStart {
-                offset,
-                delta: self.state.at_x.delta,
-                delta_dot: self.state.at_x.delta_dot,
-            };
-            if self.clear() {
-                let (sm, se) = if first {
-                    (s_mid, s_end)
-                } else {
-                    (self.sin_at(offset + rest * T::from_f64(0.5)), s_end)
-                };
-                match self.free_trial(rest, sm, se) {
-                    Ok((x1, end)) => {
-                        self.state.x = x1;
-                        self.state.at_x = end;
-                        self.finish_step(&seg, observe);
-                        return;
-                    }
-                    Err(t_near) => {
-                        // Stop half a sub-step short of the surface, so that the arrival
-                        // falls inside the next sub-step (not on its boundary, where the
-                        // switch would go through the Σ_α band instead of being located).
-                        let tau = t_near - h_c * T::from_f64(0.5);
-                        if tau > h_c * T::from_f64(0.25) {
-                            self.free_segment(offset, tau);
-                            offset += tau;
-                            rest -= tau;
-                            first = false;
-                            observe(&self.sample(offset, false, &seg));
-                            continue;
-                        }
-                    }
-                }
-            }
-            first = false;
-            let len = match self.receding_len(rest) {
-                Some(len) => len,
-                None if self.resting() => h_c * T::from_u32(RESTING_SUBSTEPS),
-                None => h_c,
-            };
-            if rest <= len {
-                self.substep(offset, rest, s_end);
-                self.finish_step(&seg, observe);
-                return;
-            }
-            let s_next = self.sin_at(offset + len);
-            self.substep(offset, len, s_next);
-            offset += len;
-            rest -= len;
-            observe(&self.sample(offset, false, &seg));
+        Cursor {
+            offset: T::zero(),
+            rest: self.plan.h,
+            first: true,
+            s_mid,
+            s_end,
         }
     }
 
+    /// One segment of the current step from `c` (a free-flight trial over the rest of the
+    /// step, a free-flight segment, or a sub-step), reported to `observe`. Returns whether the
+    /// step is done.
+    #[inline(always)]
+    pub(crate) fn advance<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        observe: &mut O,
+    ) -> bool {
+        let h_c = self.plan.h_c;
+        // Where this segment starts (for the smallest δ over it, reported with its sample).
+        let seg = self.segment_start(c.offset);
+        if self.clear() {
+            let (sm, se) = if c.first {
+                (c.s_mid, c.s_end)
+            } else {
+                (self.sin_at(c.offset + c.rest * T::from_f64(0.5)), c.s_end)
+            };
+            match self.free_trial(c.rest, sm, se) {
+                Ok((x1, end)) => {
+                    self.state.x = x1;
+                    self.state.at_x = end;
+                    self.finish_step(&seg, observe);
+                    return true;
+                }
+                Err(t_near) => {
+                    // Stop half a sub-step short of the surface, so that the arrival
+                    // falls inside the next sub-step (not on its boundary, where the
+                    // switch would go through the Σ_α band instead of being located).
+                    let tau = t_near - h_c * T::from_f64(0.5);
+                    if tau > h_c * T::from_f64(0.25) {
+                        self.free_segment(c.offset, tau);
+                        c.offset += tau;
+                        c.rest -= tau;
+                        c.first = false;
+                        observe(&self.sample(c.offset, false, &seg));
+                        return false;
+                    }
+                }
+            }
+        }
+        c.first = false;
+        let (len, last) = self.substep_len(c);
+        if last {
+            self.substep(c.offset, len, c.s_end);
+            self.finish_step(&seg, observe);
+            return true;
+        }
+        let s_next = self.sin_at(c.offset + len);
+        self.substep(c.offset, len, s_next);
+        c.offset += len;
+        c.rest -= len;
+        observe(&self.sample(c.offset, false, &seg));
+        false
+    }
+
+    /// Where a segment starts `offset` s into the current step.
+    #[inline(always)]
+    fn segment_start(&self, offset: T) -> SegmentStart<T> {
+        SegmentStart {
+            offset,
+            delta: self.state.at_x.delta,
+            delta_dot: self.state.at_x.delta_dot,
+        }
+    }
+
+    /// The next sub-step's length from `c` and whether it ends the step (then it is the rest
+    /// of the step).
+    #[inline(always)]
+    fn substep_len(&self, c: &Cursor<T>) -> (T, bool) {
+        let len = match self.receding_len(c.rest) {
+            Some(len) => len,
+            None if self.resting() => self.plan.h_rest,
+            None => self.plan.h_c,
+        };
+        if c.rest <= len {
+            (c.rest, true)
+        } else {
+            (len, false)
+        }
+    }
+
+    /// The next segment from `c` if it is an ordinary sub-step that the contact lanes
+    /// ([`super::contact_lanes`]) can take: not clear of the surface, with the linear contact
+    /// law. Its length, whether it ends the step, `sin Ωt` at its start (used if it starts in
+    /// a band, where RK4's first stage is the mode's field, not the switch model's), midpoint
+    /// and end, and whether it starts touching.
+    #[inline(always)]
+    pub(crate) fn plain_substep(&self, c: &Cursor<T>) -> Option<SubPlan<T>> {
+        let e = &self.state.at_x;
+        if self.clear() || !matches!(self.hammer.switch().law, LawCoeffs::Linear { .. }) {
+            return None;
+        }
+        let band = matches!(e.region, Region::BandAlpha | Region::BandBeta);
+        let s_start = if band {
+            self.sin_at(c.offset)
+        } else {
+            T::zero()
+        };
+        let (len, last) = self.substep_len(c);
+        let s_mid = self.sin_at(c.offset + len * T::from_f64(0.5));
+        let s_end = if last {
+            c.s_end
+        } else {
+            self.sin_at(c.offset + len)
+        };
+        Some(SubPlan {
+            len,
+            last,
+            band,
+            s_start,
+            s_mid,
+            s_end,
+            touching: e.region.touching(),
+        })
+    }
+
+    /// Ends the sub-step `p` ([`Simulator::plain_substep`]) from `c` with the contact lanes'
+    /// trial: `Some((x, carry, end))` when its end stays in the mode of its start (what
+    /// [`Simulator::substep`] computes then, bit for bit), `None` when a switching event falls
+    /// inside it (then it is taken here). Reports the sample; returns whether the step is done.
+    #[inline(always)]
+    pub(crate) fn commit_substep<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        p: &SubPlan<T>,
+        trial: Option<(Vector2<T>, Vector2<T>, FieldEval<T>)>,
+        observe: &mut O,
+    ) -> bool {
+        let seg = self.segment_start(c.offset);
+        c.first = false;
+        match trial {
+            Some((x, carry, end)) => {
+                let start = self.state.at_x;
+                let s = &mut self.state;
+                s.counts.substeps += 1;
+                if !p.touching && start.delta <= T::zero() {
+                    s.approach_speed = start.delta_dot.max_of(min_approach());
+                }
+                s.x = x;
+                s.carry = carry;
+                s.at_x = end;
+            }
+            None => self.substep(c.offset, p.len, p.s_end),
+        }
+        if p.last {
+            self.finish_step(&seg, observe);
+            return true;
+        }
+        c.offset += p.len;
+        c.rest -= p.len;
+        observe(&self.sample(c.offset, false, &seg));
+        false
+    }
+
+    /// The state a contact lane starts a sub-step from: `x`, its carry, and the field there.
+    #[inline(always)]
+    pub(crate) fn substep_start(&self) -> (Vector2<T>, Vector2<T>, FieldEval<T>) {
+        (self.state.x, self.state.carry, self.state.at_x)
+    }
+
     /// Whether the hammer rests on (or creeps along) the surface, so that the sub-step may be
-    /// [`RESTING_SUBSTEPS`] times longer: it moves slowly relative to the surface
+    /// [`resting_substeps`] times longer: it moves slowly relative to the surface
     /// (`|δ̇| ≤ ε ω_c max(|δ|, η_δ)`: an arrival at that speed is a touch, not an impact), and in
     /// contact (`Γ+`) the contact's own fast motion has died out (the contact force balances the
     /// others: `|ẍ| ≤ ε F/m` in the state's units); `ε` = [`RESTING_TOLERANCE`]. In the bands
@@ -444,14 +608,13 @@ impl<'t, T: Real> Simulator<'t, T> {
         // free-flight step is a tenth of the state, not small enough for compensation to pay,
         // and the lockstep lanes take the same steps without carrying a second state.
         let c = hammer.free_flight();
-        let wires = hammer.is_wires();
-        let (next, _, near) =
-            free_step::<T, bool, FullTrig>(wires, &c, &st, rest, s_mid, s_end, eta);
-        self.state.rk4_steps += 1;
+        let (next, _, near) = free_step::<T, _, FullTrig>(&c, &st, rest, s_mid, s_end, eta);
+        self.state.counts.free_trials += 1;
         let (x1, end) = clear_of_surface(&next);
         if !near {
             return Ok((x1, end));
         }
+        self.state.counts.split_trials += 1;
         // Where the free-flight dense output first comes near the surface (or peaks).
         let dense = DenseStep {
             x0,
@@ -494,7 +657,7 @@ impl<'t, T: Real> Simulator<'t, T> {
                 hammer.field_in(FieldMode::Free, y, s, v_in).dx
             });
         s.at_x = hammer.field(&s.x, s_end, v_in);
-        s.rk4_steps += 1;
+        s.counts.segments += 1;
     }
 
     /// One sub-step of `len` seconds from `offset` (s into the current step) with the full
@@ -515,7 +678,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         let half = T::from_f64(0.5);
         let s_mid = self.sin_at(offset + len * half);
         let start = self.state.at_x;
-        self.state.rk4_steps += 1;
+        self.state.counts.substeps += 1;
         let touching = start.region.touching();
         if !touching && start.delta <= T::zero() {
             self.state.approach_speed = start.delta_dot.max_of(min_approach());
@@ -595,7 +758,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         );
         s.at_x = hammer.field(&s.x, s_end, v_in);
         // The trial and the rest of the sub-step.
-        s.rk4_steps += 1;
+        s.counts.events += 1;
     }
 
     /// Ends the current step: advances the step counters and reports the sample.
@@ -640,6 +803,16 @@ impl<'t, T: Real> Simulator<'t, T> {
                 return;
             }
         }
+    }
+}
+
+#[cfg(test)]
+impl<T: Real> Simulator<'_, T> {
+    /// This simulator with `other`'s step counts (to compare everything else).
+    pub(crate) fn with_counts_of(&self, other: &Self) -> Self {
+        let mut s = self.clone();
+        s.state.counts = other.state.counts;
+        s
     }
 }
 

@@ -111,37 +111,71 @@ pub(crate) fn beam_accel<T: Real>(
     -c_over_m * du - k_over_m * (u + u * u * u) - contact + excitation
 }
 
-/// What a free-flight step needs of a hammer: the suspension's three coefficients (wires:
-/// `l`, `g/l`, `A0 Ω²/l`; beams: `k/m`, `c/m`, `A0 Ω²`) and the gap, m.
+/// What a free-flight step of the wire pendulum needs (Eq. 3-26 with `F_i = 0`).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub(crate) struct FreeFlight<T> {
-    pub(crate) c0: T,
-    pub(crate) c1: T,
-    pub(crate) c2: T,
+pub(crate) struct WiresFree<T> {
+    /// `l`, m.
+    pub(crate) length: T,
+    /// `g/l`, 1/s².
+    pub(crate) g_over_l: T,
+    /// `A0 Ω²/l`, 1/s².
+    pub(crate) a0w2_over_l: T,
+    /// Gap, m.
     pub(crate) gap: T,
 }
 
-impl<T: Real> FreeFlight<T> {
-    /// The free-flight field at `(y0, y1)` with `sin Ωt = sin_phase`, given `(sin y0, cos y0)`
-    /// (wires only): `(acceleration, δ, δ̇)`. `wires` selects the suspension.
+impl<T: Real> WiresFree<T> {
+    /// The free-flight field at `(θ, θ̇)` = `(_, y1)` given `(sin θ, cos θ)` and
+    /// `sin Ωt = sin_phase`: `(θ̈, δ, δ̇)` (1/s², m, m/s).
     #[inline(always)]
-    pub(crate) fn eval(
-        &self,
-        wires: bool,
-        y0: T,
-        y1: T,
-        sin_cos: (T, T),
-        sin_phase: T,
-    ) -> (T, T, T) {
-        if wires {
-            let (st, ct) = sin_cos;
-            let acc = wires_accel(self.c1, st, self.c2 * ct * sin_phase, T::zero());
-            (acc, self.c0 * st - self.gap, self.c0 * y1 * ct)
-        } else {
-            let acc = beam_accel(self.c0, self.c1, y0, y1, self.c2 * sin_phase, T::zero());
-            (acc, y0 - self.gap, y1)
-        }
+    pub(crate) fn eval(&self, y1: T, (st, ct): (T, T), sin_phase: T) -> (T, T, T) {
+        let acc = wires_accel(
+            self.g_over_l,
+            st,
+            self.a0w2_over_l * ct * sin_phase,
+            T::zero(),
+        );
+        (acc, self.length * st - self.gap, self.length * y1 * ct)
     }
+}
+
+/// What a free-flight step of the beam-spring hammer needs (Eq. 3-36 with `F_i = 0`).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct BeamFree<T> {
+    /// `k/m = ω²`, 1/s².
+    pub(crate) k_over_m: T,
+    /// `c/m = 2ζω`, 1/s.
+    pub(crate) c_over_m: T,
+    /// `A0 Ω²`, m/s².
+    pub(crate) a0w2: T,
+    /// Gap, m.
+    pub(crate) gap: T,
+}
+
+impl<T: Real> BeamFree<T> {
+    /// The free-flight field at `(u, u̇)` = `(y0, y1)` with `sin Ωt = sin_phase`:
+    /// `(ü, δ, δ̇)` (m/s², m, m/s).
+    #[inline(always)]
+    pub(crate) fn eval(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T) {
+        let acc = beam_accel(
+            self.k_over_m,
+            self.c_over_m,
+            y0,
+            y1,
+            self.a0w2 * sin_phase,
+            T::zero(),
+        );
+        (acc, y0 - self.gap, y1)
+    }
+}
+
+/// What a free-flight step needs of a hammer, per suspension ([`Hammer::free_flight`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum FreeFlight<T> {
+    /// The wire pendulum.
+    Wires(WiresFree<T>),
+    /// The beam springs.
+    Beam(BeamFree<T>),
 }
 
 /// A rig at one gap and one excitation frequency, in the float type `T` (built by
@@ -249,25 +283,29 @@ impl<T: Real> Hammer<T> {
     /// The free-flight coefficients ([`FreeFlight`]).
     #[inline(always)]
     pub(crate) fn free_flight(&self) -> FreeFlight<T> {
-        let (c0, c1, c2) = match self.body {
+        match self.body {
             Body::Wires {
                 length,
                 g_over_l,
                 a0w2_over_l,
                 ..
-            } => (length, g_over_l, a0w2_over_l),
+            } => FreeFlight::Wires(WiresFree {
+                length,
+                g_over_l,
+                a0w2_over_l,
+                gap: self.gap,
+            }),
             Body::Beam {
                 k_over_m,
                 c_over_m,
                 a0w2,
                 ..
-            } => (k_over_m, c_over_m, a0w2),
-        };
-        FreeFlight {
-            c0,
-            c1,
-            c2,
-            gap: self.gap,
+            } => FreeFlight::Beam(BeamFree {
+                k_over_m,
+                c_over_m,
+                a0w2,
+                gap: self.gap,
+            }),
         }
     }
 
@@ -476,7 +514,10 @@ mod tests {
         // The free-flight coefficients give the free field bit for bit (the integrator's
         // whole free-flight steps rest on it).
         let free = h.field_in(FieldMode::Free, &x, s, 0.1);
-        let ff = h.free_flight().eval(true, x[0], x[1], x[0].sin_cos(), s);
+        let FreeFlight::Wires(w) = h.free_flight() else {
+            panic!("the wire rig's free flight is the pendulum's")
+        };
+        let ff = w.eval(x[1], x[0].sin_cos(), s);
         assert_eq!(ff, (free.dx[1], free.delta, free.delta_dot));
     }
 }

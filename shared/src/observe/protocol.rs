@@ -226,24 +226,41 @@ impl<T: Real> ProtocolRun<T> {
         if self.done.is_some() {
             return self.done;
         }
-        let window = self.in_window;
         let mut period_end = false;
-        let tracker = &mut self.tracker;
-        let arrivals = &mut self.arrivals;
-        let fmax = &mut self.period_force;
-        sim.step(&mut |s: &StepSample<T>| {
-            *fmax = fmax.max_of(s.force);
-            match tracker.update(s.delta, s.delta_min, s.force) {
-                Some(ImpactEvent::Arrival) => *arrivals = arrivals.saturating_add(1),
-                Some(ImpactEvent::End { peak_n }) => obs.impact(peak_n, window),
-                None => {}
-            }
-            obs.sample(s, window);
-            period_end |= s.period_end;
-        });
+        sim.step(&mut |s: &StepSample<T>| period_end |= self.sample(s, obs));
+        self.end_step(sim, obs, period_end)
+    }
+
+    /// Feeds one sample of the current step to the impact tracker and `obs` (what
+    /// [`ProtocolRun::step`] does with each sample of its step, for callers that take the
+    /// segments of a step themselves, `crate::analysis::batch`). Returns whether it ends a
+    /// period.
+    #[inline(always)]
+    pub fn sample<O: Observer<T>>(&mut self, s: &StepSample<T>, obs: &mut O) -> bool {
+        let window = self.in_window;
+        self.period_force = self.period_force.max_of(s.force);
+        match self.tracker.update(s.delta, s.delta_min, s.force) {
+            Some(ImpactEvent::Arrival) => self.arrivals = self.arrivals.saturating_add(1),
+            Some(ImpactEvent::End { peak_n }) => obs.impact(peak_n, window),
+            None => {}
+        }
+        obs.sample(s, window);
+        s.period_end
+    }
+
+    /// Ends a step whose samples went to [`ProtocolRun::sample`] (`period_end`: whether one of
+    /// them ended a period): at a period end, takes the Poincaré point and decides whether the
+    /// transient is over. Returns the result once the observation window is complete.
+    pub fn end_step<O: Observer<T>>(
+        &mut self,
+        sim: &Simulator<'_, T>,
+        obs: &mut O,
+        period_end: bool,
+    ) -> Option<PointResult> {
         if !period_end {
             return None;
         }
+        let window = self.in_window;
         let (u, du) = sim.relative();
         let p = StroboPoint { u, du };
         obs.strobe(&p, window);
@@ -285,7 +302,7 @@ impl<T: Real> ProtocolRun<T> {
     }
 
     /// Whether `sim` may now take whole free-flight steps outside [`ProtocolRun::step`]
-    /// ([`crate::integrate::lanes::free_flight`], which stops before every step that affects
+    /// ([`crate::integrate::lanes`], which stop before every step that affects
     /// the protocol: a Poincaré-section instant or one near the surface): the run is not done,
     /// no impact episode is open, and the observer ignores samples. Such steps must be booked
     /// with [`ProtocolRun::after_free_flight`].

@@ -1,0 +1,204 @@
+//! The roofline of the grid evaluation (docs/performance.md, "Roofline"): how fast the
+//! free-flight kernel runs alone, how fast the grid runs, and where the difference goes. One
+//! core, f32, the wire rig (not a criterion bench: each workload is long enough to time).
+//!
+//! 1. **Kernel**: whole free-flight steps `h = T/N` of `DEFAULT_LANES` simulators in lockstep
+//!    (`shared::integrate::lanes::free_flight`), every lane busy: wire rig, gap 18 mm (never
+//!    reached), Ω/ω 2.0–3.4, all lanes at the same phase, timed inside the kernel calls only.
+//!    Lane-steps per second per core.
+//! 2. **Grid**: every 49th gap of the thesis grid (gap 0.00–2.94 mm × 1.00–7.11 Hz: 4,284
+//!    points, the grid of the instruction count in docs/performance.md) through the same
+//!    batched, interleaved evaluation as `host-sim peterka` (`shared::analysis::run_interleaved`
+//!    in batches of `host_sim::grid::BATCH`), on one core. RK4 steps per second per core, by
+//!    kind ([`shared::integrate::StepCounts`]), and the lanes' occupancy.
+//! 3. **Efficiency** = grid RK4 steps/s ÷ kernel lane-steps/s, and the grid's time split into
+//!    the kernel's rounds (busy and idle lanes, at the kernel's measured speed per round) and
+//!    the rest (one-at-a-time steps: trials, segments, contact sub-steps, Poincaré sections
+//!    and event bookkeeping).
+//!
+//! `cargo bench -p host-sim --bench roofline` (about 10 s after its build). The instruction
+//! counts of the same workloads: `-- --kernel-only` or `-- --grid-only` under
+//! `valgrind --tool=cachegrind` (docs/performance.md).
+
+use std::time::Instant;
+
+use shared::analysis::{DEFAULT_LANES, LaneStats, SimSettings, run_interleaved, simulator_at};
+use shared::integrate::lanes::free_flight;
+use shared::integrate::{PhaseTable, Simulator, StepCounts};
+use shared::model::RigId;
+use shared::observe::ProtocolRun;
+
+use host_sim::grid::BATCH;
+
+/// Whole free-flight lane-steps per second per core, and seconds per lockstep round, with every
+/// lane busy.
+fn kernel(seconds: f64) -> (f64, f64, u64) {
+    let p = RigId::Wires.preset();
+    let s = SimSettings::default();
+    let phases = PhaseTable::<f32>::new(s.steps.steps_per_period).expect("valid N");
+    let mut sims: Vec<Simulator<f32>> = (0..DEFAULT_LANES)
+        .map(|i| {
+            let ratio = 2.0 + 0.2 * i as f64;
+            simulator_at::<f32>(&p, 0.018, ratio, &s, &phases).expect("valid point")
+        })
+        .collect();
+    let (mut busy, mut steps, mut rounds) = (0.0f64, 0u64, 0u64);
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < seconds {
+        let mut refs: Vec<&mut Simulator<f32>> = sims.iter_mut().collect();
+        let t = Instant::now();
+        let taken = free_flight::<f32, DEFAULT_LANES>(&mut refs);
+        busy += t.elapsed().as_secs_f64();
+        assert!(
+            taken.iter().all(|&k| k == taken[0] && k > 0),
+            "every lane busy: {taken:?}"
+        );
+        steps += taken.iter().map(|&k| u64::from(k)).sum::<u64>();
+        rounds += u64::from(taken[0]);
+        // The period's last step, one at a time (not timed), back to phase 0.
+        for sim in sims.iter_mut() {
+            sim.step(&mut |_| {});
+        }
+    }
+    (steps as f64 / busy, busy / rounds as f64, steps)
+}
+
+struct Grid {
+    wall: f64,
+    counts: StepCounts,
+    lanes: LaneStats,
+    points: usize,
+}
+
+/// The 4,284-point grid on one core.
+fn grid() -> Grid {
+    let p = RigId::Wires.preset();
+    let s = SimSettings::default();
+    let phases = PhaseTable::<f32>::new(s.steps.steps_per_period).expect("valid N");
+    let fn_hz = p.natural_freq_hz();
+    let points: Vec<(f64, f64)> = (0..343)
+        .step_by(49)
+        .flat_map(|i| {
+            (0..612).map(move |j| (f64::from(i) * 1e-5, (1.0 + f64::from(j) * 0.01) / fn_hz))
+        })
+        .collect();
+    let mut counts = StepCounts::default();
+    let mut lanes = LaneStats::default();
+    let t = Instant::now();
+    for batch in points.chunks(BATCH) {
+        let l = run_interleaved::<f32, (), DEFAULT_LANES, _, _, _>(
+            batch.iter().copied(),
+            |(gap_m, ratio)| {
+                let sim = simulator_at::<f32>(&p, gap_m, ratio, &s, &phases)?;
+                let run = ProtocolRun::new(&sim, &s.protocol, p.weight_n())?;
+                Ok((sim, run, ()))
+            },
+            |_, r| {
+                let (_, (), sim) = r.expect("valid point");
+                let c = sim.counts();
+                counts.lane_steps += c.lane_steps;
+                counts.free_trials += c.free_trials;
+                counts.split_trials += c.split_trials;
+                counts.segments += c.segments;
+                counts.substeps += c.substeps;
+                counts.events += c.events;
+            },
+        );
+        lanes.lanes = l.lanes;
+        lanes.rounds += l.rounds;
+        lanes.lane_steps += l.lane_steps;
+        lanes.contact_rounds += l.contact_rounds;
+        lanes.contact_steps += l.contact_steps;
+    }
+    Grid {
+        wall: t.elapsed().as_secs_f64(),
+        counts,
+        lanes,
+        points: points.len(),
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let kernel_only = args.iter().any(|a| a == "--kernel-only");
+    let grid_only = args.iter().any(|a| a == "--grid-only");
+    if kernel_only {
+        let (_, _, steps) = kernel(0.5);
+        println!("kernel: {steps} lane-steps");
+        return;
+    }
+    if grid_only {
+        let g = grid();
+        println!(
+            "grid: {} points, {} RK4 steps",
+            g.points,
+            g.counts.rk4_steps()
+        );
+        return;
+    }
+    let (rate, per_round, _) = kernel(2.0);
+    println!(
+        "Kernel (whole free-flight steps, {DEFAULT_LANES} lanes busy, f32, one core): {:.1} M lane-steps/s ({:.2} ns per lane-step, {:.1} ns per round)",
+        rate / 1e6,
+        1e9 / rate,
+        1e9 * per_round
+    );
+    let g = grid();
+    let c = g.counts;
+    let rk4 = c.rk4_steps() as f64;
+    let achieved = rk4 / g.wall;
+    println!(
+        "Grid (wires, gap 0.00–2.94 mm every 0.49 × 1.00–7.11 Hz: {} points, f32, one core): {:.2} s, {:.1} M RK4 steps/s ({:.0} ns per RK4 step, {:.0} µs per point)",
+        g.points,
+        g.wall,
+        achieved / 1e6,
+        1e9 / achieved,
+        1e6 * g.wall / g.points as f64
+    );
+    println!(
+        "Efficiency (grid RK4 steps/s ÷ kernel lane-steps/s): {:.1} %",
+        100.0 * achieved / rate
+    );
+    let pct = |x: u64| 100.0 * x as f64 / rk4;
+    println!(
+        "  RK4 steps {:.3e}: lanes {:.1} %, one-at-a-time free-flight trials {:.1} % (of which split near the surface {:.1} %), segments before an arrival {:.1} %, contact sub-steps {:.1} % (+ {:.1} % second steps at switching events)",
+        rk4,
+        pct(c.lane_steps),
+        pct(c.free_trials),
+        pct(c.split_trials),
+        pct(c.segments),
+        pct(c.substeps),
+        pct(c.events)
+    );
+    let slots = g.lanes.rounds * g.lanes.lanes;
+    let busy = g.lanes.rounds as f64 * per_round;
+    let useful = busy * g.lanes.lane_steps as f64 / slots.max(1) as f64;
+    println!(
+        "  lanes: {} rounds × {} lanes, {:.1} % of the lane slots busy",
+        g.lanes.rounds,
+        g.lanes.lanes,
+        100.0 * g.lanes.lane_steps as f64 / slots.max(1) as f64
+    );
+    println!(
+        "  time: kernel rounds {:.1} % (busy lanes {:.1} %, idle lanes {:.1} %), one-at-a-time steps and bookkeeping {:.1} %",
+        100.0 * busy / g.wall,
+        100.0 * useful / g.wall,
+        100.0 * (busy - useful) / g.wall,
+        100.0 * (g.wall - busy) / g.wall
+    );
+    println!(
+        "  contact lanes: {} rounds × {} lanes, {:.1} % of the lane slots busy ({:.1} % of the sub-steps)",
+        g.lanes.contact_rounds,
+        g.lanes.lanes,
+        100.0 * g.lanes.contact_steps as f64
+            / (g.lanes.contact_rounds * g.lanes.lanes).max(1) as f64,
+        100.0 * g.lanes.contact_steps as f64 / c.substeps.max(1) as f64
+    );
+    let scalar_steps = c.rk4_steps() - c.lane_steps;
+    println!(
+        "  one at a time: {:.0} ns per RK4 step ({:.3e} steps) against {:.2} ns per lane-step in the kernel",
+        1e9 * (g.wall - busy) / scalar_steps.max(1) as f64,
+        scalar_steps as f64,
+        1e9 / rate
+    );
+}

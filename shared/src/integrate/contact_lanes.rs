@@ -1,0 +1,357 @@
+//! Ordinary contact sub-steps of several simulators at once (the host's grid analyses).
+//!
+//! Near and in contact a [`Simulator`] advances by sub-steps ([`Simulator::step`]): one RK4
+//! step with the field of the mode it starts in (free flight `f−` or contact `f+`), then the
+//! switch-model field at its end; only if that end is in the other mode is a switching event
+//! located. [`ContactLanes`] computes the first part for up to `L` simulators together, the
+//! same operations in the same order as the stepper (so the compiler packs the lanes into SIMD
+//! registers and the bits are the stepper's), for the linear (spring–dashpot) law; each
+//! simulator then ends its sub-step with [`Simulator::commit_substep`], which takes a
+//! switching event (or an angle outside the short sine's range `|θ| ≤ 1/8`) itself.
+
+use nalgebra::Vector2;
+
+use super::Simulator;
+use super::free::{SmallTrig, Trig};
+use super::lanes::LaneField;
+use super::rk4::rk4_step_compensated;
+use super::stepper::SubPlan;
+use crate::model::Region;
+use crate::model::contact::LawCoeffs;
+use crate::model::hammer::{BeamFree, Body, FieldEval, WiresFree, beam_accel, wires_accel};
+use crate::real::Real;
+
+/// The contact field of one suspension in a lane.
+pub(crate) trait LaneContact<T: Real>: LaneField<T> {
+    /// The field at `(y0, y1)` with `sin Ωt = sin_phase` and the contact acceleration term
+    /// `force · inv_mass` (wires `1/(m l)`, beams `1/m`) given by `force(δ, δ̇)`:
+    /// `(acceleration, δ, δ̇, force, exact)`.
+    fn contact_field<G: Trig, P: FnOnce(T, T) -> T>(
+        &self,
+        inv_mass: T,
+        y0: T,
+        y1: T,
+        sin_phase: T,
+        force: P,
+    ) -> (T, T, T, T, bool);
+    /// The suspension's `inv_mass` from the hammer's body (`None` for the other suspension).
+    fn inv_mass(body: &Body<T>) -> Option<T>;
+}
+
+impl<T: Real> LaneContact<T> for WiresFree<T> {
+    #[inline(always)]
+    fn contact_field<G: Trig, P: FnOnce(T, T) -> T>(
+        &self,
+        inv_mass: T,
+        y0: T,
+        y1: T,
+        sin_phase: T,
+        force: P,
+    ) -> (T, T, T, T, bool) {
+        let (st, ct, exact) = G::sin_cos(y0);
+        let (d, dd) = (self.length * st - self.gap, self.length * y1 * ct);
+        let f = force(d, dd);
+        let acc = wires_accel(
+            self.g_over_l,
+            st,
+            self.a0w2_over_l * ct * sin_phase,
+            f * inv_mass,
+        );
+        (acc, d, dd, f, exact)
+    }
+    #[inline(always)]
+    fn inv_mass(body: &Body<T>) -> Option<T> {
+        match body {
+            Body::Wires { inv_ml, .. } => Some(*inv_ml),
+            Body::Beam { .. } => None,
+        }
+    }
+}
+
+impl<T: Real> LaneContact<T> for BeamFree<T> {
+    #[inline(always)]
+    fn contact_field<G: Trig, P: FnOnce(T, T) -> T>(
+        &self,
+        inv_mass: T,
+        y0: T,
+        y1: T,
+        sin_phase: T,
+        force: P,
+    ) -> (T, T, T, T, bool) {
+        let (d, dd) = (y0 - self.gap, y1);
+        let f = force(d, dd);
+        let acc = beam_accel(
+            self.k_over_m,
+            self.c_over_m,
+            y0,
+            y1,
+            self.a0w2 * sin_phase,
+            f * inv_mass,
+        );
+        (acc, d, dd, f, true)
+    }
+    #[inline(always)]
+    fn inv_mass(body: &Body<T>) -> Option<T> {
+        match body {
+            Body::Beam { inv_m, .. } => Some(*inv_m),
+            Body::Wires { .. } => None,
+        }
+    }
+}
+
+/// Switch-model regions as lane codes.
+const FREE: u32 = 0;
+const CONTACT: u32 = 1;
+const BAND_ALPHA: u32 = 2;
+const BAND_BETA: u32 = 3;
+
+/// Up to `L` simulators' ordinary sub-steps at once, for one suspension (`F`) and the linear
+/// contact law: [`ContactLanes::set`] a simulator's next sub-step into a lane,
+/// [`ContactLanes::run`] all of them, [`ContactLanes::result`] each lane's trial for
+/// [`Simulator::commit_substep`]. One array per quantity, so that the lanes pack into SIMD
+/// registers.
+pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
+    // Constants: the suspension's free-flight coefficients, the contact term's `1/m` (wires
+    // `1/(m l)`), the law's `k`, `c`, the bands `η_δ`, `η_F`.
+    field: [F; L],
+    inv_mass: [T; L],
+    k: [T; L],
+    c: [T; L],
+    eta_d: [T; L],
+    eta_f: [T; L],
+    // The sub-step: start state, carry, the field's second component there (RK4's first
+    // stage), length, `sin Ωt` at its midpoint and end, 1 if it starts touching.
+    x0: [T; L],
+    x1: [T; L],
+    carry0: [T; L],
+    carry1: [T; L],
+    a: [T; L],
+    len: [T; L],
+    s_start: [T; L],
+    s_mid: [T; L],
+    s_end: [T; L],
+    band: [u32; L],
+    touching: [u32; L],
+    // The result: end state, carry, switch-model field there, and whether the lane's result
+    // stands (the end in the start's mode, every sine exact).
+    out: [[T; 9]; L],
+    region: [u32; L],
+    ok: [u32; L],
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    avx: bool,
+}
+
+impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
+    /// Empty lanes.
+    pub(crate) fn new() -> Self {
+        let z = [T::zero(); L];
+        ContactLanes {
+            field: [F::default(); L],
+            inv_mass: z,
+            k: z,
+            c: z,
+            eta_d: z,
+            eta_f: z,
+            x0: z,
+            x1: z,
+            carry0: z,
+            carry1: z,
+            a: z,
+            len: z,
+            s_start: z,
+            s_mid: z,
+            s_end: z,
+            band: [0; L],
+            touching: [0; L],
+            out: [[T::zero(); 9]; L],
+            region: [0; L],
+            ok: [0; L],
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            avx: std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2"),
+        }
+    }
+
+    /// Puts `sim`'s next sub-step `p` ([`Simulator::plain_substep`]) into lane `i`, with
+    /// `sim`'s constants if `constants` (else the lane keeps those of its last [`set`], which
+    /// must be `sim`'s). Returns `false` (nothing set) if `sim` is not of this suspension or not
+    /// of the linear law.
+    ///
+    /// [`set`]: ContactLanes::set
+    #[inline]
+    pub(crate) fn set(
+        &mut self,
+        i: usize,
+        sim: &Simulator<'_, T>,
+        p: &SubPlan<T>,
+        constants: bool,
+    ) -> bool {
+        if constants {
+            let hammer = sim.hammer();
+            let (Some(field), Some(inv_mass)) =
+                (F::of(&hammer.free_flight()), F::inv_mass(hammer.body()))
+            else {
+                return false;
+            };
+            let LawCoeffs::Linear { k, c } = hammer.switch().law else {
+                return false;
+            };
+            self.field[i] = field;
+            self.inv_mass[i] = inv_mass;
+            self.k[i] = k;
+            self.c[i] = c;
+            self.eta_d[i] = hammer.switch().eta_delta;
+            self.eta_f[i] = hammer.switch().eta_force;
+        }
+        let (x, carry, start) = sim.substep_start();
+        self.x0[i] = x[0];
+        self.x1[i] = x[1];
+        self.carry0[i] = carry[0];
+        self.carry1[i] = carry[1];
+        self.a[i] = start.dx[1];
+        self.len[i] = p.len;
+        self.s_start[i] = p.s_start;
+        self.s_mid[i] = p.s_mid;
+        self.s_end[i] = p.s_end;
+        self.band[i] = u32::from(p.band);
+        self.touching[i] = u32::from(p.touching);
+        true
+    }
+
+    /// Lane `i`'s trial after [`ContactLanes::run`], for [`Simulator::commit_substep`]: the end
+    /// state, its carry and its switch-model field, or `None` if the stepper must take the
+    /// sub-step itself (a switching event inside, or an inexact sine).
+    #[inline]
+    pub(crate) fn result(&self, i: usize) -> Option<(Vector2<T>, Vector2<T>, FieldEval<T>)> {
+        if self.ok[i] == 0 {
+            return None;
+        }
+        let [x0, x1, carry0, carry1, acc, d, dd, force, _] = self.out[i];
+        let region = match self.region[i] {
+            CONTACT => Region::Contact,
+            BAND_ALPHA => Region::BandAlpha,
+            BAND_BETA => Region::BandBeta,
+            _ => Region::Free,
+        };
+        Some((
+            Vector2::new(x0, x1),
+            Vector2::new(carry0, carry1),
+            FieldEval {
+                dx: Vector2::new(x1, acc),
+                force,
+                region,
+                delta: d,
+                delta_dot: dd,
+            },
+        ))
+    }
+
+    /// Takes every lane's sub-step (lanes not set since the last run repeat their last one and
+    /// are to be ignored).
+    pub(crate) fn run(&mut self) {
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if self.avx {
+            // SAFETY: the CPU supports AVX and AVX2 (checked in `new`).
+            unsafe { self.run_avx() };
+            return;
+        }
+        self.run_kernel();
+    }
+
+    /// [`ContactLanes::run`] compiled for AVX2.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx,avx2")]
+    fn run_avx(&mut self) {
+        self.run_kernel();
+    }
+
+    /// The body of [`ContactLanes::run`]: [`Simulator::substep`]'s trial and end field, lane by
+    /// lane with the same operations (branch-free, so that it vectorises).
+    #[inline(always)]
+    fn run_kernel(&mut self) {
+        let zero = T::zero();
+        let mut tx0 = [zero; L];
+        let mut tx1 = [zero; L];
+        let mut tc0 = [zero; L];
+        let mut tc1 = [zero; L];
+        let mut exact = [true; L];
+        for i in 0..L {
+            let (kk, cc) = (self.k[i], self.c[i]);
+            let touching = self.touching[i] != 0;
+            let field = &self.field[i];
+            let inv_mass = self.inv_mass[i];
+            let mut ex = true;
+            // The mode's field: the law continued (`f+`, `LawCoeffs::unswitched_force`) or
+            // free flight (`f−`, no force).
+            let mut mode_field = |y: &Vector2<T>, s: T| {
+                let (acc, _, _, _, ok) =
+                    field.contact_field::<SmallTrig, _>(inv_mass, y[0], y[1], s, |d, dd| {
+                        let f = kk * d + cc * dd;
+                        if touching { f } else { zero }
+                    });
+                ex &= ok;
+                Vector2::new(y[1], acc)
+            };
+            let x = Vector2::new(self.x0[i], self.x1[i]);
+            // RK4's first stage: the switch model's field at the start, or in a band the
+            // mode's.
+            let k1 = if self.band[i] != 0 {
+                mode_field(&x, self.s_start[i])
+            } else {
+                Vector2::new(self.x1[i], self.a[i])
+            };
+            let (trial, carry) = rk4_step_compensated(
+                &x,
+                &Vector2::new(self.carry0[i], self.carry1[i]),
+                &k1,
+                self.len[i],
+                self.s_mid[i],
+                self.s_end[i],
+                mode_field,
+            );
+            tx0[i] = trial[0];
+            tx1[i] = trial[1];
+            tc0[i] = carry[0];
+            tc1[i] = carry[1];
+            exact[i] = ex;
+        }
+        for i in 0..L {
+            // The switch-model field at the end (`SwitchModel::force`): the regions by
+            // priority, the last assignment winning.
+            let (kk, cc) = (self.k[i], self.c[i]);
+            let (eta_d, eta_f) = (self.eta_d[i], self.eta_f[i]);
+            let mut region = FREE;
+            let (acc, d, dd, force, ok) = self.field[i].contact_field::<SmallTrig, _>(
+                self.inv_mass[i],
+                tx0[i],
+                tx1[i],
+                self.s_end[i],
+                |d, dd| {
+                    let (elastic, dissipative) = (kk * d, cc * dd);
+                    let h_beta = elastic + dissipative;
+                    let mut f = zero;
+                    if d > zero && h_beta > zero {
+                        region = CONTACT;
+                        f = h_beta;
+                    }
+                    if h_beta.abs() < eta_f && d >= zero {
+                        region = BAND_BETA;
+                        f = zero;
+                    }
+                    if d.abs() < eta_d && h_beta >= zero {
+                        region = BAND_ALPHA;
+                        f = dissipative.max_of(zero);
+                    }
+                    if d <= -eta_d {
+                        region = FREE;
+                        f = zero;
+                    }
+                    f
+                },
+            );
+            let end_touching = u32::from(region == CONTACT) | u32::from(region == BAND_ALPHA);
+            self.out[i] = [tx0[i], tx1[i], tc0[i], tc1[i], acc, d, dd, force, zero];
+            self.region[i] = region;
+            self.ok[i] = u32::from(exact[i] & ok) & u32::from(end_touching == self.touching[i]);
+        }
+    }
+}
