@@ -204,6 +204,8 @@ pub struct PointOut {
 pub struct EventOut {
     /// Its type.
     pub kind: String,
+    /// The parameter's value there (`Ω/ω`, or the gap in mm).
+    pub value: f64,
     /// The orbit there (for a grazing: the last orbit of the branch's `p`).
     pub orbit: OrbitReport,
     /// The critical multiplier `(re, im)`.
@@ -289,6 +291,10 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                 .map(|e| {
                     Ok(EventOut {
                         kind: e.kind.name().to_string(),
+                        value: match spec.param {
+                            Param::OmegaRatio => e.value,
+                            Param::GapM => e.value * 1e3,
+                        },
                         orbit: report(&e.orbit)?,
                         critical: [e.critical.re, e.critical.im],
                         impacts_beyond: e.impacts_beyond,
@@ -372,12 +378,24 @@ fn row(b: &BranchOut, o: &OrbitReport, event: &str) -> BranchRow {
     }
 }
 
-/// The CSV rows of `branches`: each branch's points in order, its events after them.
-pub fn rows(branches: &[BranchOut]) -> Vec<BranchRow> {
+/// The CSV rows of `branches` (continued in `param`): each branch's points in order, its
+/// events after them (at their located value; the orbit's state and multipliers are those of
+/// the last orbit before it).
+pub fn rows(param: Param, branches: &[BranchOut]) -> Vec<BranchRow> {
     let mut out = Vec::new();
     for b in branches {
         out.extend(b.points.iter().map(|p| row(b, &p.orbit, "")));
-        out.extend(b.events.iter().map(|e| row(b, &e.orbit, &e.kind)));
+        out.extend(b.events.iter().map(|e| {
+            let mut r = row(b, &e.orbit, &e.kind);
+            match param {
+                Param::OmegaRatio => {
+                    r.omega_ratio = e.value;
+                    r.freq_hz = e.orbit.freq_hz * e.value / e.orbit.omega_ratio;
+                }
+                Param::GapM => r.gap_mm = e.value,
+            }
+            r
+        }));
     }
     out
 }

@@ -100,8 +100,8 @@ pub struct EdgeReport {
     pub multiplier: Option<[f64; 2]>,
     /// The sweep's edge: its last `1/1` point on that side, `Ω/ω`.
     pub sweep_omega_ratio: f64,
-    /// Whether the located edge lies within one sweep step beyond the sweep's edge (between
-    /// it and the first point outside the band, with one step's slack).
+    /// Whether the located edge lies within one sweep step of the sweep's edge (midway between
+    /// its last `1/1` point and the next).
     pub agrees: bool,
     /// If not, what the sweep shows there and why.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -167,10 +167,10 @@ fn edge_report<T: Real>(
         Edge::Event(e) => (e.kind.name().to_string(), Some([e.critical.re, e.critical.im])),
         Edge::Open(_) => ("open".to_string(), None),
     };
-    // The located edge should lie beyond the sweep's last 1/1 point by less than a step
-    // (plus a step of slack), and not inside it by more than a step.
+    // The sweep's edge is midway between its last 1/1 point and the next: the located edge
+    // agrees within one step of it.
     let beyond = (value - sweep_edge) * outward;
-    let agrees = beyond > -step && beyond <= 2.0 * step;
+    let agrees = (beyond - 0.5 * step).abs() <= step;
     let disagreement = (!agrees).then(|| {
         let why = match kind.as_str() {
             "period-doubling" => {

@@ -38,6 +38,11 @@ pub struct ContinueArgs {
     /// 0..=50, default 0:10). The branch ends where it leaves the range.
     #[arg(long)]
     pub range: Option<String>,
+    /// More starting points, in the parameter's units (Ω/ω, or the gap in mm), comma-separated:
+    /// the orbit the protocol settles on from the same start at each begins more branches
+    /// (e.g. the non-impacting branch beside an impacting one).
+    #[arg(long, value_delimiter = ',')]
+    pub also_at: Vec<f64>,
     /// Which ways to follow the branch from its start.
     #[arg(long, value_enum, default_value = "both")]
     pub direction: Direction,
@@ -128,10 +133,15 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 String::new()
             };
             s += &format!(
-                "  {} at {} ({:.4} Hz): {} orbit, {}{}\n",
+                "  {} at {}{}: {} orbit, {}{}\n",
                 e.kind,
-                unit(param_value(param, &e.orbit)),
-                e.orbit.freq_hz,
+                unit(e.value),
+                match param {
+                    Param::OmegaRatio => {
+                        format!(" ({:.4} Hz)", e.orbit.freq_hz * e.value / e.orbit.omega_ratio)
+                    }
+                    Param::GapM => String::new(),
+                },
                 e.orbit.regime,
                 crit,
                 beyond
@@ -189,14 +199,44 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         direction: a.direction,
         follow_doublings: a.follow_doublings,
     };
+    let shown = |v: f64| match param {
+        Param::OmegaRatio => v,
+        Param::GapM => v * 1e3,
+    };
+    let mut starts = vec![at];
+    for &v in &a.also_at {
+        let si = match param {
+            Param::OmegaRatio => v,
+            Param::GapM => v * 1e-3,
+        };
+        if !(si >= range[0] && si <= range[1]) {
+            bail!(
+                "--also-at {v}: outside the range {}..{}",
+                shown(range[0]),
+                shown(range[1])
+            );
+        }
+        starts.push(at.with(param, si));
+    }
     let (protocol, branches) = crate::with_precision!(setup.precision, T => {
-        let (r, o): (_, Orbit<T>) = orbits::find::<T>(&at, start, a.point.q)?;
-        (r, orbits::branches(&o, &spec)?)
+        let mut regimes = Vec::new();
+        let mut all: Vec<BranchOut> = Vec::new();
+        for p in &starts {
+            let (r, o): (_, Orbit<T>) = orbits::find::<T>(p, start, a.point.q)?;
+            regimes.push(format!("{} at {} {}", r.regime, param.name(), shown(p.get(param))));
+            let base = all.len();
+            for mut b in orbits::branches(&o, &spec)? {
+                b.id += base;
+                b.parent = b.parent.map(|q| q + base);
+                all.push(b);
+            }
+        }
+        (regimes.join("; "), all)
     });
     let mut outputs = Outputs::new();
     if let Some(p) = &a.out {
         let tmp = outputs.reserve(p)?;
-        write_csv(&tmp, &orbits::rows(&branches))?;
+        write_csv(&tmp, &orbits::rows(param, &branches))?;
     }
     if let Some(p) = &a.plot {
         let values = background_values(param, &branches, a.background_points);
@@ -245,10 +285,10 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&branches)?);
     } else {
         println!(
-            "{} rig, {}: the protocol settled on {} at the start",
+            "{} rig, {}: the protocol settled on {}",
             setup.rig,
             setup.precision.name(),
-            protocol.regime
+            protocol
         );
         print!("{}", describe(param, &branches));
     }

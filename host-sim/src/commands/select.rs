@@ -12,7 +12,7 @@ use crate::output::Outputs;
 use crate::propagate::{Propagation, propagate};
 use crate::response;
 pub use crate::selection::{OtherBest, SelectReport, compute};
-use crate::selection::{lack_of_fit_warning, no_one_to_one_diagnosis};
+use crate::selection::{check_band, lack_of_fit_warning, no_one_to_one_diagnosis};
 
 /// Arguments of `select`.
 #[derive(Debug, Args)]
@@ -36,6 +36,11 @@ pub struct SelectArgs {
     /// Print one JSON object instead of the report.
     #[arg(long)]
     pub json: bool,
+    /// Skip the orbit check: the band's edges and the margin from the sweep's samples only
+    /// (by default the chosen point's periodic orbit is found, its multipliers reported and
+    /// its band's edges located on its branch).
+    #[arg(long)]
+    pub no_orbit_check: bool,
     /// CSV of the nominal-gap response (columns as `response`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -115,6 +120,21 @@ pub fn run(a: &SelectArgs) -> Result<()> {
         anyhow!(text)
     })?;
     rep.warnings.extend(warning);
+    if a.no_orbit_check {
+        // The sweep's band and margin, as the report says.
+    } else if let Err(e) = check_band(&setup, &mut rep) {
+        rep.warnings.push(format!(
+            "the chosen point's orbit could not be followed ({e:#}): the band's edges and the \
+             margin are the sweep's samples"
+        ));
+    }
+    if let Some(c) = &rep.band_check {
+        for e in [&c.lower, &c.upper] {
+            if let Some(d) = &e.disagreement {
+                rep.warnings.push(format!("band edge: {d}"));
+            }
+        }
+    }
     let spread = match &table {
         Some(t) => Some(propagate(&setup, a.gap_mm, t, &rep, a.draws, a.seed)?),
         None => None,
@@ -259,13 +279,68 @@ fn print_report(r: &SelectReport) {
         "  regime z = {}, predicted impact force F_i/mg = {:.2}",
         r.regime, r.impact_force_mg
     );
+    match &r.band_check {
+        Some(c) => {
+            let edge = |e: &crate::selection::EdgeReport| {
+                format!(
+                    "{} at {:.4} Hz (Ω/ω {:.5}{})",
+                    match e.kind.as_str() {
+                        "open" => "no bifurcation before the sweep's end",
+                        k => k,
+                    },
+                    e.freq_hz,
+                    e.omega_ratio,
+                    e.multiplier
+                        .map(|m| if m[1] == 0.0 {
+                            format!(", μ = {:+.4}", m[0])
+                        } else {
+                            format!(", |μ| = {:.4}", m[0].hypot(m[1]))
+                        })
+                        .unwrap_or_default()
+                )
+            };
+            println!(
+                "  z = 1/1 band {:.3} – {:.3} Hz, located on the orbit's branch:",
+                c.lower.freq_hz, c.upper.freq_hz
+            );
+            println!("    lower edge: {}", edge(&c.lower));
+            println!("    upper edge: {}", edge(&c.upper));
+            println!(
+                "    (the sweep's band: Ω/ω {:.2} – {:.2}, step {}; {})",
+                r.band_omega_ratio[0],
+                r.band_omega_ratio[1],
+                c.sweep_step,
+                if c.lower.agrees && c.upper.agrees {
+                    "agrees within a step"
+                } else {
+                    "disagrees, see the warnings"
+                }
+            );
+            let m = &c.orbit.multipliers;
+            println!(
+                "  orbit: Floquet multipliers {}, max |μ| = {:.4}: {}, stability margin 1 − max|μ| = {:.3}",
+                if m[0][1] == 0.0 {
+                    format!("{:+.4}, {:+.4}", m[0][0], m[1][0])
+                } else {
+                    format!("{:+.4} ± {:.4}i", m[0][0], m[0][1].abs())
+                },
+                c.orbit.max_abs_multiplier,
+                if c.orbit.stable { "stable" } else { "unstable" },
+                c.orbit.margin
+            );
+        }
+        None => println!(
+            "  z = 1/1 band {:.3} – {:.3} Hz (Ω/ω {:.2} – {:.2}, the sweep's samples)",
+            r.band_hz[0], r.band_hz[1], r.band_omega_ratio[0], r.band_omega_ratio[1]
+        ),
+    }
     println!(
-        "  z = 1/1 band {:.3} – {:.3} Hz (Ω/ω {:.2} – {:.2})",
-        r.band_hz[0], r.band_hz[1], r.band_omega_ratio[0], r.band_omega_ratio[1]
-    );
-    println!(
-        "  margins: {:.1} % to the nearer band edge (required ±{} %); gap checked at {:?} mm (±{} mm)",
+        "  margins: {:.1} % to the nearer band edge{} (required ±{} %); gap checked at {:?} mm (±{} mm)",
         r.margin_freq_pct,
+        match &r.band_check {
+            Some(c) => format!(" located ({:.1} % to the sweep's)", c.sweep_margin_freq_pct),
+            None => String::new(),
+        },
         r.required_margin_freq_pct,
         r.gaps_checked_mm
             .iter()

@@ -225,7 +225,7 @@ pub fn branches(
                 kinds.push(&e.kind);
             }
             let (_, c) = event_mark(&e.kind);
-            let x = value(&e.orbit);
+            let x = e.value;
             for s in &e.orbit.section {
                 marker(&mut ct, &e.kind, (x, s[0]), c)?;
             }

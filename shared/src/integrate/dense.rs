@@ -36,15 +36,16 @@ impl<T: Real> DenseStep<T> {
     }
 }
 
-/// The upper end of a bracket in `[0, 1]` (below `2^-14` wide: 3 ns of a 45 µs sub-step, a
-/// 0.2 nm change of `δ` at 0.06 m/s; or after 40 evaluations) of a rising zero of `g` with
-/// `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval): [`Rule::Illinois`].
+/// The event tolerance of the production runs: a bracket `2^-14` of the sub-step wide (3 ns of
+/// a 45 µs sub-step, a 0.2 nm change of `δ` at 0.06 m/s).
+pub(crate) const EVENT_TOL: f64 = 1.0 / 16384.0;
+
+/// The upper end of a bracket in `[0, 1]` (below `tol` wide, or after 40 evaluations) of a
+/// rising zero of `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval):
+/// [`Rule::Illinois`].
 #[inline]
-pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(g: G) -> T {
-    let rule = Rule::Illinois {
-        tol: T::from_f64(1.0 / f64::from(1u32 << 14)),
-        max_evals: 40,
-    };
+pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(tol: T, g: G) -> T {
+    let rule = Rule::Illinois { tol, max_evals: 40 };
     bracket_rising(T::zero(), T::from_f64(1.0), rule, g).1
 }
 

@@ -139,6 +139,10 @@ pub struct StepPlan<T> {
     /// Longest free-flight sub-step after a departure, `π/(2 ω_c)` s: half the contact
     /// half-period at the reference speed (the shortest contact of the law).
     pub(crate) receding_max: T,
+    /// Width, as a fraction of the sub-step, below which a switching event's bracket stops
+    /// shrinking: `2^-14` in production ([`super::dense::EVENT_TOL`]); a few rounding units
+    /// where the map must be smooth to round-off ([`super::Simulator::locate_events_exactly`]).
+    pub(crate) event_tol: T,
 }
 
 impl<T: Real> StepPlan<T> {
@@ -161,6 +165,7 @@ impl<T: Real> StepPlan<T> {
             omega_c: T::from_f64(omega_c),
             h_rest: T::from_f64(h / m) * T::from_u32(resting_substeps(steps.substeps_per_contact)),
             receding_max: T::from_f64(0.5 * core::f64::consts::PI / omega_c),
+            event_tol: T::from_f64(super::dense::EVENT_TOL),
         })
     }
 }

@@ -390,6 +390,8 @@ pub fn continue_branch<T: Real>(
     let mut h = settings.step;
     let in_range = |v: f64| v >= settings.range[0] && v <= settings.range[1];
     let mut previous: Option<Node<T>> = None;
+    // The branch's points before `node`, a few of them (the grazing monitors' base).
+    let mut history: heapless::Deque<Node<T>, 8> = heapless::Deque::new();
     for _ in 0..settings.max_points {
         let value_a = node.z[2] * s_lambda;
         // A step: predict, correct, check the tangent turned little and the impacts held.
@@ -397,7 +399,7 @@ pub fn continue_branch<T: Real>(
             if h < settings.step_min {
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
-                if let Some((value, beyond)) = grazing_end(&fr, settings, &node, previous.as_ref())
+                if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front())
                 {
                     let _ = on_event(&BifEvent {
                         kind: EventKind::Grazing,
@@ -500,6 +502,10 @@ pub fn continue_branch<T: Real>(
             orbit: b.e.orbit,
         });
         previous = Some(node);
+        if history.is_full() {
+            let _ = history.pop_front();
+        }
+        let _ = history.push_back(node);
         node = b;
         h = if iters <= 2 {
             (h * 1.5).min(settings.step_max)
@@ -516,14 +522,15 @@ pub fn continue_branch<T: Real>(
 /// the impacts per period beyond it. The monitors, in units of the cart's motion: the free
 /// flight's closest approach `g = δ_max/A0` (an impact appears at `g = 0`), and the slowest
 /// arrival `g = −(v/(A0 Ω))²` (one vanishes; its square is linear in the parameter). The one
-/// nearer 0 must lie within `settings.grazing_near` of it; the grazing is its zero extrapolated
-/// linearly from the last two points if that lies ahead within two of their distances, else
-/// the last value.
+/// nearer 0 must lie within `settings.grazing_near` of it (the arrival's within 9× that: `v`
+/// within `3 √near` of `A0 Ω`); the grazing is its zero extrapolated linearly from `base` (up
+/// to eight points back: the stalled steps are short) through the last point if that lies ahead
+/// within four times their distance, else the last value.
 fn grazing_end<T: Real>(
     fr: &Frame,
     s: &ContinuationSettings,
     last: &Node<T>,
-    before: Option<&Node<T>>,
+    base: Option<&Node<T>>,
 ) -> Option<(f64, u32)> {
     let a0 = fr.at.params.amplitude_m;
     let v0 = a0 * fr.at.omega_ratio * fr.at.params.omega_n();
@@ -543,7 +550,13 @@ fn grazing_end<T: Real>(
         }
     };
     let (g1, appears) = monitor(last);
-    if !(g1 > -s.grazing_near) {
+    // The arrival monitor is a square: its threshold is one on `v/(A0 Ω)` of 3 √near.
+    let near = if appears {
+        s.grazing_near
+    } else {
+        9.0 * s.grazing_near
+    };
+    if !(g1 > -near) {
         return None;
     }
     let impacts = last.e.orbit.trace.impacts;
@@ -553,7 +566,7 @@ fn grazing_end<T: Real>(
         impacts.saturating_sub(1)
     };
     let v1 = last.z[2] * fr.s_lambda;
-    let Some(b) = before else {
+    let Some(b) = base else {
         return Some((v1, beyond));
     };
     let (g0, same) = monitor(b);
@@ -562,7 +575,7 @@ fn grazing_end<T: Real>(
         return Some((v1, beyond));
     }
     let zero = v1 - g1 * (v1 - v0b) / (g1 - g0);
-    let ahead = (zero - v1) * (v1 - v0b) >= 0.0 && (zero - v1).abs() <= 2.0 * (v1 - v0b).abs();
+    let ahead = (zero - v1) * (v1 - v0b) >= 0.0 && (zero - v1).abs() <= 4.0 * (v1 - v0b).abs();
     Some((if zero.is_finite() && ahead { zero } else { v1 }, beyond))
 }
 

@@ -9,11 +9,10 @@
 
 use nalgebra::Vector2;
 
-use super::map::{MapPoint, Trace};
+use super::map::{MapPoint, Trace, run};
 use crate::dual::Dual;
 use crate::error::{ParamError, check_count};
-use crate::integrate::{PhaseTable, StepSample};
-use crate::observe::impact::{ImpactEvent, ImpactTracker};
+use crate::integrate::PhaseTable;
 use crate::real::Real;
 
 /// An estimate of the largest Lyapunov exponent, per excitation period.
@@ -46,23 +45,17 @@ impl Exponent {
     }
 }
 
-/// One period at a time from a state, with the impacts of each period.
+/// One period at a time of the map at a point, with what each period did.
 pub(crate) struct Periods<'t, U: Real> {
     sim: crate::integrate::Simulator<'t, U>,
-    separation: U,
+    separation_m: f64,
 }
 
 impl<'t, U: Real> Periods<'t, U> {
     pub(crate) fn new(at: &MapPoint, table: &'t PhaseTable<U>) -> Result<Self, ParamError> {
         Ok(Periods {
-            sim: crate::analysis::simulator_at(
-                &at.params,
-                at.gap_m,
-                at.omega_ratio,
-                &at.settings,
-                table,
-            )?,
-            separation: U::from_f64(at.settings.protocol.separation_m),
+            sim: at.simulator(table)?,
+            separation_m: at.settings.protocol.separation_m,
         })
     }
 
@@ -71,29 +64,9 @@ impl<'t, U: Real> Periods<'t, U> {
         self.sim.relative()
     }
 
-    /// One period from `x` (phase 0): the state after it and its impacts and largest force.
+    /// One period from `x` (phase 0): the state after it and what it did.
     pub(crate) fn run(&mut self, x: Vector2<U>) -> (Vector2<U>, Trace) {
-        self.sim.reset_state(x);
-        let (delta0, _) = self.sim.hammer().penetration(&x);
-        let mut tracker = ImpactTracker::new(self.separation, delta0);
-        let mut trace = Trace {
-            impacts: 0,
-            max_force_n: 0.0,
-            slowest_arrival_m_s: f64::INFINITY,
-            closest_free_m: f64::NEG_INFINITY,
-        };
-        let mut done = false;
-        while !done {
-            self.sim.step(&mut |s: &StepSample<U>| {
-                if let Some(ImpactEvent::Arrival) = tracker.update(s.delta, s.delta_min, s.force)
-                {
-                    trace.impacts += 1;
-                }
-                trace.max_force_n = trace.max_force_n.max(s.force.to_f64());
-                done |= s.period_end;
-            });
-        }
-        (self.sim.state(), trace)
+        run(&mut self.sim, x, 1, self.separation_m, |_| {})
     }
 }
 
