@@ -36,14 +36,15 @@ pub enum Command {
     ///
     /// --out: one row per Poincaré point or impact: index, branch, omega_ratio, freq_hz, regime,
     /// kind (strobe|impact), k (period of the window), u_mm, du_mm_s (strobes),
-    /// impact_force_mg (impacts).
+    /// impact_force_mg (impacts), lyapunov_per_period (the frequency's largest exponent).
     ///
     /// --plot: Poincaré u (mm) and impact peaks F_i/mg vs Ω/ω, two panels.
     Bifurcation(commands::bifurcation::BifurcationArgs),
     /// Peterka map: the impact regime over a gap × frequency grid, and the z = 1/1 force map.
     ///
     /// --out: one row per grid point (gap outer, frequency inner): index, gap_mm, gap_ratio,
-    /// omega_ratio, freq_hz, regime, impacts, impact_force_mg, transient_periods, settled.
+    /// omega_ratio, freq_hz, regime, impacts, impact_force_mg, transient_periods, settled,
+    /// lyapunov_per_period (with --lyapunov).
     ///
     /// --plot: regime over Ω/ω (x) and gap/A0 (y), one colour per regime (Fig. 3.24).
     Peterka(commands::peterka::PeterkaArgs),

@@ -5,9 +5,10 @@ use anyhow::Result;
 use serde::Serialize;
 use shared::analysis::Sweep;
 use shared::observe::PointResult;
+use shared::orbit::{Label, LabelSettings};
 
 use crate::config::Setup;
-use crate::runner::{OperatingPoint, evaluate_all};
+use crate::runner::{OperatingPoint, evaluate_all, evaluate_all_labelled};
 
 /// One CSV row of a frequency response.
 #[derive(Debug, Clone, Serialize)]
@@ -18,7 +19,7 @@ pub struct ResponseRow {
     pub freq_hz: f64,
     /// Max impact force over the observation window, `F_i/mg`.
     pub impact_force_mg: f64,
-    /// Regime `p/q`, `no impact` or `irregular`.
+    /// Regime `p/q`, `no impact`, `irregular` or `chaotic`.
     pub regime: String,
     /// Impacts in the observation window.
     pub impacts: u32,
@@ -26,6 +27,16 @@ pub struct ResponseRow {
     pub transient_periods: u32,
     /// Whether a steady state was detected.
     pub settled: bool,
+    /// Largest Lyapunov exponent per excitation period over a window after the protocol
+    /// (empty with `--no-lyapunov`).
+    pub lyapunov_per_period: Option<f64>,
+    /// Its uncertainty: half the difference of the window's halves.
+    pub lyapunov_uncertainty: Option<f64>,
+    /// The protocol window's own regime where the exponent refined it (`irregular` that
+    /// became `chaotic` or a period found by the extended run); empty otherwise.
+    pub window_regime: Option<String>,
+    /// Periods the extended run took to find the period (0: not needed).
+    pub extra_periods: Option<u32>,
 }
 
 /// The responses at each gap of `gaps_m` (m) over `sweep`, all points in one parallel batch
@@ -53,13 +64,62 @@ pub fn compute(
     Ok(all.chunks(n).map(<[PointResult]>::to_vec).collect())
 }
 
-/// CSV rows of one response (`results[i]` at `sweep.value(i)`).
-pub fn rows(setup: &Setup, sweep: &Sweep, results: &[PointResult]) -> Vec<ResponseRow> {
+/// The responses at each gap of `gaps_m` (m) over `sweep` with their labels refined by the
+/// largest Lyapunov exponent (`shared::orbit::label`): per gap, the results (their `regime`
+/// the refined label) and the labels.
+///
+/// # Errors
+/// The first invalid point.
+pub fn compute_labelled(
+    setup: &Setup,
+    gaps_m: &[f64],
+    sweep: &Sweep,
+    what: &str,
+    settings: &LabelSettings,
+) -> Result<Vec<(Vec<PointResult>, Vec<Label>)>> {
+    let n = sweep.len();
+    let points: Vec<OperatingPoint> = gaps_m
+        .iter()
+        .flat_map(|&g| {
+            (0..n).map(move |i| OperatingPoint {
+                gap_m: g,
+                omega_ratio: sweep.value(i),
+            })
+        })
+        .collect();
+    let all = evaluate_all_labelled(setup, &points, what, settings)?;
+    Ok(all
+        .chunks(n)
+        .map(|c| {
+            c.iter()
+                .map(|(r, l)| {
+                    (
+                        PointResult {
+                            regime: l.regime,
+                            ..*r
+                        },
+                        *l,
+                    )
+                })
+                .unzip()
+        })
+        .collect())
+}
+
+/// CSV rows of one response (`results[i]` at `sweep.value(i)`), with the exponent's columns
+/// from `labels` if given (`results` then carry the refined regimes).
+pub fn rows(
+    setup: &Setup,
+    sweep: &Sweep,
+    results: &[PointResult],
+    labels: Option<&[Label]>,
+) -> Vec<ResponseRow> {
     results
         .iter()
         .enumerate()
         .map(|(i, r)| {
             let ratio = sweep.value(i);
+            let l = labels.and_then(|l| l.get(i));
             ResponseRow {
                 omega_ratio: ratio,
                 freq_hz: setup.params.freq_hz_from_ratio(ratio),
@@ -68,6 +128,12 @@ pub fn rows(setup: &Setup, sweep: &Sweep, results: &[PointResult]) -> Vec<Respon
                 impacts: r.impacts,
                 transient_periods: r.transient_periods,
                 settled: r.settled,
+                lyapunov_per_period: l.map(|l| l.exponent.per_period),
+                lyapunov_uncertainty: l.map(|l| l.exponent.uncertainty()),
+                window_regime: l
+                    .filter(|l| l.window_regime != l.regime)
+                    .map(|l| l.window_regime.to_string()),
+                extra_periods: l.map(|l| l.extra_periods),
             }
         })
         .collect()

@@ -6,7 +6,8 @@ use anyhow::{Result, anyhow};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use shared::Real;
-use shared::analysis::{DEFAULT_LANES, evaluate_interleaved};
+use shared::analysis::{DEFAULT_LANES, evaluate_interleaved, evaluate_interleaved_ended};
+use shared::orbit::{Label, LabelSettings, MapPoint, label};
 use shared::observe::PointResult;
 
 use crate::config::Setup;
@@ -92,6 +93,71 @@ pub fn evaluate_all(
         .par_chunks(BATCH)
         .flat_map_iter(|batch| {
             let r = evaluate_batch(setup, batch);
+            bar.inc(batch.len() as u64);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+    out
+}
+
+/// [`evaluate_batch`], each result with its label refined by the largest Lyapunov exponent
+/// over a window after the protocol (`shared::orbit::label`: `chaotic`, or the period an
+/// extended run finds).
+pub fn evaluate_batch_labelled(
+    setup: &Setup,
+    points: &[OperatingPoint],
+    settings: &LabelSettings,
+) -> Vec<Result<(PointResult, Label)>> {
+    fn go<T: Real>(
+        setup: &Setup,
+        points: &[OperatingPoint],
+        settings: &LabelSettings,
+    ) -> Vec<Result<(PointResult, Label)>> {
+        in_order(points.len(), |emit| {
+            evaluate_interleaved_ended::<T, DEFAULT_LANES, _, _>(
+                &setup.params,
+                &setup.settings,
+                points.iter().map(|p| (p.gap_m, p.omega_ratio)),
+                |i, r| {
+                    let p = points[i];
+                    let at = MapPoint {
+                        params: setup.params,
+                        settings: setup.settings,
+                        gap_m: p.gap_m,
+                        omega_ratio: p.omega_ratio,
+                    };
+                    let labelled = r.and_then(|(result, x)| {
+                        label::<T>(&at, &result, x, settings).map(|l| (result, l))
+                    });
+                    emit(
+                        i,
+                        labelled.map_err(|e| {
+                            anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
+                        }),
+                    );
+                },
+            );
+        })
+    }
+    crate::with_precision!(setup.precision, T => go::<T>(setup, points, settings))
+}
+
+/// [`evaluate_all`] with [`evaluate_batch_labelled`].
+///
+/// # Errors
+/// The first invalid point.
+pub fn evaluate_all_labelled(
+    setup: &Setup,
+    points: &[OperatingPoint],
+    what: &str,
+    settings: &LabelSettings,
+) -> Result<Vec<(PointResult, Label)>> {
+    let bar = progress(points.len(), what);
+    let out: Result<Vec<_>> = points
+        .par_chunks(BATCH)
+        .flat_map_iter(|batch| {
+            let r = evaluate_batch_labelled(setup, batch, settings);
             bar.inc(batch.len() as u64);
             r
         })

@@ -6,6 +6,7 @@ use serde::Serialize;
 use shared::Real;
 use shared::integrate::{PhaseTable, Simulator, StepSample};
 use shared::observe::{ImpactEvent, ImpactTracker};
+use shared::orbit::{MapPoint, largest_exponent_with, state_of};
 
 use crate::config::Setup;
 
@@ -28,6 +29,9 @@ pub struct TsRow {
     pub region: &'static str,
     /// Whether the row is a Poincaré-section instant `t = kT`.
     pub poincare: bool,
+    /// At a Poincaré instant after `k ≥ 1` periods: the running estimate of the largest
+    /// Lyapunov exponent over the first `k` periods, per period (empty elsewhere).
+    pub lyapunov_per_period: Option<f64>,
 }
 
 /// Summary of a run.
@@ -37,6 +41,9 @@ pub struct TsSummary {
     pub impacts: u32,
     /// Largest episode peak, `F_i/mg`.
     pub max_force_mg: f64,
+    /// The largest Lyapunov exponent over the run, per period, and its uncertainty (half the
+    /// difference of the run's halves); `None` for a run of one period.
+    pub lyapunov: Option<(f64, f64)>,
 }
 
 /// One run of a time series: `periods` excitation periods at `omega_exc` (rad/s) and gap
@@ -100,6 +107,7 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
         impact_force_mg: 0.0,
         region: "free",
         poincare: true,
+        lyapunov_per_period: None,
     }];
     for _ in 0..periods {
         sim.run_period(&mut |s: &StepSample<T>| {
@@ -128,11 +136,35 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
                     shared::model::Region::BandBeta => "band-beta",
                 },
                 poincare: s.period_end,
+                lyapunov_per_period: None,
             });
         });
     }
     if let Some(p) = tracker.current_peak() {
         summary.max_force_mg = summary.max_force_mg.max(p.to_f64() / mg);
+    }
+    // The exponent along the same start (the orbit tools' map: events located to round-off),
+    // its running estimate at each Poincaré row.
+    if periods >= 2 {
+        let at = MapPoint {
+            params: setup.params,
+            settings: setup.settings,
+            gap_m,
+            omega_ratio: omega_exc / setup.params.omega_n(),
+        };
+        let x0 = state_of::<T>(&at, u0_m, v0_m_s)?;
+        let mut sum = 0.0;
+        let mut running = Vec::with_capacity(periods as usize);
+        let (e, _) = largest_exponent_with(&at, x0, periods, |k, stretch| {
+            sum += stretch;
+            running.push(sum / f64::from(k));
+        })?;
+        let mut k = 0;
+        for r in rows.iter_mut().skip(1).filter(|r| r.poincare) {
+            r.lyapunov_per_period = running.get(k).copied();
+            k += 1;
+        }
+        summary.lyapunov = Some((e.per_period, e.uncertainty()));
     }
     Ok((rows, summary))
 }

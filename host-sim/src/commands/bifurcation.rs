@@ -27,6 +27,11 @@ pub struct BifurcationArgs {
     /// (default: from rest at each frequency).
     #[arg(long, value_enum)]
     pub continuation: Option<Continuation>,
+    /// The protocol's labels alone, no Lyapunov exponent (its column empty). By default each
+    /// frequency's largest exponent (its orbit's `ln max|μ|/q` where periodic, else over 64
+    /// periods) refines the label: `chaotic`, or the period an extended run finds.
+    #[arg(long)]
+    pub no_lyapunov: bool,
     /// CSV and diagram.
     #[command(flatten)]
     pub output: GridOutArgs,
@@ -53,19 +58,20 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
         gap_mm: a.gap_mm,
         omega_ratio: sweep,
         continuation: a.continuation,
+        lyapunov: !a.no_lyapunov,
     };
     let points = sweep.len() as u64;
     grid::command::<Bifurcation>(&setup, &grid, points, dest, |o, meta, out, f| {
         match a.continuation {
             Some(mode) => grid::complete::<Bifurcation>(o, meta, out, f, |path| {
-                bifurcation::continuation(&setup, gap_m, &sweep, mode, path)
+                bifurcation::continuation(&setup, gap_m, &sweep, mode, !a.no_lyapunov, path)
             }),
             None => grid::run::<Bifurcation, _>(
                 o,
                 meta,
                 out,
                 f,
-                per_point(|i| bifurcation::from_rest(&setup, gap_m, &sweep, i)),
+                per_point(|i| bifurcation::from_rest(&setup, gap_m, &sweep, i, !a.no_lyapunov)),
             ),
         }
     })

@@ -41,6 +41,12 @@ pub struct PeterkaArgs {
     /// PNG: the z = 1/1 region coloured by F_i/mg, with a colour bar (Fig. 3.26).
     #[arg(long)]
     pub force_plot: Option<PathBuf>,
+    /// Refine each point's label by its largest Lyapunov exponent (column
+    /// lyapunov_per_period): `chaotic` where positive beyond its uncertainty; where negative
+    /// but no period showed, the run goes on (up to 2,000 periods) until a period q ≤ 64
+    /// shows. Costs about 0.7× more (docs/performance.md).
+    #[arg(long)]
+    pub lyapunov: bool,
 }
 
 fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
@@ -73,7 +79,11 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
         },
         _ => bail!("give exactly one of --freq-hz and --omega-ratio"),
     };
-    let grid = PeterkaGrid { gap, freq };
+    let grid = PeterkaGrid {
+        gap,
+        freq,
+        lyapunov: a.lyapunov,
+    };
     if grid.points() > MAX_POINTS {
         bail!(
             "--gap-mm/--gap-ratio × --freq-hz/--omega-ratio: {} × {} = {} points is out of range: allowed at most {MAX_POINTS}",

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use shared::orbit::LabelSettings;
 
 use super::{omega_sweep, write_response};
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
@@ -24,9 +25,17 @@ pub struct ResponseArgs {
     /// Frequency-ratio sweep Ω/ω as START:END:STEP.
     #[arg(long, default_value = "0.5:5.0:0.02")]
     pub omega_ratio: String,
-    /// CSV output: omega_ratio, freq_hz, impact_force_mg, regime, impacts, transient_periods, settled.
+    /// CSV output: omega_ratio, freq_hz, impact_force_mg, regime, impacts, transient_periods,
+    /// settled, lyapunov_per_period, lyapunov_uncertainty, window_regime, extra_periods.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// The protocol's labels alone: no Lyapunov exponent (its columns empty), `irregular`
+    /// where no period `q ≤ 16` showed in the window. By default the largest exponent over 64
+    /// periods after the protocol refines them: `chaotic` where it is positive beyond its
+    /// uncertainty; where it is negative, the run goes on (up to 2,000 periods) until a period
+    /// `q ≤ 64` shows.
+    #[arg(long)]
+    pub no_lyapunov: bool,
     /// PNG plot of F_i/mg vs Ω/ω coloured by regime.
     #[arg(long)]
     pub plot: Option<PathBuf>,
@@ -40,8 +49,23 @@ pub fn run(a: &ResponseArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
-    let results = response::compute(&setup, &[gap_m], &sweep, "response")?.remove(0);
-    let rows = response::rows(&setup, &sweep, &results);
+    let (results, labels) = if a.no_lyapunov {
+        (
+            response::compute(&setup, &[gap_m], &sweep, "response")?.remove(0),
+            None,
+        )
+    } else {
+        let (r, l) = response::compute_labelled(
+            &setup,
+            &[gap_m],
+            &sweep,
+            "response",
+            &LabelSettings::default(),
+        )?
+        .remove(0);
+        (r, Some(l))
+    };
+    let rows = response::rows(&setup, &sweep, &results, labels.as_deref());
     let mut outputs = Outputs::new();
     write_response(
         &mut outputs,

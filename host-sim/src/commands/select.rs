@@ -142,7 +142,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     let sweep = setup.selection.omega_ratio;
     let mut outputs = Outputs::new();
     if a.out.is_some() || a.plot.is_some() {
-        let rows = response::rows(&setup, &sweep, &nominal);
+        let rows = response::rows(&setup, &sweep, &nominal, None);
         let points = points(&sweep, &nominal);
         let p = setup.selection.freq_margin_pct / 100.0;
         let highlight = Highlight {

@@ -37,7 +37,9 @@ pub struct SimulateArgs {
     /// Initial relative velocity u̇0, mm/s.
     #[arg(long, default_value_t = 0.0)]
     pub v0_mm_s: f64,
-    /// CSV: t_s, u_mm, du_mm_s, x_mm, impact_force_n, impact_force_mg, region, poincare.
+    /// CSV: t_s, u_mm, du_mm_s, x_mm, impact_force_n, impact_force_mg, region, poincare,
+    /// lyapunov_per_period (at Poincaré rows: the running estimate of the largest Lyapunov
+    /// exponent over the periods so far).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// PNG: displacement, impact force and phase plane with the Poincaré points.
@@ -102,13 +104,17 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
     }
     outputs.commit()?;
     println!(
-        "{} periods at Ω/ω = {:.4} ({:.4} Hz): {} impacts, max F_i/mg = {:.3}, {} samples",
+        "{} periods at Ω/ω = {:.4} ({:.4} Hz): {} impacts, max F_i/mg = {:.3}, {} samples{}",
         a.periods,
         ratio,
         ratio * fn_hz,
         summary.impacts,
         summary.max_force_mg,
-        rows.len()
+        rows.len(),
+        match summary.lyapunov {
+            Some((l, u)) => format!(", largest Lyapunov exponent {l:.4} ± {u:.4} per period"),
+            None => String::new(),
+        }
     );
     Ok(())
 }

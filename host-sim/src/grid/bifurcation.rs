@@ -13,7 +13,9 @@ use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
 use shared::Real;
 use shared::analysis::Sweep;
-use shared::analysis::response::evaluate_point_observed;
+use nalgebra::Vector2;
+use shared::analysis::simulator_at;
+use shared::orbit::{LabelSettings, MapPoint, label};
 use shared::integrate::{PhaseTable, Simulator};
 use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
 
@@ -45,6 +47,10 @@ pub struct BifGrid {
     pub omega_ratio: Sweep,
     /// Continuation, or `None` from rest.
     pub continuation: Option<Continuation>,
+    /// Whether each frequency's label is refined by the largest Lyapunov exponent (column
+    /// `lyapunov_per_period`).
+    #[serde(default)]
+    pub lyapunov: bool,
 }
 
 /// One CSV row: a Poincaré point or an impact of the observation window.
@@ -70,6 +76,9 @@ pub struct BifRow {
     pub du_mm_s: Option<f64>,
     /// Peak impact force `F_i/mg` (impacts).
     pub impact_force_mg: Option<f64>,
+    /// Largest Lyapunov exponent at this frequency, per excitation period (empty with
+    /// `--no-lyapunov`).
+    pub lyapunov_per_period: Option<f64>,
 }
 
 impl Indexed for BifRow {
@@ -102,6 +111,30 @@ impl<T: Real> Observer<T> for WindowSamples {
     }
 }
 
+/// The label of the protocol's `result` at `gap_m`, `omega_ratio` that ended on `x_end`,
+/// refined by the largest Lyapunov exponent if `lyapunov` (`shared::orbit::label`).
+fn refine<T: Real>(
+    setup: &Setup,
+    gap_m: f64,
+    omega_ratio: f64,
+    result: &mut PointResult,
+    x_end: Vector2<T>,
+    lyapunov: bool,
+) -> Result<Option<f64>> {
+    if !lyapunov {
+        return Ok(None);
+    }
+    let at = MapPoint {
+        params: setup.params,
+        settings: setup.settings,
+        gap_m,
+        omega_ratio,
+    };
+    let l = label::<T>(&at, result, x_end, &LabelSettings::default())?;
+    result.regime = l.regime;
+    Ok(Some(l.exponent.per_period))
+}
+
 fn rows(
     setup: &Setup,
     index: usize,
@@ -109,6 +142,7 @@ fn rows(
     branch: &str,
     r: &PointResult,
     s: &WindowSamples,
+    lyapunov: Option<f64>,
 ) -> Vec<BifRow> {
     let freq_hz = setup.params.freq_hz_from_ratio(omega_ratio);
     let mg = setup.params.weight_n();
@@ -123,6 +157,7 @@ fn rows(
         u_mm: None,
         du_mm_s: None,
         impact_force_mg: None,
+        lyapunov_per_period: lyapunov,
     };
     let mut out = Vec::with_capacity(s.strobes.len() + s.impacts.len());
     for (k, &(u, du)) in s.strobes.iter().enumerate() {
@@ -145,14 +180,37 @@ fn rows(
 ///
 /// # Errors
 /// An invalid point.
-pub fn from_rest(setup: &Setup, gap_m: f64, sweep: &Sweep, i: usize) -> Result<Vec<BifRow>> {
+pub fn from_rest(
+    setup: &Setup,
+    gap_m: f64,
+    sweep: &Sweep,
+    i: usize,
+    lyapunov: bool,
+) -> Result<Vec<BifRow>> {
+    fn go<T: Real>(
+        setup: &Setup,
+        gap_m: f64,
+        ratio: f64,
+        lyapunov: bool,
+    ) -> Result<(PointResult, WindowSamples, Option<f64>)> {
+        let phases = PhaseTable::<T>::new(setup.settings.steps.steps_per_period)?;
+        let mut sim = simulator_at(&setup.params, gap_m, ratio, &setup.settings, &phases)?;
+        let mut s = WindowSamples::default();
+        let mut r = run_protocol(
+            &mut sim,
+            &setup.settings.protocol,
+            setup.params.weight_n(),
+            &mut s,
+        )?;
+        let l = refine(setup, gap_m, ratio, &mut r, sim.state(), lyapunov)?;
+        Ok((r, s, l))
+    }
     let ratio = sweep.value(i);
-    let mut s = WindowSamples::default();
-    let r = crate::with_precision!(setup.precision, T => {
-        evaluate_point_observed::<T, _>(&setup.params, gap_m, ratio, &setup.settings, &mut s)
+    let (r, s, l) = crate::with_precision!(setup.precision, T => {
+        go::<T>(setup, gap_m, ratio, lyapunov)
     })
     .with_context(|| format!("Ω/ω {ratio}"))?;
-    Ok(rows(setup, i, ratio, "rest", &r, &s))
+    Ok(rows(setup, i, ratio, "rest", &r, &s, l))
 }
 
 /// Runs one continuation branch over `order` (sweep indices), writing rows without header.
@@ -162,6 +220,7 @@ fn branch<T: Real>(
     sweep: &Sweep,
     order: &[usize],
     name: &str,
+    lyapunov: bool,
     w: &mut csv::Writer<BufWriter<File>>,
     bar: &indicatif::ProgressBar,
 ) -> Result<()> {
@@ -183,14 +242,16 @@ fn branch<T: Real>(
             sim.reset_state(x);
         }
         let mut s = WindowSamples::default();
-        let r = run_protocol(
+        let mut r = run_protocol(
             &mut sim,
             &setup.settings.protocol,
             setup.params.weight_n(),
             &mut s,
         )?;
         prev = Some(sim.state());
-        for row in rows(setup, i, ratio, name, &r, &s) {
+        let l = refine(setup, gap_m, ratio, &mut r, sim.state(), lyapunov)
+            .with_context(|| format!("Ω/ω {ratio}"))?;
+        for row in rows(setup, i, ratio, name, &r, &s, l) {
             w.serialize(row)?;
         }
         bar.inc(1);
@@ -210,6 +271,7 @@ pub fn continuation(
     gap_m: f64,
     sweep: &Sweep,
     mode: Continuation,
+    lyapunov: bool,
     out: &Path,
 ) -> Result<()> {
     interrupt::install();
@@ -228,7 +290,7 @@ pub fn continuation(
             .has_headers(false)
             .from_writer(BufWriter::new(tmp.reopen()?));
         crate::with_precision!(setup.precision, T => {
-            branch::<T>(setup, gap_m, sweep, order, name, &mut w, &bar)
+            branch::<T>(setup, gap_m, sweep, order, name, lyapunov, &mut w, &bar)
         })?;
         Ok(tmp)
     };

@@ -5,11 +5,12 @@
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
 use shared::analysis::Sweep;
-use shared::observe::Regime;
+use shared::observe::{PointResult, Regime};
+use shared::orbit::LabelSettings;
 
 use super::{Finish, GridKind};
 use crate::config::Setup;
-use crate::runner::{OperatingPoint, evaluate_batch};
+use crate::runner::{OperatingPoint, evaluate_batch, evaluate_batch_labelled};
 use crate::shard::{Indexed, Kind};
 
 /// Largest Peterka grid, points.
@@ -45,6 +46,10 @@ pub struct PeterkaGrid {
     pub gap: Axis,
     /// Frequency axis (columns, inner).
     pub freq: Axis,
+    /// Whether each point's label is refined by the largest Lyapunov exponent (column
+    /// `lyapunov_per_period`; `--lyapunov`).
+    #[serde(default)]
+    pub lyapunov: bool,
 }
 
 impl PeterkaGrid {
@@ -91,7 +96,7 @@ pub struct PeterkaRow {
     pub omega_ratio: f64,
     /// Excitation frequency, Hz.
     pub freq_hz: f64,
-    /// Regime `p/q`, `no impact` or `irregular`.
+    /// Regime `p/q`, `no impact`, `irregular` or (with `--lyapunov`) `chaotic`.
     pub regime: Regime,
     /// Impacts in the observation window.
     pub impacts: u32,
@@ -101,6 +106,8 @@ pub struct PeterkaRow {
     pub transient_periods: u32,
     /// Whether a steady state was detected.
     pub settled: bool,
+    /// Largest Lyapunov exponent per excitation period (with `--lyapunov`; else empty).
+    pub lyapunov_per_period: Option<f64>,
 }
 
 impl Indexed for PeterkaRow {
@@ -127,11 +134,32 @@ pub fn rows(setup: &Setup, grid: &PeterkaGrid, batch: &[usize]) -> Vec<Result<[P
             }
         })
         .collect();
+    let results: Vec<Result<(PointResult, Option<f64>)>> = if grid.lyapunov {
+        evaluate_batch_labelled(setup, &points, &LabelSettings::default())
+            .into_iter()
+            .map(|r| {
+                r.map(|(p, l)| {
+                    (
+                        PointResult {
+                            regime: l.regime,
+                            ..p
+                        },
+                        Some(l.exponent.per_period),
+                    )
+                })
+            })
+            .collect()
+    } else {
+        evaluate_batch(setup, &points)
+            .into_iter()
+            .map(|r| r.map(|p| (p, None)))
+            .collect()
+    };
     batch
         .iter()
-        .zip(evaluate_batch(setup, &points))
+        .zip(results)
         .map(|(&i, r)| {
-            let r = r?;
+            let (r, lyapunov) = r?;
             let ((gap_mm, gap_ratio), (omega_ratio, freq_hz)) = at(i);
             Ok([PeterkaRow {
                 index: i as u64,
@@ -144,6 +172,7 @@ pub fn rows(setup: &Setup, grid: &PeterkaGrid, batch: &[usize]) -> Vec<Result<[P
                 impact_force_mg: r.impact_force_mg,
                 transient_periods: r.transient_periods,
                 settled: r.settled,
+                lyapunov_per_period: lyapunov,
             }])
         })
         .collect()

@@ -12,6 +12,8 @@
 //! is the same computation, only the order of instructions between runs changes; tested). No
 //! allocation; an in-order MCU gains nothing from it.
 
+use nalgebra::Vector2;
+
 use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 
@@ -305,6 +307,23 @@ where
     I: IntoIterator<Item = (f64, f64)>,
     F: FnMut(usize, Result<PointResult, ParamError>),
 {
+    evaluate_interleaved_ended::<T, L, I, _>(params, settings, points, |i, r| {
+        emit(i, r.map(|(result, _)| result));
+    })
+}
+
+/// [`evaluate_interleaved`], each result with the state the run ended on (the simulator's, at
+/// phase 0: where `crate::orbit` takes over).
+pub fn evaluate_interleaved_ended<T: Real, const L: usize, I, F>(
+    params: &RigParams,
+    settings: &SimSettings,
+    points: I,
+    mut emit: F,
+) -> LaneStats
+where
+    I: IntoIterator<Item = (f64, f64)>,
+    F: FnMut(usize, Result<(PointResult, Vector2<T>), ParamError>),
+{
     let weight_n = params.weight_n();
     let phases = match PhaseTable::new(settings.steps.steps_per_period) {
         Ok(p) => p,
@@ -322,7 +341,7 @@ where
             let run = ProtocolRun::new(&sim, &settings.protocol, weight_n)?;
             Ok((sim, run, ()))
         },
-        |i, r| emit(i, r.map(|(result, (), _)| result)),
+        |i, r| emit(i, r.map(|(result, (), sim)| (result, sim.state()))),
     )
 }
 

@@ -8,12 +8,13 @@
 //!   three cycles, which becomes the label (`p/q`); if none shows, it stays `irregular`;
 //! - otherwise (within its uncertainty of 0: quasi-periodic, or not converged): `irregular`.
 //!
-//! A periodic or no-impact label is kept; the exponent is reported beside it.
+//! A periodic or no-impact label is kept; the exponent is reported beside it (the orbit's,
+//! `ln max|μ| / q`, [`super::lyapunov::orbit_exponent`]).
 
 use heapless::Vec;
 use nalgebra::Vector2;
 
-use super::lyapunov::{Exponent, Periods, largest_exponent};
+use super::lyapunov::{Exponent, Periods, largest_exponent, orbit_exponent};
 use super::map::MapPoint;
 use crate::error::{ParamError, check_count};
 use crate::integrate::PhaseTable;
@@ -60,6 +61,8 @@ impl Default for LabelSettings {
 pub struct Label {
     /// The regime: the protocol's, or `chaotic`, or the period found by the extended run.
     pub regime: Regime,
+    /// The protocol window's regime.
+    pub window_regime: Regime,
     /// The largest Lyapunov exponent, per period, over the window after the protocol.
     pub exponent: Exponent,
     /// Periods run beyond the protocol and the exponent's window to find a period (0 if not
@@ -78,9 +81,15 @@ pub fn label<T: Real>(
     s: &LabelSettings,
 ) -> Result<Label, ParamError> {
     check_count("max_q", s.max_q, 1, MAX_EXTENDED_Q)?;
-    let (exponent, x) = largest_exponent(at, x_end, s.window)?;
+    let (exponent, x) = match result.regime {
+        // On the orbit the protocol settled on: its multipliers.
+        Regime::Periodic { q, .. } => orbit_exponent(at, x_end, u32::from(q))?,
+        Regime::NoImpact if result.settled => orbit_exponent(at, x_end, 1)?,
+        _ => largest_exponent(at, x_end, s.window)?,
+    };
     let mut out = Label {
         regime: result.regime,
+        window_regime: result.regime,
         exponent,
         extra_periods: 0,
     };

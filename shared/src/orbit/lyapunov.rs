@@ -5,7 +5,7 @@
 //! simulator) and renormalised, `λ = (1/n) Σ ln ‖DP(x_k) v_k‖` in the scaled norm of
 //! [`MapPoint::scales`]. Its convergence is judged by the two halves of the window: on a
 //! periodic orbit both give `ln max|μ| / q`, on a chaotic one they scatter around a positive
-//! value.
+//! value. Where the period `q` is known, [`orbit_exponent`] takes it from the monodromy.
 
 use nalgebra::Vector2;
 
@@ -80,6 +80,20 @@ pub fn largest_exponent<T: Real>(
     x0: Vector2<T>,
     periods: u32,
 ) -> Result<(Exponent, Vector2<T>), ParamError> {
+    largest_exponent_with(at, x0, periods, |_, _| {})
+}
+
+/// [`largest_exponent`], calling `each(k, stretch)` after period `k` (1-based) with that
+/// period's `ln ‖DP v‖` (the running estimate after `k` periods is the mean of the first `k`).
+///
+/// # Errors
+/// As [`largest_exponent`].
+pub fn largest_exponent_with<T: Real>(
+    at: &MapPoint,
+    x0: Vector2<T>,
+    periods: u32,
+    mut each: impl FnMut(u32, f64),
+) -> Result<(Exponent, Vector2<T>), ParamError> {
     check_count("periods", periods, 2, 100_000)?;
     let s = at.scales();
     let table = PhaseTable::<Dual<T, 1>>::new(at.settings.steps.steps_per_period)?;
@@ -111,6 +125,7 @@ pub fn largest_exponent<T: Real>(
             });
         }
         v = [d[0] / n, d[1] / n];
+        each(k + 1, libm::log(n));
         if k < half {
             sum1 += libm::log(n);
         } else {
@@ -126,5 +141,34 @@ pub fn largest_exponent<T: Real>(
             periods,
         },
         x,
+    ))
+}
+
+/// The largest Lyapunov exponent of the periodic orbit of period `q` near `x0` (a state the
+/// protocol settled on): `ln max|μ| / q` from the monodromy `DP^q` at `x0`, and again at
+/// `P^q(x0)` (the two are the "halves": their difference is the uncertainty). Much cheaper than
+/// [`largest_exponent`]'s window where the period is known; the same value on a periodic orbit.
+///
+/// # Errors
+/// [`ParamError`]: an invalid point, `q` out of range.
+pub fn orbit_exponent<T: Real>(
+    at: &MapPoint,
+    x0: Vector2<T>,
+    q: u32,
+) -> Result<(Exponent, Vector2<T>), ParamError> {
+    let (a, ma) = super::map::tangent(at, q, x0)?;
+    let (b, mb) = super::map::tangent(at, q, a.x)?;
+    let rate = |m: &[[f64; 2]; 2]| {
+        libm::log(super::floquet::Floquet::of(m).max_abs()) / f64::from(q)
+    };
+    let (first, second) = (rate(&ma), rate(&mb));
+    Ok((
+        Exponent {
+            per_period: 0.5 * (first + second),
+            first_half: first,
+            second_half: second,
+            periods: 2 * q,
+        },
+        b.x,
     ))
 }

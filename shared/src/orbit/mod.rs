@@ -21,7 +21,7 @@ pub use continuation::{
 pub use edges::{Edge, band_edges};
 pub use floquet::{Floquet, Multiplier};
 pub use label::{Label, LabelSettings, label};
-pub use lyapunov::{Exponent, largest_exponent};
+pub use lyapunov::{Exponent, largest_exponent, largest_exponent_with, orbit_exponent};
 pub use map::{Image, MAX_Q, MapPoint, Param, Trace, iterate, samples, tangent};
 pub use shooting::{Orbit, OrbitError, ShootSettings, shoot};
 pub use start::{orbit_from, relative, settle, state_of};
