@@ -463,7 +463,7 @@ mod tests {
         assert_eq!(
             header::<peterka::PeterkaRow>().join(","),
             "index,gap_mm,gap_ratio,omega_ratio,freq_hz,regime,impacts,impact_force_mg,\
-             transient_periods,settled"
+             transient_periods,settled,lyapunov_per_period"
         );
         assert_eq!(
             header::<basins::BasinRaw>().join(","),
@@ -476,7 +476,8 @@ mod tests {
         );
         assert_eq!(
             header::<bifurcation::BifRow>().join(","),
-            "index,branch,omega_ratio,freq_hz,regime,kind,k,u_mm,du_mm_s,impact_force_mg"
+            "index,branch,omega_ratio,freq_hz,regime,kind,k,u_mm,du_mm_s,impact_force_mg,\
+             lyapunov_per_period"
         );
     }
 
