@@ -284,7 +284,11 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
             q: orbit.q,
             points: points
                 .iter()
-                .map(|p| Ok(PointOut { orbit: report(&p.orbit)? }))
+                .map(|p| {
+                    Ok(PointOut {
+                        orbit: report(&p.orbit)?,
+                    })
+                })
                 .collect::<Result<_>>()?,
             events: events
                 .iter()
@@ -442,13 +446,8 @@ fn window<T: Real>(
     x: Option<nalgebra::Vector2<T>>,
 ) -> Result<(WindowSamples, nalgebra::Vector2<T>)> {
     let table = shared::integrate::PhaseTable::<T>::new(at.settings.steps.steps_per_period)?;
-    let mut sim = shared::analysis::simulator_at(
-        &at.params,
-        at.gap_m,
-        at.omega_ratio,
-        &at.settings,
-        &table,
-    )?;
+    let mut sim =
+        shared::analysis::simulator_at(&at.params, at.gap_m, at.omega_ratio, &at.settings, &table)?;
     if let Some(x) = x {
         sim.reset_state(x);
     }
@@ -536,4 +535,172 @@ pub fn background<T: Real>(
     };
     bar.finish_and_clear();
     Ok(out)
+}
+
+/// A bifurcation curve in the (`Ω/ω`, gap) plane, as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct CurveOut {
+    /// The bifurcation's type.
+    pub kind: String,
+    /// The regime of the orbit it bounds (`1/1`, …).
+    pub regime: String,
+    /// Its points `(Ω/ω, gap mm)`, in order along the curve.
+    pub points: Vec<[f64; 2]>,
+    /// How each end was reached (towards smaller gaps first).
+    pub ends: [String; 2],
+}
+
+/// One CSV row of the boundary curves (`peterka --boundaries-out`).
+#[derive(Debug, Clone, Serialize)]
+pub struct CurveRow {
+    /// Curve number.
+    pub curve: usize,
+    /// Bifurcation type.
+    pub kind: String,
+    /// Regime of the orbit it bounds.
+    pub regime: String,
+    /// `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Gap, mm.
+    pub gap_mm: f64,
+}
+
+/// The CSV rows of `curves`.
+pub fn curve_rows(curves: &[CurveOut]) -> Vec<CurveRow> {
+    curves
+        .iter()
+        .enumerate()
+        .flat_map(|(i, c)| {
+            c.points.iter().map(move |p| CurveRow {
+                curve: i,
+                kind: c.kind.clone(),
+                regime: c.regime.clone(),
+                omega_ratio: p[0],
+                gap_mm: p[1],
+            })
+        })
+        .collect()
+}
+
+/// Relative distance (fraction of the map's width and height) under which a seed's edge
+/// is taken to lie on a curve already traced.
+const KNOWN_CURVE_TOL: f64 = 5e-3;
+
+/// Whether `p` lies within `tol` of the polyline `points`, both scaled by `scale`
+/// (the map's width and height) so that the two axes weigh alike.
+fn near_polyline(points: &[[f64; 2]], p: [f64; 2], scale: [f64; 2], tol: f64) -> bool {
+    let n = |q: [f64; 2]| [q[0] / scale[0], q[1] / scale[1]];
+    let p = n(p);
+    let dist = |a: [f64; 2], b: [f64; 2]| {
+        let (a, b) = (n(a), n(b));
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len2 = d[0] * d[0] + d[1] * d[1];
+        let t = if len2 > 0.0 {
+            (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (p[0] - a[0] - t * d[0]).hypot(p[1] - a[1] - t * d[1])
+    };
+    match points {
+        [] => false,
+        [a] => dist(*a, *a) < tol,
+        _ => points.windows(2).any(|w| dist(w[0], w[1]) < tol),
+    }
+}
+
+/// The curves that bound the band of the stable orbit found from rest at each seed
+/// `(gap_m, Ω/ω)`: the band's two edges located on its branch in `Ω/ω`, each continued in
+/// (`Ω/ω`, gap) over the box `omega_range` × `gap_range_m` both ways. A seed whose edge lies on
+/// a curve already computed (within 0.5 % of the box's width and height) adds nothing.
+///
+/// # Errors
+/// Ctrl-C.
+pub fn boundary_curves<T: Real>(
+    base: &MapPoint,
+    seeds: &[(f64, f64)],
+    omega_range: [f64; 2],
+    gap_range_m: [f64; 2],
+) -> Result<Vec<CurveOut>> {
+    use shared::orbit::{CurveSettings, Edge, band_edges, continue_curve};
+    let a0 = base.params.amplitude_m;
+    let mut out: Vec<CurveOut> = Vec::new();
+    let settings = CurveSettings::new::<T>(omega_range, gap_range_m);
+    let scale = [
+        (omega_range[1] - omega_range[0]).abs().max(1e-9),
+        (gap_range_m[1] - gap_range_m[0]).abs().max(a0 * 1e-3) * 1e3,
+    ];
+    for &(gap_m, ratio) in seeds {
+        interrupt::check()?;
+        let mut at = *base;
+        at.gap_m = gap_m;
+        at.omega_ratio = ratio;
+        let Ok((_, orbit)) = find::<T>(&at, Start::Rest, None) else {
+            continue;
+        };
+        if !orbit.floquet.stable() {
+            continue;
+        }
+        let edges = band_edges(
+            &orbit,
+            &ContinuationSettings::new::<T>(Param::OmegaRatio, omega_range),
+        );
+        for edge in edges {
+            let Edge::Event(event) = edge else {
+                continue;
+            };
+            // A seed whose edge lies on a curve already traced (within half a percent of
+            // the map's width and height, measured to the curve's segments) adds nothing.
+            let here = [event.value, gap_m * 1e3];
+            let known = out
+                .iter()
+                .any(|c| near_polyline(&c.points, here, scale, KNOWN_CURVE_TOL));
+            if known {
+                continue;
+            }
+            let mut halves: Vec<(Vec<[f64; 2]>, String)> = Vec::new();
+            for direction in [-1.0, 1.0] {
+                let mut pts = Vec::new();
+                let end = continue_curve(&event, Param::OmegaRatio, &settings, direction, |p| {
+                    pts.push([p.omega_ratio, p.gap_m * 1e3]);
+                    if interrupt::check().is_err() {
+                        ControlFlow::Break(())
+                    } else {
+                        ControlFlow::Continue(())
+                    }
+                });
+                interrupt::check()?;
+                halves.push((pts, end.to_string()));
+            }
+            let (mut down, down_end) = halves.remove(0);
+            let (up, up_end) = halves.remove(0);
+            down.reverse();
+            // The start appears in both halves.
+            down.extend(up.into_iter().skip(1));
+            out.push(CurveOut {
+                kind: event.kind.name().to_string(),
+                regime: regime_of(orbit.p(), orbit.q).to_string(),
+                points: down,
+                ends: [down_end, up_end],
+            });
+        }
+    }
+    // A curve traced from an early seed may stop short of where a later seed's trace of the
+    // same curve goes on: of two such, the longer stays.
+    out.sort_by(|a, b| b.points.len().cmp(&a.points.len()));
+    let mut kept: Vec<CurveOut> = Vec::new();
+    for c in out {
+        let on = c
+            .points
+            .iter()
+            .filter(|&&p| {
+                kept.iter()
+                    .any(|k| k.kind == c.kind && near_polyline(&k.points, p, scale, KNOWN_CURVE_TOL))
+            })
+            .count();
+        if 2 * on <= c.points.len() {
+            kept.push(c);
+        }
+    }
+    Ok(kept)
 }

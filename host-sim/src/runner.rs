@@ -7,8 +7,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use shared::Real;
 use shared::analysis::{DEFAULT_LANES, evaluate_interleaved, evaluate_interleaved_ended};
-use shared::orbit::{Label, LabelSettings, MapPoint, label};
 use shared::observe::PointResult;
+use shared::orbit::{Label, LabelSettings, MapPoint, label};
 
 use crate::config::Setup;
 

@@ -164,7 +164,10 @@ fn edge_report<T: Real>(
 ) -> EdgeReport {
     let value = edge.value();
     let (kind, multiplier) = match edge {
-        Edge::Event(e) => (e.kind.name().to_string(), Some([e.critical.re, e.critical.im])),
+        Edge::Event(e) => (
+            e.kind.name().to_string(),
+            Some([e.critical.re, e.critical.im]),
+        ),
         Edge::Open(_) => ("open".to_string(), None),
     };
     // The sweep's edge is midway between its last 1/1 point and the next: the located edge
@@ -179,8 +182,10 @@ fn edge_report<T: Real>(
             }
             "grazing" => "near a grazing the orbit's new impact is shallow and slow to settle",
             "fold" => "near a fold the orbit's multiplier nears +1: its transient is slow",
-            "open" => "the branch goes on beyond the sweep's edge: the protocol from rest \
-                 settles on another attractor there (coexistence)",
+            "open" => {
+                "the branch goes on beyond the sweep's edge: the protocol from rest \
+                 settles on another attractor there (coexistence)"
+            }
             _ => "the protocol's label depends on its transient there",
         };
         format!(

@@ -34,9 +34,27 @@ fn select_json_reports_the_operating_point() {
     let band = v["band_hz"].as_array().unwrap();
     let (lo, hi) = (band[0].as_f64().unwrap(), band[1].as_f64().unwrap());
     assert!(lo < f && f < hi);
+    // The margin is measured to the band's edges located on the orbit's branch: a grazing
+    // below, a period doubling above; the sweep's margin stays as the cross-check.
+    let check = &v["band_check"];
+    assert_eq!(check["lower"]["kind"], "grazing");
+    assert_eq!(check["upper"]["kind"], "period-doubling");
+    let (elo, ehi) = (
+        check["lower"]["freq_hz"].as_f64().unwrap(),
+        check["upper"]["freq_hz"].as_f64().unwrap(),
+    );
     let margin = v["margin_freq_pct"].as_f64().unwrap();
     assert!(margin >= 5.0, "margin {margin}");
-    assert!((margin - ((f - lo).min(hi - f) / f * 100.0)).abs() < 1e-9);
+    assert!((margin - ((f - elo).min(ehi - f) / f * 100.0)).abs() < 1e-9);
+    let sweep_margin = check["sweep_margin_freq_pct"].as_f64().unwrap();
+    assert!((sweep_margin - ((f - lo).min(hi - f) / f * 100.0)).abs() < 1e-9);
+    // The located edges lie within a sweep step of the sweep's edges (midway between the
+    // last 1/1 point and the next: 1.5 steps of 0.02 × 1.82 Hz from the last 1/1 point).
+    assert!((elo - lo).abs() < 0.03 * 1.82 && (ehi - hi).abs() < 0.03 * 1.82);
+    assert!(check["lower"]["agrees"] == true && check["upper"]["agrees"] == true);
+    // The orbit is stable, its multipliers inside the unit circle.
+    let mu = check["orbit"]["max_abs_multiplier"].as_f64().unwrap();
+    assert!(mu > 0.0 && mu < 1.0 && check["orbit"]["stable"] == true);
 }
 
 #[test]
@@ -53,7 +71,8 @@ fn response_writes_csv_and_png() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next().unwrap(),
-        "omega_ratio,freq_hz,impact_force_mg,regime,impacts,transient_periods,settled"
+        "omega_ratio,freq_hz,impact_force_mg,regime,impacts,transient_periods,settled,\
+         lyapunov_per_period,lyapunov_uncertainty,window_regime,extra_periods"
     );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 5);
@@ -84,7 +103,8 @@ fn simulate_writes_time_series_with_poincare_rows() {
             "impact_force_n",
             "impact_force_mg",
             "region",
-            "poincare"
+            "poincare",
+            "lyapunov_per_period"
         ]
     );
     let recs: Vec<csv::StringRecord> = rdr.records().map(Result::unwrap).collect();
@@ -101,6 +121,18 @@ fn simulate_writes_time_series_with_poincare_rows() {
         let (u, x): (f64, f64) = (r[1].parse().unwrap(), r[3].parse().unwrap());
         assert!((u - x).abs() < 1e-6);
     }
+    // The running Lyapunov estimate at every Poincaré row after the first, none elsewhere;
+    // the run settles on the stable 1/1 orbit, so it is negative.
+    assert!(strobes[0][8].is_empty());
+    for r in &strobes[1..] {
+        let l: f64 = r[8].parse().unwrap();
+        assert!(l < 0.0, "{l}");
+    }
+    assert!(
+        recs.iter()
+            .filter(|r| &r[7] != "true")
+            .all(|r| r[8].is_empty())
+    );
 }
 
 #[test]

@@ -91,7 +91,8 @@ fn peterka_shards_merge_to_the_one_run_bytes() {
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(
         lines[0],
-        "index,gap_mm,gap_ratio,omega_ratio,freq_hz,regime,impacts,impact_force_mg,transient_periods,settled"
+        "index,gap_mm,gap_ratio,omega_ratio,freq_hz,regime,impacts,impact_force_mg,\
+         transient_periods,settled,lyapunov_per_period"
     );
     assert_eq!(lines.len(), 1 + 4 * 5);
     // Gap outer, frequency inner; index in order.

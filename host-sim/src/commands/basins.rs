@@ -81,7 +81,7 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
             grid.gap_mm
         );
     }
-    let dest = a.output.destination(None)?;
+    let dest = a.output.destination(None, None)?;
     grid::from_rest::<Basins, _>(&setup, &grid, grid.points(), dest, |b| {
         basins::rows(&setup, &grid, b)
     })

@@ -45,7 +45,7 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
-    let dest = a.output.destination(None)?;
+    let dest = a.output.destination(None, None)?;
     if a.continuation.is_some() && dest.shard.is_some() {
         bail!(
             "--shard: a continuation is sequential along the sweep and cannot be sharded \

@@ -12,8 +12,8 @@ use shared::orbit::{Orbit, Param};
 use super::orbit::PointArgs;
 use crate::config::MAX_GAP_MM;
 use crate::figures::orbits::{Dots, branches as branch_figure};
-use crate::output::{Outputs, write_csv};
 use crate::orbits::{self, Background, BranchOut, BranchSpec, Direction, param_value};
+use crate::output::{Outputs, write_csv};
 
 /// The continuation parameter on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -138,7 +138,10 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 unit(e.value),
                 match param {
                     Param::OmegaRatio => {
-                        format!(" ({:.4} Hz)", e.orbit.freq_hz * e.value / e.orbit.omega_ratio)
+                        format!(
+                            " ({:.4} Hz)",
+                            e.orbit.freq_hz * e.value / e.orbit.omega_ratio
+                        )
                     }
                     Param::GapM => String::new(),
                 },

@@ -32,6 +32,9 @@ pub struct MergeArgs {
     /// PNG (peterka only): the z = 1/1 region coloured by F_i/mg.
     #[arg(long)]
     pub force_plot: Option<PathBuf>,
+    /// CSV (peterka shards run with --boundaries): the curves bounding the z = 1/1 region.
+    #[arg(long)]
+    pub boundaries_out: Option<PathBuf>,
     /// Shard CSVs, in any order.
     #[arg(required = true, value_name = "SHARD.csv")]
     pub shards: Vec<PathBuf>,
@@ -50,12 +53,20 @@ pub fn run(a: &MergeArgs) -> Result<()> {
             meta.kind
         );
     }
+    if a.boundaries_out.is_some() {
+        let with = meta.kind == Kind::Peterka
+            && meta.grid::<crate::grid::peterka::PeterkaGrid>()?.boundaries;
+        if !with {
+            bail!("--boundaries-out: only for peterka shards run with --boundaries");
+        }
+    }
     let n_files = files.len();
     let mut outputs = Outputs::new();
     let out = outputs.reserve(&a.out)?;
     let figures = Figures {
         plot: a.plot.as_deref(),
         force_plot: a.force_plot.as_deref(),
+        boundaries: a.boundaries_out.as_deref(),
     };
     match meta.kind {
         Kind::Peterka => merge::<Peterka>(&mut outputs, &meta, files, &out, figures)?,

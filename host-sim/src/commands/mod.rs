@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use shared::analysis::Sweep;
-use shared::error::check_range;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
+use shared::error::check_range;
 
 use crate::config::{Setup, parse_sweep};
 use crate::figures::{
@@ -54,7 +54,11 @@ pub fn omega_sweep(text: &str) -> Result<Sweep> {
 ///
 /// # Errors
 /// Neither or both given, or out of range (the flag and the range named).
-pub fn excitation_ratio(setup: &Setup, omega_ratio: Option<f64>, freq_hz: Option<f64>) -> Result<f64> {
+pub fn excitation_ratio(
+    setup: &Setup,
+    omega_ratio: Option<f64>,
+    freq_hz: Option<f64>,
+) -> Result<f64> {
     let fn_hz = setup.params.natural_freq_hz();
     let ratio = match (omega_ratio, freq_hz) {
         (Some(r), None) => r,
@@ -96,16 +100,22 @@ pub struct GridOutArgs {
 }
 
 impl GridOutArgs {
-    /// Where the command writes, with `force_plot` (peterka's second figure) if asked.
+    /// Where the command writes, with `force_plot` (peterka's second figure) and `boundaries`
+    /// (peterka's boundary curves CSV) if asked.
     ///
     /// # Errors
     /// A malformed `--shard` or SLURM array variables.
-    pub fn destination<'a>(&'a self, force_plot: Option<&'a Path>) -> Result<Destination<'a>> {
+    pub fn destination<'a>(
+        &'a self,
+        force_plot: Option<&'a Path>,
+        boundaries: Option<&'a Path>,
+    ) -> Result<Destination<'a>> {
         Ok(Destination {
             out: &self.out,
             figures: Figures {
                 plot: self.plot.as_deref(),
                 force_plot,
+                boundaries,
             },
             shard: self.shard.resolve()?,
         })

@@ -92,7 +92,12 @@ pub fn describe(o: &OrbitReport) -> String {
         if m[1] == 0.0 {
             format!("{:+.6}", m[0])
         } else {
-            format!("{:+.6} {} {:.6}i", m[0], if m[1] < 0.0 { '−' } else { '+' }, m[1].abs())
+            format!(
+                "{:+.6} {} {:.6}i",
+                m[0],
+                if m[1] < 0.0 { '−' } else { '+' },
+                m[1].abs()
+            )
         }
     };
     let mut s = format!(

@@ -47,6 +47,14 @@ pub struct PeterkaArgs {
     /// shows. Costs about 0.7× more (docs/performance.md).
     #[arg(long)]
     pub lyapunov: bool,
+    /// Compute the curves that bound the z = 1/1 region (periodic orbits' bifurcations
+    /// continued in the gap × Ω/ω plane, seeded from the grid's 1/1 points) and draw them on
+    /// the --plot map.
+    #[arg(long)]
+    pub boundaries: bool,
+    /// With --boundaries: their CSV (curve, kind, regime, omega_ratio, gap_mm).
+    #[arg(long, requires = "boundaries")]
+    pub boundaries_out: Option<PathBuf>,
 }
 
 fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
@@ -83,6 +91,7 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
         gap,
         freq,
         lyapunov: a.lyapunov,
+        boundaries: a.boundaries,
     };
     if grid.points() > MAX_POINTS {
         bail!(
@@ -102,7 +111,9 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
 pub fn run(a: &PeterkaArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let grid = parse_axes(a, &setup)?;
-    let dest = a.output.destination(a.force_plot.as_deref())?;
+    let dest = a
+        .output
+        .destination(a.force_plot.as_deref(), a.boundaries_out.as_deref())?;
     grid::from_rest::<Peterka, _>(&setup, &grid, grid.points(), dest, |b| {
         peterka::rows(&setup, &grid, b)
     })

@@ -16,11 +16,11 @@ use crate::grid::bifurcation::{BifRow, Bifurcation};
 use crate::grid::peterka::{Peterka, PeterkaRow};
 use crate::grid::raster::Raster;
 use crate::grid::{Figures, Finish, GridFigures};
+use crate::orbits::CurveOut;
 use crate::shard::{open_csv, title_prefix};
 
 use super::{
-    Chart, Frame, SANS, canvas, line_key, panel, regime_class, regime_color,
-    series_legend,
+    Chart, Frame, SANS, canvas, line_key, panel, regime_class, regime_color, series_legend,
 };
 
 /// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
@@ -73,6 +73,8 @@ pub enum LegendMark {
     Dot(RGBColor),
     /// No mark: a smaller continuation line of the entry above.
     Text,
+    /// A short thick line: a computed curve.
+    Line(RGBColor),
 }
 
 const EMPTY: RGBColor = RGBColor(255, 255, 255);
@@ -152,6 +154,12 @@ fn legend_panel(
                 area.draw(&Circle::new((x + 9, y + 9), 5, BLACK.stroke_width(2)))?;
             }
             LegendMark::Text => {}
+            LegendMark::Line(c) => {
+                area.draw(&PathElement::new(
+                    [(x, y + 9), (x + 18, y + 9)],
+                    c.stroke_width(3),
+                ))?;
+            }
         }
         let (dy, size) = match mark {
             LegendMark::Text => (-4, 13),
@@ -180,9 +188,10 @@ pub fn regime_map(
     x: &MapAxis,
     y: &MapAxis,
     cells: &Raster<Cell>,
+    curves: &[Curve],
 ) -> Result<()> {
     let (left, right) = figure_with_panel(path, title)?;
-    let chart = map_chart(&left, x, y)?;
+    let mut chart = map_chart(&left, x, y)?;
     blit(
         cells,
         &chart.plotting_area().strip_coord_spec(),
@@ -191,6 +200,17 @@ pub fn regime_map(
             Cell::Regime(r, _) => regime_color(r),
         },
     )?;
+    for c in curves {
+        let style = curve_style(&c.kind);
+        chart.draw_series(LineSeries::new(
+            c.points.iter().copied(),
+            WHITE.stroke_width(5),
+        ))?;
+        chart.draw_series(LineSeries::new(
+            c.points.iter().copied(),
+            style.stroke_width(3),
+        ))?;
+    }
     drop(chart);
     let mut classes: Vec<(usize, String, RGBColor)> = Vec::new();
     for c in cells.values() {
@@ -206,9 +226,41 @@ pub fn regime_map(
         .into_iter()
         .map(|(_, n, c)| (n, LegendMark::Swatch(c)))
         .collect();
+    let mut entries = entries;
+    let mut kinds: Vec<&str> = Vec::new();
+    for c in curves {
+        if !kinds.contains(&c.kind.as_str()) {
+            kinds.push(&c.kind);
+            entries.push((
+                format!("curve: {}", c.label),
+                LegendMark::Line(curve_style(&c.kind)),
+            ));
+        }
+    }
     legend_panel(&right, "regime", &entries)?;
     left.present()?;
     Ok(())
+}
+
+/// A computed curve drawn on a map: its points in the map's coordinates.
+#[derive(Debug, Clone)]
+pub struct Curve {
+    /// Legend label.
+    pub label: String,
+    /// Bifurcation type (its colour).
+    pub kind: String,
+    /// Points `(x, y)` in the map's axes.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// The colour of a bifurcation curve by type.
+fn curve_style(kind: &str) -> RGBColor {
+    match kind {
+        "period-doubling" => RGBColor(120, 0, 160),
+        "fold" => RGBColor(0, 0, 0),
+        "neimark-sacker" => RGBColor(0, 110, 0),
+        _ => RGBColor(0, 90, 200),
+    }
 }
 
 /// The `z = 1/1` cells coloured by `F_i/mg` with a colour bar, other cells light grey
@@ -480,9 +532,11 @@ pub fn bifurcation(
 }
 
 impl GridFigures for Peterka {
-    fn draw(job: &mut Finish<'_>, _summary: ()) -> Result<()> {
+    fn draw(job: &mut Finish<'_>, curves: Vec<CurveOut>) -> Result<()> {
         let (outputs, meta, csv, figures) = (&mut *job.outputs, job.meta, job.rows, job.figures);
-        let Figures { plot, force_plot } = figures;
+        let Figures {
+            plot, force_plot, ..
+        } = figures;
         if plot.is_none() && force_plot.is_none() {
             return Ok(());
         }
@@ -526,7 +580,15 @@ impl GridFigures for Peterka {
                 "{} — impact regime z = p/q (Peterka map)",
                 title_prefix(meta)
             );
-            regime_map(&tmp, &title, &x, &y, &cells)?;
+            let curves: Vec<Curve> = curves
+                .iter()
+                .map(|c| Curve {
+                    label: format!("{} of {}", c.kind.replace("period-doubling", "doubling"), c.regime),
+                    kind: c.kind.clone(),
+                    points: c.points.iter().map(|p| (p[0], p[1] / a0_mm)).collect(),
+                })
+                .collect();
+            regime_map(&tmp, &title, &x, &y, &cells, &curves)?;
         }
         if let Some(p) = force_plot {
             let tmp = outputs.reserve(p)?;

@@ -47,7 +47,9 @@ fn marker(chart: &mut Chart<'_, '_>, kind: &str, at: (f64, f64), color: RGBColor
     let style = ShapeStyle::from(color).stroke_width(2);
     match kind {
         "fold" => chart.draw_series([TriangleMarker::new(at, 8, style)])?,
-        "grazing" => chart.draw_series([EmptyElement::at(at) + Rectangle::new([(-6, -6), (6, 6)], style)])?,
+        "grazing" => {
+            chart.draw_series([EmptyElement::at(at) + Rectangle::new([(-6, -6), (6, 6)], style)])?
+        }
         "neimark-sacker" => chart.draw_series([Cross::new(at, 7, style)])?,
         _ => chart.draw_series([Circle::new(at, 7, style)])?,
     };
@@ -69,12 +71,7 @@ fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, bool, Regime)]) -> Res
         if stable {
             chart.draw_series(LineSeries::new(line, c.stroke_width(2)))?;
         } else {
-            chart.draw_series(DashedLineSeries::new(
-                line,
-                6,
-                5,
-                c.stroke_width(2),
-            ))?;
+            chart.draw_series(DashedLineSeries::new(line, 6, 5, c.stroke_width(2)))?;
         }
         start = end;
     }

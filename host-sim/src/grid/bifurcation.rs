@@ -10,14 +10,14 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use clap::ValueEnum;
+use nalgebra::Vector2;
 use serde::{Deserialize, Serialize};
 use shared::Real;
 use shared::analysis::Sweep;
-use nalgebra::Vector2;
 use shared::analysis::simulator_at;
-use shared::orbit::{LabelSettings, MapPoint, label};
 use shared::integrate::{PhaseTable, Simulator};
 use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
+use shared::orbit::{LabelSettings, MapPoint, label};
 
 use super::{Finish, GridKind};
 use crate::config::Setup;

@@ -128,6 +128,8 @@ pub struct Figures<'a> {
     pub plot: Option<&'a Path>,
     /// Peterka only: the `z = 1/1` region coloured by `F_i/mg`.
     pub force_plot: Option<&'a Path>,
+    /// Peterka only: the CSV of the curves bounding the `1/1` region (`--boundaries`).
+    pub boundaries: Option<&'a Path>,
 }
 
 /// A gridded analysis that runs whole or in shards and whose shards merge into the one-run
@@ -280,6 +282,7 @@ pub fn command<K: GridKind>(
         let asked: Vec<&str> = [
             ("--plot", figures.plot),
             ("--force-plot", figures.force_plot),
+            ("--boundaries-out", figures.boundaries),
         ]
         .iter()
         .filter_map(|(flag, p)| p.map(|_| *flag))

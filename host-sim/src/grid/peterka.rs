@@ -2,16 +2,20 @@
 //! frequency grid, from rest at every point (canonical protocol), and the `z = 1/1` region
 //! coloured by `F_i/mg`.
 
-use anyhow::Result;
+use std::path::Path;
+
+use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::analysis::Sweep;
 use shared::observe::{PointResult, Regime};
-use shared::orbit::LabelSettings;
+use shared::orbit::{LabelSettings, MapPoint};
 
 use super::{Finish, GridKind};
 use crate::config::Setup;
+use crate::orbits::{CurveOut, boundary_curves, curve_rows};
+use crate::output::write_csv;
 use crate::runner::{OperatingPoint, evaluate_batch, evaluate_batch_labelled};
-use crate::shard::{Indexed, Kind};
+use crate::shard::{Indexed, Kind, Meta, open_csv};
 
 /// Largest Peterka grid, points.
 pub const MAX_POINTS: u64 = 100_000_000;
@@ -50,6 +54,9 @@ pub struct PeterkaGrid {
     /// `lyapunov_per_period`; `--lyapunov`).
     #[serde(default)]
     pub lyapunov: bool,
+    /// Whether the curves that bound the `1/1` region are computed (`--boundaries`).
+    #[serde(default)]
+    pub boundaries: bool,
 }
 
 impl PeterkaGrid {
@@ -186,9 +193,70 @@ impl GridKind for Peterka {
     type Grid = PeterkaGrid;
     type Row = PeterkaRow;
 
-    type Summary = ();
+    /// The boundary curves of the `1/1` region (empty unless asked for).
+    type Summary = Vec<CurveOut>;
 
-    fn finish(_job: &mut Finish<'_>) -> Result<()> {
-        Ok(())
+    fn finish(job: &mut Finish<'_>) -> Result<Vec<CurveOut>> {
+        let grid = job.meta.grid::<PeterkaGrid>()?;
+        if !grid.boundaries {
+            return Ok(Vec::new());
+        }
+        let curves = boundaries(job.meta, &grid, job.rows)?;
+        if let Some(p) = job.figures.boundaries {
+            let tmp = job.outputs.reserve(p)?;
+            write_csv(&tmp, &curve_rows(&curves))?;
+        }
+        Ok(curves)
     }
+}
+
+/// Gap rows seeded for the boundary curves, at most.
+const BOUNDARY_SEEDS: usize = 8;
+
+/// The curves bounding the `1/1` region of the complete grid in `rows`: seeded at up to
+/// [`BOUNDARY_SEEDS`] gap rows evenly spread among those with `1/1` points (at each, its
+/// strongest `1/1` point), then continued in the (`Ω/ω`, gap) plane over the grid's box
+/// ([`crate::orbits::boundary_curves`]).
+///
+/// # Errors
+/// Unreadable rows, Ctrl-C.
+pub fn boundaries(meta: &Meta, grid: &PeterkaGrid, rows: &Path) -> Result<Vec<CurveOut>> {
+    let a0_mm = meta.params.amplitude_m * 1e3;
+    let fn_hz = meta.params.natural_freq_hz();
+    let ng = grid.gap.sweep.len();
+    // The strongest 1/1 point of each gap row.
+    let mut best: Vec<Option<(f64, f64)>> = vec![None; ng];
+    let mut force = vec![f64::NEG_INFINITY; ng];
+    for row in open_csv::<PeterkaRow>(rows)?.deserialize::<PeterkaRow>() {
+        let row = row.with_context(|| format!("{}: malformed row", rows.display()))?;
+        let (ig, _) = grid.split(row.index as usize);
+        if row.regime == Regime::ONE_ONE && row.impact_force_mg > force[ig] {
+            force[ig] = row.impact_force_mg;
+            best[ig] = Some((row.gap_mm * 1e-3, row.omega_ratio));
+        }
+    }
+    let with: Vec<(f64, f64)> = best.into_iter().flatten().collect();
+    let n = with.len().min(BOUNDARY_SEEDS);
+    let seeds: Vec<(f64, f64)> = (0..n)
+        .map(|k| {
+            with[if n > 1 {
+                k * (with.len() - 1) / (n - 1)
+            } else {
+                0
+            }]
+        })
+        .collect();
+    let (r0, _) = grid.freq(0, fn_hz);
+    let (r1, _) = grid.freq(grid.freq.sweep.len() - 1, fn_hz);
+    let (g0, _) = grid.gap(0, a0_mm);
+    let (g1, _) = grid.gap(ng - 1, a0_mm);
+    let base = MapPoint {
+        params: meta.params,
+        settings: meta.settings,
+        gap_m: g0 * 1e-3,
+        omega_ratio: r0,
+    };
+    crate::with_precision!(meta.precision, T => {
+        boundary_curves::<T>(&base, &seeds, [r0, r1], [g0 * 1e-3, g1 * 1e-3])
+    })
 }

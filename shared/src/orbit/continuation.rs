@@ -339,6 +339,20 @@ fn critical(kind: EventKind, f: &Floquet) -> Multiplier {
     }
 }
 
+/// How far a located multiplier may lie from its critical value (+1 for a fold, −1 for a
+/// doubling, the unit circle for a Neimark–Sacker) for the test's change of sign to be a
+/// bifurcation rather than a jump of the monodromy between two orbits of the branch.
+pub const CRITICAL_TOL: f64 = 0.05;
+
+fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
+    match kind {
+        EventKind::Fold => libm::hypot(mu.re - 1.0, mu.im),
+        EventKind::PeriodDoubling => libm::hypot(mu.re + 1.0, mu.im),
+        EventKind::NeimarkSacker => libm::fabs(libm::hypot(mu.re, mu.im) - 1.0),
+        EventKind::Grazing => 0.0,
+    }
+}
+
 /// Continues the branch through `start` (a converged orbit) in `settings.param`, towards
 /// increasing values if `direction > 0` (else decreasing), or along `initial_tangent` if given
 /// (in the scaled unknowns `(x₀/s₀, x₁/s₁, λ/s_λ)`: branch switching). Every accepted point goes
@@ -399,8 +413,7 @@ pub fn continue_branch<T: Real>(
             if h < settings.step_min {
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
-                if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front())
-                {
+                if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
                     let _ = on_event(&BifEvent {
                         kind: EventKind::Grazing,
                         value,
@@ -477,11 +490,18 @@ pub fn continue_branch<T: Real>(
                     let v = tests(&e.orbit)[k];
                     !v.is_finite() || (v > 0.0) == side_a
                 });
+                let mu = critical(kind, &ev.e.orbit.floquet);
+                // A test function can also change sign by a jump of the monodromy (a kink of
+                // the discretised map): the located multiplier is then far from its critical
+                // value, and that is no bifurcation.
+                if critical_distance(kind, mu) > CRITICAL_TOL {
+                    continue;
+                }
                 let _ = found.push(BifEvent {
                     kind,
                     value: ev.z[2] * s_lambda,
                     orbit: ev.e.orbit,
-                    critical: critical(kind, &ev.e.orbit.floquet),
+                    critical: mu,
                     impacts_beyond: ev.e.orbit.trace.impacts,
                 });
             }

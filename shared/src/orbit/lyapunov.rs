@@ -158,9 +158,8 @@ pub fn orbit_exponent<T: Real>(
 ) -> Result<(Exponent, Vector2<T>), ParamError> {
     let (a, ma) = super::map::tangent(at, q, x0)?;
     let (b, mb) = super::map::tangent(at, q, a.x)?;
-    let rate = |m: &[[f64; 2]; 2]| {
-        libm::log(super::floquet::Floquet::of(m).max_abs()) / f64::from(q)
-    };
+    let rate =
+        |m: &[[f64; 2]; 2]| libm::log(super::floquet::Floquet::of(m).max_abs()) / f64::from(q);
     let (first, second) = (rate(&ma), rate(&mb));
     Ok((
         Exponent {

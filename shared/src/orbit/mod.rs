@@ -6,6 +6,7 @@
 //! adds to a regime label ([`label`]).
 
 pub mod continuation;
+pub mod curve;
 pub mod edges;
 pub mod floquet;
 pub mod label;
@@ -18,6 +19,7 @@ pub use continuation::{
     BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, continue_branch,
     doubling_start,
 };
+pub use curve::{CurveEnd, CurvePoint, CurveSettings, continue_curve};
 pub use edges::{Edge, band_edges};
 pub use floquet::{Floquet, Multiplier};
 pub use label::{Label, LabelSettings, label};

@@ -23,13 +23,8 @@ pub fn settle<T: Real>(
     v0_m_s: f64,
 ) -> Result<(PointResult, Vector2<T>), ParamError> {
     let table = PhaseTable::<T>::new(at.settings.steps.steps_per_period)?;
-    let mut sim = crate::analysis::simulator_at(
-        &at.params,
-        at.gap_m,
-        at.omega_ratio,
-        &at.settings,
-        &table,
-    )?;
+    let mut sim =
+        crate::analysis::simulator_at(&at.params, at.gap_m, at.omega_ratio, &at.settings, &table)?;
     sim.reset_relative(u0_m, v0_m_s)?;
     let result = run_protocol(
         &mut sim,
@@ -46,13 +41,8 @@ pub fn settle<T: Real>(
 /// [`ParamError`]: an invalid point.
 pub fn relative<T: Real>(at: &MapPoint, x: &Vector2<T>) -> Result<(f64, f64), ParamError> {
     let table = PhaseTable::<T>::new(at.settings.steps.steps_per_period)?;
-    let sim = crate::analysis::simulator_at(
-        &at.params,
-        at.gap_m,
-        at.omega_ratio,
-        &at.settings,
-        &table,
-    )?;
+    let sim =
+        crate::analysis::simulator_at(&at.params, at.gap_m, at.omega_ratio, &at.settings, &table)?;
     let (u, du) = sim.hammer().relative(x);
     Ok((u.to_f64(), du.to_f64()))
 }
@@ -63,13 +53,8 @@ pub fn relative<T: Real>(at: &MapPoint, x: &Vector2<T>) -> Result<(f64, f64), Pa
 /// [`ParamError`]: an invalid point, a state out of range.
 pub fn state_of<T: Real>(at: &MapPoint, u_m: f64, du_m_s: f64) -> Result<Vector2<T>, ParamError> {
     let table = PhaseTable::<T>::new(at.settings.steps.steps_per_period)?;
-    let sim = crate::analysis::simulator_at(
-        &at.params,
-        at.gap_m,
-        at.omega_ratio,
-        &at.settings,
-        &table,
-    )?;
+    let sim =
+        crate::analysis::simulator_at(&at.params, at.gap_m, at.omega_ratio, &at.settings, &table)?;
     sim.hammer().state_from_relative(u_m, du_m_s)
 }
 
