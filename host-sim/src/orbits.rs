@@ -694,8 +694,9 @@ pub fn boundary_curves<T: Real>(
             .points
             .iter()
             .filter(|&&p| {
-                kept.iter()
-                    .any(|k| k.kind == c.kind && near_polyline(&k.points, p, scale, KNOWN_CURVE_TOL))
+                kept.iter().any(|k| {
+                    k.kind == c.kind && near_polyline(&k.points, p, scale, KNOWN_CURVE_TOL)
+                })
             })
             .count();
         if 2 * on <= c.points.len() {

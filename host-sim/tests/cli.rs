@@ -368,3 +368,118 @@ fn a_reader_that_stops_early_ends_the_command_quietly() {
     assert_eq!(out.status.signal(), Some(13), "{:?}: {stderr}", out.status);
     assert!(stderr.is_empty(), "{stderr}");
 }
+
+#[test]
+fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
+    let v: serde_json::Value = serde_json::from_str(&ok(&line(
+        "orbit --rig wires --gap-mm 0 --omega-ratio 2.0 --precision f64 --json",
+    )))
+    .unwrap();
+    let o = &v["orbit"];
+    assert_eq!(o["regime"], "1/1");
+    // The orbit's multipliers are a complex pair of modulus 0.3169 (f64); the exponent of a
+    // periodic orbit is ln max|μ| / q, the margin 1 − max|μ|.
+    let mu = o["max_abs_multiplier"].as_f64().unwrap();
+    assert!((mu - 0.3169).abs() < 2e-3, "max|μ| {mu}");
+    let m = o["multipliers"].as_array().unwrap();
+    let (re, im) = (m[0][0].as_f64().unwrap(), m[0][1].as_f64().unwrap());
+    assert!((re.hypot(im) - mu).abs() < 1e-12 && im != 0.0);
+    assert!((o["lyapunov_per_period"].as_f64().unwrap() - mu.ln()).abs() < 1e-12);
+    assert!((o["margin"].as_f64().unwrap() - (1.0 - mu)).abs() < 1e-12);
+    assert_eq!(o["stable"], true);
+    // Asked at q = 3, the fixed point of P³ is the same orbit: reported at its minimal period.
+    let v3: serde_json::Value = serde_json::from_str(&ok(&line(
+        "orbit --rig wires --gap-mm 0 --omega-ratio 2.0 --precision f64 --q 3 --json",
+    )))
+    .unwrap();
+    assert_eq!(v3["orbit"]["regime"], "1/1");
+    for k in 0..2 {
+        let (a, b) = (
+            v3["orbit"]["section"][0][k].as_f64().unwrap(),
+            o["section"][0][k].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 1e-9 * b.abs(), "{a} vs {b}");
+    }
+}
+
+#[test]
+fn continue_writes_the_branch_with_located_events_and_rejects_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("c.csv");
+    let png = dir.path().join("c.png");
+    let args = format!(
+        "continue --rig wires --gap-mm 0 --omega-ratio 2.0 --range 1.0:3.0 --follow-doublings 1 \
+         --background-points 40 --out {} --plot {}",
+        csv.display(),
+        png.display()
+    );
+    let text = ok(&line(&args));
+    assert!(text.contains("period-doubling at Ω/ω 2.660"), "{text}");
+    assert!(text.contains("grazing at Ω/ω 1.1516"), "{text}");
+    let body = fs::read_to_string(&csv).unwrap();
+    let mut rows = body.lines();
+    assert_eq!(
+        rows.next().unwrap(),
+        "branch,parent,direction,omega_ratio,freq_hz,gap_mm,u_mm,du_mm_s,regime,\
+         impact_force_mg,mu1_re,mu1_im,mu2_re,mu2_im,max_abs_mu,stable,event"
+    );
+    let events: Vec<Vec<&str>> = rows
+        .map(|r| r.split(',').collect::<Vec<_>>())
+        .filter(|c| !c[16].is_empty())
+        .collect();
+    let find = |kind: &str, regime: &str| {
+        events
+            .iter()
+            .find(|c| c[16] == kind && c[8] == regime)
+            .unwrap_or_else(|| panic!("no {kind} of {regime} in {events:?}"))
+    };
+    // The 1/1 band's upper edge: a period doubling at Ω/ω 2.66037 (f64; f32 within its own
+    // resolution), the critical multiplier −1; its lower edge: a grazing at 1.15169.
+    let pd = find("period-doubling", "1/1");
+    let value = pd[3].parse::<f64>().unwrap();
+    assert!((value - 2.66037).abs() < 1e-3, "{value}");
+    assert!((pd[10].parse::<f64>().unwrap() + 1.0).abs() < 0.01);
+    let graze = find("grazing", "1/1");
+    assert!((graze[3].parse::<f64>().unwrap() - 1.15169).abs() < 1e-3);
+    // The doubled branch (parent 0) doubles again at 2.82916.
+    let pd2 = find("period-doubling", "2/2");
+    assert_eq!(pd2[1], "0");
+    assert!((pd2[3].parse::<f64>().unwrap() - 2.82916).abs() < 1e-3);
+    assert!(fs::metadata(&png).unwrap().len() > 10_000);
+
+    let out = dir.path().join("bad.csv");
+    rejected(
+        &line(&format!(
+            "continue --rig wires --omega-ratio 2.0 --range 3:1 --out {}",
+            out.display()
+        )),
+        &["--range"],
+        &[&out],
+    );
+    rejected(
+        &line(&format!(
+            "continue --rig wires --omega-ratio 2.0 --range 1:nan --out {}",
+            out.display()
+        )),
+        &["--range", "finite"],
+        &[&out],
+    );
+    rejected(
+        &line(&format!(
+            "continue --rig wires --gap-mm -1 --omega-ratio 2.0 --range 1:3 --out {}",
+            out.display()
+        )),
+        &["gap_mm", "0 ..= 50"],
+        &[&out],
+    );
+    // No orbit at the start: the protocol from rest sees no period (the 1.0 mm response's
+    // chaotic point) and none was given.
+    rejected(
+        &line(&format!(
+            "continue --rig wires --gap-mm 1.0 --omega-ratio 2.33 --range 2:3 --out {}",
+            out.display()
+        )),
+        &["no periodic orbit at Ω/ω 2.33"],
+        &[&out],
+    );
+}

@@ -503,3 +503,73 @@ fn ctrl_c_stops_and_leaves_no_file() {
     assert!(!out.exists() && !png.exists());
     assert!(leftovers(dir.path()).is_empty(), "temporary files left");
 }
+
+#[test]
+fn peterka_boundary_curves_start_at_the_located_edges_and_merge_from_shards() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let grid = "peterka --rig wires --gap-mm 0:0.6:0.2 --omega-ratio 1.0:3.0:0.1";
+    let one = d.join("b-one.csv");
+    ok(&line(&format!(
+        "{grid} --out {} --boundaries-out {}",
+        s(&d.join("one.csv")),
+        s(&one)
+    )));
+    let rows = read_rows(&one);
+    // Each curve, from its point at gap 0: the 1/1 band's period doubling at Ω/ω 2.66037 and
+    // grazing at 1.15170 (f64; f32 within 1e-3), both going on into the gap.
+    let curve = |kind: &str| -> Vec<(f64, f64)> {
+        rows.iter()
+            .filter(|r| &r[1] == kind && &r[2] == "1/1")
+            .map(|r| (r[3].parse().unwrap(), r[4].parse().unwrap()))
+            .collect()
+    };
+    for (kind, at_zero) in [("period-doubling", 2.66037), ("grazing", 1.15170)] {
+        let c = curve(kind);
+        let start = c
+            .iter()
+            .find(|p| p.1 == 0.0)
+            .unwrap_or_else(|| panic!("no {kind} point at gap 0 in {c:?}"));
+        assert!(
+            (start.0 - at_zero).abs() < 1e-3,
+            "{kind} at gap 0: {start:?}"
+        );
+        // Both curves lean to lower Ω/ω as the gap grows (the map's 1/1 region narrows
+        // from the right and moves left at its lower edge); the grazing leaves the box at its
+        // left edge (Ω/ω 1.0, gap 0.15 mm).
+        let top = c.iter().max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+        assert!(top.1 > 0.1, "{kind} stays at gap 0: {c:?}");
+        assert!(top.0 < start.0 - 0.1, "{kind}: {top:?} vs {start:?}");
+    }
+    // Shards run with --boundaries, merged with --boundaries-out: the same curves.
+    let mut shards = Vec::new();
+    for i in 0..2 {
+        let p = d.join(format!("s{i}.csv"));
+        ok(&line(&format!(
+            "{grid} --boundaries --out {} --shard {i}/2",
+            s(&p)
+        )));
+        shards.push(p);
+    }
+    let merged = d.join("b-merged.csv");
+    ok(&line(&format!(
+        "merge --out {} --boundaries-out {} {} {}",
+        s(&d.join("m.csv")),
+        s(&merged),
+        s(&shards[1]),
+        s(&shards[0])
+    )));
+    assert_eq!(fs::read(&one).unwrap(), fs::read(&merged).unwrap());
+    // A shard cannot write them (its rows are a part of the grid).
+    let out = d.join("x.csv");
+    let bout = d.join("xb.csv");
+    rejected(
+        &line(&format!(
+            "{grid} --out {} --shard 0/2 --boundaries-out {}",
+            s(&out),
+            s(&bout)
+        )),
+        &["--boundaries-out"],
+        &[&out, &bout],
+    );
+}

@@ -163,6 +163,12 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
             protocol.regime,
             protocol.transient_periods
         );
+        if let Some(q) = a.point.q.filter(|&q| q != report.q) {
+            println!(
+                "  (asked q = {q}: the fixed point of P^{q} found is this orbit of minimal period {})",
+                report.q
+            );
+        }
         println!("{}", describe(&report));
     }
     Ok(())

@@ -52,8 +52,8 @@ pub struct PeterkaArgs {
     /// the --plot map.
     #[arg(long)]
     pub boundaries: bool,
-    /// With --boundaries: their CSV (curve, kind, regime, omega_ratio, gap_mm).
-    #[arg(long, requires = "boundaries")]
+    /// The boundary curves' CSV (curve, kind, regime, omega_ratio, gap_mm); implies --boundaries.
+    #[arg(long)]
     pub boundaries_out: Option<PathBuf>,
 }
 
@@ -91,7 +91,7 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
         gap,
         freq,
         lyapunov: a.lyapunov,
-        boundaries: a.boundaries,
+        boundaries: a.boundaries || a.boundaries_out.is_some(),
     };
     if grid.points() > MAX_POINTS {
         bail!(

@@ -583,7 +583,11 @@ impl GridFigures for Peterka {
             let curves: Vec<Curve> = curves
                 .iter()
                 .map(|c| Curve {
-                    label: format!("{} of {}", c.kind.replace("period-doubling", "doubling"), c.regime),
+                    label: format!(
+                        "{} of {}",
+                        c.kind.replace("period-doubling", "doubling"),
+                        c.regime
+                    ),
                     kind: c.kind.clone(),
                     points: c.points.iter().map(|p| (p[0], p[1] / a0_mm)).collect(),
                 })

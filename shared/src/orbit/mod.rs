@@ -26,4 +26,4 @@ pub use label::{Label, LabelSettings, label};
 pub use lyapunov::{Exponent, largest_exponent, largest_exponent_with, orbit_exponent};
 pub use map::{Image, MAX_Q, MapPoint, Param, Trace, iterate, samples, tangent};
 pub use shooting::{Orbit, OrbitError, ShootSettings, shoot};
-pub use start::{orbit_from, relative, settle, state_of};
+pub use start::{minimal_period, orbit_from, relative, settle, state_of};

@@ -4,8 +4,8 @@
 
 use nalgebra::Vector2;
 
-use super::map::MapPoint;
-use super::shooting::{Orbit, OrbitError, ShootSettings, shoot};
+use super::map::{MapPoint, iterate};
+use super::shooting::{Orbit, OrbitError, ShootSettings, scaled_norm, shoot};
 use crate::error::ParamError;
 use crate::integrate::PhaseTable;
 use crate::observe::{PointResult, Regime, run_protocol};
@@ -79,5 +79,33 @@ pub fn orbit_from<T: Real>(
         (None, Regime::NoImpact) => 1,
         (None, regime) => return Err(OrbitError::NoPeriod { regime }),
     };
-    Ok((result, shoot(at, q, x, settings)?))
+    let orbit = shoot(at, q, x, settings)?;
+    Ok((result, minimal_period(at, orbit, settings)))
+}
+
+/// The orbit at its minimal period: a fixed point of `P^q` that is already one of `P^d`
+/// (`d` a proper divisor of `q`, the scaled residual of `P^d(x) − x` within Newton's
+/// tolerance) is the `d`-periodic orbit, re-converged at `d` (so that a `1/1` orbit asked at
+/// `q = 3` is reported as `1/1`, not `3/3`).
+pub fn minimal_period<T: Real>(
+    at: &MapPoint,
+    orbit: Orbit<T>,
+    settings: &ShootSettings,
+) -> Orbit<T> {
+    let scales = at.scales();
+    for d in (1..orbit.q).filter(|d| orbit.q % d == 0) {
+        let Ok(img) = iterate(at, d, orbit.x) else {
+            continue;
+        };
+        let r = [
+            img.x[0].to_f64() - orbit.x[0].to_f64(),
+            img.x[1].to_f64() - orbit.x[1].to_f64(),
+        ];
+        if scaled_norm(r, scales) <= settings.tolerance {
+            if let Ok(o) = shoot(at, d, orbit.x, settings) {
+                return o;
+            }
+        }
+    }
+    orbit
 }
