@@ -19,7 +19,11 @@ $h select --rig wires --gap-mm 0 --out "$f/select-wires-gap0.csv" --plot "$f/sel
 $h select --rig beam-170 --gap-mm 0 --out "$f/select-beam-170-gap0.csv" --plot "$f/select-beam-170-gap0.png"
 $h basins --rig wires --gap-mm 1.335 --omega-ratio 2.0 --u0-mm -4:1.335:200 --v0-mm-s -100:100:200 \
     --out /tmp/basins.csv --plot "$f/basins-wires-ratio2.00-gapA1.50.png"
-$h peterka --rig wires --gap-mm 0:3.42:0.01 --freq-hz 1:7.11:0.01 \
+$h peterka --rig wires --gap-mm 0:3.42:0.01 --freq-hz 1:7.11:0.01 --boundaries \
     --out /tmp/peterka.csv --plot "$f/peterka-wires.png" --force-plot "$f/peterka-wires-f11.png"
+$h continue --rig wires --gap-mm 0 --omega-ratio 2.0 --range 1.0:3.0 --follow-doublings 2 \
+    --out /tmp/continue-wires.csv --plot "$f/continue-wires-gap0.0.png"
+$h continue --rig beam-170 --gap-mm 3.0 --omega-ratio 1.35 --also-at 1.7 --precision f64 \
+    --range 1.0:2.0 --out /tmp/continue-beam.csv --plot "$f/continue-beam-170-gap3.0.png"
 $h simulate --rig wires --gap-mm 0 --omega-ratio 2.01 --periods 6 \
     --out /tmp/simulate-wires.csv --plot "$f/simulate-wires-gap0-2.01.png"

@@ -8,18 +8,47 @@
 //! f64×4: what f32 costs) or `ref` (f64×4 vs f64×8: the reference's own reproducibility).
 //! In the `f32` and `f64` modes the points are also run with f64×8, and the agreement is
 //! reported again over the points where the reference is converged (×4 and ×8 agree): the
-//! others have no settled answer to agree with.
+//! others have no settled answer to agree with. A fourth argument `labels` compares the labels
+//! that the largest Lyapunov exponent gives (as `response` and `bifurcation` print them:
+//! `chaotic`, or the period an extended run finds) instead of the protocol's.
 
 use rayon::prelude::*;
-use shared::analysis::{SimSettings, evaluate_point};
-use shared::model::RigId;
-use shared::observe::Regime;
+use shared::Real;
+use shared::analysis::SimSettings;
+use shared::model::{RigId, RigParams};
+use shared::observe::{PointResult, Regime};
+use shared::orbit::{LabelSettings, MapPoint, label, settle};
+
+/// The protocol's result from rest at `(gap_m, Ω/ω)`, its regime replaced by the exponent's
+/// label if `labelled`.
+fn evaluate<T: Real>(
+    params: &RigParams,
+    gap_m: f64,
+    omega_ratio: f64,
+    settings: &SimSettings,
+    labelled: bool,
+) -> PointResult {
+    let at = MapPoint {
+        params: *params,
+        settings: *settings,
+        gap_m,
+        omega_ratio,
+    };
+    let (mut r, x) = settle::<T>(&at, 0.0, 0.0).expect("valid point");
+    if labelled {
+        r.regime = label::<T>(&at, &r, x, &LabelSettings::default())
+            .expect("valid point")
+            .regime;
+    }
+    r
+}
 
 fn main() {
     let mut args = std::env::args().skip(1);
     let n: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(2000);
     let mut seed: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(777);
     let mode = args.next().unwrap_or_else(|| "f32".into());
+    let labelled = args.next().as_deref() == Some("labels");
     let p = RigId::Wires.preset();
     let base = SimSettings::default();
     let (s, r) = match mode.as_str() {
@@ -45,17 +74,14 @@ fn main() {
         .par_iter()
         .map(|&(g, f)| {
             let a = if mode == "f32" {
-                evaluate_point::<f32>(&p, g * 1e-3, f / fn_hz, &s)
+                evaluate::<f32>(&p, g * 1e-3, f / fn_hz, &s, labelled)
             } else {
-                evaluate_point::<f64>(&p, g * 1e-3, f / fn_hz, &s)
-            }
-            .expect("valid point");
-            let b = evaluate_point::<f64>(&p, g * 1e-3, f / fn_hz, &r).expect("valid point");
+                evaluate::<f64>(&p, g * 1e-3, f / fn_hz, &s, labelled)
+            };
+            let b = evaluate::<f64>(&p, g * 1e-3, f / fn_hz, &r, labelled);
             // Whether the reference is converged (in `ref` mode `b` is already ×8).
             let converged = mode == "ref"
-                || evaluate_point::<f64>(&p, g * 1e-3, f / fn_hz, &base.refined(8))
-                    .expect("valid point")
-                    .regime
+                || evaluate::<f64>(&p, g * 1e-3, f / fn_hz, &base.refined(8), labelled).regime
                     == b.regime;
             (g, f, a, b, converged)
         })
