@@ -14,6 +14,7 @@
 //! Physics: docs/model.md; equation numbers are the thesis'.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
+#![deny(unsafe_code)]
 
 #[cfg(any(test, feature = "std"))]
 extern crate std;

@@ -251,6 +251,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if self.avx {
             // SAFETY: the CPU supports AVX and AVX2 (checked in `new`).
+            #[allow(unsafe_code)]
             unsafe { self.run_avx() };
             return;
         }

@@ -219,6 +219,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if self.avx {
             // SAFETY: the CPU supports AVX and AVX2 (checked in `for_simulator`).
+            #[allow(unsafe_code)]
             return unsafe { self.run_avx(rounds) };
         }
         self.run_kernel(rounds)
