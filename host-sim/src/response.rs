@@ -39,6 +39,20 @@ pub struct ResponseRow {
     pub extra_periods: Option<u32>,
 }
 
+/// Every `(gap, Ω/ω)` of `gaps_m` (m) × `sweep`, gap outer.
+fn grid_points(gaps_m: &[f64], sweep: &Sweep) -> Vec<OperatingPoint> {
+    let n = sweep.len();
+    gaps_m
+        .iter()
+        .flat_map(|&g| {
+            (0..n).map(move |i| OperatingPoint {
+                gap_m: g,
+                omega_ratio: sweep.value(i),
+            })
+        })
+        .collect()
+}
+
 /// The responses at each gap of `gaps_m` (m) over `sweep`, all points in one parallel batch
 /// (progress bar labelled `what`, none if empty): one `Vec` of `sweep.len()` results per gap.
 ///
@@ -51,15 +65,7 @@ pub fn compute(
     what: &str,
 ) -> Result<Vec<Vec<PointResult>>> {
     let n = sweep.len();
-    let points: Vec<OperatingPoint> = gaps_m
-        .iter()
-        .flat_map(|&g| {
-            (0..n).map(move |i| OperatingPoint {
-                gap_m: g,
-                omega_ratio: sweep.value(i),
-            })
-        })
-        .collect();
+    let points = grid_points(gaps_m, sweep);
     let all = evaluate_all(setup, &points, what)?;
     Ok(all.chunks(n).map(<[PointResult]>::to_vec).collect())
 }
@@ -78,15 +84,7 @@ pub fn compute_labelled(
     settings: &LabelSettings,
 ) -> Result<Vec<(Vec<PointResult>, Vec<Label>)>> {
     let n = sweep.len();
-    let points: Vec<OperatingPoint> = gaps_m
-        .iter()
-        .flat_map(|&g| {
-            (0..n).map(move |i| OperatingPoint {
-                gap_m: g,
-                omega_ratio: sweep.value(i),
-            })
-        })
-        .collect();
+    let points = grid_points(gaps_m, sweep);
     let all = evaluate_all_labelled(setup, &points, what, settings)?;
     Ok(all
         .chunks(n)

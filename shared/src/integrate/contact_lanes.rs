@@ -252,7 +252,9 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         if self.avx {
             // SAFETY: the CPU supports AVX and AVX2 (checked in `new`).
             #[allow(unsafe_code)]
-            unsafe { self.run_avx() };
+            unsafe {
+                self.run_avx()
+            };
             return;
         }
         self.run_kernel();

@@ -244,7 +244,8 @@ fn zero_along<T: Real>(
 /// Each step predicts along the curve's tangent in the plane `(Ω/ω, gap/A0)` and finds the test
 /// function's zero across it (a bracketing search perpendicular to the tangent), the orbit at
 /// every trial found by Newton's method: the curve is located to 1e-6 in the plane (f64; f32
-/// 1e-4), across the test function's discretisation kinks.
+/// 1e-4), across the test function's discretisation kinks. A fold, which no line across it
+/// brackets, is marched in the other parameter and located on the branch at each step.
 pub fn continue_curve<T: Real>(
     event: &BifEvent<T>,
     param: Param,
