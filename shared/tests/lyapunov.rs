@@ -1,0 +1,198 @@
+//! Evidence for the largest Lyapunov exponent (`shared::orbit::lyapunov`) and the labels it
+//! refines (`shared::orbit::label`): on stable periodic orbits it is the largest multiplier's
+//! rate, at the wire rig's chaotic points it is positive and agrees with an independent
+//! two-trajectory estimate, and where the protocol's window sees no period but the exponent is
+//! negative, the extended run finds the period.
+//!
+//! `cargo test --release -p vibro-shared --test lyapunov -- --nocapture` prints every measured
+//! value.
+
+use nalgebra::Vector2;
+use shared::Real;
+use shared::analysis::SimSettings;
+use shared::model::{ContactLaw, ContactLawKind, RigId};
+use shared::observe::Regime;
+use shared::orbit::{
+    LabelSettings, MapPoint, ShootSettings, iterate, label, largest_exponent, orbit_exponent,
+    orbit_from, settle, shoot,
+};
+
+/// The wire rig's map (identified spring–dashpot law, host profile) at `gap_mm`, `omega_ratio`.
+fn wires(gap_mm: f64, omega_ratio: f64) -> MapPoint {
+    let mut params = RigId::Wires.preset();
+    params.contact = ContactLaw::preset(ContactLawKind::SpringDashpot);
+    MapPoint {
+        params,
+        settings: SimSettings::default(),
+        gap_m: gap_mm * 1e-3,
+        omega_ratio,
+    }
+}
+
+#[test]
+fn exponent_of_a_stable_orbit_is_its_largest_multipliers_rate() {
+    // Wire rig, 0.0 mm: the 1/1 orbit at Ω/ω 2.0 (a complex pair, |μ| 0.3169) and the 2/2
+    // orbit at 2.75 (real, μ = −0.3742 over two periods).
+    for (ratio, q) in [(2.0, 1), (2.75, 2)] {
+        let at = wires(0.0, ratio);
+        let (_, o) =
+            orbit_from::<f64>(&at, 0.0, 0.0, None, &ShootSettings::for_type::<f64>()).unwrap();
+        assert_eq!(o.q, q);
+        let expect = o.floquet.max_abs().ln() / f64::from(q);
+        // 4000 periods: the estimate's start-up (the first stretches of the tangent vector,
+        // as large as the non-normal M allows: up to |M| = 5 at 2/2) weighs 1/n; at 1000
+        // periods it still shifts the 2/2 estimate by 2.2e-3.
+        let (e, _) = largest_exponent(&at, o.x, 4000).unwrap();
+        let (oe, _) = orbit_exponent(&at, o.x, q).unwrap();
+        println!(
+            "Ω/ω {ratio} ({}/{q}): 4000 periods {:.5} (halves {:.5}, {:.5}), ln max|μ|/q {expect:.5} (orbit_exponent {:.2e} off)",
+            o.p(),
+            e.per_period,
+            e.first_half,
+            e.second_half,
+            oe.per_period - expect
+        );
+        // Measured: −1.14893 vs −1.14907 (1/1); −0.49099 vs −0.49154 (2/2).
+        assert!(
+            (e.per_period - expect).abs() < 1e-3,
+            "{} vs {expect}",
+            e.per_period
+        );
+        assert!(e.clearly_negative(3.0));
+        // `orbit_exponent` takes the rate from the monodromy at x0 and at P^q(x0) (the orbit to
+        // Newton's 1e-11): the same within 1e-9.
+        assert!(
+            (oe.per_period - expect).abs() < 1e-9,
+            "{} vs {expect}",
+            oe.per_period
+        );
+    }
+}
+
+/// The largest Lyapunov exponent per period from two nearby trajectories of [`iterate`]
+/// (Benettin et al. 1980): the second starts `d0` away (scaled norm, along the diagonal) and is
+/// brought back to `d0` along the separation after every period; the mean of `ln(d/d0)`.
+/// `d0` = 1e-6 of the cart's scales: well above the map's jumps (2e-8; tests/orbit.rs) and
+/// rounding, well below the attractor's size.
+fn two_trajectory_exponent(at: &MapPoint, x0: Vector2<f64>, periods: u32) -> f64 {
+    let d0 = 1e-6;
+    let s = at.scales();
+    let mut x = x0;
+    let mut dir = [0.5f64.sqrt(), 0.5f64.sqrt()];
+    let mut sum = 0.0;
+    for _ in 0..periods {
+        let near = Vector2::new(x[0] + d0 * dir[0] * s[0], x[1] + d0 * dir[1] * s[1]);
+        let y = iterate(at, 1, x).unwrap().x;
+        let z = iterate(at, 1, near).unwrap().x;
+        let d = [(z[0] - y[0]) / s[0], (z[1] - y[1]) / s[1]];
+        let n = d[0].hypot(d[1]);
+        sum += (n / d0).ln();
+        dir = [d[0] / n, d[1] / n];
+        x = y;
+    }
+    sum / f64::from(periods)
+}
+
+#[test]
+fn chaotic_exponents_are_positive_and_agree_with_two_trajectories() {
+    // Chaos in the 1/1 → 1/2 transition (thesis): wire rig, 1.0 mm at Ω/ω 2.33 and 2.4 mm at
+    // 2.20 (an irregular band of the 2.4 mm response, 1.6–2.4). From where the protocol
+    // stopped (on the attractor), 4000 periods both ways.
+    for (gap_mm, ratio) in [(1.0, 2.33), (2.4, 2.20)] {
+        let at = wires(gap_mm, ratio);
+        let (result, x) = settle::<f64>(&at, 0.0, 0.0).unwrap();
+        assert_eq!(result.regime, Regime::Irregular);
+        let l = label(&at, &result, x, &LabelSettings::default()).unwrap();
+        assert_eq!(l.regime, Regime::Chaotic);
+        let (e, _) = largest_exponent(&at, x, 4000).unwrap();
+        let b = two_trajectory_exponent(&at, x, 4000);
+        println!(
+            "{gap_mm} mm Ω/ω {ratio}: {:.4} ± {:.4} per period (4000 periods), two \
+             trajectories {b:.4}; 64-period window {:.4} ± {:.4}",
+            e.per_period,
+            e.uncertainty(),
+            l.exponent.per_period,
+            l.exponent.uncertainty()
+        );
+        // Measured: 0.3706 ± 0.0139 vs 0.3709 (1.0 mm); 0.1215 ± 0.0026 vs 0.1205 (2.4 mm).
+        assert!(e.clearly_positive(3.0), "{e:?}");
+        assert!(
+            (b - e.per_period).abs() < 0.25 * e.per_period,
+            "{b} vs {}",
+            e.per_period
+        );
+    }
+}
+
+/// The protocol's run at 1.0 mm and `ratio` from rest, refined by [`label`] (the window's
+/// regime, the label, its exponent, the periods the extended run took), and the state where
+/// the protocol stopped.
+fn extended_label<T: Real>(ratio: f64) -> (shared::orbit::Label, Vector2<T>) {
+    let at = wires(1.0, ratio);
+    let (result, x) = settle::<T>(&at, 0.0, 0.0).unwrap();
+    (
+        label(&at, &result, x, &LabelSettings::default()).unwrap(),
+        x,
+    )
+}
+
+#[test]
+fn negative_exponent_lets_the_extended_run_find_the_period() {
+    // Wire rig, 1.0 mm: the protocol's 64-period window sees no period q ≤ 16 at Ω/ω 2.97 and
+    // 2.86 (`irregular`), but the exponent is negative: a long transient onto a periodic orbit,
+    // whose period the run after the window finds (2/4 and 20/32).
+    let settings = LabelSettings::default();
+    for (ratio, p, q) in [(2.97, 2, 4), (2.86, 20, 32)] {
+        let (l32, _) = extended_label::<f32>(ratio);
+        let (l, x) = extended_label::<f64>(ratio);
+        println!(
+            "1.0 mm Ω/ω {ratio}: window {} → {} after {} more periods, exponent {:.4} ± {:.4} \
+             (f32: {} → {}, {:.4} ± {:.4})",
+            l.window_regime,
+            l.regime,
+            l.extra_periods,
+            l.exponent.per_period,
+            l.exponent.uncertainty(),
+            l32.window_regime,
+            l32.regime,
+            l32.exponent.per_period,
+            l32.exponent.uncertainty()
+        );
+        let periodic = Regime::Periodic {
+            p: u16::try_from(p).unwrap(),
+            q: u16::try_from(q).unwrap(),
+        };
+        for l in [l, l32] {
+            assert_eq!(l.window_regime, Regime::Irregular);
+            assert!(
+                l.exponent.clearly_negative(settings.sigmas),
+                "{:?}",
+                l.exponent
+            );
+            assert_eq!(l.regime, periodic);
+            assert!(l.extra_periods > 0 && l.extra_periods <= settings.max_periods);
+        }
+        // The period is a stable orbit's: where the extended run stopped (after the exponent's
+        // window and the extra periods, the same map), shooting with q converges to an orbit
+        // with p impacts and every |μ| < 1.
+        let at = wires(1.0, ratio);
+        let mut y = x;
+        for _ in 0..settings.window + l.extra_periods {
+            y = iterate(&at, 1, y).unwrap().x;
+        }
+        // (Newton to 1e-7 of the scales: at 2.97 the 2/4 orbit's fixed point of P^4 falls into
+        // one of the map's jumps, tests/orbit.rs, and the residual stalls at 1.6e-9.)
+        let newton = ShootSettings {
+            tolerance: 1e-7,
+            ..ShootSettings::for_type::<f64>()
+        };
+        let o = shoot(&at, q, y, &newton).unwrap();
+        println!(
+            "  the {p}/{q} orbit: max|μ| {:.4} (ln max|μ|/q = {:.5})",
+            o.floquet.max_abs(),
+            o.floquet.max_abs().ln() / f64::from(q)
+        );
+        assert_eq!(o.p(), p);
+        assert!(o.floquet.stable());
+    }
+}
