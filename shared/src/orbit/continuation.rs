@@ -576,7 +576,7 @@ fn grazing_end<T: Real>(
     } else {
         9.0 * s.grazing_near
     };
-    if !(g1 > -near) {
+    if g1.is_nan() || g1 <= -near {
         return None;
     }
     let impacts = last.e.orbit.trace.impacts;

@@ -151,7 +151,7 @@ impl Frame {
     /// the family's orbit does not exist (Newton fails, or finds one with another impact
     /// count) the test function's sign is all that is known: `+1` and no orbit.
     fn orbit<T: Real>(&self, p: [f64; 2], x: Vector2<T>) -> Option<(Option<Orbit<T>>, f64)> {
-        if !(p[1] >= 0.0) {
+        if p[1].is_nan() || p[1] < 0.0 {
             return None;
         }
         let at = self.point(p);
@@ -191,11 +191,11 @@ fn zero_along<T: Real>(
     let mut d = reach / 8.0;
     while d <= reach * 1.0001 && hi.is_none() {
         for s in [d, -d] {
-            if let Some((o, g)) = fr.orbit::<T>(at(s), x0) {
-                if (g > 0.0) != (g0 > 0.0) {
-                    hi = Some((s, g, o));
-                    break;
-                }
+            if let Some((o, g)) = fr.orbit::<T>(at(s), x0)
+                && (g > 0.0) != (g0 > 0.0)
+            {
+                hi = Some((s, g, o));
+                break;
             }
         }
         d *= 2.0;
@@ -311,7 +311,7 @@ pub fn continue_curve<T: Real>(
         return CurveEnd::NoStart;
     };
     let norm = libm::hypot(gr, gg);
-    if !(norm > 0.0) {
+    if norm.is_nan() || norm <= 0.0 {
         return CurveEnd::NoStart;
     }
     let mut t = [-gg / norm, gr / norm];
@@ -349,7 +349,7 @@ pub fn continue_curve<T: Real>(
                     let d = [q[0] - p[0], q[1] - p[1]];
                     let len = libm::hypot(d[0], d[1]);
                     let tn = [d[0] / len, d[1] / len];
-                    if !(len > 0.0) || tn[0] * t[0] + tn[1] * t[1] < 0.8 {
+                    if len.is_nan() || len <= 0.0 || tn[0] * t[0] + tn[1] * t[1] < 0.8 {
                         h *= 0.5;
                         continue;
                     }

@@ -10,6 +10,9 @@ use super::shooting::Orbit;
 use crate::real::Real;
 
 /// One edge of a band.
+// The event carries its orbit by value: `shared` has no allocator to box it, and an edge is
+// made twice per band.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Edge<T> {
     /// The bifurcation that ends the band there.

@@ -93,7 +93,7 @@ pub fn minimal_period<T: Real>(
     settings: &ShootSettings,
 ) -> Orbit<T> {
     let scales = at.scales();
-    for d in (1..orbit.q).filter(|d| orbit.q % d == 0) {
+    for d in (1..orbit.q).filter(|&d| orbit.q.is_multiple_of(d)) {
         let Ok(img) = iterate(at, d, orbit.x) else {
             continue;
         };
@@ -101,10 +101,10 @@ pub fn minimal_period<T: Real>(
             img.x[0].to_f64() - orbit.x[0].to_f64(),
             img.x[1].to_f64() - orbit.x[1].to_f64(),
         ];
-        if scaled_norm(r, scales) <= settings.tolerance {
-            if let Ok(o) = shoot(at, d, orbit.x, settings) {
-                return o;
-            }
+        if scaled_norm(r, scales) <= settings.tolerance
+            && let Ok(o) = shoot(at, d, orbit.x, settings)
+        {
+            return o;
         }
     }
     orbit
