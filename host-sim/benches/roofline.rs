@@ -28,7 +28,7 @@ use shared::integrate::{PhaseTable, Simulator, StepCounts};
 use shared::model::RigId;
 use shared::observe::ProtocolRun;
 
-use host_sim::grid::BATCH;
+use host_sim::runner::BATCH;
 
 /// Whole free-flight lane-steps per second per core, and seconds per lockstep round, with every
 /// lane busy.

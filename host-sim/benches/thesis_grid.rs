@@ -136,6 +136,7 @@ fn main() {
     let figures = Figures {
         plot: Some(&png),
         force_plot: None,
+        boundaries: None,
     };
     grid::run::<Basins, _>(&mut outputs, &meta, &out, figures, |batch| {
         basins::rows(&setup, &grid, batch)

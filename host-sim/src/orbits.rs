@@ -241,7 +241,9 @@ pub struct BranchOut {
 /// Ctrl-C; a report that cannot be made (not for converged orbits).
 pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<BranchOut>> {
     let settings = ContinuationSettings::new::<T>(spec.param, spec.range);
-    let mut todo: Vec<(Orbit<T>, Option<[f64; 3]>, f64, Option<usize>, u32)> = Vec::new();
+    // (start, initial tangent, direction, parent branch, doublings deep)
+    type Todo<T> = (Orbit<T>, Option<[f64; 3]>, f64, Option<usize>, u32);
+    let mut todo: Vec<Todo<T>> = Vec::new();
     if matches!(spec.direction, Direction::Up | Direction::Both) {
         todo.push((*start, None, 1.0, None, 0));
     }
@@ -687,7 +689,7 @@ pub fn boundary_curves<T: Real>(
     }
     // A curve traced from an early seed may stop short of where a later seed's trace of the
     // same curve goes on: of two such, the longer stays.
-    out.sort_by(|a, b| b.points.len().cmp(&a.points.len()));
+    out.sort_by_key(|c| std::cmp::Reverse(c.points.len()));
     let mut kept: Vec<CurveOut> = Vec::new();
     for c in out {
         let on = c

@@ -159,10 +159,8 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
             sum += stretch;
             running.push(sum / f64::from(k));
         })?;
-        let mut k = 0;
-        for r in rows.iter_mut().skip(1).filter(|r| r.poincare) {
+        for (k, r) in rows.iter_mut().skip(1).filter(|r| r.poincare).enumerate() {
             r.lyapunov_per_period = running.get(k).copied();
-            k += 1;
         }
         summary.lyapunov = Some((e.per_period, e.uncertainty()));
     }

@@ -239,7 +239,7 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
     let mut outputs = Outputs::new();
     if let Some(p) = &a.out {
         let tmp = outputs.reserve(p)?;
-        write_csv(&tmp, &orbits::rows(param, &branches))?;
+        write_csv(&tmp, orbits::rows(param, &branches))?;
     }
     if let Some(p) = &a.plot {
         let values = background_values(param, &branches, a.background_points);

@@ -213,13 +213,13 @@ pub fn from_rest(
     Ok(rows(setup, i, ratio, "rest", &r, &s, l))
 }
 
-/// Runs one continuation branch over `order` (sweep indices), writing rows without header.
+/// Runs one continuation branch `(name, order)` (`order`: sweep indices), writing rows without
+/// header.
 fn branch<T: Real>(
     setup: &Setup,
     gap_m: f64,
     sweep: &Sweep,
-    order: &[usize],
-    name: &str,
+    (name, order): (&str, &[usize]),
     lyapunov: bool,
     w: &mut csv::Writer<BufWriter<File>>,
     bar: &indicatif::ProgressBar,
@@ -284,13 +284,13 @@ pub fn continuation(
         Continuation::Both => vec![("up", &up), ("down", &down)],
     };
     let bar = progress(n * branches.len(), "bifurcation (continuation)");
-    let run_one = |(name, order): (&str, &[usize])| -> Result<tempfile::NamedTempFile> {
+    let run_one = |which: (&str, &[usize])| -> Result<tempfile::NamedTempFile> {
         let tmp = scratch(out, ".branch.csv")?;
         let mut w = csv::WriterBuilder::new()
             .has_headers(false)
             .from_writer(BufWriter::new(tmp.reopen()?));
         crate::with_precision!(setup.precision, T => {
-            branch::<T>(setup, gap_m, sweep, order, name, lyapunov, &mut w, &bar)
+            branch::<T>(setup, gap_m, sweep, which, lyapunov, &mut w, &bar)
         })?;
         Ok(tmp)
     };

@@ -204,7 +204,7 @@ impl GridKind for Peterka {
         let curves = boundaries(job.meta, &grid, job.rows)?;
         if let Some(p) = job.figures.boundaries {
             let tmp = job.outputs.reserve(p)?;
-            write_csv(&tmp, &curve_rows(&curves))?;
+            write_csv(&tmp, curve_rows(&curves))?;
         }
         Ok(curves)
     }
