@@ -16,9 +16,8 @@ use shared::orbit::{
 };
 
 use crate::config::Setup;
-use crate::grid::bifurcation::WindowSamples;
 use crate::interrupt;
-use crate::runner::progress;
+use crate::runner::{WindowSamples, progress};
 
 /// Where an orbit search starts.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -7,7 +7,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use shared::Real;
 use shared::analysis::{DEFAULT_LANES, evaluate_interleaved, evaluate_interleaved_ended};
-use shared::observe::PointResult;
+use shared::observe::{Observer, PointResult, StroboPoint};
 use shared::orbit::{Label, LabelSettings, MapPoint, label};
 
 use crate::config::Setup;
@@ -164,4 +164,28 @@ pub fn evaluate_all_labelled(
         .collect();
     bar.finish_and_clear();
     out
+}
+
+/// The window's Poincaré points (m, m/s) and impacts (period, peak N).
+#[derive(Debug, Default)]
+pub struct WindowSamples {
+    /// Poincaré points, in order.
+    pub strobes: Vec<(f64, f64)>,
+    /// Impacts: period of the window in which each ended, and its peak force (N).
+    pub impacts: Vec<(u32, f64)>,
+}
+
+impl<T: Real> Observer<T> for WindowSamples {
+    const SAMPLES: bool = false;
+    fn strobe(&mut self, p: &StroboPoint<T>, window: bool) {
+        if window {
+            self.strobes.push((p.u.to_f64(), p.du.to_f64()));
+        }
+    }
+    fn impact(&mut self, peak_n: T, window: bool) {
+        if window {
+            self.impacts
+                .push((self.strobes.len() as u32, peak_n.to_f64()));
+        }
+    }
 }

@@ -16,14 +16,14 @@ use shared::Real;
 use shared::analysis::Sweep;
 use shared::analysis::simulator_at;
 use shared::integrate::{PhaseTable, Simulator};
-use shared::observe::{Observer, PointResult, Regime, StroboPoint, run_protocol};
+use shared::observe::{PointResult, Regime, run_protocol};
 use shared::orbit::{LabelSettings, MapPoint, label};
 
 use super::{Finish, GridKind};
 use crate::config::Setup;
 use crate::interrupt;
 use crate::output::scratch;
-use crate::runner::progress;
+use crate::runner::{WindowSamples, progress};
 use crate::shard::{Indexed, Kind, create_csv};
 
 /// How the frequencies are visited.
@@ -84,30 +84,6 @@ pub struct BifRow {
 impl Indexed for BifRow {
     fn index(&self) -> u64 {
         self.index
-    }
-}
-
-/// The window's Poincaré points (m, m/s) and impacts (period, peak N).
-#[derive(Debug, Default)]
-pub struct WindowSamples {
-    /// Poincaré points, in order.
-    pub strobes: Vec<(f64, f64)>,
-    /// Impacts: period of the window in which each ended, and its peak force (N).
-    pub impacts: Vec<(u32, f64)>,
-}
-
-impl<T: Real> Observer<T> for WindowSamples {
-    const SAMPLES: bool = false;
-    fn strobe(&mut self, p: &StroboPoint<T>, window: bool) {
-        if window {
-            self.strobes.push((p.u.to_f64(), p.du.to_f64()));
-        }
-    }
-    fn impact(&mut self, peak_n: T, window: bool) {
-        if window {
-            self.impacts
-                .push((self.strobes.len() as u32, peak_n.to_f64()));
-        }
     }
 }
 
