@@ -81,3 +81,13 @@ pub fn rejected<S: AsRef<OsStr> + Debug>(args: &[S], needles: &[&str], outputs: 
         assert!(left.is_empty(), "temporary files left: {left:?}");
     }
 }
+
+/// Bad input files: for each `(file, args, text, needle)`, writes `text` to `file`, runs the
+/// command line `args` (which reads `file`) and asserts it is [`rejected`] naming `needle`
+/// with none of `outputs` written.
+pub fn rejected_files(cases: &[(&Path, &str, &str, &str)], outputs: &[&Path]) {
+    for (file, args, text, needle) in cases {
+        fs::write(file, text).unwrap();
+        rejected(&line(args), &[needle], outputs);
+    }
+}
