@@ -141,7 +141,7 @@ pub(crate) fn labelled_line(
 ) -> Result<()> {
     let style: ShapeStyle = style.into();
     chart
-        .draw_series(LineSeries::new(points, style.clone()))?
+        .draw_series(LineSeries::new(points, style))?
         .label(label)
         .legend(line_key(style));
     Ok(())

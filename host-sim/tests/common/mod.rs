@@ -7,7 +7,7 @@ use std::ffi::OsStr;
 use std::fmt::Debug;
 use std::fs;
 use std::io::{BufRead, BufReader};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Stdio};
 
 use assert_cmd::Command;
@@ -51,6 +51,13 @@ pub fn ok<S: AsRef<OsStr> + Debug>(args: &[S]) -> String {
         String::from_utf8_lossy(&out.stderr)
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Writes `text` to the file `name` in `dir` and returns its path.
+pub fn write_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    fs::write(&path, text).unwrap();
+    path
 }
 
 /// The names of the temporary output files (`.host-sim-*`) left in `dir`.
