@@ -46,6 +46,18 @@ impl Outputs {
     }
 }
 
+/// Writes one file whole or not at all: `write` fills a temporary file beside `target`
+/// (given its path), which then replaces `target`.
+///
+/// # Errors
+/// The folder is not writable, `write` failed, or the rename failed; `target` is untouched then.
+pub fn write_whole(target: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let mut outputs = Outputs::new();
+    let tmp = outputs.reserve(target)?;
+    write(&tmp)?;
+    outputs.commit()
+}
+
 /// A temporary file `.host-sim-…{suffix}` in `target`'s folder (so that renaming it onto
 /// `target` stays on one file system), mode `rw-r--r--`, removed when dropped.
 ///

@@ -4,9 +4,11 @@
 
 use anyhow::{Result, anyhow};
 use indicatif::{ProgressBar, ProgressStyle};
+use nalgebra::Vector2;
 use rayon::prelude::*;
 use shared::Real;
-use shared::analysis::{DEFAULT_LANES, evaluate_interleaved, evaluate_interleaved_ended};
+use shared::analysis::{DEFAULT_LANES, evaluate_interleaved_ended};
+use shared::error::ParamError;
 use shared::observe::{Observer, PointResult, StroboPoint};
 use shared::orbit::{Label, LabelSettings, MapPoint, label};
 
@@ -39,28 +41,39 @@ pub fn in_order<R>(
 }
 
 /// Runs the canonical protocol at every point of `points` on the calling thread,
+/// [`DEFAULT_LANES`] interleaved, in `T`, and ends each run with `finish(result, x_end)`
+/// (`x_end`: the state it ended on); results in order, an error naming its point.
+fn interleaved<T: Real, R>(
+    setup: &Setup,
+    points: &[OperatingPoint],
+    mut finish: impl FnMut(&OperatingPoint, PointResult, Vector2<T>) -> Result<R, ParamError>,
+) -> Vec<Result<R>> {
+    in_order(points.len(), |emit| {
+        evaluate_interleaved_ended::<T, DEFAULT_LANES, _, _>(
+            &setup.params,
+            &setup.settings,
+            points.iter().map(|p| (p.gap_m, p.omega_ratio)),
+            |i, r| {
+                let p = points[i];
+                let finished = r.and_then(|(result, x)| finish(&p, result, x));
+                emit(
+                    i,
+                    finished.map_err(|e| {
+                        anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
+                    }),
+                );
+            },
+        );
+    })
+}
+
+/// Runs the canonical protocol at every point of `points` on the calling thread,
 /// [`DEFAULT_LANES`] interleaved, in the setup's precision; results in order, identical to
 /// one-at-a-time [`shared::analysis::evaluate_point`].
 pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
-    fn go<T: Real>(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
-        in_order(points.len(), |emit| {
-            evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
-                &setup.params,
-                &setup.settings,
-                points.iter().map(|p| (p.gap_m, p.omega_ratio)),
-                |i, r| {
-                    let p = points[i];
-                    emit(
-                        i,
-                        r.map_err(|e| {
-                            anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
-                        }),
-                    );
-                },
-            );
-        })
-    }
-    crate::with_precision!(setup.precision, T => go::<T>(setup, points))
+    crate::with_precision!(setup.precision, T => {
+        interleaved::<T, _>(setup, points, |_, result, _| Ok(result))
+    })
 }
 
 /// A progress bar for `len` items on stderr, with rate and ETA (hidden when `what` is empty,
@@ -88,11 +101,24 @@ pub fn evaluate_all(
     points: &[OperatingPoint],
     what: &str,
 ) -> Result<Vec<PointResult>> {
+    in_parallel(points, what, |batch| evaluate_batch(setup, batch))
+}
+
+/// `run` over every [`BATCH`] of `points` in parallel with a progress bar (`what`,
+/// [`progress`]); the results in order.
+///
+/// # Errors
+/// The first invalid point.
+fn in_parallel<R: Send>(
+    points: &[OperatingPoint],
+    what: &str,
+    run: impl Fn(&[OperatingPoint]) -> Vec<Result<R>> + Sync,
+) -> Result<Vec<R>> {
     let bar = progress(points.len(), what);
     let out: Result<Vec<_>> = points
         .par_chunks(BATCH)
         .flat_map_iter(|batch| {
-            let r = evaluate_batch(setup, batch);
+            let r = run(batch);
             bar.inc(batch.len() as u64);
             r
         })
@@ -109,38 +135,17 @@ pub fn evaluate_batch_labelled(
     points: &[OperatingPoint],
     settings: &LabelSettings,
 ) -> Vec<Result<(PointResult, Label)>> {
-    fn go<T: Real>(
-        setup: &Setup,
-        points: &[OperatingPoint],
-        settings: &LabelSettings,
-    ) -> Vec<Result<(PointResult, Label)>> {
-        in_order(points.len(), |emit| {
-            evaluate_interleaved_ended::<T, DEFAULT_LANES, _, _>(
-                &setup.params,
-                &setup.settings,
-                points.iter().map(|p| (p.gap_m, p.omega_ratio)),
-                |i, r| {
-                    let p = points[i];
-                    let at = MapPoint {
-                        params: setup.params,
-                        settings: setup.settings,
-                        gap_m: p.gap_m,
-                        omega_ratio: p.omega_ratio,
-                    };
-                    let labelled = r.and_then(|(result, x)| {
-                        label::<T>(&at, &result, x, settings).map(|l| (result, l))
-                    });
-                    emit(
-                        i,
-                        labelled.map_err(|e| {
-                            anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
-                        }),
-                    );
-                },
-            );
+    crate::with_precision!(setup.precision, T => {
+        interleaved::<T, _>(setup, points, |p, result, x| {
+            let at = MapPoint {
+                params: setup.params,
+                settings: setup.settings,
+                gap_m: p.gap_m,
+                omega_ratio: p.omega_ratio,
+            };
+            label::<T>(&at, &result, x, settings).map(|l| (result, l))
         })
-    }
-    crate::with_precision!(setup.precision, T => go::<T>(setup, points, settings))
+    })
 }
 
 /// [`evaluate_all`] with [`evaluate_batch_labelled`].
@@ -153,17 +158,9 @@ pub fn evaluate_all_labelled(
     what: &str,
     settings: &LabelSettings,
 ) -> Result<Vec<(PointResult, Label)>> {
-    let bar = progress(points.len(), what);
-    let out: Result<Vec<_>> = points
-        .par_chunks(BATCH)
-        .flat_map_iter(|batch| {
-            let r = evaluate_batch_labelled(setup, batch, settings);
-            bar.inc(batch.len() as u64);
-            r
-        })
-        .collect();
-    bar.finish_and_clear();
-    out
+    in_parallel(points, what, |batch| {
+        evaluate_batch_labelled(setup, batch, settings)
+    })
 }
 
 /// The window's Poincaré points (m, m/s) and impacts (period, peak N).

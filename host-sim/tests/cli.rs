@@ -5,7 +5,7 @@ use std::fs;
 
 mod common;
 
-use common::{host_sim, line, ok, rejected, spawn_first_line};
+use common::{host_sim, line, ok, rejected, rejected_files, spawn_first_line};
 
 #[test]
 fn select_json_reports_the_operating_point() {
@@ -213,45 +213,25 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
     );
     rejected(&["select", "--rig", "beam-171"], &["unknown rig"], &[]);
 
+    // Bad input files: a config and an operating-point list.
     let cfg = dir.path().join("bad.toml");
-    fs::write(&cfg, "[rig]\nmass_kg = -0.3\n").unwrap();
-    let c = cfg.to_str().unwrap();
-    rejected(
-        &line(&format!("response --gap-mm 0 --config {} --out {}", c, o)),
-        &["mass_kg"],
-        &[&out],
-    );
-    fs::write(&cfg, "[rig]\nmas_kg = 0.3\n").unwrap();
-    rejected(
-        &line(&format!("response --gap-mm 0 --config {} --out {}", c, o)),
-        &["mas_kg"],
-        &[&out],
-    );
-    fs::write(&cfg, "[rig\nmass_kg = 0.3\n").unwrap();
-    rejected(
-        &line(&format!("response --gap-mm 0 --config {} --out {}", c, o)),
-        &["malformed"],
-        &[&out],
-    );
-
     let input = dir.path().join("pts.csv");
-    let i = input.to_str().unwrap();
-    fs::write(&input, "gap_mm,omega_ratio\n0,2.0\nx,1.0\n").unwrap();
-    rejected(
-        &line(&format!("points --input {} --out {}", i, o)),
-        &["line 3"],
-        &[&out],
-    );
-    fs::write(&input, "gap_mm,omega_ratio\n-0.5,2.0\n").unwrap();
-    rejected(
-        &line(&format!("points --input {} --out {}", i, o)),
-        &["gap_mm"],
-        &[&out],
-    );
-    fs::write(&input, "gap,ratio\n0,2.0\n").unwrap();
-    rejected(
-        &line(&format!("points --input {} --out {}", i, o)),
-        &["gap_mm"],
+    let config = format!("response --gap-mm 0 --config {} --out {o}", cfg.display());
+    let points = format!("points --input {} --out {o}", input.display());
+    rejected_files(
+        &[
+            (&cfg, &config, "[rig]\nmass_kg = -0.3\n", "mass_kg"),
+            (&cfg, &config, "[rig]\nmas_kg = 0.3\n", "mas_kg"),
+            (&cfg, &config, "[rig\nmass_kg = 0.3\n", "malformed"),
+            (
+                &input,
+                &points,
+                "gap_mm,omega_ratio\n0,2.0\nx,1.0\n",
+                "line 3",
+            ),
+            (&input, &points, "gap_mm,omega_ratio\n-0.5,2.0\n", "gap_mm"),
+            (&input, &points, "gap,ratio\n0,2.0\n", "gap_mm"),
+        ],
         &[&out],
     );
 }
@@ -316,38 +296,28 @@ fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
         &outs,
     );
     let bad = dir.path().join("bad.toml");
-    fs::write(&bad, "[[faults]]\nkind = \"sensor-melted\"\nat_s = 1.0\n").unwrap();
-    rejected(
-        &line(&format!(
-            "hil --scenario {} --out {}",
-            bad.to_str().unwrap(),
-            c
-        )),
-        &["malformed --scenario"],
-        &outs,
-    );
-    fs::write(
-        &bad,
-        "[[faults]]\nkind = \"gain\"\nat_s = -2.0\nfactor = 1.0\n",
-    )
-    .unwrap();
-    rejected(
-        &line(&format!(
-            "hil --scenario {} --out {}",
-            bad.to_str().unwrap(),
-            c
-        )),
-        &["faults.at_s"],
-        &outs,
-    );
-    fs::write(&bad, "[controller.limits]\nfreq_max_hz = 0.5\n").unwrap();
-    rejected(
-        &line(&format!(
-            "hil --scenario {} --out {}",
-            bad.to_str().unwrap(),
-            c
-        )),
-        &["freq_max_hz"],
+    let args = format!("hil --scenario {} --out {c}", bad.display());
+    rejected_files(
+        &[
+            (
+                &bad,
+                &args,
+                "[[faults]]\nkind = \"sensor-melted\"\nat_s = 1.0\n",
+                "malformed --scenario",
+            ),
+            (
+                &bad,
+                &args,
+                "[[faults]]\nkind = \"gain\"\nat_s = -2.0\nfactor = 1.0\n",
+                "faults.at_s",
+            ),
+            (
+                &bad,
+                &args,
+                "[controller.limits]\nfreq_max_hz = 0.5\n",
+                "freq_max_hz",
+            ),
+        ],
         &outs,
     );
 }

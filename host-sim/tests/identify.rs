@@ -82,6 +82,17 @@ fn rel(a: f64, b: f64) -> f64 {
     (a / b - 1.0).abs()
 }
 
+/// `(k_i, c_i)` (N/m, N·s/m) of a spring–dashpot law.
+fn spring_dashpot(law: &ContactLaw) -> (f64, f64) {
+    match *law {
+        ContactLaw::SpringDashpot {
+            stiffness_n_m,
+            damping_n_s_m,
+        } => (stiffness_n_m, damping_n_s_m),
+        _ => panic!("not a spring–dashpot: {law:?}"),
+    }
+}
+
 /// `(k δ_ref^n, n, third)` of a power law (`third`: λ or e; 0 for Hertz).
 fn power(law: &ContactLaw) -> (f64, f64, f64) {
     match *law {
@@ -116,21 +127,9 @@ fn spring_dashpot_is_recovered_from_peaks_alone_and_from_the_profile() {
         (SD_4E6, PEAKS, 4),
         (SD_4E6, PROFILE, 1),
     ] {
-        let ContactLaw::SpringDashpot {
-            stiffness_n_m: k0,
-            damping_n_s_m: c0,
-        } = truth
-        else {
-            unreachable!()
-        };
+        let (k0, c0) = spring_dashpot(&truth);
         let f = fit(truth, weights, seed);
-        let ContactLaw::SpringDashpot {
-            stiffness_n_m,
-            damping_n_s_m,
-        } = f.law
-        else {
-            panic!("{:?}", f.law)
-        };
+        let (stiffness_n_m, damping_n_s_m) = spring_dashpot(&f.law);
         assert!(rel(stiffness_n_m, k0) < 0.05, "k {stiffness_n_m} ({seed})");
         assert!(rel(damping_n_s_m, c0) < 0.03, "c {damping_n_s_m} ({seed})");
         // The fit reaches the noise floor: peak rms about 1 % of the largest peak.
@@ -398,13 +397,7 @@ fn restitution_matches_the_closed_form_and_a_simulated_drop() {
     let e = ContactLaw::identified().restitution(m, 0.034).unwrap();
     assert!(rel(e, closed) < 0.005, "{e} vs {closed}");
     let f = fit(ContactLaw::identified(), PEAKS, 1);
-    let ContactLaw::SpringDashpot {
-        stiffness_n_m,
-        damping_n_s_m,
-    } = f.law
-    else {
-        panic!("{:?}", f.law)
-    };
+    let (stiffness_n_m, damping_n_s_m) = spring_dashpot(&f.law);
     let (fitted, _) =
         shared::model::contact::spring_dashpot_restitution(stiffness_n_m, damping_n_s_m, m)
             .unwrap();

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 
 mod common;
-use common::{line, ok, spawn_first_line};
+use common::{line, ok, spawn_first_line, write_file};
 use std::time::{Duration, Instant};
 
 use host_sim::config::Setup;
@@ -61,8 +61,7 @@ struct Server {
 impl Server {
     fn start(speed: &str, scenario: &str) -> Server {
         let dir = tempfile::tempdir().unwrap();
-        let sc = dir.path().join("scenario.toml");
-        std::fs::write(&sc, scenario).unwrap();
+        let sc = write_file(dir.path(), "scenario.toml", scenario);
         let log = dir.path().join("truth.csv");
         let args = ["hil", "--serve-pty", "--speed", speed, "--scenario"]
             .map(OsStr::new)
@@ -418,12 +417,11 @@ fn killing_the_rig_mid_log_is_a_clear_error_with_no_csv_left() {
 #[test]
 fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
     let dir = tempfile::tempdir().unwrap();
-    let with_faults = dir.path().join("faults.toml");
-    std::fs::write(
-        &with_faults,
+    let with_faults = write_file(
+        dir.path(),
+        "faults.toml",
         "[[commands]]\nat_s = 0.5\nline = \"status\"\n[[faults]]\nat_s = 1.0\nkind = \"sensor-open\"\n",
-    )
-    .unwrap();
+    );
     let server = Server::start("20", "");
     let out = rig_cmd(
         &server.pty,
@@ -434,12 +432,11 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
         !out.status.success() && stderr.contains("[[faults]] and [[drops]]"),
         "{stderr}"
     );
-    let commands = dir.path().join("commands.toml");
-    std::fs::write(
-        &commands,
+    let commands = write_file(
+        dir.path(),
+        "commands.toml",
         "[[commands]]\nat_s = 0.2\nline = \"gap 0.5\"\n[[commands]]\nat_s = 1.0\nline = \"status\"\n",
-    )
-    .unwrap();
+    );
     let out = rig_cmd(
         &server.pty,
         &format!("run --scenario {}", commands.display()),
@@ -463,12 +460,11 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
 fn an_interrupted_command_stops_the_drive_and_leaves_no_file() {
     use std::io::BufRead;
     let dir = tempfile::tempdir().unwrap();
-    let scenario = dir.path().join("sc.toml");
-    std::fs::write(
-        &scenario,
+    write_file(
+        dir.path(),
+        "sc.toml",
         "[[commands]]\nat_s = 0.5\nline = \"start\"\n[[commands]]\nat_s = 500.0\nline = \"status\"\n",
-    )
-    .unwrap();
+    );
     let cases = [
         (
             Signal::SIGINT,

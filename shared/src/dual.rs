@@ -73,15 +73,24 @@ impl<T: PartialOrd, const N: usize> PartialOrd for Dual<T, N> {
     }
 }
 
+/// `f(a_i, b_i)` for every component of two derivative parts.
+#[inline(always)]
+fn zip_with<T: Copy, const N: usize>(a: [T; N], b: [T; N], f: impl Fn(T, T) -> T) -> [T; N] {
+    let mut d = a;
+    for (x, y) in d.iter_mut().zip(b) {
+        *x = f(*x, y);
+    }
+    d
+}
+
 impl<T: Real, const N: usize> Add for Dual<T, N> {
     type Output = Self;
     #[inline(always)]
     fn add(self, o: Self) -> Self {
-        let mut d = self.d;
-        for (x, y) in d.iter_mut().zip(o.d) {
-            *x += y;
+        Dual {
+            v: self.v + o.v,
+            d: zip_with(self.d, o.d, |x, y| x + y),
         }
-        Dual { v: self.v + o.v, d }
     }
 }
 
@@ -89,36 +98,35 @@ impl<T: Real, const N: usize> Sub for Dual<T, N> {
     type Output = Self;
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
-        let mut d = self.d;
-        for (x, y) in d.iter_mut().zip(o.d) {
-            *x -= y;
+        Dual {
+            v: self.v - o.v,
+            d: zip_with(self.d, o.d, |x, y| x - y),
         }
-        Dual { v: self.v - o.v, d }
     }
 }
 
 impl<T: Real, const N: usize> Mul for Dual<T, N> {
     type Output = Self;
     #[inline(always)]
+    #[allow(clippy::suspicious_arithmetic_impl)] // the product rule
     fn mul(self, o: Self) -> Self {
-        let mut d = self.d;
-        for (x, y) in d.iter_mut().zip(o.d) {
-            *x = *x * o.v + self.v * y;
+        Dual {
+            v: self.v * o.v,
+            d: zip_with(self.d, o.d, |x, y| x * o.v + self.v * y),
         }
-        Dual { v: self.v * o.v, d }
     }
 }
 
 impl<T: Real, const N: usize> Div for Dual<T, N> {
     type Output = Self;
     #[inline(always)]
+    #[allow(clippy::suspicious_arithmetic_impl)] // the quotient rule
     fn div(self, o: Self) -> Self {
         let v = self.v / o.v;
-        let mut d = self.d;
-        for (x, y) in d.iter_mut().zip(o.d) {
-            *x = (*x - v * y) / o.v;
+        Dual {
+            v,
+            d: zip_with(self.d, o.d, |x, y| (x - v * y) / o.v),
         }
-        Dual { v, d }
     }
 }
 

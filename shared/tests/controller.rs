@@ -168,20 +168,24 @@ fn tracking_rig() -> Rig {
     rig
 }
 
+/// A tracking rig whose sensor turns `sensor` trips `fault` within `within_s` (s), then
+/// behaves as [`assert_fault_ramps_down_and_latches`] requires.
+fn assert_sensor_fault(sensor: Sensor, fault: Fault, within_s: f32) {
+    let mut rig = tracking_rig();
+    rig.sensor = sensor;
+    assert_fault_ramps_down_and_latches(&mut rig, fault, within_s);
+}
+
 #[test]
 fn sensor_open_trips_within_half_a_second() {
-    let mut rig = tracking_rig();
-    rig.sensor = Sensor::Open;
-    assert_fault_ramps_down_and_latches(&mut rig, Fault::SensorOpen, 0.5);
+    assert_sensor_fault(Sensor::Open, Fault::SensorOpen, 0.5);
 }
 
 #[test]
 fn sensor_stuck_at_a_rail_trips() {
-    let mut rig = tracking_rig();
-    rig.sensor = Sensor::StuckHigh;
     // 20 ms at the rail (4095 is also above the force limit: 310 N > 280 N, the first sample
     // trips over-force).
-    assert_fault_ramps_down_and_latches(&mut rig, Fault::OverForce, 0.001);
+    assert_sensor_fault(Sensor::StuckHigh, Fault::OverForce, 0.001);
     // Stuck at the lower rail: not a force, so it must be the rail check.
     let mut c = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
     let req = c.take_model_request().unwrap();
@@ -209,9 +213,7 @@ fn over_force_trips_on_the_first_sample_above_the_limit() {
 
 #[test]
 fn adc_overrun_and_missed_deadline_trip() {
-    let mut rig = tracking_rig();
-    rig.sensor = Sensor::Overrun;
-    assert_fault_ramps_down_and_latches(&mut rig, Fault::AdcOverrun, 0.001);
+    assert_sensor_fault(Sensor::Overrun, Fault::AdcOverrun, 0.001);
     let mut rig = tracking_rig();
     rig.t_us += 200; // this sample comes 300 µs after the previous one (limit 250)
     rig.tick();

@@ -23,7 +23,7 @@ use shared::error::{check_count, check_range};
 use super::TimeOpts;
 use crate::comparison;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
-use crate::output::Outputs;
+use crate::output::write_whole;
 use crate::trace::{LabTable, MotionUnit, trace_from_table};
 
 /// Arguments of `compare`.
@@ -77,10 +77,9 @@ pub fn run(a: &CompareArgs) -> Result<()> {
             a.gap_mm,
             setup.params.contact.kind()
         );
-        let mut outputs = Outputs::new();
-        let tmp = outputs.reserve(&a.out)?;
-        crate::figures::identify::response_compare(&tmp, &title, &summary, &overlay)?;
-        outputs.commit()?;
+        write_whole(&a.out, |tmp| {
+            crate::figures::identify::response_compare(tmp, &title, &summary, &overlay)
+        })?;
         summary
     } else {
         let Some(freq_hz) = a.freq_hz else {
@@ -116,10 +115,9 @@ pub fn run(a: &CompareArgs) -> Result<()> {
             freq_hz,
             setup.params.contact.kind()
         );
-        let mut outputs = Outputs::new();
-        let tmp = outputs.reserve(&a.out)?;
-        crate::figures::identify::time_series_compare(&tmp, &title, &summary, &overlay)?;
-        outputs.commit()?;
+        write_whole(&a.out, |tmp| {
+            crate::figures::identify::time_series_compare(tmp, &title, &summary, &overlay)
+        })?;
         summary
     };
     println!("{}: {summary}", a.experiment.display());

@@ -10,7 +10,7 @@ use shared::error::check_range;
 
 use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
-use crate::output::{Outputs, write_csv};
+use crate::output::{write_csv, write_whole};
 use crate::runner::{OperatingPoint, evaluate_all};
 
 /// Arguments of `points`.
@@ -110,10 +110,7 @@ pub fn run(a: &PointsArgs) -> Result<()> {
         impacts: res.impacts,
         impact_force_mg: res.impact_force_mg,
     });
-    let mut outputs = Outputs::new();
-    let tmp = outputs.reserve(&a.out)?;
-    write_csv(&tmp, rows)?;
-    outputs.commit()?;
+    write_whole(&a.out, |tmp| write_csv(tmp, rows))?;
     eprintln!("{} points → {}", pts.len(), a.out.display());
     Ok(())
 }

@@ -7,7 +7,7 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
-use super::{Frame, SANS, canvas, line_key, panel, series_legend};
+use super::{Chart, Frame, SANS, canvas, labelled_line, line_key, panel, series_legend};
 use crate::comparison::{ResponseOverlay, TsOverlay};
 use crate::identify::cost::SimDrop;
 use crate::identify::data::DropData;
@@ -212,15 +212,26 @@ pub fn response_compare(
         .label(format!("simulated, {name}"))
         .legend(move |(x, y)| Circle::new((x + 7, y), 4, col.filled()));
     }
-    c.draw_series(
-        o.measured
-            .iter()
-            .map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))),
-    )?
-    .label("measured")
-    .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
+    measured_crosses(&mut c, &o.measured, "measured")?;
     series_legend(&mut c, Some(SeriesLabelPosition::UpperLeft), 14)?;
     root.present()?;
+    Ok(())
+}
+
+/// Draws the measured points `points` on `chart` as black crosses (the comparison figures'
+/// marker for the experiment), with the legend entry `label`.
+///
+/// # Errors
+/// Drawing errors.
+fn measured_crosses(chart: &mut Chart<'_, '_>, points: &[(f64, f64)], label: &str) -> Result<()> {
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))),
+        )?
+        .label(label)
+        .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
     Ok(())
 }
 
@@ -254,40 +265,34 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
         xlo..xhi,
         ("t (s)", "absolute displacement x (mm)"),
     )?;
-    c.draw_series(LineSeries::new(
+    labelled_line(
+        &mut c,
         o.measured.iter().map(|p| (p.0, p.1)),
         BLACK,
-    ))?
-    .label("measured")
-    .legend(line_key(BLACK));
-    c.draw_series(LineSeries::new(
+        "measured",
+    )?;
+    labelled_line(
+        &mut c,
         o.sim.iter().map(|p| (p.0, p.1)),
         BLUE.stroke_width(2),
-    ))?
-    .label("simulated")
-    .legend(line_key(BLUE.stroke_width(2)));
+        "simulated",
+    )?;
     series_legend(&mut c, None, 13)?;
     let (vlo, vhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.2));
     let mut c = panel(&bottom, TRACE, xlo..xhi, vlo..vhi, ("x (mm)", "ẋ (mm/s)"))?;
-    c.draw_series(LineSeries::new(
+    labelled_line(
+        &mut c,
         o.measured.iter().map(|p| (p.1, p.2)),
         BLACK.mix(0.5),
-    ))?
-    .label("measured phase plane")
-    .legend(line_key(BLACK.mix(0.5)));
+        "measured phase plane",
+    )?;
     c.draw_series(LineSeries::new(
         o.sim.iter().map(|p| (p.1, p.2)),
         BLUE.mix(0.7),
     ))?
     .label("simulated phase plane")
     .legend(line_key(BLUE));
-    c.draw_series(
-        o.strobe_measured
-            .iter()
-            .map(|&p| Cross::new(p, 6, BLACK.stroke_width(2))),
-    )?
-    .label("measured Poincaré (t = kT)")
-    .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
+    measured_crosses(&mut c, &o.strobe_measured, "measured Poincaré (t = kT)")?;
     c.draw_series(
         o.strobe_sim
             .iter()

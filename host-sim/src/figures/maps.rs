@@ -20,7 +20,7 @@ use crate::orbits::CurveOut;
 use crate::shard::{open_csv, title_prefix};
 
 use super::{
-    Chart, Frame, SANS, canvas, line_key, panel, regime_class, regime_color, series_legend,
+    Chart, Frame, SANS, canvas, level_line, panel, regime_class, regime_color, series_legend,
 };
 
 /// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
@@ -490,12 +490,13 @@ pub fn bifurcation(
     let (x0, x1) = pad(ranges.x);
     let (u0, u1) = pad((ranges.u.0.min(gap_mm), ranges.u.1.max(gap_mm)));
     let mut ct = panel(&top, BIF_TOP, x0..x1, u0..u1, ("Ω/ω", "Poincaré u (mm)"))?;
-    ct.draw_series(LineSeries::new(
-        [(x0, gap_mm), (x1, gap_mm)],
+    level_line(
+        &mut ct,
+        (x0, x1),
+        gap_mm,
         BLACK.mix(0.4),
-    ))?
-    .label(format!("impact surface u = gap = {gap_mm} mm"))
-    .legend(line_key(BLACK.mix(0.4)));
+        format!("impact surface u = gap = {gap_mm} mm"),
+    )?;
     for b in branches {
         let c = branch_color(b);
         let name = match *b {

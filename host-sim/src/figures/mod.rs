@@ -129,6 +129,39 @@ pub(crate) fn line_key<S: Into<ShapeStyle> + Clone>(
     move |(x, y)| PathElement::new([(x, y), (x + 16, y)], style.clone())
 }
 
+/// Draws the line through `points` on `chart` in `style`, with the legend entry `label`.
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn labelled_line(
+    chart: &mut Chart<'_, '_>,
+    points: impl IntoIterator<Item = (f64, f64)>,
+    style: impl Into<ShapeStyle>,
+    label: impl Into<String>,
+) -> Result<()> {
+    let style: ShapeStyle = style.into();
+    chart
+        .draw_series(LineSeries::new(points, style))?
+        .label(label)
+        .legend(line_key(style));
+    Ok(())
+}
+
+/// Draws a reference level of `chart` (the impact surface, a limit): a horizontal line at `y`
+/// from `x0` to `x1` in `style`, with its legend entry `label`.
+///
+/// # Errors
+/// Drawing errors.
+pub(crate) fn level_line(
+    chart: &mut Chart<'_, '_>,
+    (x0, x1): (f64, f64),
+    y: f64,
+    style: impl Into<ShapeStyle>,
+    label: impl Into<String>,
+) -> Result<()> {
+    labelled_line(chart, [(x0, y), (x1, y)], style, label)
+}
+
 /// Draws the series legend of `chart`: at `position` (plotters' default if `None`), on a
 /// translucent white box with a black border, labels in [`SANS`] at `font_size` px.
 ///

@@ -15,7 +15,8 @@ use shared::observe::PointResult;
 use crate::config::Setup;
 
 use super::{
-    Chart, Frame, SANS, canvas, line_key, panel, regime_classes, series_legend, swatch_key,
+    Chart, Frame, SANS, canvas, level_line, line_key, panel, regime_classes, series_legend,
+    swatch_key,
 };
 
 /// The time-series figure's three stacked panels.
@@ -309,12 +310,13 @@ pub fn time_series(
     ))?
     .label("x (absolute)")
     .legend(line_key(RGBColor(220, 120, 0)));
-    c.draw_series(LineSeries::new(
-        [(t0, gap_mm), (t1, gap_mm)],
+    level_line(
+        &mut c,
+        (t0, t1),
+        gap_mm,
         BLACK.mix(0.5),
-    ))?
-    .label("impact surface (u = gap)")
-    .legend(line_key(BLACK.mix(0.5)));
+        "impact surface (u = gap)",
+    )?;
     series_legend(&mut c, None, 13)?;
 
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;

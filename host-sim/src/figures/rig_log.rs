@@ -7,7 +7,7 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::control::Prediction;
 
-use super::{Frame, SANS, canvas, line_key, panel, series_legend};
+use super::{Frame, SANS, canvas, level_line, line_key, panel, series_legend};
 use crate::virtual_rig::CycleRow;
 
 /// Controller states in plotting order (y levels of the state panel).
@@ -119,12 +119,7 @@ pub fn draw(
     )?
     .label("measured (controller)")
     .legend(|(x, y)| Cross::new((x + 8, y), 4, BLUE));
-    c.draw_series(LineSeries::new(
-        [(t0, force_limit_n), (t1, force_limit_n)],
-        RED.mix(0.6),
-    ))?
-    .label("force limit")
-    .legend(line_key(RED.mix(0.6)));
+    level_line(&mut c, (t0, t1), force_limit_n, RED.mix(0.6), "force limit")?;
     series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
 
     // State.

@@ -152,6 +152,27 @@ fn rows(
     out
 }
 
+/// Runs the protocol on `sim` (at gap `gap_m`, m, and `Ω/ω = ratio`) and refines its label
+/// (with `lyapunov`, by the largest Lyapunov exponent): the result, the window's samples and
+/// the exponent per period.
+fn observe<T: Real>(
+    setup: &Setup,
+    gap_m: f64,
+    ratio: f64,
+    sim: &mut Simulator<T>,
+    lyapunov: bool,
+) -> Result<(PointResult, WindowSamples, Option<f64>)> {
+    let mut s = WindowSamples::default();
+    let mut r = run_protocol(
+        sim,
+        &setup.settings.protocol,
+        setup.params.weight_n(),
+        &mut s,
+    )?;
+    let l = refine(setup, gap_m, ratio, &mut r, sim.state(), lyapunov)?;
+    Ok((r, s, l))
+}
+
 /// The rows of frequency index `i` of `sweep` at gap `gap_m` (m), from rest.
 ///
 /// # Errors
@@ -171,15 +192,7 @@ pub fn from_rest(
     ) -> Result<(PointResult, WindowSamples, Option<f64>)> {
         let phases = PhaseTable::<T>::new(setup.settings.steps.steps_per_period)?;
         let mut sim = simulator_at(&setup.params, gap_m, ratio, &setup.settings, &phases)?;
-        let mut s = WindowSamples::default();
-        let mut r = run_protocol(
-            &mut sim,
-            &setup.settings.protocol,
-            setup.params.weight_n(),
-            &mut s,
-        )?;
-        let l = refine(setup, gap_m, ratio, &mut r, sim.state(), lyapunov)?;
-        Ok((r, s, l))
+        observe(setup, gap_m, ratio, &mut sim, lyapunov)
     }
     let ratio = sweep.value(i);
     let (r, s, l) = crate::with_precision!(setup.precision, T => {
@@ -217,16 +230,9 @@ fn branch<T: Real>(
         if let Some(x) = prev {
             sim.reset_state(x);
         }
-        let mut s = WindowSamples::default();
-        let mut r = run_protocol(
-            &mut sim,
-            &setup.settings.protocol,
-            setup.params.weight_n(),
-            &mut s,
-        )?;
-        prev = Some(sim.state());
-        let l = refine(setup, gap_m, ratio, &mut r, sim.state(), lyapunov)
+        let (r, s, l) = observe(setup, gap_m, ratio, &mut sim, lyapunov)
             .with_context(|| format!("Ω/ω {ratio}"))?;
+        prev = Some(sim.state());
         for row in rows(setup, i, ratio, name, &r, &s, l) {
             w.serialize(row)?;
         }

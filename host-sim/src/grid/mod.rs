@@ -463,25 +463,29 @@ mod tests {
     #[test]
     fn headers_are_the_row_fields_in_order() {
         use crate::shard::header;
-        assert_eq!(
-            header::<peterka::PeterkaRow>().join(","),
-            "index,gap_mm,gap_ratio,omega_ratio,freq_hz,regime,impacts,impact_force_mg,\
-             transient_periods,settled,lyapunov_per_period"
-        );
-        assert_eq!(
-            header::<basins::BasinRaw>().join(","),
-            "index,u0_mm,v0_mm_s,regime,impacts,impact_force_mg,settled,strobe_u_mm,strobe_v_mm_s"
-        );
-        assert_eq!(
-            header::<basins::BasinRow>().join(","),
-            "index,u0_mm,v0_mm_s,impacting,regime,attractor,attractor_u_mm,attractor_v_mm_s,\
-             impacts,impact_force_mg,settled"
-        );
-        assert_eq!(
-            header::<bifurcation::BifRow>().join(","),
-            "index,branch,omega_ratio,freq_hz,regime,kind,k,u_mm,du_mm_s,impact_force_mg,\
-             lyapunov_per_period"
-        );
+        for (fields, expected) in [
+            (
+                header::<peterka::PeterkaRow>(),
+                "index,gap_mm,gap_ratio,omega_ratio,freq_hz,regime,impacts,impact_force_mg,\
+                 transient_periods,settled,lyapunov_per_period",
+            ),
+            (
+                header::<basins::BasinRaw>(),
+                "index,u0_mm,v0_mm_s,regime,impacts,impact_force_mg,settled,strobe_u_mm,strobe_v_mm_s",
+            ),
+            (
+                header::<basins::BasinRow>(),
+                "index,u0_mm,v0_mm_s,impacting,regime,attractor,attractor_u_mm,attractor_v_mm_s,\
+                 impacts,impact_force_mg,settled",
+            ),
+            (
+                header::<bifurcation::BifRow>(),
+                "index,branch,omega_ratio,freq_hz,regime,kind,k,u_mm,du_mm_s,impact_force_mg,\
+                 lyapunov_per_period",
+            ),
+        ] {
+            assert_eq!(fields.join(","), expected);
+        }
     }
 
     #[test]

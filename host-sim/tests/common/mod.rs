@@ -7,7 +7,7 @@ use std::ffi::OsStr;
 use std::fmt::Debug;
 use std::fs;
 use std::io::{BufRead, BufReader};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Stdio};
 
 use assert_cmd::Command;
@@ -53,6 +53,13 @@ pub fn ok<S: AsRef<OsStr> + Debug>(args: &[S]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// Writes `text` to the file `name` in `dir` and returns its path.
+pub fn write_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    fs::write(&path, text).unwrap();
+    path
+}
+
 /// The names of the temporary output files (`.host-sim-*`) left in `dir`.
 pub fn leftovers(dir: &Path) -> Vec<String> {
     fs::read_dir(dir)
@@ -79,5 +86,15 @@ pub fn rejected<S: AsRef<OsStr> + Debug>(args: &[S], needles: &[&str], outputs: 
         assert!(!p.exists(), "{} was left behind", p.display());
         let left = leftovers(p.parent().unwrap());
         assert!(left.is_empty(), "temporary files left: {left:?}");
+    }
+}
+
+/// Bad input files: for each `(file, args, text, needle)`, writes `text` to `file`, runs the
+/// command line `args` (which reads `file`) and asserts it is [`rejected`] naming `needle`
+/// with none of `outputs` written.
+pub fn rejected_files(cases: &[(&Path, &str, &str, &str)], outputs: &[&Path]) {
+    for (file, args, text, needle) in cases {
+        fs::write(file, text).unwrap();
+        rejected(&line(args), &[needle], outputs);
     }
 }

@@ -430,24 +430,30 @@ mod tests {
         }
     }
 
+    /// The response `at(Ω/ω)` at every ratio of `sp`'s sweep.
+    fn response(
+        sp: &SelectionSpec,
+        at: impl Fn(f64) -> ResponseSample,
+    ) -> std::vec::Vec<ResponseSample> {
+        (0..sp.omega_ratio.len())
+            .map(|j| at(sp.omega_ratio.value(j)))
+            .collect()
+    }
+
     #[test]
     fn picks_the_strongest_robust_point_not_the_band_edge() {
         let p = RigId::Wires.preset();
         let sp = spec();
-        let n = sp.omega_ratio.len();
         // 1/1 on ratios [1.20, 2.00]; force grows with frequency, 1/2 above with a larger force.
-        let nominal: std::vec::Vec<_> = (0..n)
-            .map(|j| {
-                let r = sp.omega_ratio.value(j);
-                if (1.2 - 1e-9..=2.0 + 1e-9).contains(&r) {
-                    s(Regime::ONE_ONE, r as f32)
-                } else if r > 2.0 {
-                    s(Regime::Periodic { p: 1, q: 2 }, 5.0)
-                } else {
-                    s(Regime::NoImpact, 0.0)
-                }
-            })
-            .collect();
+        let nominal = response(&sp, |r| {
+            if (1.2 - 1e-9..=2.0 + 1e-9).contains(&r) {
+                s(Regime::ONE_ONE, r as f32)
+            } else if r > 2.0 {
+                s(Regime::Periodic { p: 1, q: 2 }, 5.0)
+            } else {
+                s(Regime::NoImpact, 0.0)
+            }
+        });
         let sel = select(&p, &sp, &nominal, &[&nominal]).unwrap();
         // r (1 + 0.05) must stay ≤ 2.00 with the next grid point included: r ≤ 1.90.
         assert!((sel.best.omega_ratio - 1.90).abs() < 1e-9, "{:?}", sel.best);
@@ -482,22 +488,18 @@ mod tests {
     fn reports_when_nothing_is_robust() {
         let p = RigId::Wires.preset();
         let sp = spec();
-        let n = sp.omega_ratio.len();
-        let narrow: std::vec::Vec<_> = (0..n)
-            .map(|j| {
-                let r = sp.omega_ratio.value(j);
-                if (1.5..1.55).contains(&r) {
-                    s(Regime::ONE_ONE, 2.0)
-                } else {
-                    s(Regime::NoImpact, 0.0)
-                }
-            })
-            .collect();
+        let narrow = response(&sp, |r| {
+            if (1.5..1.55).contains(&r) {
+                s(Regime::ONE_ONE, 2.0)
+            } else {
+                s(Regime::NoImpact, 0.0)
+            }
+        });
         assert!(matches!(
             select(&p, &sp, &narrow, &[]),
             Err(SelectionError::NoRobustPoint { .. })
         ));
-        let none = std::vec![s(Regime::NoImpact, 0.0); n];
+        let none = response(&sp, |_| s(Regime::NoImpact, 0.0));
         assert_eq!(
             select(&p, &sp, &none, &[]),
             Err(SelectionError::NoOneToOneBand)

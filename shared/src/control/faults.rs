@@ -115,13 +115,26 @@ impl SensorMonitor {
 mod tests {
     use super::*;
 
+    /// `n` impact-free samples `code` (drive on and at full amplitude as `driving`, the
+    /// regime's longest impact-free stretch `expected_gap_samples`): no fault.
+    fn assert_quiet(
+        m: &mut SensorMonitor,
+        n: u32,
+        code: u16,
+        driving: bool,
+        expected_gap_samples: u32,
+    ) {
+        for i in 0..n {
+            let f = m.check(code, driving, driving, false, expected_gap_samples);
+            assert_eq!(f, None, "sample {i}");
+        }
+    }
+
     #[test]
     fn rail_for_twenty_ms_is_stuck_but_an_impact_at_the_rail_is_not() {
         let mut m = SensorMonitor::new(&FaultSettings::default());
         // A 5 ms saturated impact: no fault.
-        for _ in 0..50 {
-            assert_eq!(m.check(4095, true, true, false, 0), None);
-        }
+        assert_quiet(&mut m, 50, 4095, true, 0);
         assert_eq!(m.check(1000, true, true, true, 0), None);
         // Pinned: the 200th consecutive rail sample (20 ms) trips.
         for i in 1..=200 {
@@ -130,18 +143,14 @@ mod tests {
         }
         // Not while the drive is off.
         let mut m = SensorMonitor::new(&FaultSettings::default());
-        for _ in 0..10_000 {
-            assert_eq!(m.check(4095, false, false, false, 0), None);
-        }
+        assert_quiet(&mut m, 10_000, 4095, false, 0);
     }
 
     #[test]
     fn no_signal_needs_earlier_impacts_and_the_regime_period() {
         let mut m = SensorMonitor::new(&FaultSettings::default());
         // Never impacted: no fault however long (a no-impact regime is legitimate).
-        for _ in 0..20_000 {
-            assert_eq!(m.check(250, true, true, false, 2733), None);
-        }
+        assert_quiet(&mut m, 20_000, 250, true, 2733);
         // After an impact, 1/1 at 3.659 Hz (2733 samples per period): max(0.4 s, 1.5 T) =
         // 4099 samples.
         assert_eq!(m.check(250, true, true, true, 2733), None);

@@ -18,27 +18,23 @@ use super::rk4::rk4_step_compensated;
 use super::stepper::SubPlan;
 use crate::model::Region;
 use crate::model::contact::LawCoeffs;
-use crate::model::hammer::{BeamFree, Body, FieldEval, WiresFree, beam_accel, wires_accel};
+use crate::model::hammer::{BeamFree, Body, FieldEval, WiresFree};
 use crate::real::Real;
 
 /// The contact field of one suspension in a lane.
 pub(crate) trait LaneContact<T: Real>: LaneField<T> {
+    /// What the acceleration needs of the position besides `y1` (wires `(sin θ, cos θ)`,
+    /// beams `u`).
+    type Position: Copy;
+    /// `(δ, δ̇, position, exact)` at `(y0, y1)`, the sine by `G` (`exact`: within its range).
+    fn penetration<G: Trig>(&self, y0: T, y1: T) -> (T, T, Self::Position, bool);
+    /// The acceleration at `position`, `y1` with `sin Ωt = sin_phase` and the contact term
+    /// `contact` (wires `F_i/(m l)`, beams `F_i/m`).
+    fn accel_at(&self, position: Self::Position, y1: T, sin_phase: T, contact: T) -> T;
+
     /// The field at `(y0, y1)` with `sin Ωt = sin_phase` and the contact acceleration term
     /// `force · inv_mass` (wires `1/(m l)`, beams `1/m`) given by `force(δ, δ̇)`:
     /// `(acceleration, δ, δ̇, force, exact)`.
-    fn contact_field<G: Trig, P: FnOnce(T, T) -> T>(
-        &self,
-        inv_mass: T,
-        y0: T,
-        y1: T,
-        sin_phase: T,
-        force: P,
-    ) -> (T, T, T, T, bool);
-    /// The suspension's `inv_mass` from the hammer's body (`None` for the other suspension).
-    fn inv_mass(body: &Body<T>) -> Option<T>;
-}
-
-impl<T: Real> LaneContact<T> for WiresFree<T> {
     #[inline(always)]
     fn contact_field<G: Trig, P: FnOnce(T, T) -> T>(
         &self,
@@ -48,16 +44,31 @@ impl<T: Real> LaneContact<T> for WiresFree<T> {
         sin_phase: T,
         force: P,
     ) -> (T, T, T, T, bool) {
-        let (st, ct, exact) = G::sin_cos(y0);
-        let (d, dd) = (self.length * st - self.gap, self.length * y1 * ct);
+        let (d, dd, position, exact) = self.penetration::<G>(y0, y1);
         let f = force(d, dd);
-        let acc = wires_accel(
-            self.g_over_l,
-            st,
-            self.a0w2_over_l * ct * sin_phase,
-            f * inv_mass,
-        );
+        let acc = self.accel_at(position, y1, sin_phase, f * inv_mass);
         (acc, d, dd, f, exact)
+    }
+
+    /// The suspension's `inv_mass` from the hammer's body (`None` for the other suspension).
+    fn inv_mass(body: &Body<T>) -> Option<T>;
+}
+
+impl<T: Real> LaneContact<T> for WiresFree<T> {
+    type Position = (T, T);
+    #[inline(always)]
+    fn penetration<G: Trig>(&self, y0: T, y1: T) -> (T, T, (T, T), bool) {
+        let (st, ct, exact) = G::sin_cos(y0);
+        (
+            self.length * st - self.gap,
+            self.length * y1 * ct,
+            (st, ct),
+            exact,
+        )
+    }
+    #[inline(always)]
+    fn accel_at(&self, sin_cos: (T, T), _: T, sin_phase: T, contact: T) -> T {
+        self.accel(sin_cos, sin_phase, contact)
     }
     #[inline(always)]
     fn inv_mass(body: &Body<T>) -> Option<T> {
@@ -69,26 +80,14 @@ impl<T: Real> LaneContact<T> for WiresFree<T> {
 }
 
 impl<T: Real> LaneContact<T> for BeamFree<T> {
+    type Position = T;
     #[inline(always)]
-    fn contact_field<G: Trig, P: FnOnce(T, T) -> T>(
-        &self,
-        inv_mass: T,
-        y0: T,
-        y1: T,
-        sin_phase: T,
-        force: P,
-    ) -> (T, T, T, T, bool) {
-        let (d, dd) = (y0 - self.gap, y1);
-        let f = force(d, dd);
-        let acc = beam_accel(
-            self.k_over_m,
-            self.c_over_m,
-            y0,
-            y1,
-            self.a0w2 * sin_phase,
-            f * inv_mass,
-        );
-        (acc, d, dd, f, true)
+    fn penetration<G: Trig>(&self, y0: T, y1: T) -> (T, T, T, bool) {
+        (y0 - self.gap, y1, y0, true)
+    }
+    #[inline(always)]
+    fn accel_at(&self, u: T, y1: T, sin_phase: T, contact: T) -> T {
+        self.accel(u, y1, sin_phase, contact)
     }
     #[inline(always)]
     fn inv_mass(body: &Body<T>) -> Option<T> {

@@ -129,13 +129,20 @@ impl<T: Real> WiresFree<T> {
     /// `sin Ωt = sin_phase`: `(θ̈, δ, δ̇)` (1/s², m, m/s).
     #[inline(always)]
     pub(crate) fn eval(&self, y1: T, (st, ct): (T, T), sin_phase: T) -> (T, T, T) {
-        let acc = wires_accel(
+        let acc = self.accel((st, ct), sin_phase, T::zero());
+        (acc, self.length * st - self.gap, self.length * y1 * ct)
+    }
+
+    /// `θ̈` (1/s²) given `(sin θ, cos θ)`, `sin Ωt = sin_phase` and the contact term
+    /// `contact = F_i/(m l)` (0 in free flight): Eq. (3-26).
+    #[inline(always)]
+    pub(crate) fn accel(&self, (st, ct): (T, T), sin_phase: T, contact: T) -> T {
+        wires_accel(
             self.g_over_l,
             st,
             self.a0w2_over_l * ct * sin_phase,
-            T::zero(),
-        );
-        (acc, self.length * st - self.gap, self.length * y1 * ct)
+            contact,
+        )
     }
 }
 
@@ -157,15 +164,22 @@ impl<T: Real> BeamFree<T> {
     /// `(ü, δ, δ̇)` (m/s², m, m/s).
     #[inline(always)]
     pub(crate) fn eval(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T) {
-        let acc = beam_accel(
+        let acc = self.accel(y0, y1, sin_phase, T::zero());
+        (acc, y0 - self.gap, y1)
+    }
+
+    /// `ü` (m/s²) at `(u, u̇)` = `(y0, y1)` with `sin Ωt = sin_phase` and the contact term
+    /// `contact = F_i/m` (0 in free flight): Eq. (3-36).
+    #[inline(always)]
+    pub(crate) fn accel(&self, y0: T, y1: T, sin_phase: T, contact: T) -> T {
+        beam_accel(
             self.k_over_m,
             self.c_over_m,
             y0,
             y1,
             self.a0w2 * sin_phase,
-            T::zero(),
-        );
-        (acc, y0 - self.gap, y1)
+            contact,
+        )
     }
 }
 
