@@ -214,7 +214,7 @@ impl GridKind for Peterka {
 const BOUNDARY_SEEDS: usize = 8;
 
 /// The curves bounding the `1/1` region of the complete grid in `rows`: seeded at up to
-/// [`BOUNDARY_SEEDS`] gap rows evenly spread among those with `1/1` points (at each, its
+/// `BOUNDARY_SEEDS` (8) gap rows evenly spread among those with `1/1` points (at each, its
 /// strongest `1/1` point), then continued in the (`Ω/ω`, gap) plane over the grid's box
 /// ([`crate::orbits::boundary_curves`]).
 ///

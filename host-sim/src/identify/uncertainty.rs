@@ -14,7 +14,7 @@
 //!   measurement;
 //! - for each redraw `b`, one Gauss–Newton step from the fit gives where a fit of that trace
 //!   would land: `δx_b = −R_b⁺ r̃_b`, with `r̃_b` the terms of the redrawn trace against the
-//!   fitted drop and `R_b = ∂r̃_b/∂x` (central differences, [`super::cost::Around`], on drops
+//!   fitted drop and `R_b = ∂r̃_b/∂x` (central differences, `cost::Around`, on drops
 //!   simulated once for all redraws; `R⁺` from nalgebra's SVD);
 //! - the noise covariance `C_noise` is the covariance of the `δx_b`.
 //!

@@ -2,12 +2,12 @@
 //!
 //! Far from the surface, the next step of a [`Simulator`] is one RK4 step of `h = T/N` in free
 //! flight (the first branch of [`Simulator::step`]): the same short chain of `+` and `×` for
-//! every simulator of a grid. [`Lockstep`] holds the free-flight states of up to `L` simulators,
+//! every simulator of a grid. `Lockstep` holds the free-flight states of up to `L` simulators,
 //! one array per field, and steps them together, so the compiler packs the lanes into SIMD
 //! registers, without the per-step bookkeeping in between. Each lane runs the stepper's own
 //! kernel (`integrate::free`) and stops before the period's last step (the Poincaré section),
 //! before any step that the stepper would split near the surface, and (wires) before an angle
-//! outside the short sine polynomial's range `|θ| ≤ 1/8`. [`Lockstep::run`] returns as soon as
+//! outside the short sine polynomial's range `|θ| ≤ 1/8`. `Lockstep::run` returns as soon as
 //! one lane stops; the caller takes that simulator's next steps with [`Simulator::step`] and
 //! loads it (or another simulator) into the lane again, so the other lanes never wait.
 
@@ -313,7 +313,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 }
 
 /// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further ones
-/// are left alone) in lockstep until the first of them stops ([`Lockstep`]). A simulator takes
+/// are left alone) in lockstep until the first of them stops (`Lockstep`). A simulator takes
 /// part if it has the first one's `N`, suspension and band `η_δ`, is clear of the surface, and
 /// is not at its period's last step. Returns the steps each took (0 for those that did not take
 /// part); each simulator ends exactly where the same number of [`Simulator::step`] calls would

@@ -310,7 +310,7 @@ const RESTITUTION_STEPS: u32 = 4000;
 impl ContactLaw {
     /// Effective coefficient of restitution of one impact of a free mass `mass_kg` arriving at
     /// `impact_speed_m_s` on a rigid surface, simulated: `m δ̈ = −F(δ, δ̇)` from `δ = 0`,
-    /// `δ̇ = v` (RK4, [`RESTITUTION_STEPS`] steps per `π/ω_c`, [`ContactLaw::contact_omega`])
+    /// `δ̇ = v` (RK4, `RESTITUTION_STEPS` steps per `π/ω_c`, [`ContactLaw::contact_omega`])
     /// until the force vanishes (the switch model's `h_β = 0`, Eq. 3-20; the last step
     /// refined 64-fold and the crossing interpolated linearly); `e = −δ̇_exit / v`.
     ///

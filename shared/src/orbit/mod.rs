@@ -3,7 +3,7 @@
 //! numbers through the simulator), Floquet multipliers and bifurcation test functions
 //! ([`floquet`]), shooting ([`shooting`]), pseudo-arclength continuation with located
 //! bifurcations ([`continuation`]), the largest Lyapunov exponent ([`lyapunov`]) and what it
-//! adds to a regime label ([`label`]).
+//! adds to a regime label ([`mod@label`]).
 
 pub mod continuation;
 pub mod curve;
