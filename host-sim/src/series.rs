@@ -153,11 +153,9 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
             omega_ratio: omega_exc / setup.params.omega_n(),
         };
         let x0 = state_of::<T>(&at, u0_m, v0_m_s)?;
-        let mut sum = 0.0;
         let mut running = Vec::with_capacity(periods as usize);
-        let (e, _) = largest_exponent_with(&at, x0, periods, |k, stretch| {
-            sum += stretch;
-            running.push(sum / f64::from(k));
+        let (e, _) = largest_exponent_with(&at, x0, periods, |_, estimate| {
+            running.push(estimate);
         })?;
         for (k, r) in rows.iter_mut().skip(1).filter(|r| r.poincare).enumerate() {
             r.lyapunov_per_period = running.get(k).copied();

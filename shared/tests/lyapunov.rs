@@ -196,3 +196,44 @@ fn negative_exponent_lets_the_extended_run_find_the_period() {
         assert!(o.floquet.stable());
     }
 }
+
+#[test]
+fn a_tangent_that_vanishes_restarts_the_estimate() {
+    // Beam rig 170 mm, 0.0 mm, Ω/ω 1.5: from rest the hammer starts pressed on the surface,
+    // whose contact contracts the tangent beyond f32's range in the first period (it reads 0;
+    // in f64 it survives). The f32 estimate starts again after it and gives the 1/1 orbit's
+    // ln max|μ| (|μ| 0.3098: −1.1719) as f64 does over the whole run.
+    let at = MapPoint {
+        params: RigId::Beam170.preset(),
+        settings: SimSettings::default(),
+        gap_m: 0.0,
+        omega_ratio: 1.5,
+    };
+    let (_, o) = orbit_from::<f64>(&at, 0.0, 0.0, None, &ShootSettings::for_type::<f64>()).unwrap();
+    let expect = o.floquet.max_abs().ln();
+    let mut vanished = 0;
+    let (e32, _) =
+        shared::orbit::largest_exponent_with(&at, Vector2::new(0.0f32, 0.0), 2000, |_, est| {
+            vanished += u32::from(est == f64::NEG_INFINITY);
+        })
+        .unwrap();
+    let (e64, _) = largest_exponent(&at, Vector2::new(0.0f64, 0.0), 2000).unwrap();
+    println!(
+        "beam 1.5 from rest: f32 {vanished} periods with a vanished tangent, {} counted, {:.5} ± {:.1e}; f64 {:.5} ± {:.1e}; ln max|μ| {expect:.5}",
+        e32.periods,
+        e32.per_period,
+        e32.uncertainty(),
+        e64.per_period,
+        e64.uncertainty()
+    );
+    assert!(vanished >= 1 && e32.periods < 2000 && e32.periods > 1900);
+    assert_eq!(e64.periods, 2000);
+    for e in [e32, e64] {
+        assert!(
+            (e.per_period - expect).abs() < 0.1,
+            "{} vs {expect}",
+            e.per_period
+        );
+        assert!(e.clearly_negative(3.0));
+    }
+}

@@ -29,8 +29,12 @@ pub struct Exponent {
 }
 
 impl Exponent {
-    /// Its uncertainty: half the difference of the halves' estimates.
+    /// Its uncertainty: half the difference of the halves' estimates (NaN with one period
+    /// counted); 0 where it is −∞ (the tangent vanished in the last period: certain).
     pub fn uncertainty(&self) -> f64 {
+        if self.per_period == f64::NEG_INFINITY {
+            return 0.0;
+        }
         0.5 * (self.first_half - self.second_half).abs()
     }
 
@@ -71,7 +75,8 @@ impl<'t, U: Real> Periods<'t, U> {
 }
 
 /// The largest Lyapunov exponent over `periods` (2 ..= 100,000) iterations of the map from
-/// `x0`, and the state reached.
+/// `x0` (from the last period where the tangent vanished, if it did:
+/// [`largest_exponent_with`]), and the state reached.
 ///
 /// # Errors
 /// [`ParamError`]: an invalid point, `periods` out of range.
@@ -83,11 +88,17 @@ pub fn largest_exponent<T: Real>(
     largest_exponent_with(at, x0, periods, |_, _| {})
 }
 
-/// [`largest_exponent`], calling `each(k, stretch)` after period `k` (1-based) with that
-/// period's `ln ‖DP v‖` (the running estimate after `k` periods is the mean of the first `k`).
+/// [`largest_exponent`], calling `each(k, estimate)` after period `k` (1-based) with the
+/// running estimate over the periods counted so far.
+///
+/// A tangent that vanishes (the hammer pressed on the surface contracts it below the float
+/// type's range: in f32 a rest from the start of a run does) has stretched by 0. The estimate then starts again
+/// from the next period (a transient rest says nothing of the motion after it; `periods` of the
+/// result counts the periods used), and is −∞ if the tangent vanished in the last period (a
+/// resting orbit).
 ///
 /// # Errors
-/// As [`largest_exponent`].
+/// As [`largest_exponent`]; the tangent overflowing.
 pub fn largest_exponent_with<T: Real>(
     at: &MapPoint,
     x0: Vector2<T>,
@@ -101,7 +112,8 @@ pub fn largest_exponent_with<T: Real>(
     // The tangent vector, scaled components; it starts along the diagonal.
     let mut v = [libm::sqrt(0.5), libm::sqrt(0.5)];
     let mut x = x0;
-    let half = periods / 2;
+    // The counted periods: from `start` on, `half` of them in the first half.
+    let (mut start, mut half) = (0, periods / 2);
     let (mut sum1, mut sum2) = (0.0, 0.0);
     for k in 0..periods {
         let seeded = Vector2::new(
@@ -118,27 +130,49 @@ pub fn largest_exponent_with<T: Real>(
         x = Vector2::new(y[0].v, y[1].v);
         let d = [y[0].d[0].to_f64() / s[0], y[1].d[0].to_f64() / s[1]];
         let n = libm::hypot(d[0], d[1]);
-        if !(n > 0.0 && n.is_finite()) {
-            // The tangent vanished (or overflowed): nothing more to learn.
+        if !n.is_finite() {
             return Err(ParamError::NotFinite {
                 field: "tangent vector",
             });
         }
+        if n == 0.0 {
+            (start, sum1, sum2) = (k + 1, 0.0, 0.0);
+            half = (periods - start) / 2;
+            each(k + 1, f64::NEG_INFINITY);
+            continue;
+        }
         v = [d[0] / n, d[1] / n];
-        each(k + 1, libm::log(n));
-        if k < half {
+        if k - start < half {
             sum1 += libm::log(n);
         } else {
             sum2 += libm::log(n);
         }
+        each(k + 1, (sum1 + sum2) / f64::from(k + 1 - start));
     }
-    let second = periods - half;
+    let counted = periods - start;
+    if counted == 0 {
+        return Ok((
+            Exponent {
+                per_period: f64::NEG_INFINITY,
+                first_half: f64::NEG_INFINITY,
+                second_half: f64::NEG_INFINITY,
+                periods: 0,
+            },
+            x,
+        ));
+    }
+    let second = counted - half;
     Ok((
         Exponent {
-            per_period: (sum1 + sum2) / f64::from(periods),
-            first_half: sum1 / f64::from(half.max(1)),
+            per_period: (sum1 + sum2) / f64::from(counted),
+            // One period counted: no halves to compare, no uncertainty.
+            first_half: if half > 0 {
+                sum1 / f64::from(half)
+            } else {
+                f64::NAN
+            },
             second_half: sum2 / f64::from(second),
-            periods,
+            periods: counted,
         },
         x,
     ))
