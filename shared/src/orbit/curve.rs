@@ -59,6 +59,12 @@ impl CurveSettings {
             newton: ShootSettings::for_type::<T>(),
         }
     }
+
+    /// Whether `(omega_ratio, gap_m)` lies in the box.
+    pub fn contains(&self, omega_ratio: f64, gap_m: f64) -> bool {
+        (self.omega_ratio[0]..=self.omega_ratio[1]).contains(&omega_ratio)
+            && (self.gap_m[0]..=self.gap_m[1]).contains(&gap_m)
+    }
 }
 
 /// A point of a curve: the orbit at the bifurcation there.
@@ -326,13 +332,7 @@ pub fn continue_curve<T: Real>(
     if on_point(&emit(p, &orbit)).is_break() {
         return CurveEnd::Stopped(p[0], p[1] * a0);
     }
-    let inside = |q: [f64; 2]| {
-        let g = q[1] * a0;
-        q[0] >= settings.omega_ratio[0]
-            && q[0] <= settings.omega_ratio[1]
-            && g >= settings.gap_m[0]
-            && g <= settings.gap_m[1]
-    };
+    let inside = |q: [f64; 2]| settings.contains(q[0], q[1] * a0);
     let mut h = settings.step;
     for _ in 0..settings.max_points {
         let next = loop {
@@ -413,10 +413,7 @@ fn fold_curve<T: Real>(
     };
     let inside = |lam: f64, mu: f64| {
         let (r, g) = plane(lam, mu);
-        r >= settings.omega_ratio[0]
-            && r <= settings.omega_ratio[1]
-            && g >= settings.gap_m[0]
-            && g <= settings.gap_m[1]
+        settings.contains(r, g)
     };
     let emit = |lam: f64, mu: f64, orbit: &Orbit<T>| {
         let (omega_ratio, gap_m) = plane(lam, mu);
