@@ -51,11 +51,21 @@ pub enum Command {
     /// Basins of attraction over a grid of initial conditions (u0, u̇0).
     ///
     /// --out: one row per initial condition (u0 fastest): index, u0_mm, v0_mm_s, impacting,
-    /// regime, attractor, attractor_u_mm, attractor_v_mm_s, impacts, impact_force_mg, settled
-    /// (a shard writes the ungrouped rows; `merge` groups them).
+    /// regime, attractor, attractor_u_mm, attractor_v_mm_s, impacts, impact_force_mg, settled,
+    /// recurrence (a shard writes the ungrouped rows; `merge` groups them).
     ///
-    /// --plot: u0 (x) × u̇0 (y) coloured by attractor, attractor points marked.
+    /// Attractors are found by recurrence on the stroboscopic map against a catalogue of
+    /// known ones (a trajectory that never recurs is counted as such).
+    ///
+    /// --plot: u0 (x) × u̇0 (y) coloured by attractor (or --color-by regime / impact),
+    /// attractor points marked.
     Basins(commands::basins::BasinsArgs),
+    /// Basin fractions: the share of random initial conditions in a box ending on each
+    /// attractor, with 95 % intervals, at one point or continued over Ω/ω or the gap.
+    ///
+    /// --plot: the fractions stacked against the parameter, one colour per attractor (kept
+    /// along the parameter), with their 95 % intervals.
+    Fractions(commands::fractions::FractionsArgs),
     /// The periodic orbit at one point: Newton's method (shooting) from where the protocol
     /// settles, with its Floquet multipliers, stability margin and Lyapunov exponent.
     Orbit(commands::orbit::OrbitArgs),
@@ -69,7 +79,7 @@ pub enum Command {
     /// The rig from the desktop, over its serial console: send lines, an interactive console,
     /// a scenario's commands, a telemetry log, a drop-test capture, a frequency sweep.
     Rig(commands::rig::RigArgs),
-    /// Join the shard CSVs of a peterka/basins/bifurcation run (--shard I/N) into its CSV and
+    /// Join the shard CSVs of a peterka/basins/fractions/bifurcation run (--shard I/N) into its CSV and
     /// figures.
     Merge(commands::merge::MergeArgs),
     /// Identify parameters from measurements: the contact law from a drop test, the
@@ -95,6 +105,7 @@ pub fn main() -> ExitCode {
         Command::Bifurcation(a) => commands::bifurcation::run(&a),
         Command::Peterka(a) => commands::peterka::run(&a),
         Command::Basins(a) => commands::basins::run(&a),
+        Command::Fractions(a) => commands::fractions::run(&a),
         Command::Merge(a) => commands::merge::run(&a),
         Command::Orbit(a) => commands::orbit::run(&a),
         Command::Continue(a) => commands::continuation::run(&a),

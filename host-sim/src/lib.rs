@@ -8,7 +8,8 @@
 //!    [`precision`]; [`trace`] (measured traces);
 //! 2. the computations over `shared`'s integrator and observers: [`runner`] (the batch size,
 //!    parallel interleaved evaluation, progress), [`response`], [`selection`] (the main job),
-//!    [`series`] (time series), [`grid`] (Peterka maps, basins, bifurcation; shards in
+//!    [`series`] (time series), [`attractors`] (the attractors of many initial conditions, basin
+//!    fractions), [`grid`] (Peterka maps, basins, basin fractions, bifurcation; shards in
 //!    [`shard`]), [`propagate`] (the selection under parameter uncertainty), [`identify`]
 //!    (parameters from drop tests and free decays), [`comparison`] (model against a measured
 //!    response or time series), [`orbits`] (periodic orbits, their branches and bifurcations);
@@ -20,6 +21,7 @@
 //! 5. the commands in [`commands`] (parsed by [`cli`]), each with its entry point `run`: parse,
 //!    call the library, write, print. [`interrupt`] (Ctrl-C) serves every layer.
 
+pub mod attractors;
 pub mod cli;
 pub mod commands;
 pub mod comparison;

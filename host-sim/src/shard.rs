@@ -149,6 +149,8 @@ pub enum Kind {
     Basins,
     /// `bifurcation`: strobe points and impact forces over frequency (from rest).
     Bifurcation,
+    /// `fractions`: attractor of random initial conditions, over a parameter.
+    Fractions,
 }
 
 impl std::fmt::Display for Kind {
@@ -157,6 +159,7 @@ impl std::fmt::Display for Kind {
             Kind::Peterka => "peterka",
             Kind::Basins => "basins",
             Kind::Bifurcation => "bifurcation",
+            Kind::Fractions => "fractions",
         })
     }
 }

@@ -11,14 +11,17 @@
 //! A shard stores the ungrouped rows (`strobe_u_mm`, `strobe_v_mm_s`); grouping needs the
 //! whole grid and happens in the one-run command and in `merge`, through the same code.
 
+use std::path::PathBuf;
+
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 
-use super::GridOutArgs;
+use super::{AttractorOpts, GridOutArgs};
+use crate::attractors::Catalogue;
 use crate::config::{RigOpts, Setup, gap_m_from_mm};
-use crate::grid::basins::{self, Basins, BasinsGrid, MAX_U0_MM, MAX_V0_MM_S};
+use crate::grid::basins::{self, Attractors, Basins, BasinsGrid, ColorBy, MAX_U0_MM, MAX_V0_MM_S};
 use crate::grid::{self, CountSweep};
 
 /// Arguments of `basins`.
@@ -41,10 +44,17 @@ pub struct BasinsArgs {
     /// Initial velocities u̇0 in mm/s as START:END:COUNT (|u̇0| ≤ 10000 mm/s).
     #[arg(long, allow_hyphen_values = true)]
     pub v0_mm_s: String,
-    /// Tolerance for "same attractor" on the scaled Poincaré distance
-    /// max(|Δu|/A0, |Δu̇|/(A0 Ω)) (1e-6 ..= 1).
-    #[arg(long, default_value_t = 0.01)]
-    pub attractor_tol: f64,
+    /// How attractors are found.
+    #[command(flatten)]
+    pub attractors: AttractorOpts,
+    /// What the figure colours: each attractor, each regime, or impacting / not (the thesis'
+    /// view).
+    #[arg(long, value_enum, default_value_t = ColorBy::Attractor)]
+    pub color_by: ColorBy,
+    /// CSV: the attractor catalogue (attractor, regime, count, fraction, ci95_lo, ci95_hi,
+    /// impact_force_mg, and one row per Poincaré point k, u_mm, v_mm_s).
+    #[arg(long)]
+    pub attractors_out: Option<PathBuf>,
     /// CSV and figure.
     #[command(flatten)]
     pub output: GridOutArgs,
@@ -55,7 +65,7 @@ pub struct BasinsArgs {
 /// # Errors
 /// Bad input, I/O failure or Ctrl-C; no output file is left half-written.
 pub fn run(a: &BasinsArgs) -> Result<()> {
-    let setup = Setup::from_opts(&a.rig)?;
+    let mut setup = Setup::from_opts(&a.rig)?;
     gap_m_from_mm("--gap-mm", a.gap_mm)?;
     check_range(
         "omega_ratio",
@@ -64,13 +74,15 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         OMEGA_RATIO_RANGE.1,
     )
     .context("--omega-ratio")?;
-    check_range("attractor_tol", a.attractor_tol, 1e-6, 1.0).context("--attractor-tol")?;
+    let (attractor_tol, recurrence) = a.attractors.apply(&mut setup)?;
     let grid = BasinsGrid {
         gap_mm: a.gap_mm,
         omega_ratio: a.omega_ratio,
         u0_mm: CountSweep::parse("--u0-mm", &a.u0_mm, -MAX_U0_MM, MAX_U0_MM)?,
         v0_mm_s: CountSweep::parse("--v0-mm-s", &a.v0_mm_s, -MAX_V0_MM_S, MAX_V0_MM_S)?,
-        attractor_tol: a.attractor_tol,
+        attractor_tol,
+        recurrence,
+        color_by: a.color_by,
     };
     if grid.u0_mm.end > grid.gap_mm {
         bail!(
@@ -81,8 +93,13 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
             grid.gap_mm
         );
     }
-    let dest = a.output.destination(None, None)?;
+    let mut dest = a.output.destination(None, None)?;
+    dest.figures.attractors = a.attractors_out.as_deref();
+    let catalogue = Catalogue::new(
+        Attractors::scales(&setup.params, grid.omega_ratio),
+        attractor_tol,
+    );
     grid::from_rest::<Basins, _>(&setup, &grid, grid.points(), dest, |b| {
-        basins::rows(&setup, &grid, b)
+        basins::rows(&setup, &grid, &catalogue, b)
     })
 }

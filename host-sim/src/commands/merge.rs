@@ -1,4 +1,5 @@
-//! `host-sim merge`: joins the shard CSVs of one `peterka`, `basins` or `bifurcation` run
+//! `host-sim merge`: joins the shard CSVs of one `peterka`, `basins`, `fractions` or
+//! `bifurcation` run
 //! (`--shard I/N`) into the CSV and figures a single run would have written, byte for byte:
 //! the rows go, in point-index order, through the same writer and figure code as the one-run
 //! command. Checks that every shard has the same metadata (kind, tool version, rig, settings,
@@ -12,6 +13,7 @@ use clap::Args;
 
 use crate::grid::basins::Basins;
 use crate::grid::bifurcation::Bifurcation;
+use crate::grid::fractions::Fractions;
 use crate::grid::peterka::Peterka;
 use crate::grid::{Figures, merge};
 use crate::output::Outputs;
@@ -35,6 +37,10 @@ pub struct MergeArgs {
     /// CSV (peterka shards run with --boundaries): the curves bounding the z = 1/1 region.
     #[arg(long)]
     pub boundaries_out: Option<PathBuf>,
+    /// CSV (basins and fractions): the attractor catalogue (id, regime, fraction with its 95 %
+    /// interval, F_i/mg, Poincaré points).
+    #[arg(long)]
+    pub attractors_out: Option<PathBuf>,
     /// Shard CSVs, in any order.
     #[arg(required = true, value_name = "SHARD.csv")]
     pub shards: Vec<PathBuf>,
@@ -67,10 +73,18 @@ pub fn run(a: &MergeArgs) -> Result<()> {
         plot: a.plot.as_deref(),
         force_plot: a.force_plot.as_deref(),
         boundaries: a.boundaries_out.as_deref(),
+        attractors: a.attractors_out.as_deref(),
     };
+    if a.attractors_out.is_some() && !matches!(meta.kind, Kind::Basins | Kind::Fractions) {
+        bail!(
+            "--attractors-out: only for basins or fractions shards (these are {})",
+            meta.kind
+        );
+    }
     match meta.kind {
         Kind::Peterka => merge::<Peterka>(&mut outputs, &meta, files, &out, figures)?,
         Kind::Basins => merge::<Basins>(&mut outputs, &meta, files, &out, figures)?,
+        Kind::Fractions => merge::<Fractions>(&mut outputs, &meta, files, &out, figures)?,
         Kind::Bifurcation => merge::<Bifurcation>(&mut outputs, &meta, files, &out, figures)?,
     }
     outputs.commit()?;

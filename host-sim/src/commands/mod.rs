@@ -8,6 +8,7 @@ use clap::Args;
 use shared::analysis::Sweep;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
+use shared::observe::RecurrenceSettings;
 
 use crate::config::{Setup, parse_sweep};
 use crate::figures::{
@@ -25,6 +26,7 @@ pub mod bifurcation;
 pub mod compare;
 pub mod continuation;
 pub mod drop;
+pub mod fractions;
 pub mod hil;
 pub mod identify;
 pub mod merge;
@@ -116,9 +118,55 @@ impl GridOutArgs {
                 plot: self.plot.as_deref(),
                 force_plot,
                 boundaries,
+                attractors: None,
             },
             shard: self.shard.resolve()?,
         })
+    }
+}
+
+/// How `basins` and `fractions` find attractors.
+#[derive(Debug, Clone, Args)]
+pub struct AttractorOpts {
+    /// Tolerance for "same attractor" on the scaled Poincaré distance
+    /// max(|Δu|/A0, |Δu̇|/(A0 Ω)) (1e-6 ..= 1).
+    #[arg(long, default_value_t = 0.01)]
+    pub attractor_tol: f64,
+    /// A trajectory whose Poincaré points stay within this scaled distance of a catalogued
+    /// attractor's for --confirm periods in a row is assigned to it and stops (1e-9 ..= 1).
+    #[arg(long, default_value_t = RecurrenceSettings::default().tol)]
+    pub recurrence_tol: f64,
+    /// Periods in a row on a catalogued attractor that assign a trajectory to it (1 ..= 10000).
+    #[arg(long, default_value_t = RecurrenceSettings::default().confirm)]
+    pub confirm: u32,
+    /// Longest transient, periods (the protocol's max_transient_periods; a trajectory that has
+    /// not recurred by then and whose window does not repeat counts as never recurrent).
+    #[arg(long)]
+    pub max_periods: Option<u32>,
+}
+
+impl AttractorOpts {
+    /// Checks the options, applies --max-periods to `setup`, and returns the attractor
+    /// tolerance and the recurrence settings.
+    ///
+    /// # Errors
+    /// A value out of range, naming the flag and the range.
+    pub fn apply(&self, setup: &mut Setup) -> Result<(f64, RecurrenceSettings)> {
+        check_range("attractor_tol", self.attractor_tol, 1e-6, 1.0).context("--attractor-tol")?;
+        let rec = RecurrenceSettings {
+            tol: self.recurrence_tol,
+            confirm: self.confirm,
+        };
+        rec.validate().context("--recurrence-tol / --confirm")?;
+        if let Some(n) = self.max_periods {
+            setup.settings.protocol.max_transient_periods = n;
+            setup
+                .settings
+                .protocol
+                .validate()
+                .context("--max-periods")?;
+        }
+        Ok((self.attractor_tol, rec))
     }
 }
 

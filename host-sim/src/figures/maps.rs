@@ -11,8 +11,9 @@ use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use shared::observe::Regime;
 
-use crate::grid::basins::{Attractor, Basins, BasinsGrid, BasinsSummary};
+use crate::grid::basins::{Attractor, Basins, BasinsGrid, BasinsSummary, ColorBy};
 use crate::grid::bifurcation::{BifRow, Bifurcation};
+use crate::grid::fractions::{Fractions, FractionsGrid, FractionsSummary, Parameter};
 use crate::grid::peterka::{Peterka, PeterkaRow};
 use crate::grid::raster::Raster;
 use crate::grid::{Figures, Finish, GridFigures};
@@ -20,7 +21,8 @@ use crate::orbits::CurveOut;
 use crate::shard::{open_csv, title_prefix};
 
 use super::{
-    Chart, Frame, SANS, canvas, level_line, panel, regime_class, regime_color, series_legend,
+    Chart, Frame, SANS, canvas, level_line, panel, regime_class, regime_classes, regime_color,
+    series_legend,
 };
 
 /// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
@@ -351,89 +353,258 @@ pub const ATTRACTOR_PALETTE: [RGBColor; 10] = [
     RGBColor(127, 127, 127),
 ];
 
-/// Colours of the attractors (indexed like `attractors`): no impact light grey, irregular
-/// black; a single impacting periodic attractor takes its regime's colour, several take
-/// [`ATTRACTOR_PALETTE`] in id order (beyond ten: "other attractors", dark grey).
-pub fn attractor_colors(attractors: &[Attractor]) -> Vec<RGBColor> {
-    let periodic = attractors
-        .iter()
-        .filter(|a| matches!(a.regime, Regime::Periodic { .. }))
-        .count();
+/// Cells whose trajectory reached no attractor (never recurred, or conservative).
+pub const NO_ATTRACTOR: RGBColor = RGBColor(238, 226, 200);
+
+/// Colours of the attractors (indexed like `attractors`) in the view `color_by`, and the
+/// legend's entries. By attractor: [`ATTRACTOR_PALETTE`] in id order (beyond ten, dark grey);
+/// by regime: the regime's colour; by impact: impacting black, not impacting white (the
+/// thesis' figures). Cells without an attractor are [`NO_ATTRACTOR`] in every view.
+pub fn attractor_colors(
+    attractors: &[Attractor],
+    color_by: ColorBy,
+) -> (Vec<RGBColor>, Vec<(String, LegendMark)>) {
     let mut k = 0;
-    attractors
+    let colors: Vec<RGBColor> = attractors
         .iter()
-        .map(|a| match a.regime {
-            Regime::NoImpact => RGBColor(215, 215, 215),
-            Regime::Irregular | Regime::Chaotic => regime_color(a.regime),
-            Regime::Periodic { .. } if periodic == 1 => regime_color(a.regime),
-            Regime::Periodic { .. } => {
+        .map(|a| match (a.recurrent, color_by) {
+            (false, _) => NO_ATTRACTOR,
+            (true, ColorBy::Attractor) => {
                 k += 1;
                 ATTRACTOR_PALETTE
                     .get(k - 1)
                     .copied()
                     .unwrap_or(RGBColor(80, 80, 80))
             }
+            (true, ColorBy::Regime) => regime_color(a.regime),
+            (true, ColorBy::Impact) if a.regime.impacts() => BLACK,
+            (true, ColorBy::Impact) => WHITE,
         })
-        .collect()
+        .collect();
+    let share = |n: u64| {
+        let total: u64 = attractors.iter().map(|a| a.cells).sum::<u64>().max(1);
+        100.0 * n as f64 / total as f64
+    };
+    let mut entries: Vec<(String, LegendMark)> = Vec::new();
+    match color_by {
+        ColorBy::Attractor => {
+            let mut others = 0u64;
+            for (i, (a, c)) in attractors.iter().zip(&colors).enumerate() {
+                if !a.recurrent {
+                    continue;
+                }
+                if i >= 12 {
+                    others += a.cells;
+                    continue;
+                }
+                let name = format!("{} ({:.1} %)", a.label, share(a.cells));
+                match a.point {
+                    Some((u, v)) => {
+                        entries.push((name, LegendMark::Dot(*c)));
+                        entries.push((
+                            format!(
+                                "F_i/mg {:.2}; u = {u:.3} mm, u̇ = {v:.1} mm/s",
+                                a.impact_force_mg
+                            ),
+                            LegendMark::Text,
+                        ));
+                    }
+                    None => {
+                        entries.push((name, LegendMark::Swatch(*c)));
+                        entries.push((
+                            format!("F_i/mg up to {:.2}", a.impact_force_mg),
+                            LegendMark::Text,
+                        ));
+                    }
+                }
+            }
+            if others > 0 {
+                entries.push((
+                    format!("other attractors ({:.1} %)", share(others)),
+                    LegendMark::Swatch(RGBColor(80, 80, 80)),
+                ));
+            }
+        }
+        ColorBy::Regime => {
+            for (name, c) in
+                regime_classes(attractors.iter().filter(|a| a.recurrent).map(|a| a.regime))
+            {
+                let n: u64 = attractors
+                    .iter()
+                    .filter(|a| a.recurrent && regime_class(a.regime).1 == name)
+                    .map(|a| a.cells)
+                    .sum();
+                entries.push((format!("{name} ({:.1} %)", share(n)), LegendMark::Swatch(c)));
+            }
+        }
+        ColorBy::Impact => {
+            for (impacting, name, c) in [(true, "impacting", BLACK), (false, "no impact", WHITE)] {
+                let n: u64 = attractors
+                    .iter()
+                    .filter(|a| a.recurrent && a.regime.impacts() == impacting)
+                    .map(|a| a.cells)
+                    .sum();
+                entries.push((format!("{name} ({:.1} %)", share(n)), LegendMark::Swatch(c)));
+            }
+        }
+    }
+    let never: u64 = attractors
+        .iter()
+        .filter(|a| !a.recurrent)
+        .map(|a| a.cells)
+        .sum();
+    if never > 0 {
+        entries.push((
+            format!("no attractor ({:.1} %)", share(never)),
+            LegendMark::Swatch(NO_ATTRACTOR),
+        ));
+    }
+    (colors, entries)
 }
 
 /// Basins of attraction over `(u0, u̇0)` cells (thesis Figs. 3.36–3.38): cells hold the sorted
-/// attractor id (`u32::MAX` for none), the attractors' Poincaré points are marked.
+/// attractor id (`u32::MAX` for none), coloured as `color_by` says; in the attractor view the
+/// attractors' canonical Poincaré points are marked.
 ///
 /// # Errors
 /// Drawing or file errors.
 pub fn basins_map(
     path: &Path,
     title: &str,
-    x: &MapAxis,
-    y: &MapAxis,
+    axes: (&MapAxis, &MapAxis),
     cells: &Raster<u32>,
     attractors: &[Attractor],
+    color_by: ColorBy,
 ) -> Result<()> {
+    let (x, y) = axes;
     let (left, right) = figure_with_panel(path, title)?;
-    let colors = attractor_colors(attractors);
+    let (colors, entries) = attractor_colors(attractors, color_by);
     let mut chart = map_chart(&left, x, y)?;
     blit(cells, &chart.plotting_area().strip_coord_spec(), |id| {
         colors.get(id as usize).copied().unwrap_or(EMPTY)
     })?;
     let (x0, x1) = x.range();
     let (y0, y1) = y.range();
-    for (a, c) in attractors.iter().zip(&colors) {
-        if let Some((u, v)) = a.point
-            && (x0..=x1).contains(&u)
-            && (y0..=y1).contains(&v)
-        {
-            chart.draw_series([
-                Circle::new((u, v), 7, c.filled()),
-                Circle::new((u, v), 7, BLACK.stroke_width(2)),
-            ])?;
-        }
-    }
-    let total: u64 = attractors.iter().map(|a| a.cells).sum::<u64>().max(1);
-    let mut entries: Vec<(String, LegendMark)> = Vec::new();
-    let mut others = 0u64;
-    for (i, (a, c)) in attractors.iter().zip(&colors).enumerate() {
-        if i >= 12 {
-            others += a.cells;
-            continue;
-        }
-        let share = 100.0 * a.cells as f64 / total as f64;
-        let name = format!("{} ({share:.1} %)", a.label);
-        match a.point {
-            Some((u, v)) => {
-                entries.push((name, LegendMark::Dot(*c)));
-                entries.push((format!("u = {u:.3} mm, u̇ = {v:.1} mm/s"), LegendMark::Text));
+    if color_by == ColorBy::Attractor {
+        for (a, c) in attractors.iter().zip(&colors) {
+            for &(u, v) in &a.points {
+                if (x0..=x1).contains(&u) && (y0..=y1).contains(&v) {
+                    chart.draw_series([
+                        Circle::new((u, v), 7, c.filled()),
+                        Circle::new((u, v), 7, BLACK.stroke_width(2)),
+                    ])?;
+                }
             }
-            None => entries.push((name, LegendMark::Swatch(*c))),
         }
     }
-    if others > 0 {
-        entries.push((
-            format!("other attractors ({others} cells)"),
-            LegendMark::Swatch(RGBColor(80, 80, 80)),
-        ));
+    let heading = match color_by {
+        ColorBy::Attractor => "attractor (basin share)",
+        ColorBy::Regime => "regime (basin share)",
+        ColorBy::Impact => "steady state (basin share)",
+    };
+    legend_panel(&right, heading, &entries)?;
+    left.present()?;
+    Ok(())
+}
+
+/// Basin fractions against a parameter, stacked (one band per attractor, kept along the
+/// parameter), each operating point a column of width `step`.
+///
+/// # Errors
+/// Drawing or file errors.
+pub fn fractions_stack(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    summary: &FractionsSummary,
+) -> Result<()> {
+    let (left, right) = figure_with_panel(path, title)?;
+    let xs: Vec<f64> = summary.points.iter().map(|p| p.value).collect();
+    let step = xs
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(f64::INFINITY, f64::min);
+    let step = if step.is_finite() && step > 0.0 {
+        step
+    } else {
+        1.0
+    };
+    let lo = xs.iter().copied().fold(f64::INFINITY, f64::min) - 0.5 * step;
+    let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max) + 0.5 * step;
+    let mut chart = ChartBuilder::on(&left)
+        .margin(10)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(lo..hi, 0.0..1.0)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x_label)
+        .y_desc("basin fraction")
+        .label_style((SANS, 15))
+        .axis_desc_style((SANS, 17))
+        .draw()?;
+    let mut k = 0;
+    let colors: Vec<RGBColor> = summary
+        .ids
+        .iter()
+        .map(|(_, _, recurrent)| {
+            if !recurrent {
+                return NO_ATTRACTOR;
+            }
+            k += 1;
+            ATTRACTOR_PALETTE
+                .get(k - 1)
+                .copied()
+                .unwrap_or(RGBColor(80, 80, 80))
+        })
+        .collect();
+    for p in &summary.points {
+        let mut base = 0.0;
+        let mut bands: Vec<&(usize, crate::grid::basins::Attractor)> =
+            p.attractors.iter().collect();
+        bands.sort_by_key(|(id, _)| *id);
+        for (id, a) in bands {
+            let top = base + a.fraction;
+            chart.draw_series([Rectangle::new(
+                [(p.value - 0.5 * step, base), (p.value + 0.5 * step, top)],
+                colors[*id].filled(),
+            )])?;
+            // The 95 % interval of this band's fraction, drawn on its top edge.
+            let (l, h) = a.ci95;
+            chart.draw_series([PathElement::new(
+                [
+                    (p.value, top - (a.fraction - l)),
+                    (p.value, top + (h - a.fraction)),
+                ],
+                BLACK.stroke_width(1),
+            )])?;
+            base = top;
+        }
     }
-    legend_panel(&right, "attractor (basin share)", &entries)?;
+    let mut entries: Vec<(String, LegendMark)> = Vec::new();
+    for (i, ((name, regime, recurrent), c)) in summary.ids.iter().zip(&colors).enumerate() {
+        if i >= 16 {
+            break;
+        }
+        let force = summary
+            .points
+            .iter()
+            .flat_map(|p| p.attractors.iter())
+            .filter(|(id, _)| *id == i)
+            .map(|(_, a)| a.impact_force_mg)
+            .fold(0.0, f64::max);
+        let label = if *recurrent && regime.impacts() {
+            format!("{name}: {regime}, F_i/mg ≤ {force:.1}")
+        } else if *recurrent {
+            format!("{name}: {regime}")
+        } else {
+            "no attractor".into()
+        };
+        entries.push((label, LegendMark::Swatch(*c)));
+    }
+    entries.push(("bar: 95 % interval".into(), LegendMark::Line(BLACK)));
+    legend_panel(&right, "attractor", &entries)?;
     left.present()?;
     Ok(())
 }
@@ -699,8 +870,31 @@ impl GridFigures for Basins {
                 grid.omega_ratio,
                 meta.params.freq_hz_from_ratio(grid.omega_ratio)
             );
-            basins_map(&tmp, &title, &x, &y, cells, keys)?;
+            basins_map(&tmp, &title, (&x, &y), cells, keys, grid.color_by)?;
         }
         Ok(())
+    }
+}
+
+impl GridFigures for Fractions {
+    fn draw(job: &mut Finish<'_>, summary: FractionsSummary) -> Result<()> {
+        let (outputs, meta, figures) = (&mut *job.outputs, job.meta, job.figures);
+        let Some(p) = figures.plot else {
+            return Ok(());
+        };
+        let grid = meta.grid::<FractionsGrid>()?;
+        let tmp = outputs.reserve(p)?;
+        let (gap_mm, ratio) = grid.points[0];
+        let (x_label, fixed) = match grid.parameter {
+            Parameter::OmegaRatio => ("Ω/ω".to_string(), format!("gap {gap_mm} mm")),
+            Parameter::GapMm => ("gap (mm)".to_string(), format!("Ω/ω = {ratio}")),
+        };
+        let title = format!(
+            "{} — basin fractions, {fixed}, {} initial conditions per point (seed {})",
+            title_prefix(meta),
+            summary.points.iter().map(|p| p.samples).max().unwrap_or(0),
+            grid.seed
+        );
+        fractions_stack(&tmp, &title, &x_label, &summary)
     }
 }

@@ -1,35 +1,62 @@
 //! Basins of attraction over a grid of initial conditions `(u0, u̇0)` at
-//! phase 0 (thesis Figs. 3.36–3.38). Each point runs the canonical protocol from its initial
-//! condition; its steady state is reduced to a regime and a canonical Poincaré point (for a
-//! periodic regime of period `q`, the point of the last `q` window strobes with the smallest
-//! `u`, so one attractor gives one point whatever its phase). Points are then grouped into
-//! attractors: same regime and canonical points within `--attractor-tol` in the scaled
-//! distance `max(|Δu|/A0, |Δu̇|/(A0 Ω))` of the first point of the group (in index order);
-//! all `no impact` points form one group, as do all `irregular` points. Groups get letters
-//! `A, B, …` sorted by regime (no impact, p/q ascending, irregular) then `u`, then `u̇`.
+//! phase 0 (thesis Figs. 3.36–3.38), coloured by attractor ([`crate::attractors`]). Each point
+//! runs the canonical protocol from its initial condition, watched for recurrence on the
+//! catalogue of attractors found so far (shared by the threads): a trajectory that stays within
+//! `tol` of a known attractor's Poincaré points for `confirm` periods is assigned to it and
+//! stops; otherwise its observation window is reduced to its recurrent set (a periodic orbit:
+//! its regime and its `q` Poincaré points, the canonical one with the smallest `u` first, and
+//! the orbit joins the catalogue; an irregular set whose points keep returning), or it never
+//! recurred. Rows are then grouped into attractors: same regime and canonical points within
+//! `--attractor-tol` in the scaled distance `max(|Δu|/A0, |Δu̇|/(A0 Ω))` of the first point of
+//! the group (in index order); all recurrent irregular points form one group per regime, the
+//! never-recurrent ones another. Groups get letters `A, B, …` sorted by regime (no impact,
+//! p/q ascending, irregular) then `u`, then `u̇`; the group without an attractor (never recurred, or
+//! conservative: no impact on an undamped suspension) comes last, `-`.
 //!
-//! A shard stores the ungrouped rows (`strobe_u_mm`, `strobe_v_mm_s`); grouping needs the
-//! whole grid and happens in [`GridKind::finish`], for a one-run command and `merge` alike.
+//! A shard stores the ungrouped rows (`strobe_u_mm`, `strobe_v_mm_s`, `points`); grouping
+//! needs the whole grid and happens in [`GridKind::finish`], for a one-run command and `merge`
+//! alike. The catalogue only saves time: a trajectory assigned early reaches the attractor it
+//! would have settled on (to the `tol`/`confirm` criterion).
 
 use std::collections::VecDeque;
+use std::io::Write as _;
 
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::Real;
 use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
 use shared::integrate::PhaseTable;
-use shared::observe::{Observer, ProtocolRun, Regime, StroboPoint};
+use shared::model::{RigParams, Suspension};
+use shared::observe::{
+    Observer, ProtocolRun, RecurrenceSettings, RecurrenceWatch, Regime, StroboPoint,
+};
 
 use super::raster::Raster;
 use super::{CountSweep, Finish, GridKind};
+use crate::attractors::{
+    Catalogue, Known, Recurrence, Scales, cycle, minimal_cycle, returns, wilson, window_period,
+};
 use crate::config::Setup;
 use crate::runner::in_order;
-use crate::shard::{Indexed, Kind, Meta, create_csv, open_csv};
+use crate::shard::{Indexed, Kind, create_csv, open_csv};
 
 /// Largest `|u0|` accepted, mm.
 pub const MAX_U0_MM: f64 = 20.0;
 /// Largest `|u̇0|` accepted, mm/s.
 pub const MAX_V0_MM_S: f64 = 1e4;
+
+/// What the basins figure colours.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ColorBy {
+    /// Each attractor its colour (two orbits of one regime are two colours).
+    #[default]
+    Attractor,
+    /// Each regime its colour.
+    Regime,
+    /// Impacting or not (the thesis' Figs. 3.36–3.38).
+    Impact,
+}
 
 /// The grid of a basins run (metadata `grid`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -44,6 +71,10 @@ pub struct BasinsGrid {
     pub v0_mm_s: CountSweep,
     /// Attractor tolerance (scaled).
     pub attractor_tol: f64,
+    /// Recurrence on the catalogue of known attractors.
+    pub recurrence: RecurrenceSettings,
+    /// What the figure colours.
+    pub color_by: ColorBy,
 }
 
 impl BasinsGrid {
@@ -55,29 +86,39 @@ impl BasinsGrid {
     pub fn split(&self, i: usize) -> (usize, usize) {
         (i % self.u0_mm.len(), i / self.u0_mm.len())
     }
+    /// The initial condition of point `i`, `(u0 mm, u̇0 mm/s)`.
+    pub fn initial(&self, i: usize) -> (f64, f64) {
+        let (iu, iv) = self.split(i);
+        (self.u0_mm.value(iu), self.v0_mm_s.value(iv))
+    }
 }
 
 /// One ungrouped row (what a shard stores).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct BasinRaw {
-    /// Grid-point index, `v index × u count + u index`.
+    /// Point index (basins: `v index × u count + u index`).
     pub index: u64,
     /// Initial `u0`, mm.
     pub u0_mm: f64,
     /// Initial `u̇0`, mm/s.
     pub v0_mm_s: f64,
-    /// Steady-state regime.
+    /// Steady-state regime (of the attractor reached, for a trajectory assigned early).
     pub regime: Regime,
-    /// Impacts in the observation window.
+    /// Impacts in the observation window (the attractor's, if assigned early).
     pub impacts: u32,
-    /// Max `F_i/mg` over the window.
+    /// Max `F_i/mg` over the window (the attractor's, if assigned early).
     pub impact_force_mg: f64,
-    /// Whether a steady state was detected.
+    /// Whether the protocol's steady-state test ended the transient.
     pub settled: bool,
-    /// Canonical Poincaré `u` of the steady cycle, mm (periodic regimes only).
+    /// How the trajectory ended.
+    pub recurrence: Recurrence,
+    /// Canonical Poincaré `u` of the attractor, mm (periodic attractors only).
     pub strobe_u_mm: Option<f64>,
-    /// Canonical Poincaré `u̇`, mm/s (periodic regimes only).
+    /// Canonical Poincaré `u̇`, mm/s (periodic attractors only).
     pub strobe_v_mm_s: Option<f64>,
+    /// The attractor's Poincaré points `u:u̇` (mm, mm/s) separated by `;`, canonical first
+    /// (periodic attractors only; empty otherwise).
+    pub points: String,
 }
 
 impl Indexed for BasinRaw {
@@ -99,7 +140,7 @@ pub struct BasinRow {
     pub impacting: bool,
     /// Steady-state regime.
     pub regime: Regime,
-    /// Attractor id (`A`, `B`, …; sorted by regime, then `u`, then `u̇`).
+    /// Attractor id (`A`, `B`, …; sorted by regime, then `u`, then `u̇`; `-`: no attractor).
     pub attractor: String,
     /// The attractor's canonical Poincaré `u`, mm (periodic attractors only).
     pub attractor_u_mm: Option<f64>,
@@ -111,159 +152,372 @@ pub struct BasinRow {
     pub impact_force_mg: f64,
     /// Whether a steady state was detected.
     pub settled: bool,
+    /// How the trajectory ended.
+    pub recurrence: Recurrence,
 }
 
-/// Keeps the last `max_q` Poincaré points of the observation window.
-#[derive(Debug, Default)]
-struct LastStrobes {
+/// Watches a run: the catalogue's recurrence test on every Poincaré point, and the points of
+/// the observation window (mm, mm/s).
+struct Watch<'c> {
     keep: usize,
-    pts: VecDeque<(f64, f64)>,
+    window: VecDeque<(f64, f64)>,
+    recurrence: RecurrenceWatch<'c, Catalogue>,
 }
 
-impl<T: Real> Observer<T> for LastStrobes {
+impl<T: Real> Observer<T> for Watch<'_> {
     const SAMPLES: bool = false;
     fn strobe(&mut self, p: &StroboPoint<T>, window: bool) {
         if window {
-            if self.pts.len() == self.keep {
-                self.pts.pop_front();
+            if self.window.len() == self.keep {
+                self.window.pop_front();
             }
-            self.pts.push_back((p.u.to_f64(), p.du.to_f64()));
+            self.window
+                .push_back((p.u.to_f64() * 1e3, p.du.to_f64() * 1e3));
         }
+        Observer::<T>::strobe(&mut self.recurrence, p, window);
+    }
+    fn stop(&self) -> bool {
+        Observer::<T>::stop(&self.recurrence)
     }
 }
 
-/// The canonical point of a cycle of period `q` (m, m/s): the smallest `u` (then `u̇`) of the
-/// last `q` points.
-fn canonical(pts: &VecDeque<(f64, f64)>, q: usize) -> Option<(f64, f64)> {
-    let n = pts.len();
-    if q == 0 || q > n {
-        return None;
-    }
-    pts.range(n - q..)
-        .copied()
-        .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)))
+/// The `u:u̇` text of Poincaré points.
+fn points_text(points: &[(f64, f64)]) -> String {
+    points
+        .iter()
+        .map(|(u, v)| format!("{u}:{v}"))
+        .collect::<Vec<_>>()
+        .join(";")
 }
 
-/// The ungrouped rows of the points `batch` on the calling thread, [`DEFAULT_LANES`]
-/// interleaved, in the setup's precision.
-pub fn rows(setup: &Setup, grid: &BasinsGrid, batch: &[usize]) -> Vec<Result<[BasinRaw; 1]>> {
-    crate::with_precision!(setup.precision, T => points::<T>(setup, grid, batch))
-        .into_iter()
-        .map(|r| r.map(|r| [r]))
+/// The Poincaré points of a `points` text (malformed pairs are skipped).
+pub fn parse_points(text: &str) -> Vec<(f64, f64)> {
+    text.split(';')
+        .filter_map(|p| {
+            let (u, v) = p.split_once(':')?;
+            Some((u.trim().parse().ok()?, v.trim().parse().ok()?))
+        })
         .collect()
 }
 
-/// The points of `batch` on the calling thread, [`DEFAULT_LANES`] interleaved.
-fn points<T: Real>(setup: &Setup, grid: &BasinsGrid, batch: &[usize]) -> Vec<Result<BasinRaw>> {
-    let initial = |i: usize| {
-        let (iu, iv) = grid.split(i);
-        (grid.u0_mm.value(iu), grid.v0_mm_s.value(iv))
-    };
-    let phases = match PhaseTable::new(setup.settings.steps.steps_per_period) {
-        Ok(p) => p,
-        Err(e) => return batch.iter().map(|_| Err(e.into())).collect(),
-    };
-    in_order(batch.len(), |emit| {
-        run_interleaved::<T, LastStrobes, DEFAULT_LANES, _, _, _>(
-            batch.iter().copied(),
-            |i| {
-                let (u0_mm, v0_mm_s) = initial(i);
-                let mut sim = simulator_at::<T>(
-                    &setup.params,
-                    grid.gap_mm * 1e-3,
-                    grid.omega_ratio,
-                    &setup.settings,
-                    &phases,
-                )?;
-                sim.reset_relative(u0_mm * 1e-3, v0_mm_s * 1e-3)?;
-                let run =
-                    ProtocolRun::new(&sim, &setup.settings.protocol, setup.params.weight_n())?;
-                let obs = LastStrobes {
-                    keep: setup.settings.protocol.max_q as usize,
-                    pts: VecDeque::new(),
-                };
-                Ok((sim, run, obs))
-            },
-            |k, r| {
-                let i = batch[k];
-                let (u0_mm, v0_mm_s) = initial(i);
-                let row = r
-                    .map(|(r, obs, _)| {
-                        let c = match r.regime {
-                            Regime::Periodic { q, .. } => canonical(&obs.pts, usize::from(q)),
-                            _ => None,
-                        };
-                        BasinRaw {
-                            index: i as u64,
-                            u0_mm,
-                            v0_mm_s,
-                            regime: r.regime,
-                            impacts: r.impacts,
-                            impact_force_mg: r.impact_force_mg,
-                            settled: r.settled,
-                            strobe_u_mm: c.map(|c| c.0 * 1e3),
-                            strobe_v_mm_s: c.map(|c| c.1 * 1e3),
-                        }
-                    })
-                    .map_err(|e| {
-                        anyhow::anyhow!("initial condition u0 {u0_mm} mm, u̇0 {v0_mm_s} mm/s: {e}")
-                    });
-                emit(k, row);
-            },
-        );
-    })
+/// One operating point whose initial conditions are evaluated against a shared catalogue.
+#[derive(Debug, Clone, Copy)]
+pub struct Attractors<'a> {
+    /// Rig, numerics, precision.
+    pub setup: &'a Setup,
+    /// Gap, mm.
+    pub gap_mm: f64,
+    /// `Ω/ω`.
+    pub omega_ratio: f64,
+    /// Recurrence settings (validated).
+    pub recurrence: RecurrenceSettings,
+    /// The catalogue shared by the run's threads.
+    pub catalogue: &'a Catalogue,
 }
 
+impl Attractors<'_> {
+    /// The scales of the scaled Poincaré distance at this point.
+    pub fn scales(params: &RigParams, omega_ratio: f64) -> Scales {
+        let a0_mm = params.amplitude_m * 1e3;
+        Scales {
+            u_mm: a0_mm,
+            v_mm_s: a0_mm * omega_ratio * params.omega_n(),
+        }
+    }
+
+    /// The rows of the initial conditions `ics` (`(index, u0 mm, u̇0 mm/s)`) on the calling
+    /// thread, [`DEFAULT_LANES`] interleaved, in the setup's precision.
+    pub fn rows(&self, ics: &[(u64, f64, f64)]) -> Vec<Result<BasinRaw>> {
+        crate::with_precision!(self.setup.precision, T => self.points::<T>(ics))
+    }
+
+    fn points<T: Real>(&self, ics: &[(u64, f64, f64)]) -> Vec<Result<BasinRaw>> {
+        let setup = self.setup;
+        let phases = match PhaseTable::new(setup.settings.steps.steps_per_period) {
+            Ok(p) => p,
+            Err(e) => return ics.iter().map(|_| Err(e.into())).collect(),
+        };
+        let protocol = &setup.settings.protocol;
+        let scales = Self::scales(&setup.params, self.omega_ratio);
+        let grid_tol = self.catalogue.attractor_tol();
+        let damped = suspension_damped(&setup.params);
+        in_order(ics.len(), |emit| {
+            run_interleaved::<T, Watch<'_>, DEFAULT_LANES, _, _, _>(
+                ics.iter().copied(),
+                |(_, u0_mm, v0_mm_s)| {
+                    let mut sim = simulator_at::<T>(
+                        &setup.params,
+                        self.gap_mm * 1e-3,
+                        self.omega_ratio,
+                        &setup.settings,
+                        &phases,
+                    )?;
+                    sim.reset_relative(u0_mm * 1e-3, v0_mm_s * 1e-3)?;
+                    let run = ProtocolRun::new(&sim, protocol, setup.params.weight_n())?;
+                    let obs = Watch {
+                        keep: protocol.observe_periods as usize,
+                        window: VecDeque::new(),
+                        recurrence: RecurrenceWatch::new(self.catalogue, self.recurrence),
+                    };
+                    Ok((sim, run, obs))
+                },
+                |k, r| {
+                    let (index, u0_mm, v0_mm_s) = ics[k];
+                    let row = r
+                        .map(|(r, obs, _)| {
+                            let mut row = BasinRaw {
+                                index,
+                                u0_mm,
+                                v0_mm_s,
+                                regime: r.regime,
+                                impacts: r.impacts,
+                                impact_force_mg: r.impact_force_mg,
+                                settled: r.settled,
+                                recurrence: Recurrence::None,
+                                strobe_u_mm: None,
+                                strobe_v_mm_s: None,
+                                points: String::new(),
+                            };
+                            let known = match obs.recurrence.assigned() {
+                                Some(id) => self.catalogue.get(id),
+                                None => None,
+                            };
+                            let set = known.or_else(|| {
+                                if !damped && !r.regime.impacts() {
+                                    row.recurrence = Recurrence::Neutral;
+                                    return None;
+                                }
+                                let q = match r.regime {
+                                    Regime::Periodic { q, .. } => Some(usize::from(q)),
+                                    Regime::NoImpact => window_period(
+                                        &obs.window,
+                                        protocol.max_q as usize,
+                                        protocol.classify_tol,
+                                        scales,
+                                    ),
+                                    Regime::Irregular | Regime::Chaotic => None,
+                                }?;
+                                let mut points = cycle(&obs.window, q)?;
+                                if r.regime == Regime::NoImpact {
+                                    points = minimal_cycle(points, grid_tol, scales);
+                                }
+                                let set = Known {
+                                    regime: r.regime,
+                                    points,
+                                    impact_force_mg: r.impact_force_mg,
+                                    impacts: r.impacts,
+                                };
+                                self.catalogue.register(set.clone());
+                                row.recurrence = Recurrence::Found;
+                                Some(set)
+                            });
+                            match set {
+                                Some(set) => {
+                                    if obs.recurrence.assigned().is_some() {
+                                        row.recurrence = Recurrence::Known;
+                                        row.settled = true;
+                                        row.regime = set.regime;
+                                        row.impacts = set.impacts;
+                                        row.impact_force_mg = set.impact_force_mg;
+                                    }
+                                    row.strobe_u_mm = Some(set.points[0].0);
+                                    row.strobe_v_mm_s = Some(set.points[0].1);
+                                    row.points = points_text(&set.points);
+                                }
+                                None if r.regime.impacts()
+                                    && row.recurrence == Recurrence::None
+                                    && returns(&obs.window, scales) =>
+                                {
+                                    row.recurrence = Recurrence::Found;
+                                }
+                                None => {}
+                            }
+                            row
+                        })
+                        .map_err(|e| {
+                            anyhow::anyhow!(
+                                "initial condition u0 {u0_mm} mm, u̇0 {v0_mm_s} mm/s: {e}"
+                            )
+                        });
+                    emit(k, row);
+                },
+            );
+        })
+    }
+}
+
+/// Whether the suspension's free flight dissipates energy (a damping ratio above 0): without,
+/// a non-impacting motion is conservative and attracts nothing.
+pub fn suspension_damped(params: &RigParams) -> bool {
+    match params.suspension {
+        Suspension::Beam { damping_ratio, .. } => damping_ratio > 0.0,
+        Suspension::Wires { .. } => false,
+    }
+}
+
+/// The ungrouped rows of the grid points `batch` on the calling thread (see [`Attractors::rows`]).
+pub fn rows(
+    setup: &Setup,
+    grid: &BasinsGrid,
+    catalogue: &Catalogue,
+    batch: &[usize],
+) -> Vec<Result<[BasinRaw; 1]>> {
+    let ics: Vec<(u64, f64, f64)> = batch
+        .iter()
+        .map(|&i| {
+            let (u, v) = grid.initial(i);
+            (i as u64, u, v)
+        })
+        .collect();
+    Attractors {
+        setup,
+        gap_mm: grid.gap_mm,
+        omega_ratio: grid.omega_ratio,
+        recurrence: grid.recurrence,
+        catalogue,
+    }
+    .rows(&ics)
+    .into_iter()
+    .map(|r| r.map(|r| [r]))
+    .collect()
+}
+
+/// The group key of a row: whether it recurred, its regime, its canonical point.
+fn key(r: &BasinRaw) -> (bool, Regime, Option<(f64, f64)>) {
+    let recurrent = r.recurrence.attracted();
+    let point = match r.regime {
+        _ if !recurrent => None,
+        Regime::Periodic { .. } | Regime::NoImpact => r.strobe_u_mm.zip(r.strobe_v_mm_s),
+        _ => None,
+    };
+    (
+        recurrent,
+        if recurrent {
+            r.regime
+        } else {
+            Regime::NoImpact
+        },
+        point,
+    )
+}
+
+#[derive(Debug, Clone)]
 struct Group {
+    recurrent: bool,
     regime: Regime,
     point: Option<(f64, f64)>,
+    points: Vec<(f64, f64)>,
+    force_mg: f64,
     cells: u64,
 }
 
 /// Greedy grouping in index order (deterministic): a row joins the first group (in creation
 /// order) of its regime whose first point lies within the tolerance.
-struct Grouping {
-    u_scale: f64,
-    v_scale: f64,
+#[derive(Debug, Clone)]
+pub struct Grouping {
+    scales: Scales,
     tol: f64,
     groups: Vec<Group>,
 }
 
 impl Grouping {
-    fn new(meta: &Meta, grid: &BasinsGrid) -> Self {
-        let a0_mm = meta.params.amplitude_m * 1e3;
-        let omega = grid.omega_ratio * meta.params.omega_n();
+    /// An empty grouping with the scaled tolerance `tol` in `scales`.
+    pub fn new(scales: Scales, tol: f64) -> Self {
         Grouping {
-            u_scale: a0_mm,
-            v_scale: a0_mm * omega,
-            tol: grid.attractor_tol,
+            scales,
+            tol,
             groups: Vec::new(),
         }
     }
 
-    fn find(&self, regime: Regime, point: Option<(f64, f64)>) -> Option<usize> {
+    fn find(&self, r: &BasinRaw) -> Option<usize> {
+        let (recurrent, regime, point) = key(r);
         self.groups.iter().position(|g| {
-            g.regime == regime
+            g.recurrent == recurrent
+                && g.regime == regime
                 && match (g.point, point) {
-                    (Some(a), Some(b)) => {
-                        ((a.0 - b.0).abs() / self.u_scale).max((a.1 - b.1).abs() / self.v_scale)
-                            <= self.tol
-                    }
+                    (Some(a), Some(b)) => self.scales.distance(a, b) <= self.tol,
                     (None, None) => true,
                     _ => false,
                 }
         })
     }
 
-    fn add(&mut self, regime: Regime, point: Option<(f64, f64)>) {
-        match self.find(regime, point) {
-            Some(k) => self.groups[k].cells += 1,
-            None => self.groups.push(Group {
-                regime,
-                point,
-                cells: 1,
-            }),
+    /// Adds one row.
+    pub fn add(&mut self, r: &BasinRaw) {
+        match self.find(r) {
+            Some(k) => {
+                let g = &mut self.groups[k];
+                g.cells += 1;
+                g.force_mg = g.force_mg.max(r.impact_force_mg);
+            }
+            None => {
+                let (recurrent, regime, point) = key(r);
+                self.groups.push(Group {
+                    recurrent,
+                    regime,
+                    point,
+                    points: if point.is_some() {
+                        parse_points(&r.points)
+                    } else {
+                        Vec::new()
+                    },
+                    force_mg: if recurrent { r.impact_force_mg } else { 0.0 },
+                    cells: 1,
+                })
+            }
         }
+    }
+
+    /// The attractors, sorted (recurrent first; regime; canonical `u`, `u̇`), and for each
+    /// group (in creation order) its sorted id.
+    pub fn attractors(&self) -> (Vec<Attractor>, Vec<u32>) {
+        let mut order: Vec<usize> = (0..self.groups.len()).collect();
+        order.sort_by(|&a, &b| {
+            let (ga, gb) = (&self.groups[a], &self.groups[b]);
+            let pa = ga.point.unwrap_or((0.0, 0.0));
+            let pb = gb.point.unwrap_or((0.0, 0.0));
+            gb.recurrent
+                .cmp(&ga.recurrent)
+                .then(ga.regime.cmp(&gb.regime))
+                .then(pa.0.total_cmp(&pb.0))
+                .then(pa.1.total_cmp(&pb.1))
+        });
+        let mut id_of = vec![0u32; order.len()];
+        for (id, &k) in order.iter().enumerate() {
+            id_of[k] = id as u32;
+        }
+        let total: u64 = self.groups.iter().map(|g| g.cells).sum();
+        let list = order
+            .iter()
+            .enumerate()
+            .map(|(id, &k)| {
+                let g = &self.groups[k];
+                let (lo, hi) = wilson(g.cells, total);
+                Attractor {
+                    id: if g.recurrent { label(id) } else { "-".into() },
+                    label: if g.recurrent {
+                        format!("{} {}", g.regime, label(id))
+                    } else {
+                        "no attractor".into()
+                    },
+                    recurrent: g.recurrent,
+                    regime: g.regime,
+                    point: g.point,
+                    points: g.points.clone(),
+                    impact_force_mg: g.force_mg,
+                    cells: g.cells,
+                    fraction: g.cells as f64 / total.max(1) as f64,
+                    ci95: (lo, hi),
+                }
+            })
+            .collect();
+        (list, id_of)
+    }
+
+    /// The sorted id of a row's group (after [`Grouping::attractors`]'s `ids`).
+    pub fn id(&self, r: &BasinRaw, ids: &[u32]) -> Option<u32> {
+        self.find(r).map(|k| ids[k])
     }
 }
 
@@ -281,24 +535,89 @@ pub fn label(mut k: usize) -> String {
     String::from_utf8(s).unwrap_or_default()
 }
 
-fn raw_point(r: &BasinRaw) -> Option<(f64, f64)> {
-    match r.regime {
-        Regime::Periodic { .. } => r.strobe_u_mm.zip(r.strobe_v_mm_s),
-        _ => None,
-    }
-}
-
-/// An attractor of a basins grid: the steady states its cells reach, grouped.
-#[derive(Debug, Clone)]
+/// An attractor of a set of initial conditions: the steady states its cells reach, grouped.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Attractor {
-    /// Label: regime and letter (`1/1 A`).
+    /// Id: letters (`A`), or `-` for the trajectories that reached none.
+    pub id: String,
+    /// Label: regime and letter (`1/1 A`), or `no attractor`.
     pub label: String,
+    /// Whether it is an attractor (not the group without one).
+    pub recurrent: bool,
     /// Regime.
     pub regime: Regime,
     /// Canonical Poincaré point `(u mm, u̇ mm/s)`, if periodic.
     pub point: Option<(f64, f64)>,
-    /// Cells in its basin.
+    /// All its Poincaré points, canonical first (periodic only).
+    pub points: Vec<(f64, f64)>,
+    /// Peak `F_i/mg` on it.
+    pub impact_force_mg: f64,
+    /// Initial conditions in its basin.
     pub cells: u64,
+    /// Its basin fraction, `cells / total`.
+    pub fraction: f64,
+    /// Wilson 95 % interval of the fraction (meaningful for random initial conditions).
+    pub ci95: (f64, f64),
+}
+
+/// One row of an attractor catalogue CSV (one per Poincaré point; one with empty point fields
+/// for an attractor without points).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CatalogueRow {
+    /// Attractor id.
+    pub attractor: String,
+    /// Regime.
+    pub regime: String,
+    /// Initial conditions in its basin.
+    pub count: u64,
+    /// Basin fraction.
+    pub fraction: f64,
+    /// Wilson 95 % interval, low end.
+    pub ci95_lo: f64,
+    /// Wilson 95 % interval, high end.
+    pub ci95_hi: f64,
+    /// Peak `F_i/mg`.
+    pub impact_force_mg: f64,
+    /// Poincaré point number (0 = canonical).
+    pub k: Option<usize>,
+    /// Poincaré `u`, mm.
+    pub u_mm: Option<f64>,
+    /// Poincaré `u̇`, mm/s.
+    pub v_mm_s: Option<f64>,
+}
+
+/// Writes the attractor catalogue CSV.
+///
+/// # Errors
+/// I/O failure.
+pub fn write_catalogue(path: &std::path::Path, attractors: &[Attractor]) -> Result<()> {
+    let mut w = create_csv::<CatalogueRow>(path, None)?;
+    for a in attractors {
+        let row = |k: Option<usize>, p: Option<(f64, f64)>| CatalogueRow {
+            attractor: a.id.clone(),
+            regime: if a.recurrent {
+                a.regime.to_string()
+            } else {
+                "-".into()
+            },
+            count: a.cells,
+            fraction: a.fraction,
+            ci95_lo: a.ci95.0,
+            ci95_hi: a.ci95.1,
+            impact_force_mg: a.impact_force_mg,
+            k,
+            u_mm: p.map(|p| p.0),
+            v_mm_s: p.map(|p| p.1),
+        };
+        if a.points.is_empty() {
+            w.serialize(row(None, None))?;
+        }
+        for (k, p) in a.points.iter().enumerate() {
+            w.serialize(row(Some(k), Some(*p)))?;
+        }
+    }
+    w.flush()?;
+    Ok(())
 }
 
 /// What the basins figure needs: each cell's attractor id (`u32::MAX` for none) and the
@@ -329,49 +648,25 @@ impl GridKind for Basins {
         let (meta, raw, out) = (job.meta, job.rows, job.out);
         let grid = meta.grid::<Self::Grid>()?;
         // Pass 1: groups.
-        let mut grouping = Grouping::new(meta, &grid);
+        let mut grouping = Grouping::new(
+            Attractors::scales(&meta.params, grid.omega_ratio),
+            grid.attractor_tol,
+        );
         for r in open_csv::<BasinRaw>(raw)?.deserialize::<BasinRaw>() {
             let r = r.with_context(|| format!("{}: malformed row", raw.display()))?;
-            grouping.add(r.regime, raw_point(&r));
+            grouping.add(&r);
         }
-        let mut order: Vec<usize> = (0..grouping.groups.len()).collect();
-        order.sort_by(|&a, &b| {
-            let (ga, gb) = (&grouping.groups[a], &grouping.groups[b]);
-            let pa = ga.point.unwrap_or((0.0, 0.0));
-            let pb = gb.point.unwrap_or((0.0, 0.0));
-            ga.regime
-                .cmp(&gb.regime)
-                .then(pa.0.total_cmp(&pb.0))
-                .then(pa.1.total_cmp(&pb.1))
-        });
-        let mut id_of = vec![0u32; order.len()];
-        for (id, &k) in order.iter().enumerate() {
-            id_of[k] = id as u32;
-        }
-        let keys: Vec<Attractor> = order
-            .iter()
-            .enumerate()
-            .map(|(id, &k)| {
-                let g = &grouping.groups[k];
-                Attractor {
-                    label: format!("{} {}", g.regime, label(id)),
-                    regime: g.regime,
-                    point: g.point,
-                    cells: g.cells,
-                }
-            })
-            .collect();
+        let (keys, ids) = grouping.attractors();
         // Pass 2: rows and raster.
         let (nu, nv) = (grid.u0_mm.len(), grid.v0_mm_s.len());
         let mut cells = Raster::new(nu, nv, u32::MAX);
         let mut w = create_csv::<BasinRow>(out, None)?;
         for r in open_csv::<BasinRaw>(raw)?.deserialize::<BasinRaw>() {
             let r = r.with_context(|| format!("{}: malformed row", raw.display()))?;
-            let k = grouping
-                .find(r.regime, raw_point(&r))
+            let id = grouping
+                .id(&r, &ids)
                 .context("internal: row without a group")?;
-            let id = id_of[k];
-            let g = &grouping.groups[k];
+            let a = &keys[id as usize];
             let (iu, iv) = grid.split(r.index as usize);
             cells.set(iu, iv, id);
             w.serialize(BasinRow {
@@ -380,15 +675,40 @@ impl GridKind for Basins {
                 v0_mm_s: r.v0_mm_s,
                 impacting: r.regime.impacts(),
                 regime: r.regime,
-                attractor: label(id as usize),
-                attractor_u_mm: g.point.map(|p| p.0),
-                attractor_v_mm_s: g.point.map(|p| p.1),
+                attractor: a.id.clone(),
+                attractor_u_mm: a.point.map(|p| p.0),
+                attractor_v_mm_s: a.point.map(|p| p.1),
                 impacts: r.impacts,
                 impact_force_mg: r.impact_force_mg,
                 settled: r.settled,
+                recurrence: r.recurrence,
             })?;
         }
         w.flush()?;
+        if let Some(path) = job.figures.attractors {
+            let tmp = job.outputs.reserve(path)?;
+            write_catalogue(&tmp, &keys)?;
+        }
+        let mut summary = String::new();
+        for a in &keys {
+            summary.push_str(&format!(
+                "  {:<16} {:>6.2} %  F_i/mg {:.2}\n",
+                a.label,
+                100.0 * a.fraction,
+                a.impact_force_mg
+            ));
+        }
+        if let Some(never) = keys.iter().find(|a| !a.recurrent) {
+            summary.push_str(&format!(
+                "  no attractor: {} initial conditions either never recurred within {} transient + \
+                 {} window periods (raise --max-periods if the damping is light) or move without \
+                 impacts on an undamped suspension (conservative)\n",
+                never.cells,
+                meta.settings.protocol.max_transient_periods,
+                meta.settings.protocol.observe_periods
+            ));
+        }
+        let _ = std::io::stderr().write_all(summary.as_bytes());
         Ok(BasinsSummary {
             cells,
             attractors: keys,
@@ -410,12 +730,9 @@ mod tests {
     }
 
     #[test]
-    fn canonical_point_is_phase_independent() {
-        let a: VecDeque<(f64, f64)> = [(3.0, 0.0), (1.0, 2.0), (2.0, 1.0)].into();
-        let b: VecDeque<(f64, f64)> = [(2.0, 1.0), (3.0, 0.0), (1.0, 2.0)].into();
-        assert_eq!(canonical(&a, 3), Some((1.0, 2.0)));
-        assert_eq!(canonical(&a, 3), canonical(&b, 3));
-        assert_eq!(canonical(&a, 1), Some((2.0, 1.0)));
-        assert_eq!(canonical(&a, 4), None);
+    fn points_round_trip_through_text() {
+        let p = vec![(-0.125, 3.5), (1e-3, -250.0)];
+        assert_eq!(parse_points(&points_text(&p)), p);
+        assert!(parse_points("").is_empty());
     }
 }

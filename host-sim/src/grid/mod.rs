@@ -20,6 +20,7 @@ use crate::shard::{Indexed, Kind, Meta, Shard, ShardFile, create_csv, merge_rows
 
 pub mod basins;
 pub mod bifurcation;
+pub mod fractions;
 pub mod peterka;
 pub mod raster;
 
@@ -130,6 +131,8 @@ pub struct Figures<'a> {
     pub force_plot: Option<&'a Path>,
     /// Peterka only: the CSV of the curves bounding the `1/1` region (`--boundaries`).
     pub boundaries: Option<&'a Path>,
+    /// Basins and fractions: the attractor catalogue CSV (`--attractors-out`).
+    pub attractors: Option<&'a Path>,
 }
 
 /// A gridded analysis that runs whole or in shards and whose shards merge into the one-run
@@ -283,6 +286,7 @@ pub fn command<K: GridKind>(
             ("--plot", figures.plot),
             ("--force-plot", figures.force_plot),
             ("--boundaries-out", figures.boundaries),
+            ("--attractors-out", figures.attractors),
         ]
         .iter()
         .filter_map(|(flag, p)| p.map(|_| *flag))
@@ -471,12 +475,13 @@ mod tests {
             ),
             (
                 header::<basins::BasinRaw>(),
-                "index,u0_mm,v0_mm_s,regime,impacts,impact_force_mg,settled,strobe_u_mm,strobe_v_mm_s",
+                "index,u0_mm,v0_mm_s,regime,impacts,impact_force_mg,settled,recurrence,strobe_u_mm,\
+                 strobe_v_mm_s,points",
             ),
             (
                 header::<basins::BasinRow>(),
                 "index,u0_mm,v0_mm_s,impacting,regime,attractor,attractor_u_mm,attractor_v_mm_s,\
-                 impacts,impact_force_mg,settled",
+                 impacts,impact_force_mg,settled,recurrence",
             ),
             (
                 header::<bifurcation::BifRow>(),

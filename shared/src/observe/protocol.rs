@@ -127,6 +127,13 @@ pub trait Observer<T> {
     fn strobe(&mut self, _p: &StroboPoint<T>, _window: bool) {}
     /// At the end of every impact episode, with its peak force (N).
     fn impact(&mut self, _peak_n: T, _window: bool) {}
+    /// Whether the observer has seen enough and the run should end now (checked after each
+    /// Poincaré section; e.g. the trajectory has reached a known attractor,
+    /// [`super::recurrence::RecurrenceWatch`]). The [`PointResult`] of a run ended this way
+    /// describes only the periods run.
+    fn stop(&self) -> bool {
+        false
+    }
 }
 
 impl<T> Observer<T> for () {
@@ -264,6 +271,10 @@ impl<T: Real> ProtocolRun<T> {
         let (u, du) = sim.relative();
         let p = StroboPoint { u, du };
         obs.strobe(&p, window);
+        if obs.stop() {
+            self.done = Some(self.result(sim));
+            return self.done;
+        }
         let (arrivals, fmax) = (self.arrivals, self.period_force);
         self.arrivals = 0;
         self.period_force = T::zero();
