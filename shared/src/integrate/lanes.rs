@@ -372,8 +372,8 @@ mod tests {
 
     /// Lockstep steps leave every simulator exactly where as many scalar steps do, and they do
     /// run (from rest, far from the surface, until a lane reaches its period's last step).
-    fn check<F: LaneField<f32>>(rig: RigId, gap_m: f64) {
-        let p = rig.preset();
+    fn check<F: LaneField<f32>>(rig: RigId, zeta: f64, gap_m: f64) {
+        let p = rig.preset().with_damping_ratio(zeta);
         let s = SimSettings::default();
         let ratios = [0.6, 0.9, 1.3, 1.7, 2.0, 2.6, 3.1, 3.9];
         let phases = PhaseTable::new(s.steps.steps_per_period).expect("valid N");
@@ -389,6 +389,7 @@ mod tests {
         }
         let reference = sims.clone();
         let mut lanes = Lockstep::<f32, F, 8>::for_simulator(&sims[0]);
+        assert_eq!(lanes.damped, rig == RigId::Wires && zeta > 0.0);
         for (i, sim) in sims.iter().enumerate() {
             assert!(lanes.load(i, sim), "{rig:?}: lane {i}");
         }
@@ -428,8 +429,28 @@ mod tests {
     }
 
     #[test]
+    fn lanes_refuse_a_pendulum_of_the_other_damping() {
+        // One kernel per lane set: damped and undamped pendulums never share lanes.
+        let s = SimSettings::default();
+        let phases = PhaseTable::new(s.steps.steps_per_period).expect("valid N");
+        let at = |zeta: f64| {
+            let p = RigId::Wires.preset().with_damping_ratio(zeta);
+            simulator_at::<f32>(&p, 3.0e-3, 1.3, &s, &phases).expect("valid")
+        };
+        let (undamped, damped) = (at(0.0), at(0.003));
+        let mut lanes = Lockstep::<f32, WiresFree<f32>, 8>::for_simulator(&undamped);
+        assert!(lanes.load(0, &undamped));
+        assert!(!lanes.load(1, &damped));
+        let mut lanes = Lockstep::<f32, WiresFree<f32>, 8>::for_simulator(&damped);
+        assert!(lanes.load(0, &damped));
+        assert!(!lanes.load(1, &undamped));
+    }
+
+    #[test]
     fn lockstep_steps_equal_scalar_steps() {
-        check::<WiresFree<f32>>(RigId::Wires, 3.0e-3);
-        check::<BeamFree<f32>>(RigId::Beam170, 3.0e-3);
+        check::<WiresFree<f32>>(RigId::Wires, 0.0, 3.0e-3);
+        // The damped pendulum: the lanes run the `Damped` kernel, the stepper `AsSet`.
+        check::<WiresFree<f32>>(RigId::Wires, 0.003, 3.0e-3);
+        check::<BeamFree<f32>>(RigId::Beam170, 0.004, 3.0e-3);
     }
 }

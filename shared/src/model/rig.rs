@@ -371,6 +371,40 @@ mod tests {
     }
 
     #[test]
+    fn pendulum_damping_ratio_is_checked_in_0_to_1() {
+        let p = RigId::Wires.preset();
+        assert_eq!(p.damping_ratio(), 0.0);
+        for ok in [0.0, 0.003, 0.999] {
+            p.with_damping_ratio(ok).validate().unwrap();
+        }
+        let field = "suspension.wires.damping_ratio";
+        for bad in [1.0, -0.1, 1.5] {
+            assert_eq!(
+                p.with_damping_ratio(bad).validate(),
+                Err(ParamError::OutOfHalfOpenRange {
+                    field,
+                    value: bad,
+                    min: 0.0,
+                    max: 1.0
+                })
+            );
+        }
+        assert_eq!(
+            p.with_damping_ratio(f64::NAN).validate(),
+            Err(ParamError::NotFinite { field })
+        );
+        let text = std::format!("{}", p.with_damping_ratio(1.0).validate().unwrap_err());
+        assert_eq!(
+            text,
+            "`suspension.wires.damping_ratio` = 1 is out of range: allowed 0 ≤ \
+             suspension.wires.damping_ratio < 1"
+        );
+        // The beams keep their own range, and the setter reaches either suspension.
+        let b = RigId::Beam170.preset().with_damping_ratio(0.01);
+        assert_eq!(b.damping_ratio(), 0.01);
+    }
+
+    #[test]
     fn scaled_parameters_keep_what_they_should() {
         use crate::model::contact::spring_dashpot_restitution;
         for rig in RigId::ALL {
