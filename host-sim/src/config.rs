@@ -465,10 +465,8 @@ pub fn config_text(
 /// # Errors
 /// NaN, infinite, negative, or 1 and above (the message names `damping_ratio` and the range).
 pub fn check_damping_ratio(zeta: f64) -> Result<f64> {
-    Ok(
-        check_half_open("damping_ratio", zeta, 0.0, shared::model::MAX_DAMPING_RATIO)
-            .context("--damping-ratio")?,
-    )
+    check_half_open("damping_ratio", zeta, 0.0, shared::model::MAX_DAMPING_RATIO)
+        .context("--damping-ratio")
 }
 
 /// Checks a gap given in mm on the command line and returns it in m.

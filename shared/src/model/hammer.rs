@@ -6,7 +6,7 @@
 //!   The contact force enters as `−F_i l` in the moment balance exactly as the thesis writes it.
 //!   The project adds the viscous term `− 2ζω θ̇`, `ω = sqrt(g/l)` (the pendulum's pivot and
 //!   air, docs/model.md); with `ζ = 0` (the `wires` preset) the field is the thesis' to the bit
-//!   ([`Viscous`]).
+//!   (`Viscous`).
 //! - Beam springs (coordinate `u = x − y`), Eq. (3-36)–(3-39) rewritten relative to the cart:
 //!   `ü = −(c/m) u̇ − (k/m) u − (k/m) u³ − F_i/m + A0 Ω² sin Ωt`, `k = m ω²`, `c = 2ζ m ω`.
 //!
