@@ -6,6 +6,9 @@
 //! mass_kg = 0.30
 //! [rig.contact.spring-dashpot]
 //! damping_n_s_m = 1100.0
+//! [rig.suspension.wires]     # the pendulum: length and the project's viscous damping ratio
+//! length_m = 0.075           # (damping_ratio absent: 0, the thesis' undamped model)
+//! damping_ratio = 0.003
 //! [settings.steps]           # shared::analysis::SimSettings
 //! steps_per_period = 512
 //! [selection]                # shared::analysis::SelectionSpec
@@ -28,7 +31,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use serde::{Deserialize, Serialize};
 use shared::analysis::{SelectionSpec, SimSettings, Sweep};
-use shared::error::check_range;
+use shared::error::{check_half_open, check_range};
 use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams};
 
 use crate::precision::Precision;
@@ -66,6 +69,12 @@ pub struct RigOpts {
     /// Numerical profile (defaults that `--config` then overrides).
     #[arg(long, value_enum, default_value_t = Profile::Host)]
     pub profile: Profile,
+    /// Viscous damping ratio ζ of the suspension, 0 ≤ ζ < 1, over the preset's and
+    /// `--config`'s: the wire pendulum's (the project's term −2ζω θ̇ added to Eq. 3-26; the
+    /// `wires` preset is the thesis' undamped model, ζ = 0; a few thousandths is realistic,
+    /// docs/model.md) or the beam springs' (Table 3.3: 0.004).
+    #[arg(long, value_name = "ZETA")]
+    pub damping_ratio: Option<f64>,
 }
 
 impl RigOpts {
@@ -79,6 +88,7 @@ impl RigOpts {
             config: None,
             precision: Precision::F32,
             profile: Profile::Host,
+            damping_ratio: None,
         }
     }
 }
@@ -320,6 +330,10 @@ impl Setup {
             }
             uncertainty = file.uncertainty;
         }
+        if let Some(zeta) = opts.damping_ratio {
+            check_damping_ratio(zeta)?;
+            params = params.with_damping_ratio(zeta);
+        }
         params.validate().context("rig parameters")?;
         settings.bands.validate().context("settings.bands")?;
         settings.steps.validate().context("settings.steps")?;
@@ -443,6 +457,16 @@ pub fn config_text(
     }
     out.push_str(&body);
     Ok(out)
+}
+
+/// Checks a damping ratio given with `--damping-ratio`: finite, `0 ≤ ζ < 1`
+/// ([`shared::model::MAX_DAMPING_RATIO`]: the suspension must be underdamped).
+///
+/// # Errors
+/// NaN, infinite, negative, or 1 and above (the message names `damping_ratio` and the range).
+pub fn check_damping_ratio(zeta: f64) -> Result<f64> {
+    check_half_open("damping_ratio", zeta, 0.0, shared::model::MAX_DAMPING_RATIO)
+        .context("--damping-ratio")
 }
 
 /// Checks a gap given in mm on the command line and returns it in m.

@@ -453,3 +453,73 @@ fn continue_writes_the_branch_with_located_events_and_rejects_bad_input() {
         &[&out],
     );
 }
+
+#[test]
+fn damping_ratio_is_set_by_option_or_config_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s.csv");
+    let o = out.to_str().unwrap();
+    // --damping-ratio outside [0, 1) or not finite: the field and its range named, exit ≠ 0,
+    // nothing written (wires and beams alike).
+    for (rig, zeta, needle) in [
+        ("wires", "1", "0 ≤ damping_ratio < 1"),
+        ("wires", "-0.1", "0 ≤ damping_ratio < 1"),
+        ("wires", "NaN", "finite"),
+        ("beam-170", "1", "0 ≤ damping_ratio < 1"),
+    ] {
+        rejected(
+            &line(&format!(
+                "simulate --rig {rig} --gap-mm 0 --omega-ratio 2.0 --periods 2 \
+                 --damping-ratio={zeta} --out {o}"
+            )),
+            &["--damping-ratio", "`damping_ratio`", needle],
+            &[&out],
+        );
+    }
+    // The config's field: the same range, named with its table.
+    let cfg = dir.path().join("z.toml");
+    let config = format!(
+        "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 2 --config {} --out {o}",
+        cfg.display()
+    );
+    rejected_files(
+        &[
+            (
+                &cfg,
+                &config,
+                "[rig.suspension.wires]\nlength_m = 0.075\ndamping_ratio = 1.0\n",
+                "suspension.wires.damping_ratio",
+            ),
+            (
+                &cfg,
+                &config,
+                "[rig.suspension.wires]\nlength_m = 0.075\ndamping_ratio = -0.1\n",
+                "suspension.wires.damping_ratio",
+            ),
+        ],
+        &[&out],
+    );
+    // A config without the field (written before it existed) is the undamped pendulum; the
+    // option and the config's field give the same damped run, which differs from it.
+    let run = |extra: &str| {
+        ok(&line(&format!(
+            "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 30 {extra}"
+        )))
+    };
+    fs::write(&cfg, "[rig.suspension.wires]\nlength_m = 0.075\n").unwrap();
+    let undamped = run("");
+    assert_eq!(run(&format!("--config {}", cfg.display())), undamped);
+    fs::write(
+        &cfg,
+        "[rig.suspension.wires]\nlength_m = 0.075\ndamping_ratio = 0.003\n",
+    )
+    .unwrap();
+    let damped = run(&format!("--config {}", cfg.display()));
+    assert_ne!(damped, undamped);
+    assert_eq!(run("--damping-ratio 0.003"), damped);
+    // The option overrides the config.
+    assert_eq!(
+        run(&format!("--config {} --damping-ratio 0", cfg.display())),
+        undamped
+    );
+}

@@ -566,3 +566,56 @@ fn select_says_why_a_fit_has_no_one_to_one_point() {
         &[],
     );
 }
+
+#[test]
+fn identify_free_gives_the_wire_pendulum_its_damping_ratio() {
+    // `drop --record displacement` with the surface out of reach: a free decay of the damped
+    // pendulum (ζ = 0.003, θ0 = 0.01 rad); `identify free --rig wires` returns ζ with its
+    // interval and writes it with the length into `[rig.suspension.wires]`.
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    ok(&line(&format!(
+        "drop --rig wires --damping-ratio 0.003 --gap-mm 10 --release-mm 10.75 --duration-s 20 \
+         --sample-rate-hz 1000 --record displacement --noise-pct 1 --seed 3 --out {}",
+        p("decay.csv")
+    )));
+    let text = fs::read_to_string(p("decay.csv")).unwrap();
+    assert!(text.contains("\nt_s,u_mm\n"), "{}", &text[..400]);
+    let json = ok(&line(&format!(
+        "identify free --rig wires --trace {} --mass-kg 0.298 --unit mm --out {} --json",
+        p("decay.csv"),
+        p("wires.toml")
+    )));
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let zeta = v["damping_ratio"].as_f64().unwrap();
+    let ci = &v["damping_ratio_ci95"];
+    let (z0, z1) = (ci[0].as_f64().unwrap(), ci[1].as_f64().unwrap());
+    assert!(z0 < zeta && zeta < z1 && z1 - z0 < 1e-4, "{v}");
+    assert!((zeta / 0.003 - 1.0).abs() < 0.03, "{v}");
+    let l = v["pendulum_length_m"].as_f64().unwrap();
+    assert!((l / 0.075 - 1.0).abs() < 1e-4, "{v}");
+    let cfg = fs::read_to_string(p("wires.toml")).unwrap();
+    assert!(cfg.contains("[rig.suspension.wires]"), "{cfg}");
+    let written: toml::Table = toml::from_str(&cfg).unwrap();
+    let z = written["rig"]["suspension"]["wires"]["damping_ratio"]
+        .as_float()
+        .unwrap();
+    assert_eq!(z, zeta);
+    // The other commands take it: the damped pendulum runs differently from the preset.
+    let run = |extra: &str| {
+        ok(&line(&format!(
+            "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 30 {extra}"
+        )))
+    };
+    assert_ne!(run(&format!("--config {}", p("wires.toml"))), run(""));
+    // Displacement records take no force offset.
+    rejected(
+        &line(&format!(
+            "drop --rig wires --gap-mm 10 --release-mm 10.75 --record displacement \
+             --offset-n 0.5 --out {}",
+            p("x.csv")
+        )),
+        &["--offset-n"],
+        &[&dir.path().join("x.csv")],
+    );
+}

@@ -22,6 +22,17 @@ pub enum ParamError {
         /// Largest allowed value.
         max: f64,
     },
+    /// The value lies outside the half-open `[min, max)` (bounds in the field's own unit).
+    OutOfHalfOpenRange {
+        /// Field name.
+        field: &'static str,
+        /// Offending value.
+        value: f64,
+        /// Smallest allowed value.
+        min: f64,
+        /// The bound the value must stay below.
+        max: f64,
+    },
     /// An integer setting outside `[min, max]`.
     CountOutOfRange {
         /// Field name.
@@ -48,6 +59,7 @@ impl ParamError {
         match self {
             ParamError::NotFinite { field }
             | ParamError::OutOfRange { field, .. }
+            | ParamError::OutOfHalfOpenRange { field, .. }
             | ParamError::CountOutOfRange { field, .. }
             | ParamError::BadRange { field, .. } => field,
         }
@@ -66,6 +78,15 @@ impl fmt::Display for ParamError {
                 min,
                 max,
             } => out_of_range(f, field, &value, &min, &max),
+            ParamError::OutOfHalfOpenRange {
+                field,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "`{field}` = {value} is out of range: allowed {min} ≤ {field} < {max}"
+            ),
             ParamError::CountOutOfRange {
                 field,
                 value,
@@ -103,6 +124,30 @@ pub fn check_range(field: &'static str, value: f64, min: f64, max: f64) -> Resul
     }
     if value < min || value > max {
         return Err(ParamError::OutOfRange {
+            field,
+            value,
+            min,
+            max,
+        });
+    }
+    Ok(value)
+}
+
+/// Checks that `value` is finite and in the half-open `[min, max)`.
+///
+/// # Errors
+/// [`ParamError::NotFinite`] or [`ParamError::OutOfHalfOpenRange`] naming `field`.
+pub fn check_half_open(
+    field: &'static str,
+    value: f64,
+    min: f64,
+    max: f64,
+) -> Result<f64, ParamError> {
+    if !value.is_finite() {
+        return Err(ParamError::NotFinite { field });
+    }
+    if value < min || value >= max {
+        return Err(ParamError::OutOfHalfOpenRange {
             field,
             value,
             min,

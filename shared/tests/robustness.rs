@@ -33,7 +33,7 @@ proptest! {
             cart_mass_kg: 5.0,
             amplitude_m: amp,
             gravity_m_s2: 9.81,
-            suspension: Suspension::Wires { length_m: len },
+            suspension: Suspension::Wires { length_m: len, damping_ratio: 0.0 },
             contact: ContactLaw::SpringDashpot { stiffness_n_m: k, damping_n_s_m: c },
         };
         let steps = StepSettings { steps_per_period: n, substeps_per_contact: kk };

@@ -3,7 +3,7 @@
 //! and the desktop's way (`host-sim select`, responses in parallel), must be identical, and the
 //! result must show the thesis' reported behaviour (docs/model.md, "What the thesis reports").
 
-use host_sim::cli::{Precision, Profile, RigOpts};
+use host_sim::cli::{Profile, RigOpts};
 use host_sim::commands::select::compute;
 use host_sim::config::Setup;
 use shared::analysis::{SimSettings, evaluate_point, select_sequential};
@@ -12,11 +12,8 @@ use shared::observe::Regime;
 
 fn setup(rig: RigId, profile: Profile) -> Setup {
     Setup::from_opts(&RigOpts {
-        rig,
-        law: None,
-        config: None,
-        precision: Precision::F32,
         profile,
+        ..RigOpts::preset(rig)
     })
     .unwrap()
 }

@@ -1,18 +1,21 @@
 //! `host-sim drop`: a drop test of the plant simulation recorded like a force sensor (optional
 //! noise and offset): the synthetic "measurement" for `identify contact`, or the prediction of a
-//! drop test with identified parameters.
+//! drop test with identified parameters. With `--record displacement` the hammer's
+//! displacement instead: with the surface out of reach, a free decay for `identify free`.
 
 use std::io::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use shared::analysis::drop::DropSpec;
 use shared::error::check_range;
 
 use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
-use crate::identify::synth::{Sensor, TRUTH_STEPS, synthetic_drop};
+use crate::identify::synth::{
+    Sensor, TRUTH_STEPS, clean_displacement, record_displacement, synthetic_drop,
+};
 use crate::output::Outputs;
 use crate::precision::Precision;
 
@@ -36,18 +39,33 @@ pub struct DropArgs {
     /// Sample rate of the recording, Hz.
     #[arg(long, default_value_t = 50_000.0)]
     pub sample_rate_hz: f64,
-    /// Gaussian sensor noise, standard deviation in % of the largest force.
+    /// Gaussian sensor noise, standard deviation in % of the largest force (displacement: of
+    /// the largest |u|).
     #[arg(long, default_value_t = 0.0)]
     pub noise_pct: f64,
-    /// Sensor offset added to every sample, N.
+    /// Sensor offset added to every sample, N (force only).
     #[arg(long, default_value_t = 0.0)]
     pub offset_n: f64,
+    /// What the sensor records: the contact force (N), or the hammer's displacement from its
+    /// rest position (mm; wires: l sin θ). With the surface out of reach (release < 2 × gap)
+    /// the displacement is a free decay of the suspension, for `identify free`.
+    #[arg(long, value_enum, default_value = "force")]
+    pub record: Recorded,
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// CSV output: `#` comment lines with the setup, then t_s, force_n.
     #[arg(long, value_name = "FILE.csv")]
     pub out: PathBuf,
+}
+
+/// What `drop` records.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Recorded {
+    /// The contact force `F_i`, N (column `force_n`).
+    Force,
+    /// The hammer's displacement `u`, mm (column `u_mm`).
+    Displacement,
 }
 
 /// Runs `drop`.
@@ -73,8 +91,28 @@ pub fn run(a: &DropArgs) -> Result<()> {
         offset_n: a.offset_n,
         seed: a.seed,
     };
-    let trace = synthetic_drop(&setup.params, &spec, &TRUTH_STEPS, &sensor)
-        .context("--sample-rate-hz, --noise-pct, --offset-n")?;
+    let trace = match a.record {
+        Recorded::Force => synthetic_drop(&setup.params, &spec, &TRUTH_STEPS, &sensor)
+            .context("--sample-rate-hz, --noise-pct, --offset-n")?,
+        Recorded::Displacement => {
+            anyhow::ensure!(
+                a.offset_n == 0.0,
+                "--offset-n is a force offset: not with --record displacement"
+            );
+            let clean = clean_displacement(&setup.params, &spec, &TRUTH_STEPS, a.sample_rate_hz)
+                .context("--sample-rate-hz")?;
+            let mut t =
+                record_displacement(&clean, a.noise_pct, 0.0, a.seed).context("--noise-pct")?;
+            for u in &mut t.value {
+                *u *= 1e3;
+            }
+            t
+        }
+    };
+    let (column, unit) = match a.record {
+        Recorded::Force => ("force_n", "N"),
+        Recorded::Displacement => ("u_mm", "mm"),
+    };
     let mut outputs = Outputs::new();
     let tmp = outputs.reserve(&a.out)?;
     {
@@ -83,9 +121,10 @@ pub fn run(a: &DropArgs) -> Result<()> {
         let mut w = std::io::BufWriter::new(file);
         writeln!(
             w,
-            "# host-sim drop: {} rig, m = {} kg, contact {}",
+            "# host-sim drop: {} rig, m = {} kg, suspension {}, contact {}",
             setup.rig,
             setup.params.mass_kg,
+            serde_json::to_string(&setup.params.suspension)?,
             serde_json::to_string(&setup.params.contact)?
         )?;
         writeln!(
@@ -94,9 +133,12 @@ pub fn run(a: &DropArgs) -> Result<()> {
             a.release_mm, a.gap_mm, a.noise_pct, a.seed, a.offset_n
         )?;
         writeln!(w, "# sample_rate_hz = {}", a.sample_rate_hz)?;
-        writeln!(w, "t_s,force_n")?;
+        writeln!(w, "t_s,{column}")?;
         for (t, f) in trace.t_s.iter().zip(&trace.value) {
-            writeln!(w, "{t:.7},{f:.6}")?;
+            match a.record {
+                Recorded::Force => writeln!(w, "{t:.7},{f:.6}")?,
+                Recorded::Displacement => writeln!(w, "{t:.7},{f:.7e}")?,
+            }
         }
         w.flush()?;
     }
@@ -107,7 +149,7 @@ pub fn run(a: &DropArgs) -> Result<()> {
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
     println!(
-        "wrote {}: {} samples over {} s, largest sample {:.3} N",
+        "wrote {}: {} samples over {} s, largest sample {:.3} {unit}",
         a.out.display(),
         trace.t_s.len(),
         a.duration_s,

@@ -70,7 +70,7 @@ impl FreeDecay {
     }
     /// A suspension of the same kind as `like` with this decay's parameters: a beam's natural
     /// frequency and damping ratio, or the wires' pendulum length at gravity `gravity_m_s2`
-    /// (the wire model has no damping).
+    /// and the pendulum's damping ratio (the project's viscous term, docs/model.md).
     pub fn suspension(&self, like: &Suspension, gravity_m_s2: f64) -> Suspension {
         match like {
             Suspension::Beam { .. } => Suspension::Beam {
@@ -79,6 +79,7 @@ impl FreeDecay {
             },
             Suspension::Wires { .. } => Suspension::Wires {
                 length_m: self.pendulum_length_m(gravity_m_s2),
+                damping_ratio: self.damping_ratio,
             },
         }
     }

@@ -1,15 +1,17 @@
 //! Synthetic drop tests: the plant simulation ([`shared::analysis::drop`]) sampled like a
-//! force sensor, with Gaussian noise and a constant offset. Used by the recovery tests and the
-//! worked example (`docs/identification.md`).
+//! force sensor, with Gaussian noise and a constant offset; or its displacement `u(t)` sampled
+//! like a displacement sensor (with the surface out of reach: a free decay of the suspension,
+//! for `identify free`). Used by the recovery tests and the worked examples
+//! (`docs/identification.md`).
 
 use anyhow::{Result, ensure};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use shared::analysis::drop::DropSpec;
+use shared::analysis::drop::{DropRecord, DropSpec, run_drop};
 use shared::error::check_range;
 use shared::integrate::StepSettings;
-use shared::model::{ContactLaw, RigId, RigParams};
+use shared::model::{ContactLaw, RigId, RigParams, SwitchBands};
 
 use super::cost::{DropSetup, DropTest, FIT_STEPS, resample, simulate_drop};
 use super::data::analyse_drop;
@@ -156,15 +158,101 @@ pub fn record(clean: &Trace, sensor: &Sensor) -> Result<Trace> {
     check_range("noise_pct", sensor.noise_pct, 0.0, 100.0)?;
     check_range("offset_n", sensor.offset_n, -1e6, 1e6)?;
     let fmax = clean.value.iter().copied().fold(0.0, f64::max);
-    let normal = Normal::new(0.0, sensor.noise_pct / 100.0 * fmax)?;
-    let mut rng = ChaCha8Rng::seed_from_u64(sensor.seed);
+    with_noise(
+        clean,
+        sensor.noise_pct / 100.0 * fmax,
+        sensor.offset_n,
+        sensor.seed,
+    )
+}
+
+/// `clean` plus `offset` and Gaussian noise of standard deviation `sd` (ChaCha8 seeded with
+/// `seed`).
+fn with_noise(clean: &Trace, sd: f64, offset: f64, seed: u64) -> Result<Trace> {
+    let normal = Normal::new(0.0, sd)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let value = clean
         .value
         .iter()
-        .map(|f| f + sensor.offset_n + normal.sample(&mut rng))
+        .map(|f| f + offset + normal.sample(&mut rng))
         .collect();
     Ok(Trace {
         t_s: clean.t_s.clone(),
         value,
     })
+}
+
+/// The hammer's displacement `u(t)` (m; the cart stands still, `u = x`; wires: `l sin θ`) in
+/// the drop test `spec` of `params`, sampled at `t = i / rate`, `0 ≤ t ≤ duration`, without
+/// noise: the plant model's switch-model integrator at `steps` (f64), each sample the cubic
+/// Hermite interpolant of the integrator's `(u, u̇)` either side (error O(h⁴)). With the
+/// surface out of reach (`spec.release_m < 2 gap_m`: the hammer, released `release − gap` from
+/// its rest position, swings at most as far the other way) it is a free decay of the
+/// suspension: the record of `identify free` (the wire pendulum with its viscous term, the
+/// beams with theirs).
+///
+/// # Errors
+/// Invalid parameters or spec, a rate outside `1 ..= 1e7` Hz, or more than 5·10⁷ samples.
+pub fn clean_displacement(
+    params: &RigParams,
+    spec: &DropSpec,
+    steps: &StepSettings,
+    sample_rate_hz: f64,
+) -> Result<Trace> {
+    check_range("sample_rate_hz", sample_rate_hz, 1.0, 1e7)?;
+    let samples_n = (spec.duration_s * sample_rate_hz).floor() as usize + 1;
+    ensure!(
+        samples_n <= 50_000_000,
+        "{samples_n} samples: lower the rate or the duration"
+    );
+    let mut sim: Vec<(f64, f64, f64)> = Vec::new();
+    run_drop::<f64, _>(params, spec, &SwitchBands::default(), steps, |r| {
+        if let DropRecord::Sample(s) = r
+            && sim.last().is_none_or(|&(t, _, _)| s.t_s > t)
+        {
+            sim.push((s.t_s, s.u_m, s.du_m_s));
+        }
+    })?;
+    let t_s: Vec<f64> = (0..samples_n).map(|i| i as f64 / sample_rate_hz).collect();
+    let mut j = 0;
+    let value = t_s
+        .iter()
+        .map(|&t| {
+            while j + 2 < sim.len() && sim[j + 1].0 < t {
+                j += 1;
+            }
+            match (sim.get(j), sim.get(j + 1)) {
+                (Some(&(t0, u0, v0)), Some(&(t1, u1, v1))) => {
+                    let h = t1 - t0;
+                    let s = ((t - t0) / h).clamp(0.0, 1.0);
+                    let (s2, s3) = (s * s, s * s * s);
+                    (2.0 * s3 - 3.0 * s2 + 1.0) * u0
+                        + (s3 - 2.0 * s2 + s) * h * v0
+                        + (-2.0 * s3 + 3.0 * s2) * u1
+                        + (s3 - s2) * h * v1
+                }
+                (Some(&(_, u0, _)), None) => u0,
+                _ => 0.0,
+            }
+        })
+        .collect();
+    Ok(Trace { t_s, value })
+}
+
+/// A clean displacement ([`clean_displacement`]) as a displacement sensor records it: plus
+/// `offset_m` and Gaussian noise of `noise_pct` % of the largest `|u|` (ChaCha8 seeded with
+/// `seed`).
+///
+/// # Errors
+/// `noise_pct` outside `0 ..= 100` or `offset_m` outside `±1` m (named).
+pub fn record_displacement(
+    clean: &Trace,
+    noise_pct: f64,
+    offset_m: f64,
+    seed: u64,
+) -> Result<Trace> {
+    check_range("noise_pct", noise_pct, 0.0, 100.0)?;
+    check_range("offset_m", offset_m, -1.0, 1.0)?;
+    let umax = clean.value.iter().map(|u| u.abs()).fold(0.0, f64::max);
+    with_noise(clean, noise_pct / 100.0 * umax, offset_m, seed)
 }

@@ -18,7 +18,7 @@ use super::rk4::rk4_step_compensated;
 use super::stepper::SubPlan;
 use crate::model::Region;
 use crate::model::contact::LawCoeffs;
-use crate::model::hammer::{BeamFree, Body, FieldEval, WiresFree};
+use crate::model::hammer::{BeamFree, Body, Damped, FieldEval, Undamped, Viscous, WiresFree};
 use crate::real::Real;
 
 /// The contact field of one suspension in a lane.
@@ -29,14 +29,14 @@ pub(crate) trait LaneContact<T: Real>: LaneField<T> {
     /// `(δ, δ̇, position, exact)` at `(y0, y1)`, the sine by `G` (`exact`: within its range).
     fn penetration<G: Trig>(&self, y0: T, y1: T) -> (T, T, Self::Position, bool);
     /// The acceleration at `position`, `y1` with `sin Ωt = sin_phase` and the contact term
-    /// `contact` (wires `F_i/(m l)`, beams `F_i/m`).
-    fn accel_at(&self, position: Self::Position, y1: T, sin_phase: T, contact: T) -> T;
+    /// `contact` (wires `F_i/(m l)`, beams `F_i/m`), the pendulum's viscous term as `V` has it.
+    fn accel_at<V: Viscous>(&self, position: Self::Position, y1: T, sin_phase: T, contact: T) -> T;
 
     /// The field at `(y0, y1)` with `sin Ωt = sin_phase` and the contact acceleration term
     /// `force · inv_mass` (wires `1/(m l)`, beams `1/m`) given by `force(δ, δ̇)`:
     /// `(acceleration, δ, δ̇, force, exact)`.
     #[inline(always)]
-    fn contact_field<G: Trig, P: FnOnce(T, T) -> T>(
+    fn contact_field<G: Trig, V: Viscous, P: FnOnce(T, T) -> T>(
         &self,
         inv_mass: T,
         y0: T,
@@ -46,7 +46,7 @@ pub(crate) trait LaneContact<T: Real>: LaneField<T> {
     ) -> (T, T, T, T, bool) {
         let (d, dd, position, exact) = self.penetration::<G>(y0, y1);
         let f = force(d, dd);
-        let acc = self.accel_at(position, y1, sin_phase, f * inv_mass);
+        let acc = self.accel_at::<V>(position, y1, sin_phase, f * inv_mass);
         (acc, d, dd, f, exact)
     }
 
@@ -67,8 +67,8 @@ impl<T: Real> LaneContact<T> for WiresFree<T> {
         )
     }
     #[inline(always)]
-    fn accel_at(&self, sin_cos: (T, T), _: T, sin_phase: T, contact: T) -> T {
-        self.accel(sin_cos, sin_phase, contact)
+    fn accel_at<V: Viscous>(&self, sin_cos: (T, T), y1: T, sin_phase: T, contact: T) -> T {
+        self.accel::<V>(sin_cos, y1, sin_phase, contact)
     }
     #[inline(always)]
     fn inv_mass(body: &Body<T>) -> Option<T> {
@@ -86,7 +86,7 @@ impl<T: Real> LaneContact<T> for BeamFree<T> {
         (y0 - self.gap, y1, y0, true)
     }
     #[inline(always)]
-    fn accel_at(&self, u: T, y1: T, sin_phase: T, contact: T) -> T {
+    fn accel_at<V: Viscous>(&self, u: T, y1: T, sin_phase: T, contact: T) -> T {
         self.accel(u, y1, sin_phase, contact)
     }
     #[inline(always)]
@@ -113,6 +113,9 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     // Constants: the suspension's free-flight coefficients, the contact term's `1/m` (wires
     // `1/(m l)`), the law's `k`, `c`, the bands `η_δ`, `η_F`.
     field: [F; L],
+    /// Whether the lanes hold the damped pendulum (the [`Damped`] kernel), once a lane's
+    /// constants have been set; a simulator of the other kind is refused.
+    damped: Option<bool>,
     inv_mass: [T; L],
     k: [T; L],
     c: [T; L],
@@ -146,6 +149,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         let z = [T::zero(); L];
         ContactLanes {
             field: [F::default(); L],
+            damped: None,
             inv_mass: z,
             k: z,
             c: z,
@@ -172,8 +176,9 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
 
     /// Puts `sim`'s next sub-step `p` ([`Simulator::plain_substep`]) into lane `i`, with
     /// `sim`'s constants if `constants` (else the lane keeps those of its last [`set`], which
-    /// must be `sim`'s). Returns `false` (nothing set) if `sim` is not of this suspension or not
-    /// of the linear law.
+    /// must be `sim`'s). Returns `false` (nothing set) if `sim` is not of this suspension, not
+    /// of the linear law, or (the pendulum) damped where the lanes' first simulator was not or
+    /// the other way round.
     ///
     /// [`set`]: ContactLanes::set
     #[inline]
@@ -194,6 +199,10 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             let LawCoeffs::Linear { k, c } = hammer.switch().law else {
                 return false;
             };
+            let damped = hammer.is_damped_wires();
+            if *self.damped.get_or_insert(damped) != damped {
+                return false;
+            }
             self.field[i] = field;
             self.inv_mass[i] = inv_mass;
             self.k[i] = k;
@@ -247,29 +256,39 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
     /// Takes every lane's sub-step (lanes not set since the last run repeat their last one and
     /// are to be ignored).
     pub(crate) fn run(&mut self) {
+        if self.damped == Some(true) {
+            self.run_viscous::<Damped>();
+        } else {
+            self.run_viscous::<Undamped>();
+        }
+    }
+
+    /// [`ContactLanes::run`] with the pendulum's viscous term as `V` has it.
+    #[inline(always)]
+    fn run_viscous<V: Viscous>(&mut self) {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if self.avx {
             // SAFETY: the CPU supports AVX and AVX2 (checked in `new`).
             #[allow(unsafe_code)]
             unsafe {
-                self.run_avx()
+                self.run_avx::<V>()
             };
             return;
         }
-        self.run_kernel();
+        self.run_kernel::<V>();
     }
 
     /// [`ContactLanes::run`] compiled for AVX2.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[target_feature(enable = "avx,avx2")]
-    fn run_avx(&mut self) {
-        self.run_kernel();
+    fn run_avx<V: Viscous>(&mut self) {
+        self.run_kernel::<V>();
     }
 
     /// The body of [`ContactLanes::run`]: [`Simulator::substep`]'s trial and end field, lane by
     /// lane with the same operations (branch-free, so that it vectorises).
     #[inline(always)]
-    fn run_kernel(&mut self) {
+    fn run_kernel<V: Viscous>(&mut self) {
         let zero = T::zero();
         let mut tx0 = [zero; L];
         let mut tx1 = [zero; L];
@@ -286,7 +305,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             // free flight (`f−`, no force).
             let mut mode_field = |y: &Vector2<T>, s: T| {
                 let (acc, _, _, _, ok) =
-                    field.contact_field::<SmallTrig, _>(inv_mass, y[0], y[1], s, |d, dd| {
+                    field.contact_field::<SmallTrig, V, _>(inv_mass, y[0], y[1], s, |d, dd| {
                         let f = kk * d + cc * dd;
                         if touching { f } else { zero }
                     });
@@ -322,7 +341,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             let (kk, cc) = (self.k[i], self.c[i]);
             let (eta_d, eta_f) = (self.eta_d[i], self.eta_f[i]);
             let mut region = FREE;
-            let (acc, d, dd, force, ok) = self.field[i].contact_field::<SmallTrig, _>(
+            let (acc, d, dd, force, ok) = self.field[i].contact_field::<SmallTrig, V, _>(
                 self.inv_mass[i],
                 tx0[i],
                 tx1[i],

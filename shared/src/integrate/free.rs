@@ -9,7 +9,7 @@
 use nalgebra::Vector2;
 
 use super::rk4::rk4_step;
-use crate::model::hammer::{BeamFree, FreeFlight, WiresFree};
+use crate::model::hammer::{BeamFree, FreeFlight, Viscous, WiresFree};
 use crate::real::Real;
 
 /// The state a free-flight step carries: `x = (x0, x1)`, the field's second component `a` at
@@ -58,22 +58,23 @@ impl Trig for SmallTrig {
 /// or [`FreeFlight`] (known at run time: the stepper, one kernel for both).
 pub(crate) trait FreeField<T: Real>: Copy {
     /// The field at `(y0, y1)` with `sin Ωt = sin_phase`: `(acceleration, δ, δ̇, exact)`,
-    /// `exact` saying whether `G`'s sine was exact there.
-    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool);
+    /// `exact` saying whether `G`'s sine was exact there; the pendulum's viscous term as `V`
+    /// has it (the beams' damping is always in their field).
+    fn field<G: Trig, V: Viscous>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool);
 }
 
 impl<T: Real> FreeField<T> for WiresFree<T> {
     #[inline(always)]
-    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
+    fn field<G: Trig, V: Viscous>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
         let (st, ct, exact) = G::sin_cos(y0);
-        let (a, d, dd) = self.eval(y1, (st, ct), sin_phase);
+        let (a, d, dd) = self.eval::<V>(y1, (st, ct), sin_phase);
         (a, d, dd, exact)
     }
 }
 
 impl<T: Real> FreeField<T> for BeamFree<T> {
     #[inline(always)]
-    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
+    fn field<G: Trig, V: Viscous>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
         let (a, d, dd) = self.eval(y0, y1, sin_phase);
         (a, d, dd, true)
     }
@@ -81,10 +82,10 @@ impl<T: Real> FreeField<T> for BeamFree<T> {
 
 impl<T: Real> FreeField<T> for FreeFlight<T> {
     #[inline(always)]
-    fn field<G: Trig>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
+    fn field<G: Trig, V: Viscous>(&self, y0: T, y1: T, sin_phase: T) -> (T, T, T, bool) {
         match self {
-            FreeFlight::Wires(w) => w.field::<G>(y0, y1, sin_phase),
-            FreeFlight::Beam(b) => b.field::<G>(y0, y1, sin_phase),
+            FreeFlight::Wires(w) => w.field::<G, V>(y0, y1, sin_phase),
+            FreeFlight::Beam(b) => b.field::<G, V>(y0, y1, sin_phase),
         }
     }
 }
@@ -94,7 +95,7 @@ impl<T: Real> FreeField<T> for FreeFlight<T> {
 /// host inlined.)
 #[cfg_attr(feature = "std", inline(always))]
 #[cfg_attr(not(feature = "std"), inline(never))]
-fn stage<T: Real, F: FreeField<T>, G: Trig>(
+fn stage<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
     c: &F,
     y: &Vector2<T>,
     s: T,
@@ -102,7 +103,7 @@ fn stage<T: Real, F: FreeField<T>, G: Trig>(
     touched: &mut bool,
     exact: &mut bool,
 ) -> Vector2<T> {
-    let (a, d, _, ok) = c.field::<G>(y[0], y[1], s);
+    let (a, d, _, ok) = c.field::<G, V>(y[0], y[1], s);
     *touched |= d > neg_eta;
     *exact &= ok;
     Vector2::new(y[1], a)
@@ -111,9 +112,9 @@ fn stage<T: Real, F: FreeField<T>, G: Trig>(
 /// One RK4 step of `h` seconds in free flight from `st`, with `sin Ωt` `s_mid`, `s_end` at
 /// the midpoint and the end: the end state, whether every field evaluation was exact (`G`),
 /// and whether the step comes within `eta` of the surface (then [`super::Simulator::step`]
-/// splits it; module docs).
+/// splits it; module docs). The pendulum's viscous term as `V` has it.
 #[inline(always)]
-pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig>(
+pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
     c: &F,
     st: &FreeState<T>,
     h: T,
@@ -130,9 +131,9 @@ pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig>(
         h,
         s_mid,
         s_end,
-        |y, s| stage::<T, F, G>(c, y, s, neg_eta, &mut touched, &mut exact),
+        |y, s| stage::<T, F, G, V>(c, y, s, neg_eta, &mut touched, &mut exact),
     );
-    let (a, d, dd, ok) = c.field::<G>(x1[0], x1[1], s_end);
+    let (a, d, dd, ok) = c.field::<G, V>(x1[0], x1[1], s_end);
     let mut near = touched | (d > neg_eta);
     // Turned round inside the step: the peak lies under the two tangent lines.
     let turned = (st.dd > T::zero()) & (dd < T::zero());

@@ -14,7 +14,7 @@
 use super::Simulator;
 use super::free::{FreeField, FreeState, SmallTrig, free_step};
 use super::plan::PhaseTable;
-use crate::model::hammer::{BeamFree, FreeFlight, WiresFree};
+use crate::model::hammer::{BeamFree, Damped, FreeFlight, Undamped, Viscous, WiresFree};
 use crate::real::Real;
 
 /// The free-flight coefficients of one suspension as a lockstep lane holds them: [`WiresFree`]
@@ -114,6 +114,8 @@ pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
     phases: &'t PhaseTable<T>,
     eta: T,
     wires: bool,
+    /// The damped pendulum: the lanes run the [`Damped`] kernel (else [`Undamped`]).
+    damped: bool,
     coef: [F; L],
     h: [T; L],
     state: States<T, L>,
@@ -135,11 +137,12 @@ pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
 impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     /// Empty lanes for the simulators that share `sim`'s step grid, suspension and band.
     pub(crate) fn for_simulator(sim: &Simulator<'t, T>) -> Self {
-        let (phases, wires, eta) = sim.lane_kind();
+        let (phases, wires, eta, damped) = sim.lane_kind();
         Lockstep {
             phases,
             eta,
             wires,
+            damped,
             coef: [F::default(); L],
             h: [T::zero(); L],
             state: States::new(),
@@ -154,12 +157,17 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     }
 
     /// Loads `sim` into lane `i` (`i < L`, the lane empty) if it can take whole free-flight
-    /// steps in lockstep now: the same `N`, suspension and `η_δ` as the others, clear of the
-    /// surface and not at its period's last step. Returns whether it did.
+    /// steps in lockstep now: the same `N`, suspension (the pendulum damped or not) and `η_δ`
+    /// as the others, clear of the surface and not at its period's last step. Returns whether
+    /// it did.
     #[inline]
     pub(crate) fn load(&mut self, i: usize, sim: &Simulator<'t, T>) -> bool {
-        let (phases, wires, eta) = sim.lane_kind();
-        if phases.steps_per_period() != self.n() || wires != self.wires || eta != self.eta {
+        let (phases, wires, eta, damped) = sim.lane_kind();
+        if phases.steps_per_period() != self.n()
+            || wires != self.wires
+            || eta != self.eta
+            || damped != self.damped
+        {
             return false;
         }
         let Some((st, r)) = sim.lane_start() else {
@@ -216,25 +224,35 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 
     /// [`Lockstep::run`] for at most `rounds` rounds.
     pub(crate) fn run_at_most(&mut self, rounds: u64) -> [bool; L] {
+        if self.damped {
+            self.run_viscous::<Damped>(rounds)
+        } else {
+            self.run_viscous::<Undamped>(rounds)
+        }
+    }
+
+    /// [`Lockstep::run_at_most`] with the pendulum's viscous term as `V` has it.
+    #[inline(always)]
+    fn run_viscous<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if self.avx {
             // SAFETY: the CPU supports AVX and AVX2 (checked in `for_simulator`).
             #[allow(unsafe_code)]
-            return unsafe { self.run_avx(rounds) };
+            return unsafe { self.run_avx::<V>(rounds) };
         }
-        self.run_kernel(rounds)
+        self.run_kernel::<V>(rounds)
     }
 
     /// [`Lockstep::run`] compiled for AVX2.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[target_feature(enable = "avx,avx2")]
-    fn run_avx(&mut self, rounds: u64) -> [bool; L] {
-        self.run_kernel(rounds)
+    fn run_avx<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
+        self.run_kernel::<V>(rounds)
     }
 
     /// The body of [`Lockstep::run`] (inlined into each instruction-set variant).
     #[inline(always)]
-    fn run_kernel(&mut self, max_rounds: u64) -> [bool; L] {
+    fn run_kernel<V: Viscous>(&mut self, max_rounds: u64) -> [bool; L] {
         let mut stopped = [false; L];
         if !self.any_running() {
             return stopped;
@@ -261,7 +279,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             let mut next = States::<T, L>::new();
             let mut ok = [0u32; L];
             for i in 0..L {
-                let (nx, exact, near) = free_step::<T, F, SmallTrig>(
+                let (nx, exact, near) = free_step::<T, F, SmallTrig, V>(
                     &self.coef[i],
                     &state.get(i),
                     self.h[i],
@@ -354,8 +372,8 @@ mod tests {
 
     /// Lockstep steps leave every simulator exactly where as many scalar steps do, and they do
     /// run (from rest, far from the surface, until a lane reaches its period's last step).
-    fn check<F: LaneField<f32>>(rig: RigId, gap_m: f64) {
-        let p = rig.preset();
+    fn check<F: LaneField<f32>>(rig: RigId, zeta: f64, gap_m: f64) {
+        let p = rig.preset().with_damping_ratio(zeta);
         let s = SimSettings::default();
         let ratios = [0.6, 0.9, 1.3, 1.7, 2.0, 2.6, 3.1, 3.9];
         let phases = PhaseTable::new(s.steps.steps_per_period).expect("valid N");
@@ -371,6 +389,7 @@ mod tests {
         }
         let reference = sims.clone();
         let mut lanes = Lockstep::<f32, F, 8>::for_simulator(&sims[0]);
+        assert_eq!(lanes.damped, rig == RigId::Wires && zeta > 0.0);
         for (i, sim) in sims.iter().enumerate() {
             assert!(lanes.load(i, sim), "{rig:?}: lane {i}");
         }
@@ -410,8 +429,28 @@ mod tests {
     }
 
     #[test]
+    fn lanes_refuse_a_pendulum_of_the_other_damping() {
+        // One kernel per lane set: damped and undamped pendulums never share lanes.
+        let s = SimSettings::default();
+        let phases = PhaseTable::new(s.steps.steps_per_period).expect("valid N");
+        let at = |zeta: f64| {
+            let p = RigId::Wires.preset().with_damping_ratio(zeta);
+            simulator_at::<f32>(&p, 3.0e-3, 1.3, &s, &phases).expect("valid")
+        };
+        let (undamped, damped) = (at(0.0), at(0.003));
+        let mut lanes = Lockstep::<f32, WiresFree<f32>, 8>::for_simulator(&undamped);
+        assert!(lanes.load(0, &undamped));
+        assert!(!lanes.load(1, &damped));
+        let mut lanes = Lockstep::<f32, WiresFree<f32>, 8>::for_simulator(&damped);
+        assert!(lanes.load(0, &damped));
+        assert!(!lanes.load(1, &undamped));
+    }
+
+    #[test]
     fn lockstep_steps_equal_scalar_steps() {
-        check::<WiresFree<f32>>(RigId::Wires, 3.0e-3);
-        check::<BeamFree<f32>>(RigId::Beam170, 3.0e-3);
+        check::<WiresFree<f32>>(RigId::Wires, 0.0, 3.0e-3);
+        // The damped pendulum: the lanes run the `Damped` kernel, the stepper `AsSet`.
+        check::<WiresFree<f32>>(RigId::Wires, 0.003, 3.0e-3);
+        check::<BeamFree<f32>>(RigId::Beam170, 0.004, 3.0e-3);
     }
 }

@@ -41,7 +41,7 @@ use super::plan::{PhaseTable, StepPlan, StepSettings, step_s};
 use super::rk4::rk4_step_compensated;
 use crate::error::ParamError;
 use crate::model::contact::LawCoeffs;
-use crate::model::hammer::{FieldEval, FieldMode};
+use crate::model::hammer::{AsSet, FieldEval, FieldMode};
 use crate::model::{Hammer, Region, RigParams, SwitchBands};
 use crate::real::Real;
 
@@ -365,10 +365,19 @@ impl<'t, T: Real> Simulator<'t, T> {
         (self.hammer.free_flight(), self.plan.h)
     }
 
-    /// The phase table and whether the suspension is the wire pendulum (lanes).
+    /// The lockstep lanes' kind of this simulator: the phase table, whether the suspension is
+    /// the wire pendulum, `η_δ`, and whether it is the damped pendulum (the [`Damped`]
+    /// kernel).
+    ///
+    /// [`Damped`]: crate::model::hammer::Damped
     #[inline(always)]
-    pub(super) fn lane_kind(&self) -> (&'t PhaseTable<T>, bool, T) {
-        (self.phases, self.hammer.is_wires(), self.hammer.eta_delta())
+    pub(super) fn lane_kind(&self) -> (&'t PhaseTable<T>, bool, T, bool) {
+        (
+            self.phases,
+            self.hammer.is_wires(),
+            self.hammer.eta_delta(),
+            self.hammer.is_damped_wires(),
+        )
     }
 
     /// Ends `taken` whole free-flight steps taken in a lockstep lane ([`super::lanes`]) at
@@ -618,7 +627,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         // free-flight step is a tenth of the state, not small enough for compensation to pay,
         // and the lockstep lanes take the same steps without carrying a second state.
         let c = hammer.free_flight();
-        let (next, _, near) = free_step::<T, _, FullTrig>(&c, &st, rest, s_mid, s_end, eta);
+        let (next, _, near) = free_step::<T, _, FullTrig, AsSet>(&c, &st, rest, s_mid, s_end, eta);
         self.state.counts.free_trials += 1;
         let (x1, end) = clear_of_surface(&next);
         if !near {

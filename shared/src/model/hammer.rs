@@ -4,6 +4,9 @@
 //! - Wires (generalised coordinate `θ`), Eq. (3-26)–(3-29):
 //!   `θ̈ = (A0 Ω²/l) cos θ sin Ωt − (g/l) sin θ − F_i/(m l)`, with `u = l sin θ`, `δ̇ = l θ̇ cos θ`.
 //!   The contact force enters as `−F_i l` in the moment balance exactly as the thesis writes it.
+//!   The project adds the viscous term `− 2ζω θ̇`, `ω = sqrt(g/l)` (the pendulum's pivot and
+//!   air, docs/model.md); with `ζ = 0` (the `wires` preset) the field is the thesis' to the bit
+//!   (`Viscous`).
 //! - Beam springs (coordinate `u = x − y`), Eq. (3-36)–(3-39) rewritten relative to the cart:
 //!   `ü = −(c/m) u̇ − (k/m) u − (k/m) u³ − F_i/m + A0 Ω² sin Ωt`, `k = m ω²`, `c = 2ζ m ω`.
 //!
@@ -35,6 +38,8 @@ pub enum Body<T> {
         length: T,
         /// `g/l`, 1/s².
         g_over_l: T,
+        /// `2ζω`, 1/s (0: the thesis' undamped pendulum).
+        damping: T,
         /// `A0 Ω²/l`, 1/s².
         a0w2_over_l: T,
         /// `1/(m l)`, 1/(kg m).
@@ -96,6 +101,50 @@ pub(crate) fn wires_accel<T: Real>(g_over_l: T, sin_theta: T, excitation: T, con
     excitation - g_over_l * sin_theta - contact
 }
 
+/// How the pendulum's viscous term enters its `θ̈`: `acc − 2ζω θ̇` after Eq. (3-26)'s terms
+/// (`acc` = [`wires_accel`]), or not at all. Chosen at compile time in the lockstep lanes (one
+/// kernel per choice, so that the undamped lanes run the thesis' operations only) and at run
+/// time elsewhere ([`AsSet`]); with `2ζω = 0` every choice gives the undamped bits.
+pub(crate) trait Viscous {
+    /// `θ̈` (1/s²) from Eq. (3-26)'s `acc`, `damping = 2ζω` (1/s) and `θ̇` (rad/s).
+    fn apply<T: Real>(acc: T, damping: T, theta_dot: T) -> T;
+}
+
+/// No viscous term: `acc` (the lanes of an undamped pendulum).
+pub(crate) struct Undamped;
+
+/// The viscous term: `acc − damping · θ̇` (the lanes of a damped pendulum).
+pub(crate) struct Damped;
+
+/// The viscous term if `damping ≠ 0`, else `acc` itself (the stepper and the switch-model
+/// field: with `ζ = 0`, the thesis' operations exactly, as in [`Undamped`]).
+pub(crate) struct AsSet;
+
+impl Viscous for Undamped {
+    #[inline(always)]
+    fn apply<T: Real>(acc: T, _: T, _: T) -> T {
+        acc
+    }
+}
+
+impl Viscous for Damped {
+    #[inline(always)]
+    fn apply<T: Real>(acc: T, damping: T, theta_dot: T) -> T {
+        acc - damping * theta_dot
+    }
+}
+
+impl Viscous for AsSet {
+    #[inline(always)]
+    fn apply<T: Real>(acc: T, damping: T, theta_dot: T) -> T {
+        if damping != T::zero() {
+            Damped::apply(acc, damping, theta_dot)
+        } else {
+            acc
+        }
+    }
+}
+
 /// The beam hammer's `ü` (m/s²) relative to the cart, Eq. (3-36):
 /// `−(c/m) u̇ − (k/m)(u + u³) − contact + excitation`, with `excitation` the drive term
 /// (`A0 Ω² sin Ωt` for the harmonic cart) and `contact` the contact force's term `F_i/m`.
@@ -111,13 +160,16 @@ pub(crate) fn beam_accel<T: Real>(
     -c_over_m * du - k_over_m * (u + u * u * u) - contact + excitation
 }
 
-/// What a free-flight step of the wire pendulum needs (Eq. 3-26 with `F_i = 0`).
+/// What a free-flight step of the wire pendulum needs (Eq. 3-26 with `F_i = 0`, and the
+/// viscous term).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct WiresFree<T> {
     /// `l`, m.
     pub(crate) length: T,
     /// `g/l`, 1/s².
     pub(crate) g_over_l: T,
+    /// `2ζω`, 1/s.
+    pub(crate) damping: T,
     /// `A0 Ω²/l`, 1/s².
     pub(crate) a0w2_over_l: T,
     /// Gap, m.
@@ -126,22 +178,26 @@ pub(crate) struct WiresFree<T> {
 
 impl<T: Real> WiresFree<T> {
     /// The free-flight field at `(θ, θ̇)` = `(_, y1)` given `(sin θ, cos θ)` and
-    /// `sin Ωt = sin_phase`: `(θ̈, δ, δ̇)` (1/s², m, m/s).
+    /// `sin Ωt = sin_phase`, the viscous term as `V` has it: `(θ̈, δ, δ̇)` (1/s², m, m/s).
     #[inline(always)]
-    pub(crate) fn eval(&self, y1: T, (st, ct): (T, T), sin_phase: T) -> (T, T, T) {
-        let acc = self.accel((st, ct), sin_phase, T::zero());
+    pub(crate) fn eval<V: Viscous>(&self, y1: T, (st, ct): (T, T), sin_phase: T) -> (T, T, T) {
+        let acc = self.accel::<V>((st, ct), y1, sin_phase, T::zero());
         (acc, self.length * st - self.gap, self.length * y1 * ct)
     }
 
-    /// `θ̈` (1/s²) given `(sin θ, cos θ)`, `sin Ωt = sin_phase` and the contact term
-    /// `contact = F_i/(m l)` (0 in free flight): Eq. (3-26).
+    /// `θ̈` (1/s²) given `(sin θ, cos θ)`, `θ̇ = y1`, `sin Ωt = sin_phase` and the contact term
+    /// `contact = F_i/(m l)` (0 in free flight): Eq. (3-26), the viscous term as `V` has it.
     #[inline(always)]
-    pub(crate) fn accel(&self, (st, ct): (T, T), sin_phase: T, contact: T) -> T {
-        wires_accel(
-            self.g_over_l,
-            st,
-            self.a0w2_over_l * ct * sin_phase,
-            contact,
+    pub(crate) fn accel<V: Viscous>(&self, (st, ct): (T, T), y1: T, sin_phase: T, contact: T) -> T {
+        V::apply(
+            wires_accel(
+                self.g_over_l,
+                st,
+                self.a0w2_over_l * ct * sin_phase,
+                contact,
+            ),
+            self.damping,
+            y1,
         )
     }
 }
@@ -219,7 +275,7 @@ impl<T: Real> Hammer<T> {
         params.validate()?;
         bands.validate()?;
         let max_gap = match params.suspension {
-            Suspension::Wires { length_m } => MAX_GAP_M.min(0.25 * length_m),
+            Suspension::Wires { length_m, .. } => MAX_GAP_M.min(0.25 * length_m),
             Suspension::Beam { .. } => MAX_GAP_M,
         };
         check_range("gap_m", gap_m, 0.0, max_gap)?;
@@ -228,9 +284,13 @@ impl<T: Real> Hammer<T> {
         let m = params.mass_kg;
         let a0w2 = params.amplitude_m * omega_exc * omega_exc;
         let body = match params.suspension {
-            Suspension::Wires { length_m } => Body::Wires {
+            Suspension::Wires {
+                length_m,
+                damping_ratio,
+            } => Body::Wires {
                 length: c(length_m),
                 g_over_l: c(params.gravity_m_s2 / length_m),
+                damping: c(2.0 * damping_ratio * params.omega_n()),
                 a0w2_over_l: c(a0w2 / length_m),
                 inv_ml: c(1.0 / (m * length_m)),
             },
@@ -294,6 +354,12 @@ impl<T: Real> Hammer<T> {
     pub(crate) fn is_wires(&self) -> bool {
         matches!(self.body, Body::Wires { .. })
     }
+    /// Whether the suspension is the wire pendulum with its viscous term (`ζ > 0`): the
+    /// lockstep lanes take it with the [`Damped`] kernel.
+    #[inline(always)]
+    pub(crate) fn is_damped_wires(&self) -> bool {
+        matches!(self.body, Body::Wires { damping, .. } if damping != T::zero())
+    }
     /// The free-flight coefficients ([`FreeFlight`]).
     #[inline(always)]
     pub(crate) fn free_flight(&self) -> FreeFlight<T> {
@@ -301,11 +367,13 @@ impl<T: Real> Hammer<T> {
             Body::Wires {
                 length,
                 g_over_l,
+                damping,
                 a0w2_over_l,
                 ..
             } => FreeFlight::Wires(WiresFree {
                 length,
                 g_over_l,
+                damping,
                 a0w2_over_l,
                 gap: self.gap,
             }),
@@ -398,6 +466,7 @@ impl<T: Real> Hammer<T> {
             Body::Wires {
                 length,
                 g_over_l,
+                damping,
                 a0w2_over_l,
                 ..
             } => {
@@ -405,7 +474,11 @@ impl<T: Real> Hammer<T> {
                     Drive::Harmonic(sin_phase) => a0w2_over_l * ct * sin_phase,
                     Drive::Cart(cart_accel) => T::zero() - cart_accel / length * ct,
                 };
-                wires_accel(g_over_l, st, excitation, contact)
+                AsSet::apply(
+                    wires_accel(g_over_l, st, excitation, contact),
+                    damping,
+                    x[1],
+                )
             }
             Body::Beam {
                 k_over_m,
@@ -531,7 +604,49 @@ mod tests {
         let FreeFlight::Wires(w) = h.free_flight() else {
             panic!("the wire rig's free flight is the pendulum's")
         };
-        let ff = w.eval(x[1], x[0].sin_cos(), s);
+        let ff = w.eval::<AsSet>(x[1], x[0].sin_cos(), s);
         assert_eq!(ff, (free.dx[1], free.delta, free.delta_dot));
+        // Undamped, every viscous choice is the thesis' field.
+        assert_eq!(w.eval::<Undamped>(x[1], x[0].sin_cos(), s), ff);
+    }
+
+    #[test]
+    fn damped_pendulum_field_adds_the_viscous_term() {
+        // θ̈ = Eq. (3-26) − 2ζω θ̇, ω = sqrt(g/l), in the switch field, the cart-driven field
+        // and the free-flight coefficients alike.
+        let zeta = 0.003;
+        let mut p = RigId::Wires.preset();
+        p.suspension = Suspension::Wires {
+            length_m: 0.075,
+            damping_ratio: zeta,
+        };
+        let w = 2.0 * 11.0;
+        let h = Hammer::<f64>::new(&p, 2e-3, w, &SwitchBands::default()).unwrap();
+        let x = Vector2::new(0.01, 0.2);
+        let s = 0.3;
+        let omega = libm::sqrt(9.81 / 0.075);
+        let undamped =
+            0.89e-3 * w * w / 0.075 * libm::cos(0.01) * s - 9.81 / 0.075 * libm::sin(0.01);
+        let expect = undamped - 2.0 * zeta * omega * 0.2;
+        let e = h.field(&x, s, 0.1);
+        assert!((e.dx[1] - expect).abs() < 1e-12, "{} {expect}", e.dx[1]);
+        // The viscous term is 2ζω θ̇ = 0.0137 rad/s²: well above the tolerance.
+        assert!((e.dx[1] - undamped).abs() > 1e-2);
+        let cart = -0.89e-3 * w * w * s;
+        let d = h.field_driven(&x, cart, 0.1);
+        assert!((d.dx[1] - expect).abs() < 1e-12, "{} {expect}", d.dx[1]);
+        let FreeFlight::Wires(ff) = h.free_flight() else {
+            panic!("the wire rig's free flight is the pendulum's")
+        };
+        let free = h.field_in(FieldMode::Free, &x, s, 0.1);
+        let damped = ff.eval::<Damped>(x[1], x[0].sin_cos(), s);
+        assert_eq!(damped, (free.dx[1], free.delta, free.delta_dot));
+        assert_eq!(ff.eval::<AsSet>(x[1], x[0].sin_cos(), s), damped);
+        assert!(h.is_damped_wires());
+        assert!(
+            !Hammer::<f64>::new(&RigId::Wires.preset(), 2e-3, w, &SwitchBands::default())
+                .unwrap()
+                .is_damped_wires()
+        );
     }
 }

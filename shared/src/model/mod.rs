@@ -13,5 +13,5 @@ pub mod switch;
 
 pub use contact::{ContactLaw, ContactLawKind};
 pub use hammer::Hammer;
-pub use rig::{RigId, RigParams, Suspension};
+pub use rig::{MAX_DAMPING_RATIO, RigId, RigParams, Suspension};
 pub use switch::{Region, SwitchBands};

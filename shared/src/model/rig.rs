@@ -9,7 +9,7 @@ use core::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::contact::ContactLaw;
-use crate::error::{ParamError, check_range};
+use crate::error::{ParamError, check_half_open, check_range};
 
 /// Standard gravity used by the thesis, m/s².
 pub const GRAVITY_M_S2: f64 = 9.81;
@@ -58,7 +58,10 @@ impl RigId {
             damping_ratio: 0.004,
         };
         let suspension = match self {
-            RigId::Wires => Suspension::Wires { length_m: 0.075 },
+            RigId::Wires => Suspension::Wires {
+                length_m: 0.075,
+                damping_ratio: 0.0,
+            },
             RigId::Beam170 => beam(4.50),
             RigId::Beam150 => beam(5.25),
             RigId::Beam135 => beam(6.50),
@@ -104,10 +107,17 @@ impl FromStr for RigId {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Suspension {
-    /// Embarked pendulum of length `l`, Eq. (3-15)–(3-18): `ω = sqrt(g/l)`, no structural damping.
+    /// Embarked pendulum of length `l`, Eq. (3-15)–(3-18): `ω = sqrt(g/l)`, with the project's
+    /// viscous damping ratio `ζ` (0 in the `wires` preset: the thesis' undamped model).
     Wires {
         /// Pendulum (wire) length `l`, m. Table 3.2: 0.075.
         length_m: f64,
+        /// Viscous damping ratio `ζ` of the pendulum (pivot and air), `0 ≤ ζ < 1`: the term
+        /// `−2ζω θ̇` added to Eq. (3-26) (the project's addition, docs/model.md; the thesis
+        /// leaves the rig's damping out). Absent from a config: 0 (the `wires` preset). The
+        /// beam rigs' identified `ζ` is 0.004 (Table 3.3); `identify free` measures it.
+        #[serde(default, skip_serializing_if = "is_zero")]
+        damping_ratio: f64,
     },
     /// Base-excited oscillator, Eq. (3-30)–(3-34): `k = m ω²`, `c = 2 ζ m ω`, cubic term `k u³`.
     Beam {
@@ -117,6 +127,15 @@ pub enum Suspension {
         damping_ratio: f64,
     },
 }
+
+/// Whether `x` is `+0.0` or `−0.0` (an undamped pendulum's `damping_ratio`, left out when
+/// serialised so that the undamped rig's text is the thesis model's).
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
+/// Largest damping ratio accepted (exclusive): the suspension must be underdamped.
+pub const MAX_DAMPING_RATIO: f64 = 1.0;
 
 /// Everything that defines a rig, in SI units. Validated by [`RigParams::validate`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -184,8 +203,12 @@ impl RigParams {
     pub fn with_natural_freq_scaled(&self, factor: f64) -> RigParams {
         let mut p = *self;
         p.suspension = match p.suspension {
-            Suspension::Wires { length_m } => Suspension::Wires {
+            Suspension::Wires {
+                length_m,
+                damping_ratio,
+            } => Suspension::Wires {
                 length_m: length_m / (factor * factor),
+                damping_ratio,
             },
             Suspension::Beam {
                 natural_freq_hz,
@@ -195,6 +218,28 @@ impl RigParams {
                 damping_ratio,
             },
         };
+        p
+    }
+
+    /// The suspension's viscous damping ratio `ζ` (wires: the project's pendulum damping, 0 in
+    /// the thesis' model; beams: Table 3.3's).
+    pub fn damping_ratio(&self) -> f64 {
+        match self.suspension {
+            Suspension::Wires { damping_ratio, .. } | Suspension::Beam { damping_ratio, .. } => {
+                damping_ratio
+            }
+        }
+    }
+
+    /// These parameters with the suspension's damping ratio set to `zeta` (unchecked:
+    /// [`RigParams::validate`] checks it).
+    pub fn with_damping_ratio(&self, zeta: f64) -> RigParams {
+        let mut p = *self;
+        match &mut p.suspension {
+            Suspension::Wires { damping_ratio, .. } | Suspension::Beam { damping_ratio, .. } => {
+                *damping_ratio = zeta
+            }
+        }
         p
     }
 
@@ -208,8 +253,17 @@ impl RigParams {
         check_range("amplitude_m", self.amplitude_m, 1e-7, 0.1)?;
         check_range("gravity_m_s2", self.gravity_m_s2, 0.1, 100.0)?;
         match self.suspension {
-            Suspension::Wires { length_m } => {
+            Suspension::Wires {
+                length_m,
+                damping_ratio,
+            } => {
                 check_range("suspension.wires.length_m", length_m, 1e-3, 10.0)?;
+                check_half_open(
+                    "suspension.wires.damping_ratio",
+                    damping_ratio,
+                    0.0,
+                    MAX_DAMPING_RATIO,
+                )?;
                 // The pendulum must be able to reach the surface: A0 and gaps are ≪ l.
                 if self.amplitude_m >= 0.5 * length_m {
                     return Err(ParamError::OutOfRange {
@@ -240,7 +294,7 @@ impl RigParams {
     /// `2π f_n`, Table 3.3).
     pub fn omega_n(&self) -> f64 {
         match self.suspension {
-            Suspension::Wires { length_m } => libm::sqrt(self.gravity_m_s2 / length_m),
+            Suspension::Wires { length_m, .. } => libm::sqrt(self.gravity_m_s2 / length_m),
             Suspension::Beam {
                 natural_freq_hz, ..
             } => 2.0 * core::f64::consts::PI * natural_freq_hz,
@@ -314,6 +368,40 @@ mod tests {
             Err(ParamError::NotFinite { field: "mass_kg" })
         );
         assert!("beam-171".parse::<RigId>().is_err());
+    }
+
+    #[test]
+    fn pendulum_damping_ratio_is_checked_in_0_to_1() {
+        let p = RigId::Wires.preset();
+        assert_eq!(p.damping_ratio(), 0.0);
+        for ok in [0.0, 0.003, 0.999] {
+            p.with_damping_ratio(ok).validate().unwrap();
+        }
+        let field = "suspension.wires.damping_ratio";
+        for bad in [1.0, -0.1, 1.5] {
+            assert_eq!(
+                p.with_damping_ratio(bad).validate(),
+                Err(ParamError::OutOfHalfOpenRange {
+                    field,
+                    value: bad,
+                    min: 0.0,
+                    max: 1.0
+                })
+            );
+        }
+        assert_eq!(
+            p.with_damping_ratio(f64::NAN).validate(),
+            Err(ParamError::NotFinite { field })
+        );
+        let text = std::format!("{}", p.with_damping_ratio(1.0).validate().unwrap_err());
+        assert_eq!(
+            text,
+            "`suspension.wires.damping_ratio` = 1 is out of range: allowed 0 ≤ \
+             suspension.wires.damping_ratio < 1"
+        );
+        // The beams keep their own range, and the setter reaches either suspension.
+        let b = RigId::Beam170.preset().with_damping_ratio(0.01);
+        assert_eq!(b.damping_ratio(), 0.01);
     }
 
     #[test]

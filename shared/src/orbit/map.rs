@@ -78,7 +78,7 @@ impl MapPoint {
         let a0 = self.params.amplitude_m;
         let w = self.omega_ratio * self.params.omega_n();
         let per = match self.params.suspension {
-            crate::model::Suspension::Wires { length_m } => length_m,
+            crate::model::Suspension::Wires { length_m, .. } => length_m,
             crate::model::Suspension::Beam { .. } => 1.0,
         };
         [a0 / per, a0 * w / per]

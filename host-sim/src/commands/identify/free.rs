@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 use serde::Serialize;
 use shared::error::check_range;
+use shared::model::Suspension;
 
 use super::FreeArgs;
 use crate::config::config_text;
@@ -49,10 +50,20 @@ pub(super) fn run(a: &FreeArgs) -> Result<()> {
     let mut outputs = Outputs::new();
     if let Some(p) = &a.out {
         let tmp = outputs.reserve(p)?;
+        let model = match params.suspension {
+            Suspension::Wires { .. } => format!(
+                "pendulum l = g/w^2 = {:.6e} m; zeta: the viscous term -2 zeta w dtheta/dt \
+                 added to Eq. 3-26 (docs/model.md)",
+                report.pendulum_length_m
+            ),
+            Suspension::Beam { .. } => format!(
+                "k = m w^2 = {:.5e} N/m (Eq. 3-34), c = 2 zeta m w = {:.5e} N s/m",
+                report.stiffness_n_m, report.damping_n_s_m
+            ),
+        };
         let comment = format!(
             "host-sim identify free: {} ({:.1} cycles): f_n = {:.5} Hz (95 %: {:.5} .. {:.5}), \
-             zeta = {:.5} (95 %: {:.5} .. {:.5})\n\
-             k = m w^2 = {:.5e} N/m (Eq. 3-34), c = 2 zeta m w = {:.5e} N s/m",
+             zeta = {:.6} (95 %: {:.6} .. {:.6})\n{model}",
             a.trace.display(),
             decay.cycles,
             decay.natural_freq_hz,
@@ -61,8 +72,6 @@ pub(super) fn run(a: &FreeArgs) -> Result<()> {
             decay.damping_ratio,
             decay.damping_ratio_ci95[0],
             decay.damping_ratio_ci95[1],
-            report.stiffness_n_m,
-            report.damping_n_s_m
         );
         std::fs::write(
             &tmp,
@@ -95,7 +104,7 @@ pub(super) fn run(a: &FreeArgs) -> Result<()> {
         decay.damped_freq_hz
     );
     println!(
-        "  damping ratio ζ = {:.5} (95 %: {:.5} – {:.5}); correlation with ω {:+.3}",
+        "  damping ratio ζ = {:.6} (95 %: {:.6} – {:.6}); correlation with ω {:+.3}",
         decay.damping_ratio,
         decay.damping_ratio_ci95[0],
         decay.damping_ratio_ci95[1],

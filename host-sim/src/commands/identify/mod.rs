@@ -138,7 +138,8 @@ pub struct FreeArgs {
     #[arg(long, value_enum, default_value = "mm")]
     pub unit: MotionUnit,
     /// Rig whose suspension the config file sets: a beam preset (natural frequency and
-    /// damping ratio) or wires (pendulum length g/ω², no damping in the model).
+    /// damping ratio) or wires (pendulum length g/ω² and the damping ratio ζ of the project's
+    /// viscous term −2ζω θ̇; the `wires` preset is the thesis' undamped model).
     #[arg(long, value_parser = crate::config::parse_rig, default_value = "beam-170")]
     pub rig: RigId,
     /// Config file with the mass and the identified suspension.
