@@ -7,7 +7,10 @@
 //!    the time goes (transient lengths, RK4 steps in whole steps vs contact sub-steps), and the
 //!    peak RSS of the process.
 //! 2. A 200 × 200 basin of attraction through the library path of `host-sim basins` (CSV + PNG
-//!    into a temporary directory).
+//!    into a temporary directory), with the attractor catalogue (early stop on a known
+//!    attractor).
+//! 3. Basin fractions of 2,000 random initial conditions through the library path of
+//!    `host-sim fractions`: seconds per 1,000 initial conditions.
 //!
 //! `cargo bench -p host-sim --bench thesis_grid` (about 1 minute on 2 cores after its build);
 //! `-- --quick` runs every 7th gap only.
@@ -17,10 +20,12 @@ use std::time::Instant;
 use rayon::prelude::*;
 use shared::analysis::SimSettings;
 use shared::model::RigId;
-use shared::observe::PointResult;
+use shared::observe::{PointResult, RecurrenceSettings};
 
+use host_sim::attractors::Catalogue;
 use host_sim::config::Setup;
-use host_sim::grid::basins::{self, Basins, BasinsGrid};
+use host_sim::grid::basins::{self, Attractors, Basins, BasinsGrid, ColorBy};
+use host_sim::grid::fractions::{Fractions, FractionsGrid, Parameter, StartBox};
 use host_sim::grid::{self, CountSweep, Figures};
 use host_sim::output::Outputs;
 use host_sim::runner::{BATCH, OperatingPoint, evaluate_batch};
@@ -128,7 +133,10 @@ fn main() {
         u0_mm: CountSweep::parse("--u0-mm", "-4:1.335:200", -20.0, 20.0).expect("u0 sweep"),
         v0_mm_s: CountSweep::parse("--v0-mm-s", "-100:100:200", -1e4, 1e4).expect("v0 sweep"),
         attractor_tol: 0.01,
+        recurrence: RecurrenceSettings::default(),
+        color_by: ColorBy::Attractor,
     };
+    let catalogue = Catalogue::new(Attractors::scales(&setup.params, grid.omega_ratio), 0.01);
     let meta = grid::meta::<Basins>(&setup, &grid, grid.points()).expect("metadata");
     let t = Instant::now();
     let mut outputs = Outputs::new();
@@ -137,14 +145,55 @@ fn main() {
         plot: Some(&png),
         force_plot: None,
         boundaries: None,
+        attractors: None,
     };
     grid::run::<Basins, _>(&mut outputs, &meta, &out, figures, |batch| {
-        basins::rows(&setup, &grid, batch)
+        basins::rows(&setup, &grid, &catalogue, batch)
     })
     .expect("basins run");
     outputs.commit().expect("outputs");
     println!(
         "Basin of attraction 200 × 200 (wires, gap/A0 1.5, Ω/ω 2.0, Fig. 3.36b), CSV + PNG: {:.1} s",
         t.elapsed().as_secs_f64()
+    );
+
+    // 3. Basin fractions by random initial conditions (`host-sim fractions`): the beam rig
+    //    (170 mm) at gap 3.0 mm, Ω/ω 1.35, inside its hysteresis (a 1/1 impacting orbit and a
+    //    non-impacting one), 2,000 samples in the start-up box, transients up to 1,500 periods.
+    let mut beam = Setup::preset(RigId::Beam170).expect("beam rig");
+    beam.settings.protocol.max_transient_periods = 1500;
+    let grid = FractionsGrid {
+        points: vec![(3.0, 1.35)],
+        parameter: Parameter::OmegaRatio,
+        start: StartBox::Startup,
+        seed: 1,
+        samples: 2000,
+        width: None,
+        attractor_tol: 0.01,
+        match_tol: 0.5,
+        recurrence: RecurrenceSettings::default(),
+    };
+    let meta = grid::meta::<Fractions>(&beam, &grid, 2000).expect("metadata");
+    let catalogues = grid.catalogues(&beam);
+    let csv = dir.path().join("fractions.csv");
+    let t = Instant::now();
+    let mut outputs = Outputs::new();
+    let out = outputs.reserve(&csv).expect("writable CSV");
+    let figures = Figures {
+        plot: None,
+        force_plot: None,
+        boundaries: None,
+        attractors: None,
+    };
+    grid::run::<Fractions, _>(&mut outputs, &meta, &out, figures, |batch| {
+        grid.rows(&beam, &catalogues, batch)
+    })
+    .expect("fractions run");
+    outputs.commit().expect("outputs");
+    let s = t.elapsed().as_secs_f64();
+    println!(
+        "Basin fractions, 2,000 random ICs (beam 170 mm, gap 3.0 mm, Ω/ω 1.35, start-up box): \
+         {s:.2} s, {:.2} s per 1,000 ICs",
+        s / 2.0
     );
 }

@@ -350,8 +350,9 @@ impl Attractors<'_> {
 /// a non-impacting motion is conservative and attracts nothing.
 pub fn suspension_damped(params: &RigParams) -> bool {
     match params.suspension {
-        Suspension::Beam { damping_ratio, .. } => damping_ratio > 0.0,
-        Suspension::Wires { .. } => false,
+        Suspension::Beam { damping_ratio, .. } | Suspension::Wires { damping_ratio, .. } => {
+            damping_ratio > 0.0
+        }
     }
 }
 

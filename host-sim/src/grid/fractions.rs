@@ -31,6 +31,10 @@ use crate::shard::{Kind, Meta, create_csv, open_csv};
 pub const ROUND: u32 = 256;
 /// Operating points back over which an attractor missing from a sample can still be matched.
 pub const MATCH_BACK: usize = 3;
+
+/// Where an attractor id was last seen: the operating point's index, the attractor there, and
+/// the operating point and canonical point of the occurrence before (for extrapolation).
+type LastSeen = (usize, Attractor, Option<(usize, (f64, f64))>);
 /// Largest number of samples per operating point.
 pub const MAX_SAMPLES: u32 = 1_000_000;
 
@@ -378,7 +382,7 @@ impl GridKind for Fractions {
         let mut ids: Vec<(String, Regime, bool)> = Vec::new();
         // The last operating point at which each id was seen, its attractor there, and the
         // operating point and canonical point of the occurrence before.
-        let mut last: Vec<(usize, Attractor, Option<(usize, (f64, f64))>)> = Vec::new();
+        let mut last: Vec<LastSeen> = Vec::new();
         let mut points: Vec<PointFractions> = Vec::new();
         let mut w = create_csv::<FractionRow>(out, None)?;
         for (k, g) in groupings.iter().enumerate() {
