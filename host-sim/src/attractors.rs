@@ -47,6 +47,29 @@ impl Recurrence {
     }
 }
 
+/// How a trajectory ended, as the final CSVs say it: whether it was found by its own window or
+/// stopped early on the catalogue depends on the order the threads ran, so it is not written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Ending {
+    /// On an attractor.
+    Attractor,
+    /// It never recurred within the protocol's periods.
+    None,
+    /// A conservative motion without impacts on an undamped suspension ([`Recurrence::Neutral`]).
+    Neutral,
+}
+
+impl From<Recurrence> for Ending {
+    fn from(r: Recurrence) -> Self {
+        match r {
+            Recurrence::Found | Recurrence::Known => Ending::Attractor,
+            Recurrence::None => Ending::None,
+            Recurrence::Neutral => Ending::Neutral,
+        }
+    }
+}
+
 /// Scales of the scaled Poincaré distance `max(|Δu|/A0, |Δu̇|/(A0 Ω))`, in mm and mm/s.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Scales {
@@ -76,12 +99,19 @@ pub struct Known {
     pub impacts: u32,
 }
 
-/// The periodic attractors found so far in a run, shared by its threads.
+/// The periodic attractors found so far in a run, shared by its threads, each with the lowest
+/// initial-condition index that found it.
+///
+/// A trajectory is only matched against the attractors found by initial conditions of lower
+/// index ([`Catalogue::before`]): the lowest-index trajectory of every attractor then always
+/// runs to its own end, whatever order the threads ran in or however the grid was sharded,
+/// and the attractor's reported values (its Poincaré points, force, impacts) are that
+/// trajectory's — the same bits in one run and in merged shards.
 #[derive(Debug)]
 pub struct Catalogue {
     scales: Scales,
     attractor_tol: f64,
-    known: RwLock<Vec<Known>>,
+    known: RwLock<Vec<(u64, Known)>>,
 }
 
 impl Catalogue {
@@ -95,25 +125,37 @@ impl Catalogue {
         }
     }
 
-    /// Registers a periodic set (its canonical point first) unless it is already known;
-    /// returns its id.
-    pub fn register(&self, set: Known) -> u32 {
+    /// Registers a periodic set (its canonical point first) found by initial condition
+    /// `index`, unless it is already known (then the lower index is kept); returns its id.
+    pub fn register(&self, set: Known, index: u64) -> u32 {
         let mut known = self.known.write().unwrap_or_else(|e| e.into_inner());
-        if let Some(k) = known.iter().position(|k| {
+        if let Some(k) = known.iter().position(|(_, k)| {
             k.regime == set.regime
                 && k.points.len() == set.points.len()
                 && self.scales.distance(k.points[0], set.points[0]) <= self.attractor_tol
         }) {
+            if index < known[k].0 {
+                known[k] = (index, set);
+            }
             return k as u32;
         }
-        known.push(set);
+        known.push((index, set));
         (known.len() - 1) as u32
     }
 
     /// Attractor `id`.
     pub fn get(&self, id: u32) -> Option<Known> {
         let known = self.known.read().unwrap_or_else(|e| e.into_inner());
-        known.get(id as usize).cloned()
+        known.get(id as usize).map(|(_, k)| k.clone())
+    }
+
+    /// The view of the catalogue for initial condition `index`: the attractors found by lower
+    /// indices.
+    pub fn before(&self, index: u64) -> Before<'_> {
+        Before {
+            catalogue: self,
+            index,
+        }
     }
 
     /// The tolerance for "same attractor" (scaled).
@@ -130,16 +172,35 @@ impl Catalogue {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-}
 
-impl AttractorCatalogue for Catalogue {
-    fn lookup(&self, u_m: f64, du_m_s: f64, tol: f64) -> Option<u32> {
+    fn lookup_below(&self, u_m: f64, du_m_s: f64, tol: f64, index: u64) -> Option<u32> {
         let p = (u_m * 1e3, du_m_s * 1e3);
         let known = self.known.read().unwrap_or_else(|e| e.into_inner());
         known
             .iter()
-            .position(|k| k.points.iter().any(|&q| self.scales.distance(p, q) <= tol))
+            .position(|(by, k)| {
+                *by < index && k.points.iter().any(|&q| self.scales.distance(p, q) <= tol)
+            })
             .map(|k| k as u32)
+    }
+}
+
+impl AttractorCatalogue for Catalogue {
+    fn lookup(&self, u_m: f64, du_m_s: f64, tol: f64) -> Option<u32> {
+        self.lookup_below(u_m, du_m_s, tol, u64::MAX)
+    }
+}
+
+/// The attractors of a [`Catalogue`] found by initial conditions of index below `index`.
+#[derive(Debug, Clone, Copy)]
+pub struct Before<'c> {
+    catalogue: &'c Catalogue,
+    index: u64,
+}
+
+impl AttractorCatalogue for Before<'_> {
+    fn lookup(&self, u_m: f64, du_m_s: f64, tol: f64) -> Option<u32> {
+        self.catalogue.lookup_below(u_m, du_m_s, tol, self.index)
     }
 }
 
@@ -196,6 +257,15 @@ pub fn minimal_cycle(points: Vec<(f64, f64)>, tol: f64, scales: Scales) -> Vec<(
     points
 }
 
+/// Whether an irregular window is still converging onto a periodic orbit: its points repeat
+/// with a period `q ≤ max_q` to [`RETURN_TOL`] (scaled) over the whole window, though not to
+/// the protocol's tolerance (near a fold or a period doubling, where a multiplier nears ±1,
+/// the approach takes thousands of periods). Such a start has not settled: it is not an
+/// attractor of its own.
+pub fn converging(window: &VecDeque<(f64, f64)>, max_q: usize, scales: Scales) -> bool {
+    window_period(window, max_q, RETURN_TOL, scales).is_some()
+}
+
 /// Whether an irregular window's points keep returning: at least [`RETURN_SHARE`] of them lie
 /// within [`RETURN_TOL`] (scaled) of an earlier point of the window.
 pub fn returns(window: &VecDeque<(f64, f64)>, scales: Scales) -> bool {
@@ -221,7 +291,18 @@ pub fn wilson(k: u64, n: u64) -> (f64, f64) {
     let (n, p, z2) = (n as f64, k as f64 / n as f64, Z95 * Z95);
     let centre = (p + z2 / (2.0 * n)) / (1.0 + z2 / n);
     let half = Z95 / (1.0 + z2 / n) * (p * (1.0 - p) / n + z2 / (4.0 * n * n)).sqrt();
-    ((centre - half).max(0.0), (centre + half).min(1.0))
+    // Exactly 0 at k = 0 and 1 at k = n (the closed form, free of the round-off).
+    let lo = if k == 0 {
+        0.0
+    } else {
+        (centre - half).max(0.0)
+    };
+    let hi = if k as f64 == n {
+        1.0
+    } else {
+        (centre + half).min(1.0)
+    };
+    (lo, hi)
 }
 
 /// The widest Wilson interval over all `k` at `n` samples (at `k = n/2`).
@@ -245,10 +326,11 @@ mod tests {
         let (lo, hi) = wilson(0, 100);
         assert_eq!(lo, 0.0);
         assert!((hi - Z95 * Z95 / (100.0 + Z95 * Z95)).abs() < 1e-15);
-        // Symmetric about 1/2 at k = n/2, and close to the normal interval at large n.
+        // Symmetric about 1/2 at k = n/2, the normal interval's width over sqrt(1 + z²/n).
         let (lo, hi) = wilson(5000, 10_000);
         assert!((lo + hi - 1.0).abs() < 1e-12);
-        assert!(((hi - lo) - 2.0 * Z95 * 0.005).abs() < 1e-6);
+        let width = 2.0 * Z95 * 0.005 / (1.0 + Z95 * Z95 / 10_000.0).sqrt();
+        assert!(((hi - lo) - width).abs() < 1e-12, "{}", hi - lo);
         // k = 8 of n = 10, by hand: centre 0.71674, half-width 0.22658.
         let (lo, hi) = wilson(8, 10);
         assert!(
@@ -308,6 +390,28 @@ mod tests {
     }
 
     #[test]
+    fn a_slow_approach_to_a_cycle_is_converging_a_cloud_is_not() {
+        // A 2-cycle approached at rate 0.999 per period (a multiplier near −1): the window's
+        // points repeat with period 2 to 0.05 of the scales, not to the protocol's tolerance.
+        let slow: VecDeque<(f64, f64)> = (0..64)
+            .map(|j| {
+                let sign = if j % 2 == 0 { 1.0 } else { -1.0 };
+                let e = 0.02 * 0.999f64.powi(j);
+                (sign * (0.5 + e), 0.0)
+            })
+            .collect();
+        assert!(converging(&slow, 8, S));
+        assert_eq!(window_period(&slow, 8, 1e-6, S), None);
+        let cloud: VecDeque<(f64, f64)> = (0..64)
+            .map(|j| {
+                let a = j as f64 * 0.7;
+                (a.cos(), 10.0 * a.sin())
+            })
+            .collect();
+        assert!(!converging(&cloud, 8, S));
+    }
+
+    #[test]
     fn catalogue_registers_once_and_looks_up_by_any_point() {
         let c = Catalogue::new(S, 1e-2);
         let a = Known {
@@ -316,17 +420,28 @@ mod tests {
             impact_force_mg: 3.0,
             impacts: 32,
         };
-        assert_eq!(c.register(a.clone()), 0);
+        assert_eq!(c.register(a.clone(), 7), 0);
         let mut same = a.clone();
         same.points[0].0 += 1e-3;
-        assert_eq!(c.register(same), 0);
+        assert_eq!(c.register(same.clone(), 9), 0);
+        assert_eq!(c.get(0), Some(a.clone()));
         let mut other = a.clone();
         other.points[0].0 += 0.5;
-        assert_eq!(c.register(other), 1);
+        other.points[1].0 += 0.5;
+        assert_eq!(c.register(other, 3), 1);
         assert_eq!(c.len(), 2);
         // Lookup in m and m/s.
         assert_eq!(c.lookup(1.0e-3, 0.0, 1e-2), Some(0));
         assert_eq!(c.lookup(-0.5e-3, 0.0, 1e-2), Some(1));
+        assert_eq!(c.lookup(1.5e-3, 0.0, 1e-2), Some(1));
         assert_eq!(c.lookup(0.0, 0.0, 1e-2), None);
+        // Only the attractors found by lower indices: attractor 0 was found by 7.
+        assert_eq!(c.before(7).lookup(1.0e-3, 0.0, 1e-2), None);
+        assert_eq!(c.before(8).lookup(1.0e-3, 0.0, 1e-2), Some(0));
+        assert_eq!(c.before(4).lookup(-0.5e-3, 0.0, 1e-2), Some(1));
+        // A lower index finding it again takes it over (with its own values).
+        assert_eq!(c.register(same.clone(), 2), 0);
+        assert_eq!(c.get(0), Some(same));
+        assert_eq!(c.before(3).lookup(1.0e-3, 0.0, 1e-2), Some(0));
     }
 }

@@ -61,6 +61,10 @@ pub struct SelectReport {
     /// until checked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub band_check: Option<BandCheck>,
+    /// The chosen orbit's basin fraction among start-up conditions ([`check_basin`]); absent
+    /// until checked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub basin_check: Option<BasinCheck>,
     /// What the answer rests on that the user should know (a contact law its identification
     /// flagged); absent when empty.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -149,6 +153,7 @@ fn report(setup: &Setup, gap_mm: f64, gaps_mm: Vec<f64>, sel: &Selection) -> Sel
             impact_force_mg: c.impact_force_mg,
         }),
         band_check: None,
+        basin_check: None,
         warnings: Vec::new(),
     }
 }
@@ -365,4 +370,195 @@ pub fn compute_parts(
     let report = select(&setup.params, &spec, &samples[0], &perturbed)
         .map(|sel| report(setup, gap_mm, gaps_mm, &sel));
     Ok((report, responses.swap_remove(0)))
+}
+
+/// Default random start-up conditions of the basin check.
+pub const BASIN_SAMPLES: u32 = 1000;
+
+/// Default transient limit of the basin check, excitation periods: the beam rigs' lightly
+/// damped non-impacting orbits take up to about a thousand periods to settle.
+pub const BASIN_MAX_PERIODS: u32 = 2000;
+
+/// Default basin-fraction threshold below which the chosen point is flagged.
+pub const BASIN_THRESHOLD: f64 = 0.5;
+
+/// How likely the chosen `1/1` orbit is from a realistic start ([`check_basin`]): the basin
+/// fractions of the attractors at the chosen point for random initial conditions in the start-up
+/// box (relative to the cart, at phase 0 of the excitation): `u0 ∈ [−max(gap, A0), gap]`
+/// (from the hammer pulled back by the cart's amplitude up to the surface) and
+/// `u̇0 ∈ [−A0 Ω, A0 Ω]` (up to the cart's velocity amplitude), and from rest.
+#[derive(Debug, Clone, Serialize)]
+pub struct BasinCheck {
+    /// The box's `u0`, mm.
+    pub u0_mm: [f64; 2],
+    /// The box's `u̇0`, mm/s.
+    pub v0_mm_s: [f64; 2],
+    /// Random initial conditions drawn in the box.
+    pub samples: u32,
+    /// Their seed.
+    pub seed: u64,
+    /// Transient limit per initial condition, excitation periods (a trajectory that has not
+    /// recurred by then counts as no attractor).
+    pub max_transient_periods: u32,
+    /// The attractor reached from rest (the sweep's start): its label (`1/1 A`).
+    pub from_rest: String,
+    /// Id of the chosen `1/1` orbit among the attractors (`None`: not found from the box).
+    pub chosen: Option<String>,
+    /// Its basin fraction in the box.
+    pub fraction: f64,
+    /// Wilson 95 % interval of the fraction.
+    pub ci95: [f64; 2],
+    /// The largest competing attractor (by fraction), if any.
+    pub competitor: Option<BasinShare>,
+    /// Every attractor found, and the initial conditions without one (id `-`).
+    pub attractors: Vec<BasinShare>,
+    /// Threshold on the fraction.
+    pub threshold: f64,
+    /// The fraction lies below the threshold.
+    pub flagged: bool,
+}
+
+/// One attractor's share of the start-up box.
+#[derive(Debug, Clone, Serialize)]
+pub struct BasinShare {
+    /// Id (`A`, `B`, …; `-` for the initial conditions without an attractor).
+    pub id: String,
+    /// Regime `p/q`, `no impact`, `chaotic`… (`-` without an attractor).
+    pub regime: String,
+    /// Peak `F_i/mg` on it.
+    pub impact_force_mg: f64,
+    /// Basin fraction.
+    pub fraction: f64,
+    /// Wilson 95 % interval.
+    pub ci95: [f64; 2],
+}
+
+/// Measures the basin fraction of the chosen `1/1` orbit in the start-up box ([`BasinCheck`]):
+/// `samples` random initial conditions (seed `seed`) and rest, attractors found by recurrence
+/// on the stroboscopic map (`crate::attractors`) within the setup's transient limit. The chosen
+/// orbit is the `1/1` attractor reached from rest (the sweep's start), else the `1/1` attractor
+/// whose `F_i/mg` is nearest the report's. Flags a fraction below `threshold`.
+///
+/// # Errors
+/// `samples` outside `1 ..= 10⁶`, `threshold` outside `[0, 1]`, a failing initial condition, or
+/// Ctrl-C.
+pub fn check_basin(
+    setup: &Setup,
+    rep: &SelectReport,
+    samples: u32,
+    seed: u64,
+    threshold: f64,
+) -> Result<BasinCheck> {
+    use crate::grid::basins::{Attractors, Grouping};
+    use crate::grid::fractions::{FractionsGrid, Parameter, StartBox};
+    use shared::observe::RecurrenceSettings;
+
+    if !(1..=1_000_000).contains(&samples) {
+        return Err(anyhow!(
+            "--basin-samples {samples}: out of range: allowed 1 ..= 1000000"
+        ));
+    }
+    if !(0.0..=1.0).contains(&threshold) {
+        return Err(anyhow!(
+            "--basin-threshold {threshold}: out of range: allowed 0 ..= 1"
+        ));
+    }
+    let attractor_tol = 0.01;
+    let grid = FractionsGrid {
+        points: vec![(rep.gap_mm, rep.omega_ratio)],
+        parameter: Parameter::OmegaRatio,
+        start: StartBox::Startup,
+        seed,
+        samples,
+        width: None,
+        attractor_tol,
+        match_tol: 0.5,
+        recurrence: RecurrenceSettings::default(),
+    };
+    let catalogues = grid.catalogues(setup);
+    let scales = Attractors::scales(&setup.params, rep.omega_ratio);
+    // Rest first: its attractor is catalogued before the box's trajectories run.
+    let rest = Attractors {
+        setup,
+        gap_mm: rep.gap_mm,
+        omega_ratio: rep.omega_ratio,
+        recurrence: grid.recurrence,
+        catalogue: &catalogues[0],
+    }
+    .rows(&[(u64::from(samples), 0.0, 0.0)])
+    .pop()
+    .ok_or_else(|| anyhow!("internal: no row from rest"))??;
+    let mut grouping = Grouping::new(scales, attractor_tol);
+    crate::grid::run_chunked(
+        0..samples as usize,
+        samples as usize,
+        "",
+        |b| grid.rows(setup, &catalogues, b),
+        |_, [row]| {
+            grouping.add(&row);
+            Ok(())
+        },
+    )?;
+    let (list, ids) = grouping.attractors();
+    let rest_id = grouping.id(&rest, &ids);
+    let rest_attractor = rest_id.map(|k| &list[k as usize]);
+    let from_rest = match rest_attractor {
+        Some(a) => a.label.clone(),
+        // Rest reaches an attractor none of the box's trajectories reached.
+        None if rest.recurrence.attracted() => {
+            format!("{} (not reached from the box)", rest.regime)
+        }
+        None => "no attractor".into(),
+    };
+    let one_one = |a: &&crate::grid::basins::Attractor| {
+        a.recurrent && a.regime == shared::observe::Regime::ONE_ONE
+    };
+    let chosen = rest_attractor.filter(one_one).or_else(|| {
+        list.iter().filter(one_one).min_by(|a, b| {
+            (a.impact_force_mg - rep.impact_force_mg)
+                .abs()
+                .total_cmp(&(b.impact_force_mg - rep.impact_force_mg).abs())
+        })
+    });
+    let share = |a: &crate::grid::basins::Attractor| BasinShare {
+        id: a.id.clone(),
+        regime: if a.recurrent {
+            a.regime.to_string()
+        } else {
+            "-".into()
+        },
+        impact_force_mg: a.impact_force_mg,
+        fraction: a.fraction,
+        ci95: [a.ci95.0, a.ci95.1],
+    };
+    let (fraction, ci95) = match chosen {
+        Some(a) => (a.fraction, [a.ci95.0, a.ci95.1]),
+        None => {
+            let (lo, hi) = crate::attractors::wilson(0, u64::from(samples));
+            (0.0, [lo, hi])
+        }
+    };
+    let competitor = list
+        .iter()
+        .filter(|a| a.recurrent && chosen.is_none_or(|c| c.id != a.id))
+        .max_by(|a, b| a.cells.cmp(&b.cells))
+        .map(share);
+    let ((u_lo, u_hi), (v_lo, v_hi)) =
+        grid.start
+            .bounds(&setup.params, rep.gap_mm, rep.omega_ratio);
+    Ok(BasinCheck {
+        u0_mm: [u_lo, u_hi],
+        v0_mm_s: [v_lo, v_hi],
+        samples,
+        seed,
+        max_transient_periods: setup.settings.protocol.max_transient_periods,
+        from_rest,
+        chosen: chosen.map(|a| a.id.clone()),
+        fraction,
+        ci95,
+        competitor,
+        attractors: list.iter().map(share).collect(),
+        threshold,
+        flagged: fraction < threshold,
+    })
 }

@@ -11,8 +11,11 @@ use crate::figures::response::{Highlight, points, response_band};
 use crate::output::Outputs;
 use crate::propagate::{Propagation, propagate};
 use crate::response;
+use crate::selection::{
+    BASIN_MAX_PERIODS, BASIN_SAMPLES, BASIN_THRESHOLD, BasinCheck, check_band, check_basin,
+    lack_of_fit_warning, no_one_to_one_diagnosis,
+};
 pub use crate::selection::{OtherBest, SelectReport, compute};
-use crate::selection::{check_band, lack_of_fit_warning, no_one_to_one_diagnosis};
 
 /// Arguments of `select`.
 #[derive(Debug, Args)]
@@ -41,6 +44,24 @@ pub struct SelectArgs {
     /// its band's edges located on its branch).
     #[arg(long)]
     pub no_orbit_check: bool,
+    /// Skip the basin check (by default: the chosen 1/1 orbit's basin fraction among random
+    /// start-up conditions, u0 from −max(gap, A0) up to the surface and u̇0 up to ± the cart's
+    /// velocity amplitude A0·Ω, with its 95 % interval and the largest competing attractor).
+    #[arg(long)]
+    pub no_basin_check: bool,
+    /// Random start-up conditions of the basin check (1 ..= 1000000).
+    #[arg(long, default_value_t = BASIN_SAMPLES)]
+    pub basin_samples: u32,
+    /// Seed of the basin check's start-up conditions.
+    #[arg(long, default_value_t = 1)]
+    pub basin_seed: u64,
+    /// Flag the chosen point when its 1/1 basin fraction lies below this (0 ..= 1).
+    #[arg(long, default_value_t = BASIN_THRESHOLD)]
+    pub basin_threshold: f64,
+    /// Transient limit of the basin check, excitation periods: a start that has not settled on
+    /// an attractor by then counts as none (lightly damped non-impacting motions settle slowly).
+    #[arg(long, default_value_t = BASIN_MAX_PERIODS)]
+    pub basin_max_periods: u32,
     /// CSV of the nominal-gap response (columns as `response`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -135,6 +156,41 @@ pub fn run(a: &SelectArgs) -> Result<()> {
             }
         }
     }
+    if !a.no_basin_check {
+        let mut basin_setup = setup.clone();
+        let n = a.basin_max_periods;
+        basin_setup.settings.protocol.max_transient_periods = n;
+        basin_setup
+            .settings
+            .protocol
+            .validate()
+            .map_err(|e| anyhow!("--basin-max-periods {n}: {e}"))?;
+        let b = check_basin(
+            &basin_setup,
+            &rep,
+            a.basin_samples,
+            a.basin_seed,
+            a.basin_threshold,
+        )?;
+        if b.flagged {
+            rep.warnings.push(format!(
+                "the chosen 1/1 orbit is reached from only {:.1} % of the start-up conditions \
+                 (95 % interval {:.1}–{:.1} %; threshold {:.0} %){}",
+                100.0 * b.fraction,
+                100.0 * b.ci95[0],
+                100.0 * b.ci95[1],
+                100.0 * b.threshold,
+                b.competitor.as_ref().map_or_else(String::new, |c| format!(
+                    "; the largest competing attractor is {} {} ({:.1} %, F_i/mg {:.2})",
+                    c.regime,
+                    c.id,
+                    100.0 * c.fraction,
+                    c.impact_force_mg
+                ))
+            ));
+        }
+        rep.basin_check = Some(b);
+    }
     let spread = match &table {
         Some(t) => Some(propagate(&setup, a.gap_mm, t, &rep, a.draws, a.seed)?),
         None => None,
@@ -199,6 +255,9 @@ pub fn run(a: &SelectArgs) -> Result<()> {
         }
     } else {
         print_report(&rep);
+        if let Some(b) = &rep.basin_check {
+            print_basin(b);
+        }
         if let Some(sp) = &spread {
             print_spread(&rep, sp, config, setup.uncertainty.as_ref());
         }
@@ -215,6 +274,50 @@ impl SelectArgs {
             .config
             .as_ref()
             .map_or_else(String::new, |p| p.display().to_string())
+    }
+}
+
+fn print_basin(b: &BasinCheck) {
+    println!(
+        "  start-up basin: {} of {} random starts (u0 {:.2} – {:.2} mm, u̇0 ±{:.0} mm/s, seed {}, \
+         ≤ {} transient periods) reach the chosen orbit{}: {:.1} % (95 % interval {:.1} – {:.1} %){}",
+        (b.fraction * f64::from(b.samples)).round(),
+        b.samples,
+        b.u0_mm[0],
+        b.u0_mm[1],
+        b.v0_mm_s[1],
+        b.seed,
+        b.max_transient_periods,
+        b.chosen
+            .as_ref()
+            .map_or_else(String::new, |c| format!(" (attractor {c})")),
+        100.0 * b.fraction,
+        100.0 * b.ci95[0],
+        100.0 * b.ci95[1],
+        if b.flagged {
+            " — below the threshold"
+        } else {
+            ""
+        }
+    );
+    println!("    from rest: {}", b.from_rest);
+    match &b.competitor {
+        Some(c) => println!(
+            "    largest competing attractor: {} {}, {:.1} % (95 % interval {:.1} – {:.1} %), F_i/mg {:.2}",
+            c.regime,
+            c.id,
+            100.0 * c.fraction,
+            100.0 * c.ci95[0],
+            100.0 * c.ci95[1],
+            c.impact_force_mg
+        ),
+        None => println!("    no competing attractor"),
+    }
+    if let Some(n) = b.attractors.iter().find(|a| a.id == "-") {
+        println!(
+            "    no attractor within the transient limit: {:.1} % (--basin-max-periods to wait longer)",
+            100.0 * n.fraction
+        );
     }
 }
 

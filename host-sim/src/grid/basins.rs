@@ -28,13 +28,14 @@ use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
 use shared::integrate::PhaseTable;
 use shared::model::{RigParams, Suspension};
 use shared::observe::{
-    Observer, ProtocolRun, RecurrenceSettings, RecurrenceWatch, Regime, StroboPoint,
+    Observer, Protocol, ProtocolRun, RecurrenceSettings, RecurrenceWatch, Regime, StroboPoint,
 };
 
 use super::raster::Raster;
 use super::{CountSweep, Finish, GridKind};
 use crate::attractors::{
-    Catalogue, Known, Recurrence, Scales, cycle, minimal_cycle, returns, wilson, window_period,
+    Before, Catalogue, Ending, Known, Recurrence, Scales, converging, cycle, minimal_cycle,
+    returns, wilson, window_period,
 };
 use crate::config::Setup;
 use crate::runner::in_order;
@@ -152,8 +153,8 @@ pub struct BasinRow {
     pub impact_force_mg: f64,
     /// Whether a steady state was detected.
     pub settled: bool,
-    /// How the trajectory ended.
-    pub recurrence: Recurrence,
+    /// How the trajectory ended (`attractor`, `none`, `neutral`).
+    pub recurrence: Ending,
 }
 
 /// Watches a run: the catalogue's recurrence test on every Poincaré point, and the points of
@@ -161,7 +162,7 @@ pub struct BasinRow {
 struct Watch<'c> {
     keep: usize,
     window: VecDeque<(f64, f64)>,
-    recurrence: RecurrenceWatch<'c, Catalogue>,
+    recurrence: RecurrenceWatch<Before<'c>>,
 }
 
 impl<T: Real> Observer<T> for Watch<'_> {
@@ -244,7 +245,7 @@ impl Attractors<'_> {
         in_order(ics.len(), |emit| {
             run_interleaved::<T, Watch<'_>, DEFAULT_LANES, _, _, _>(
                 ics.iter().copied(),
-                |(_, u0_mm, v0_mm_s)| {
+                |(index, u0_mm, v0_mm_s)| {
                     let mut sim = simulator_at::<T>(
                         &setup.params,
                         self.gap_mm * 1e-3,
@@ -257,7 +258,10 @@ impl Attractors<'_> {
                     let obs = Watch {
                         keep: protocol.observe_periods as usize,
                         window: VecDeque::new(),
-                        recurrence: RecurrenceWatch::new(self.catalogue, self.recurrence),
+                        recurrence: RecurrenceWatch::new(
+                            self.catalogue.before(index),
+                            self.recurrence,
+                        ),
                     };
                     Ok((sim, run, obs))
                 },
@@ -307,7 +311,7 @@ impl Attractors<'_> {
                                     impact_force_mg: r.impact_force_mg,
                                     impacts: r.impacts,
                                 };
-                                self.catalogue.register(set.clone());
+                                self.catalogue.register(set.clone(), index);
                                 row.recurrence = Recurrence::Found;
                                 Some(set)
                             });
@@ -326,6 +330,11 @@ impl Attractors<'_> {
                                 }
                                 None if r.regime.impacts()
                                     && row.recurrence == Recurrence::None
+                                    && !converging(
+                                        &obs.window,
+                                        protocol.max_q as usize,
+                                        scales,
+                                    )
                                     && returns(&obs.window, scales) =>
                                 {
                                     row.recurrence = Recurrence::Found;
@@ -402,6 +411,8 @@ fn key(r: &BasinRaw) -> (bool, Regime, Option<(f64, f64)>) {
     )
 }
 
+/// A group of rows: the attractor's values are its first row's (in index order, the
+/// trajectory that found it: [`Catalogue`]); an irregular set's force is the peak over its rows.
 #[derive(Debug, Clone)]
 struct Group {
     recurrent: bool,
@@ -409,6 +420,8 @@ struct Group {
     point: Option<(f64, f64)>,
     points: Vec<(f64, f64)>,
     force_mg: f64,
+    impacts: u32,
+    settled: bool,
     cells: u64,
 }
 
@@ -450,7 +463,9 @@ impl Grouping {
             Some(k) => {
                 let g = &mut self.groups[k];
                 g.cells += 1;
-                g.force_mg = g.force_mg.max(r.impact_force_mg);
+                if g.recurrent && g.point.is_none() {
+                    g.force_mg = g.force_mg.max(r.impact_force_mg);
+                }
             }
             None => {
                 let (recurrent, regime, point) = key(r);
@@ -464,6 +479,8 @@ impl Grouping {
                         Vec::new()
                     },
                     force_mg: if recurrent { r.impact_force_mg } else { 0.0 },
+                    impacts: r.impacts,
+                    settled: r.settled,
                     cells: 1,
                 })
             }
@@ -520,6 +537,31 @@ impl Grouping {
     pub fn id(&self, r: &BasinRaw, ids: &[u32]) -> Option<u32> {
         self.find(r).map(|k| ids[k])
     }
+
+    /// What a row reports: for a row on a periodic attractor, the attractor's regime, impacts
+    /// in the window, `F_i/mg` and settledness (its first row's: the same in any thread order
+    /// and in merged shards, where a row may have stopped early on the catalogue); for the
+    /// others (irregular sets, no attractor: they always run to their end), the row's own.
+    fn reported(&self, r: &BasinRaw) -> (Regime, u32, f64, bool) {
+        match self.find(r).map(|k| &self.groups[k]) {
+            Some(g) if g.recurrent && g.point.is_some() => {
+                (g.regime, g.impacts, g.force_mg, g.settled)
+            }
+            _ => (r.regime, r.impacts, r.impact_force_mg, r.settled),
+        }
+    }
+}
+
+/// What the initial conditions without an attractor mean, with their count (`cells` of
+/// `total`) and the limit they ran to.
+pub fn no_attractor_note(cells: u64, total: u64, protocol: &Protocol) -> String {
+    format!(
+        "  no attractor: {cells} initial conditions of {total} either never recurred within {} \
+         transient + {} window periods (raise --max-periods if the damping is light, or near a \
+         fold or period doubling where the approach is slow) or move without impacts on an \
+         undamped suspension (conservative: no attractor to reach)",
+        protocol.max_transient_periods, protocol.observe_periods
+    )
 }
 
 /// Letters of attractor `k`: A … Z, AA, AB, …
@@ -670,19 +712,20 @@ impl GridKind for Basins {
             let a = &keys[id as usize];
             let (iu, iv) = grid.split(r.index as usize);
             cells.set(iu, iv, id);
+            let (regime, impacts, impact_force_mg, settled) = grouping.reported(&r);
             w.serialize(BasinRow {
                 index: r.index,
                 u0_mm: r.u0_mm,
                 v0_mm_s: r.v0_mm_s,
-                impacting: r.regime.impacts(),
-                regime: r.regime,
+                impacting: regime.impacts(),
+                regime,
                 attractor: a.id.clone(),
                 attractor_u_mm: a.point.map(|p| p.0),
                 attractor_v_mm_s: a.point.map(|p| p.1),
-                impacts: r.impacts,
-                impact_force_mg: r.impact_force_mg,
-                settled: r.settled,
-                recurrence: r.recurrence,
+                impacts,
+                impact_force_mg,
+                settled,
+                recurrence: r.recurrence.into(),
             })?;
         }
         w.flush()?;
@@ -700,14 +743,12 @@ impl GridKind for Basins {
             ));
         }
         if let Some(never) = keys.iter().find(|a| !a.recurrent) {
-            summary.push_str(&format!(
-                "  no attractor: {} initial conditions either never recurred within {} transient + \
-                 {} window periods (raise --max-periods if the damping is light) or move without \
-                 impacts on an undamped suspension (conservative)\n",
+            summary.push_str(&no_attractor_note(
                 never.cells,
-                meta.settings.protocol.max_transient_periods,
-                meta.settings.protocol.observe_periods
+                keys.iter().map(|a| a.cells).sum(),
+                &meta.settings.protocol,
             ));
+            summary.push('\n');
         }
         let _ = std::io::stderr().write_all(summary.as_bytes());
         Ok(BasinsSummary {

@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 use shared::model::RigParams;
 use shared::observe::{RecurrenceSettings, Regime};
 
-use super::basins::{Attractor, Attractors, BasinRaw, Grouping, label};
+use super::basins::{Attractor, Attractors, BasinRaw, Grouping, label, no_attractor_note};
 use super::{Finish, GridKind, run_chunked};
 use crate::attractors::{Catalogue, widest_interval};
 use crate::config::Setup;
@@ -308,30 +308,30 @@ pub struct FractionsSummary {
 }
 
 /// Matches the attractors of one operating point to those of the previous one: returns for
-/// each of `next` the index into `prev` it continues, if any (same recurrence, regime and
-/// number of Poincaré points; canonical points within `tol` in the scaled distance `scale`,
-/// nearest pairs first).
+/// each of `next` the index into `prev` it continues, if any. Two attractors can match when
+/// they share recurrence, regime and number of Poincaré points; pairs whose canonical points lie
+/// within `tol` in the scaled distance `scale` are matched first, nearest first; then a pair
+/// left unmatched within [`FOLD_REACH`]` · tol` is matched when each is the other's only
+/// candidate of its kind (near a fold an orbit moves like the square root of the distance to
+/// it, faster than any fixed tolerance at a fixed step).
 pub fn match_attractors(
     prev: &[Attractor],
     next: &[Attractor],
     tol: f64,
     scale: impl Fn((f64, f64), (f64, f64)) -> f64,
 ) -> Vec<Option<usize>> {
+    let kin = |a: &Attractor, b: &Attractor| {
+        a.recurrent == b.recurrent && a.regime == b.regime && a.points.len() == b.points.len()
+    };
+    let dist = |a: &Attractor, b: &Attractor| match (a.point, b.point) {
+        (Some(p), Some(q)) => Some(scale(p, q)),
+        (None, None) => Some(0.0),
+        _ => None,
+    };
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for (j, b) in next.iter().enumerate() {
         for (i, a) in prev.iter().enumerate() {
-            if a.recurrent != b.recurrent
-                || a.regime != b.regime
-                || a.points.len() != b.points.len()
-            {
-                continue;
-            }
-            let d = match (a.point, b.point) {
-                (Some(p), Some(q)) => scale(p, q),
-                (None, None) => 0.0,
-                _ => continue,
-            };
-            if d <= tol {
+            if let Some(d) = dist(a, b).filter(|&d| kin(a, b) && d <= tol) {
                 pairs.push((d, i, j));
             }
         }
@@ -345,8 +345,30 @@ pub fn match_attractors(
             used[i] = true;
         }
     }
+    // The only unmatched candidates of their kind on both sides, within the fold's reach.
+    for j in 0..next.len() {
+        if out[j].is_some() {
+            continue;
+        }
+        let b = &next[j];
+        let cands: Vec<usize> = (0..prev.len())
+            .filter(|&i| !used[i] && kin(&prev[i], b))
+            .collect();
+        let [i] = cands[..] else { continue };
+        let rivals = (0..next.len())
+            .filter(|&k| k != j && out[k].is_none() && kin(&prev[i], &next[k]))
+            .count();
+        if rivals == 0 && dist(&prev[i], b).is_some_and(|d| d <= FOLD_REACH * tol) {
+            out[j] = Some(i);
+            used[i] = true;
+        }
+    }
     out
 }
+
+/// How much farther than the matching tolerance an attractor may have moved between two
+/// operating points when it is the only one of its kind on both sides.
+pub const FOLD_REACH: f64 = 4.0;
 
 /// Basin fractions as a [`GridKind`].
 pub struct Fractions;
@@ -480,6 +502,19 @@ impl GridKind for Fractions {
             });
         }
         w.flush()?;
+        let never: u64 = points
+            .iter()
+            .flat_map(|p| &p.attractors)
+            .filter(|(_, a)| !a.recurrent)
+            .map(|(_, a)| a.cells)
+            .sum();
+        if never > 0 {
+            let total: u64 = points.iter().map(|p| p.samples).sum();
+            eprintln!(
+                "{}",
+                no_attractor_note(never, total, &meta.settings.protocol)
+            );
+        }
         Ok(FractionsSummary { points, ids })
     }
 }
@@ -523,6 +558,34 @@ mod tests {
             match_attractors(&prev, &next, 0.25, d),
             vec![Some(1), Some(0), None, Some(2), None]
         );
+    }
+
+    #[test]
+    fn a_lone_attractor_near_a_fold_is_followed_farther() {
+        let one = Regime::ONE_ONE;
+        let d = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).abs().max((a.1 - b.1).abs());
+        let prev = [
+            attractor(one, Some((0.0, 0.0)), 1),
+            attractor(Regime::NoImpact, Some((3.0, 0.0)), 1),
+        ];
+        // The only 1/1 on both sides, 0.6 away (beyond 0.25, within 4 · 0.25): followed.
+        let next = [
+            attractor(one, Some((0.6, 0.0)), 1),
+            attractor(Regime::NoImpact, Some((3.0, 0.0)), 1),
+        ];
+        assert_eq!(
+            match_attractors(&prev, &next, 0.25, d),
+            vec![Some(0), Some(1)]
+        );
+        // Beyond the fold's reach: a new attractor.
+        let far = [attractor(one, Some((1.2, 0.0)), 1)];
+        assert_eq!(match_attractors(&prev, &far, 0.25, d), vec![None]);
+        // Two unmatched 1/1 candidates: neither is taken for the other.
+        let two = [
+            attractor(one, Some((0.6, 0.0)), 1),
+            attractor(one, Some((-0.6, 0.0)), 1),
+        ];
+        assert_eq!(match_attractors(&prev, &two, 0.25, d), vec![None, None]);
     }
 
     #[test]

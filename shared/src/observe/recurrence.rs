@@ -24,6 +24,12 @@ pub trait AttractorCatalogue {
     fn lookup(&self, u_m: f64, du_m_s: f64, tol: f64) -> Option<u32>;
 }
 
+impl<C: AttractorCatalogue + ?Sized> AttractorCatalogue for &C {
+    fn lookup(&self, u_m: f64, du_m_s: f64, tol: f64) -> Option<u32> {
+        (**self).lookup(u_m, du_m_s, tol)
+    }
+}
+
 /// How a trajectory is matched to the catalogue.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RecurrenceSettings {
@@ -58,19 +64,20 @@ impl RecurrenceSettings {
 }
 
 /// An [`Observer`] that watches the Poincaré points of a run for a known attractor and stops
-/// the run once the trajectory has stayed on one for `confirm` periods.
+/// the run once the trajectory has stayed on one for `confirm` periods. `C` is the catalogue or
+/// a view of it (a reference, or a filter such as "found by an earlier initial condition").
 #[derive(Debug, Clone, Copy)]
-pub struct RecurrenceWatch<'c, C: ?Sized> {
-    catalogue: &'c C,
+pub struct RecurrenceWatch<C> {
+    catalogue: C,
     settings: RecurrenceSettings,
     current: Option<u32>,
     hits: u32,
     assigned: Option<u32>,
 }
 
-impl<'c, C: AttractorCatalogue + ?Sized> RecurrenceWatch<'c, C> {
+impl<C: AttractorCatalogue> RecurrenceWatch<C> {
     /// A watch against `catalogue`. `settings` must be valid ([`RecurrenceSettings::validate`]).
-    pub fn new(catalogue: &'c C, settings: RecurrenceSettings) -> Self {
+    pub fn new(catalogue: C, settings: RecurrenceSettings) -> Self {
         RecurrenceWatch {
             catalogue,
             settings,
@@ -105,7 +112,7 @@ impl<'c, C: AttractorCatalogue + ?Sized> RecurrenceWatch<'c, C> {
     }
 }
 
-impl<T: Real, C: AttractorCatalogue + ?Sized> Observer<T> for RecurrenceWatch<'_, C> {
+impl<T: Real, C: AttractorCatalogue> Observer<T> for RecurrenceWatch<C> {
     const SAMPLES: bool = false;
     fn strobe(&mut self, p: &StroboPoint<T>, _window: bool) {
         self.feed(p.u.to_f64(), p.du.to_f64());
