@@ -178,7 +178,7 @@ fn two_seeds_and_the_grid_basin_agree_within_the_intervals() {
     let b = fractions(dir.path(), "b", "1.44", 2000, 2);
     // The grid basin over the same box, its fractions from the catalogue.
     let cat = dir.path().join("cat.csv");
-    let mut args = line(&format!(
+    let args = line(&format!(
         "basins --rig beam-170 --gap-mm 3.0 --omega-ratio 1.44 --u0-mm -6:3:60 \
          --v0-mm-s -300:300:60 --max-periods 1500 --out {} --attractors-out {}",
         s(&dir.path().join("b.csv")),
@@ -352,9 +352,7 @@ fn bad_attractor_input_is_rejected_with_the_field_named_and_nothing_written() {
         rejected(&line(cmd), needles, &[&out, &png]);
     }
     rejected(
-        &line(&format!(
-            "select --rig wires --gap-mm 0 --basin-samples 0 --json --no-orbit-check"
-        )),
+        &line("select --rig wires --gap-mm 0 --basin-samples 0 --json --no-orbit-check"),
         &["--basin-samples", "allowed 1"],
         &[],
     );
