@@ -18,6 +18,12 @@ use std::sync::RwLock;
 use serde::{Deserialize, Serialize};
 use shared::observe::{AttractorCatalogue, Regime};
 
+/// Steady-state tolerance of the attractor runs (`basins`, `fractions`, `select`'s basin
+/// check), scaled: a state is taken as settled when its lag-`q` step is below it, and lies
+/// within `1e-6 · μ/(1 − μ)` of its limit (`μ` the contraction per `q` periods) — within half
+/// the default attractor tolerance for `1 − μ > 2e-4`.
+pub const ATTRACTOR_STEADY_TOL: f64 = 1e-6;
+
 /// Scaled distance within which an irregular window's Poincaré point counts as a return to an
 /// earlier point of the same window.
 pub const RETURN_TOL: f64 = 0.05;
@@ -34,6 +40,11 @@ pub enum Recurrence {
     Known,
     /// It never recurred within the protocol's periods.
     None,
+    /// Its window repeats with a period but still lies far from its limit (a multiplier near 1
+    /// in modulus: light damping, a fold, a doubling; see [`residual`]): it joins an attractor
+    /// found by a lower index within the tolerance (where it would have stopped early had that
+    /// one been catalogued in time), and otherwise counts as "no attractor".
+    Unsettled,
     /// It recurred without impacts on an undamped suspension: a conservative motion (the
     /// stroboscopic map of the undamped free flight preserves area, so it has no attractor),
     /// counted with the never-recurrent as "no attractor".
@@ -64,7 +75,7 @@ impl From<Recurrence> for Ending {
     fn from(r: Recurrence) -> Self {
         match r {
             Recurrence::Found | Recurrence::Known => Ending::Attractor,
-            Recurrence::None => Ending::None,
+            Recurrence::None | Recurrence::Unsettled => Ending::None,
             Recurrence::Neutral => Ending::Neutral,
         }
     }
@@ -257,6 +268,31 @@ pub fn minimal_cycle(points: Vec<(f64, f64)>, tol: f64, scales: Scales) -> Vec<(
     points
 }
 
+/// How far the last point of a window that repeats with period `q` may still lie from the
+/// periodic orbit it converges to (scaled): the last lag-`q` step `d` over the geometric tail
+/// `μ/(1 − μ)`, with the contraction per `q` periods `μ` measured between the window's first
+/// and last `q` lag steps. Where the orbit's multiplier nears 1 in modulus (light damping: a
+/// free oscillation commensurate with the excitation decays by `e^{−2πζ q ω/Ω}` per `q`
+/// periods; near a fold or a doubling) the protocol's steady-state test, on the step `d`,
+/// passes long before the state is near its limit, and two starts would otherwise be taken for
+/// two attractors. A window that does not contract (an exactly repeating one) gives `d`.
+pub fn residual(window: &VecDeque<(f64, f64)>, q: usize, scales: Scales) -> f64 {
+    let n = window.len();
+    if q == 0 || n < 3 * q {
+        return f64::INFINITY;
+    }
+    let step = |k: usize| scales.distance(window[k], window[k - q]);
+    let first = (q..2 * q).map(step).fold(0.0, f64::max);
+    let last = (n - q..n).map(step).fold(0.0, f64::max);
+    if first <= 0.0 || last <= 0.0 || last >= first {
+        return last;
+    }
+    // Lags between the two blocks, in units of q periods.
+    let lags = (n - 2 * q) as f64 / q as f64;
+    let mu = (last / first).powf(1.0 / lags);
+    last * mu / (1.0 - mu)
+}
+
 /// Whether an irregular window is still converging onto a periodic orbit: its points repeat
 /// with a period `q ≤ max_q` to [`RETURN_TOL`] (scaled) over the whole window, though not to
 /// the protocol's tolerance (near a fold or a period doubling, where a multiplier nears ±1,
@@ -387,6 +423,21 @@ mod tests {
         assert!(returns(&circle, S));
         let drift: VecDeque<(f64, f64)> = (0..64).map(|j| (j as f64 * 0.1, 0.0)).collect();
         assert!(!returns(&drift, S));
+    }
+
+    #[test]
+    fn residual_is_the_geometric_tail_of_a_contracting_window() {
+        // x_k = L + a μ1^k with μ1 = 0.99 per period: the last point lies a μ1^63 from L.
+        let (l, a, mu1) = (0.3, 0.2, 0.99f64);
+        let w: VecDeque<(f64, f64)> = (0..64).map(|k| (l + a * mu1.powi(k), 0.0)).collect();
+        let exact = a * mu1.powi(63);
+        let r = residual(&w, 1, S);
+        assert!((r - exact).abs() < 1e-9 * exact.max(1.0), "{r} vs {exact}");
+        // An exactly repeating window: its step (0).
+        let still: VecDeque<(f64, f64)> = (0..64).map(|k| ((k % 2) as f64, 0.0)).collect();
+        assert_eq!(residual(&still, 2, S), 0.0);
+        // Too short for its period.
+        assert_eq!(residual(&still, 32, S), f64::INFINITY);
     }
 
     #[test]

@@ -10,6 +10,8 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 use shared::observe::RecurrenceSettings;
 
+use crate::attractors::ATTRACTOR_STEADY_TOL;
+
 use crate::config::{Setup, parse_sweep};
 use crate::figures::{
     self,
@@ -143,6 +145,12 @@ pub struct AttractorOpts {
     /// not recurred by then and whose window does not repeat counts as never recurrent).
     #[arg(long)]
     pub max_periods: Option<u32>,
+    /// Steady-state tolerance that ends a transient, scaled (1e-9 ..= 1; the other commands'
+    /// protocol uses 1e-4). An attractor's points must lie within half --attractor-tol of its
+    /// limit: where a slowly contracting state (light damping, near a fold) still lies farther,
+    /// the start counts as no attractor; lower this and raise --max-periods.
+    #[arg(long, default_value_t = ATTRACTOR_STEADY_TOL)]
+    pub steady_tol: f64,
 }
 
 impl AttractorOpts {
@@ -166,6 +174,8 @@ impl AttractorOpts {
                 .validate()
                 .context("--max-periods")?;
         }
+        setup.settings.protocol.steady_tol = self.steady_tol;
+        setup.settings.protocol.validate().context("--steady-tol")?;
         Ok((self.attractor_tol, rec))
     }
 }

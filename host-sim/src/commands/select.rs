@@ -160,6 +160,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
         let mut basin_setup = setup.clone();
         let n = a.basin_max_periods;
         basin_setup.settings.protocol.max_transient_periods = n;
+        basin_setup.settings.protocol.steady_tol = crate::attractors::ATTRACTOR_STEADY_TOL;
         basin_setup
             .settings
             .protocol

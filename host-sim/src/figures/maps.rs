@@ -403,7 +403,7 @@ pub fn attractor_colors(
                         entries.push((name, LegendMark::Dot(*c)));
                         entries.push((
                             format!(
-                                "F_i/mg {:.2}; u = {u:.3} mm, u̇ = {v:.1} mm/s",
+                                "F_i/mg {:.2} at ({u:.2} mm, {v:.0} mm/s)",
                                 a.impact_force_mg
                             ),
                             LegendMark::Text,

@@ -35,7 +35,7 @@ use super::raster::Raster;
 use super::{CountSweep, Finish, GridKind};
 use crate::attractors::{
     Before, Catalogue, Ending, Known, Recurrence, Scales, converging, cycle, minimal_cycle,
-    returns, wilson, window_period,
+    residual, returns, wilson, window_period,
 };
 use crate::config::Setup;
 use crate::runner::in_order;
@@ -311,8 +311,14 @@ impl Attractors<'_> {
                                     impact_force_mg: r.impact_force_mg,
                                     impacts: r.impacts,
                                 };
-                                self.catalogue.register(set.clone(), index);
-                                row.recurrence = Recurrence::Found;
+                                if residual(&obs.window, q, scales) > 0.5 * grid_tol {
+                                    // Still far from its limit: not a new attractor, but its
+                                    // points may join one found by a lower index.
+                                    row.recurrence = Recurrence::Unsettled;
+                                } else {
+                                    self.catalogue.register(set.clone(), index);
+                                    row.recurrence = Recurrence::Found;
+                                }
                                 Some(set)
                             });
                             match set {
@@ -445,6 +451,17 @@ impl Grouping {
     }
 
     fn find(&self, r: &BasinRaw) -> Option<usize> {
+        if r.recurrence == Recurrence::Unsettled
+            && let Some(p) = r.strobe_u_mm.zip(r.strobe_v_mm_s)
+            && let Some(k) = self.groups.iter().position(|g| {
+                g.recurrent
+                    && g.regime == r.regime
+                    && g.point
+                        .is_some_and(|a| self.scales.distance(a, p) <= self.tol)
+            })
+        {
+            return Some(k);
+        }
         let (recurrent, regime, point) = key(r);
         self.groups.iter().position(|g| {
             g.recurrent == recurrent
@@ -538,6 +555,16 @@ impl Grouping {
         self.find(r).map(|k| ids[k])
     }
 
+    /// How a row ended, as the final CSV says it: on an attractor when its group is one (an
+    /// [`Recurrence::Unsettled`] row that joined an attractor found by a lower index too).
+    pub fn ending(&self, r: &BasinRaw) -> Ending {
+        match self.find(r).map(|k| &self.groups[k]) {
+            Some(g) if g.recurrent => Ending::Attractor,
+            _ if r.recurrence == Recurrence::Neutral => Ending::Neutral,
+            _ => Ending::None,
+        }
+    }
+
     /// What a row reports: for a row on a periodic attractor, the attractor's regime, impacts
     /// in the window, `F_i/mg` and settledness (its first row's: the same in any thread order
     /// and in merged shards, where a row may have stopped early on the catalogue); for the
@@ -557,8 +584,8 @@ impl Grouping {
 pub fn no_attractor_note(cells: u64, total: u64, protocol: &Protocol) -> String {
     format!(
         "  no attractor: {cells} initial conditions of {total} either never recurred within {} \
-         transient + {} window periods (raise --max-periods if the damping is light, or near a \
-         fold or period doubling where the approach is slow) or move without impacts on an \
+         transient + {} window periods (raise --max-periods, and lower --steady-tol, if the damping \
+         is light, or near a fold or period doubling where the approach is slow) or move without impacts on an \
          undamped suspension (conservative: no attractor to reach)",
         protocol.max_transient_periods, protocol.observe_periods
     )
@@ -725,7 +752,7 @@ impl GridKind for Basins {
                 impacts,
                 impact_force_mg,
                 settled,
-                recurrence: r.recurrence.into(),
+                recurrence: grouping.ending(&r),
             })?;
         }
         w.flush()?;
