@@ -17,8 +17,24 @@ $h bifurcation --rig beam-170 --gap-mm 3.0 --omega-ratio 0.5:3.0:0.005 --continu
     --out /tmp/bifurcation-beam-170.csv --plot "$f/bifurcation-beam-170-gap3.0-continuation.png"
 $h select --rig wires --gap-mm 0 --out "$f/select-wires-gap0.csv" --plot "$f/select-wires-gap0.png"
 $h select --rig beam-170 --gap-mm 0 --out "$f/select-beam-170-gap0.csv" --plot "$f/select-beam-170-gap0.png"
-$h basins --rig wires --gap-mm 1.335 --omega-ratio 2.0 --u0-mm -4:1.335:200 --v0-mm-s -100:100:200 \
-    --out /tmp/basins.csv --plot "$f/basins-wires-ratio2.00-gapA1.50.png"
+# The thesis' six basin points (Figs. 3.36a–3.38b: Ω/ω, gap/A0; A0 = 0.89 mm), on the undamped
+# wires preset (impact / no impact, as the thesis draws them) and with the pendulum damped
+# (ζ = 0.004, coloured by attractor).
+for p in 2.00:2.00 2.00:1.50 1.75:2.50 1.75:3.50 2.15:1.60 2.25:1.50; do
+    r=${p%%:*}
+    a=${p##*:}
+    g=$(awk "BEGIN { printf \"%.4f\", $a * 0.89 }")
+    $h basins --rig wires --gap-mm "$g" --omega-ratio "$r" --u0-mm "-4:$g:200" \
+        --v0-mm-s -100:100:200 --color-by impact \
+        --out /tmp/basins.csv --plot "$f/basins-wires-ratio$r-gapA$a.png"
+    $h basins --rig wires --damping-ratio 0.004 --gap-mm "$g" --omega-ratio "$r" \
+        --u0-mm "-4:$g:200" --v0-mm-s -100:100:200 --max-periods 4000 \
+        --out /tmp/basins.csv --plot "$f/basins-wires-z0.004-ratio$r-gapA$a.png"
+done
+# Basin fractions of the beam rig's hysteresis at 3.0 mm, continued over Ω/ω.
+$h fractions --rig beam-170 --gap-mm 3.0 --omega-ratio 1.10:1.60:0.01 --u0-mm -6:3 \
+    --v0-mm-s -300:300 --samples 2000 --max-periods 1500 \
+    --out "$f/fractions-beam-170-gap3.0.csv" --plot "$f/fractions-beam-170-gap3.0.png"
 $h peterka --rig wires --gap-mm 0:3.42:0.01 --freq-hz 1:7.11:0.01 --boundaries \
     --out /tmp/peterka.csv --plot "$f/peterka-wires.png" --force-plot "$f/peterka-wires-f11.png"
 $h continue --rig wires --gap-mm 0 --omega-ratio 2.0 --range 1.0:3.0 --follow-doublings 2 \

@@ -438,6 +438,12 @@ impl GridKind for Fractions {
                 .collect();
             let mut here = Vec::new();
             for (a, m) in list.into_iter().zip(matched) {
+                // "No attractor" is one id over the whole continuation.
+                let m = if a.recurrent {
+                    m
+                } else {
+                    ids.iter().position(|i| !i.2)
+                };
                 let id = m.unwrap_or_else(|| {
                     let n_rec = ids.iter().filter(|i| i.2).count();
                     ids.push((
