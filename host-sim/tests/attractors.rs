@@ -309,6 +309,69 @@ fn a_run_without_recurrence_says_so_with_the_counts() {
     assert_eq!(rows[0].fraction, 1.0);
 }
 
+/// The impact view (`--color-by impact`, the thesis' Figs. 3.36–3.38) counts each run's own
+/// last window. At Fig. 3.37a's point (undamped wires, Ω/ω = 1.75, gap/A0 = 2.50): starts near
+/// the linear forced response `u_p = A0 r²/(1 − r²) sin Ωt` (analytic; at t = 0 the Poincaré
+/// point `(0, A0 r² Ω/(1 − r²))`) beat with a free oscillation too small to reach the surface,
+/// so none impacts; over the thesis' box most runs impact in their window, far more than the
+/// impacting attractors' share (undamped: most impacting runs never recur).
+#[test]
+fn the_impact_view_counts_each_runs_window_and_the_forced_response_island_never_impacts() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a0_mm, r) = (0.89f64, 1.75f64);
+    let gap = 2.5 * a0_mm;
+    let omega_n = (9.81f64 / 0.075).sqrt();
+    let omega = r * omega_n;
+    let amp = a0_mm * r * r / (1.0 - r * r);
+    let v_p = amp * omega;
+    // Free oscillation at most 0.2 mm and 2 mm/s off: |u| ≤ |u_p| + √(δu² + (δu̇/ω)²) < gap.
+    let (du, dv) = (0.2, 2.0);
+    assert!(amp.abs() + (du * du + (dv / omega_n).powi(2)).sqrt() < gap - 0.2);
+    let run = |u0: String, v0: String, name: &str| {
+        let out = dir.path().join(format!("{name}.csv"));
+        let o = host_sim()
+            .args(line(&format!(
+                "basins --rig wires --gap-mm {gap} --omega-ratio {r} --u0-mm {u0} \
+                 --v0-mm-s {v0} --color-by impact --out {} --plot {}",
+                s(&out),
+                s(&dir.path().join(format!("{name}.png")))
+            )))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        let mut rdr = csv::Reader::from_path(&out).unwrap();
+        let rows: Vec<csv::StringRecord> = rdr.records().map(Result::unwrap).collect();
+        (rows, err)
+    };
+    let (island, _) = run(
+        format!("{}:{}:9", -du, du),
+        format!("{}:{}:9", v_p - dv, v_p + dv),
+        "island",
+    );
+    assert_eq!(island.len(), 81);
+    assert!(island.iter().all(|r| &r[3] == "false"), "{island:?}");
+    let (rows, err) = run(format!("-4:{gap}:40"), "-100:100:40".into(), "box");
+    println!("{err}");
+    let impacting = rows.iter().filter(|r| &r[3] == "true").count();
+    let on_impacting_attractor = rows
+        .iter()
+        .filter(|r| &r[3] == "true" && &r[5] != "-")
+        .count();
+    let share = 100.0 * impacting as f64 / rows.len() as f64;
+    assert!(
+        err.contains(&format!(
+            "impacting in the last window: {share:.2} % of starts"
+        )),
+        "{share} {err}"
+    );
+    assert!(share > 30.0, "{share}");
+    assert!(
+        impacting > 3 * on_impacting_attractor,
+        "{impacting} {on_impacting_attractor}"
+    );
+}
+
 #[test]
 fn bad_attractor_input_is_rejected_with_the_field_named_and_nothing_written() {
     let dir = tempfile::tempdir().unwrap();

@@ -147,8 +147,9 @@ pub struct AttractorOpts {
     pub max_periods: Option<u32>,
     /// Steady-state tolerance that ends a transient, scaled (1e-9 ..= 1; the other commands'
     /// protocol uses 1e-4). An attractor's points must lie within half --attractor-tol of its
-    /// limit: where a slowly contracting state (light damping, near a fold) still lies farther,
-    /// the start counts as no attractor; lower this and raise --max-periods.
+    /// limit: a slowly contracting state (light damping, near a fold) that still lies farther
+    /// founds no attractor (it joins one found by an earlier start within the tolerance, else
+    /// counts as no attractor); lower this and raise --max-periods.
     #[arg(long, default_value_t = ATTRACTOR_STEADY_TOL)]
     pub steady_tol: f64,
 }

@@ -359,7 +359,7 @@ pub const NO_ATTRACTOR: RGBColor = RGBColor(238, 226, 200);
 /// Colours of the attractors (indexed like `attractors`) in the view `color_by`, and the
 /// legend's entries. By attractor: [`ATTRACTOR_PALETTE`] in id order (beyond ten, dark grey);
 /// by regime: the regime's colour; by impact: impacting black, not impacting white (the
-/// thesis' figures). Cells without an attractor are [`NO_ATTRACTOR`] in every view.
+/// legend is then [`basins_map`]'s). Cells without an attractor are [`NO_ATTRACTOR`].
 pub fn attractor_colors(
     attractors: &[Attractor],
     color_by: ColorBy,
@@ -437,16 +437,8 @@ pub fn attractor_colors(
                 entries.push((format!("{name} ({:.1} %)", share(n)), LegendMark::Swatch(c)));
             }
         }
-        ColorBy::Impact => {
-            for (impacting, name, c) in [(true, "impacting", BLACK), (false, "no impact", WHITE)] {
-                let n: u64 = attractors
-                    .iter()
-                    .filter(|a| a.recurrent && a.regime.impacts() == impacting)
-                    .map(|a| a.cells)
-                    .sum();
-                entries.push((format!("{name} ({:.1} %)", share(n)), LegendMark::Swatch(c)));
-            }
-        }
+        // The impact view colours each run's own window ([`basins_map`]), not attractors.
+        ColorBy::Impact => return (colors, entries),
     }
     let never: u64 = attractors
         .iter()
@@ -463,8 +455,9 @@ pub fn attractor_colors(
 }
 
 /// Basins of attraction over `(u0, u̇0)` cells (thesis Figs. 3.36–3.38): cells hold the sorted
-/// attractor id (`u32::MAX` for none), coloured as `color_by` says; in the attractor view the
-/// attractors' canonical Poincaré points are marked.
+/// attractor id (`u32::MAX` for none), coloured as `color_by` says (the impact view: whether
+/// each run impacts in its observed window, as the thesis draws them); in the attractor view
+/// the attractors' canonical Poincaré points are marked.
 ///
 /// # Errors
 /// Drawing or file errors.
@@ -472,17 +465,48 @@ pub fn basins_map(
     path: &Path,
     title: &str,
     axes: (&MapAxis, &MapAxis),
-    cells: &Raster<u32>,
-    attractors: &[Attractor],
+    summary: &BasinsSummary,
     color_by: ColorBy,
 ) -> Result<()> {
     let (x, y) = axes;
+    let attractors = &summary.attractors;
     let (left, right) = figure_with_panel(path, title)?;
-    let (colors, entries) = attractor_colors(attractors, color_by);
+    let (colors, mut entries) = attractor_colors(attractors, color_by);
     let mut chart = map_chart(&left, x, y)?;
-    blit(cells, &chart.plotting_area().strip_coord_spec(), |id| {
-        colors.get(id as usize).copied().unwrap_or(EMPTY)
-    })?;
+    if color_by == ColorBy::Impact {
+        blit(
+            &summary.impacting,
+            &chart.plotting_area().strip_coord_spec(),
+            |i| if i { BLACK } else { WHITE },
+        )?;
+        let share = |n: u64| 100.0 * n as f64 / summary.total.max(1) as f64;
+        entries = vec![
+            (
+                format!("impacting ({:.1} %)", share(summary.impacting_count)),
+                LegendMark::Swatch(BLACK),
+            ),
+            (
+                format!(
+                    "no impact ({:.1} %)",
+                    share(summary.total - summary.impacting_count)
+                ),
+                LegendMark::Swatch(WHITE),
+            ),
+        ];
+        entries.push(("in each run's last window".into(), LegendMark::Text));
+        if summary.never_count > 0 {
+            entries.push((
+                format!("no attractor: {:.1} %", share(summary.never_count)),
+                LegendMark::Text,
+            ));
+        }
+    } else {
+        blit(
+            &summary.cells,
+            &chart.plotting_area().strip_coord_spec(),
+            |id| colors.get(id as usize).copied().unwrap_or(EMPTY),
+        )?;
+    }
     let (x0, x1) = x.range();
     let (y0, y1) = y.range();
     if color_by == ColorBy::Attractor {
@@ -500,7 +524,7 @@ pub fn basins_map(
     let heading = match color_by {
         ColorBy::Attractor => "attractor (basin share)",
         ColorBy::Regime => "regime (basin share)",
-        ColorBy::Impact => "steady state (basin share)",
+        ColorBy::Impact => "impact (share of starts)",
     };
     legend_panel(&right, heading, &entries)?;
     left.present()?;
@@ -848,7 +872,6 @@ impl GridFigures for Basins {
         let (outputs, meta, figures) = (&mut *job.outputs, job.meta, job.figures);
         let grid = meta.grid::<BasinsGrid>()?;
         let (nu, nv) = (grid.u0_mm.len(), grid.v0_mm_s.len());
-        let (cells, keys) = (&summary.cells, &summary.attractors);
         if let Some(p) = figures.plot {
             let tmp = outputs.reserve(p)?;
             let x = MapAxis {
@@ -870,7 +893,7 @@ impl GridFigures for Basins {
                 grid.omega_ratio,
                 meta.params.freq_hz_from_ratio(grid.omega_ratio)
             );
-            basins_map(&tmp, &title, (&x, &y), cells, keys, grid.color_by)?;
+            basins_map(&tmp, &title, (&x, &y), &summary, grid.color_by)?;
         }
         Ok(())
     }

@@ -55,7 +55,8 @@ pub enum ColorBy {
     Attractor,
     /// Each regime its colour.
     Regime,
-    /// Impacting or not (the thesis' Figs. 3.36–3.38).
+    /// Whether each run impacts in its observed window (the thesis' Figs. 3.36–3.38), on an
+    /// attractor or not.
     Impact,
 }
 
@@ -698,6 +699,14 @@ pub struct BasinsSummary {
     pub cells: Raster<u32>,
     /// The attractors, by id.
     pub attractors: Vec<Attractor>,
+    /// Whether each cell's run impacts in its observed window (the `impacting` column).
+    pub impacting: Raster<bool>,
+    /// How many runs impact in their window, and how many reach no attractor, of `total`.
+    pub impacting_count: u64,
+    /// How many runs reach no attractor.
+    pub never_count: u64,
+    /// Initial conditions.
+    pub total: u64,
 }
 
 /// The basins map as a [`GridKind`]: shards hold ungrouped rows; the CSV with the attractors
@@ -730,6 +739,8 @@ impl GridKind for Basins {
         // Pass 2: rows and raster.
         let (nu, nv) = (grid.u0_mm.len(), grid.v0_mm_s.len());
         let mut cells = Raster::new(nu, nv, u32::MAX);
+        let mut impacting = Raster::new(nu, nv, false);
+        let (mut impacting_count, mut never_count, mut total) = (0u64, 0u64, 0u64);
         let mut w = create_csv::<BasinRow>(out, None)?;
         for r in open_csv::<BasinRaw>(raw)?.deserialize::<BasinRaw>() {
             let r = r.with_context(|| format!("{}: malformed row", raw.display()))?;
@@ -740,6 +751,10 @@ impl GridKind for Basins {
             let (iu, iv) = grid.split(r.index as usize);
             cells.set(iu, iv, id);
             let (regime, impacts, impact_force_mg, settled) = grouping.reported(&r);
+            impacting.set(iu, iv, regime.impacts());
+            impacting_count += u64::from(regime.impacts());
+            never_count += u64::from(!a.recurrent);
+            total += 1;
             w.serialize(BasinRow {
                 index: r.index,
                 u0_mm: r.u0_mm,
@@ -769,6 +784,10 @@ impl GridKind for Basins {
                 a.impact_force_mg
             ));
         }
+        summary.push_str(&format!(
+            "  impacting in the last window: {:.2} % of starts (--color-by impact)\n",
+            100.0 * impacting_count as f64 / total.max(1) as f64
+        ));
         if let Some(never) = keys.iter().find(|a| !a.recurrent) {
             summary.push_str(&no_attractor_note(
                 never.cells,
@@ -781,6 +800,10 @@ impl GridKind for Basins {
         Ok(BasinsSummary {
             cells,
             attractors: keys,
+            impacting,
+            impacting_count,
+            never_count,
+            total,
         })
     }
 }
