@@ -4,6 +4,7 @@
 #   docs/cluster/submit.sh peterka 16 run1 --rig wires --gap-mm 0:3.42:0.01 --freq-hz 1:7.11:0.01
 #   docs/cluster/submit.sh basins 8 run2 --rig wires --gap-mm 1.335 --omega-ratio 2.0 \
 #       --u0-mm -4:1.335:200 --v0-mm-s -100:100:200
+#   docs/cluster/submit.sh fractions 8 run3 --rig beam-170 --gap-mm 3.0 --omega-ratio 1.1:1.6:0.01
 #
 # Writes RUN/shards/KIND_i.csv, then RUN/KIND.csv and its figures; logs in RUN/logs. Prints the
 # two job ids (`array ID merge ID`). HOST_SIM overrides the host-sim binary (default: on PATH);
@@ -11,12 +12,12 @@
 # A failed task: resubmit just its index with the line this prints, then the merge.
 set -euo pipefail
 if [ $# -lt 3 ]; then
-    echo "usage: $0 peterka|basins SHARDS RUN_DIR GRID_OPTIONS..." >&2
+    echo "usage: $0 peterka|basins|fractions SHARDS RUN_DIR GRID_OPTIONS..." >&2
     exit 2
 fi
 kind=$1 n=$2 run=$3
 shift 3
-case "$kind" in peterka | basins) ;; *) echo "KIND must be peterka or basins" >&2; exit 2 ;; esac
+case "$kind" in peterka | basins | fractions) ;; *) echo "KIND must be peterka, basins or fractions" >&2; exit 2 ;; esac
 [[ "$n" =~ ^[1-9][0-9]*$ ]] || { echo "SHARDS must be a positive whole number" >&2; exit 2; }
 here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$run/logs"

@@ -1,8 +1,8 @@
 //! The big grids on a real SLURM: the job-array and merge scripts of `docs/cluster/` submitted
 //! to the one-node cluster of `docs/cluster/local-slurm.sh` (which `.ci/run` starts):
-//! - a reduced Peterka map (3,171 points, 4 array tasks, the merge held by `afterok`) and a basin
-//!   (1,600 initial conditions, 4 tasks): the merged CSV and figures are byte for byte those of a
-//!   single-process run;
+//! - a reduced Peterka map (3,171 points, 4 array tasks, the merge held by `afterok`), a basin
+//!   (1,600 initial conditions, 4 tasks) and basin fractions (4 × 200 starts, 4 tasks): the
+//!   merged CSV, catalogue and figures are byte for byte those of a single-process run;
 //! - one task of a larger map killed with `scancel` while it computes: the merge never starts,
 //!   no partial shard is left, and rerunning that array index, then the merge, completes the map
 //!   (again byte-identical).
@@ -134,7 +134,12 @@ fn single(kind: &str, grid: &[&str], dir: &Path) {
             .arg(dir.join("peterka.png"))
             .arg("--force-plot")
             .arg(dir.join("peterka-f11.png")),
-        _ => cmd.arg("--plot").arg(dir.join("basins.png")),
+        "basins" => cmd
+            .arg("--plot")
+            .arg(dir.join("basins.png"))
+            .arg("--attractors-out")
+            .arg(dir.join("basins-attractors.csv")),
+        _ => cmd.arg("--plot").arg(dir.join(format!("{kind}.png"))),
     };
     run(&mut cmd);
 }
@@ -142,7 +147,8 @@ fn single(kind: &str, grid: &[&str], dir: &Path) {
 fn assert_same_files(kind: &str, a: &Path, b: &Path) {
     let names: &[&str] = match kind {
         "peterka" => &["peterka.csv", "peterka.png", "peterka-f11.png"],
-        _ => &["basins.csv", "basins.png"],
+        "basins" => &["basins.csv", "basins.png", "basins-attractors.csv"],
+        _ => &["fractions.csv", "fractions.png"],
     };
     for name in names {
         let (x, y) = (std::fs::read(a.join(name)), std::fs::read(b.join(name)));
@@ -173,6 +179,20 @@ const BASINS: &[&str] = &[
     "--v0-mm-s",
     "-100:100:40",
 ];
+const FRACTIONS: &[&str] = &[
+    "--rig",
+    "beam-170",
+    "--gap-mm",
+    "3.0",
+    "--omega-ratio",
+    "1.40:1.52:0.04",
+    "--u0-mm",
+    "-6:3",
+    "--v0-mm-s",
+    "-300:300",
+    "--samples",
+    "200",
+];
 /// A map whose shards take several seconds each on one core.
 const PETERKA_LONG: &[&str] = &[
     "--rig",
@@ -191,7 +211,11 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
     let started = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     // 1. A Peterka map and a basin: array + merge against one process.
-    for (kind, grid) in [("peterka", PETERKA), ("basins", BASINS)] {
+    for (kind, grid) in [
+        ("peterka", PETERKA),
+        ("basins", BASINS),
+        ("fractions", FRACTIONS),
+    ] {
         let one = dir.path().join(format!("{kind}-single"));
         std::fs::create_dir_all(&one).unwrap();
         single(kind, grid, &one);
@@ -229,13 +253,16 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
         };
         assert_eq!(state, expected, "task {task}: {st:?}\n{}", logs(&run_dir));
     }
-    // The merge waits on a dependency that can no longer be met: it never starts.
-    std::thread::sleep(Duration::from_secs(2));
-    let m = states(&merge);
-    assert!(
-        m.iter()
-            .all(|(_, s, r)| s == "PENDING" && r == "DependencyNeverSatisfied"),
-        "{m:?}"
+    // The merge waits on a dependency that can no longer be met: it never starts (the
+    // controller re-evaluates dependencies periodically, so the reason may take a while).
+    wait_for(
+        "the merge's reason DependencyNeverSatisfied",
+        Duration::from_secs(120),
+        || {
+            let m = states(&merge);
+            assert!(m.iter().all(|(_, s, _)| s == "PENDING"), "{m:?}");
+            m.iter().all(|(_, _, r)| r == "DependencyNeverSatisfied")
+        },
     );
     run(Command::new("scancel").arg(&merge));
     assert!(!run_dir.join("merged.csv").exists() && !run_dir.join("peterka.csv").exists());
