@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-use common::{host_sim, leftovers, line, ok, rejected};
+use common::{BEAM_HYSTERESIS_FRACTIONS, host_sim, leftovers, line, ok, rejected};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -132,22 +132,11 @@ fn basins_fractions_and_bifurcation_shards_merge_to_the_one_run_bytes() {
         dir.path(),
         "fractions",
         &[
-            "fractions",
-            "--rig",
-            "beam-170",
-            "--gap-mm",
-            "3.0",
-            "--omega-ratio",
-            "1.40:1.52:0.04",
-            "--u0-mm",
-            "-6:3",
-            "--v0-mm-s",
-            "-300:300",
-            "--samples",
-            "60",
-            "--max-periods",
-            "1500",
-        ],
+            &["fractions"],
+            BEAM_HYSTERESIS_FRACTIONS,
+            &["--samples", "60", "--max-periods", "1500"],
+        ]
+        .concat(),
         &["--plot"],
     );
     shards_equal_one_run(

@@ -13,6 +13,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+mod common;
+
+use common::BEAM_HYSTERESIS_FRACTIONS;
+
 fn host_sim() -> PathBuf {
     assert_cmd::cargo::cargo_bin("host-sim")
 }
@@ -179,20 +183,6 @@ const BASINS: &[&str] = &[
     "--v0-mm-s",
     "-100:100:40",
 ];
-const FRACTIONS: &[&str] = &[
-    "--rig",
-    "beam-170",
-    "--gap-mm",
-    "3.0",
-    "--omega-ratio",
-    "1.40:1.52:0.04",
-    "--u0-mm",
-    "-6:3",
-    "--v0-mm-s",
-    "-300:300",
-    "--samples",
-    "200",
-];
 /// A map whose shards take several seconds each on one core.
 const PETERKA_LONG: &[&str] = &[
     "--rig",
@@ -210,11 +200,12 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
     }
     let started = Instant::now();
     let dir = tempfile::tempdir().unwrap();
+    let fractions = [BEAM_HYSTERESIS_FRACTIONS, &["--samples", "200"]].concat();
     // 1. A Peterka map and a basin: array + merge against one process.
     for (kind, grid) in [
         ("peterka", PETERKA),
         ("basins", BASINS),
-        ("fractions", FRACTIONS),
+        ("fractions", &fractions),
     ] {
         let one = dir.path().join(format!("{kind}-single"));
         std::fs::create_dir_all(&one).unwrap();

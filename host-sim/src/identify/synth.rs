@@ -125,6 +125,20 @@ pub fn synthetic_drop(
     record(&clean, sensor)
 }
 
+/// Samples of a record of `spec` at `sample_rate_hz` (both ends included).
+///
+/// # Errors
+/// A rate outside `1 ..= 1e7` Hz, or more than 5·10⁷ samples.
+fn sample_count(spec: &DropSpec, sample_rate_hz: f64) -> Result<usize> {
+    check_range("sample_rate_hz", sample_rate_hz, 1.0, 1e7)?;
+    let samples_n = (spec.duration_s * sample_rate_hz).floor() as usize + 1;
+    ensure!(
+        samples_n <= 50_000_000,
+        "{samples_n} samples: lower the rate or the duration"
+    );
+    Ok(samples_n)
+}
+
 /// The drop test `spec` of `params` sampled at `sample_rate_hz` without noise or offset: the
 /// simulated force, linearly interpolated between the integrator's samples.
 ///
@@ -136,12 +150,7 @@ pub fn clean_drop(
     steps: &StepSettings,
     sample_rate_hz: f64,
 ) -> Result<Trace> {
-    check_range("sample_rate_hz", sample_rate_hz, 1.0, 1e7)?;
-    let samples_n = (spec.duration_s * sample_rate_hz).floor() as usize + 1;
-    ensure!(
-        samples_n <= 50_000_000,
-        "{samples_n} samples: lower the rate or the duration"
-    );
+    let samples_n = sample_count(spec, sample_rate_hz)?;
     let sim = simulate_drop(params, spec, steps, true)?;
     let t_s: Vec<f64> = (0..samples_n).map(|i| i as f64 / sample_rate_hz).collect();
     let value = resample(&sim.samples, t_s.iter().copied());
@@ -199,12 +208,7 @@ pub fn clean_displacement(
     steps: &StepSettings,
     sample_rate_hz: f64,
 ) -> Result<Trace> {
-    check_range("sample_rate_hz", sample_rate_hz, 1.0, 1e7)?;
-    let samples_n = (spec.duration_s * sample_rate_hz).floor() as usize + 1;
-    ensure!(
-        samples_n <= 50_000_000,
-        "{samples_n} samples: lower the rate or the duration"
-    );
+    let samples_n = sample_count(spec, sample_rate_hz)?;
     let mut sim: Vec<(f64, f64, f64)> = Vec::new();
     run_drop::<f64, _>(params, spec, &SwitchBands::default(), steps, |r| {
         if let DropRecord::Sample(s) = r

@@ -98,3 +98,19 @@ pub fn rejected_files(cases: &[(&Path, &str, &str, &str)], outputs: &[&Path]) {
         rejected(&line(args), &[needle], outputs);
     }
 }
+
+/// Basin fractions across the beam rig's hysteresis (170 mm, gap 3.0 mm, Ω/ω 1.40–1.52 in
+/// steps of 0.04) from the box `u0` −6–3 mm, `u̇0` ±300 mm/s: the `fractions` options without
+/// the sample count.
+pub const BEAM_HYSTERESIS_FRACTIONS: &[&str] = &[
+    "--rig",
+    "beam-170",
+    "--gap-mm",
+    "3.0",
+    "--omega-ratio",
+    "1.40:1.52:0.04",
+    "--u0-mm",
+    "-6:3",
+    "--v0-mm-s",
+    "-300:300",
+];
