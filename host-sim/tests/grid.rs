@@ -477,6 +477,28 @@ fn merge_rejects_bad_shards_and_writes_nothing() {
 #[cfg(unix)]
 #[test]
 fn ctrl_c_stops_and_leaves_no_file() {
+    interrupt_leaves_nothing(&[
+        "peterka",
+        "--gap-mm",
+        "0:3.42:0.01",
+        "--freq-hz",
+        "1:7.11:0.01",
+    ]);
+    // Adaptive fractions over a continuation (rounds of 256 starts at each point).
+    interrupt_leaves_nothing(
+        &[
+            &["fractions"],
+            BEAM_HYSTERESIS_FRACTIONS,
+            &["--samples", "200000", "--width", "0.005"],
+        ]
+        .concat(),
+    );
+}
+
+/// Starts `host-sim cmd --out big.csv --plot big.png`, interrupts it once its temporary CSV
+/// exists, and checks it stops within 15 s with status 130, saying so, writing nothing.
+#[cfg(unix)]
+fn interrupt_leaves_nothing(cmd: &[&str]) {
     use std::process::Stdio;
     use std::time::{Duration, Instant};
     let dir = tempfile::tempdir().unwrap();
@@ -484,17 +506,8 @@ fn ctrl_c_stops_and_leaves_no_file() {
     let png = dir.path().join("big.png");
     let bin = assert_cmd::cargo::cargo_bin("host-sim");
     let child = std::process::Command::new(bin)
-        .args([
-            "peterka",
-            "--gap-mm",
-            "0:3.42:0.01",
-            "--freq-hz",
-            "1:7.11:0.01",
-            "--out",
-            s(&out),
-            "--plot",
-            s(&png),
-        ])
+        .args(cmd)
+        .args(["--out", s(&out), "--plot", s(&png)])
         .env_remove("SLURM_ARRAY_TASK_ID")
         .env_remove("SLURM_ARRAY_TASK_COUNT")
         .stderr(Stdio::piped())
@@ -513,11 +526,17 @@ fn ctrl_c_stops_and_leaves_no_file() {
     assert!(status.success());
     let t1 = Instant::now();
     let output = child.wait_with_output().unwrap();
-    assert!(t1.elapsed() < Duration::from_secs(15), "slow to stop");
-    assert_eq!(output.status.code(), Some(130));
+    assert!(
+        t1.elapsed() < Duration::from_secs(15),
+        "{cmd:?}: slow to stop"
+    );
+    assert_eq!(output.status.code(), Some(130), "{cmd:?}");
     assert!(String::from_utf8_lossy(&output.stderr).contains("interrupted"));
-    assert!(!out.exists() && !png.exists());
-    assert!(leftovers(dir.path()).is_empty(), "temporary files left");
+    assert!(!out.exists() && !png.exists(), "{cmd:?}");
+    assert!(
+        leftovers(dir.path()).is_empty(),
+        "{cmd:?}: temporary files left"
+    );
 }
 
 #[test]
