@@ -174,16 +174,6 @@ impl Catalogue {
         self.attractor_tol
     }
 
-    /// Number of catalogued attractors.
-    pub fn len(&self) -> usize {
-        self.known.read().unwrap_or_else(|e| e.into_inner()).len()
-    }
-
-    /// Whether none is catalogued.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
     fn lookup_below(&self, u_m: f64, du_m_s: f64, tol: f64, index: u64) -> Option<u32> {
         let p = (u_m * 1e3, du_m_s * 1e3);
         let known = self.known.read().unwrap_or_else(|e| e.into_inner());
@@ -193,12 +183,6 @@ impl Catalogue {
                 *by < index && k.points.iter().any(|&q| self.scales.distance(p, q) <= tol)
             })
             .map(|k| k as u32)
-    }
-}
-
-impl AttractorCatalogue for Catalogue {
-    fn lookup(&self, u_m: f64, du_m_s: f64, tol: f64) -> Option<u32> {
-        self.lookup_below(u_m, du_m_s, tol, u64::MAX)
     }
 }
 
@@ -235,14 +219,21 @@ pub fn cycle(window: &VecDeque<(f64, f64)>, q: usize) -> Option<Vec<(f64, f64)>>
     if q == 0 || q > n {
         return None;
     }
-    let pts: Vec<(f64, f64)> = window.range(n - q..).copied().collect();
-    let first = (0..q).min_by(|&a, &b| {
-        pts[a]
+    let mut pts: Vec<(f64, f64)> = window.range(n - q..).copied().collect();
+    canonical_first(&mut pts);
+    Some(pts)
+}
+
+/// Rotates a cycle's points so that the canonical one (smallest `u`, then `u̇`) comes first.
+fn canonical_first(points: &mut [(f64, f64)]) {
+    if let Some(first) = (0..points.len()).min_by(|&a, &b| {
+        points[a]
             .0
-            .total_cmp(&pts[b].0)
-            .then(pts[a].1.total_cmp(&pts[b].1))
-    })?;
-    Some((0..q).map(|k| pts[(first + k) % q]).collect())
+            .total_cmp(&points[b].0)
+            .then(points[a].1.total_cmp(&points[b].1))
+    }) {
+        points.rotate_left(first);
+    }
 }
 
 /// A cycle reduced to its minimal period: the first `d` points, for the smallest divisor `d`
@@ -253,15 +244,7 @@ pub fn minimal_cycle(points: Vec<(f64, f64)>, tol: f64, scales: Scales) -> Vec<(
     for d in (1..q).filter(|d| q.is_multiple_of(*d)) {
         if (d..q).all(|j| scales.distance(points[j], points[j - d]) <= tol) {
             let mut head: Vec<(f64, f64)> = points[..d].to_vec();
-            // Canonical first again.
-            if let Some(first) = (0..d).min_by(|&a, &b| {
-                head[a]
-                    .0
-                    .total_cmp(&head[b].0)
-                    .then(head[a].1.total_cmp(&head[b].1))
-            }) {
-                head.rotate_left(first);
-            }
+            canonical_first(&mut head);
             return head;
         }
     }
@@ -480,12 +463,14 @@ mod tests {
         other.points[0].0 += 0.5;
         other.points[1].0 += 0.5;
         assert_eq!(c.register(other, 3), 1);
-        assert_eq!(c.len(), 2);
-        // Lookup in m and m/s.
-        assert_eq!(c.lookup(1.0e-3, 0.0, 1e-2), Some(0));
-        assert_eq!(c.lookup(-0.5e-3, 0.0, 1e-2), Some(1));
-        assert_eq!(c.lookup(1.5e-3, 0.0, 1e-2), Some(1));
-        assert_eq!(c.lookup(0.0, 0.0, 1e-2), None);
+        // Two attractors catalogued.
+        assert!(c.get(1).is_some() && c.get(2).is_none());
+        // Lookup in m and m/s (over the whole catalogue).
+        let all = c.before(u64::MAX);
+        assert_eq!(all.lookup(1.0e-3, 0.0, 1e-2), Some(0));
+        assert_eq!(all.lookup(-0.5e-3, 0.0, 1e-2), Some(1));
+        assert_eq!(all.lookup(1.5e-3, 0.0, 1e-2), Some(1));
+        assert_eq!(all.lookup(0.0, 0.0, 1e-2), None);
         // Only the attractors found by lower indices: attractor 0 was found by 7.
         assert_eq!(c.before(7).lookup(1.0e-3, 0.0, 1e-2), None);
         assert_eq!(c.before(8).lookup(1.0e-3, 0.0, 1e-2), Some(0));

@@ -522,11 +522,7 @@ pub fn check_basin(
     });
     let share = |a: &crate::grid::basins::Attractor| BasinShare {
         id: a.id.clone(),
-        regime: if a.recurrent {
-            a.regime.to_string()
-        } else {
-            "-".into()
-        },
+        regime: a.regime_text(),
         impact_force_mg: a.impact_force_mg,
         fraction: a.fraction,
         ci95: [a.ci95.0, a.ci95.1],

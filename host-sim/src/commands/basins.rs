@@ -8,7 +8,7 @@
 //! all `no impact` points form one group, as do all `irregular` points. Groups get letters
 //! `A, B, …` sorted by regime (no impact, p/q ascending, irregular) then `u`, then `u̇`.
 //!
-//! A shard stores the ungrouped rows (`strobe_u_mm`, `strobe_v_mm_s`); grouping needs the
+//! A shard stores the ungrouped rows (with each attractor's `points`); grouping needs the
 //! whole grid and happens in the one-run command and in `merge`, through the same code.
 
 use std::path::PathBuf;

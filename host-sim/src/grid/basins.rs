@@ -13,7 +13,7 @@
 //! p/q ascending, irregular) then `u`, then `u̇`; the group without an attractor (never recurred, or
 //! conservative: no impact on an undamped suspension) comes last, `-`.
 //!
-//! A shard stores the ungrouped rows (`strobe_u_mm`, `strobe_v_mm_s`, `points`); grouping
+//! A shard stores the ungrouped rows (with the attractor's `points`); grouping
 //! needs the whole grid and happens in [`GridKind::finish`], for a one-run command and `merge`
 //! alike. The catalogue only saves time: a trajectory assigned early reaches the attractor it
 //! would have settled on (to the `tol`/`confirm` criterion).
@@ -114,13 +114,46 @@ pub struct BasinRaw {
     pub settled: bool,
     /// How the trajectory ended.
     pub recurrence: Recurrence,
-    /// Canonical Poincaré `u` of the attractor, mm (periodic attractors only).
-    pub strobe_u_mm: Option<f64>,
-    /// Canonical Poincaré `u̇`, mm/s (periodic attractors only).
-    pub strobe_v_mm_s: Option<f64>,
-    /// The attractor's Poincaré points `u:u̇` (mm, mm/s) separated by `;`, canonical first
-    /// (periodic attractors only; empty otherwise).
-    pub points: String,
+    /// The attractor's Poincaré points (periodic attractors only; empty otherwise).
+    pub points: Points,
+}
+
+/// Poincaré points `(u mm, u̇ mm/s)`, canonical first, written `u:u̇` separated by `;` (empty:
+/// none); a malformed text is an error where it is read.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Points(pub Vec<(f64, f64)>);
+
+impl Points {
+    /// The canonical point, if any.
+    pub fn canonical(&self) -> Option<(f64, f64)> {
+        self.0.first().copied()
+    }
+}
+
+impl Serialize for Points {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        let text: Vec<String> = self.0.iter().map(|(u, v)| format!("{u}:{v}")).collect();
+        s.serialize_str(&text.join(";"))
+    }
+}
+
+impl<'de> Deserialize<'de> for Points {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let text = String::deserialize(d)?;
+        text.split(';')
+            .filter(|p| !p.trim().is_empty())
+            .map(|p| {
+                let (u, v) = p.split_once(':')?;
+                Some((u.trim().parse().ok()?, v.trim().parse().ok()?))
+            })
+            .collect::<Option<Vec<_>>>()
+            .map(Points)
+            .ok_or_else(|| {
+                serde::de::Error::custom(format!(
+                    "points {text:?}: expected u:u̇ pairs (mm, mm/s) separated by ;"
+                ))
+            })
+    }
 }
 
 impl Indexed for BasinRaw {
@@ -181,25 +214,6 @@ impl<T: Real> Observer<T> for Watch<'_> {
     fn stop(&self) -> bool {
         Observer::<T>::stop(&self.recurrence)
     }
-}
-
-/// The `u:u̇` text of Poincaré points.
-fn points_text(points: &[(f64, f64)]) -> String {
-    points
-        .iter()
-        .map(|(u, v)| format!("{u}:{v}"))
-        .collect::<Vec<_>>()
-        .join(";")
-}
-
-/// The Poincaré points of a `points` text (malformed pairs are skipped).
-pub fn parse_points(text: &str) -> Vec<(f64, f64)> {
-    text.split(';')
-        .filter_map(|p| {
-            let (u, v) = p.split_once(':')?;
-            Some((u.trim().parse().ok()?, v.trim().parse().ok()?))
-        })
-        .collect()
 }
 
 /// One operating point whose initial conditions are evaluated against a shared catalogue.
@@ -279,9 +293,7 @@ impl Attractors<'_> {
                                 impact_force_mg: r.impact_force_mg,
                                 settled: r.settled,
                                 recurrence: Recurrence::None,
-                                strobe_u_mm: None,
-                                strobe_v_mm_s: None,
-                                points: String::new(),
+                                points: Points::default(),
                             };
                             let known = match obs.recurrence.assigned() {
                                 Some(id) => self.catalogue.get(id),
@@ -331,9 +343,7 @@ impl Attractors<'_> {
                                         row.impacts = set.impacts;
                                         row.impact_force_mg = set.impact_force_mg;
                                     }
-                                    row.strobe_u_mm = Some(set.points[0].0);
-                                    row.strobe_v_mm_s = Some(set.points[0].1);
-                                    row.points = points_text(&set.points);
+                                    row.points = Points(set.points);
                                 }
                                 None if r.regime.impacts()
                                     && row.recurrence == Recurrence::None
@@ -404,7 +414,7 @@ fn key(r: &BasinRaw) -> (bool, Regime, Option<(f64, f64)>) {
     let recurrent = r.recurrence.attracted();
     let point = match r.regime {
         _ if !recurrent => None,
-        Regime::Periodic { .. } | Regime::NoImpact => r.strobe_u_mm.zip(r.strobe_v_mm_s),
+        Regime::Periodic { .. } | Regime::NoImpact => r.points.canonical(),
         _ => None,
     };
     (
@@ -453,7 +463,7 @@ impl Grouping {
 
     fn find(&self, r: &BasinRaw) -> Option<usize> {
         if r.recurrence == Recurrence::Unsettled
-            && let Some(p) = r.strobe_u_mm.zip(r.strobe_v_mm_s)
+            && let Some(p) = r.points.canonical()
             && let Some(k) = self.groups.iter().position(|g| {
                 g.recurrent
                     && g.regime == r.regime
@@ -492,7 +502,7 @@ impl Grouping {
                     regime,
                     point,
                     points: if point.is_some() {
-                        parse_points(&r.points)
+                        r.points.0.clone()
                     } else {
                         Vec::new()
                     },
@@ -631,6 +641,17 @@ pub struct Attractor {
     pub ci95: (f64, f64),
 }
 
+impl Attractor {
+    /// The regime as the CSVs write it: `-` for the group without an attractor.
+    pub fn regime_text(&self) -> String {
+        if self.recurrent {
+            self.regime.to_string()
+        } else {
+            "-".into()
+        }
+    }
+}
+
 /// One row of an attractor catalogue CSV (one per Poincaré point; one with empty point fields
 /// for an attractor without points).
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -666,11 +687,7 @@ pub fn write_catalogue(path: &std::path::Path, attractors: &[Attractor]) -> Resu
     for a in attractors {
         let row = |k: Option<usize>, p: Option<(f64, f64)>| CatalogueRow {
             attractor: a.id.clone(),
-            regime: if a.recurrent {
-                a.regime.to_string()
-            } else {
-                "-".into()
-            },
+            regime: a.regime_text(),
             count: a.cells,
             fraction: a.fraction,
             ci95_lo: a.ci95.0,
@@ -823,8 +840,27 @@ mod tests {
 
     #[test]
     fn points_round_trip_through_text() {
-        let p = vec![(-0.125, 3.5), (1e-3, -250.0)];
-        assert_eq!(parse_points(&points_text(&p)), p);
-        assert!(parse_points("").is_empty());
+        #[derive(Serialize, Deserialize)]
+        struct Row {
+            points: Points,
+        }
+        let text = |p: Points| {
+            let mut w = csv::Writer::from_writer(Vec::new());
+            w.serialize(Row { points: p }).unwrap();
+            String::from_utf8(w.into_inner().unwrap()).unwrap()
+        };
+        let parse = |t: &str| {
+            csv::Reader::from_reader(t.as_bytes())
+                .deserialize::<Row>()
+                .next()
+                .unwrap()
+                .map(|r| r.points)
+        };
+        let p = Points(vec![(-0.125, 3.5), (1e-3, -250.0)]);
+        assert_eq!(parse(&text(p.clone())).unwrap(), p);
+        assert_eq!(parse(&text(Points::default())).unwrap(), Points::default());
+        // A malformed pair is an error naming the text, not a point silently dropped.
+        let e = parse("points\n1:2;x:3\n").unwrap_err().to_string();
+        assert!(e.contains("x:3") && e.contains("u:u̇ pairs"), "{e}");
     }
 }

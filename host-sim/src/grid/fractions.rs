@@ -23,7 +23,7 @@ use shared::observe::{RecurrenceSettings, Regime};
 
 use super::basins::{Attractor, Attractors, BasinRaw, Grouping, label, no_attractor_note};
 use super::{Finish, GridKind, run_chunked};
-use crate::attractors::{Catalogue, widest_interval};
+use crate::attractors::{Catalogue, Z95, widest_interval};
 use crate::config::Setup;
 use crate::shard::{Kind, Meta, create_csv, open_csv};
 
@@ -196,7 +196,8 @@ pub fn check_width(width: f64, samples: u32) -> Result<()> {
     }
     let worst = widest_interval(u64::from(samples));
     if width < worst {
-        let need = (1.96 * 1.96 / (width * width)).ceil();
+        // The widest interval at n samples is Z95/√(n + Z95²) (k = n/2).
+        let need = (Z95 * Z95 / (width * width) - Z95 * Z95).ceil();
         bail!(
             "--width {width} cannot be met with --samples {samples}: a fraction near 1/2 has a 95 % \
              interval {worst:.4} wide at {samples} samples; allowed --width ≥ {worst:.4}, or \
@@ -468,11 +469,7 @@ impl GridKind for Fractions {
                     omega_ratio,
                     freq_hz: meta.params.freq_hz_from_ratio(omega_ratio),
                     attractor: ids[id].0.clone(),
-                    regime: if a.recurrent {
-                        a.regime.to_string()
-                    } else {
-                        "-".into()
-                    },
+                    regime: a.regime_text(),
                     u_mm: a.point.map(|p| p.0),
                     v_mm_s: a.point.map(|p| p.1),
                     impact_force_mg: a.impact_force_mg,
@@ -638,9 +635,12 @@ mod tests {
         assert!(check_width(0.05, 2000).is_ok());
         let e = check_width(0.01, 2000).unwrap_err().to_string();
         assert!(
-            e.contains("cannot be met") && e.contains("--samples ≥ 38416"),
+            e.contains("cannot be met") && e.contains("--samples ≥ 38411"),
             "{e}"
         );
+        // The count it names is the least that meets the width.
+        assert!(check_width(0.01, 38411).is_ok());
+        assert!(check_width(0.01, 38410).is_err());
         assert!(check_width(0.0, 2000).is_err());
         assert!(check_width(f64::NAN, 2000).is_err());
     }

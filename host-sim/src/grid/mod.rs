@@ -475,8 +475,7 @@ mod tests {
             ),
             (
                 header::<basins::BasinRaw>(),
-                "index,u0_mm,v0_mm_s,regime,impacts,impact_force_mg,settled,recurrence,strobe_u_mm,\
-                 strobe_v_mm_s,points",
+                "index,u0_mm,v0_mm_s,regime,impacts,impact_force_mg,settled,recurrence,points",
             ),
             (
                 header::<basins::BasinRow>(),
