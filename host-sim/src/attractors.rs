@@ -24,6 +24,13 @@ use shared::observe::{AttractorCatalogue, Regime};
 /// the default attractor tolerance for `1 − μ > 2e-4`.
 pub const ATTRACTOR_STEADY_TOL: f64 = 1e-6;
 
+/// Default tolerance for "same attractor" (scaled): two periodic sets of one regime whose
+/// canonical points lie this close are one attractor.
+pub const ATTRACTOR_TOL: f64 = 0.01;
+/// Default largest scaled distance between an attractor's canonical points at consecutive
+/// operating points of a continuation.
+pub const MATCH_TOL: f64 = 0.5;
+
 /// Scaled distance within which an irregular window's Poincaré point counts as a return to an
 /// earlier point of the same window.
 pub const RETURN_TOL: f64 = 0.05;

@@ -463,7 +463,7 @@ pub fn check_basin(
             "--basin-threshold {threshold}: out of range: allowed 0 ..= 1"
         ));
     }
-    let attractor_tol = 0.01;
+    let attractor_tol = crate::attractors::ATTRACTOR_TOL;
     let grid = FractionsGrid {
         points: vec![(rep.gap_mm, rep.omega_ratio)],
         parameter: Parameter::OmegaRatio,
@@ -472,7 +472,7 @@ pub fn check_basin(
         samples,
         width: None,
         attractor_tol,
-        match_tol: 0.5,
+        match_tol: crate::attractors::MATCH_TOL,
         recurrence: RecurrenceSettings::default(),
     };
     let catalogues = grid.catalogues(setup);

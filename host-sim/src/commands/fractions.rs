@@ -49,7 +49,7 @@ pub struct FractionsArgs {
     pub width: Option<f64>,
     /// Largest scaled distance between the canonical Poincaré points of one attractor at
     /// consecutive operating points (0 < tol ≤ 10).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = crate::attractors::MATCH_TOL)]
     pub match_tol: f64,
     /// How attractors are found.
     #[command(flatten)]

@@ -132,7 +132,7 @@ impl GridOutArgs {
 pub struct AttractorOpts {
     /// Tolerance for "same attractor" on the scaled Poincaré distance
     /// max(|Δu|/A0, |Δu̇|/(A0 Ω)) (1e-6 ..= 1).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = crate::attractors::ATTRACTOR_TOL)]
     pub attractor_tol: f64,
     /// A trajectory whose Poincaré points stay within this scaled distance of a catalogued
     /// attractor's for --confirm periods in a row is assigned to it and stops (1e-9 ..= 1).
