@@ -55,9 +55,11 @@ MinJobAge=600
 NodeName=$host CPUs=$cpus RealMemory=$mem_mb State=UNKNOWN
 PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP
 EOF
-    if pgrep -x slurmctld >/dev/null; then
-        scontrol reconfigure
-    else
+    # A running controller rereads the file; one that does not answer (left over from a run
+    # that was killed) is replaced.
+    if ! { pgrep -x slurmctld >/dev/null && scontrol reconfigure 2>/dev/null; }; then
+        pkill -x slurmctld 2>/dev/null || true
+        for _ in $(seq 100); do pgrep -x slurmctld >/dev/null || break; sleep 0.1; done
         slurmctld -c
     fi
     pgrep -x slurmd >/dev/null || slurmd
