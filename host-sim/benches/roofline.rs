@@ -95,20 +95,10 @@ fn grid() -> Grid {
             },
             |_, r| {
                 let (_, (), sim) = r.expect("valid point");
-                let c = sim.counts();
-                counts.lane_steps += c.lane_steps;
-                counts.free_trials += c.free_trials;
-                counts.split_trials += c.split_trials;
-                counts.segments += c.segments;
-                counts.substeps += c.substeps;
-                counts.events += c.events;
+                counts += sim.counts();
             },
         );
-        lanes.lanes = l.lanes;
-        lanes.rounds += l.rounds;
-        lanes.lane_steps += l.lane_steps;
-        lanes.contact_rounds += l.contact_rounds;
-        lanes.contact_steps += l.contact_steps;
+        lanes += l;
     }
     Grid {
         wall: t.elapsed().as_secs_f64(),

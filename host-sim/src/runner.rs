@@ -7,7 +7,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Vector2;
 use rayon::prelude::*;
 use shared::Real;
-use shared::analysis::{DEFAULT_LANES, evaluate_interleaved_ended};
+use shared::analysis::{DEFAULT_LANES, evaluate_interleaved};
 use shared::error::ParamError;
 use shared::observe::{Observer, PointResult, StroboPoint};
 use shared::orbit::{Label, LabelSettings, MapPoint, label};
@@ -49,7 +49,7 @@ fn interleaved<T: Real, R>(
     mut finish: impl FnMut(&OperatingPoint, PointResult, Vector2<T>) -> Result<R, ParamError>,
 ) -> Vec<Result<R>> {
     in_order(points.len(), |emit| {
-        evaluate_interleaved_ended::<T, DEFAULT_LANES, _, _>(
+        evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
             &setup.params,
             &setup.settings,
             points.iter().map(|p| (p.gap_m, p.omega_ratio)),

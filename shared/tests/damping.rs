@@ -8,7 +8,7 @@
 //!   the damping does change them.
 
 use shared::analysis::drop::{DropRecord, DropSpec, run_drop};
-use shared::analysis::{DEFAULT_LANES, SimSettings, evaluate_interleaved_ended, evaluate_point};
+use shared::analysis::{DEFAULT_LANES, SimSettings, evaluate_interleaved, evaluate_point};
 use shared::integrate::StepSettings;
 use shared::model::{RigId, Suspension, SwitchBands};
 
@@ -120,7 +120,7 @@ fn damped_wire_rig_interleaved_equals_one_at_a_time() {
             .flat_map(|&g| ratios.iter().map(move |&r| (g, r)))
             .collect();
         let mut got = vec![None; points.len()];
-        let stats = evaluate_interleaved_ended::<T, DEFAULT_LANES, _, _>(
+        let stats = evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
             &p,
             &s,
             points.iter().copied(),

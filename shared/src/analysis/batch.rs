@@ -58,6 +58,18 @@ pub struct LaneStats {
     pub contact_steps: u64,
 }
 
+impl core::ops::AddAssign for LaneStats {
+    /// The counts of two interleaved runs with the same `L` added up (`lanes` kept: it is a
+    /// width, not a count).
+    fn add_assign(&mut self, o: LaneStats) {
+        self.lanes = self.lanes.max(o.lanes);
+        self.rounds += o.rounds;
+        self.lane_steps += o.lane_steps;
+        self.contact_rounds += o.contact_rounds;
+        self.contact_steps += o.contact_steps;
+    }
+}
+
 /// Runs one protocol per item of `items`, `L` at a time interleaved. `start` turns an item into
 /// a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the `i`-th
 /// item's result with its observer and final simulator as soon as it is done (so not in
@@ -296,25 +308,9 @@ where
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),
 /// `L` at a time interleaved ([`run_interleaved`]), and calls `emit(i, result)` for the `i`-th
 /// point as soon as it is done (so not in order; invalid points are emitted at once with their
-/// error). Returns how full the lanes were.
+/// error), each result with the state the run ended on (the simulator's, at phase 0: where
+/// `crate::orbit` takes over). Returns how full the lanes were.
 pub fn evaluate_interleaved<T: Real, const L: usize, I, F>(
-    params: &RigParams,
-    settings: &SimSettings,
-    points: I,
-    mut emit: F,
-) -> LaneStats
-where
-    I: IntoIterator<Item = (f64, f64)>,
-    F: FnMut(usize, Result<PointResult, ParamError>),
-{
-    evaluate_interleaved_ended::<T, L, I, _>(params, settings, points, |i, r| {
-        emit(i, r.map(|(result, _)| result));
-    })
-}
-
-/// [`evaluate_interleaved`], each result with the state the run ended on (the simulator's, at
-/// phase 0: where `crate::orbit` takes over).
-pub fn evaluate_interleaved_ended<T: Real, const L: usize, I, F>(
     params: &RigParams,
     settings: &SimSettings,
     points: I,
@@ -365,7 +361,9 @@ mod tests {
             (2.4e-3, 1.5),
         ];
         let mut got: [Option<Result<PointResult, ParamError>>; 6] = [None; 6];
-        evaluate_interleaved::<f32, 3, _, _>(&p, &s, points, |i, r| got[i] = Some(r));
+        evaluate_interleaved::<f32, 3, _, _>(&p, &s, points, |i, r| {
+            got[i] = Some(r.map(|(result, _)| result))
+        });
         for (i, &(g, r)) in points.iter().enumerate() {
             assert_eq!(
                 got[i],
@@ -394,7 +392,7 @@ mod tests {
             .collect();
         let mut got = std::vec![None; points.len()];
         evaluate_interleaved::<T, DEFAULT_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
-            got[i] = Some(r)
+            got[i] = Some(r.map(|(result, _)| result))
         });
         for (i, &(g, r)) in points.iter().enumerate() {
             assert_eq!(

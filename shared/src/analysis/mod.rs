@@ -7,10 +7,7 @@ pub mod response;
 pub mod selection;
 pub mod sweep;
 
-pub use batch::{
-    DEFAULT_LANES, LaneStats, Started, evaluate_interleaved, evaluate_interleaved_ended,
-    run_interleaved,
-};
+pub use batch::{DEFAULT_LANES, LaneStats, Started, evaluate_interleaved, run_interleaved};
 pub use response::{
     ResponseSample, SimSettings, evaluate_point, evaluate_point_observed, evaluate_point_on,
     simulator_at,

@@ -115,6 +115,18 @@ impl StepCounts {
     }
 }
 
+impl core::ops::AddAssign for StepCounts {
+    /// The steps of two runs added up, kind by kind.
+    fn add_assign(&mut self, o: StepCounts) {
+        self.lane_steps += o.lane_steps;
+        self.free_trials += o.free_trials;
+        self.split_trials += o.split_trials;
+        self.segments += o.segments;
+        self.substeps += o.substeps;
+        self.events += o.events;
+    }
+}
+
 /// Penetration and its rate where a segment (a free-flight step or segment, or a sub-step)
 /// starts, `offset` s into the current step.
 struct SegmentStart<T> {
