@@ -19,7 +19,9 @@ use host_sim::config::{Setup, UncertaintyTable, coordinate_names};
 use host_sim::identify::cost::{DropTest, Weights};
 use host_sim::identify::fit::{Fit, fit_law, fit_law_joint};
 use host_sim::identify::free::identify_free;
-use host_sim::identify::synth::{LabDrop, TRUTH_STEPS, clean_displacement, record_displacement};
+use host_sim::identify::synth::{
+    LabDrop, Recorded, TRUTH_STEPS, clean_record, record_displacement,
+};
 use host_sim::identify::uncertainty::{IntervalMethod, Z95};
 use host_sim::propagate::propagate;
 use host_sim::selection::compute;
@@ -360,7 +362,7 @@ fn wire_rig_free_decay_intervals_cover_the_damped_pendulum() {
         duration_s: 20.0,
         max_impacts: 0,
     };
-    let clean = clean_displacement(&params, &spec, &TRUTH_STEPS, 1000.0).unwrap();
+    let clean = clean_record(&params, &spec, &TRUTH_STEPS, 1000.0, Recorded::Displacement).unwrap();
     let fn_hz = params.natural_freq_hz();
     let hits: Vec<(bool, bool)> = SEEDS
         .collect::<Vec<_>>()

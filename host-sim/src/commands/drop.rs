@@ -7,14 +7,14 @@ use std::io::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use shared::analysis::drop::DropSpec;
 use shared::error::check_range;
 
 use crate::config::RigOpts;
 use crate::config::{Setup, gap_m_from_mm};
 use crate::identify::synth::{
-    Sensor, TRUTH_STEPS, clean_displacement, record_displacement, synthetic_drop,
+    Recorded, Sensor, TRUTH_STEPS, clean_record, record_displacement, synthetic_drop,
 };
 use crate::output::Outputs;
 use crate::precision::Precision;
@@ -59,15 +59,6 @@ pub struct DropArgs {
     pub out: PathBuf,
 }
 
-/// What `drop` records.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Recorded {
-    /// The contact force `F_i`, N (column `force_n`).
-    Force,
-    /// The hammer's displacement `u`, mm (column `u_mm`).
-    Displacement,
-}
-
 /// Runs `drop`.
 ///
 /// # Errors
@@ -99,8 +90,14 @@ pub fn run(a: &DropArgs) -> Result<()> {
                 a.offset_n == 0.0,
                 "--offset-n is a force offset: not with --record displacement"
             );
-            let clean = clean_displacement(&setup.params, &spec, &TRUTH_STEPS, a.sample_rate_hz)
-                .context("--sample-rate-hz")?;
+            let clean = clean_record(
+                &setup.params,
+                &spec,
+                &TRUTH_STEPS,
+                a.sample_rate_hz,
+                Recorded::Displacement,
+            )
+            .context("--sample-rate-hz")?;
             let mut t =
                 record_displacement(&clean, a.noise_pct, 0.0, a.seed).context("--noise-pct")?;
             for u in &mut t.value {

@@ -87,7 +87,13 @@ impl LabDrop {
     /// # Errors
     /// Invalid law or release distance (named).
     pub fn clean(&self) -> Result<Trace> {
-        clean_drop(&self.params(), &self.spec(), &TRUTH_STEPS, 50e3)
+        clean_record(
+            &self.params(),
+            &self.spec(),
+            &TRUTH_STEPS,
+            50e3,
+            Recorded::Force,
+        )
     }
 
     /// `clean` as [`Sensor::lab`] with noise seed `seed` records it, preprocessed (offset,
@@ -121,7 +127,7 @@ pub fn synthetic_drop(
     steps: &StepSettings,
     sensor: &Sensor,
 ) -> Result<Trace> {
-    let clean = clean_drop(params, spec, steps, sensor.sample_rate_hz)?;
+    let clean = clean_record(params, spec, steps, sensor.sample_rate_hz, Recorded::Force)?;
     record(&clean, sensor)
 }
 
@@ -139,25 +145,48 @@ fn sample_count(spec: &DropSpec, sample_rate_hz: f64) -> Result<usize> {
     Ok(samples_n)
 }
 
-/// The drop test `spec` of `params` sampled at `sample_rate_hz` without noise or offset: the
-/// simulated force, linearly interpolated between the integrator's samples.
+/// What a drop record measures (`host-sim drop --record`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Recorded {
+    /// The contact force `F_i`, N (column `force_n`).
+    Force,
+    /// The hammer's displacement `u`, mm (column `u_mm`).
+    Displacement,
+}
+
+/// The drop test `spec` of `params` sampled at `t = i / sample_rate_hz`, `0 ≤ t ≤ duration`,
+/// without noise or offset, by the plant model's switch-model integrator at `steps` (f64):
+/// - [`Recorded::Force`]: the contact force `F_i` (N), linearly interpolated between the
+///   integrator's samples;
+/// - [`Recorded::Displacement`]: the hammer's displacement `u(t)` (m; the cart stands still,
+///   `u = x`; wires: `l sin θ`), each sample the cubic Hermite interpolant of the integrator's
+///   `(u, u̇)` either side (error O(h⁴)). With the surface out of reach (`spec.release_m < 2
+///   gap_m`: the hammer, released `release − gap` from its rest position, swings at most as far
+///   the other way) it is a free decay of the suspension: the record of `identify free` (the
+///   wire pendulum with its viscous term, the beams with theirs).
 ///
 /// # Errors
 /// Invalid parameters or spec, a rate outside `1 ..= 1e7` Hz, or more than 5·10⁷ samples.
-pub fn clean_drop(
+pub fn clean_record(
     params: &RigParams,
     spec: &DropSpec,
     steps: &StepSettings,
     sample_rate_hz: f64,
+    what: Recorded,
 ) -> Result<Trace> {
     let samples_n = sample_count(spec, sample_rate_hz)?;
-    let sim = simulate_drop(params, spec, steps, true)?;
     let t_s: Vec<f64> = (0..samples_n).map(|i| i as f64 / sample_rate_hz).collect();
-    let value = resample(&sim.samples, t_s.iter().copied());
+    let value = match what {
+        Recorded::Force => {
+            let sim = simulate_drop(params, spec, steps, true)?;
+            resample(&sim.samples, t_s.iter().copied())
+        }
+        Recorded::Displacement => displacement_at(params, spec, steps, &t_s)?,
+    };
     Ok(Trace { t_s, value })
 }
 
-/// A clean trace ([`clean_drop`], at `sensor`'s rate) as `sensor` records it: plus its offset
+/// A clean force trace ([`clean_record`], at `sensor`'s rate) as `sensor` records it: plus its offset
 /// and Gaussian noise of `noise_pct` % of the largest force (ChaCha8 seeded with `seed`: the
 /// same samples on every machine).
 ///
@@ -191,24 +220,13 @@ fn with_noise(clean: &Trace, sd: f64, offset: f64, seed: u64) -> Result<Trace> {
     })
 }
 
-/// The hammer's displacement `u(t)` (m; the cart stands still, `u = x`; wires: `l sin θ`) in
-/// the drop test `spec` of `params`, sampled at `t = i / rate`, `0 ≤ t ≤ duration`, without
-/// noise: the plant model's switch-model integrator at `steps` (f64), each sample the cubic
-/// Hermite interpolant of the integrator's `(u, u̇)` either side (error O(h⁴)). With the
-/// surface out of reach (`spec.release_m < 2 gap_m`: the hammer, released `release − gap` from
-/// its rest position, swings at most as far the other way) it is a free decay of the
-/// suspension: the record of `identify free` (the wire pendulum with its viscous term, the
-/// beams with theirs).
-///
-/// # Errors
-/// Invalid parameters or spec, a rate outside `1 ..= 1e7` Hz, or more than 5·10⁷ samples.
-pub fn clean_displacement(
+/// The hammer's displacement (m) at the times `t_s` of [`clean_record`]'s displacement record.
+fn displacement_at(
     params: &RigParams,
     spec: &DropSpec,
     steps: &StepSettings,
-    sample_rate_hz: f64,
-) -> Result<Trace> {
-    let samples_n = sample_count(spec, sample_rate_hz)?;
+    t_s: &[f64],
+) -> Result<Vec<f64>> {
     let mut sim: Vec<(f64, f64, f64)> = Vec::new();
     run_drop::<f64, _>(params, spec, &SwitchBands::default(), steps, |r| {
         if let DropRecord::Sample(s) = r
@@ -217,7 +235,6 @@ pub fn clean_displacement(
             sim.push((s.t_s, s.u_m, s.du_m_s));
         }
     })?;
-    let t_s: Vec<f64> = (0..samples_n).map(|i| i as f64 / sample_rate_hz).collect();
     let mut j = 0;
     let value = t_s
         .iter()
@@ -240,10 +257,10 @@ pub fn clean_displacement(
             }
         })
         .collect();
-    Ok(Trace { t_s, value })
+    Ok(value)
 }
 
-/// A clean displacement ([`clean_displacement`]) as a displacement sensor records it: plus
+/// A clean displacement ([`clean_record`]) as a displacement sensor records it: plus
 /// `offset_m` and Gaussian noise of `noise_pct` % of the largest `|u|` (ChaCha8 seeded with
 /// `seed`).
 ///
