@@ -33,12 +33,8 @@ pub struct ContinuationSettings {
     pub param: Param,
     /// Its range (gap in m); the branch ends where it leaves it.
     pub range: [f64; 2],
-    /// First step, in the scaled unknowns (0.02).
-    pub step: f64,
-    /// Smallest step: below it the branch ends (1e-6).
-    pub step_min: f64,
-    /// Largest step (0.05).
-    pub step_max: f64,
+    /// Step sizes in the scaled unknowns; below the smallest the branch ends.
+    pub steps: StepSizes,
     /// Points at most (10,000).
     pub max_points: u32,
     /// An event is located to this much in the parameter (1e-7).
@@ -60,13 +56,34 @@ impl ContinuationSettings {
         ContinuationSettings {
             param,
             range,
-            step: 0.02,
-            step_min: if f64_like { 1e-6 } else { 1e-4 },
-            step_max: 0.05,
+            steps: StepSizes::for_type::<T>(),
             max_points: 10_000,
             locate_tol: if f64_like { 1e-7 } else { 1e-5 },
             newton: ShootSettings::for_type::<T>(),
             grazing_near: if f64_like { 1e-4 } else { 1e-2 },
+        }
+    }
+}
+
+/// The step-size control of a pseudo-arclength continuation (a branch, or a bifurcation
+/// curve: [`super::curve::CurveSettings`]), in the scaled unknowns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepSizes {
+    /// First step (0.02).
+    pub first: f64,
+    /// Smallest step: below it the continuation ends (1e-6; f32: 1e-4).
+    pub min: f64,
+    /// Largest step (0.05).
+    pub max: f64,
+}
+
+impl StepSizes {
+    /// The defaults in the float type `T`: 0.02, within 1e-6 ..= 0.05 (f32: from 1e-4).
+    pub fn for_type<T: Real>() -> Self {
+        StepSizes {
+            first: 0.02,
+            min: if T::EPSILON < 1e-10 { 1e-6 } else { 1e-4 },
+            max: 0.05,
         }
     }
 }
@@ -401,7 +418,7 @@ pub fn continue_branch<T: Real>(
         value: value0,
         orbit: first,
     });
-    let mut h = settings.step;
+    let mut h = settings.steps.first;
     let in_range = |v: f64| v >= settings.range[0] && v <= settings.range[1];
     let mut previous: Option<Node<T>> = None;
     // The branch's points before `node`, a few of them (the grazing monitors' base).
@@ -410,7 +427,7 @@ pub fn continue_branch<T: Real>(
         let value_a = node.z[2] * s_lambda;
         // A step: predict, correct, check the tangent turned little and the impacts held.
         let next = loop {
-            if h < settings.step_min {
+            if h < settings.steps.min {
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -528,7 +545,7 @@ pub fn continue_branch<T: Real>(
         let _ = history.push_back(node);
         node = b;
         h = if iters <= 2 {
-            (h * 1.5).min(settings.step_max)
+            (h * 1.5).min(settings.steps.max)
         } else if iters >= 5 {
             h * 0.7
         } else {

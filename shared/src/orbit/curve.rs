@@ -19,7 +19,7 @@ use core::ops::ControlFlow;
 
 use nalgebra::Vector2;
 
-use super::continuation::{BifEvent, ContinuationSettings, EventKind, continue_branch};
+use super::continuation::{BifEvent, ContinuationSettings, EventKind, StepSizes, continue_branch};
 use super::floquet::Floquet;
 use super::map::{MapPoint, Param, Trace};
 use super::shooting::{Orbit, ShootSettings, shoot};
@@ -32,12 +32,8 @@ pub struct CurveSettings {
     pub omega_ratio: [f64; 2],
     /// The gap range, m.
     pub gap_m: [f64; 2],
-    /// First step in the scaled unknowns (0.02).
-    pub step: f64,
-    /// Smallest step (1e-6; f32 1e-4).
-    pub step_min: f64,
-    /// Largest step (0.05).
-    pub step_max: f64,
+    /// Step sizes in the scaled unknowns; below the smallest the curve ends.
+    pub steps: StepSizes,
     /// Points at most (2,000).
     pub max_points: u32,
     /// Newton's tolerance and iterations (the test function's residual is held to the same
@@ -48,13 +44,10 @@ pub struct CurveSettings {
 impl CurveSettings {
     /// The defaults in the float type `T` over the box `omega_ratio` × `gap_m` (m).
     pub fn new<T: Real>(omega_ratio: [f64; 2], gap_m: [f64; 2]) -> Self {
-        let f64_like = T::EPSILON < 1e-10;
         CurveSettings {
             omega_ratio,
             gap_m,
-            step: 0.02,
-            step_min: if f64_like { 1e-6 } else { 1e-4 },
-            step_max: 0.05,
+            steps: StepSizes::for_type::<T>(),
             max_points: 2000,
             newton: ShootSettings::for_type::<T>(),
         }
@@ -333,10 +326,10 @@ pub fn continue_curve<T: Real>(
         return CurveEnd::Stopped(p[0], p[1] * a0);
     }
     let inside = |q: [f64; 2]| settings.contains(q[0], q[1] * a0);
-    let mut h = settings.step;
+    let mut h = settings.steps.first;
     for _ in 0..settings.max_points {
         let next = loop {
-            if h < settings.step_min {
+            if h < settings.steps.min {
                 return CurveEnd::StepTooSmall(p[0], p[1] * a0);
             }
             let pred = [p[0] + h * t[0], p[1] + h * t[1]];
@@ -369,7 +362,7 @@ pub fn continue_curve<T: Real>(
         if on_point(&emit(p, &orbit)).is_break() {
             return CurveEnd::Stopped(p[0], p[1] * a0);
         }
-        h = (h * 1.3).min(settings.step_max);
+        h = (h * 1.3).min(settings.steps.max);
     }
     CurveEnd::MaxPoints(p[0], p[1] * a0)
 }
@@ -446,10 +439,10 @@ fn fold_curve<T: Real>(
         Param::OmegaRatio => settings.omega_ratio,
         Param::GapM => [settings.gap_m[0] / a0, settings.gap_m[1] / a0],
     };
-    let mut h = settings.step;
+    let mut h = settings.steps.first;
     for _ in 0..settings.max_points {
         let (r, g) = plane(lam, mu);
-        if h < settings.step_min {
+        if h < settings.steps.min {
             return CurveEnd::StepTooSmall(r, g);
         }
         let mu_next = mu + direction * h;
@@ -474,7 +467,7 @@ fn fold_curve<T: Real>(
                 },
             );
             cs.max_points = 400;
-            cs.step = cs.step.min(back);
+            cs.steps.first = cs.steps.first.min(back);
             let mut fold = None;
             continue_branch(
                 &start,
@@ -509,7 +502,7 @@ fn fold_curve<T: Real>(
             let (r, g) = plane(lam, mu);
             return CurveEnd::Stopped(r, g);
         }
-        h = (h * 1.5).min(settings.step_max);
+        h = (h * 1.5).min(settings.steps.max);
     }
     let (r, g) = plane(lam, mu);
     CurveEnd::MaxPoints(r, g)

@@ -16,7 +16,7 @@ pub mod shooting;
 pub mod start;
 
 pub use continuation::{
-    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, continue_branch,
+    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, StepSizes, continue_branch,
     doubling_start,
 };
 pub use curve::{CurveEnd, CurvePoint, CurveSettings, continue_curve};
