@@ -22,8 +22,7 @@ use shared::analysis::SimSettings;
 use shared::model::RigId;
 use shared::observe::{PointResult, RecurrenceSettings};
 
-use host_sim::attractors::ATTRACTOR_STEADY_TOL;
-use host_sim::attractors::Catalogue;
+use host_sim::attractors::{ATTRACTOR_STEADY_TOL, Catalogue};
 use host_sim::config::Setup;
 use host_sim::grid::basins::{self, Attractors, Basins, BasinsGrid, ColorBy};
 use host_sim::grid::fractions::{Fractions, FractionsGrid, Parameter, StartBox};

@@ -19,7 +19,8 @@
 //! 4. the outputs: CSV through [`output`] (written whole or not at all) and the figures in
 //!    [`figures`], which read the results of the layers above and are never read by them;
 //! 5. the commands in [`commands`] (parsed by [`cli`]), each with its entry point `run`: parse,
-//!    call the library, write, print. [`interrupt`] (Ctrl-C) serves every layer.
+//!    call the library, write, print. [`interrupt`] (Ctrl-C) and [`stats`] (the 95 % quantile,
+//!    Wilson's interval) serve every layer.
 
 pub mod attractors;
 pub mod cli;
@@ -40,5 +41,6 @@ pub mod runner;
 pub mod selection;
 pub mod series;
 pub mod shard;
+pub mod stats;
 pub mod trace;
 pub mod virtual_rig;

@@ -530,7 +530,7 @@ pub fn check_basin(
     let (fraction, ci95) = match chosen {
         Some(a) => (a.fraction, [a.ci95.0, a.ci95.1]),
         None => {
-            let (lo, hi) = crate::attractors::wilson(0, u64::from(samples));
+            let (lo, hi) = crate::stats::wilson(0, u64::from(samples));
             (0.0, [lo, hi])
         }
     };

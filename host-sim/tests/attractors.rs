@@ -352,7 +352,6 @@ fn the_impact_view_counts_each_runs_window_and_the_forced_response_island_never_
     assert_eq!(island.len(), 81);
     assert!(island.iter().all(|r| &r[3] == "false"), "{island:?}");
     let (rows, err) = run(format!("-4:{gap}:40"), "-100:100:40".into(), "box");
-    println!("{err}");
     let impacting = rows.iter().filter(|r| &r[3] == "true").count();
     let on_impacting_attractor = rows
         .iter()

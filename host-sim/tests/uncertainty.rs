@@ -22,9 +22,10 @@ use host_sim::identify::free::identify_free;
 use host_sim::identify::synth::{
     LabDrop, Recorded, TRUTH_STEPS, clean_record, record_displacement,
 };
-use host_sim::identify::uncertainty::{IntervalMethod, Z95};
+use host_sim::identify::uncertainty::IntervalMethod;
 use host_sim::propagate::propagate;
 use host_sim::selection::compute;
+use host_sim::stats::Z95;
 use host_sim::trace::Trace;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

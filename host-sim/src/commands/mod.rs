@@ -10,8 +10,7 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 use shared::observe::RecurrenceSettings;
 
-use crate::attractors::ATTRACTOR_STEADY_TOL;
-
+use crate::attractors::{ATTRACTOR_STEADY_TOL, ATTRACTOR_TOL};
 use crate::config::{Setup, parse_sweep};
 use crate::figures::{
     self,
@@ -132,7 +131,7 @@ impl GridOutArgs {
 pub struct AttractorOpts {
     /// Tolerance for "same attractor" on the scaled Poincaré distance
     /// max(|Δu|/A0, |Δu̇|/(A0 Ω)) (1e-6 ..= 1).
-    #[arg(long, default_value_t = crate::attractors::ATTRACTOR_TOL)]
+    #[arg(long, default_value_t = ATTRACTOR_TOL)]
     pub attractor_tol: f64,
     /// A trajectory whose Poincaré points stay within this scaled distance of a catalogued
     /// attractor's for --confirm periods in a row is assigned to it and stops (1e-9 ..= 1).

@@ -479,7 +479,13 @@ pub fn basins_map(
             &chart.plotting_area().strip_coord_spec(),
             |i| if i { BLACK } else { WHITE },
         )?;
-        let share = |n: u64| 100.0 * n as f64 / summary.total.max(1) as f64;
+        let total: u64 = attractors.iter().map(|a| a.cells).sum();
+        let never: u64 = attractors
+            .iter()
+            .filter(|a| !a.recurrent)
+            .map(|a| a.cells)
+            .sum();
+        let share = |n: u64| 100.0 * n as f64 / total.max(1) as f64;
         entries = vec![
             (
                 format!("impacting ({:.1} %)", share(summary.impacting_count)),
@@ -488,15 +494,15 @@ pub fn basins_map(
             (
                 format!(
                     "no impact ({:.1} %)",
-                    share(summary.total - summary.impacting_count)
+                    share(total - summary.impacting_count)
                 ),
                 LegendMark::Swatch(WHITE),
             ),
         ];
         entries.push(("in each run's last window".into(), LegendMark::Text));
-        if summary.never_count > 0 {
+        if never > 0 {
             entries.push((
-                format!("no attractor: {:.1} %", share(summary.never_count)),
+                format!("no attractor: {:.1} %", share(never)),
                 LegendMark::Text,
             ));
         }

@@ -35,11 +35,12 @@ use super::raster::Raster;
 use super::{CountSweep, Finish, GridKind};
 use crate::attractors::{
     Before, Catalogue, Ending, Known, Recurrence, Scales, converging, cycle, minimal_cycle,
-    residual, returns, wilson, window_period,
+    residual, returns, window_period,
 };
 use crate::config::Setup;
 use crate::runner::in_order;
 use crate::shard::{Indexed, Kind, create_csv, open_csv};
+use crate::stats::wilson;
 
 /// Largest `|u0|` accepted, mm.
 pub const MAX_U0_MM: f64 = 20.0;
@@ -462,27 +463,25 @@ impl Grouping {
     }
 
     fn find(&self, r: &BasinRaw) -> Option<usize> {
+        let group_of = |(recurrent, regime, point): (bool, Regime, Option<(f64, f64)>)| {
+            self.groups.iter().position(|g| {
+                g.recurrent == recurrent
+                    && g.regime == regime
+                    && match (g.point, point) {
+                        (Some(a), Some(b)) => self.scales.distance(a, b) <= self.tol,
+                        (None, None) => true,
+                        _ => false,
+                    }
+            })
+        };
+        // An unsettled row joins the periodic attractor its point lies on, if one is grouped.
         if r.recurrence == Recurrence::Unsettled
             && let Some(p) = r.points.canonical()
-            && let Some(k) = self.groups.iter().position(|g| {
-                g.recurrent
-                    && g.regime == r.regime
-                    && g.point
-                        .is_some_and(|a| self.scales.distance(a, p) <= self.tol)
-            })
+            && let Some(k) = group_of((true, r.regime, Some(p)))
         {
             return Some(k);
         }
-        let (recurrent, regime, point) = key(r);
-        self.groups.iter().position(|g| {
-            g.recurrent == recurrent
-                && g.regime == regime
-                && match (g.point, point) {
-                    (Some(a), Some(b)) => self.scales.distance(a, b) <= self.tol,
-                    (None, None) => true,
-                    _ => false,
-                }
-        })
+        group_of(key(r))
     }
 
     /// Adds one row.
@@ -595,9 +594,9 @@ impl Grouping {
 pub fn no_attractor_note(cells: u64, total: u64, protocol: &Protocol) -> String {
     format!(
         "  no attractor: {cells} initial conditions of {total} either never recurred within {} \
-         transient + {} window periods (raise --max-periods, and lower --steady-tol, if the damping \
-         is light, or near a fold or period doubling where the approach is slow) or move without impacts on an \
-         undamped suspension (conservative: no attractor to reach)",
+         transient + {} window periods (raise --max-periods, and lower --steady-tol, if the \
+         damping is light, or near a fold or period doubling where the approach is slow) or move \
+         without impacts on an undamped suspension (conservative: no attractor to reach)",
         protocol.max_transient_periods, protocol.observe_periods
     )
 }
@@ -718,12 +717,9 @@ pub struct BasinsSummary {
     pub attractors: Vec<Attractor>,
     /// Whether each cell's run impacts in its observed window (the `impacting` column).
     pub impacting: Raster<bool>,
-    /// How many runs impact in their window, and how many reach no attractor, of `total`.
+    /// How many runs impact in their window (of all the attractors' `cells`; the raster may be
+    /// down-sampled, so it is counted while the rows are read).
     pub impacting_count: u64,
-    /// How many runs reach no attractor.
-    pub never_count: u64,
-    /// Initial conditions.
-    pub total: u64,
 }
 
 /// The basins map as a [`GridKind`]: shards hold ungrouped rows; the CSV with the attractors
@@ -757,7 +753,7 @@ impl GridKind for Basins {
         let (nu, nv) = (grid.u0_mm.len(), grid.v0_mm_s.len());
         let mut cells = Raster::new(nu, nv, u32::MAX);
         let mut impacting = Raster::new(nu, nv, false);
-        let (mut impacting_count, mut never_count, mut total) = (0u64, 0u64, 0u64);
+        let (mut impacting_count, mut total) = (0u64, 0u64);
         let mut w = create_csv::<BasinRow>(out, None)?;
         for r in open_csv::<BasinRaw>(raw)?.deserialize::<BasinRaw>() {
             let r = r.with_context(|| format!("{}: malformed row", raw.display()))?;
@@ -770,7 +766,6 @@ impl GridKind for Basins {
             let (regime, impacts, impact_force_mg, settled) = grouping.reported(&r);
             impacting.set(iu, iv, regime.impacts());
             impacting_count += u64::from(regime.impacts());
-            never_count += u64::from(!a.recurrent);
             total += 1;
             w.serialize(BasinRow {
                 index: r.index,
@@ -819,8 +814,6 @@ impl GridKind for Basins {
             attractors: keys,
             impacting,
             impacting_count,
-            never_count,
-            total,
         })
     }
 }

@@ -23,9 +23,10 @@ use shared::observe::{RecurrenceSettings, Regime};
 
 use super::basins::{Attractor, Attractors, BasinRaw, Grouping, label, no_attractor_note};
 use super::{Finish, GridKind, run_chunked};
-use crate::attractors::{Catalogue, Z95, widest_interval};
+use crate::attractors::Catalogue;
 use crate::config::Setup;
 use crate::shard::{Kind, Meta, create_csv, open_csv};
+use crate::stats::{Z95, widest_interval};
 
 /// Samples per round of the adaptive mode.
 pub const ROUND: u32 = 256;

@@ -205,7 +205,7 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
     let wn = (wd * wd + sigma * sigma).sqrt();
     let two_pi = 2.0 * std::f64::consts::PI;
     let (sd_fn, sd_zeta, rho) = covariance(t, sigma, wd, ab, rss)?;
-    let z95 = super::uncertainty::Z95;
+    let z95 = crate::stats::Z95;
     Ok(FreeDecay {
         natural_freq_ci95_hz: [(wn - z95 * sd_fn) / two_pi, (wn + z95 * sd_fn) / two_pi],
         damping_ratio_ci95: [

@@ -186,9 +186,9 @@ pub fn clean_record(
     Ok(Trace { t_s, value })
 }
 
-/// A clean force trace ([`clean_record`], at `sensor`'s rate) as `sensor` records it: plus its offset
-/// and Gaussian noise of `noise_pct` % of the largest force (ChaCha8 seeded with `seed`: the
-/// same samples on every machine).
+/// A clean force trace ([`clean_record`], at `sensor`'s rate) as `sensor` records it: plus its
+/// offset and Gaussian noise of `noise_pct` % of the largest force (ChaCha8 seeded with `seed`:
+/// the same samples on every machine).
 ///
 /// # Errors
 /// Sensor settings out of range (named).

@@ -60,8 +60,7 @@ use super::cost::{
 };
 use crate::config::{LackOfFit, UncertaintyTable, coordinate_names};
 
-/// The normal quantile of a two-sided 95 % interval.
-pub const Z95: f64 = 1.959_963_984_540_054;
+use crate::stats::Z95;
 /// An interval wider than this (relative half-width) is reported as poorly fixed.
 pub const WIDE_REL: f64 = 0.10;
 /// A correlation beyond this is reported as a trade-off.
