@@ -81,11 +81,18 @@ impl Qemu {
     }
 
     fn port(&self) -> RigPort {
-        RigPort::open(
-            &self.pty,
-            LinkOptions::with_timeout(Duration::from_secs(20)),
-        )
-        .unwrap()
+        self.port_with(LinkOptions::with_timeout(Duration::from_secs(20)))
+    }
+
+    /// The console with `opts`; a link that does not come up fails with what QEMU said.
+    fn port_with(&self, opts: LinkOptions) -> RigPort {
+        RigPort::open(&self.pty, opts).unwrap_or_else(|e| {
+            panic!(
+                "{e:#} ({}); QEMU said:\n{}",
+                self.pty.display(),
+                self.out.lock().unwrap()
+            )
+        })
     }
 
     /// Waits for QEMU to end (at most `wall`); its output.
@@ -421,7 +428,7 @@ fn a_silent_link_brings_the_drive_to_zero() {
         link_timeout_s: 0.0,
         ..LinkOptions::with_timeout(Duration::from_secs(20))
     };
-    let mut port = RigPort::open(&qemu.pty, opts).unwrap();
+    let mut port = qemu.port_with(opts);
     wait_status(&mut port, |s| matches!(s.model, ModelStatus::Ready(_)));
     // A quiet force signal (QEMU's sawtooth would trip the over-force abort).
     assert_eq!(port.send_line("emu adc 248").unwrap(), "ok adc 248");
