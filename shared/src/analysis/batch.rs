@@ -118,7 +118,7 @@ where
         launch,
         emit,
         mode: [Mode::Idle; L],
-        cursor: [None; L],
+        cursor: [Default::default(); L],
         constants_set: [false; L],
     };
     if wires {
@@ -145,8 +145,9 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     launch: N,
     emit: F,
     mode: [Mode; L],
-    /// Where each `Contact` lane stands in its step, and its sub-step.
-    cursor: [Option<(Cursor<T>, SubPlan<T>)>; L],
+    /// Where each `Contact` lane stands in its step, and its sub-step (meaningless in the
+    /// other modes).
+    cursor: [(Cursor<T>, SubPlan<T>); L],
     /// Whether the contact lanes hold the constants of the lane's run.
     constants_set: [bool; L],
 }
@@ -221,22 +222,34 @@ where
         free: &mut Lockstep<'t, T, K, L>,
         contact: &mut ContactLanes<T, K, L>,
     ) {
-        let (Some(lane), Some((mut c, p))) = (&mut self.lanes[i], self.cursor[i].take()) else {
+        let Some(lane) = &mut self.lanes[i] else {
             self.mode[i] = Mode::Idle;
             return;
         };
+        let (c, p) = &mut self.cursor[i];
         let mut period_end = false;
         let done = lane
             .sim
-            .commit_substep(&mut c, &p, contact.result(i), &mut |s| {
+            .commit_substep(c, p, contact.result(i), &mut |s| {
                 period_end |= lane.run.sample(s, &mut lane.obs)
             });
         if done {
             self.end_step(i, period_end);
             self.settle(i, free, contact, None, true);
-        } else {
-            self.settle(i, free, contact, Some(c), true);
+            return;
         }
+        // Most often the next segment is another ordinary sub-step: straight back into the
+        // contact lanes (what `settle` would do first, without its loop).
+        if !O::SAMPLES
+            && self.constants_set[i]
+            && let Some(next) = lane.sim.plain_substep(c)
+            && contact.set(i, &lane.sim, &next, false)
+        {
+            *p = next;
+            return;
+        }
+        let c = *c;
+        self.settle(i, free, contact, Some(c), true);
     }
 
     /// Ends the step of lane `i` for its protocol; a run that is done is emitted and the next
@@ -290,7 +303,7 @@ where
                     && contact.set(i, &lane.sim, &p, !self.constants_set[i])
                 {
                     self.constants_set[i] = true;
-                    self.cursor[i] = Some((c, p));
+                    self.cursor[i] = (c, p);
                     self.mode[i] = Mode::Contact;
                     return;
                 }

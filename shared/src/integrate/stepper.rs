@@ -137,7 +137,7 @@ struct SegmentStart<T> {
 
 /// Where a simulator stands inside its current step, between two segments
 /// ([`Simulator::advance`]).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Cursor<T> {
     /// Time since the step's start, s.
     offset: T,
@@ -151,7 +151,7 @@ pub(crate) struct Cursor<T> {
 }
 
 /// An ordinary sub-step that the contact lanes take ([`Simulator::plain_substep`]).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct SubPlan<T> {
     /// Length, s.
     pub(crate) len: T,
