@@ -15,7 +15,7 @@ use super::Simulator;
 use super::free::{SmallTrig, Trig};
 use super::lanes::LaneField;
 use super::rk4::rk4_step_compensated;
-use super::stepper::SubPlan;
+use super::stepper::{LaneTrial, SubPlan};
 use crate::model::Region;
 use crate::model::contact::LawCoeffs;
 use crate::model::hammer::{BeamFree, Body, Damped, FieldEval, Undamped, Viscous, WiresFree};
@@ -98,6 +98,10 @@ impl<T: Real> LaneContact<T> for BeamFree<T> {
     }
 }
 
+/// What a lane's trial is ([`LaneTrial`]): inexact, ending in its start's mode, or in the other.
+const STAYS: u32 = 1;
+const SWITCHES: u32 = 2;
+
 /// Switch-model regions as lane codes.
 const FREE: u32 = 0;
 const CONTACT: u32 = 1;
@@ -134,8 +138,8 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     s_end: [T; L],
     band: [u32; L],
     touching: [u32; L],
-    // The result: end state, carry, switch-model field there, and whether the lane's result
-    // stands (the end in the start's mode, every sine exact).
+    // The result: end state, carry, switch-model field there, and what it is (`STAYS`,
+    // `SWITCHES`, or 0: a sine outside the short range).
     out: [[T; 9]; L],
     region: [u32; L],
     ok: [u32; L],
@@ -225,32 +229,35 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         true
     }
 
-    /// Lane `i`'s trial after [`ContactLanes::run`], for [`Simulator::commit_substep`]: the end
-    /// state, its carry and its switch-model field, or `None` if the stepper must take the
-    /// sub-step itself (a switching event inside, or an inexact sine).
+    /// Lane `i`'s trial after [`ContactLanes::run`], for [`Simulator::commit_substep`].
     #[inline]
-    pub(crate) fn result(&self, i: usize) -> Option<(Vector2<T>, Vector2<T>, FieldEval<T>)> {
-        if self.ok[i] == 0 {
-            return None;
-        }
+    pub(crate) fn result(&self, i: usize) -> LaneTrial<T> {
         let [x0, x1, carry0, carry1, acc, d, dd, force, _] = self.out[i];
-        let region = match self.region[i] {
-            CONTACT => Region::Contact,
-            BAND_ALPHA => Region::BandAlpha,
-            BAND_BETA => Region::BandBeta,
-            _ => Region::Free,
-        };
-        Some((
-            Vector2::new(x0, x1),
-            Vector2::new(carry0, carry1),
-            FieldEval {
-                dx: Vector2::new(x1, acc),
-                force,
-                region,
-                delta: d,
-                delta_dot: dd,
+        match self.ok[i] {
+            STAYS => {
+                let region = match self.region[i] {
+                    CONTACT => Region::Contact,
+                    BAND_ALPHA => Region::BandAlpha,
+                    BAND_BETA => Region::BandBeta,
+                    _ => Region::Free,
+                };
+                LaneTrial::Stays {
+                    x: Vector2::new(x0, x1),
+                    carry: Vector2::new(carry0, carry1),
+                    end: FieldEval {
+                        dx: Vector2::new(x1, acc),
+                        force,
+                        region,
+                        delta: d,
+                        delta_dot: dd,
+                    },
+                }
+            }
+            SWITCHES => LaneTrial::Switches {
+                x: Vector2::new(x0, x1),
             },
-        ))
+            _ => LaneTrial::Inexact,
+        }
     }
 
     /// Takes every lane's sub-step (lanes not set since the last run repeat their last one and
@@ -372,7 +379,9 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             let end_touching = u32::from(region == CONTACT) | u32::from(region == BAND_ALPHA);
             self.out[i] = [tx0[i], tx1[i], tc0[i], tc1[i], acc, d, dd, force, zero];
             self.region[i] = region;
-            self.ok[i] = u32::from(exact[i] & ok) & u32::from(end_touching == self.touching[i]);
+            // STAYS (1), SWITCHES (2) or INEXACT (0), without a branch.
+            let exact = u32::from(exact[i] & ok);
+            self.ok[i] = exact << u32::from(end_touching != self.touching[i]);
         }
     }
 }

@@ -167,6 +167,22 @@ pub(crate) struct SubPlan<T> {
     pub(crate) touching: bool,
 }
 
+/// A contact lane's sub-step for [`Simulator::commit_substep`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum LaneTrial<T> {
+    /// The trial ends in the mode of its start: the end state, its carry and its switch-model
+    /// field.
+    Stays {
+        x: Vector2<T>,
+        carry: Vector2<T>,
+        end: FieldEval<T>,
+    },
+    /// The trial `x` ends in the other mode: a switching event inside.
+    Switches { x: Vector2<T> },
+    /// A sine outside the lanes' short range: the stepper takes the sub-step.
+    Inexact,
+}
+
 /// What changes from step to step.
 #[derive(Debug, Clone, Copy)]
 struct StepState<T> {
@@ -542,21 +558,20 @@ impl<'t, T: Real> Simulator<'t, T> {
     }
 
     /// Ends the sub-step `p` ([`Simulator::plain_substep`]) from `c` with the contact lanes'
-    /// trial: `Some((x, carry, end))` when its end stays in the mode of its start (what
-    /// [`Simulator::substep`] computes then, bit for bit), `None` when a switching event falls
-    /// inside it (then it is taken here). Reports the sample; returns whether the step is done.
+    /// `trial` ([`LaneTrial`]): what [`Simulator::substep`] computes, bit for bit, without
+    /// repeating what the lanes computed. Reports the sample; returns whether the step is done.
     #[inline(always)]
     pub(crate) fn commit_substep<O: FnMut(&StepSample<T>)>(
         &mut self,
         c: &mut Cursor<T>,
         p: &SubPlan<T>,
-        trial: Option<(Vector2<T>, Vector2<T>, FieldEval<T>)>,
+        trial: LaneTrial<T>,
         observe: &mut O,
     ) -> bool {
         let seg = self.segment_start(c.offset);
         c.first = false;
         match trial {
-            Some((x, carry, end)) => {
+            LaneTrial::Stays { x, carry, end } => {
                 let start = self.state.at_x;
                 let s = &mut self.state;
                 s.counts.substeps += 1;
@@ -567,7 +582,11 @@ impl<'t, T: Real> Simulator<'t, T> {
                 s.carry = carry;
                 s.at_x = end;
             }
-            None => self.substep(c.offset, p.len, p.s_end),
+            LaneTrial::Switches { x } => {
+                let (touching, k1) = self.substep_begin(c.offset);
+                self.substep_switch(c.offset, p.len, p.s_end, touching, k1, x);
+            }
+            LaneTrial::Inexact => self.substep(c.offset, p.len, p.s_end),
         }
         if p.last {
             self.finish_step(&seg, observe);
@@ -706,26 +725,13 @@ impl<'t, T: Real> Simulator<'t, T> {
     #[inline]
     fn substep(&mut self, offset: T, len: T, s_end: T) {
         let hammer = self.hammer;
-        let half = T::from_f64(0.5);
-        let s_mid = self.sin_at(offset + len * half);
-        let start = self.state.at_x;
-        self.state.counts.substeps += 1;
-        let touching = start.region.touching();
-        if !touching && start.delta <= T::zero() {
-            self.state.approach_speed = start.delta_dot.max_of(min_approach());
-        }
+        let s_mid = self.sin_at(offset + len * T::from_f64(0.5));
+        let (touching, k1) = self.substep_begin(offset);
         let v_in = self.state.approach_speed;
         let mode = if touching {
             FieldMode::Contact
         } else {
             FieldMode::Free
-        };
-        // Outside the bands the switch-model field at the start is the mode's field: reuse it.
-        let k1 = match start.region {
-            Region::Free | Region::Contact => start,
-            Region::BandAlpha | Region::BandBeta => {
-                hammer.field_in(mode, &self.state.x, self.sin_at(offset), v_in)
-            }
         };
         let (trial, carry) = rk4_step_compensated(
             &self.state.x,
@@ -743,7 +749,61 @@ impl<'t, T: Real> Simulator<'t, T> {
             self.state.at_x = end;
             return;
         }
-        // A switching event inside the sub-step.
+        self.substep_switch(offset, len, s_end, touching, k1, trial);
+    }
+
+    /// The start of a sub-step from `offset` (s into the current step): counts it, notes the
+    /// approach speed of an arrival from free flight, and returns whether it starts touching
+    /// (its mode: contact `f+`, else free flight `f−`) and RK4's first stage there.
+    #[inline(always)]
+    fn substep_begin(&mut self, offset: T) -> (bool, FieldEval<T>) {
+        let start = self.state.at_x;
+        self.state.counts.substeps += 1;
+        let touching = start.region.touching();
+        if !touching && start.delta <= T::zero() {
+            self.state.approach_speed = start.delta_dot.max_of(min_approach());
+        }
+        let mode = if touching {
+            FieldMode::Contact
+        } else {
+            FieldMode::Free
+        };
+        // Outside the bands the switch-model field at the start is the mode's field: reuse it.
+        let k1 = match start.region {
+            Region::Free | Region::Contact => start,
+            Region::BandAlpha | Region::BandBeta => self.hammer.field_in(
+                mode,
+                &self.state.x,
+                self.sin_at(offset),
+                self.state.approach_speed,
+            ),
+        };
+        (touching, k1)
+    }
+
+    /// The rest of a sub-step of `len` seconds from `offset` whose `trial` (RK4 in the mode of
+    /// its start, `touching`, with first stage `k1`) ends in the other mode: the switching
+    /// event located on the trial's dense output, the old mode to it and the switch model from
+    /// it to the sub-step's end ([`Simulator::substep`]).
+    #[inline]
+    fn substep_switch(
+        &mut self,
+        offset: T,
+        len: T,
+        s_end: T,
+        touching: bool,
+        k1: FieldEval<T>,
+        trial: Vector2<T>,
+    ) {
+        let hammer = self.hammer;
+        let half = T::from_f64(0.5);
+        let start = self.state.at_x;
+        let v_in = self.state.approach_speed;
+        let mode = if touching {
+            FieldMode::Contact
+        } else {
+            FieldMode::Free
+        };
         let end_mode = hammer.field_in(mode, &trial, s_end, v_in);
         let law = hammer.switch().law;
         let arrival_by_distance = start.delta <= T::zero();
