@@ -193,12 +193,21 @@ where
                 let max_rounds = if n_contact > 0 { FREE_ROUNDS } else { u64::MAX };
                 let stopped = free.run_at_most(max_rounds);
                 for (i, &s) in stopped.iter().enumerate() {
-                    if s {
-                        if let Some(lane) = &mut self.lanes[i]
-                            && free.unload(i, &mut lane.sim) > 0
-                        {
-                            lane.run.after_free_flight(&lane.sim);
-                        }
+                    if !s {
+                        continue;
+                    }
+                    let mut period_end = false;
+                    if let Some(lane) = &mut self.lanes[i]
+                        && free.unload(i, &mut lane.sim) > 0
+                    {
+                        lane.run.after_free_flight(&lane.sim);
+                        period_end = lane.sim.at_period_start();
+                    }
+                    if period_end {
+                        // The lane took its period's last step: the Poincaré section, then on.
+                        self.end_step(i, true);
+                        self.settle(i, &mut free, &mut contact, None, true);
+                    } else {
                         // Its next step is one the free-flight lanes do not take.
                         self.settle(i, &mut free, &mut contact, None, false);
                     }

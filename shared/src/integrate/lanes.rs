@@ -5,8 +5,8 @@
 //! every simulator of a grid. `Lockstep` holds the free-flight states of up to `L` simulators,
 //! one array per field, and steps them together, so the compiler packs the lanes into SIMD
 //! registers, without the per-step bookkeeping in between. Each lane runs the stepper's own
-//! kernel (`integrate::free`) and stops before the period's last step (the Poincaré section),
-//! before any step that the stepper would split near the surface, and (wires) before an angle
+//! kernel (`integrate::free`) and stops after the period's last step (the Poincaré section, which
+//! the caller takes), before any step that the stepper would split near the surface, and (wires) before an angle
 //! outside the short sine polynomial's range `|θ| ≤ 1/8`. `Lockstep::run` returns as soon as
 //! one lane stops; the caller takes that simulator's next steps with [`Simulator::step`] and
 //! loads it (or another simulator) into the lane again, so the other lanes never wait.
@@ -102,9 +102,9 @@ impl<T: Real, const L: usize> States<T, L> {
 /// Up to `L` simulators' whole free-flight steps in lockstep, for one suspension (`F`:
 /// [`WiresFree`] or [`BeamFree`]), one step grid `N` and one band `η_δ`.
 ///
-/// A simulator is loaded into a lane ([`Lockstep::load`]) when it is clear of the surface and
-/// not at its period's last step; [`Lockstep::run`] steps every loaded lane until one of them
-/// stops; [`Lockstep::unload`] hands its steps back to the simulator, which ends exactly where
+/// A simulator is loaded into a lane ([`Lockstep::load`]) when it is clear of the surface;
+/// [`Lockstep::run`] steps every loaded lane until one of them stops (at the latest at its
+/// period's end); [`Lockstep::unload`] hands its steps back to the simulator, which ends exactly where
 /// the same number of [`Simulator::step`] calls would have left it.
 ///
 /// With the `std` feature on x86-64 (the host), the kernel runs as AVX2 code when the CPU has
@@ -121,8 +121,7 @@ pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
     state: States<T, L>,
     /// Step index within the period of each lane.
     k: [u32; L],
-    /// Steps a lane may still take before its period's last step (0: the lane is empty or
-    /// stopped).
+    /// Steps a lane may still take to its period's end (0: the lane is empty or stopped).
     rem: [u32; L],
     /// Steps taken since the lane was loaded.
     taken: [u32; L],
@@ -158,8 +157,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 
     /// Loads `sim` into lane `i` (`i < L`, the lane empty) if it can take whole free-flight
     /// steps in lockstep now: the same `N`, suspension (the pendulum damped or not) and `η_δ`
-    /// as the others, clear of the surface and not at its period's last step. Returns whether
-    /// it did.
+    /// as the others, and clear of the surface. Returns whether it did.
     #[inline]
     pub(crate) fn load(&mut self, i: usize, sim: &Simulator<'t, T>) -> bool {
         let (phases, wires, eta, damped) = sim.lane_kind();
@@ -180,7 +178,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         self.coef[i] = c;
         self.h[i] = h;
         self.state.set(i, st);
-        self.k[i] = self.n() - 1 - r;
+        self.k[i] = self.n() - r;
         self.rem[i] = r;
         self.taken[i] = 0;
         true
@@ -214,8 +212,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         self.phases.steps_per_period()
     }
 
-    /// Steps every running lane in lockstep until at least one of them stops (at its period's
-    /// last step, or before a step that the stepper would split or that `|θ| > 1/8` makes
+    /// Steps every running lane in lockstep until at least one of them stops (after its
+    /// period's last step, or before a step that the stepper would split or that `|θ| > 1/8` makes
     /// inexact). Returns the stopped lanes (`true`), which must be [`Lockstep::unload`]ed before
     /// they are loaded again. Nothing happens if no lane runs.
     pub(crate) fn run(&mut self) -> [bool; L] {
@@ -257,7 +255,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         if !self.any_running() {
             return stopped;
         }
-        let n = self.n() as usize;
+        let n = self.n();
         let table = self.phases;
         let eta = self.eta;
         let mut state = self.state;
@@ -270,11 +268,11 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             let mut s_mid = [T::zero(); L];
             let mut s_end = [T::zero(); L];
             for i in 0..L {
-                // k < N − 1 on running lanes (so the step's end is not the period's); the
-                // others read a valid entry and are discarded.
-                let j = 2 * (k[i] as usize).min(n - 2);
-                s_mid[i] = table.sin_half(j + 1);
-                s_end[i] = table.sin_half(j + 2);
+                // k < N on every lane; the end of the period's last step is the next period's
+                // start (`Simulator::step`'s phases, `PhaseTable::step_mid_end`).
+                let (mid, end) = table.step_mid_end(k[i]);
+                s_mid[i] = mid;
+                s_end[i] = end;
             }
             let mut next = States::<T, L>::new();
             let mut ok = [0u32; L];
@@ -291,8 +289,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
                 ok[i] = u32::from(exact & !near);
             }
             // Branch-free, one array at a time (so that it vectorises too): a running lane
-            // takes the step if it may, and stops if it may not or if that was its last one
-            // before the section.
+            // takes the step if it may, and stops if it may not or if that step ended its
+            // period (the Poincaré section, which the caller takes).
             let mut go = [0u32; L];
             let mut stop = [0u32; L];
             for i in 0..L {
@@ -304,6 +302,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             let mut any_stop = 0u32;
             for i in 0..L {
                 k[i] += go[i];
+                k[i] *= u32::from(k[i] != n);
                 taken[i] += go[i];
                 rem[i] = (rem[i] - go[i]) * (stop[i] ^ 1);
                 any_stop |= stop[i];
@@ -332,8 +331,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 
 /// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further ones
 /// are left alone) in lockstep until the first of them stops (`Lockstep`). A simulator takes
-/// part if it has the first one's `N`, suspension and band `η_δ`, is clear of the surface, and
-/// is not at its period's last step. Returns the steps each took (0 for those that did not take
+/// part if it has the first one's `N`, suspension and band `η_δ`, and is clear of the surface
+/// (it stops at its period's end at the latest). Returns the steps each took (0 for those that did not take
 /// part); each simulator ends exactly where the same number of [`Simulator::step`] calls would
 /// have left it. (The grid analyses keep their lanes loaded across stops:
 /// `crate::analysis::batch`; this one-shot form serves benchmarks and tests.)
@@ -401,9 +400,10 @@ mod tests {
             .map(|(i, sim)| lanes.unload(i, sim))
             .collect();
         // Every lane ran until the first stopped: at the latest the last lane (21 steps in),
-        // 64 − 1 − 21 = 42 steps later; a lane that stopped before a step did not take it.
+        // 64 − 21 = 43 steps later (its period's last step included); a lane that stopped before a
+        // step did not take it.
         let (rounds, lane_steps) = lanes.stats();
-        assert!((10..=42).contains(&rounds), "{rig:?}: {rounds} rounds");
+        assert!((10..=43).contains(&rounds), "{rig:?}: {rounds} rounds");
         assert!(
             taken
                 .iter()

@@ -338,6 +338,11 @@ impl<'t, T: Real> Simulator<'t, T> {
     pub fn periods_done(&self) -> u32 {
         (self.state.steps / u64::from(self.steps_per_period())) as u32
     }
+    /// Whether the simulator stands at a period's start (`t = kT`, the Poincaré section).
+    #[inline(always)]
+    pub(crate) fn at_period_start(&self) -> bool {
+        self.state.k == 0
+    }
     /// RK4 steps and sub-steps executed since construction (cost diagnostics).
     pub fn rk4_steps(&self) -> u64 {
         self.state.counts.rk4_steps()
@@ -363,15 +368,14 @@ impl<'t, T: Real> Simulator<'t, T> {
     }
 
     /// The free-flight state for a lockstep lane ([`super::lanes`]), if this simulator may
-    /// take whole free-flight steps in lockstep now: clear of the surface and not at its
-    /// period's last step; with the steps it may take before that step.
+    /// take whole free-flight steps in lockstep now (clear of the surface); with the steps
+    /// left to its period's end (the period's last step included).
     #[inline(always)]
     pub(super) fn lane_start(&self) -> Option<(FreeState<T>, u32)> {
-        let n = self.steps_per_period();
-        if !self.clear() || self.state.k + 1 >= n {
+        if !self.clear() {
             return None;
         }
-        Some((self.free_state(), n - 1 - self.state.k))
+        Some((self.free_state(), self.steps_per_period() - self.state.k))
     }
 
     /// The current state as the free-flight kernel takes it.
@@ -414,7 +418,11 @@ impl<'t, T: Real> Simulator<'t, T> {
     pub(super) fn lane_finish(&mut self, st: &FreeState<T>, taken: u32) {
         let s = &mut self.state;
         (s.x, s.at_x) = clear_of_surface(st);
+        // A lane stops at its period's end at the latest.
         s.k += taken;
+        if s.k >= self.phases.steps_per_period() {
+            s.k = 0;
+        }
         s.steps += u64::from(taken);
         s.counts.lane_steps += u64::from(taken);
     }
