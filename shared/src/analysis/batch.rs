@@ -4,11 +4,11 @@
 //! previous one), so a single run leaves most of an out-of-order core idle. `L` runs share the
 //! core: those clear of the surface take their whole free-flight steps together in lockstep
 //! lanes (`crate::integrate::lanes`, vectorised across the lanes; only for observers that
-//! ignore per-step samples). As soon as one lane stops (its period's last step: the Poincaré
-//! section; near the surface; an angle the lanes' short sine does not cover), that run alone
-//! takes ordinary steps ([`ProtocolRun::step`]: the section, contact sub-steps) until it can
-//! rejoin the lanes or is done, when the next point takes its lane; the other lanes wait
-//! without losing their place. Results are exactly those of [`super::evaluate_point`] (each run
+//! ignore per-step samples). As soon as one lane stops (at its period's end, where the run takes
+//! its Poincaré section; near the surface; an angle the lanes' short sine does not cover), that
+//! run alone takes ordinary steps ([`ProtocolRun::step`]; its ordinary contact sub-steps in the
+//! contact lanes) until it can rejoin the lanes or is done, when the next point takes its lane;
+//! the other lanes wait without losing their place. Results are exactly those of [`super::evaluate_point`] (each run
 //! is the same computation, only the order of instructions between runs changes; tested). No
 //! allocation; an in-order MCU gains nothing from it.
 
@@ -237,11 +237,9 @@ where
         };
         let (c, p) = &mut self.cursor[i];
         let mut period_end = false;
-        let done = lane
-            .sim
-            .commit_substep(c, p, contact.result(i), &mut |s| {
-                period_end |= lane.run.sample(s, &mut lane.obs)
-            });
+        let done = lane.sim.commit_substep(c, p, contact.result(i), &mut |s| {
+            period_end |= lane.run.sample(s, &mut lane.obs)
+        });
         if done {
             self.end_step(i, period_end);
             self.settle(i, free, contact, None, true);
