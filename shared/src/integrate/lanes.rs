@@ -268,11 +268,12 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             let mut s_mid = [T::zero(); L];
             let mut s_end = [T::zero(); L];
             for i in 0..L {
-                // k < N on every lane; the end of the period's last step is the next period's
-                // start (`Simulator::step`'s phases, `PhaseTable::step_mid_end`).
-                let (mid, end) = table.step_mid_end(k[i]);
-                s_mid[i] = mid;
-                s_end[i] = end;
+                // k < N on running lanes (the end of the period's last step is the next
+                // period's start, `PhaseTable::step_mid_end`); the others read a valid entry
+                // and are discarded.
+                let j = 2 * k[i].min(n - 1) as usize;
+                s_mid[i] = table.sin_half(j + 1);
+                s_end[i] = table.sin_half(j + 2);
             }
             let mut next = States::<T, L>::new();
             let mut ok = [0u32; L];

@@ -54,12 +54,13 @@ impl StepSettings {
 }
 
 /// `sin Ωt` and `cos Ωt` on the step grid of `N` steps per period: at every half step
-/// (`sin(π j/N)`, `j < 2N`) and at every step start (`cos(2π k/N)`, `k < N`), from `libm` in
+/// (`sin(π j/N)`, `j < 2N`, and at `j = 2N` the period's end, which is the next period's start:
+/// entry 0 again) and at every step start (`cos(2π k/N)`, `k < N`), from `libm` in
 /// f64 rounded to `T`. It depends on `N` only, so one table serves every simulator of a grid.
 #[derive(Debug, Clone)]
 pub struct PhaseTable<T> {
     n: u32,
-    sin_half: [T; 2 * MAX_STEPS_PER_PERIOD as usize],
+    sin_half: [T; 2 * MAX_STEPS_PER_PERIOD as usize + 1],
     cos_start: [T; MAX_STEPS_PER_PERIOD as usize],
 }
 
@@ -72,7 +73,7 @@ impl<T: Real> PhaseTable<T> {
         let n = check_steps_per_period(steps_per_period)?;
         let mut t = PhaseTable {
             n,
-            sin_half: [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize],
+            sin_half: [T::zero(); 2 * MAX_STEPS_PER_PERIOD as usize + 1],
             cos_start: [T::zero(); MAX_STEPS_PER_PERIOD as usize],
         };
         fill(n, &mut t.sin_half, &mut t.cos_start);
@@ -85,7 +86,8 @@ impl<T: Real> PhaseTable<T> {
         self.n
     }
 
-    /// `sin(π j/N)`: `sin Ωt` at half step `j` (`j < 2N`; step `k` starts at `j = 2k`).
+    /// `sin(π j/N)`: `sin Ωt` at half step `j` (`j ≤ 2N`; step `k` starts at `j = 2k`; entry
+    /// `2N` is entry 0).
     #[inline(always)]
     pub(crate) fn sin_half(&self, j: usize) -> T {
         self.sin_half[j]
@@ -102,8 +104,7 @@ impl<T: Real> PhaseTable<T> {
     #[inline(always)]
     pub(crate) fn step_mid_end(&self, k: u32) -> (T, T) {
         let k2 = 2 * k as usize;
-        let j_end = if k + 1 == self.n { 0 } else { k2 + 2 };
-        (self.sin_half[k2 + 1], self.sin_half[j_end])
+        (self.sin_half[k2 + 1], self.sin_half[k2 + 2])
     }
 }
 
@@ -114,6 +115,11 @@ fn fill<T: Real>(n: u32, sin_half: &mut [T], cos_start: &mut [T]) {
     let dphi = core::f64::consts::PI / f64::from(n);
     for (j, v) in sin_half.iter_mut().take(2 * n as usize).enumerate() {
         *v = T::from_f64(libm::sin(dphi * j as f64));
+    }
+    // The period's end is the next period's start, exactly (not the rounded `sin 2π`).
+    let start = sin_half.first().copied().unwrap_or_else(T::zero);
+    if let Some(end) = sin_half.get_mut(2 * n as usize) {
+        *end = start;
     }
     for (k, v) in cos_start.iter_mut().take(n as usize).enumerate() {
         *v = T::from_f64(libm::cos(2.0 * dphi * k as f64));

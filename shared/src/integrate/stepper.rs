@@ -763,7 +763,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// The start of a sub-step from `offset` (s into the current step): counts it, notes the
     /// approach speed of an arrival from free flight, and returns whether it starts touching
     /// (its mode: contact `f+`, else free flight `f−`) and RK4's first stage there.
-    #[inline(always)]
+    #[inline]
     fn substep_begin(&mut self, offset: T) -> (bool, FieldEval<T>) {
         let start = self.state.at_x;
         self.state.counts.substeps += 1;
@@ -793,7 +793,6 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// its start, `touching`, with first stage `k1`) ends in the other mode: the switching
     /// event located on the trial's dense output, the old mode to it and the switch model from
     /// it to the sub-step's end ([`Simulator::substep`]).
-    #[inline]
     fn substep_switch(
         &mut self,
         offset: T,
