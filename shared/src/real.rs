@@ -43,6 +43,14 @@ pub trait Real:
     /// several lanes are evaluated in step, `crate::integrate::lanes`). Bit for bit what
     /// [`Real::sin_cos`] returns on that range.
     fn sin_cos_small(self) -> (Self, Self);
+    /// `(sin x, cos x, exact)` by [`Real::sin_cos`]'s two Taylor tiers, both evaluated and one
+    /// chosen without a branch: bit for bit [`Real::sin_cos`] where `exact` (`|x| ≤ 1/2`; used
+    /// where several lanes are evaluated in step, `crate::integrate::contact_lanes`).
+    #[inline(always)]
+    fn sin_cos_lane(self) -> (Self, Self, bool) {
+        let (s, c) = self.sin_cos();
+        (s, c, self.abs() <= Self::from_f64(0.5))
+    }
     /// `(sin x, cos x)`: a Taylor polynomial accurate to the type's precision for
     /// `|x| ≤ 0.5` rad (the wire pendulum's angles stay below 0.1 rad), `libm` elsewhere.
     /// Only `+` and `×`, so the MCU and the host agree bit for bit.
@@ -173,6 +181,20 @@ macro_rules! impl_real {
                 const S: [$t; $short] = tail!($t, $short, SIN_TAYLOR);
                 const C: [$t; $short] = tail!($t, $short, COS_TAYLOR);
                 horner(self, &S, &C)
+            }
+            #[inline(always)]
+            fn sin_cos_lane(self) -> (Self, Self, bool) {
+                const S: [$t; $long] = tail!($t, $long, SIN_TAYLOR);
+                const C: [$t; $long] = tail!($t, $long, COS_TAYLOR);
+                let a = $fabs(self);
+                let (s_short, c_short) = self.sin_cos_small();
+                let (s_long, c_long) = horner(self, &S, &C);
+                let short = a <= 0.125;
+                (
+                    if short { s_short } else { s_long },
+                    if short { c_short } else { c_long },
+                    a <= 0.5,
+                )
             }
             #[inline(always)]
             fn sin_cos(self) -> (Self, Self) {

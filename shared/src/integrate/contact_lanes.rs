@@ -134,7 +134,16 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     a: [T; L],
     len: [T; L],
     s_start: [T; L],
-    s_mid: [T; L],
+    // `sin Ωt` at the sub-step's midpoint and end from `Ω`, the step's start phase
+    // (`sin`, `cos`) and the offsets into the step (s), or the step's end phase if `last`.
+    omega: [T; L],
+    sin0: [T; L],
+    cos0: [T; L],
+    mid_s: [T; L],
+    end_s: [T; L],
+    step_end: [T; L],
+    last: [u32; L],
+    // Out: `sin Ωt` at the sub-step's end.
     s_end: [T; L],
     band: [u32; L],
     touching: [u32; L],
@@ -166,7 +175,13 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             a: z,
             len: z,
             s_start: z,
-            s_mid: z,
+            omega: z,
+            sin0: z,
+            cos0: z,
+            mid_s: z,
+            end_s: z,
+            step_end: z,
+            last: [0; L],
             s_end: z,
             band: [0; L],
             touching: [0; L],
@@ -222,8 +237,11 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         self.a[i] = start.dx[1];
         self.len[i] = p.len;
         self.s_start[i] = p.s_start;
-        self.s_mid[i] = p.s_mid;
-        self.s_end[i] = p.s_end;
+        (self.omega[i], self.sin0[i], self.cos0[i]) = sim.step_phase();
+        self.mid_s[i] = p.mid_s;
+        self.end_s[i] = p.end_s;
+        self.step_end[i] = p.step_end;
+        self.last[i] = u32::from(p.last);
         self.band[i] = u32::from(p.band);
         self.touching[i] = u32::from(p.touching);
         true
@@ -255,6 +273,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             }
             SWITCHES => LaneTrial::Switches {
                 x: Vector2::new(x0, x1),
+                s_end: self.s_end[i],
             },
             _ => LaneTrial::Inexact,
         }
@@ -307,7 +326,17 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             let touching = self.touching[i] != 0;
             let field = &self.field[i];
             let inv_mass = self.inv_mass[i];
-            let mut ex = true;
+            // `sin Ωt` at the midpoint and the end (`Simulator::sin_at`).
+            let phase = |dt: T| {
+                let (s, c, exact) = (self.omega[i] * dt).sin_cos_lane();
+                (self.sin0[i] * c + self.cos0[i] * s, exact)
+            };
+            let (s_mid, mid_exact) = phase(self.mid_s[i]);
+            let (s_end_at, end_exact) = phase(self.end_s[i]);
+            let last = self.last[i] != 0;
+            let s_end = if last { self.step_end[i] } else { s_end_at };
+            self.s_end[i] = s_end;
+            let mut ex = mid_exact & (last | end_exact);
             // The mode's field: the law continued (`f+`, `LawCoeffs::unswitched_force`) or
             // free flight (`f−`, no force).
             let mut mode_field = |y: &Vector2<T>, s: T| {
@@ -332,8 +361,8 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
                 &Vector2::new(self.carry0[i], self.carry1[i]),
                 &k1,
                 self.len[i],
-                self.s_mid[i],
-                self.s_end[i],
+                s_mid,
+                s_end,
                 mode_field,
             );
             tx0[i] = trial[0];

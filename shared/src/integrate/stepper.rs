@@ -159,10 +159,14 @@ pub(crate) struct SubPlan<T> {
     pub(crate) last: bool,
     /// Whether it starts in a band (then RK4's first stage is the mode's field at `s_start`).
     pub(crate) band: bool,
-    /// `sin Ωt` at its start (if `band`), midpoint and end.
+    /// `sin Ωt` at its start (if `band`).
     pub(crate) s_start: T,
-    pub(crate) s_mid: T,
-    pub(crate) s_end: T,
+    /// Its midpoint and end, s into the current step (the contact lanes take `sin Ωt` there,
+    /// [`Simulator::sin_at`]'s operations), and `sin Ωt` at the step's end (the sub-step's end
+    /// if `last`).
+    pub(crate) mid_s: T,
+    pub(crate) end_s: T,
+    pub(crate) step_end: T,
     /// Whether it starts touching (then in the contact mode `f+`, else free flight `f−`).
     pub(crate) touching: bool,
 }
@@ -177,8 +181,9 @@ pub(crate) enum LaneTrial<T> {
         carry: Vector2<T>,
         end: FieldEval<T>,
     },
-    /// The trial `x` ends in the other mode: a switching event inside.
-    Switches { x: Vector2<T> },
+    /// The trial `x` ends in the other mode: a switching event inside (`s_end`: `sin Ωt` at
+    /// the sub-step's end).
+    Switches { x: Vector2<T>, s_end: T },
     /// A sine outside the lanes' short range: the stepper takes the sub-step.
     Inexact,
 }
@@ -350,6 +355,18 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// The same by kind.
     pub fn counts(&self) -> StepCounts {
         self.state.counts
+    }
+
+    /// What [`Simulator::sin_at`] takes besides `dt`: `Ω`, and `sin Ωt`, `cos Ωt` at the
+    /// current step's start (for the contact lanes).
+    #[inline(always)]
+    pub(crate) fn step_phase(&self) -> (T, T, T) {
+        let k = self.state.k as usize;
+        (
+            self.plan.omega,
+            self.phases.sin_half(2 * k),
+            self.phases.cos_start(k),
+        )
     }
 
     /// `sin Ωt` at `dt` seconds (`0 ≤ Ω dt ≤ 2π/N`) after the start of the current step.
@@ -548,19 +565,14 @@ impl<'t, T: Real> Simulator<'t, T> {
             T::zero()
         };
         let (len, last) = self.substep_len(c);
-        let s_mid = self.sin_at(c.offset + len * T::from_f64(0.5));
-        let s_end = if last {
-            c.s_end
-        } else {
-            self.sin_at(c.offset + len)
-        };
         Some(SubPlan {
             len,
             last,
             band,
             s_start,
-            s_mid,
-            s_end,
+            mid_s: c.offset + len * T::from_f64(0.5),
+            end_s: c.offset + len,
+            step_end: c.s_end,
             touching: e.region.touching(),
         })
     }
@@ -590,11 +602,18 @@ impl<'t, T: Real> Simulator<'t, T> {
                 s.carry = carry;
                 s.at_x = end;
             }
-            LaneTrial::Switches { x } => {
+            LaneTrial::Switches { x, s_end } => {
                 let (touching, k1) = self.substep_begin(c.offset);
-                self.substep_switch(c.offset, p.len, p.s_end, touching, k1, x);
+                self.substep_switch(c.offset, p.len, s_end, touching, k1, x);
             }
-            LaneTrial::Inexact => self.substep(c.offset, p.len, p.s_end),
+            LaneTrial::Inexact => {
+                let s_end = if p.last {
+                    p.step_end
+                } else {
+                    self.sin_at(p.end_s)
+                };
+                self.substep(c.offset, p.len, s_end);
+            }
         }
         if p.last {
             self.finish_step(&seg, observe);
