@@ -75,10 +75,19 @@ impl<T: Real> SectionHistory<T> {
         u_scale: T,
         v_scale: T,
     ) -> Option<usize> {
+        // `back` with the slice and the newest index looked up once.
+        let (points, len) = (self.buf.as_slice(), self.len());
+        let recent = self.buf.recent_index()?;
+        let back = |j: usize| {
+            if j >= len {
+                return None;
+            }
+            points.get((recent + HISTORY - j) % HISTORY)
+        };
         smallest_period(
             max_q,
-            |q| Some((cycles + 1) * q).filter(|&need| need <= self.len()),
-            |a, b| match (self.back(a), self.back(b)) {
+            |q| Some((cycles + 1) * q).filter(|&need| need <= len),
+            |a, b| match (back(a), back(b)) {
                 (Some(a), Some(b)) => a.distance(b, u_scale, v_scale) <= tol,
                 _ => false,
             },
