@@ -262,32 +262,26 @@ impl_real!(
 mod tests {
     use super::*;
 
+    /// `x.sin_cos_lane()` is exact there and bit for bit `x.sin_cos()` (compared as widened
+    /// f64 bits: exact, sign of zero included).
+    fn lane_equals_sin_cos<T: Real>(x: T) {
+        let (s, c, exact) = x.sin_cos_lane();
+        let (s0, c0) = x.sin_cos();
+        let bits = |v: T| v.to_f64().to_bits();
+        assert!(exact, "{x:?}");
+        assert_eq!((bits(s), bits(c)), (bits(s0), bits(c0)), "{x:?}");
+    }
+
     #[test]
     fn lane_sin_cos_is_sin_cos_bit_for_bit_on_its_range() {
         // Both tiers and the boundary between them (1/8), up to the range's end (1/2).
         for i in -5000..=5000 {
             let x = f64::from(i) * 1e-4;
-            let (s, c, exact) = Real::sin_cos_lane(x);
-            assert!(exact, "{x}");
-            let (s0, c0) = Real::sin_cos(x);
-            assert_eq!(
-                (s.to_bits(), c.to_bits()),
-                (s0.to_bits(), c0.to_bits()),
-                "{x}"
-            );
-            let xf = x as f32;
-            let (sf, cf, exact) = Real::sin_cos_lane(xf);
-            assert!(exact, "{xf}");
-            let (sf0, cf0) = Real::sin_cos(xf);
-            assert_eq!(
-                (sf.to_bits(), cf.to_bits()),
-                (sf0.to_bits(), cf0.to_bits()),
-                "{xf}"
-            );
+            lane_equals_sin_cos(x);
+            lane_equals_sin_cos(x as f32);
         }
         for x in [0.125f32, -0.125, 0.5, -0.5] {
-            let (s, c, _) = Real::sin_cos_lane(x);
-            assert_eq!((s, c), Real::sin_cos(x), "{x}");
+            lane_equals_sin_cos(x);
         }
         assert!(!Real::sin_cos_lane(0.5001f32).2 && !Real::sin_cos_lane(-0.6f64).2);
     }
