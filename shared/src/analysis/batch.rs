@@ -8,9 +8,9 @@
 //! its Poincaré section; near the surface; an angle the lanes' short sine does not cover), that
 //! run alone takes ordinary steps ([`ProtocolRun::step`]; its ordinary contact sub-steps in the
 //! contact lanes) until it can rejoin the lanes or is done, when the next point takes its lane;
-//! the other lanes wait without losing their place. Results are exactly those of [`super::evaluate_point`] (each run
-//! is the same computation, only the order of instructions between runs changes; tested). No
-//! allocation; an in-order MCU gains nothing from it.
+//! the other lanes wait without losing their place. Results are exactly those of
+//! [`super::evaluate_point`] (each run is the same computation, only the order of instructions
+//! between runs changes; tested). No allocation; an in-order MCU gains nothing from it.
 
 use nalgebra::Vector2;
 
@@ -247,11 +247,8 @@ where
         }
         // Most often the next segment is another ordinary sub-step: straight back into the
         // contact lanes (what `settle` would do first, without its loop).
-        if !O::SAMPLES
-            && self.constants_set[i]
-            && let Some(next) = lane.sim.plain_substep(c)
-            && contact.set(i, &lane.sim, &next, false)
-        {
+        // (A lane in contact holds its run's constants.)
+        if let Some(next) = into_contact::<T, O, K, L>(i, &lane.sim, c, contact, false) {
             *p = next;
             return;
         }
@@ -305,9 +302,8 @@ where
             };
             let mut period_end = false;
             loop {
-                if !O::SAMPLES
-                    && let Some(p) = lane.sim.plain_substep(&c)
-                    && contact.set(i, &lane.sim, &p, !self.constants_set[i])
+                if let Some(p) =
+                    into_contact::<T, O, K, L>(i, &lane.sim, &c, contact, !self.constants_set[i])
                 {
                     self.constants_set[i] = true;
                     self.cursor[i] = (c, p);
@@ -323,6 +319,24 @@ where
             self.end_step(i, period_end);
         }
     }
+}
+
+/// The next segment of the run `sim` in lane `i`, from `c`, set into the contact lanes if it is
+/// an ordinary sub-step they take (observers that ignore per-step samples only), with the
+/// run's constants if `constants`: that sub-step, or `None` (nothing set).
+#[inline(always)]
+fn into_contact<T: Real, O: Observer<T>, K: LaneContact<T>, const L: usize>(
+    i: usize,
+    sim: &Simulator<'_, T>,
+    c: &Cursor<T>,
+    contact: &mut ContactLanes<T, K, L>,
+    constants: bool,
+) -> Option<SubPlan<T>> {
+    if O::SAMPLES {
+        return None;
+    }
+    let p = sim.plain_substep(c)?;
+    contact.set(i, sim, &p, constants).then_some(p)
 }
 
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),

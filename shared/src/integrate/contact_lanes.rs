@@ -135,12 +135,12 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     len: [T; L],
     s_start: [T; L],
     // `sin Ωt` at the sub-step's midpoint and end from `Ω`, the step's start phase
-    // (`sin`, `cos`) and the offsets into the step (s), or the step's end phase if `last`.
+    // (`sin`, `cos`) and the sub-step's offset into the step (s), or the step's end phase if
+    // `last`.
     omega: [T; L],
     sin0: [T; L],
     cos0: [T; L],
-    mid_s: [T; L],
-    end_s: [T; L],
+    offset: [T; L],
     step_end: [T; L],
     last: [u32; L],
     // Out: `sin Ωt` at the sub-step's end.
@@ -178,8 +178,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             omega: z,
             sin0: z,
             cos0: z,
-            mid_s: z,
-            end_s: z,
+            offset: z,
             step_end: z,
             last: [0; L],
             s_end: z,
@@ -238,8 +237,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         self.len[i] = p.len;
         self.s_start[i] = p.s_start;
         (self.omega[i], self.sin0[i], self.cos0[i]) = sim.step_phase();
-        self.mid_s[i] = p.mid_s;
-        self.end_s[i] = p.end_s;
+        self.offset[i] = p.offset;
         self.step_end[i] = p.step_end;
         self.last[i] = u32::from(p.last);
         self.band[i] = u32::from(p.band);
@@ -331,8 +329,9 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
                 let (s, c, exact) = (self.omega[i] * dt).sin_cos_lane();
                 (self.sin0[i] * c + self.cos0[i] * s, exact)
             };
-            let (s_mid, mid_exact) = phase(self.mid_s[i]);
-            let (s_end_at, end_exact) = phase(self.end_s[i]);
+            let (offset, len) = (self.offset[i], self.len[i]);
+            let (s_mid, mid_exact) = phase(offset + len * T::from_f64(0.5));
+            let (s_end_at, end_exact) = phase(offset + len);
             let last = self.last[i] != 0;
             let s_end = if last { self.step_end[i] } else { s_end_at };
             self.s_end[i] = s_end;

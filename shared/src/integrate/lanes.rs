@@ -5,9 +5,9 @@
 //! every simulator of a grid. `Lockstep` holds the free-flight states of up to `L` simulators,
 //! one array per field, and steps them together, so the compiler packs the lanes into SIMD
 //! registers, without the per-step bookkeeping in between. Each lane runs the stepper's own
-//! kernel (`integrate::free`) and stops after the period's last step (the Poincaré section, which
-//! the caller takes), before any step that the stepper would split near the surface, and (wires) before an angle
-//! outside the short sine polynomial's range `|θ| ≤ 1/8`. `Lockstep::run` returns as soon as
+//! kernel (`integrate::free`) and stops after the period's last step (the Poincaré section,
+//! which the caller takes), before any step that the stepper would split near the surface, and
+//! (wires) before an angle outside the short sine polynomial's range `|θ| ≤ 1/8`. `Lockstep::run` returns as soon as
 //! one lane stops; the caller takes that simulator's next steps with [`Simulator::step`] and
 //! loads it (or another simulator) into the lane again, so the other lanes never wait.
 
@@ -104,8 +104,8 @@ impl<T: Real, const L: usize> States<T, L> {
 ///
 /// A simulator is loaded into a lane ([`Lockstep::load`]) when it is clear of the surface;
 /// [`Lockstep::run`] steps every loaded lane until one of them stops (at the latest at its
-/// period's end); [`Lockstep::unload`] hands its steps back to the simulator, which ends exactly where
-/// the same number of [`Simulator::step`] calls would have left it.
+/// period's end); [`Lockstep::unload`] hands its steps back to the simulator, which ends
+/// exactly where the same number of [`Simulator::step`] calls would have left it.
 ///
 /// With the `std` feature on x86-64 (the host), the kernel runs as AVX2 code when the CPU has
 /// it (chosen at run time: 8 `f32` lanes per register instead of 4): the same operations in the
@@ -213,8 +213,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     }
 
     /// Steps every running lane in lockstep until at least one of them stops (after its
-    /// period's last step, or before a step that the stepper would split or that `|θ| > 1/8` makes
-    /// inexact). Returns the stopped lanes (`true`), which must be [`Lockstep::unload`]ed before
+    /// period's last step, or before a step that the stepper would split or that `|θ| > 1/8`
+    /// makes inexact). Returns the stopped lanes (`true`), which must be [`Lockstep::unload`]ed before
     /// they are loaded again. Nothing happens if no lane runs.
     pub(crate) fn run(&mut self) -> [bool; L] {
         self.run_at_most(u64::MAX)
@@ -302,8 +302,9 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             state.select(&go, &next);
             let mut any_stop = 0u32;
             for i in 0..L {
+                // A lane whose step ended its period has stopped; its `k` of `N` is read
+                // clamped until it is loaded again (and the simulator wraps its own).
                 k[i] += go[i];
-                k[i] *= u32::from(k[i] != n);
                 taken[i] += go[i];
                 rem[i] = (rem[i] - go[i]) * (stop[i] ^ 1);
                 any_stop |= stop[i];
@@ -333,8 +334,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 /// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further ones
 /// are left alone) in lockstep until the first of them stops (`Lockstep`). A simulator takes
 /// part if it has the first one's `N`, suspension and band `η_δ`, and is clear of the surface
-/// (it stops at its period's end at the latest). Returns the steps each took (0 for those that did not take
-/// part); each simulator ends exactly where the same number of [`Simulator::step`] calls would
+/// (it stops at its period's end at the latest). Returns the steps each took (0 for those that
+/// did not take part); each simulator ends exactly where the same number of [`Simulator::step`] calls would
 /// have left it. (The grid analyses keep their lanes loaded across stops:
 /// `crate::analysis::batch`; this one-shot form serves benchmarks and tests.)
 pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
@@ -401,8 +402,8 @@ mod tests {
             .map(|(i, sim)| lanes.unload(i, sim))
             .collect();
         // Every lane ran until the first stopped: at the latest the last lane (21 steps in),
-        // 64 − 21 = 43 steps later (its period's last step included); a lane that stopped before a
-        // step did not take it.
+        // 64 − 21 = 43 steps later (its period's last step included); a lane that stopped
+        // before a step did not take it.
         let (rounds, lane_steps) = lanes.stats();
         assert!((10..=43).contains(&rounds), "{rig:?}: {rounds} rounds");
         assert!(

@@ -161,11 +161,10 @@ pub(crate) struct SubPlan<T> {
     pub(crate) band: bool,
     /// `sin Ωt` at its start (if `band`).
     pub(crate) s_start: T,
-    /// Its midpoint and end, s into the current step (the contact lanes take `sin Ωt` there,
-    /// [`Simulator::sin_at`]'s operations), and `sin Ωt` at the step's end (the sub-step's end
-    /// if `last`).
-    pub(crate) mid_s: T,
-    pub(crate) end_s: T,
+    /// Where it starts, s into the current step (the contact lanes take `sin Ωt` at its
+    /// midpoint and end with [`Simulator::sin_at`]'s operations).
+    pub(crate) offset: T,
+    /// `sin Ωt` at the step's end (the sub-step's end if `last`).
     pub(crate) step_end: T,
     /// Whether it starts touching (then in the contact mode `f+`, else free flight `f−`).
     pub(crate) touching: bool,
@@ -570,8 +569,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             last,
             band,
             s_start,
-            mid_s: c.offset + len * T::from_f64(0.5),
-            end_s: c.offset + len,
+            offset: c.offset,
             step_end: c.s_end,
             touching: e.region.touching(),
         })
@@ -610,7 +608,7 @@ impl<'t, T: Real> Simulator<'t, T> {
                 let s_end = if p.last {
                     p.step_end
                 } else {
-                    self.sin_at(p.end_s)
+                    self.sin_at(c.offset + p.len)
                 };
                 self.substep(c.offset, p.len, s_end);
             }
@@ -755,11 +753,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         let s_mid = self.sin_at(offset + len * T::from_f64(0.5));
         let (touching, k1) = self.substep_begin(offset);
         let v_in = self.state.approach_speed;
-        let mode = if touching {
-            FieldMode::Contact
-        } else {
-            FieldMode::Free
-        };
+        let mode = FieldMode::of_start(touching);
         let (trial, carry) = rk4_step_compensated(
             &self.state.x,
             &self.state.carry,
@@ -790,11 +784,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         if !touching && start.delta <= T::zero() {
             self.state.approach_speed = start.delta_dot.max_of(min_approach());
         }
-        let mode = if touching {
-            FieldMode::Contact
-        } else {
-            FieldMode::Free
-        };
+        let mode = FieldMode::of_start(touching);
         // Outside the bands the switch-model field at the start is the mode's field: reuse it.
         let k1 = match start.region {
             Region::Free | Region::Contact => start,
@@ -827,11 +817,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         let half = T::from_f64(0.5);
         let start = self.state.at_x;
         let v_in = self.state.approach_speed;
-        let mode = if touching {
-            FieldMode::Contact
-        } else {
-            FieldMode::Free
-        };
+        let mode = FieldMode::of_start(touching);
         let end_mode = hammer.field_in(mode, &trial, s_end, v_in);
         let law = hammer.switch().law;
         let arrival_by_distance = start.delta <= T::zero();

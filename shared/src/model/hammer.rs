@@ -69,6 +69,19 @@ pub enum FieldMode {
     Contact,
 }
 
+impl FieldMode {
+    /// The mode a sub-step is first taken in: contact `f+` if it starts touching, else free
+    /// flight `f−`.
+    #[inline(always)]
+    pub fn of_start(touching: bool) -> Self {
+        if touching {
+            FieldMode::Contact
+        } else {
+            FieldMode::Free
+        }
+    }
+}
+
 /// The base excitation entering the field.
 #[derive(Debug, Clone, Copy)]
 enum Drive<T> {

@@ -57,12 +57,7 @@ impl<T: Real> SectionHistory<T> {
 
     /// The `j`-th most recent point (`j = 0` is the newest).
     pub fn back(&self, j: usize) -> Option<&StroboPoint<T>> {
-        if j >= self.buf.len() {
-            return None;
-        }
-        let recent = self.buf.recent_index()?;
-        let idx = (recent + HISTORY - j) % HISTORY;
-        self.buf.as_slice().get(idx)
+        nth_back(self.buf.as_slice(), self.buf.recent_index()?, j)
     }
 
     /// The smallest period `q ≤ max_q` with which the last `cycles` cycles of `q` repeat the
@@ -76,23 +71,26 @@ impl<T: Real> SectionHistory<T> {
         v_scale: T,
     ) -> Option<usize> {
         // `back` with the slice and the newest index looked up once.
-        let (points, len) = (self.buf.as_slice(), self.len());
-        let recent = self.buf.recent_index()?;
-        let back = |j: usize| {
-            if j >= len {
-                return None;
-            }
-            points.get((recent + HISTORY - j) % HISTORY)
-        };
+        let (points, recent) = (self.buf.as_slice(), self.buf.recent_index()?);
         smallest_period(
             max_q,
-            |q| Some((cycles + 1) * q).filter(|&need| need <= len),
-            |a, b| match (back(a), back(b)) {
+            |q| Some((cycles + 1) * q).filter(|&need| need <= points.len()),
+            |a, b| match (nth_back(points, recent, a), nth_back(points, recent, b)) {
                 (Some(a), Some(b)) => a.distance(b, u_scale, v_scale) <= tol,
                 _ => false,
             },
         )
     }
+}
+
+/// The point `j` sections back from the newest in a history buffer's storage `points` (the
+/// filled part, the newest at `recent`); `None` beyond the oldest.
+#[inline(always)]
+fn nth_back<P>(points: &[P], recent: usize, j: usize) -> Option<&P> {
+    if j >= points.len() {
+        return None;
+    }
+    points.get((recent + HISTORY - j) % HISTORY)
 }
 
 #[cfg(test)]
