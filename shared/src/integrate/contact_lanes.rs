@@ -149,7 +149,14 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     touching: [u32; L],
     // The result: end state, carry, switch-model field there, and what it is (`STAYS`,
     // `SWITCHES`, or 0: a sine outside the short range).
-    out: [[T; 9]; L],
+    out_x0: [T; L],
+    out_x1: [T; L],
+    out_carry0: [T; L],
+    out_carry1: [T; L],
+    out_acc: [T; L],
+    out_d: [T; L],
+    out_dd: [T; L],
+    out_force: [T; L],
     region: [u32; L],
     ok: [u32; L],
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
@@ -184,7 +191,14 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             s_end: z,
             band: [0; L],
             touching: [0; L],
-            out: [[T::zero(); 9]; L],
+            out_x0: z,
+            out_x1: z,
+            out_carry0: z,
+            out_carry1: z,
+            out_acc: z,
+            out_d: z,
+            out_dd: z,
+            out_force: z,
             region: [0; L],
             ok: [0; L],
             #[cfg(all(feature = "std", target_arch = "x86_64"))]
@@ -248,7 +262,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
     /// Lane `i`'s trial after [`ContactLanes::run`], for [`Simulator::commit_substep`].
     #[inline]
     pub(crate) fn result(&self, i: usize) -> LaneTrial<T> {
-        let [x0, x1, carry0, carry1, acc, d, dd, force, _] = self.out[i];
+        let (x0, x1) = (self.out_x0[i], self.out_x1[i]);
         match self.ok[i] {
             STAYS => {
                 let region = match self.region[i] {
@@ -259,13 +273,13 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
                 };
                 LaneTrial::Stays {
                     x: Vector2::new(x0, x1),
-                    carry: Vector2::new(carry0, carry1),
+                    carry: Vector2::new(self.out_carry0[i], self.out_carry1[i]),
                     end: FieldEval {
-                        dx: Vector2::new(x1, acc),
-                        force,
+                        dx: Vector2::new(x1, self.out_acc[i]),
+                        force: self.out_force[i],
                         region,
-                        delta: d,
-                        delta_dot: dd,
+                        delta: self.out_d[i],
+                        delta_dot: self.out_dd[i],
                     },
                 }
             }
@@ -319,6 +333,9 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         let mut tc0 = [zero; L];
         let mut tc1 = [zero; L];
         let mut exact = [true; L];
+        let (mut o_acc, mut o_d, mut o_dd, mut o_force) =
+            ([zero; L], [zero; L], [zero; L], [zero; L]);
+        let (mut o_region, mut o_ok) = ([0u32; L], [0u32; L]);
         for i in 0..L {
             let (kk, cc) = (self.k[i], self.c[i]);
             let touching = self.touching[i] != 0;
@@ -405,11 +422,15 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
                 },
             );
             let end_touching = u32::from(region == CONTACT) | u32::from(region == BAND_ALPHA);
-            self.out[i] = [tx0[i], tx1[i], tc0[i], tc1[i], acc, d, dd, force, zero];
-            self.region[i] = region;
+            (o_acc[i], o_d[i], o_dd[i], o_force[i]) = (acc, d, dd, force);
+            o_region[i] = region;
             // STAYS (1), SWITCHES (2) or INEXACT (0), without a branch.
             let exact = u32::from(exact[i] & ok);
-            self.ok[i] = exact << u32::from(end_touching != self.touching[i]);
+            o_ok[i] = exact << u32::from(end_touching != self.touching[i]);
         }
+        // Whole arrays out (one store each, where a lane at a time would take them apart).
+        (self.out_x0, self.out_x1, self.out_carry0, self.out_carry1) = (tx0, tx1, tc0, tc1);
+        (self.out_acc, self.out_d, self.out_dd, self.out_force) = (o_acc, o_d, o_dd, o_force);
+        (self.region, self.ok) = (o_region, o_ok);
     }
 }
