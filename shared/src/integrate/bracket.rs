@@ -16,6 +16,9 @@ pub(crate) enum Rule<T> {
         tol: T,
         /// Evaluations of `g` at most (besides its ends).
         max_evals: u32,
+        /// `(g(lo), g(hi))` where the caller has them (bit for bit what `g` gives there), else
+        /// `None`: `g` is evaluated at the ends.
+        ends: Option<(T, T)>,
     },
 }
 
@@ -27,7 +30,11 @@ pub(crate) enum Rule<T> {
 pub(crate) fn bracket_rising<T: Real, G: Fn(T) -> T>(lo: T, hi: T, rule: Rule<T>, g: G) -> (T, T) {
     match rule {
         Rule::Bisect(halvings) => bisect(lo, hi, halvings, g),
-        Rule::Illinois { tol, max_evals } => illinois(lo, hi, tol, max_evals, g),
+        Rule::Illinois {
+            tol,
+            max_evals,
+            ends,
+        } => illinois(lo, hi, tol, max_evals, ends, g),
     }
 }
 
@@ -48,9 +55,19 @@ fn bisect<T: Real, G: Fn(T) -> T>(mut lo: T, mut hi: T, halvings: u32, g: G) -> 
 
 /// [`Rule::Illinois`].
 #[inline]
-fn illinois<T: Real, G: Fn(T) -> T>(mut lo: T, mut hi: T, tol: T, max_evals: u32, g: G) -> (T, T) {
+fn illinois<T: Real, G: Fn(T) -> T>(
+    mut lo: T,
+    mut hi: T,
+    tol: T,
+    max_evals: u32,
+    ends: Option<(T, T)>,
+    g: G,
+) -> (T, T) {
     let half = T::from_f64(0.5);
-    let (mut g_lo, mut g_hi) = (g(lo), g(hi));
+    let (mut g_lo, mut g_hi) = match ends {
+        Some(ends) => ends,
+        None => (g(lo), g(hi)),
+    };
     if !(g_lo <= T::zero() && g_hi > T::zero()) {
         let end = if g_lo > T::zero() { lo } else { hi };
         return (end, end);
@@ -102,14 +119,23 @@ mod tests {
             Rule::Illinois {
                 tol: 1e-9,
                 max_evals: 40,
+                ends: None,
             },
             g,
         );
         assert!(lo <= root && root <= hi && hi - lo <= 1e-9, "{lo} {hi}");
+        // The ends given by the caller: the same bracket, bit for bit.
+        let given = Rule::Illinois {
+            tol: 1e-9,
+            max_evals: 40,
+            ends: Some((g(0.0), g(1.0))),
+        };
+        assert_eq!(bracket_rising(0.0, 1.0, given, g), (lo, hi));
         // No sign change: an end.
         let ill = Rule::Illinois {
             tol: 1e-9,
             max_evals: 40,
+            ends: None,
         };
         assert_eq!(bracket_rising(0.0, 1.0, ill, |x: f64| x + 1.0), (0.0, 0.0));
         assert_eq!(bracket_rising(0.0, 1.0, ill, |x: f64| x - 2.0), (1.0, 1.0));

@@ -42,10 +42,14 @@ pub(crate) const EVENT_TOL: f64 = 1.0 / 16384.0;
 
 /// The upper end of a bracket in `[0, 1]` (below `tol` wide, or after 40 evaluations) of a
 /// rising zero of `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval):
-/// [`Rule::Illinois`].
+/// [`Rule::Illinois`], given `ends` = `(g(0), g(1))` bit for bit.
 #[inline]
-pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(tol: T, g: G) -> T {
-    let rule = Rule::Illinois { tol, max_evals: 40 };
+pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(tol: T, ends: (T, T), g: G) -> T {
+    let rule = Rule::Illinois {
+        tol,
+        max_evals: 40,
+        ends: Some(ends),
+    };
     bracket_rising(T::zero(), T::from_f64(1.0), rule, g).1
 }
 

@@ -821,8 +821,8 @@ impl<'t, T: Real> Simulator<'t, T> {
         let end_mode = hammer.field_in(mode, &trial, s_end, v_in);
         let law = hammer.switch().law;
         let arrival_by_distance = start.delta <= T::zero();
-        let event = |y: &Vector2<T>| {
-            let (d, dd) = hammer.penetration(y);
+        // The event function of the penetration and its rate.
+        let event = |d: T, dd: T| {
             if touching {
                 -law.unswitched_force(d, dd, v_in)
             } else if arrival_by_distance {
@@ -838,7 +838,17 @@ impl<'t, T: Real> Simulator<'t, T> {
             f1: end_mode.dx,
             h: len,
         };
-        let frac = root_in_unit(self.plan.event_tol, |f| event(&dense.at(f)));
+        // At its ends the dense output is the start and the trial (its weights there are
+        // exactly 1 and 0), whose penetrations the field evaluations hold (`Hammer::penetration`
+        // is the field's own): the event function there without evaluating it again.
+        let ends = (
+            event(start.delta, start.delta_dot),
+            event(end_mode.delta, end_mode.delta_dot),
+        );
+        let frac = root_in_unit(self.plan.event_tol, ends, |f| {
+            let (d, dd) = hammer.penetration(&dense.at(f));
+            event(d, dd)
+        });
         let tau = frac * len;
         // The state at the event from the trial's dense output (cubic Hermite: error
         // `h_c^4/384 · |d⁴x/dt⁴|`, as small as a fresh RK4 step's to `τ`, which it replaces).
