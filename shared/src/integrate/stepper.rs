@@ -853,13 +853,13 @@ impl<'t, T: Real> Simulator<'t, T> {
         // The state at the event from the trial's dense output (cubic Hermite: error
         // `h_c^4/384 · |d⁴x/dt⁴|`, as small as a fresh RK4 step's to `τ`, which it replaces).
         let x_a = dense.at(frac);
+        let kin_a = hammer.kinematics(&x_a);
         if !touching {
-            let (_, v_a) = hammer.penetration(&x_a);
-            self.state.approach_speed = v_a.max_of(min_approach());
+            self.state.approach_speed = kin_a.1.max_of(min_approach());
         }
         let v_in = self.state.approach_speed;
         let rest = len - tau;
-        let at_a = hammer.field(&x_a, self.sin_at(offset + tau), v_in);
+        let at_a = hammer.field_with(&x_a, kin_a, self.sin_at(offset + tau), v_in);
         let s_rest = self.sin_at(offset + tau + rest * half);
         let s = &mut self.state;
         (s.x, s.carry) = rk4_step_compensated(

@@ -442,6 +442,24 @@ impl<T: Real> Hammer<T> {
         )
     }
 
+    /// [`Hammer::field`] at `x` given `kin` = `self.kinematics(x)` (where the caller has them).
+    #[inline(always)]
+    pub(crate) fn field_with(
+        &self,
+        x: &Vector2<T>,
+        kin: (T, T, T, T),
+        sin_phase: T,
+        approach_speed: T,
+    ) -> FieldEval<T> {
+        self.eval_with(
+            FieldMode::Switch,
+            x,
+            kin,
+            Drive::Harmonic(sin_phase),
+            approach_speed,
+        )
+    }
+
     #[inline(always)]
     fn eval(
         &self,
@@ -450,7 +468,18 @@ impl<T: Real> Hammer<T> {
         drive: Drive<T>,
         approach_speed: T,
     ) -> FieldEval<T> {
-        let (delta, delta_dot, st, ct) = self.kinematics(x);
+        self.eval_with(mode, x, self.kinematics(x), drive, approach_speed)
+    }
+
+    #[inline(always)]
+    fn eval_with(
+        &self,
+        mode: FieldMode,
+        x: &Vector2<T>,
+        (delta, delta_dot, st, ct): (T, T, T, T),
+        drive: Drive<T>,
+        approach_speed: T,
+    ) -> FieldEval<T> {
         let (force, region) = match mode {
             FieldMode::Switch => self.switch.force(delta, delta_dot, approach_speed),
             FieldMode::Free => (T::zero(), Region::Free),
@@ -518,9 +547,10 @@ impl<T: Real> Hammer<T> {
         }
     }
 
-    /// `(δ, δ̇, sin θ, cos θ)` of state `x` (beams: `sin θ`, `cos θ` unused, returned as 0, 1).
+    /// `(δ, δ̇, sin θ, cos θ)` of state `x` (beams: `sin θ`, `cos θ` unused, returned as 0, 1);
+    /// `(δ, δ̇)` is [`Hammer::penetration`], bit for bit.
     #[inline(always)]
-    fn kinematics(&self, x: &Vector2<T>) -> (T, T, T, T) {
+    pub(crate) fn kinematics(&self, x: &Vector2<T>) -> (T, T, T, T) {
         match self.body {
             Body::Wires { length, .. } => {
                 let (st, ct) = x[0].sin_cos();
