@@ -16,9 +16,8 @@ pub(crate) enum Rule<T> {
         tol: T,
         /// Evaluations of `g` at most (besides its ends).
         max_evals: u32,
-        /// `(g(lo), g(hi))` where the caller has them (bit for bit what `g` gives there), else
-        /// `None`: `g` is evaluated at the ends.
-        ends: Option<(T, T)>,
+        /// `(g(lo), g(hi))`, bit for bit what `g` gives there (the caller has them).
+        ends: (T, T),
     },
 }
 
@@ -60,14 +59,10 @@ fn illinois<T: Real, G: Fn(T) -> T>(
     mut hi: T,
     tol: T,
     max_evals: u32,
-    ends: Option<(T, T)>,
+    (mut g_lo, mut g_hi): (T, T),
     g: G,
 ) -> (T, T) {
     let half = T::from_f64(0.5);
-    let (mut g_lo, mut g_hi) = match ends {
-        Some(ends) => ends,
-        None => (g(lo), g(hi)),
-    };
     if !(g_lo <= T::zero() && g_hi > T::zero()) {
         let end = if g_lo > T::zero() { lo } else { hi };
         return (end, end);
@@ -119,25 +114,25 @@ mod tests {
             Rule::Illinois {
                 tol: 1e-9,
                 max_evals: 40,
-                ends: None,
+                ends: (g(0.0), g(1.0)),
             },
             g,
         );
         assert!(lo <= root && root <= hi && hi - lo <= 1e-9, "{lo} {hi}");
-        // The ends given by the caller: the same bracket, bit for bit.
-        let given = Rule::Illinois {
-            tol: 1e-9,
-            max_evals: 40,
-            ends: Some((g(0.0), g(1.0))),
-        };
-        assert_eq!(bracket_rising(0.0, 1.0, given, g), (lo, hi));
         // No sign change: an end.
-        let ill = Rule::Illinois {
+        let ill = |ends| Rule::Illinois {
             tol: 1e-9,
             max_evals: 40,
-            ends: None,
+            ends,
         };
-        assert_eq!(bracket_rising(0.0, 1.0, ill, |x: f64| x + 1.0), (0.0, 0.0));
-        assert_eq!(bracket_rising(0.0, 1.0, ill, |x: f64| x - 2.0), (1.0, 1.0));
+        let (above, below) = (|x: f64| x + 1.0, |x: f64| x - 2.0);
+        assert_eq!(
+            bracket_rising(0.0, 1.0, ill((above(0.0), above(1.0))), above),
+            (0.0, 0.0)
+        );
+        assert_eq!(
+            bracket_rising(0.0, 1.0, ill((below(0.0), below(1.0))), below),
+            (1.0, 1.0)
+        );
     }
 }

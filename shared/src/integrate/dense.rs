@@ -48,7 +48,7 @@ pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(tol: T, ends: (T, T), g: G) -
     let rule = Rule::Illinois {
         tol,
         max_evals: 40,
-        ends: Some(ends),
+        ends,
     };
     bracket_rising(T::zero(), T::from_f64(1.0), rule, g).1
 }

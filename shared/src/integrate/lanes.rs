@@ -7,9 +7,10 @@
 //! registers, without the per-step bookkeeping in between. Each lane runs the stepper's own
 //! kernel (`integrate::free`) and stops after the period's last step (the Poincaré section,
 //! which the caller takes), before any step that the stepper would split near the surface, and
-//! (wires) before an angle outside the short sine polynomial's range `|θ| ≤ 1/8`. `Lockstep::run` returns as soon as
-//! one lane stops; the caller takes that simulator's next steps with [`Simulator::step`] and
-//! loads it (or another simulator) into the lane again, so the other lanes never wait.
+//! (wires) before an angle outside the short sine polynomial's range `|θ| ≤ 1/8`.
+//! `Lockstep::run` returns as soon as one lane stops; the caller takes that simulator's next
+//! steps with [`Simulator::step`] and loads it (or another simulator) into the lane again, so
+//! the other lanes never wait.
 
 use super::Simulator;
 use super::free::{FreeField, FreeState, SmallTrig, free_step};
@@ -214,8 +215,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 
     /// Steps every running lane in lockstep until at least one of them stops (after its
     /// period's last step, or before a step that the stepper would split or that `|θ| > 1/8`
-    /// makes inexact). Returns the stopped lanes (`true`), which must be [`Lockstep::unload`]ed before
-    /// they are loaded again. Nothing happens if no lane runs.
+    /// makes inexact). Returns the stopped lanes (`true`), which must be
+    /// [`Lockstep::unload`]ed before they are loaded again. Nothing happens if no lane runs.
     pub(crate) fn run(&mut self) -> [bool; L] {
         self.run_at_most(u64::MAX)
     }
@@ -335,9 +336,9 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 /// are left alone) in lockstep until the first of them stops (`Lockstep`). A simulator takes
 /// part if it has the first one's `N`, suspension and band `η_δ`, and is clear of the surface
 /// (it stops at its period's end at the latest). Returns the steps each took (0 for those that
-/// did not take part); each simulator ends exactly where the same number of [`Simulator::step`] calls would
-/// have left it. (The grid analyses keep their lanes loaded across stops:
-/// `crate::analysis::batch`; this one-shot form serves benchmarks and tests.)
+/// did not take part); each simulator ends exactly where the same number of
+/// [`Simulator::step`] calls would have left it. (The grid analyses keep their lanes loaded
+/// across stops: `crate::analysis::batch`; this one-shot form serves benchmarks and tests.)
 pub fn free_flight<T: Real, const L: usize>(sims: &mut [&mut Simulator<'_, T>]) -> [u32; L] {
     fn go<'t, T: Real, F: LaneField<T>, const L: usize>(
         sims: &mut [&mut Simulator<'t, T>],

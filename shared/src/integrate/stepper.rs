@@ -845,10 +845,15 @@ impl<'t, T: Real> Simulator<'t, T> {
             event(start.delta, start.delta_dot),
             event(end_mode.delta, end_mode.delta_dot),
         );
-        let frac = root_in_unit(self.plan.event_tol, ends, |f| {
+        let event_at = |f: T| {
             let (d, dd) = hammer.penetration(&dense.at(f));
             event(d, dd)
-        });
+        };
+        debug_assert!(
+            ends.0 == event_at(T::zero()) && ends.1 == event_at(T::from_f64(1.0)),
+            "the event function at the sub-step's ends: {ends:?}"
+        );
+        let frac = root_in_unit(self.plan.event_tol, ends, event_at);
         let tau = frac * len;
         // The state at the event from the trial's dense output (cubic Hermite: error
         // `h_c^4/384 · |d⁴x/dt⁴|`, as small as a fresh RK4 step's to `τ`, which it replaces).

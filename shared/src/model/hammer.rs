@@ -547,36 +547,38 @@ impl<T: Real> Hammer<T> {
         }
     }
 
-    /// `(δ, δ̇, sin θ, cos θ)` of state `x` (beams: `sin θ`, `cos θ` unused, returned as 0, 1);
-    /// `(δ, δ̇)` is [`Hammer::penetration`], bit for bit.
+    /// `(δ, δ̇, sin θ, cos θ)` of state `x` (beams: `sin θ`, `cos θ` unused, returned as 0, 1):
+    /// [`Hammer::penetration`] with the angle's sine and cosine.
     #[inline(always)]
     pub(crate) fn kinematics(&self, x: &Vector2<T>) -> (T, T, T, T) {
+        let (u, du, st, ct) = self.relative_trig(x);
+        (u - self.gap, du, st, ct)
+    }
+
+    /// `(u, u̇, sin θ, cos θ)` of state `x` (beams: 0, 1 for the unused sine and cosine).
+    #[inline(always)]
+    fn relative_trig(&self, x: &Vector2<T>) -> (T, T, T, T) {
         match self.body {
             Body::Wires { length, .. } => {
                 let (st, ct) = x[0].sin_cos();
-                (length * st - self.gap, length * x[1] * ct, st, ct)
+                (length * st, length * x[1] * ct, st, ct)
             }
-            Body::Beam { .. } => (x[0] - self.gap, x[1], T::zero(), T::from_f64(1.0)),
+            Body::Beam { .. } => (x[0], x[1], T::zero(), T::from_f64(1.0)),
         }
     }
 
     /// Relative displacement and velocity `(u, u̇)` (m, m/s) of state `x`.
     #[inline(always)]
     pub fn relative(&self, x: &Vector2<T>) -> (T, T) {
-        match self.body {
-            Body::Wires { length, .. } => {
-                let (st, ct) = x[0].sin_cos();
-                (length * st, length * x[1] * ct)
-            }
-            Body::Beam { .. } => (x[0], x[1]),
-        }
+        let (u, du, _, _) = self.relative_trig(x);
+        (u, du)
     }
 
     /// Penetration `δ = u − gap` and its rate `δ̇ = u̇` of state `x`, m and m/s.
     #[inline(always)]
     pub fn penetration(&self, x: &Vector2<T>) -> (T, T) {
-        let (u, du) = self.relative(x);
-        (u - self.gap, du)
+        let (d, dd, _, _) = self.kinematics(x);
+        (d, dd)
     }
 
     /// The state with relative displacement `u_m` (m) and velocity `du_m_s` (m/s).
