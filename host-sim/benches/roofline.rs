@@ -2,14 +2,16 @@
 //! free-flight kernel runs alone, how fast the grid runs, and where the difference goes. One
 //! core, f32, the wire rig (not a criterion bench: each workload is long enough to time).
 //!
-//! 1. **Kernel**: whole free-flight steps `h = T/N` of `DEFAULT_LANES` simulators in lockstep
-//!    (`shared::integrate::lanes::free_flight`), every lane busy: wire rig, gap 18 mm (never
-//!    reached), Ω/ω 2.0–3.4, all lanes at the same phase, timed inside the kernel calls only.
-//!    Lane-steps per second per core.
+//! 1. **Kernel**: whole free-flight steps `h = T/N` of as many simulators in lockstep as the
+//!    grid interleaves on this CPU (`shared::analysis::lanes_per_core`: 16 with AVX-512, else 8;
+//!    `shared::integrate::lanes::free_flight`), every lane busy: wire rig, gap 18 mm (never
+//!    reached), Ω/ω from 2.0 in steps of 0.2, all lanes at the same phase, timed inside the
+//!    kernel calls only. Lane-steps per second per core.
 //! 2. **Grid**: every 49th gap of the thesis grid (gap 0.00–2.94 mm × 1.00–7.11 Hz: 4,284
 //!    points, the grid of the instruction count in docs/performance.md) through the same
-//!    batched, interleaved evaluation as `host-sim peterka` (`shared::analysis::run_interleaved`
-//!    in batches of `host_sim::grid::BATCH`), on one core. RK4 steps per second per core, by
+//!    batched, interleaved evaluation as `host-sim peterka`
+//!    (`shared::analysis::run_interleaved_native` in batches of `host_sim::runner::BATCH`), on
+//!    one core. RK4 steps per second per core, by
 //!    kind ([`shared::integrate::StepCounts`]), and the lanes' occupancy.
 //! 3. **Efficiency** = grid RK4 steps/s ÷ kernel lane-steps/s, and the grid's time split into
 //!    the kernel's rounds (busy and idle lanes, at the kernel's measured speed per round) and
@@ -18,11 +20,15 @@
 //!
 //! `cargo bench -p host-sim --bench roofline` (about 10 s after its build). The instruction
 //! counts of the same workloads: `-- --kernel-only` or `-- --grid-only` under
-//! `valgrind --tool=cachegrind` (docs/performance.md).
+//! `valgrind --tool=cachegrind` (docs/performance.md; valgrind hides AVX-512, so what it counts
+//! is the 8-lane AVX2 code).
 
 use std::time::Instant;
 
-use shared::analysis::{DEFAULT_LANES, LaneStats, SimSettings, run_interleaved, simulator_at};
+use shared::analysis::{
+    DEFAULT_LANES, LaneStats, SimSettings, WIDE_LANES, lanes_per_core, run_interleaved_native,
+    simulator_at,
+};
 use shared::integrate::lanes::free_flight;
 use shared::integrate::{PhaseTable, Simulator, StepCounts};
 use shared::model::RigId;
@@ -32,11 +38,11 @@ use host_sim::runner::BATCH;
 
 /// Whole free-flight lane-steps per second per core, and seconds per lockstep round, with every
 /// lane busy.
-fn kernel(seconds: f64) -> (f64, f64, u64) {
+fn kernel<const L: usize>(seconds: f64) -> (f64, f64, u64) {
     let p = RigId::Wires.preset();
     let s = SimSettings::default();
     let phases = PhaseTable::<f32>::new(s.steps.steps_per_period).expect("valid N");
-    let mut sims: Vec<Simulator<f32>> = (0..DEFAULT_LANES)
+    let mut sims: Vec<Simulator<f32>> = (0..L)
         .map(|i| {
             let ratio = 2.0 + 0.2 * i as f64;
             simulator_at::<f32>(&p, 0.018, ratio, &s, &phases).expect("valid point")
@@ -47,7 +53,7 @@ fn kernel(seconds: f64) -> (f64, f64, u64) {
     while t0.elapsed().as_secs_f64() < seconds {
         let mut refs: Vec<&mut Simulator<f32>> = sims.iter_mut().collect();
         let t = Instant::now();
-        let taken = free_flight::<f32, DEFAULT_LANES>(&mut refs);
+        let taken = free_flight::<f32, L>(&mut refs);
         busy += t.elapsed().as_secs_f64();
         assert!(
             taken.iter().all(|&k| k == taken[0] && k > 0),
@@ -86,7 +92,7 @@ fn grid() -> Grid {
     let mut lanes = LaneStats::default();
     let t = Instant::now();
     for batch in points.chunks(BATCH) {
-        let l = run_interleaved::<f32, (), DEFAULT_LANES, _, _, _>(
+        let l = run_interleaved_native::<f32, (), _, _, _>(
             batch.iter().copied(),
             |(gap_m, ratio)| {
                 let sim = simulator_at::<f32>(&p, gap_m, ratio, &s, &phases)?;
@@ -108,12 +114,21 @@ fn grid() -> Grid {
     }
 }
 
+/// [`kernel`] at the lanes the grid runs on this CPU ([`lanes_per_core`]).
+fn native_kernel(seconds: f64) -> (f64, f64, u64) {
+    if lanes_per_core() == WIDE_LANES {
+        kernel::<WIDE_LANES>(seconds)
+    } else {
+        kernel::<DEFAULT_LANES>(seconds)
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let kernel_only = args.iter().any(|a| a == "--kernel-only");
     let grid_only = args.iter().any(|a| a == "--grid-only");
     if kernel_only {
-        let (_, _, steps) = kernel(0.5);
+        let (_, _, steps) = native_kernel(0.5);
         println!("kernel: {steps} lane-steps");
         return;
     }
@@ -126,9 +141,10 @@ fn main() {
         );
         return;
     }
-    let (rate, per_round, _) = kernel(2.0);
+    let (rate, per_round, _) = native_kernel(2.0);
+    let lanes = lanes_per_core();
     println!(
-        "Kernel (whole free-flight steps, {DEFAULT_LANES} lanes busy, f32, one core): {:.1} M lane-steps/s ({:.2} ns per lane-step, {:.1} ns per round)",
+        "Kernel (whole free-flight steps, {lanes} lanes busy, f32, one core): {:.1} M lane-steps/s ({:.2} ns per lane-step, {:.1} ns per round)",
         rate / 1e6,
         1e9 / rate,
         1e9 * per_round

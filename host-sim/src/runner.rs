@@ -7,7 +7,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Vector2;
 use rayon::prelude::*;
 use shared::Real;
-use shared::analysis::{DEFAULT_LANES, evaluate_interleaved};
+use shared::analysis::evaluate_interleaved_native;
 use shared::error::ParamError;
 use shared::observe::{Observer, PointResult, StroboPoint};
 use shared::orbit::{Label, LabelSettings, MapPoint, label};
@@ -41,7 +41,7 @@ pub fn in_order<R>(
 }
 
 /// Runs the canonical protocol at every point of `points` on the calling thread,
-/// [`DEFAULT_LANES`] interleaved, in `T`, and ends each run with `finish(result, x_end)`
+/// [`shared::analysis::lanes_per_core`] interleaved, in `T`, and ends each run with `finish(result, x_end)`
 /// (`x_end`: the state it ended on); results in order, an error naming its point.
 fn interleaved<T: Real, R>(
     setup: &Setup,
@@ -49,7 +49,7 @@ fn interleaved<T: Real, R>(
     mut finish: impl FnMut(&OperatingPoint, PointResult, Vector2<T>) -> Result<R, ParamError>,
 ) -> Vec<Result<R>> {
     in_order(points.len(), |emit| {
-        evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
+        evaluate_interleaved_native::<T, _, _>(
             &setup.params,
             &setup.settings,
             points.iter().map(|p| (p.gap_m, p.omega_ratio)),
@@ -68,7 +68,7 @@ fn interleaved<T: Real, R>(
 }
 
 /// Runs the canonical protocol at every point of `points` on the calling thread,
-/// [`DEFAULT_LANES`] interleaved, in the setup's precision; results in order, identical to
+/// [`shared::analysis::lanes_per_core`] interleaved, in the setup's precision; results in order, identical to
 /// one-at-a-time [`shared::analysis::evaluate_point`].
 pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
     crate::with_precision!(setup.precision, T => {

@@ -24,7 +24,7 @@ use std::io::Write as _;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use shared::Real;
-use shared::analysis::{DEFAULT_LANES, run_interleaved, simulator_at};
+use shared::analysis::{run_interleaved_native, simulator_at};
 use shared::integrate::PhaseTable;
 use shared::model::{RigParams, Suspension};
 use shared::observe::{
@@ -243,7 +243,7 @@ impl Attractors<'_> {
     }
 
     /// The rows of the initial conditions `ics` (`(index, u0 mm, u̇0 mm/s)`) on the calling
-    /// thread, [`DEFAULT_LANES`] interleaved, in the setup's precision.
+    /// thread, [`shared::analysis::lanes_per_core`] interleaved, in the setup's precision.
     pub fn rows(&self, ics: &[(u64, f64, f64)]) -> Vec<Result<BasinRaw>> {
         crate::with_precision!(self.setup.precision, T => self.points::<T>(ics))
     }
@@ -259,7 +259,7 @@ impl Attractors<'_> {
         let grid_tol = self.catalogue.attractor_tol();
         let damped = suspension_damped(&setup.params);
         in_order(ics.len(), |emit| {
-            run_interleaved::<T, Watch<'_>, DEFAULT_LANES, _, _, _>(
+            run_interleaved_native::<T, Watch<'_>, _, _, _>(
                 ics.iter().copied(),
                 |(index, u0_mm, v0_mm_s)| {
                     let mut sim = simulator_at::<T>(

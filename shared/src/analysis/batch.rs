@@ -18,6 +18,7 @@ use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 
 use crate::integrate::contact_lanes::{ContactLanes, LaneContact};
+use crate::integrate::isa::wide_vectors;
 use crate::integrate::lanes::Lockstep;
 use crate::integrate::stepper::{Cursor, SubPlan};
 use crate::integrate::{PhaseTable, Simulator};
@@ -29,8 +30,23 @@ use crate::real::Real;
 /// Free-flight rounds between two rounds of contact sub-steps while lanes are in contact.
 const FREE_ROUNDS: u64 = 4;
 
-/// Lanes that the host's analysis commands interleave per core.
+/// Lanes interleaved per core where the CPU's vector registers hold 8 `f32` or fewer (AVX2,
+/// or the portable code).
 pub const DEFAULT_LANES: usize = 8;
+
+/// Lanes interleaved per core where they hold 16 (AVX-512: one register per lane array).
+pub const WIDE_LANES: usize = 16;
+
+/// The lanes the host's analysis commands interleave per core on this CPU: [`WIDE_LANES`]
+/// with AVX-512 ([`crate::integrate::isa::wide_vectors`]), else [`DEFAULT_LANES`]. The
+/// results do not depend on it.
+pub fn lanes_per_core() -> usize {
+    if wide_vectors() {
+        WIDE_LANES
+    } else {
+        DEFAULT_LANES
+    }
+}
 
 struct Lane<'t, T: Real, O> {
     index: usize,
@@ -125,6 +141,23 @@ where
         driver.drive::<WiresFree<T>>()
     } else {
         driver.drive::<BeamFree<T>>()
+    }
+}
+
+/// [`run_interleaved`] with [`lanes_per_core`] lanes (the same results, in the same order of
+/// `emit` calls only if the lane count is the same).
+pub fn run_interleaved_native<'t, T, O, I, S, F>(items: I, start: S, emit: F) -> LaneStats
+where
+    T: Real + 't,
+    O: Observer<T>,
+    I: IntoIterator,
+    S: FnMut(I::Item) -> Result<Started<'t, T, O>, ParamError>,
+    F: FnMut(usize, Result<(PointResult, O, &Simulator<'t, T>), ParamError>),
+{
+    if wide_vectors() {
+        run_interleaved::<T, O, WIDE_LANES, I, S, F>(items, start, emit)
+    } else {
+        run_interleaved::<T, O, DEFAULT_LANES, I, S, F>(items, start, emit)
     }
 }
 
@@ -375,10 +408,29 @@ where
     )
 }
 
+/// [`evaluate_interleaved`] with [`lanes_per_core`] lanes.
+pub fn evaluate_interleaved_native<T: Real, I, F>(
+    params: &RigParams,
+    settings: &SimSettings,
+    points: I,
+    emit: F,
+) -> LaneStats
+where
+    I: IntoIterator<Item = (f64, f64)>,
+    F: FnMut(usize, Result<(PointResult, Vector2<T>), ParamError>),
+{
+    if wide_vectors() {
+        evaluate_interleaved::<T, WIDE_LANES, I, F>(params, settings, points, emit)
+    } else {
+        evaluate_interleaved::<T, DEFAULT_LANES, I, F>(params, settings, points, emit)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::analysis::evaluate_point;
+    use crate::integrate::isa::{Isa, with_isa};
     use crate::model::RigId;
 
     #[test]
@@ -428,6 +480,14 @@ mod tests {
         evaluate_interleaved::<T, DEFAULT_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
             got[i] = Some(r.map(|(result, _)| result))
         });
+        let mut wide = std::vec![None; points.len()];
+        evaluate_interleaved::<T, WIDE_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
+            wide[i] = Some(r.map(|(result, _)| result))
+        });
+        assert_eq!(
+            wide, got,
+            "{rig:?}: {WIDE_LANES} lanes against {DEFAULT_LANES}"
+        );
         for (i, &(g, r)) in points.iter().enumerate() {
             assert_eq!(
                 got[i],
@@ -440,8 +500,13 @@ mod tests {
     #[test]
     fn lockstep_lanes_equal_one_at_a_time() {
         let ratios = [0.55, 0.9, 1.4, 1.9, 2.0, 2.7, 3.3, 3.8, 4.6];
-        lanes_match_scalar::<f32>(RigId::Wires, &[0.0, 1.0e-3, 2.4e-3, 3.4e-3], &ratios);
-        lanes_match_scalar::<f64>(RigId::Wires, &[0.0, 2.4e-3], &ratios);
-        lanes_match_scalar::<f32>(RigId::Beam170, &[0.0, 3.0e-3], &ratios);
+        // Every instruction set this CPU runs (the kernels' variants give the same bits).
+        for isa in Isa::supported() {
+            with_isa(isa, || {
+                lanes_match_scalar::<f32>(RigId::Wires, &[0.0, 1.0e-3, 2.4e-3, 3.4e-3], &ratios);
+                lanes_match_scalar::<f64>(RigId::Wires, &[0.0, 2.4e-3], &ratios);
+                lanes_match_scalar::<f32>(RigId::Beam170, &[0.0, 3.0e-3], &ratios);
+            });
+        }
     }
 }

@@ -7,7 +7,10 @@ pub mod response;
 pub mod selection;
 pub mod sweep;
 
-pub use batch::{DEFAULT_LANES, LaneStats, Started, evaluate_interleaved, run_interleaved};
+pub use batch::{
+    DEFAULT_LANES, LaneStats, Started, WIDE_LANES, evaluate_interleaved,
+    evaluate_interleaved_native, lanes_per_core, run_interleaved, run_interleaved_native,
+};
 pub use response::{
     ResponseSample, SimSettings, evaluate_point, evaluate_point_observed, evaluate_point_on,
     simulator_at,

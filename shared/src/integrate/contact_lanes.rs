@@ -13,6 +13,7 @@ use nalgebra::Vector2;
 
 use super::Simulator;
 use super::free::{SmallTrig, Trig};
+use super::isa::Isa;
 use super::lanes::LaneField;
 use super::rk4::rk4_step_compensated;
 use super::stepper::{LaneTrial, SubPlan};
@@ -159,8 +160,8 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     out_force: [T; L],
     region: [u32; L],
     ok: [u32; L],
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    avx: bool,
+    /// The instruction set the kernel runs.
+    isa: Isa,
 }
 
 impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
@@ -201,8 +202,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             out_force: z,
             region: [0; L],
             ok: [0; L],
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            avx: std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2"),
+            isa: Isa::detect(),
         }
     }
 
@@ -301,25 +301,34 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         }
     }
 
-    /// [`ContactLanes::run`] with the pendulum's viscous term as `V` has it.
+    /// [`ContactLanes::run`] with the pendulum's viscous term as `V` has it, in the
+    /// instruction set of [`Isa::detect`].
     #[inline(always)]
     fn run_viscous<V: Viscous>(&mut self) {
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if self.avx {
-            // SAFETY: the CPU supports AVX and AVX2 (checked in `new`).
+        match self.isa {
+            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
             #[allow(unsafe_code)]
-            unsafe {
-                self.run_avx::<V>()
-            };
-            return;
+            Isa::Avx512 => unsafe { self.run_avx512::<V>() },
+            // SAFETY: as above.
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            #[allow(unsafe_code)]
+            Isa::Avx2 => unsafe { self.run_avx2::<V>() },
+            Isa::Portable => self.run_kernel::<V>(),
         }
+    }
+
+    /// [`ContactLanes::run`] compiled for AVX-512.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    fn run_avx512<V: Viscous>(&mut self) {
         self.run_kernel::<V>();
     }
 
     /// [`ContactLanes::run`] compiled for AVX2.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[target_feature(enable = "avx,avx2")]
-    fn run_avx<V: Viscous>(&mut self) {
+    fn run_avx2<V: Viscous>(&mut self) {
         self.run_kernel::<V>();
     }
 

@@ -14,6 +14,7 @@
 
 use super::Simulator;
 use super::free::{FreeField, FreeState, SmallTrig, free_step};
+use super::isa::Isa;
 use super::plan::PhaseTable;
 use crate::model::hammer::{BeamFree, Damped, FreeFlight, Undamped, Viscous, WiresFree};
 use crate::real::Real;
@@ -108,9 +109,9 @@ impl<T: Real, const L: usize> States<T, L> {
 /// period's end); [`Lockstep::unload`] hands its steps back to the simulator, which ends
 /// exactly where the same number of [`Simulator::step`] calls would have left it.
 ///
-/// With the `std` feature on x86-64 (the host), the kernel runs as AVX2 code when the CPU has
-/// it (chosen at run time: 8 `f32` lanes per register instead of 4): the same operations in the
-/// same order, no fused multiply-add, so the same bits.
+/// With the `std` feature on x86-64 (the host), the kernel runs as AVX-512 or AVX2 code when
+/// the CPU has it (chosen at run time, [`Isa`]: 16 or 8 `f32` lanes per register instead of
+/// 4): the same operations in the same order, no fused multiply-add, so the same bits.
 pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
     phases: &'t PhaseTable<T>,
     eta: T,
@@ -129,9 +130,8 @@ pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
     /// Lockstep rounds run, and lane-steps taken in them (`Lockstep::stats`).
     rounds: u64,
     lane_steps: u64,
-    /// Whether the AVX2 kernel can run.
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    avx: bool,
+    /// The instruction set the kernel runs.
+    isa: Isa,
 }
 
 impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
@@ -151,8 +151,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             taken: [0; L],
             rounds: 0,
             lane_steps: 0,
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            avx: std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2"),
+            isa: Isa::detect(),
         }
     }
 
@@ -230,22 +229,34 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         }
     }
 
-    /// [`Lockstep::run_at_most`] with the pendulum's viscous term as `V` has it.
+    /// [`Lockstep::run_at_most`] with the pendulum's viscous term as `V` has it, in the
+    /// instruction set of [`Isa::detect`].
     #[inline(always)]
     fn run_viscous<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        if self.avx {
-            // SAFETY: the CPU supports AVX and AVX2 (checked in `for_simulator`).
+        match self.isa {
+            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
             #[allow(unsafe_code)]
-            return unsafe { self.run_avx::<V>(rounds) };
+            Isa::Avx512 => unsafe { self.run_avx512::<V>(rounds) },
+            // SAFETY: as above.
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            #[allow(unsafe_code)]
+            Isa::Avx2 => unsafe { self.run_avx2::<V>(rounds) },
+            Isa::Portable => self.run_kernel::<V>(rounds),
         }
+    }
+
+    /// [`Lockstep::run`] compiled for AVX-512.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    fn run_avx512<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
         self.run_kernel::<V>(rounds)
     }
 
     /// [`Lockstep::run`] compiled for AVX2.
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[target_feature(enable = "avx,avx2")]
-    fn run_avx<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
+    fn run_avx2<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
         self.run_kernel::<V>(rounds)
     }
 
@@ -369,6 +380,7 @@ mod tests {
     use super::*;
     use crate::analysis::{SimSettings, simulator_at};
     use crate::integrate::PhaseTable;
+    use crate::integrate::isa::with_isa;
     use crate::model::RigId;
     use std::format;
 
@@ -391,6 +403,7 @@ mod tests {
         }
         let reference = sims.clone();
         let mut lanes = Lockstep::<f32, F, 8>::for_simulator(&sims[0]);
+        assert_eq!(lanes.isa, Isa::detect());
         assert_eq!(lanes.damped, rig == RigId::Wires && zeta > 0.0);
         for (i, sim) in sims.iter().enumerate() {
             assert!(lanes.load(i, sim), "{rig:?}: lane {i}");
@@ -451,9 +464,13 @@ mod tests {
 
     #[test]
     fn lockstep_steps_equal_scalar_steps() {
-        check::<WiresFree<f32>>(RigId::Wires, 0.0, 3.0e-3);
-        // The damped pendulum: the lanes run the `Damped` kernel, the stepper `AsSet`.
-        check::<WiresFree<f32>>(RigId::Wires, 0.003, 3.0e-3);
-        check::<BeamFree<f32>>(RigId::Beam170, 0.004, 3.0e-3);
+        for isa in Isa::supported() {
+            with_isa(isa, || {
+                check::<WiresFree<f32>>(RigId::Wires, 0.0, 3.0e-3);
+                // The damped pendulum: the lanes run the `Damped` kernel, the stepper `AsSet`.
+                check::<WiresFree<f32>>(RigId::Wires, 0.003, 3.0e-3);
+                check::<BeamFree<f32>>(RigId::Beam170, 0.004, 3.0e-3);
+            });
+        }
     }
 }

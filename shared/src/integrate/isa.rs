@@ -1,0 +1,110 @@
+//! Which vector instructions the host's lane kernels ([`super::lanes`], `contact_lanes`) run,
+//! chosen once per kernel at run time from what the CPU reports.
+//!
+//! The variants compile the same source with more instructions enabled: the same operations
+//! in the same order and no fused multiply-add (Rust never contracts `a * b + c`), so every
+//! variant gives the same bits. On the MCU (no `std`) the kernels are the portable code.
+
+/// The instruction set a lane kernel runs, narrowest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum Isa {
+    /// The target's baseline (SSE2 on x86-64; the Cortex-M4F's FPU on the MCU).
+    Portable,
+    /// AVX2: 8 `f32` per register.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    Avx2,
+    /// AVX-512 (F, VL, DQ, BW): 16 `f32` per register, 32 registers.
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    Avx512,
+}
+
+impl Isa {
+    /// The widest variant this CPU runs (the standard library caches the CPU's answer); in
+    /// tests, a narrower one while [`with_isa`] forces it.
+    #[inline]
+    pub(crate) fn detect() -> Isa {
+        let widest = Self::widest();
+        #[cfg(test)]
+        if let Some(forced) = FORCED.with(|f| f.get())
+            && forced <= widest
+        {
+            return forced;
+        }
+        widest
+    }
+
+    /// The variants this CPU runs, narrowest first.
+    #[cfg(test)]
+    pub(crate) fn supported() -> std::vec::Vec<Isa> {
+        let widest = Self::widest();
+        #[allow(unused_mut)]
+        let mut all = std::vec![Isa::Portable];
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        all.extend([Isa::Avx2, Isa::Avx512]);
+        all.retain(|&isa| isa <= widest);
+        all
+    }
+
+    /// The widest variant the CPU reports.
+    fn widest() -> Isa {
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        {
+            if std::is_x86_feature_detected!("avx512f")
+                && std::is_x86_feature_detected!("avx512vl")
+                && std::is_x86_feature_detected!("avx512dq")
+                && std::is_x86_feature_detected!("avx512bw")
+            {
+                return Isa::Avx512;
+            }
+            if std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("avx2") {
+                return Isa::Avx2;
+            }
+        }
+        Isa::Portable
+    }
+}
+
+#[cfg(test)]
+std::thread_local! {
+    static FORCED: core::cell::Cell<Option<Isa>> = const { core::cell::Cell::new(None) };
+}
+
+/// Runs `f` with the lane kernels created on this thread in `isa` (if the CPU runs it; else
+/// the widest it runs), so that tests reach every variant.
+#[cfg(test)]
+pub(crate) fn with_isa<R>(isa: Isa, f: impl FnOnce() -> R) -> R {
+    FORCED.with(|c| c.set(Some(isa)));
+    let r = f();
+    FORCED.with(|c| c.set(None));
+    r
+}
+
+/// Whether this CPU has 16-`f32` vector registers (AVX-512), so that the grid analyses run
+/// [`crate::analysis::WIDE_LANES`] protocol runs per core instead of
+/// [`crate::analysis::DEFAULT_LANES`] ([`crate::analysis::lanes_per_core`]).
+#[inline]
+pub fn wide_vectors() -> bool {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if Isa::detect() == Isa::Avx512 {
+        return true;
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tests_reach_every_variant_the_cpu_runs() {
+        let all = Isa::supported();
+        assert_eq!(all.first(), Some(&Isa::Portable));
+        assert_eq!(all.last(), Some(&Isa::detect()));
+        for &isa in &all {
+            assert_eq!(with_isa(isa, Isa::detect), isa);
+        }
+        // Outside `with_isa` the widest again.
+        assert_eq!(Isa::detect(), Isa::widest());
+        assert_eq!(wide_vectors(), all.len() == 3);
+    }
+}
