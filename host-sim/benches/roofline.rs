@@ -11,8 +11,8 @@
 //!    points, the grid of the instruction count in docs/performance.md) through the same
 //!    batched, interleaved evaluation as `host-sim peterka`
 //!    (`shared::analysis::run_interleaved_native` in batches of `host_sim::runner::BATCH`), on
-//!    one core. RK4 steps per second per core, by
-//!    kind ([`shared::integrate::StepCounts`]), and the lanes' occupancy.
+//!    one core. RK4 steps per second per core, by kind ([`shared::integrate::StepCounts`]), and
+//!    the lanes' occupancy.
 //! 3. **Efficiency** = grid RK4 steps/s ÷ kernel lane-steps/s, and the grid's time split into
 //!    the kernel's rounds (busy and idle lanes, at the kernel's measured speed per round) and
 //!    the rest (one-at-a-time steps: trials, segments, contact sub-steps, Poincaré sections

@@ -41,8 +41,9 @@ pub fn in_order<R>(
 }
 
 /// Runs the canonical protocol at every point of `points` on the calling thread,
-/// [`shared::analysis::lanes_per_core`] interleaved, in `T`, and ends each run with `finish(result, x_end)`
-/// (`x_end`: the state it ended on); results in order, an error naming its point.
+/// [`shared::analysis::lanes_per_core`] interleaved, in `T`, and ends each run with
+/// `finish(result, x_end)` (`x_end`: the state it ended on); results in order, an error naming
+/// its point.
 fn interleaved<T: Real, R>(
     setup: &Setup,
     points: &[OperatingPoint],
@@ -68,8 +69,8 @@ fn interleaved<T: Real, R>(
 }
 
 /// Runs the canonical protocol at every point of `points` on the calling thread,
-/// [`shared::analysis::lanes_per_core`] interleaved, in the setup's precision; results in order, identical to
-/// one-at-a-time [`shared::analysis::evaluate_point`].
+/// [`shared::analysis::lanes_per_core`] interleaved, in the setup's precision; results in
+/// order, identical to one-at-a-time [`shared::analysis::evaluate_point`].
 pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
     crate::with_precision!(setup.precision, T => {
         interleaved::<T, _>(setup, points, |_, result, _| Ok(result))

@@ -38,8 +38,8 @@ pub const DEFAULT_LANES: usize = 8;
 pub const WIDE_LANES: usize = 16;
 
 /// The lanes the host's analysis commands interleave per core on this CPU: [`WIDE_LANES`]
-/// with AVX-512 ([`crate::integrate::isa::wide_vectors`]), else [`DEFAULT_LANES`]. The
-/// results do not depend on it.
+/// with AVX-512 (`crate::integrate::isa`), else [`DEFAULT_LANES`]. The results do not
+/// depend on it.
 pub fn lanes_per_core() -> usize {
     if wide_vectors() {
         WIDE_LANES

@@ -37,12 +37,16 @@ impl Isa {
     #[cfg(test)]
     pub(crate) fn supported() -> std::vec::Vec<Isa> {
         let widest = Self::widest();
-        #[allow(unused_mut)]
-        let mut all = std::vec![Isa::Portable];
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
-        all.extend([Isa::Avx2, Isa::Avx512]);
-        all.retain(|&isa| isa <= widest);
-        all
+        [
+            Isa::Portable,
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx2,
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx512,
+        ]
+        .into_iter()
+        .filter(|&isa| isa <= widest)
+        .collect()
     }
 
     /// The widest variant the CPU reports.
@@ -83,7 +87,7 @@ pub(crate) fn with_isa<R>(isa: Isa, f: impl FnOnce() -> R) -> R {
 /// [`crate::analysis::WIDE_LANES`] protocol runs per core instead of
 /// [`crate::analysis::DEFAULT_LANES`] ([`crate::analysis::lanes_per_core`]).
 #[inline]
-pub fn wide_vectors() -> bool {
+pub(crate) fn wide_vectors() -> bool {
     #[cfg(all(feature = "std", target_arch = "x86_64"))]
     if Isa::detect() == Isa::Avx512 {
         return true;

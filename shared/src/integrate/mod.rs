@@ -10,14 +10,14 @@
 //!   event location on it, minima between samples.
 //! - [`stepper`]: the period-locked driver ([`Simulator`]).
 //! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids);
-//!   `contact_lanes`: their ordinary contact sub-steps, several at once; [`isa`]: the
+//!   `contact_lanes`: their ordinary contact sub-steps, several at once; `isa`: the
 //!   vector instructions those kernels run, chosen at run time.
 
 pub(crate) mod bracket;
 pub(crate) mod contact_lanes;
 pub(crate) mod dense;
 pub(crate) mod free;
-pub mod isa;
+pub(crate) mod isa;
 pub mod lanes;
 pub mod plan;
 pub mod rk4;
