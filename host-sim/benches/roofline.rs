@@ -193,12 +193,13 @@ fn main() {
         100.0 * (g.wall - busy) / g.wall
     );
     println!(
-        "  contact lanes: {} rounds × {} lanes, {:.1} % of the lane slots busy ({:.1} % of the sub-steps)",
+        "  contact lanes: {} rounds × {} lanes, {:.1} % of the lane slots busy ({:.1} % of the sub-steps; {:.1} % of theirs ended by the lanes themselves)",
         g.lanes.contact_rounds,
         g.lanes.lanes,
         100.0 * g.lanes.contact_steps as f64
             / (g.lanes.contact_rounds * g.lanes.lanes).max(1) as f64,
-        100.0 * g.lanes.contact_steps as f64 / c.substeps.max(1) as f64
+        100.0 * g.lanes.contact_steps as f64 / c.substeps.max(1) as f64,
+        100.0 * g.lanes.contact_ended as f64 / g.lanes.contact_steps.max(1) as f64
     );
     let scalar_steps = c.rk4_steps() - c.lane_steps;
     println!(

@@ -17,7 +17,7 @@ use nalgebra::Vector2;
 use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 
-use crate::integrate::contact_lanes::{ContactLanes, LaneContact};
+use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
 use crate::integrate::isa::wide_vectors;
 use crate::integrate::lanes::Lockstep;
 use crate::integrate::stepper::{Cursor, SubPlan};
@@ -72,6 +72,9 @@ pub struct LaneStats {
     pub contact_rounds: u64,
     /// Sub-steps taken in them.
     pub contact_steps: u64,
+    /// Of those, the sub-steps the contact lanes ended themselves (committed, sampled and the
+    /// next one set up without the simulator).
+    pub contact_ended: u64,
 }
 
 impl core::ops::AddAssign for LaneStats {
@@ -83,6 +86,7 @@ impl core::ops::AddAssign for LaneStats {
         self.lane_steps += o.lane_steps;
         self.contact_rounds += o.contact_rounds;
         self.contact_steps += o.contact_steps;
+        self.contact_ended += o.contact_ended;
     }
 }
 
@@ -136,6 +140,7 @@ where
         mode: [Mode::Idle; L],
         cursor: [Default::default(); L],
         constants_set: [false; L],
+        contact_ended: 0,
     };
     if wires {
         driver.drive::<WiresFree<T>>()
@@ -183,6 +188,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     cursor: [(Cursor<T>, SubPlan<T>); L],
     /// Whether the contact lanes hold the constants of the lane's run.
     constants_set: [bool; L],
+    /// Sub-steps the contact lanes ended themselves.
+    contact_ended: u64,
 }
 
 impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
@@ -197,7 +204,10 @@ where
             return LaneStats::default();
         };
         let mut free = Lockstep::<T, K, L>::for_simulator(&first.sim);
-        let mut contact = ContactLanes::<T, K, L>::new();
+        let mut contact = Contact {
+            lanes: ContactLanes::<T, K, L>::new(),
+            runs: RunLanes::<T, L>::new(),
+        };
         for i in 0..L {
             self.settle(i, &mut free, &mut contact, None, true);
         }
@@ -210,12 +220,13 @@ where
                 break;
             }
             if n_contact > 0 {
-                // One sub-step of every lane in contact.
-                contact.run();
+                // One sub-step of every lane in contact; the lanes that could not end theirs
+                // themselves end it here.
+                contact.lanes.run::<ProtocolRun<T>>(&mut contact.runs);
                 contact_rounds += 1;
                 contact_steps += n_contact as u64;
                 for i in 0..L {
-                    if self.mode[i] == Mode::Contact {
+                    if self.mode[i] == Mode::Contact && !contact.runs.continues(i) {
                         self.commit(i, &mut free, &mut contact);
                     }
                 }
@@ -254,25 +265,34 @@ where
             lane_steps,
             contact_rounds,
             contact_steps,
+            contact_ended: self.contact_ended,
         }
     }
 
-    /// Ends the sub-step of `Contact` lane `i` with the contact lanes' result and goes on.
+    /// Ends the sub-step of `Contact` lane `i` with the contact lanes' result (after taking back
+    /// the sub-steps the lane ended itself) and goes on.
     fn commit<K: LaneContact<T>>(
         &mut self,
         i: usize,
         free: &mut Lockstep<'t, T, K, L>,
-        contact: &mut ContactLanes<T, K, L>,
+        contact: &mut Contact<T, K, L>,
     ) {
         let Some(lane) = &mut self.lanes[i] else {
             self.mode[i] = Mode::Idle;
             return;
         };
         let (c, p) = &mut self.cursor[i];
+        if let Some((resume, book)) = contact.lanes.resume(&contact.runs, i, p) {
+            self.contact_ended += u64::from(resume.substeps);
+            lane.sim.resume_substeps(c, &resume);
+            lane.run.resume_book(&book);
+        }
         let mut period_end = false;
-        let done = lane.sim.commit_substep(c, p, contact.result(i), &mut |s| {
-            period_end |= lane.run.sample(s, &mut lane.obs)
-        });
+        let done = lane
+            .sim
+            .commit_substep(c, p, contact.lanes.result(i), &mut |s| {
+                period_end |= lane.run.sample(s, &mut lane.obs)
+            });
         if done {
             self.end_step(i, period_end);
             self.settle(i, free, contact, None, true);
@@ -281,7 +301,7 @@ where
         // Most often the next segment is another ordinary sub-step: straight back into the
         // contact lanes (what `settle` would do first, without its loop).
         // (A lane in contact holds its run's constants.)
-        if let Some(next) = into_contact::<T, O, K, L>(i, &lane.sim, c, contact, false) {
+        if let Some(next) = into_contact::<T, O, K, L>(i, lane, c, contact, false) {
             *p = next;
             return;
         }
@@ -313,7 +333,7 @@ where
         &mut self,
         i: usize,
         free: &mut Lockstep<'t, T, K, L>,
-        contact: &mut ContactLanes<T, K, L>,
+        contact: &mut Contact<T, K, L>,
         mut cursor: Option<Cursor<T>>,
         mut may_load: bool,
     ) {
@@ -336,7 +356,7 @@ where
             let mut period_end = false;
             loop {
                 if let Some(p) =
-                    into_contact::<T, O, K, L>(i, &lane.sim, &c, contact, !self.constants_set[i])
+                    into_contact::<T, O, K, L>(i, lane, &c, contact, !self.constants_set[i])
                 {
                     self.constants_set[i] = true;
                     self.cursor[i] = (c, p);
@@ -354,22 +374,32 @@ where
     }
 }
 
-/// The next segment of the run `sim` in lane `i`, from `c`, set into the contact lanes if it is
-/// an ordinary sub-step they take (observers that ignore per-step samples only), with the
-/// run's constants if `constants`: that sub-step, or `None` (nothing set).
+/// The next segment of the run in `lane` `i`, from `c`, set into the contact lanes if it is an
+/// ordinary sub-step they take (observers that ignore per-step samples only), with the
+/// simulator's constants if `constants`: that sub-step, or `None` (nothing set).
 #[inline(always)]
 fn into_contact<T: Real, O: Observer<T>, K: LaneContact<T>, const L: usize>(
     i: usize,
-    sim: &Simulator<'_, T>,
+    lane: &Lane<'_, T, O>,
     c: &Cursor<T>,
-    contact: &mut ContactLanes<T, K, L>,
+    contact: &mut Contact<T, K, L>,
     constants: bool,
 ) -> Option<SubPlan<T>> {
     if O::SAMPLES {
         return None;
     }
-    let p = sim.plain_substep(c)?;
-    contact.set(i, sim, &p, constants).then_some(p)
+    let p = lane.sim.plain_substep(c)?;
+    let book = lane.run.sample_book();
+    let Contact { lanes, runs } = contact;
+    lanes
+        .set(runs, i, &lane.sim, &p, &book, constants)
+        .then_some(p)
+}
+
+/// The contact lanes and what they carry of their runs (two objects: see [`RunLanes`]).
+struct Contact<T: Real, K, const L: usize> {
+    lanes: ContactLanes<T, K, L>,
+    runs: RunLanes<T, L>,
 }
 
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),
@@ -477,9 +507,20 @@ mod tests {
             .flat_map(|&g| ratios.iter().map(move |&r| (g, r)))
             .collect();
         let mut got = std::vec![None; points.len()];
-        evaluate_interleaved::<T, DEFAULT_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
-            got[i] = Some(r.map(|(result, _)| result))
-        });
+        let stats = evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
+            &p,
+            &s,
+            points.iter().copied(),
+            |i, r| got[i] = Some(r.map(|(result, _)| result)),
+        );
+        // The paths under test were taken: whole free-flight steps in lanes, contact sub-steps
+        // in lanes, most of them ended by the lanes themselves (the rest by the simulator).
+        assert!(stats.lane_steps > 0, "{rig:?}: {stats:?}");
+        assert!(
+            stats.contact_ended > stats.contact_steps / 2
+                && stats.contact_ended < stats.contact_steps,
+            "{rig:?}: {stats:?}"
+        );
         let mut wide = std::vec![None; points.len()];
         evaluate_interleaved::<T, WIDE_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
             wide[i] = Some(r.map(|(result, _)| result))

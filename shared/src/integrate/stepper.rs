@@ -168,6 +168,95 @@ pub(crate) struct SubPlan<T> {
     pub(crate) step_end: T,
     /// Whether it starts touching (then in the contact mode `f+`, else free flight `f−`).
     pub(crate) touching: bool,
+    /// Time from its start to the step's end, s.
+    pub(crate) rest: T,
+}
+
+/// Where a run stands after ordinary sub-steps taken in the contact lanes
+/// ([`super::contact_lanes`]) without the simulator: what [`Simulator::commit_substep`] would
+/// have left ([`Simulator::resume_substeps`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LaneResume<T> {
+    /// The state, its carry and its switch-model field.
+    pub(crate) x: Vector2<T>,
+    pub(crate) carry: Vector2<T>,
+    pub(crate) at_x: FieldEval<T>,
+    /// Approach speed of the current impact, m/s.
+    pub(crate) approach_speed: T,
+    /// Time since the step's start and to its end, s.
+    pub(crate) offset: T,
+    pub(crate) rest: T,
+    /// Sub-steps taken.
+    pub(crate) substeps: u32,
+}
+
+/// The rule for a contact sub-step's length ([`Simulator::plain_substep`]), as lanes of
+/// several runs can evaluate it without a branch: `h_c`, the resting sub-step, the longest
+/// receding sub-step and `ε ω_c` of the resting test.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct SubstepRule<T> {
+    pub(crate) h_c: T,
+    pub(crate) h_rest: T,
+    pub(crate) receding_max: T,
+    pub(crate) eps_omega_c: T,
+}
+
+impl<T: Real> SubstepRule<T> {
+    /// The next sub-step's length from a state in the free region or not (`free`), in `Γ+` or
+    /// not (`contact`), at penetration `delta` (m) moving at `delta_dot` (m/s), with the second
+    /// component of the field `acc` and the contact force's part of it `contact_acc`
+    /// ([`Hammer::contact_accel`]), `rest` s before the step's end, and whether it ends the
+    /// step (then it is `rest`):
+    /// - after a departure (free, `δ̇ < 0`), the one free-flight sub-step that takes the hammer
+    ///   clear: twice the time to `δ = −η_δ` at the current speed, at most the rest of the step
+    ///   and at most `π/(2 ω_c)` (a quarter of the shortest contact period, so that a whole
+    ///   re-contact cannot hide inside it; a re-contact still on at its end is located as in any
+    ///   sub-step), where that is longer than `h_c`;
+    /// - while the hammer rests on (or creeps along) the surface, [`resting_substeps`] times
+    ///   `h_c`: it moves slowly relative to the surface (`|δ̇| ≤ ε ω_c max(|δ|, η_δ)`: an
+    ///   arrival at that speed is a touch, not an impact), and in contact (`Γ+`) the contact's
+    ///   own fast motion has died out (the contact force balances the others: `|ẍ| ≤ ε F/m` in
+    ///   the state's units); `ε` = [`RESTING_TOLERANCE`]. In the bands and in free flight there
+    ///   is no contact spring, hence no fast oscillation; an arrival or a departure inside the
+    ///   longer sub-step is located as in any sub-step;
+    /// - else `h_c`.
+    // Negated comparisons: the rule as it reads, a NaN going the way it always went.
+    #[allow(clippy::too_many_arguments, clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
+    pub(crate) fn len(
+        &self,
+        eta_delta: T,
+        free: bool,
+        contact: bool,
+        delta: T,
+        delta_dot: T,
+        acc: T,
+        contact_acc: T,
+        rest: T,
+    ) -> (T, bool) {
+        let zero = T::zero();
+        let to_clear = (delta + eta_delta) / (zero - delta_dot);
+        let receding_len = (to_clear * T::from_f64(2.0))
+            .min_of(self.receding_max)
+            .min_of(rest);
+        let receding = free & !(delta_dot >= zero) & (receding_len > self.h_c);
+        let scale = delta.abs().max_of(eta_delta);
+        let eps = T::from_f64(RESTING_TOLERANCE);
+        let resting = !(delta_dot.abs() > self.eps_omega_c * scale)
+            & (!contact | (acc.abs() <= eps * contact_acc));
+        let len = if receding {
+            receding_len
+        } else if resting {
+            self.h_rest
+        } else {
+            self.h_c
+        };
+        if rest <= len {
+            (rest, true)
+        } else {
+            (len, false)
+        }
+    }
 }
 
 /// A contact lane's sub-step for [`Simulator::commit_substep`].
@@ -534,15 +623,28 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// of the step).
     #[inline(always)]
     fn substep_len(&self, c: &Cursor<T>) -> (T, bool) {
-        let len = match self.receding_len(c.rest) {
-            Some(len) => len,
-            None if self.resting() => self.plan.h_rest,
-            None => self.plan.h_c,
-        };
-        if c.rest <= len {
-            (c.rest, true)
-        } else {
-            (len, false)
+        let e = &self.state.at_x;
+        self.substep_rule().len(
+            self.hammer.eta_delta(),
+            e.region == Region::Free,
+            e.region == Region::Contact,
+            e.delta,
+            e.delta_dot,
+            e.dx[1],
+            self.hammer.contact_accel(e.force),
+            c.rest,
+        )
+    }
+
+    /// The rule for the length of this simulator's sub-steps.
+    #[inline(always)]
+    pub(crate) fn substep_rule(&self) -> SubstepRule<T> {
+        let p = &self.plan;
+        SubstepRule {
+            h_c: p.h_c,
+            h_rest: p.h_rest,
+            receding_max: p.receding_max,
+            eps_omega_c: T::from_f64(RESTING_TOLERANCE) * p.omega_c,
         }
     }
 
@@ -572,6 +674,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             offset: c.offset,
             step_end: c.s_end,
             touching: e.region.touching(),
+            rest: c.rest,
         })
     }
 
@@ -623,48 +726,26 @@ impl<'t, T: Real> Simulator<'t, T> {
         false
     }
 
-    /// The state a contact lane starts a sub-step from: `x`, its carry, and the field there.
+    /// The state a contact lane starts a sub-step from: `x`, its carry, the field there and
+    /// the approach speed (m/s).
     #[inline(always)]
-    pub(crate) fn substep_start(&self) -> (Vector2<T>, Vector2<T>, FieldEval<T>) {
-        (self.state.x, self.state.carry, self.state.at_x)
+    pub(crate) fn substep_start(&self) -> (Vector2<T>, Vector2<T>, FieldEval<T>, T) {
+        let s = &self.state;
+        (s.x, s.carry, s.at_x, s.approach_speed)
     }
 
-    /// Whether the hammer rests on (or creeps along) the surface, so that the sub-step may be
-    /// [`resting_substeps`] times longer: it moves slowly relative to the surface
-    /// (`|δ̇| ≤ ε ω_c max(|δ|, η_δ)`: an arrival at that speed is a touch, not an impact), and in
-    /// contact (`Γ+`) the contact's own fast motion has died out (the contact force balances the
-    /// others: `|ẍ| ≤ ε F/m` in the state's units); `ε` = [`RESTING_TOLERANCE`]. In the bands
-    /// and in free flight there is no contact spring, hence no fast oscillation; an arrival or a
-    /// departure inside the longer sub-step is located as in any sub-step.
+    /// Takes back the run after the ordinary sub-steps `r` that the contact lanes committed
+    /// themselves (each as [`Simulator::commit_substep`] would have, inside the current step):
+    /// the state, the approach speed, the sub-step count and the cursor `c`.
     #[inline(always)]
-    fn resting(&self) -> bool {
-        let e = &self.state.at_x;
-        let eps = T::from_f64(RESTING_TOLERANCE);
-        let scale = e.delta.abs().max_of(self.hammer.eta_delta());
-        if e.delta_dot.abs() > eps * self.plan.omega_c * scale {
-            return false;
-        }
-        e.region != Region::Contact || e.dx[1].abs() <= eps * self.hammer.contact_accel(e.force)
-    }
-
-    /// After a departure (free region, `δ > −η_δ`, moving away from the surface: `δ̇ < 0`), the
-    /// length of the one free-flight sub-step that takes the hammer clear: twice the time to
-    /// `δ = −η_δ` at the current speed, at most the rest of the step and at most
-    /// `π/(2 ω_c)` (a quarter of the shortest contact period, so that a whole
-    /// re-contact cannot hide inside it; a re-contact that is still on at its end is located as
-    /// in any sub-step). `None` where ordinary sub-steps apply (it would not be longer than one).
-    #[inline(always)]
-    fn receding_len(&self, rest: T) -> Option<T> {
-        let e = &self.state.at_x;
-        if e.region != Region::Free || e.delta_dot >= T::zero() {
-            return None;
-        }
-        let eta = self.hammer.eta_delta();
-        let to_clear = (e.delta + eta) / (T::zero() - e.delta_dot);
-        let len = (to_clear * T::from_f64(2.0))
-            .min_of(self.plan.receding_max)
-            .min_of(rest);
-        (len > self.plan.h_c).then_some(len)
+    pub(crate) fn resume_substeps(&mut self, c: &mut Cursor<T>, r: &LaneResume<T>) {
+        let s = &mut self.state;
+        (s.x, s.carry, s.at_x) = (r.x, r.carry, r.at_x);
+        s.approach_speed = r.approach_speed;
+        s.counts.substeps += u64::from(r.substeps);
+        c.offset = r.offset;
+        c.rest = r.rest;
+        c.first = false;
     }
 
     /// Tries `rest` seconds (to the end of the step) in free flight from the current state, with
@@ -938,7 +1019,7 @@ impl<T: Real> Simulator<'_, T> {
 
 /// Floor of the Lankarani–Nikravesh approach speed (avoids dividing by a grazing speed of 0).
 #[inline(always)]
-fn min_approach<T: Real>() -> T {
+pub(crate) fn min_approach<T: Real>() -> T {
     T::from_f64(MIN_APPROACH_SPEED_M_S)
 }
 

@@ -53,11 +53,10 @@ impl<T: Real> ImpactTracker<T> {
     /// itself for samples without a trajectory between them) and contact force `force` (N).
     #[inline(always)]
     pub fn update(&mut self, delta: T, delta_min: T, force: T) -> Option<ImpactEvent<T>> {
-        let zero = T::zero();
         let prev = self.prev_delta;
         self.prev_delta = delta;
         if self.in_episode {
-            if delta_min < -self.separation {
+            if leaves(self.separation, delta_min) {
                 // Left by the separation since the last sample (perhaps only between the
                 // samples). The next sample with `δ > 0` is an arrival, even if this one is
                 // already back on the surface (this sample's force is not this impact's).
@@ -67,7 +66,7 @@ impl<T: Real> ImpactTracker<T> {
             }
             self.peak = self.peak.max_of(force);
             None
-        } else if prev <= zero && delta > zero {
+        } else if arrives(prev, delta) {
             self.in_episode = true;
             self.peak = force;
             Some(ImpactEvent::Arrival)
@@ -91,10 +90,56 @@ impl<T: Real> ImpactTracker<T> {
         self.prev_delta = delta;
     }
 
+    /// `(separation, previous penetration, in episode, peak)` (m, m, -, N): what a lane that
+    /// takes the run's quiet samples carries ([`ImpactTracker::quiet`]).
+    #[inline(always)]
+    pub(crate) fn parts(&self) -> (T, T, bool, T) {
+        (self.separation, self.prev_delta, self.in_episode, self.peak)
+    }
+
+    /// Takes back the previous penetration and the peak after quiet samples taken elsewhere.
+    #[inline(always)]
+    pub(crate) fn resume(&mut self, prev_delta: T, peak: T) {
+        self.prev_delta = prev_delta;
+        self.peak = peak;
+    }
+
+    /// Whether [`ImpactTracker::update`] of a tracker in the state `(separation, prev_delta,
+    /// in_episode)` reports no event for the sample `(delta, delta_min)`; the sample then only
+    /// sets the previous penetration to `delta` and, in an episode, raises the peak to its
+    /// force.
+    #[inline(always)]
+    pub(crate) fn quiet(
+        separation: T,
+        prev_delta: T,
+        in_episode: bool,
+        delta: T,
+        delta_min: T,
+    ) -> bool {
+        if in_episode {
+            !leaves(separation, delta_min)
+        } else {
+            !arrives(prev_delta, delta)
+        }
+    }
+
     /// Peak force of the episode in progress so far, N.
     pub fn current_peak(&self) -> Option<T> {
         self.in_episode.then_some(self.peak)
     }
+}
+
+/// Whether the hammer has left the surface by `separation` (the episode ends), given the
+/// smallest penetration since the previous sample.
+#[inline(always)]
+fn leaves<T: Real>(separation: T, delta_min: T) -> bool {
+    delta_min < -separation
+}
+
+/// Whether a sample with penetration `delta` after one with `prev_delta` is an arrival.
+#[inline(always)]
+fn arrives<T: Real>(prev_delta: T, delta: T) -> bool {
+    prev_delta <= T::zero() && delta > T::zero()
 }
 
 #[cfg(test)]
@@ -152,5 +197,40 @@ mod tests {
             t.update(-2e-6, -2e-6, 0.0),
             Some(ImpactEvent::End { peak_n: 40.0 })
         );
+    }
+
+    #[test]
+    fn quiet_is_update_without_an_event() {
+        // Every combination of episode state, previous penetration, the sample's penetration
+        // and smallest penetration around the surface and the separation (1 µm): `quiet` says
+        // whether `update` reports nothing, and a quiet sample changes only the previous
+        // penetration and (in an episode) the peak.
+        let values = [-2e-6, -1e-6, -5e-7, 0.0, 5e-7, 2e-6];
+        let mut quiet_seen = [0; 2];
+        for in_episode in [false, true] {
+            for prev in values {
+                for delta in values {
+                    for delta_min in values.iter().copied().filter(|&m| m <= delta) {
+                        let mut t = ImpactTracker::<f64>::new(1e-6, prev);
+                        t.in_episode = in_episode;
+                        t.peak = 7.0;
+                        let (sep, p, e, peak) = t.parts();
+                        let quiet = ImpactTracker::quiet(sep, p, e, delta, delta_min);
+                        let event = t.update(delta, delta_min, 9.0);
+                        assert_eq!(
+                            quiet,
+                            event.is_none(),
+                            "{in_episode} {prev} {delta} {delta_min}"
+                        );
+                        if quiet {
+                            quiet_seen[usize::from(in_episode)] += 1;
+                            let peak_after = if in_episode { 9.0 } else { peak };
+                            assert_eq!(t.parts(), (sep, delta, e, peak_after));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(quiet_seen[0] > 0 && quiet_seen[1] > 0, "{quiet_seen:?}");
     }
 }

@@ -14,6 +14,7 @@ use super::impact::{DEFAULT_SEPARATION_M, ImpactEvent, ImpactTracker};
 use super::poincare::{HISTORY, SectionHistory, StroboPoint};
 use super::regime::{Regime, classify};
 use crate::error::{ParamError, check_count, check_range};
+use crate::integrate::contact_lanes::{QuietSample, SampleBook};
 use crate::integrate::{Simulator, StepSample};
 use crate::real::Real;
 
@@ -255,6 +256,27 @@ impl<T: Real> ProtocolRun<T> {
         s.period_end
     }
 
+    /// The book of the samples (impact tracker and the period's largest force) for a contact
+    /// lane that takes quiet samples for this run ([`QuietSample`]).
+    #[inline(always)]
+    pub(crate) fn sample_book(&self) -> SampleBook<T> {
+        let (separation, prev_delta, in_episode, peak) = self.tracker.parts();
+        SampleBook {
+            separation,
+            prev_delta,
+            in_episode,
+            peak,
+            period_force: self.period_force,
+        }
+    }
+
+    /// Takes back the book after quiet samples a contact lane took.
+    #[inline(always)]
+    pub(crate) fn resume_book(&mut self, book: &SampleBook<T>) {
+        self.tracker.resume(book.prev_delta, book.peak);
+        self.period_force = book.period_force;
+    }
+
     /// Ends a step whose samples went to [`ProtocolRun::sample`] (`period_end`: whether one of
     /// them ended a period): at a period end, takes the Poincaré point and decides whether the
     /// transient is over. Returns the result once the observation window is complete.
@@ -349,5 +371,33 @@ impl<T: Real> ProtocolRun<T> {
             settled: self.settled,
             rk4_steps: sim.rk4_steps() - self.rk4_start,
         }
+    }
+}
+
+impl<T: Real> QuietSample<T> for ProtocolRun<T> {
+    /// [`ProtocolRun::sample`] of a sample without an impact event (the tracker's
+    /// [`ImpactTracker::quiet`]): the period's largest force and the tracker's previous
+    /// penetration and peak.
+    #[inline(always)]
+    fn take(book: &SampleBook<T>, delta: T, delta_min: T, force: T) -> (SampleBook<T>, bool) {
+        let quiet = ImpactTracker::quiet(
+            book.separation,
+            book.prev_delta,
+            book.in_episode,
+            delta,
+            delta_min,
+        );
+        let peak = if book.in_episode {
+            book.peak.max_of(force)
+        } else {
+            book.peak
+        };
+        let next = SampleBook {
+            prev_delta: delta,
+            peak,
+            period_force: book.period_force.max_of(force),
+            ..*book
+        };
+        (next, quiet)
     }
 }
