@@ -37,13 +37,37 @@ pub(crate) fn bracket_rising<T: Real, G: Fn(T) -> T>(lo: T, hi: T, rule: Rule<T>
     }
 }
 
-/// [`Rule::Bisect`].
+/// [`Rule::Bisect`]: two halvings at a time, the second's two possible midpoints evaluated
+/// together with the first's. The same points and the same decisions as one halving after the
+/// other (so the same bracket, bit for bit), but the three evaluations of `g` are independent:
+/// the processor overlaps them where two in sequence would wait on each other (`g` is a chain
+/// of dependent operations: a dense-output point and its penetration with a sine).
 #[inline]
 fn bisect<T: Real, G: Fn(T) -> T>(mut lo: T, mut hi: T, halvings: u32, g: G) -> (T, T) {
     let half = T::from_f64(0.5);
-    for _ in 0..halvings {
+    let zero = T::zero();
+    let mut left = halvings;
+    while left >= 2 {
         let mid = (lo + hi) * half;
-        if g(mid) > T::zero() {
+        let (below, above) = ((lo + mid) * half, (mid + hi) * half);
+        let (g_mid, g_below, g_above) = (g(mid), g(below), g(above));
+        let (next, g_next) = if g_mid > zero {
+            hi = mid;
+            (below, g_below)
+        } else {
+            lo = mid;
+            (above, g_above)
+        };
+        if g_next > zero {
+            hi = next;
+        } else {
+            lo = next;
+        }
+        left -= 2;
+    }
+    if left == 1 {
+        let mid = (lo + hi) * half;
+        if g(mid) > zero {
             hi = mid;
         } else {
             lo = mid;
@@ -100,6 +124,48 @@ fn illinois<T: Real, G: Fn(T) -> T>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One halving after the other, as the rule reads.
+    fn bisect_one_at_a_time(
+        mut lo: f32,
+        mut hi: f32,
+        halvings: u32,
+        g: impl Fn(f32) -> f32,
+    ) -> (f32, f32) {
+        for _ in 0..halvings {
+            let mid = (lo + hi) * 0.5;
+            if g(mid) > 0.0 {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        (lo, hi)
+    }
+
+    #[test]
+    fn bisection_two_halvings_at_a_time_is_one_at_a_time_bit_for_bit() {
+        // Roots at many places (on the midpoints too, where `g = 0` moves `lo`), odd and even
+        // numbers of halvings, and a `g` that is NaN on part of the interval (NaN moves `lo`).
+        for k in 0..=64u32 {
+            let root = k as f32 / 64.0 * 0.37 + 0.1;
+            let g = |x: f32| x - root;
+            let nan_above = |x: f32| if x > 0.4 { f32::NAN } else { x - root };
+            for halvings in 0..=21 {
+                for (lo, hi) in [(0.1f32, 0.47f32), (-1e-3, 2.0)] {
+                    assert_eq!(
+                        bisect(lo, hi, halvings, g),
+                        bisect_one_at_a_time(lo, hi, halvings, g),
+                        "root {root} halvings {halvings}"
+                    );
+                    assert_eq!(
+                        bisect(lo, hi, halvings, nan_above),
+                        bisect_one_at_a_time(lo, hi, halvings, nan_above)
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn both_rules_bracket_the_root_of_a_cubic() {
