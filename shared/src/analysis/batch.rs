@@ -48,13 +48,6 @@ pub fn lanes_per_core() -> usize {
     }
 }
 
-struct Lane<'t, T: Real, O> {
-    index: usize,
-    sim: Simulator<'t, T>,
-    run: ProtocolRun<T>,
-    obs: O,
-}
-
 /// A protocol run ready to go: the simulator at its initial state (at a period boundary), the
 /// run, and the observer that will watch it.
 pub type Started<'t, T, O> = (Simulator<'t, T>, ProtocolRun<T>, O);
@@ -90,10 +83,10 @@ impl core::ops::AddAssign for LaneStats {
     }
 }
 
-/// Runs one protocol per item of `items`, `L` at a time interleaved. `start` turns an item into
-/// a [`Started`] run (or an error, emitted at once); `emit(i, result)` receives the `i`-th
-/// item's result with its observer and final simulator as soon as it is done (so not in
-/// order). Returns how full the lanes were.
+/// Runs one protocol per item of `items`, `2L` at a time interleaved on `L` free-flight lanes
+/// and `L` contact lanes. `start` turns an item into a [`Started`] run (or an error, emitted at
+/// once); `emit(i, result)` receives the `i`-th item's result with its observer and final
+/// simulator as soon as it is done (so not in order). Returns how full the lanes were.
 pub fn run_interleaved<'t, T, O, const L: usize, I, S, F>(
     items: I,
     mut start: S,
@@ -107,11 +100,11 @@ where
     F: FnMut(usize, Result<(PointResult, O, &Simulator<'t, T>), ParamError>),
 {
     let mut next = items.into_iter().enumerate();
-    let mut launch = |emit: &mut F| -> Option<Lane<'t, T, O>> {
+    let mut launch = |emit: &mut F| -> Option<Job<'t, T, O>> {
         for (index, item) in next.by_ref() {
             match start(item) {
                 Ok((sim, run, obs)) => {
-                    return Some(Lane {
+                    return Some(Job {
                         index,
                         sim,
                         run,
@@ -123,25 +116,34 @@ where
         }
         None
     };
-    let mut lanes: [Option<Lane<'t, T, O>>; L] = core::array::from_fn(|_| None);
-    for lane in lanes.iter_mut() {
-        *lane = launch(&mut emit);
+    let mut runs: [[Run<'t, T, O>; L]; RUNS_PER_LANE] =
+        core::array::from_fn(|_| core::array::from_fn(|_| Run::idle()));
+    for run in runs.iter_mut().flatten() {
+        run.job = launch(&mut emit);
     }
-    // The lockstep kernel's suspension is the first run's (runs of another one, if any, take
-    // ordinary steps only).
-    let wires = match lanes.iter().flatten().next() {
-        Some(lane) => lane.sim.hammer().is_wires(),
+    // The lanes' suspension is the first run's (runs of another one, if any, take ordinary
+    // steps only).
+    let wires = match runs.iter().flatten().find_map(|r| r.job.as_ref()) {
+        Some(job) => job.sim.hammer().is_wires(),
         None => return LaneStats::default(),
     };
     let mut driver = Driver {
-        lanes,
+        runs,
         launch,
         emit,
-        mode: [Mode::Idle; L],
-        cursor: [Default::default(); L],
-        constants_set: [false; L],
+        free_owner: [NONE; L],
+        contact_owner: [NONE; L],
+        contact_constants: [NONE; L],
+        free_empty: Ids::new(),
+        contact_empty: Ids::new(),
+        waits_free: Ids::new(),
+        waits_contact: Ids::new(),
         contact_ended: 0,
     };
+    for s in (0..L).rev() {
+        driver.free_empty.push(s);
+        driver.contact_empty.push(s);
+    }
     if wires {
         driver.drive::<WiresFree<T>>()
     } else {
@@ -166,28 +168,98 @@ where
     }
 }
 
-/// What a lane of [`run_interleaved`] is doing between two kernel calls.
+/// Protocol runs in flight per lane: twice as many runs as lanes of each kind, so that the
+/// free-flight lanes and the contact lanes each find runs to fill them.
+const RUNS_PER_LANE: usize = 2;
+
+/// No run (an empty lane) or no lane.
+const NONE: usize = usize::MAX;
+
+/// One item's protocol run.
+struct Job<'t, T: Real, O> {
+    index: usize,
+    sim: Simulator<'t, T>,
+    run: ProtocolRun<T>,
+    obs: O,
+}
+
+/// What a run of [`run_interleaved`] is doing between two kernel calls.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Mode {
     /// No run (the items are exhausted).
     Idle,
-    /// Loaded into the free-flight lanes.
-    Free,
-    /// Its next segment is a sub-step set into the contact lanes.
-    Contact,
+    /// Loaded into this free-flight lane.
+    Free(usize),
+    /// Its next sub-step set into this contact lane.
+    Contact(usize),
+    /// Clear of the surface, waiting for a free-flight lane.
+    WaitsFree,
+    /// Its next segment an ordinary sub-step (its cursor), waiting for a contact lane.
+    WaitsContact,
 }
 
-/// The lanes of [`run_interleaved`] with its `launch` and `emit`.
+/// A place for a run in flight.
+struct Run<'t, T: Real, O> {
+    job: Option<Job<'t, T, O>>,
+    mode: Mode,
+    /// Where a run in the contact lanes or waiting for one stands in its step, and its
+    /// sub-step.
+    cursor: (Cursor<T>, SubPlan<T>),
+    /// Whether the contact lanes take its sub-steps (the linear law, their suspension).
+    contact_ok: bool,
+}
+
+impl<T: Real, O> Run<'_, T, O> {
+    fn idle() -> Self {
+        Run {
+            job: None,
+            mode: Mode::Idle,
+            cursor: Default::default(),
+            contact_ok: false,
+        }
+    }
+}
+
+/// A stack of up to `RUNS_PER_LANE · L` run or lane numbers.
+struct Ids<const L: usize> {
+    ids: [[usize; L]; RUNS_PER_LANE],
+    len: usize,
+}
+
+impl<const L: usize> Ids<L> {
+    fn new() -> Self {
+        Ids {
+            ids: [[NONE; L]; RUNS_PER_LANE],
+            len: 0,
+        }
+    }
+    #[inline]
+    fn push(&mut self, id: usize) {
+        self.ids[self.len / L][self.len % L] = id;
+        self.len += 1;
+    }
+    #[inline]
+    fn pop(&mut self) -> Option<usize> {
+        self.len = self.len.checked_sub(1)?;
+        Some(self.ids[self.len / L][self.len % L])
+    }
+}
+
+/// The runs and lanes of [`run_interleaved`] with its `launch` and `emit`.
 struct Driver<'t, T: Real, O, const L: usize, N, F> {
-    lanes: [Option<Lane<'t, T, O>>; L],
+    runs: [[Run<'t, T, O>; L]; RUNS_PER_LANE],
     launch: N,
     emit: F,
-    mode: [Mode; L],
-    /// Where each `Contact` lane stands in its step, and its sub-step (meaningless in the
-    /// other modes).
-    cursor: [(Cursor<T>, SubPlan<T>); L],
-    /// Whether the contact lanes hold the constants of the lane's run.
-    constants_set: [bool; L],
+    /// The run in each free-flight and each contact lane (`NONE`: empty).
+    free_owner: [usize; L],
+    contact_owner: [usize; L],
+    /// The run whose constants each contact lane holds.
+    contact_constants: [usize; L],
+    /// Empty lanes, and runs waiting for one.
+    free_empty: Ids<L>,
+    contact_empty: Ids<L>,
+    waits_free: Ids<L>,
+    waits_contact: Ids<L>,
     /// Sub-steps the contact lanes ended themselves.
     contact_ended: u64,
 }
@@ -196,64 +268,74 @@ impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
 where
     T: Real + 't,
     O: Observer<T>,
-    N: FnMut(&mut F) -> Option<Lane<'t, T, O>>,
+    N: FnMut(&mut F) -> Option<Job<'t, T, O>>,
     F: FnMut(usize, Result<(PointResult, O, &Simulator<'t, T>), ParamError>),
 {
+    #[inline(always)]
+    fn run(&mut self, r: usize) -> &mut Run<'t, T, O> {
+        &mut self.runs[r / L][r % L]
+    }
+
     fn drive<K: LaneContact<T>>(&mut self) -> LaneStats {
-        let Some(first) = self.lanes.iter().flatten().next() else {
+        let Some(first) = self.runs.iter().flatten().find_map(|r| r.job.as_ref()) else {
             return LaneStats::default();
         };
         let mut free = Lockstep::<T, K, L>::for_simulator(&first.sim);
         let mut contact = Contact {
-            lanes: ContactLanes::<T, K, L>::new(),
+            lanes: ContactLanes::<T, K, L>::for_simulator(&first.sim),
             runs: RunLanes::<T, L>::new(),
         };
-        for i in 0..L {
-            self.settle(i, &mut free, &mut contact, None, true);
+        for r in 0..RUNS_PER_LANE * L {
+            let run = self.run(r);
+            run.contact_ok = contact_ok(run.job.as_ref(), &contact);
+            self.settle(r, &mut free, &mut contact, None, true, NONE, NONE);
         }
         let mut contact_rounds = 0u64;
         let mut contact_steps = 0u64;
         loop {
-            let n_free = self.mode.iter().filter(|&&m| m == Mode::Free).count();
-            let n_contact = self.mode.iter().filter(|&&m| m == Mode::Contact).count();
+            let n_free = self.free_owner.iter().filter(|&&r| r != NONE).count();
+            let n_contact = self.contact_owner.iter().filter(|&&r| r != NONE).count();
             if n_free == 0 && n_contact == 0 {
                 break;
             }
             if n_contact > 0 {
-                // One sub-step of every lane in contact; the lanes that could not end theirs
-                // themselves end it here.
+                // One sub-step in every busy contact lane; the lanes that could not end theirs
+                // themselves end it here (in the lanes as they were before: a lane set in
+                // this pass waits for the next round).
                 contact.lanes.run::<ProtocolRun<T>>(&mut contact.runs);
                 contact_rounds += 1;
                 contact_steps += n_contact as u64;
-                for i in 0..L {
-                    if self.mode[i] == Mode::Contact && !contact.runs.continues(i) {
-                        self.commit(i, &mut free, &mut contact);
+                let owners = self.contact_owner;
+                for (s, &r) in owners.iter().enumerate() {
+                    if r != NONE && self.contact_owner[s] == r && !contact.runs.continues(s) {
+                        self.commit(r, s, &mut free, &mut contact);
                     }
                 }
             }
             if n_free > 0 {
-                // Whole free-flight steps until a lane stops, or (if lanes wait in contact)
+                // Whole free-flight steps until a lane stops, or (if runs wait in contact)
                 // for a few rounds.
                 let max_rounds = if n_contact > 0 { FREE_ROUNDS } else { u64::MAX };
                 let stopped = free.run_at_most(max_rounds);
-                for (i, &s) in stopped.iter().enumerate() {
-                    if !s {
+                for (s, &st) in stopped.iter().enumerate() {
+                    if !st {
                         continue;
                     }
+                    let r = self.free_owner[s];
                     let mut period_end = false;
-                    if let Some(lane) = &mut self.lanes[i]
-                        && free.unload(i, &mut lane.sim) > 0
+                    if let Some(job) = &mut self.run(r).job
+                        && free.unload(s, &mut job.sim) > 0
                     {
-                        lane.run.after_free_flight(&lane.sim);
-                        period_end = lane.sim.at_period_start();
+                        job.run.after_free_flight(&job.sim);
+                        period_end = job.sim.at_period_start();
                     }
                     if period_end {
-                        // The lane took its period's last step: the Poincaré section, then on.
-                        self.end_step(i, true);
-                        self.settle(i, &mut free, &mut contact, None, true);
+                        // The run took its period's last step: the Poincaré section, then on.
+                        self.end_step(r, true, &contact);
+                        self.settle(r, &mut free, &mut contact, None, true, s, NONE);
                     } else {
                         // Its next step is one the free-flight lanes do not take.
-                        self.settle(i, &mut free, &mut contact, None, false);
+                        self.settle(r, &mut free, &mut contact, None, false, s, NONE);
                     }
                 }
             }
@@ -269,131 +351,240 @@ where
         }
     }
 
-    /// Ends the sub-step of `Contact` lane `i` with the contact lanes' result (after taking back
-    /// the sub-steps the lane ended itself) and goes on.
+    /// Ends the sub-step of run `r` in contact lane `s` with the lane's result (after taking
+    /// back the sub-steps the lane ended itself) and goes on.
     fn commit<K: LaneContact<T>>(
         &mut self,
-        i: usize,
+        r: usize,
+        s: usize,
         free: &mut Lockstep<'t, T, K, L>,
         contact: &mut Contact<T, K, L>,
     ) {
-        let Some(lane) = &mut self.lanes[i] else {
-            self.mode[i] = Mode::Idle;
+        let run = &mut self.runs[r / L][r % L];
+        let Some(job) = &mut run.job else {
+            self.settle(r, free, contact, None, true, NONE, s);
             return;
         };
-        let (c, p) = &mut self.cursor[i];
-        if let Some((resume, book)) = contact.lanes.resume(&contact.runs, i, p) {
+        let (c, p) = &mut run.cursor;
+        if let Some((resume, book)) = contact.lanes.resume(&contact.runs, s, p) {
             self.contact_ended += u64::from(resume.substeps);
-            lane.sim.resume_substeps(c, &resume);
-            lane.run.resume_book(&book);
+            job.sim.resume_substeps(c, &resume);
+            job.run.resume_book(&book);
         }
         let mut period_end = false;
-        let done = lane
+        let done = job
             .sim
-            .commit_substep(c, p, contact.lanes.result(i), &mut |s| {
-                period_end |= lane.run.sample(s, &mut lane.obs)
+            .commit_substep(c, p, contact.lanes.result(s), &mut |smp| {
+                period_end |= job.run.sample(smp, &mut job.obs)
             });
         if done {
-            self.end_step(i, period_end);
-            self.settle(i, free, contact, None, true);
+            self.end_step(r, period_end, contact);
+            self.settle(r, free, contact, None, true, NONE, s);
             return;
         }
         // Most often the next segment is another ordinary sub-step: straight back into the
-        // contact lanes (what `settle` would do first, without its loop).
-        // (A lane in contact holds its run's constants.)
-        if let Some(next) = into_contact::<T, O, K, L>(i, lane, c, contact, false) {
+        // same contact lane (what `settle` would do first, without its loop). (A lane in
+        // contact holds its run's constants.)
+        if run.contact_ok
+            && let Some(next) = into_contact(s, job, c, contact, false)
+        {
             *p = next;
             return;
         }
         let c = *c;
-        self.settle(i, free, contact, Some(c), true);
+        self.settle(r, free, contact, Some(c), true, NONE, s);
     }
 
-    /// Ends the step of lane `i` for its protocol; a run that is done is emitted and the next
-    /// item takes the lane.
-    fn end_step(&mut self, i: usize, period_end: bool) {
-        let Some(lane) = &mut self.lanes[i] else {
+    /// Ends the step of run `r` for its protocol; a run that is done is emitted and the next
+    /// item takes its place.
+    fn end_step<K: LaneContact<T>>(
+        &mut self,
+        r: usize,
+        period_end: bool,
+        contact: &Contact<T, K, L>,
+    ) {
+        let run = &mut self.runs[r / L][r % L];
+        let Some(job) = &mut run.job else {
             return;
         };
-        if let Some(result) = lane.run.end_step(&lane.sim, &mut lane.obs, period_end) {
-            if let Some(lane) = self.lanes[i].take() {
-                (self.emit)(lane.index, Ok((result, lane.obs, &lane.sim)));
+        if let Some(result) = job.run.end_step(&job.sim, &mut job.obs, period_end) {
+            if let Some(job) = run.job.take() {
+                (self.emit)(job.index, Ok((result, job.obs, &job.sim)));
             }
-            self.lanes[i] = (self.launch)(&mut self.emit);
-            self.constants_set[i] = false;
+            run.job = (self.launch)(&mut self.emit);
+            run.contact_ok = contact_ok(run.job.as_ref(), contact);
+            for owner in self.contact_constants.iter_mut() {
+                if *owner == r {
+                    *owner = NONE;
+                }
+            }
         }
     }
 
-    /// Ordinary segments for the run in lane `i`, from inside its step at `cursor` or from a
-    /// step boundary, until its next segment is one the lanes take: whole free-flight steps
-    /// (then loaded into the free-flight lanes; not at once if `may_load` is false) or an
-    /// ordinary sub-step (then set into the contact lanes). A run that is done is emitted and
-    /// the next item takes the lane; the lane stays idle when the items are exhausted.
+    /// Ordinary segments for run `r`, from inside its step at `cursor` or from a step
+    /// boundary, until its next segment is one the lanes take: whole free-flight steps (then
+    /// loaded into a free-flight lane, or waiting for one; not at once if `may_load` is false)
+    /// or an ordinary sub-step (then set into a contact lane, or waiting for one). A run that
+    /// is done is emitted and the next item takes its place; the place stays idle when the
+    /// items are exhausted. `own_free`, `own_contact`: the lanes the run held (`NONE`: none),
+    /// kept if it goes on in one of them, else handed to a waiting run or left empty.
+    #[allow(clippy::too_many_arguments)]
     fn settle<K: LaneContact<T>>(
         &mut self,
-        i: usize,
+        r: usize,
         free: &mut Lockstep<'t, T, K, L>,
         contact: &mut Contact<T, K, L>,
         mut cursor: Option<Cursor<T>>,
         mut may_load: bool,
+        own_free: usize,
+        own_contact: usize,
     ) {
         loop {
-            let Some(lane) = &mut self.lanes[i] else {
-                self.mode[i] = Mode::Idle;
+            let run = &mut self.runs[r / L][r % L];
+            let Some(job) = &mut run.job else {
+                run.mode = Mode::Idle;
+                self.release(own_free, own_contact, free, contact);
                 return;
             };
             let mut c = match cursor.take() {
                 Some(c) => c,
                 None => {
-                    if may_load && lane.run.free_flight_allowed::<O>() && free.load(i, &lane.sim) {
-                        self.mode[i] = Mode::Free;
+                    if may_load && job.run.free_flight_allowed::<O>() && free.accepts(&job.sim) {
+                        let s = if own_free != NONE {
+                            own_free
+                        } else {
+                            self.free_empty.pop().unwrap_or(NONE)
+                        };
+                        if s == NONE {
+                            run.mode = Mode::WaitsFree;
+                            self.waits_free.push(r);
+                        } else {
+                            free.load(s, &job.sim);
+                            run.mode = Mode::Free(s);
+                            self.free_owner[s] = r;
+                        }
+                        self.release(NONE, own_contact, free, contact);
                         return;
                     }
                     may_load = true;
-                    lane.sim.begin_step()
+                    job.sim.begin_step()
                 }
             };
             let mut period_end = false;
             loop {
-                if let Some(p) =
-                    into_contact::<T, O, K, L>(i, lane, &c, contact, !self.constants_set[i])
+                if run.contact_ok
+                    && let Some(p) = job.sim.plain_substep(&c)
                 {
-                    self.constants_set[i] = true;
-                    self.cursor[i] = (c, p);
-                    self.mode[i] = Mode::Contact;
+                    run.cursor = (c, p);
+                    let s = if own_contact != NONE {
+                        own_contact
+                    } else {
+                        self.contact_empty.pop().unwrap_or(NONE)
+                    };
+                    if s == NONE {
+                        run.mode = Mode::WaitsContact;
+                        self.waits_contact.push(r);
+                    } else {
+                        self.enter_contact(r, s, contact);
+                    }
+                    self.release(own_free, NONE, free, contact);
                     return;
                 }
-                if lane.sim.advance(&mut c, &mut |s| {
-                    period_end |= lane.run.sample(s, &mut lane.obs)
+                if job.sim.advance(&mut c, &mut |smp| {
+                    period_end |= job.run.sample(smp, &mut job.obs)
                 }) {
                     break;
                 }
             }
-            self.end_step(i, period_end);
+            self.end_step(r, period_end, contact);
+        }
+    }
+
+    /// Sets the sub-step in run `r`'s cursor into contact lane `s`.
+    fn enter_contact<K: LaneContact<T>>(
+        &mut self,
+        r: usize,
+        s: usize,
+        contact: &mut Contact<T, K, L>,
+    ) {
+        let constants = self.contact_constants[s] != r;
+        let run = &mut self.runs[r / L][r % L];
+        if let Some(job) = &run.job {
+            let book = job.run.sample_book();
+            let set = contact.lanes.set(
+                &mut contact.runs,
+                s,
+                &job.sim,
+                &run.cursor.1,
+                &book,
+                constants,
+            );
+            // The lanes accept every run of their suspension and law (`contact_ok`).
+            debug_assert!(set);
+        }
+        run.mode = Mode::Contact(s);
+        self.contact_owner[s] = r;
+        self.contact_constants[s] = r;
+    }
+
+    /// Hands free-flight lane `free_lane` and contact lane `contact_lane` (`NONE`: none) to runs
+    /// waiting for one, or leaves them empty.
+    fn release<K: LaneContact<T>>(
+        &mut self,
+        free_lane: usize,
+        contact_lane: usize,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut Contact<T, K, L>,
+    ) {
+        if free_lane != NONE {
+            self.free_owner[free_lane] = NONE;
+            match self.waits_free.pop() {
+                Some(w) => {
+                    let run = &mut self.runs[w / L][w % L];
+                    if let Some(job) = &run.job {
+                        free.load(free_lane, &job.sim);
+                    }
+                    run.mode = Mode::Free(free_lane);
+                    self.free_owner[free_lane] = w;
+                }
+                None => self.free_empty.push(free_lane),
+            }
+        }
+        if contact_lane != NONE {
+            self.contact_owner[contact_lane] = NONE;
+            match self.waits_contact.pop() {
+                Some(w) => self.enter_contact(w, contact_lane, contact),
+                None => self.contact_empty.push(contact_lane),
+            }
         }
     }
 }
 
-/// The next segment of the run in `lane` `i`, from `c`, set into the contact lanes if it is an
-/// ordinary sub-step they take (observers that ignore per-step samples only), with the
-/// simulator's constants if `constants`: that sub-step, or `None` (nothing set).
+/// The next segment of `job` from `c`, set into contact lane `s` if it is an ordinary sub-step,
+/// with the simulator's constants if `constants`: that sub-step, or `None` (nothing set).
 #[inline(always)]
-fn into_contact<T: Real, O: Observer<T>, K: LaneContact<T>, const L: usize>(
-    i: usize,
-    lane: &Lane<'_, T, O>,
+fn into_contact<T: Real, O, K: LaneContact<T>, const L: usize>(
+    s: usize,
+    job: &Job<'_, T, O>,
     c: &Cursor<T>,
     contact: &mut Contact<T, K, L>,
     constants: bool,
 ) -> Option<SubPlan<T>> {
-    if O::SAMPLES {
-        return None;
-    }
-    let p = lane.sim.plain_substep(c)?;
-    let book = lane.run.sample_book();
+    let p = job.sim.plain_substep(c)?;
+    let book = job.run.sample_book();
     let Contact { lanes, runs } = contact;
     lanes
-        .set(runs, i, &lane.sim, &p, &book, constants)
+        .set(runs, s, &job.sim, &p, &book, constants)
         .then_some(p)
+}
+
+/// Whether the contact lanes take `job`'s ordinary sub-steps: an observer that ignores
+/// per-step samples, and a simulator of the lanes' suspension with the linear law.
+fn contact_ok<T: Real, O: Observer<T>, K: LaneContact<T>, const L: usize>(
+    job: Option<&Job<'_, T, O>>,
+    contact: &Contact<T, K, L>,
+) -> bool {
+    job.is_some_and(|j| !O::SAMPLES && contact.lanes.accepts(&j.sim))
 }
 
 /// The contact lanes and what they carry of their runs (two objects: see [`RunLanes`]).

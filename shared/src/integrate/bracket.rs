@@ -37,11 +37,13 @@ pub(crate) fn bracket_rising<T: Real, G: Fn(T) -> T>(lo: T, hi: T, rule: Rule<T>
     }
 }
 
-/// [`Rule::Bisect`]: two halvings at a time, the second's two possible midpoints evaluated
-/// together with the first's. The same points and the same decisions as one halving after the
-/// other (so the same bracket, bit for bit), but the three evaluations of `g` are independent:
-/// the processor overlaps them where two in sequence would wait on each other (`g` is a chain
-/// of dependent operations: a dense-output point and its penetration with a sine).
+/// [`Rule::Bisect`] on the host: two halvings at a time, the second's two possible midpoints
+/// evaluated together with the first's. The same points and the same decisions as one halving
+/// after the other ([`bisect_one_at_a_time`], so the same bracket, bit for bit), but the three
+/// evaluations of `g` are independent: an out-of-order processor overlaps them where two in
+/// sequence would wait on each other (`g` is a chain of dependent operations: a dense-output
+/// point and its penetration with a sine). An in-order MCU would only evaluate `g` more often.
+#[cfg(feature = "std")]
 #[inline]
 fn bisect<T: Real, G: Fn(T) -> T>(mut lo: T, mut hi: T, halvings: u32, g: G) -> (T, T) {
     let half = T::from_f64(0.5);
@@ -121,27 +123,37 @@ fn illinois<T: Real, G: Fn(T) -> T>(
     (lo, hi)
 }
 
+/// [`Rule::Bisect`] on the MCU: one halving after the other.
+#[cfg(not(feature = "std"))]
+#[inline]
+fn bisect<T: Real, G: Fn(T) -> T>(lo: T, hi: T, halvings: u32, g: G) -> (T, T) {
+    bisect_one_at_a_time(lo, hi, halvings, g)
+}
+
+/// [`Rule::Bisect`] as it reads: one halving after the other.
+#[cfg_attr(feature = "std", allow(dead_code))]
+#[inline]
+fn bisect_one_at_a_time<T: Real, G: Fn(T) -> T>(
+    mut lo: T,
+    mut hi: T,
+    halvings: u32,
+    g: G,
+) -> (T, T) {
+    let half = T::from_f64(0.5);
+    for _ in 0..halvings {
+        let mid = (lo + hi) * half;
+        if g(mid) > T::zero() {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    (lo, hi)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// One halving after the other, as the rule reads.
-    fn bisect_one_at_a_time(
-        mut lo: f32,
-        mut hi: f32,
-        halvings: u32,
-        g: impl Fn(f32) -> f32,
-    ) -> (f32, f32) {
-        for _ in 0..halvings {
-            let mid = (lo + hi) * 0.5;
-            if g(mid) > 0.0 {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
-        }
-        (lo, hi)
-    }
 
     #[test]
     fn bisection_two_halvings_at_a_time_is_one_at_a_time_bit_for_bit() {

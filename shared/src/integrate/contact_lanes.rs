@@ -25,8 +25,9 @@ use super::Simulator;
 use super::free::{SmallTrig, Trig};
 use super::isa::Isa;
 use super::lanes::LaneField;
+use super::plan::SubstepRule;
 use super::rk4::rk4_step_compensated;
-use super::stepper::{LaneResume, LaneTrial, SubPlan, SubstepRule, min_approach};
+use super::stepper::{LaneResume, LaneTrial, SubPlan, min_approach};
 use crate::model::Region;
 use crate::model::contact::LawCoeffs;
 use crate::model::hammer::{BeamFree, Body, Damped, FieldEval, Undamped, Viscous, WiresFree};
@@ -376,6 +377,24 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             ok: [0; L],
             isa: Isa::detect(),
         }
+    }
+
+    /// Empty lanes for simulators of `sim`'s kind (the pendulum damped or not).
+    pub(crate) fn for_simulator(sim: &Simulator<'_, T>) -> Self {
+        let mut lanes = Self::new();
+        lanes.damped = Some(sim.hammer().is_damped_wires());
+        lanes
+    }
+
+    /// Whether the lanes take `sim`'s sub-steps: of this suspension and the linear law, and
+    /// (the pendulum) damped as the lanes' first simulator or not (what
+    /// [`ContactLanes::set`] with its constants checks).
+    pub(crate) fn accepts(&self, sim: &Simulator<'_, T>) -> bool {
+        let hammer = sim.hammer();
+        F::of(&hammer.free_flight()).is_some()
+            && F::inv_mass(hammer.body()).is_some()
+            && matches!(hammer.switch().law, LawCoeffs::Linear { .. })
+            && self.damped.is_none_or(|d| d == hammer.is_damped_wires())
     }
 
     /// Puts `sim`'s next sub-step `p` ([`Simulator::plain_substep`]) into lane `i`, with its

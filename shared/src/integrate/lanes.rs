@@ -160,12 +160,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     /// as the others, and clear of the surface. Returns whether it did.
     #[inline]
     pub(crate) fn load(&mut self, i: usize, sim: &Simulator<'t, T>) -> bool {
-        let (phases, wires, eta, damped) = sim.lane_kind();
-        if phases.steps_per_period() != self.n()
-            || wires != self.wires
-            || eta != self.eta
-            || damped != self.damped
-        {
+        if !self.same_kind(sim) {
             return false;
         }
         let Some((st, r)) = sim.lane_start() else {
@@ -182,6 +177,24 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         self.rem[i] = r;
         self.taken[i] = 0;
         true
+    }
+
+    /// Whether [`Lockstep::load`] would load `sim` now.
+    #[inline]
+    pub(crate) fn accepts(&self, sim: &Simulator<'t, T>) -> bool {
+        self.same_kind(sim)
+            && sim.lane_start().is_some()
+            && F::of(&sim.lane_constants().0).is_some()
+    }
+
+    /// The same `N`, suspension (the pendulum damped or not) and `η_δ` as the lanes.
+    #[inline]
+    fn same_kind(&self, sim: &Simulator<'t, T>) -> bool {
+        let (phases, wires, eta, damped) = sim.lane_kind();
+        phases.steps_per_period() == self.n()
+            && wires == self.wires
+            && eta == self.eta
+            && damped == self.damped
     }
 
     /// Ends lane `i`: the steps it took since [`Lockstep::load`] go to `sim` (the simulator

@@ -133,18 +133,10 @@ fn fill<T: Real>(n: u32, sin_half: &mut [T], cos_start: &mut [T]) {
 pub struct StepPlan<T> {
     /// `h`, s.
     pub(crate) h: T,
-    /// `h_c`, s.
-    pub(crate) h_c: T,
     /// `Ω` rounded to `T`, rad/s (the phase inside a step).
     pub(crate) omega: T,
-    /// `ω_c`, rad/s: the contact frequency that sets `h_c`.
-    pub(crate) omega_c: T,
-    /// The sub-step while the hammer rests on the surface, `R h_c` with
-    /// `R = `[`resting_substeps`]`(K)`, s.
-    pub(crate) h_rest: T,
-    /// Longest free-flight sub-step after a departure, `π/(2 ω_c)` s: half the contact
-    /// half-period at the reference speed (the shortest contact of the law).
-    pub(crate) receding_max: T,
+    /// The contact sub-step `h_c` and the rule for the sub-steps' lengths.
+    pub(crate) substep: SubstepRule<T>,
     /// Width, as a fraction of the sub-step, below which a switching event's bracket stops
     /// shrinking: `2^-14` in production ([`super::dense::EVENT_TOL`]); a few rounding units
     /// where the map must be smooth to round-off ([`super::Simulator::locate_events_exactly`]).
@@ -166,13 +158,96 @@ impl<T: Real> StepPlan<T> {
         let m = check_range("substeps", libm::ceil(h / h_c_max), 1.0, MAX_SUBSTEPS)?;
         Ok(StepPlan {
             h: T::from_f64(h),
-            h_c: T::from_f64(h / m),
             omega: T::from_f64(omega_exc),
-            omega_c: T::from_f64(omega_c),
-            h_rest: T::from_f64(h / m) * T::from_u32(resting_substeps(steps.substeps_per_contact)),
-            receding_max: T::from_f64(0.5 * core::f64::consts::PI / omega_c),
+            substep: SubstepRule {
+                h_c: T::from_f64(h / m),
+                h_rest: T::from_f64(h / m)
+                    * T::from_u32(resting_substeps(steps.substeps_per_contact)),
+                receding_max: T::from_f64(0.5 * core::f64::consts::PI / omega_c),
+                eps_omega_c: T::from_f64(RESTING_TOLERANCE) * T::from_f64(omega_c),
+            },
             event_tol: T::from_f64(super::dense::EVENT_TOL),
         })
+    }
+}
+
+/// `ε` of the resting test: the contact force balances the others to `ε`, and the
+/// penetration rate is below `ε ω_c δ` ([`SubstepRule::len`]).
+pub const RESTING_TOLERANCE: f64 = 0.1;
+
+/// The rule for a contact sub-step's length (`Simulator::plain_substep`), as lanes of
+/// several runs can evaluate it without a branch: `h_c`, the resting sub-step, the longest
+/// receding sub-step and `ε ω_c` of the resting test.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct SubstepRule<T> {
+    pub(crate) h_c: T,
+    pub(crate) h_rest: T,
+    pub(crate) receding_max: T,
+    pub(crate) eps_omega_c: T,
+}
+
+impl<T: Real> SubstepRule<T> {
+    /// The next sub-step's length from a state in the free region or not (`free`), in `Γ+` or
+    /// not (`contact`), at penetration `delta` (m) moving at `delta_dot` (m/s), with the second
+    /// component of the field `acc` and the contact force's part of it `contact_acc`
+    /// (`Hammer::contact_accel`), `rest` s before the step's end, and whether it ends the
+    /// step (then it is `rest`):
+    /// - after a departure (free, `δ̇ < 0`), the one free-flight sub-step that takes the hammer
+    ///   clear: twice the time to `δ = −η_δ` at the current speed, at most the rest of the step
+    ///   and at most `π/(2 ω_c)` (a quarter of the shortest contact period, so that a whole
+    ///   re-contact cannot hide inside it; a re-contact still on at its end is located as in any
+    ///   sub-step), where that is longer than `h_c`;
+    /// - while the hammer rests on (or creeps along) the surface, [`resting_substeps`] times
+    ///   `h_c`: it moves slowly relative to the surface (`|δ̇| ≤ ε ω_c max(|δ|, η_δ)`: an
+    ///   arrival at that speed is a touch, not an impact), and in contact (`Γ+`) the contact's
+    ///   own fast motion has died out (the contact force balances the others: `|ẍ| ≤ ε F/m` in
+    ///   the state's units); `ε` = [`RESTING_TOLERANCE`]. In the bands and in free flight there
+    ///   is no contact spring, hence no fast oscillation; an arrival or a departure inside the
+    ///   longer sub-step is located as in any sub-step;
+    /// - else `h_c`.
+    // Negated comparisons: the rule as it reads, a NaN going the way it always went.
+    #[allow(clippy::too_many_arguments, clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
+    pub(crate) fn len(
+        &self,
+        eta_delta: T,
+        free: bool,
+        contact: bool,
+        delta: T,
+        delta_dot: T,
+        acc: T,
+        contact_acc: T,
+        rest: T,
+    ) -> (T, bool) {
+        let zero = T::zero();
+        // (0 where it does not apply: never longer than `h_c`.)
+        let receding_len = if free && !(delta_dot >= zero) {
+            let to_clear = (delta + eta_delta) / (zero - delta_dot);
+            (to_clear * T::from_f64(2.0))
+                .min_of(self.receding_max)
+                .min_of(rest)
+        } else {
+            zero
+        };
+        let receding = receding_len > self.h_c;
+        let resting = || {
+            let scale = delta.abs().max_of(eta_delta);
+            let eps = T::from_f64(RESTING_TOLERANCE);
+            !(delta_dot.abs() > self.eps_omega_c * scale)
+                && (!contact || acc.abs() <= eps * contact_acc)
+        };
+        let len = if receding {
+            receding_len
+        } else if resting() {
+            self.h_rest
+        } else {
+            self.h_c
+        };
+        if rest <= len {
+            (rest, true)
+        } else {
+            (len, false)
+        }
     }
 }
 
@@ -228,10 +303,10 @@ mod tests {
         // h_c ≤ π/1000/16 ≈ 196 µs → M = ceil(15.625 ms / 196 µs) = 80.
         let plan =
             StepPlan::<f64>::new(core::f64::consts::TAU, 1000.0, &StepSettings::default()).unwrap();
-        assert_eq!(libm::round(plan.h / plan.h_c), 80.0);
+        assert_eq!(libm::round(plan.h / plan.substep.h_c), 80.0);
         assert!((plan.h - 1.0 / 64.0).abs() < 1e-15);
         // h_c = h/M, not the upper bound π/ω_c/K it was sized by.
-        assert!((plan.h_c - 1.0 / 64.0 / 80.0).abs() < 1e-18);
+        assert!((plan.substep.h_c - 1.0 / 64.0 / 80.0).abs() < 1e-18);
         assert!(matches!(
             StepPlan::<f32>::new(1.0, f64::NAN, &StepSettings::default()),
             Err(ParamError::NotFinite { field: "omega_c" })

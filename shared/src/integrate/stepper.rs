@@ -37,7 +37,7 @@ use super::dense::{DenseStep, hermite_min, root_in_unit};
 use super::free::{FreeState, FullTrig, free_step};
 #[cfg(doc)]
 use super::plan::resting_substeps;
-use super::plan::{PhaseTable, StepPlan, StepSettings, step_s};
+use super::plan::{PhaseTable, StepPlan, StepSettings, SubstepRule, step_s};
 use super::rk4::rk4_step_compensated;
 use crate::error::ParamError;
 use crate::model::contact::LawCoeffs;
@@ -50,9 +50,7 @@ use crate::real::Real;
 /// sub-steps per half-period.
 pub const SUBSTEP_REFERENCE_SPEED_M_S: f64 = 0.5;
 
-/// `ε` of the resting test: the contact force balances the others to `ε`, and the
-/// penetration rate is below `ε ω_c δ`.
-pub const RESTING_TOLERANCE: f64 = 0.1;
+pub use super::plan::RESTING_TOLERANCE;
 
 /// Floor of the Lankarani–Nikravesh approach speed, m/s (avoids dividing by a grazing speed of 0).
 const MIN_APPROACH_SPEED_M_S: f64 = 1e-4;
@@ -188,75 +186,6 @@ pub(crate) struct LaneResume<T> {
     pub(crate) rest: T,
     /// Sub-steps taken.
     pub(crate) substeps: u32,
-}
-
-/// The rule for a contact sub-step's length ([`Simulator::plain_substep`]), as lanes of
-/// several runs can evaluate it without a branch: `h_c`, the resting sub-step, the longest
-/// receding sub-step and `ε ω_c` of the resting test.
-#[derive(Debug, Clone, Copy, Default)]
-pub(crate) struct SubstepRule<T> {
-    pub(crate) h_c: T,
-    pub(crate) h_rest: T,
-    pub(crate) receding_max: T,
-    pub(crate) eps_omega_c: T,
-}
-
-impl<T: Real> SubstepRule<T> {
-    /// The next sub-step's length from a state in the free region or not (`free`), in `Γ+` or
-    /// not (`contact`), at penetration `delta` (m) moving at `delta_dot` (m/s), with the second
-    /// component of the field `acc` and the contact force's part of it `contact_acc`
-    /// ([`Hammer::contact_accel`]), `rest` s before the step's end, and whether it ends the
-    /// step (then it is `rest`):
-    /// - after a departure (free, `δ̇ < 0`), the one free-flight sub-step that takes the hammer
-    ///   clear: twice the time to `δ = −η_δ` at the current speed, at most the rest of the step
-    ///   and at most `π/(2 ω_c)` (a quarter of the shortest contact period, so that a whole
-    ///   re-contact cannot hide inside it; a re-contact still on at its end is located as in any
-    ///   sub-step), where that is longer than `h_c`;
-    /// - while the hammer rests on (or creeps along) the surface, [`resting_substeps`] times
-    ///   `h_c`: it moves slowly relative to the surface (`|δ̇| ≤ ε ω_c max(|δ|, η_δ)`: an
-    ///   arrival at that speed is a touch, not an impact), and in contact (`Γ+`) the contact's
-    ///   own fast motion has died out (the contact force balances the others: `|ẍ| ≤ ε F/m` in
-    ///   the state's units); `ε` = [`RESTING_TOLERANCE`]. In the bands and in free flight there
-    ///   is no contact spring, hence no fast oscillation; an arrival or a departure inside the
-    ///   longer sub-step is located as in any sub-step;
-    /// - else `h_c`.
-    // Negated comparisons: the rule as it reads, a NaN going the way it always went.
-    #[allow(clippy::too_many_arguments, clippy::neg_cmp_op_on_partial_ord)]
-    #[inline(always)]
-    pub(crate) fn len(
-        &self,
-        eta_delta: T,
-        free: bool,
-        contact: bool,
-        delta: T,
-        delta_dot: T,
-        acc: T,
-        contact_acc: T,
-        rest: T,
-    ) -> (T, bool) {
-        let zero = T::zero();
-        let to_clear = (delta + eta_delta) / (zero - delta_dot);
-        let receding_len = (to_clear * T::from_f64(2.0))
-            .min_of(self.receding_max)
-            .min_of(rest);
-        let receding = free & !(delta_dot >= zero) & (receding_len > self.h_c);
-        let scale = delta.abs().max_of(eta_delta);
-        let eps = T::from_f64(RESTING_TOLERANCE);
-        let resting = !(delta_dot.abs() > self.eps_omega_c * scale)
-            & (!contact | (acc.abs() <= eps * contact_acc));
-        let len = if receding {
-            receding_len
-        } else if resting {
-            self.h_rest
-        } else {
-            self.h_c
-        };
-        if rest <= len {
-            (rest, true)
-        } else {
-            (len, false)
-        }
-    }
 }
 
 /// A contact lane's sub-step for [`Simulator::commit_substep`].
@@ -562,7 +491,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         c: &mut Cursor<T>,
         observe: &mut O,
     ) -> bool {
-        let h_c = self.plan.h_c;
+        let h_c = self.plan.substep.h_c;
         // Where this segment starts (for the smallest δ over it, reported with its sample).
         let seg = self.segment_start(c.offset);
         if self.clear() {
@@ -624,7 +553,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     #[inline(always)]
     fn substep_len(&self, c: &Cursor<T>) -> (T, bool) {
         let e = &self.state.at_x;
-        self.substep_rule().len(
+        self.plan.substep.len(
             self.hammer.eta_delta(),
             e.region == Region::Free,
             e.region == Region::Contact,
@@ -639,13 +568,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// The rule for the length of this simulator's sub-steps.
     #[inline(always)]
     pub(crate) fn substep_rule(&self) -> SubstepRule<T> {
-        let p = &self.plan;
-        SubstepRule {
-            h_c: p.h_c,
-            h_rest: p.h_rest,
-            receding_max: p.receding_max,
-            eps_omega_c: T::from_f64(RESTING_TOLERANCE) * p.omega_c,
-        }
+        self.plan.substep
     }
 
     /// The next segment from `c` if it is an ordinary sub-step that the contact lanes
