@@ -753,7 +753,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
                 d,
                 dd,
                 acc,
-                force * self.inv_mass[i],
+                || force * self.inv_mass[i],
                 rest,
             );
             let cont = (ok == STAYS)

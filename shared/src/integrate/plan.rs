@@ -189,8 +189,9 @@ pub(crate) struct SubstepRule<T> {
 impl<T: Real> SubstepRule<T> {
     /// The next sub-step's length from a state in the free region or not (`free`), in `Γ+` or
     /// not (`contact`), at penetration `delta` (m) moving at `delta_dot` (m/s), with the second
-    /// component of the field `acc` and the contact force's part of it `contact_acc`
-    /// (`Hammer::contact_accel`), `rest` s before the step's end, and whether it ends the
+    /// component of the field `acc` and the contact force's part of it `contact_acc()`
+    /// (`Hammer::contact_accel`; asked for only in `Γ+`), `rest` s before the step's end, and
+    /// whether it ends the
     /// step (then it is `rest`):
     /// - after a departure (free, `δ̇ < 0`), the one free-flight sub-step that takes the hammer
     ///   clear: twice the time to `δ = −η_δ` at the current speed, at most the rest of the step
@@ -216,7 +217,7 @@ impl<T: Real> SubstepRule<T> {
         delta: T,
         delta_dot: T,
         acc: T,
-        contact_acc: T,
+        contact_acc: impl FnOnce() -> T,
         rest: T,
     ) -> (T, bool) {
         let zero = T::zero();
@@ -234,7 +235,7 @@ impl<T: Real> SubstepRule<T> {
             let scale = delta.abs().max_of(eta_delta);
             let eps = T::from_f64(RESTING_TOLERANCE);
             !(delta_dot.abs() > self.eps_omega_c * scale)
-                && (!contact || acc.abs() <= eps * contact_acc)
+                && (!contact || acc.abs() <= eps * contact_acc())
         };
         let len = if receding {
             receding_len

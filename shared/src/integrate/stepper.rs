@@ -560,7 +560,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             e.delta,
             e.delta_dot,
             e.dx[1],
-            self.hammer.contact_accel(e.force),
+            || self.hammer.contact_accel(e.force),
             c.rest,
         )
     }
@@ -857,7 +857,28 @@ impl<'t, T: Real> Simulator<'t, T> {
             ends.0 == event_at(T::zero()) && ends.1 == event_at(T::from_f64(1.0)),
             "the event function at the sub-step's ends: {ends:?}"
         );
-        let frac = root_in_unit(self.plan.event_tol, ends, event_at);
+        // On the host the search with the event function of this case alone (`event` with its
+        // branch taken): where only `δ` counts, its rate and the cosine behind it are not
+        // computed.
+        let tol = self.plan.event_tol;
+        #[cfg(feature = "std")]
+        let locate = |event: &dyn Fn(T, T) -> T| {
+            root_in_unit(tol, ends, |f| {
+                let (d, dd) = hammer.penetration(&dense.at(f));
+                event(d, dd)
+            })
+        };
+        #[cfg(feature = "std")]
+        let frac = if touching {
+            locate(&|d, dd| -law.unswitched_force(d, dd, v_in))
+        } else if arrival_by_distance {
+            locate(&|d, _| d)
+        } else {
+            locate(&|d, dd| law.unswitched_force(d, dd, v_in))
+        };
+        // On the MCU one search for the three (a third of the code; the same results).
+        #[cfg(not(feature = "std"))]
+        let frac = root_in_unit(tol, ends, event_at);
         let tau = frac * len;
         // The state at the event from the trial's dense output (cubic Hermite: error
         // `h_c^4/384 · |d⁴x/dt⁴|`, as small as a fresh RK4 step's to `τ`, which it replaces).
