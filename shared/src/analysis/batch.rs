@@ -183,25 +183,10 @@ struct Job<'t, T: Real, O> {
     obs: O,
 }
 
-/// What a run of [`run_interleaved`] is doing between two kernel calls.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Mode {
-    /// No run (the items are exhausted).
-    Idle,
-    /// Loaded into this free-flight lane.
-    Free(usize),
-    /// Its next sub-step set into this contact lane.
-    Contact(usize),
-    /// Clear of the surface, waiting for a free-flight lane.
-    WaitsFree,
-    /// Its next segment an ordinary sub-step (its cursor), waiting for a contact lane.
-    WaitsContact,
-}
-
-/// A place for a run in flight.
+/// A place for a run in flight. Where it stands is in the lanes' owners (a run in a lane) and
+/// the waiting lists (a run waiting for one).
 struct Run<'t, T: Real, O> {
     job: Option<Job<'t, T, O>>,
-    mode: Mode,
     /// Where a run in the contact lanes or waiting for one stands in its step, and its
     /// sub-step.
     cursor: (Cursor<T>, SubPlan<T>),
@@ -213,7 +198,6 @@ impl<T: Real, O> Run<'_, T, O> {
     fn idle() -> Self {
         Run {
             job: None,
-            mode: Mode::Idle,
             cursor: Default::default(),
             contact_ok: false,
         }
@@ -442,7 +426,6 @@ where
         loop {
             let run = &mut self.runs[r / L][r % L];
             let Some(job) = &mut run.job else {
-                run.mode = Mode::Idle;
                 self.release(own_free, own_contact, free, contact);
                 return;
             };
@@ -450,18 +433,12 @@ where
                 Some(c) => c,
                 None => {
                     if may_load && job.run.free_flight_allowed::<O>() && free.accepts(&job.sim) {
-                        let s = if own_free != NONE {
-                            own_free
-                        } else {
-                            self.free_empty.pop().unwrap_or(NONE)
-                        };
-                        if s == NONE {
-                            run.mode = Mode::WaitsFree;
-                            self.waits_free.push(r);
-                        } else {
-                            free.load(s, &job.sim);
-                            run.mode = Mode::Free(s);
-                            self.free_owner[s] = r;
+                        match lane_for(own_free, &mut self.free_empty) {
+                            Some(s) => {
+                                free.load(s, &job.sim);
+                                self.free_owner[s] = r;
+                            }
+                            None => self.waits_free.push(r),
                         }
                         self.release(NONE, own_contact, free, contact);
                         return;
@@ -476,16 +453,9 @@ where
                     && let Some(p) = job.sim.plain_substep(&c)
                 {
                     run.cursor = (c, p);
-                    let s = if own_contact != NONE {
-                        own_contact
-                    } else {
-                        self.contact_empty.pop().unwrap_or(NONE)
-                    };
-                    if s == NONE {
-                        run.mode = Mode::WaitsContact;
-                        self.waits_contact.push(r);
-                    } else {
-                        self.enter_contact(r, s, contact);
+                    match lane_for(own_contact, &mut self.contact_empty) {
+                        Some(s) => self.enter_contact(r, s, contact),
+                        None => self.waits_contact.push(r),
                     }
                     self.release(own_free, NONE, free, contact);
                     return;
@@ -522,7 +492,6 @@ where
             // The lanes accept every run of their suspension and law (`contact_ok`).
             debug_assert!(set);
         }
-        run.mode = Mode::Contact(s);
         self.contact_owner[s] = r;
         self.contact_constants[s] = r;
     }
@@ -540,11 +509,9 @@ where
             self.free_owner[free_lane] = NONE;
             match self.waits_free.pop() {
                 Some(w) => {
-                    let run = &mut self.runs[w / L][w % L];
-                    if let Some(job) = &run.job {
+                    if let Some(job) = &self.runs[w / L][w % L].job {
                         free.load(free_lane, &job.sim);
                     }
-                    run.mode = Mode::Free(free_lane);
                     self.free_owner[free_lane] = w;
                 }
                 None => self.free_empty.push(free_lane),
@@ -558,6 +525,12 @@ where
             }
         }
     }
+}
+
+/// The lane a run takes: the one it holds (`own`), or an empty one, or none (it waits).
+#[inline]
+fn lane_for<const L: usize>(own: usize, empty: &mut Ids<L>) -> Option<usize> {
+    if own != NONE { Some(own) } else { empty.pop() }
 }
 
 /// The next segment of `job` from `c`, set into contact lane `s` if it is an ordinary sub-step,
