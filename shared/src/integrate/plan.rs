@@ -172,7 +172,7 @@ impl<T: Real> StepPlan<T> {
 }
 
 /// `ε` of the resting test: the contact force balances the others to `ε`, and the
-/// penetration rate is below `ε ω_c δ` ([`SubstepRule::len`]).
+/// penetration rate is below `ε ω_c δ` (the resting sub-step of [`resting_substeps`]).
 pub const RESTING_TOLERANCE: f64 = 0.1;
 
 /// The rule for a contact sub-step's length (`Simulator::plain_substep`), as lanes of
