@@ -289,9 +289,11 @@ where
                 contact.lanes.run::<ProtocolRun<T>>(&mut contact.runs);
                 contact_rounds += 1;
                 contact_steps += n_contact as u64;
+                // (A lane keeps its run until that run's own commit lets it go, so the owners
+                // before the pass are the ones to visit.)
                 let owners = self.contact_owner;
                 for (s, &r) in owners.iter().enumerate() {
-                    if r != NONE && self.contact_owner[s] == r && !contact.runs.continues(s) {
+                    if r != NONE && !contact.runs.continues(s) {
                         self.commit(r, s, &mut free, &mut contact);
                     }
                 }
@@ -356,23 +358,23 @@ where
             job.run.resume_book(&book);
         }
         let mut period_end = false;
-        let done = job
-            .sim
-            .commit_substep(c, p, contact.lanes.result(s), &mut |smp| {
-                period_end |= job.run.sample(smp, &mut job.obs)
-            });
+        let done =
+            job.sim
+                .commit_substep(c, p, contact.lanes.result(&contact.runs, s), &mut |smp| {
+                    period_end |= job.run.sample(smp, &mut job.obs)
+                });
         if done {
             self.end_step(r, period_end, contact);
             self.settle(r, free, contact, None, true, NONE, s);
             return;
         }
         // Most often the next segment is another ordinary sub-step: straight back into the
-        // same contact lane (what `settle` would do first, without its loop). (A lane in
-        // contact holds its run's constants.)
+        // same contact lane (what `settle` would do first, without its loop).
         if run.contact_ok
-            && let Some(next) = into_contact(s, job, c, contact, false)
+            && let Some(next) = job.sim.plain_substep(c)
         {
             *p = next;
+            self.enter_contact(r, s, contact);
             return;
         }
         let c = *c;
@@ -531,24 +533,6 @@ where
 #[inline]
 fn lane_for<const L: usize>(own: usize, empty: &mut Ids<L>) -> Option<usize> {
     if own != NONE { Some(own) } else { empty.pop() }
-}
-
-/// The next segment of `job` from `c`, set into contact lane `s` if it is an ordinary sub-step,
-/// with the simulator's constants if `constants`: that sub-step, or `None` (nothing set).
-#[inline(always)]
-fn into_contact<T: Real, O, K: LaneContact<T>, const L: usize>(
-    s: usize,
-    job: &Job<'_, T, O>,
-    c: &Cursor<T>,
-    contact: &mut Contact<T, K, L>,
-    constants: bool,
-) -> Option<SubPlan<T>> {
-    let p = job.sim.plain_substep(c)?;
-    let book = job.run.sample_book();
-    let Contact { lanes, runs } = contact;
-    lanes
-        .set(runs, s, &job.sim, &p, &book, constants)
-        .then_some(p)
 }
 
 /// Whether the contact lanes take `job`'s ordinary sub-steps: an observer that ignores

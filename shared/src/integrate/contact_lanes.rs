@@ -321,17 +321,9 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     s_end: [T; L],
     band: [u32; L],
     touching: [u32; L],
-    // The result: end state, carry, switch-model field there, and what it is (`STAYS`,
-    // `SWITCHES`, or 0: a sine outside the short range).
-    out_x0: [T; L],
-    out_x1: [T; L],
-    out_carry0: [T; L],
-    out_carry1: [T; L],
-    out_acc: [T; L],
-    out_d: [T; L],
-    out_dd: [T; L],
-    out_force: [T; L],
-    region: [u32; L],
+    // What the trial is (`STAYS`, `SWITCHES`, or 0: a sine outside the short range); its end
+    // state, carry and switch-model field are where the next sub-step starts (`x0`, … and
+    // the `RunLanes`' start field).
     ok: [u32; L],
     /// The instruction set the kernel runs.
     isa: Isa,
@@ -365,15 +357,6 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             s_end: z,
             band: [0; L],
             touching: [0; L],
-            out_x0: z,
-            out_x1: z,
-            out_carry0: z,
-            out_carry1: z,
-            out_acc: z,
-            out_d: z,
-            out_dd: z,
-            out_force: z,
-            region: [0; L],
             ok: [0; L],
             isa: Isa::detect(),
         }
@@ -399,8 +382,8 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
 
     /// Puts `sim`'s next sub-step `p` ([`Simulator::plain_substep`]) into lane `i`, with its
     /// run's `book` and `sim`'s constants if `constants` (else the lane keeps those of its last
-    /// [`set`], which must be `sim`'s). Returns `false` (nothing set) if `sim` is not of this suspension, not
-    /// of the linear law, or (the pendulum) damped where the lanes' first simulator was not or
+    /// [`set`], which must be `sim`'s). Returns `false` (nothing set) if `sim` is not of this
+    /// suspension, not of the linear law, or (the pendulum) damped where the lanes' first simulator was not or
     /// the other way round.
     ///
     /// [`set`]: ContactLanes::set
@@ -447,12 +430,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         self.carry1[i] = carry[1];
         self.a[i] = start.dx[1];
         runs.force0[i] = start.force;
-        runs.region0[i] = match start.region {
-            Region::Free => FREE,
-            Region::Contact => CONTACT,
-            Region::BandAlpha => BAND_ALPHA,
-            Region::BandBeta => BAND_BETA,
-        };
+        runs.region0[i] = code_of(start.region);
         runs.d0[i] = start.delta;
         runs.dd0[i] = start.delta_dot;
         runs.approach[i] = approach;
@@ -474,25 +452,23 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         true
     }
 
-    /// Lane `i`'s trial after [`ContactLanes::run`], for [`Simulator::commit_substep`].
+    /// Lane `i`'s trial after [`ContactLanes::run`], for [`Simulator::commit_substep`] (the
+    /// run kept the trial's end as the lane's next start).
     #[inline]
-    pub(crate) fn result(&self, i: usize) -> LaneTrial<T> {
-        let (x0, x1) = (self.out_x0[i], self.out_x1[i]);
+    pub(crate) fn result(&self, runs: &RunLanes<T, L>, i: usize) -> LaneTrial<T> {
+        let (x0, x1) = (self.x0[i], self.x1[i]);
         match self.ok[i] {
-            STAYS => {
-                let region = region_of(self.region[i]);
-                LaneTrial::Stays {
-                    x: Vector2::new(x0, x1),
-                    carry: Vector2::new(self.out_carry0[i], self.out_carry1[i]),
-                    end: FieldEval {
-                        dx: Vector2::new(x1, self.out_acc[i]),
-                        force: self.out_force[i],
-                        region,
-                        delta: self.out_d[i],
-                        delta_dot: self.out_dd[i],
-                    },
-                }
-            }
+            STAYS => LaneTrial::Stays {
+                x: Vector2::new(x0, x1),
+                carry: Vector2::new(self.carry0[i], self.carry1[i]),
+                end: FieldEval {
+                    dx: Vector2::new(x1, self.a[i]),
+                    force: runs.force0[i],
+                    region: region_of(runs.region0[i]),
+                    delta: runs.d0[i],
+                    delta_dot: runs.dd0[i],
+                },
+            },
             SWITCHES => LaneTrial::Switches {
                 x: Vector2::new(x0, x1),
                 s_end: self.s_end[i],
@@ -723,13 +699,11 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             o_ok[i] = exact << u32::from(end_touching != self.touching[i]);
         }
         // Each lane's next sub-step (meaningful where the lane goes on).
-        let (mut n_approach, mut n_force0, mut n_d0, mut n_dd0) =
-            ([zero; L], [zero; L], [zero; L], [zero; L]);
+        let mut n_approach = [zero; L];
         let (mut n_offset, mut n_rest, mut n_len, mut n_s_start) =
             ([zero; L], [zero; L], [zero; L], [zero; L]);
         let (mut n_prev_delta, mut n_peak, mut n_period_force) = ([zero; L], [zero; L], [zero; L]);
-        let (mut n_region0, mut n_last, mut n_band, mut n_touching) =
-            ([0u32; L], [0u32; L], [0u32; L], [0u32; L]);
+        let (mut n_last, mut n_band, mut n_touching) = ([0u32; L], [0u32; L], [0u32; L]);
         for i in 0..L {
             let (acc, d, dd, force, region) = (o_acc[i], o_d[i], o_dd[i], o_force[i], o_region[i]);
             let ok = o_ok[i];
@@ -770,7 +744,6 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
             } else {
                 runs.approach[i]
             };
-            (n_force0[i], n_region0[i], n_d0[i], n_dd0[i]) = (force, region, d, dd);
             (n_offset[i], n_rest[i], n_len[i]) = (offset, rest, len);
             n_last[i] = u32::from(next_last);
             n_band[i] = u32::from(band);
@@ -786,13 +759,21 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         (self.x0, self.x1, self.carry0, self.carry1, self.a) = (tx0, tx1, tc0, tc1, o_acc);
         (self.offset, self.len, self.last, self.band) = (n_offset, n_len, n_last, n_band);
         (self.s_start, self.touching) = (n_s_start, n_touching);
-        (runs.approach, runs.force0, runs.region0) = (n_approach, n_force0, n_region0);
-        (runs.d0, runs.dd0, runs.rest) = (n_d0, n_dd0, n_rest);
+        (runs.approach, runs.force0, runs.region0) = (n_approach, o_force, o_region);
+        (runs.d0, runs.dd0, runs.rest) = (o_d, o_dd, n_rest);
         (runs.prev_delta, runs.peak, runs.period_force) = (n_prev_delta, n_peak, n_period_force);
-        // Whole arrays out (one store each, where a lane at a time would take them apart).
-        (self.out_x0, self.out_x1, self.out_carry0, self.out_carry1) = (tx0, tx1, tc0, tc1);
-        (self.out_acc, self.out_d, self.out_dd, self.out_force) = (o_acc, o_d, o_dd, o_force);
-        (self.region, self.ok) = (o_region, o_ok);
+        self.ok = o_ok;
+    }
+}
+
+/// The lane code of a switch-model region ([`region_of`] reversed).
+#[inline(always)]
+fn code_of(region: Region) -> u32 {
+    match region {
+        Region::Free => FREE,
+        Region::Contact => CONTACT,
+        Region::BandAlpha => BAND_ALPHA,
+        Region::BandBeta => BAND_BETA,
     }
 }
 
