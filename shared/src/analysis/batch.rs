@@ -20,7 +20,7 @@ use crate::error::ParamError;
 use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
 use crate::integrate::isa::wide_vectors;
 use crate::integrate::lanes::Lockstep;
-use crate::integrate::stepper::{Cursor, SubPlan};
+use crate::integrate::stepper::{Cursor, LaneTrial, PendingSwitch, SubPlan, locate_switches};
 use crate::integrate::{PhaseTable, Simulator};
 use crate::model::RigParams;
 use crate::model::hammer::{BeamFree, WiresFree};
@@ -138,6 +138,8 @@ where
         contact_empty: Ids::new(),
         waits_free: Ids::new(),
         waits_contact: Ids::new(),
+        switches: [NONE; SWITCHES_TOGETHER],
+        n_switches: 0,
         contact_ended: 0,
     };
     for s in (0..L).rev() {
@@ -175,6 +177,10 @@ const RUNS_PER_LANE: usize = 2;
 /// No run (an empty lane) or no lane.
 const NONE: usize = usize::MAX;
 
+/// Switching events located together: a contact lane's run whose sub-step holds one waits
+/// (its lane handed on) until this many wait, or until no run is in contact.
+const SWITCHES_TOGETHER: usize = 2;
+
 /// One item's protocol run.
 struct Job<'t, T: Real, O> {
     index: usize,
@@ -192,6 +198,8 @@ struct Run<'t, T: Real, O> {
     cursor: (Cursor<T>, SubPlan<T>),
     /// Whether the contact lanes take its sub-steps (the linear law, their suspension).
     contact_ok: bool,
+    /// Its sub-step's switching event, waiting to be located (the run is in `switches`).
+    pending: Option<PendingSwitch<T>>,
 }
 
 impl<T: Real, O> Run<'_, T, O> {
@@ -200,6 +208,7 @@ impl<T: Real, O> Run<'_, T, O> {
             job: None,
             cursor: Default::default(),
             contact_ok: false,
+            pending: None,
         }
     }
 }
@@ -244,6 +253,9 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     contact_empty: Ids<L>,
     waits_free: Ids<L>,
     waits_contact: Ids<L>,
+    /// Runs whose switching event waits to be located.
+    switches: [usize; SWITCHES_TOGETHER],
+    n_switches: usize,
     /// Sub-steps the contact lanes ended themselves.
     contact_ended: u64,
 }
@@ -279,6 +291,11 @@ where
         loop {
             let n_free = self.free_owner.iter().filter(|&&r| r != NONE).count();
             let n_contact = self.contact_owner.iter().filter(|&&r| r != NONE).count();
+            if n_contact == 0 && self.n_switches > 0 {
+                // No run in contact to bring another event: those waiting go on now.
+                self.locate_switches(&mut free, &mut contact);
+                continue;
+            }
             if n_free == 0 && n_contact == 0 {
                 break;
             }
@@ -338,7 +355,8 @@ where
     }
 
     /// Ends the sub-step of run `r` in contact lane `s` with the lane's result (after taking
-    /// back the sub-steps the lane ended itself) and goes on.
+    /// back the sub-steps the lane ended itself) and goes on. A sub-step with a switching event
+    /// waits, its lane handed on, for its event to be located with others'.
     fn commit<K: LaneContact<T>>(
         &mut self,
         r: usize,
@@ -358,27 +376,106 @@ where
             job.run.resume_book(&book);
         }
         let mut period_end = false;
-        let done =
-            job.sim
-                .commit_substep(c, p, contact.lanes.result(&contact.runs, s), &mut |smp| {
-                    period_end |= job.run.sample(smp, &mut job.obs)
-                });
+        let done = match contact.lanes.result(&contact.runs, s) {
+            LaneTrial::Switches { x, s_end } => {
+                run.pending = Some(job.sim.switch_begin(c, p, x, s_end));
+                self.switches[self.n_switches] = r;
+                self.n_switches += 1;
+                self.release(NONE, s, free, contact);
+                if self.n_switches == SWITCHES_TOGETHER {
+                    self.locate_switches(free, contact);
+                }
+                return;
+            }
+            trial => job.sim.commit_substep(c, p, trial, &mut |smp| {
+                period_end |= job.run.sample(smp, &mut job.obs)
+            }),
+        };
+        self.after_substep(r, s, done, period_end, free, contact);
+    }
+
+    /// Locates the switching events of the runs waiting in `switches` (together if they are
+    /// [`SWITCHES_TOGETHER`], else one by one: the same results), ends their sub-steps and
+    /// goes on with each.
+    fn locate_switches<K: LaneContact<T>>(
+        &mut self,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut Contact<T, K, L>,
+    ) {
+        let n = core::mem::take(&mut self.n_switches);
+        let ids = self.switches;
+        let runs = &self.runs;
+        let pending = |r: usize| {
+            let run = &runs[r / L][r % L];
+            run.job.as_ref().map(|j| &j.sim).zip(run.pending.as_ref())
+        };
+        let mut fracs = [T::zero(); SWITCHES_TOGETHER];
+        let all = if n == SWITCHES_TOGETHER {
+            all_some(ids.map(pending))
+        } else {
+            None
+        };
+        match all {
+            Some(all) => fracs = locate_switches(all),
+            None => {
+                for (f, &r) in fracs.iter_mut().zip(&ids[..n]) {
+                    if let Some(p) = pending(r) {
+                        *f = locate_switches([p])[0];
+                    }
+                }
+            }
+        }
+        for (&r, &frac) in ids[..n].iter().zip(&fracs) {
+            let run = &mut self.runs[r / L][r % L];
+            let (Some(job), Some(pending)) = (&mut run.job, run.pending.take()) else {
+                continue;
+            };
+            let (c, p) = &mut run.cursor;
+            let mut period_end = false;
+            let done = job.sim.switch_end(c, p, &pending, frac, &mut |smp| {
+                period_end |= job.run.sample(smp, &mut job.obs)
+            });
+            self.after_substep(r, NONE, done, period_end, free, contact);
+        }
+    }
+
+    /// After run `r`'s sub-step (`done`: its step ended, with the protocol's `period_end`),
+    /// holding contact lane `own` (`NONE`: none): its next ordinary sub-step into a contact
+    /// lane, or on through [`Driver::settle`].
+    fn after_substep<K: LaneContact<T>>(
+        &mut self,
+        r: usize,
+        own: usize,
+        done: bool,
+        period_end: bool,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut Contact<T, K, L>,
+    ) {
         if done {
             self.end_step(r, period_end, contact);
-            self.settle(r, free, contact, None, true, NONE, s);
+            self.settle(r, free, contact, None, true, NONE, own);
             return;
         }
-        // Most often the next segment is another ordinary sub-step: straight back into the
-        // same contact lane (what `settle` would do first, without its loop).
+        let run = &mut self.runs[r / L][r % L];
+        let Some(job) = &mut run.job else {
+            self.settle(r, free, contact, None, true, NONE, own);
+            return;
+        };
+        let (c, p) = &mut run.cursor;
+        // Most often the next segment is another ordinary sub-step: straight into a contact
+        // lane (what `settle` would do first, without its loop).
         if run.contact_ok
             && let Some(next) = job.sim.plain_substep(c)
         {
             *p = next;
-            self.enter_contact(r, s, contact);
+            match lane_for(own, &mut self.contact_empty) {
+                Some(s) => self.enter_contact(r, s, contact),
+                None => self.waits_contact.push(r),
+            }
             return;
         }
         let c = *c;
-        self.settle(r, free, contact, Some(c), true, NONE, s);
+        self.settle(r, free, contact, Some(c), true, NONE, own);
     }
 
     /// Ends the step of run `r` for its protocol; a run that is done is emitted and the next
@@ -527,6 +624,15 @@ where
             }
         }
     }
+}
+
+/// `xs` if none is `None`.
+fn all_some<A: Copy, const K: usize>(xs: [Option<A>; K]) -> Option<[A; K]> {
+    let mut all = [xs.first().copied().flatten()?; K];
+    for (a, x) in all.iter_mut().zip(xs) {
+        *a = x?;
+    }
+    Some(all)
 }
 
 /// The lane a run takes: the one it holds (`own`), or an empty one, or none (it waits).

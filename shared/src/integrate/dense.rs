@@ -6,11 +6,12 @@
 
 use nalgebra::Vector2;
 
-use super::bracket::{Rule, bracket_rising};
+use super::bracket::{Rule, bracket_rising, illinois_side_by_side};
 use crate::real::Real;
 
 /// One RK4 step's cubic Hermite dense output: from `x0` with slope `f0` to `x1` with slope
 /// `f1` over `h` seconds.
+#[derive(Clone, Copy)]
 pub(super) struct DenseStep<T: Real> {
     pub(super) x0: Vector2<T>,
     pub(super) f0: Vector2<T>,
@@ -40,6 +41,9 @@ impl<T: Real> DenseStep<T> {
 /// a 45 µs sub-step, a 0.2 nm change of `δ` at 0.06 m/s).
 pub(crate) const EVENT_TOL: f64 = 1.0 / 16384.0;
 
+/// Evaluations of an event function at most in one search.
+const MAX_EVENT_EVALS: u32 = 40;
+
 /// The upper end of a bracket in `[0, 1]` (below `tol` wide, or after 40 evaluations) of a
 /// rising zero of `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval):
 /// [`Rule::Illinois`], given `ends` = `(g(0), g(1))` bit for bit.
@@ -47,10 +51,22 @@ pub(crate) const EVENT_TOL: f64 = 1.0 / 16384.0;
 pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(tol: T, ends: (T, T), g: G) -> T {
     let rule = Rule::Illinois {
         tol,
-        max_evals: 40,
+        max_evals: MAX_EVENT_EVALS,
         ends,
     };
     bracket_rising(T::zero(), T::from_f64(1.0), rule, g).1
+}
+
+/// [`root_in_unit`] for `K` independent functions at once: `brackets[i]` = `(tol, ends)` of
+/// `g(i, ·)`. The searches advance side by side (one evaluation of each still searching per
+/// round), so their chains of dependent operations overlap on an out-of-order processor; each
+/// result is bit for bit [`root_in_unit`]'s.
+#[inline]
+pub(super) fn roots_in_unit<T: Real, const K: usize, G: Fn(usize, T) -> T>(
+    brackets: [(T, (T, T)); K],
+    g: G,
+) -> [T; K] {
+    illinois_side_by_side(brackets, MAX_EVENT_EVALS, g).map(|(_, hi)| hi)
 }
 
 /// The smallest value over a segment of `len` seconds of the cubic Hermite interpolant from

@@ -33,7 +33,7 @@
 use nalgebra::Vector2;
 
 use super::bracket::{Rule, bracket_rising};
-use super::dense::{DenseStep, hermite_min, root_in_unit};
+use super::dense::{DenseStep, hermite_min, root_in_unit, roots_in_unit};
 use super::free::{FreeState, FullTrig, free_step};
 #[cfg(doc)]
 use super::plan::resting_substeps;
@@ -127,10 +127,107 @@ impl core::ops::AddAssign for StepCounts {
 
 /// Penetration and its rate where a segment (a free-flight step or segment, or a sub-step)
 /// starts, `offset` s into the current step.
+#[derive(Clone, Copy)]
 struct SegmentStart<T> {
     offset: T,
     delta: T,
     delta_dot: T,
+}
+
+/// Which function of the penetration `δ` and its rate a switching event is the rising zero of
+/// (Leine's switch model; the contact law continued past its ends, `unswitched_force`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum EventCase {
+    /// Contact ends: the force falling through 0 (`−F`, the law continued, rising).
+    Leaves,
+    /// Free flight from outside the surface: `δ` rising through 0.
+    Arrives,
+    /// Free flight from inside the surface (a departure's band): the force rising through 0.
+    Presses,
+}
+
+impl EventCase {
+    /// The event function at `(δ, δ̇)` (m, m/s) with approach speed `v_in` (m/s).
+    #[inline(always)]
+    fn value<T: Real>(self, law: &LawCoeffs<T>, d: T, dd: T, v_in: T) -> T {
+        match self {
+            EventCase::Leaves => -law.unswitched_force(d, dd, v_in),
+            EventCase::Arrives => d,
+            EventCase::Presses => law.unswitched_force(d, dd, v_in),
+        }
+    }
+}
+
+/// The search for a switching event inside one sub-step ([`Simulator::substep_switch`]).
+#[derive(Clone, Copy)]
+struct SwitchSearch<T: Real> {
+    /// The trial's dense output over the sub-step.
+    dense: DenseStep<T>,
+    /// The event function at its start and end.
+    ends: (T, T),
+    case: EventCase,
+    /// Approach speed, m/s.
+    v_in: T,
+    /// Width of the final bracket, a fraction of the sub-step.
+    tol: T,
+    /// Where the sub-step starts, s into the current step, and `sin Ωt` at its end.
+    offset: T,
+    s_end: T,
+    /// Whether it starts touching.
+    touching: bool,
+}
+
+impl<T: Real> SwitchSearch<T> {
+    /// The event function of `case` (this search's) at fraction `f` of the sub-step.
+    #[inline(always)]
+    fn event_at(&self, hammer: &Hammer<T>, case: EventCase, f: T) -> T {
+        let (d, dd) = hammer.penetration(&self.dense.at(f));
+        case.value(&hammer.switch().law, d, dd, self.v_in)
+    }
+
+    /// Where the event falls, as a fraction of the sub-step (Illinois regula falsi,
+    /// [`root_in_unit`]).
+    #[inline(always)]
+    fn locate(&self, hammer: &Hammer<T>) -> T {
+        // On the host the search with the event function of this case alone (the case a
+        // constant in each arm): where only `δ` counts, its rate and the cosine behind it are
+        // not computed.
+        #[cfg(feature = "std")]
+        {
+            let root = |case| root_in_unit(self.tol, self.ends, |f| self.event_at(hammer, case, f));
+            match self.case {
+                EventCase::Leaves => root(EventCase::Leaves),
+                EventCase::Arrives => root(EventCase::Arrives),
+                EventCase::Presses => root(EventCase::Presses),
+            }
+        }
+        // On the MCU one search for the three (a third of the code; the same results).
+        #[cfg(not(feature = "std"))]
+        root_in_unit(self.tol, self.ends, |f| self.event_at(hammer, self.case, f))
+    }
+}
+
+/// A contact lane's sub-step waiting for its switching event to be located
+/// ([`Simulator::switch_begin`], [`locate_switches`], [`Simulator::switch_end`]).
+#[derive(Clone, Copy)]
+pub(crate) struct PendingSwitch<T: Real> {
+    seg: SegmentStart<T>,
+    search: SwitchSearch<T>,
+}
+
+/// The switching events of `K` pending sub-steps, each with its simulator, located together:
+/// `K` independent Illinois searches advanced side by side ([`roots_in_unit`]), whose chains
+/// of dependent operations an out-of-order processor overlaps. The same fractions, bit for
+/// bit, as locating each alone.
+#[inline]
+pub(crate) fn locate_switches<T: Real, const K: usize>(
+    pending: [(&Simulator<'_, T>, &PendingSwitch<T>); K],
+) -> [T; K] {
+    let brackets = pending.map(|(_, p)| (p.search.tol, p.search.ends));
+    roots_in_unit(brackets, |i, f| {
+        let (sim, p) = pending[i];
+        p.search.event_at(&sim.hammer, p.search.case, f)
+    })
 }
 
 /// Where a simulator stands inside its current step, between two segments
@@ -639,13 +736,26 @@ impl<'t, T: Real> Simulator<'t, T> {
                 self.substep(c.offset, p.len, s_end);
             }
         }
+        self.end_substep(c, p, &seg, observe)
+    }
+
+    /// After the sub-step `p` from `c` (whose segment started at `seg`): the step's end, or
+    /// the cursor moved past it; reports the sample and returns whether the step is done.
+    #[inline(always)]
+    fn end_substep<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        p: &SubPlan<T>,
+        seg: &SegmentStart<T>,
+        observe: &mut O,
+    ) -> bool {
         if p.last {
-            self.finish_step(&seg, observe);
+            self.finish_step(seg, observe);
             return true;
         }
         c.offset += p.len;
         c.rest -= p.len;
-        observe(&self.sample(c.offset, false, &seg));
+        observe(&self.sample(c.offset, false, seg));
         false
     }
 
@@ -817,74 +927,82 @@ impl<'t, T: Real> Simulator<'t, T> {
         k1: FieldEval<T>,
         trial: Vector2<T>,
     ) {
-        let hammer = self.hammer;
-        let half = T::from_f64(0.5);
+        let search = self.switch_search(offset, len, s_end, touching, k1, trial);
+        let frac = search.locate(&self.hammer);
+        self.switch_finish(&search, frac);
+    }
+
+    /// The search for the switching event inside a sub-step whose `trial` ends in the other
+    /// mode ([`Simulator::substep_switch`]): the trial's dense output, the event function's
+    /// case and its values at the ends.
+    #[inline(always)]
+    fn switch_search(
+        &self,
+        offset: T,
+        len: T,
+        s_end: T,
+        touching: bool,
+        k1: FieldEval<T>,
+        trial: Vector2<T>,
+    ) -> SwitchSearch<T> {
+        let hammer = &self.hammer;
         let start = self.state.at_x;
         let v_in = self.state.approach_speed;
         let mode = FieldMode::of_start(touching);
         let end_mode = hammer.field_in(mode, &trial, s_end, v_in);
+        let case = if touching {
+            EventCase::Leaves
+        } else if start.delta <= T::zero() {
+            EventCase::Arrives
+        } else {
+            EventCase::Presses
+        };
         let law = hammer.switch().law;
-        let arrival_by_distance = start.delta <= T::zero();
-        // The event function of the penetration and its rate.
-        let event = |d: T, dd: T| {
-            if touching {
-                -law.unswitched_force(d, dd, v_in)
-            } else if arrival_by_distance {
-                d
-            } else {
-                law.unswitched_force(d, dd, v_in)
-            }
-        };
-        let dense = DenseStep {
-            x0: self.state.x,
-            f0: k1.dx,
-            x1: trial,
-            f1: end_mode.dx,
-            h: len,
-        };
         // At its ends the dense output is the start and the trial (its weights there are
         // exactly 1 and 0), whose penetrations the field evaluations hold (`Hammer::penetration`
         // is the field's own): the event function there without evaluating it again.
-        let ends = (
-            event(start.delta, start.delta_dot),
-            event(end_mode.delta, end_mode.delta_dot),
-        );
-        let event_at = |f: T| {
-            let (d, dd) = hammer.penetration(&dense.at(f));
-            event(d, dd)
+        let search = SwitchSearch {
+            dense: DenseStep {
+                x0: self.state.x,
+                f0: k1.dx,
+                x1: trial,
+                f1: end_mode.dx,
+                h: len,
+            },
+            ends: (
+                case.value(&law, start.delta, start.delta_dot, v_in),
+                case.value(&law, end_mode.delta, end_mode.delta_dot, v_in),
+            ),
+            case,
+            v_in,
+            tol: self.plan.event_tol,
+            offset,
+            s_end,
+            touching,
         };
         debug_assert!(
-            ends.0 == event_at(T::zero()) && ends.1 == event_at(T::from_f64(1.0)),
-            "the event function at the sub-step's ends: {ends:?}"
+            search.ends.0 == search.event_at(hammer, case, T::zero())
+                && search.ends.1 == search.event_at(hammer, case, T::from_f64(1.0)),
+            "the event function at the sub-step's ends: {:?}",
+            search.ends
         );
-        // On the host the search with the event function of this case alone (`event` with its
-        // branch taken): where only `δ` counts, its rate and the cosine behind it are not
-        // computed.
-        let tol = self.plan.event_tol;
-        #[cfg(feature = "std")]
-        let locate = |event: &dyn Fn(T, T) -> T| {
-            root_in_unit(tol, ends, |f| {
-                let (d, dd) = hammer.penetration(&dense.at(f));
-                event(d, dd)
-            })
-        };
-        #[cfg(feature = "std")]
-        let frac = if touching {
-            locate(&|d, dd| -law.unswitched_force(d, dd, v_in))
-        } else if arrival_by_distance {
-            locate(&|d, _| d)
-        } else {
-            locate(&|d, dd| law.unswitched_force(d, dd, v_in))
-        };
-        // On the MCU one search for the three (a third of the code; the same results).
-        #[cfg(not(feature = "std"))]
-        let frac = root_in_unit(tol, ends, event_at);
+        search
+    }
+
+    /// Ends the sub-step of `search` with its switching event at fraction `frac` of it: the
+    /// old mode to the event (the trial's dense output) and the switch model from it to the
+    /// sub-step's end.
+    #[inline(always)]
+    fn switch_finish(&mut self, search: &SwitchSearch<T>, frac: T) {
+        let hammer = &self.hammer;
+        let half = T::from_f64(0.5);
+        let (offset, len, s_end) = (search.offset, search.dense.h, search.s_end);
         let tau = frac * len;
         // The state at the event from the trial's dense output (cubic Hermite: error
         // `h_c^4/384 · |d⁴x/dt⁴|`, as small as a fresh RK4 step's to `τ`, which it replaces).
-        let x_a = dense.at(frac);
+        let x_a = search.dense.at(frac);
         let kin_a = hammer.kinematics(&x_a);
-        if !touching {
+        if !search.touching {
             self.state.approach_speed = kin_a.1.max_of(min_approach());
         }
         let v_in = self.state.approach_speed;
@@ -904,6 +1022,42 @@ impl<'t, T: Real> Simulator<'t, T> {
         s.at_x = hammer.field(&s.x, s_end, v_in);
         // The trial and the rest of the sub-step.
         s.counts.events += 1;
+    }
+
+    /// A contact lane's sub-step `p` from `c` whose trial `x` ends in the other mode
+    /// ([`LaneTrial::Switches`]), up to its switching event: the search for the event, to be
+    /// located with others ([`locate_switches`]) and ended by [`Simulator::switch_end`].
+    /// Together the two are [`Simulator::commit_substep`] of that trial, bit for bit.
+    #[inline(always)]
+    pub(crate) fn switch_begin(
+        &mut self,
+        c: &mut Cursor<T>,
+        p: &SubPlan<T>,
+        x: Vector2<T>,
+        s_end: T,
+    ) -> PendingSwitch<T> {
+        let seg = self.segment_start(c.offset);
+        c.first = false;
+        let (touching, k1) = self.substep_begin(c.offset);
+        PendingSwitch {
+            seg,
+            search: self.switch_search(c.offset, p.len, s_end, touching, k1, x),
+        }
+    }
+
+    /// Ends the sub-step `p` of [`Simulator::switch_begin`] with its event at fraction `frac`
+    /// of it: reports the sample; returns whether the step is done.
+    #[inline(always)]
+    pub(crate) fn switch_end<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        p: &SubPlan<T>,
+        pending: &PendingSwitch<T>,
+        frac: T,
+        observe: &mut O,
+    ) -> bool {
+        self.switch_finish(&pending.search, frac);
+        self.end_substep(c, p, &pending.seg, observe)
     }
 
     /// Ends the current step: advances the step counters and reports the sample.
