@@ -201,6 +201,11 @@ fn main() {
         100.0 * g.lanes.contact_steps as f64 / c.substeps.max(1) as f64,
         100.0 * g.lanes.contact_ended as f64 / g.lanes.contact_steps.max(1) as f64
     );
+    println!(
+        "  switching events: {:.1} % of {} located several at once in the switching-event lanes",
+        100.0 * g.lanes.switches_in_lanes as f64 / c.events.max(1) as f64,
+        c.events
+    );
     let scalar_steps = c.rk4_steps() - c.lane_steps;
     println!(
         "  one at a time: {:.0} ns per RK4 step ({:.3e} steps) against {:.2} ns per lane-step in the kernel",

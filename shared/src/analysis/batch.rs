@@ -20,7 +20,8 @@ use crate::error::ParamError;
 use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
 use crate::integrate::isa::wide_vectors;
 use crate::integrate::lanes::Lockstep;
-use crate::integrate::stepper::{Cursor, LaneTrial, PendingSwitch, SubPlan, locate_switches};
+use crate::integrate::stepper::{Cursor, LaneTrial, PendingSwitch, SubPlan};
+use crate::integrate::switch_lanes::SwitchLanes;
 use crate::integrate::{PhaseTable, Simulator};
 use crate::model::RigParams;
 use crate::model::hammer::{BeamFree, WiresFree};
@@ -68,6 +69,9 @@ pub struct LaneStats {
     /// Of those, the sub-steps the contact lanes ended themselves (committed, sampled and the
     /// next one set up without the simulator).
     pub contact_ended: u64,
+    /// Switching events of the contact lanes' sub-steps located in the switching-event
+    /// lanes, several at once (the rest, one at a time by the stepper).
+    pub switches_in_lanes: u64,
 }
 
 impl core::ops::AddAssign for LaneStats {
@@ -80,6 +84,7 @@ impl core::ops::AddAssign for LaneStats {
         self.contact_rounds += o.contact_rounds;
         self.contact_steps += o.contact_steps;
         self.contact_ended += o.contact_ended;
+        self.switches_in_lanes += o.switches_in_lanes;
     }
 }
 
@@ -141,6 +146,7 @@ where
         switches: [NONE; SWITCHES_TOGETHER],
         n_switches: 0,
         contact_ended: 0,
+        switches_in_lanes: 0,
     };
     for s in (0..L).rev() {
         driver.free_empty.push(s);
@@ -172,14 +178,14 @@ where
 
 /// Protocol runs in flight per lane: twice as many runs as lanes of each kind, so that the
 /// free-flight lanes and the contact lanes each find runs to fill them.
-const RUNS_PER_LANE: usize = 2;
+const RUNS_PER_LANE: usize = 3;
 
 /// No run (an empty lane) or no lane.
 const NONE: usize = usize::MAX;
 
 /// Switching events located together: a contact lane's run whose sub-step holds one waits
 /// (its lane handed on) until this many wait, or until no run is in contact.
-const SWITCHES_TOGETHER: usize = 2;
+const SWITCHES_TOGETHER: usize = 8;
 
 /// One item's protocol run.
 struct Job<'t, T: Real, O> {
@@ -258,6 +264,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     n_switches: usize,
     /// Sub-steps the contact lanes ended themselves.
     contact_ended: u64,
+    /// Switching events located in the switching-event lanes.
+    switches_in_lanes: u64,
 }
 
 impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
@@ -280,6 +288,7 @@ where
         let mut contact = Contact {
             lanes: ContactLanes::<T, K, L>::for_simulator(&first.sim),
             runs: RunLanes::<T, L>::new(),
+            switches: SwitchLanes::new(),
         };
         for r in 0..RUNS_PER_LANE * L {
             let run = self.run(r);
@@ -351,6 +360,7 @@ where
             contact_rounds,
             contact_steps,
             contact_ended: self.contact_ended,
+            switches_in_lanes: self.switches_in_lanes,
         }
     }
 
@@ -378,14 +388,22 @@ where
         let mut period_end = false;
         let done = match contact.lanes.result(&contact.runs, s) {
             LaneTrial::Switches { x, s_end } => {
-                run.pending = Some(job.sim.switch_begin(c, p, x, s_end));
-                self.switches[self.n_switches] = r;
-                self.n_switches += 1;
-                self.release(NONE, s, free, contact);
-                if self.n_switches == SWITCHES_TOGETHER {
-                    self.locate_switches(free, contact);
+                let pending = job.sim.switch_begin(c, p, x, s_end);
+                if contact.switches.push(&job.sim, &pending) {
+                    run.pending = Some(pending);
+                    self.switches[self.n_switches] = r;
+                    self.n_switches += 1;
+                    self.release(NONE, s, free, contact);
+                    if self.n_switches == SWITCHES_TOGETHER {
+                        self.locate_switches(free, contact);
+                    }
+                    return;
                 }
-                return;
+                // (The lanes take every run of their suspension and law: not reached.)
+                let frac = pending.locate(&job.sim);
+                job.sim.switch_end(c, p, &pending, frac, &mut |smp| {
+                    period_end |= job.run.sample(smp, &mut job.obs)
+                })
             }
             trial => job.sim.commit_substep(c, p, trial, &mut |smp| {
                 period_end |= job.run.sample(smp, &mut job.obs)
@@ -394,42 +412,25 @@ where
         self.after_substep(r, s, done, period_end, free, contact);
     }
 
-    /// Locates the switching events of the runs waiting in `switches` (together if they are
-    /// [`SWITCHES_TOGETHER`], else one by one: the same results), ends their sub-steps and
-    /// goes on with each.
+    /// Locates the switching events of the runs waiting in `switches` (together, in the
+    /// switching-event lanes; one alone where those cannot), ends their sub-steps and goes on
+    /// with each.
     fn locate_switches<K: LaneContact<T>>(
         &mut self,
         free: &mut Lockstep<'t, T, K, L>,
         contact: &mut Contact<T, K, L>,
     ) {
         let n = core::mem::take(&mut self.n_switches);
+        debug_assert_eq!(n, contact.switches.len());
+        let fracs = contact.switches.locate();
         let ids = self.switches;
-        let runs = &self.runs;
-        let pending = |r: usize| {
-            let run = &runs[r / L][r % L];
-            run.job.as_ref().map(|j| &j.sim).zip(run.pending.as_ref())
-        };
-        let mut fracs = [T::zero(); SWITCHES_TOGETHER];
-        let all = if n == SWITCHES_TOGETHER {
-            all_some(ids.map(pending))
-        } else {
-            None
-        };
-        match all {
-            Some(all) => fracs = locate_switches(all),
-            None => {
-                for (f, &r) in fracs.iter_mut().zip(&ids[..n]) {
-                    if let Some(p) = pending(r) {
-                        *f = locate_switches([p])[0];
-                    }
-                }
-            }
-        }
         for (&r, &frac) in ids[..n].iter().zip(&fracs) {
             let run = &mut self.runs[r / L][r % L];
             let (Some(job), Some(pending)) = (&mut run.job, run.pending.take()) else {
                 continue;
             };
+            self.switches_in_lanes += u64::from(frac.is_some());
+            let frac = frac.unwrap_or_else(|| pending.locate(&job.sim));
             let (c, p) = &mut run.cursor;
             let mut period_end = false;
             let done = job.sim.switch_end(c, p, &pending, frac, &mut |smp| {
@@ -559,7 +560,7 @@ where
                     self.release(own_free, NONE, free, contact);
                     return;
                 }
-                if job.sim.advance(&mut c, &mut |smp| {
+                if job.sim.advance(&mut c, run.contact_ok, &mut |smp| {
                     period_end |= job.run.sample(smp, &mut job.obs)
                 }) {
                     break;
@@ -626,15 +627,6 @@ where
     }
 }
 
-/// `xs` if none is `None`.
-fn all_some<A: Copy, const K: usize>(xs: [Option<A>; K]) -> Option<[A; K]> {
-    let mut all = [xs.first().copied().flatten()?; K];
-    for (a, x) in all.iter_mut().zip(xs) {
-        *a = x?;
-    }
-    Some(all)
-}
-
 /// The lane a run takes: the one it holds (`own`), or an empty one, or none (it waits).
 #[inline]
 fn lane_for<const L: usize>(own: usize, empty: &mut Ids<L>) -> Option<usize> {
@@ -650,10 +642,12 @@ fn contact_ok<T: Real, O: Observer<T>, K: LaneContact<T>, const L: usize>(
     job.is_some_and(|j| !O::SAMPLES && contact.lanes.accepts(&j.sim))
 }
 
-/// The contact lanes and what they carry of their runs (two objects: see [`RunLanes`]).
+/// The contact lanes and what they carry of their runs (two objects: see [`RunLanes`]), and
+/// the switching events of their sub-steps waiting to be located.
 struct Contact<T: Real, K, const L: usize> {
     lanes: ContactLanes<T, K, L>,
     runs: RunLanes<T, L>,
+    switches: SwitchLanes<T, K, SWITCHES_TOGETHER>,
 }
 
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),
@@ -770,6 +764,7 @@ mod tests {
         // The paths under test were taken: whole free-flight steps in lanes, contact sub-steps
         // in lanes, most of them ended by the lanes themselves (the rest by the simulator).
         assert!(stats.lane_steps > 0, "{rig:?}: {stats:?}");
+        assert!(stats.switches_in_lanes > 0, "{rig:?}: {stats:?}");
         assert!(
             stats.contact_ended > stats.contact_steps / 2
                 && stats.contact_ended < stats.contact_steps,

@@ -98,11 +98,7 @@ fn illinois<T: Real, G: Fn(T) -> T>(
         if hi - lo <= tol {
             break;
         }
-        let mut mid = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
-        let width = hi - lo;
-        if !(mid > lo + width * T::from_f64(1e-3) && mid < hi - width * T::from_f64(1e-3)) {
-            mid = (lo + hi) * half;
-        }
+        let mid = illinois_step(lo, hi, g_lo, g_hi);
         let g_mid = g(mid);
         if g_mid > T::zero() {
             hi = mid;
@@ -123,73 +119,19 @@ fn illinois<T: Real, G: Fn(T) -> T>(
     (lo, hi)
 }
 
-/// [`Rule::Illinois`] on `[0, 1]` for `K` independent functions at once: `brackets[i]` =
-/// `(tol, (g(i, 0), g(i, 1)))`. Each search takes the same points and decisions as
-/// [`illinois`] alone (so the same bracket, bit for bit); they advance side by side, one
-/// evaluation of each that is still searching per round, so that an out-of-order processor
-/// overlaps their chains of dependent operations.
-#[inline]
-pub(crate) fn illinois_side_by_side<T: Real, const K: usize, G: Fn(usize, T) -> T>(
-    brackets: [(T, (T, T)); K],
-    max_evals: u32,
-    g: G,
-) -> [(T, T); K] {
-    let half = T::from_f64(0.5);
-    let zero = T::zero();
-    let one = T::from_f64(1.0);
-    let mut lo = [zero; K];
-    let mut hi = [one; K];
-    let mut g_lo = brackets.map(|(_, e)| e.0);
-    let mut g_hi = brackets.map(|(_, e)| e.1);
-    let mut side = [0i8; K];
-    let mut searching = [false; K];
-    for i in 0..K {
-        if g_lo[i] <= zero && g_hi[i] > zero {
-            searching[i] = true;
-        } else {
-            let end = if g_lo[i] > zero { zero } else { one };
-            (lo[i], hi[i]) = (end, end);
-        }
+/// The next point of an Illinois search of `[lo, hi]` with `g(lo) = g_lo ≤ 0 < g_hi = g(hi)`:
+/// the secant's zero, or the midpoint where that falls within 1e-3 of the bracket of an end.
+#[inline(always)]
+pub(super) fn illinois_step<T: Real>(lo: T, hi: T, g_lo: T, g_hi: T) -> T {
+    let secant = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
+    let width = hi - lo;
+    let inside =
+        (secant > lo + width * T::from_f64(1e-3)) & (secant < hi - width * T::from_f64(1e-3));
+    if inside {
+        secant
+    } else {
+        (lo + hi) * T::from_f64(0.5)
     }
-    for _ in 0..max_evals {
-        let mut any = false;
-        for i in 0..K {
-            if !searching[i] {
-                continue;
-            }
-            let (l, h) = (lo[i], hi[i]);
-            if h - l <= brackets[i].0 {
-                searching[i] = false;
-                continue;
-            }
-            any = true;
-            let mut mid = (l * g_hi[i] - h * g_lo[i]) / (g_hi[i] - g_lo[i]);
-            let width = h - l;
-            if !(mid > l + width * T::from_f64(1e-3) && mid < h - width * T::from_f64(1e-3)) {
-                mid = (l + h) * half;
-            }
-            let g_mid = g(i, mid);
-            if g_mid > zero {
-                hi[i] = mid;
-                g_hi[i] = g_mid;
-                if side[i] == 1 {
-                    g_lo[i] *= half;
-                }
-                side[i] = 1;
-            } else {
-                lo[i] = mid;
-                g_lo[i] = g_mid;
-                if side[i] == -1 {
-                    g_hi[i] *= half;
-                }
-                side[i] = -1;
-            }
-        }
-        if !any {
-            break;
-        }
-    }
-    core::array::from_fn(|i| (lo[i], hi[i]))
 }
 
 /// [`Rule::Bisect`] on the MCU: one halving after the other.

@@ -6,7 +6,7 @@
 
 use nalgebra::Vector2;
 
-use super::bracket::{Rule, bracket_rising, illinois_side_by_side};
+use super::bracket::{Rule, bracket_rising};
 use crate::real::Real;
 
 /// One RK4 step's cubic Hermite dense output: from `x0` with slope `f0` to `x1` with slope
@@ -42,7 +42,7 @@ impl<T: Real> DenseStep<T> {
 pub(crate) const EVENT_TOL: f64 = 1.0 / 16384.0;
 
 /// Evaluations of an event function at most in one search.
-const MAX_EVENT_EVALS: u32 = 40;
+pub(super) const MAX_EVENT_EVALS: u32 = 40;
 
 /// The upper end of a bracket in `[0, 1]` (below `tol` wide, or after 40 evaluations) of a
 /// rising zero of `g` with `g(0) ≤ 0 < g(1)` (if that premise fails, an end of the interval):
@@ -55,18 +55,6 @@ pub(super) fn root_in_unit<T: Real, G: Fn(T) -> T>(tol: T, ends: (T, T), g: G) -
         ends,
     };
     bracket_rising(T::zero(), T::from_f64(1.0), rule, g).1
-}
-
-/// [`root_in_unit`] for `K` independent functions at once: `brackets[i]` = `(tol, ends)` of
-/// `g(i, ·)`. The searches advance side by side (one evaluation of each still searching per
-/// round), so their chains of dependent operations overlap on an out-of-order processor; each
-/// result is bit for bit [`root_in_unit`]'s.
-#[inline]
-pub(super) fn roots_in_unit<T: Real, const K: usize, G: Fn(usize, T) -> T>(
-    brackets: [(T, (T, T)); K],
-    g: G,
-) -> [T; K] {
-    illinois_side_by_side(brackets, MAX_EVENT_EVALS, g).map(|(_, hi)| hi)
 }
 
 /// The smallest value over a segment of `len` seconds of the cubic Hermite interpolant from

@@ -10,8 +10,9 @@
 //!   event location on it, minima between samples.
 //! - [`stepper`]: the period-locked driver ([`Simulator`]).
 //! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids);
-//!   `contact_lanes`: their ordinary contact sub-steps, several at once; `isa`: the
-//!   vector instructions those kernels run, chosen at run time.
+//!   `contact_lanes`: their ordinary contact sub-steps, several at once; `switch_lanes`: the
+//!   switching events inside those sub-steps, several located at once; `isa`: the vector
+//!   instructions those kernels run, chosen at run time.
 
 pub(crate) mod bracket;
 pub(crate) mod contact_lanes;
@@ -22,6 +23,7 @@ pub mod lanes;
 pub mod plan;
 pub mod rk4;
 pub mod stepper;
+pub(crate) mod switch_lanes;
 
 pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings, resting_substeps};
 pub use stepper::{Simulator, StepCounts, StepSample};

@@ -33,7 +33,7 @@
 use nalgebra::Vector2;
 
 use super::bracket::{Rule, bracket_rising};
-use super::dense::{DenseStep, hermite_min, root_in_unit, roots_in_unit};
+use super::dense::{DenseStep, hermite_min, root_in_unit};
 use super::free::{FreeState, FullTrig, free_step};
 #[cfg(doc)]
 use super::plan::resting_substeps;
@@ -137,7 +137,7 @@ struct SegmentStart<T> {
 /// Which function of the penetration `δ` and its rate a switching event is the rising zero of
 /// (Leine's switch model; the contact law continued past its ends, `unswitched_force`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum EventCase {
+pub(super) enum EventCase {
     /// Contact ends: the force falling through 0 (`−F`, the law continued, rising).
     Leaves,
     /// Free flight from outside the surface: `δ` rising through 0.
@@ -160,16 +160,16 @@ impl EventCase {
 
 /// The search for a switching event inside one sub-step ([`Simulator::substep_switch`]).
 #[derive(Clone, Copy)]
-struct SwitchSearch<T: Real> {
+pub(super) struct SwitchSearch<T: Real> {
     /// The trial's dense output over the sub-step.
-    dense: DenseStep<T>,
+    pub(super) dense: DenseStep<T>,
     /// The event function at its start and end.
-    ends: (T, T),
-    case: EventCase,
+    pub(super) ends: (T, T),
+    pub(super) case: EventCase,
     /// Approach speed, m/s.
     v_in: T,
     /// Width of the final bracket, a fraction of the sub-step.
-    tol: T,
+    pub(super) tol: T,
     /// Where the sub-step starts, s into the current step, and `sin Ωt` at its end.
     offset: T,
     s_end: T,
@@ -212,22 +212,16 @@ impl<T: Real> SwitchSearch<T> {
 #[derive(Clone, Copy)]
 pub(crate) struct PendingSwitch<T: Real> {
     seg: SegmentStart<T>,
-    search: SwitchSearch<T>,
+    pub(super) search: SwitchSearch<T>,
 }
 
-/// The switching events of `K` pending sub-steps, each with its simulator, located together:
-/// `K` independent Illinois searches advanced side by side ([`roots_in_unit`]), whose chains
-/// of dependent operations an out-of-order processor overlaps. The same fractions, bit for
-/// bit, as locating each alone.
-#[inline]
-pub(crate) fn locate_switches<T: Real, const K: usize>(
-    pending: [(&Simulator<'_, T>, &PendingSwitch<T>); K],
-) -> [T; K] {
-    let brackets = pending.map(|(_, p)| (p.search.tol, p.search.ends));
-    roots_in_unit(brackets, |i, f| {
-        let (sim, p) = pending[i];
-        p.search.event_at(&sim.hammer, p.search.case, f)
-    })
+impl<T: Real> PendingSwitch<T> {
+    /// Where its event falls, as a fraction of the sub-step, located alone (`sim`: the
+    /// simulator of [`Simulator::switch_begin`]).
+    #[inline]
+    pub(crate) fn locate(&self, sim: &Simulator<'_, T>) -> T {
+        self.search.locate(&sim.hammer)
+    }
 }
 
 /// Where a simulator stands inside its current step, between two segments
@@ -240,6 +234,9 @@ pub(crate) struct Cursor<T> {
     rest: T,
     /// Whether no segment has been taken yet.
     first: bool,
+    /// Whether a free-flight trial from here came near the surface so soon that the next
+    /// segment is a sub-step ([`Simulator::advance`] with `hand_substep`).
+    near: bool,
     /// `sin Ωt` at the step's midpoint and end.
     s_mid: T,
     s_end: T,
@@ -563,7 +560,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     #[inline]
     pub fn step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
         let mut c = self.begin_step();
-        while !self.advance(&mut c, observe) {}
+        while !self.advance(&mut c, false, observe) {}
     }
 
     /// Where the next step starts (its first segment).
@@ -574,6 +571,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             offset: T::zero(),
             rest: self.plan.h,
             first: true,
+            near: false,
             s_mid,
             s_end,
         }
@@ -581,17 +579,20 @@ impl<'t, T: Real> Simulator<'t, T> {
 
     /// One segment of the current step from `c` (a free-flight trial over the rest of the
     /// step, a free-flight segment, or a sub-step), reported to `observe`. Returns whether the
-    /// step is done.
+    /// step is done. With `hand_substep`, a trial that comes near the surface too soon for a
+    /// free-flight segment leaves the sub-step that follows to the caller (marked in `c`: then
+    /// [`Simulator::plain_substep`] gives it), and nothing is reported.
     #[inline(always)]
     pub(crate) fn advance<O: FnMut(&StepSample<T>)>(
         &mut self,
         c: &mut Cursor<T>,
+        hand_substep: bool,
         observe: &mut O,
     ) -> bool {
         let h_c = self.plan.substep.h_c;
         // Where this segment starts (for the smallest δ over it, reported with its sample).
         let seg = self.segment_start(c.offset);
-        if self.clear() {
+        if self.clear() && !c.near {
             let (sm, se) = if c.first {
                 (c.s_mid, c.s_end)
             } else {
@@ -617,10 +618,15 @@ impl<'t, T: Real> Simulator<'t, T> {
                         observe(&self.sample(c.offset, false, &seg));
                         return false;
                     }
+                    if hand_substep {
+                        c.near = true;
+                        return false;
+                    }
                 }
             }
         }
         c.first = false;
+        c.near = false;
         let (len, last) = self.substep_len(c);
         if last {
             self.substep(c.offset, len, c.s_end);
@@ -676,7 +682,8 @@ impl<'t, T: Real> Simulator<'t, T> {
     #[inline(always)]
     pub(crate) fn plain_substep(&self, c: &Cursor<T>) -> Option<SubPlan<T>> {
         let e = &self.state.at_x;
-        if self.clear() || !matches!(self.hammer.switch().law, LawCoeffs::Linear { .. }) {
+        let clear = self.clear() && !c.near;
+        if clear || !matches!(self.hammer.switch().law, LawCoeffs::Linear { .. }) {
             return None;
         }
         let band = matches!(e.region, Region::BandAlpha | Region::BandBeta);
@@ -711,6 +718,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     ) -> bool {
         let seg = self.segment_start(c.offset);
         c.first = false;
+        c.near = false;
         match trial {
             LaneTrial::Stays { x, carry, end } => {
                 let start = self.state.at_x;
@@ -779,6 +787,7 @@ impl<'t, T: Real> Simulator<'t, T> {
         c.offset = r.offset;
         c.rest = r.rest;
         c.first = false;
+        c.near = false;
     }
 
     /// Tries `rest` seconds (to the end of the step) in free flight from the current state, with
@@ -1026,7 +1035,7 @@ impl<'t, T: Real> Simulator<'t, T> {
 
     /// A contact lane's sub-step `p` from `c` whose trial `x` ends in the other mode
     /// ([`LaneTrial::Switches`]), up to its switching event: the search for the event, to be
-    /// located with others ([`locate_switches`]) and ended by [`Simulator::switch_end`].
+    /// located alone or with others' (`switch_lanes`) and ended by [`Simulator::switch_end`].
     /// Together the two are [`Simulator::commit_substep`] of that trial, bit for bit.
     #[inline(always)]
     pub(crate) fn switch_begin(
@@ -1038,6 +1047,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     ) -> PendingSwitch<T> {
         let seg = self.segment_start(c.offset);
         c.first = false;
+        c.near = false;
         let (touching, k1) = self.substep_begin(c.offset);
         PendingSwitch {
             seg,
