@@ -144,7 +144,6 @@ where
         waits_free: Ids::new(),
         waits_contact: Ids::new(),
         switches: [NONE; SWITCHES_TOGETHER],
-        n_switches: 0,
         contact_ended: 0,
         switches_in_lanes: 0,
     };
@@ -176,8 +175,9 @@ where
     }
 }
 
-/// Protocol runs in flight per lane: twice as many runs as lanes of each kind, so that the
-/// free-flight lanes and the contact lanes each find runs to fill them.
+/// Protocol runs in flight per lane: three times as many runs as lanes of each kind, so that
+/// the free-flight lanes and the contact lanes each find runs to fill them while runs wait for
+/// their switching events.
 const RUNS_PER_LANE: usize = 3;
 
 /// No run (an empty lane) or no lane.
@@ -259,9 +259,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     contact_empty: Ids<L>,
     waits_free: Ids<L>,
     waits_contact: Ids<L>,
-    /// Runs whose switching event waits to be located.
+    /// The run of each switching-event lane (those set: `SwitchLanes::len`).
     switches: [usize; SWITCHES_TOGETHER],
-    n_switches: usize,
     /// Sub-steps the contact lanes ended themselves.
     contact_ended: u64,
     /// Switching events located in the switching-event lanes.
@@ -300,7 +299,7 @@ where
         loop {
             let n_free = self.free_owner.iter().filter(|&&r| r != NONE).count();
             let n_contact = self.contact_owner.iter().filter(|&&r| r != NONE).count();
-            if n_contact == 0 && self.n_switches > 0 {
+            if n_contact == 0 && contact.switches.len() > 0 {
                 // No run in contact to bring another event: those waiting go on now.
                 self.locate_switches(&mut free, &mut contact);
                 continue;
@@ -389,19 +388,17 @@ where
         let done = match contact.lanes.result(&contact.runs, s) {
             LaneTrial::Switches { x, s_end } => {
                 let pending = job.sim.switch_begin(c, p, x, s_end);
-                if contact.switches.push(&job.sim, &pending) {
+                if let Some(lane) = contact.switches.push(&job.sim, &pending) {
                     run.pending = Some(pending);
-                    self.switches[self.n_switches] = r;
-                    self.n_switches += 1;
+                    self.switches[lane] = r;
                     self.release(NONE, s, free, contact);
-                    if self.n_switches == SWITCHES_TOGETHER {
+                    if contact.switches.len() == SWITCHES_TOGETHER {
                         self.locate_switches(free, contact);
                     }
                     return;
                 }
                 // (The lanes take every run of their suspension and law: not reached.)
-                let frac = pending.locate(&job.sim);
-                job.sim.switch_end(c, p, &pending, frac, &mut |smp| {
+                job.sim.switch_end(c, p, &pending, None, &mut |smp| {
                     period_end |= job.run.sample(smp, &mut job.obs)
                 })
             }
@@ -420,8 +417,7 @@ where
         free: &mut Lockstep<'t, T, K, L>,
         contact: &mut Contact<T, K, L>,
     ) {
-        let n = core::mem::take(&mut self.n_switches);
-        debug_assert_eq!(n, contact.switches.len());
+        let n = contact.switches.len();
         let fracs = contact.switches.locate();
         let ids = self.switches;
         for (&r, &frac) in ids[..n].iter().zip(&fracs) {
@@ -430,7 +426,6 @@ where
                 continue;
             };
             self.switches_in_lanes += u64::from(frac.is_some());
-            let frac = frac.unwrap_or_else(|| pending.locate(&job.sim));
             let (c, p) = &mut run.cursor;
             let mut period_end = false;
             let done = job.sim.switch_end(c, p, &pending, frac, &mut |smp| {

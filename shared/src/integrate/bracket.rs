@@ -88,33 +88,24 @@ fn illinois<T: Real, G: Fn(T) -> T>(
     (mut g_lo, mut g_hi): (T, T),
     g: G,
 ) -> (T, T) {
-    let half = T::from_f64(0.5);
     if !(g_lo <= T::zero() && g_hi > T::zero()) {
         let end = if g_lo > T::zero() { lo } else { hi };
         return (end, end);
     }
-    let mut side = 0i8;
+    let mut side = 0u32;
     for _ in 0..max_evals {
         if hi - lo <= tol {
             break;
         }
         let mid = illinois_step(lo, hi, g_lo, g_hi);
         let g_mid = g(mid);
-        if g_mid > T::zero() {
-            hi = mid;
-            g_hi = g_mid;
-            if side == 1 {
-                g_lo *= half;
-            }
-            side = 1;
-        } else {
-            lo = mid;
-            g_lo = g_mid;
-            if side == -1 {
-                g_hi *= half;
-            }
-            side = -1;
-        }
+        illinois_update(
+            true,
+            (mid, g_mid),
+            (&mut lo, &mut hi),
+            (&mut g_lo, &mut g_hi),
+            &mut side,
+        );
     }
     (lo, hi)
 }
@@ -132,6 +123,49 @@ pub(super) fn illinois_step<T: Real>(lo: T, hi: T, g_lo: T, g_hi: T) -> T {
     } else {
         (lo + hi) * T::from_f64(0.5)
     }
+}
+
+/// The bracket of an Illinois search after its point `mid` with `g(mid) = g_mid` (if `on`;
+/// else all left as they are): `g_mid > 0` moves `hi` there, otherwise `lo`, and the end that
+/// stays for the second time in a row has its `g` halved (the Illinois modification). `side`:
+/// where the last point fell, 1 above the zero, 2 below, 0 none yet. Written with selects, so
+/// that the switching-event lanes (`super::switch_lanes`) vectorise it.
+#[inline(always)]
+pub(super) fn illinois_update<T: Real>(
+    on: bool,
+    (mid, g_mid): (T, T),
+    (lo, hi): (&mut T, &mut T),
+    (g_lo, g_hi): (&mut T, &mut T),
+    side: &mut u32,
+) {
+    let half = T::from_f64(0.5);
+    let above = g_mid > T::zero();
+    let (up, down) = (on & above, on & !above);
+    let halve_lo = up & (*side == 1);
+    let halve_hi = down & (*side == 2);
+    *hi = if up { mid } else { *hi };
+    *lo = if down { mid } else { *lo };
+    *g_lo = if down {
+        g_mid
+    } else if halve_lo {
+        *g_lo * half
+    } else {
+        *g_lo
+    };
+    *g_hi = if up {
+        g_mid
+    } else if halve_hi {
+        *g_hi * half
+    } else {
+        *g_hi
+    };
+    *side = if up {
+        1
+    } else if down {
+        2
+    } else {
+        *side
+    };
 }
 
 /// [`Rule::Bisect`] on the MCU: one halving after the other.

@@ -24,17 +24,26 @@ impl<T: Real> DenseStep<T> {
     /// The interpolated state at fraction `s ∈ [0, 1]` of the step.
     #[inline(always)]
     pub(super) fn at(&self, s: T) -> Vector2<T> {
-        let one = T::from_f64(1.0);
-        let two = T::from_f64(2.0);
-        let three = T::from_f64(3.0);
-        let s2 = s * s;
-        let s3 = s2 * s;
-        let h00 = two * s3 - three * s2 + one;
-        let h10 = (s3 - two * s2 + s) * self.h;
-        let h01 = three * s2 - two * s3;
-        let h11 = (s3 - s2) * self.h;
+        let (h00, h10, h01, h11) = hermite_weights(s, self.h);
         self.x0 * h00 + self.f0 * h10 + self.x1 * h01 + self.f1 * h11
     }
+}
+
+/// The cubic Hermite weights at fraction `s` of a step of `h` seconds: of the start, its slope,
+/// the end and its slope ([`DenseStep::at`]).
+#[inline(always)]
+pub(super) fn hermite_weights<T: Real>(s: T, h: T) -> (T, T, T, T) {
+    let one = T::from_f64(1.0);
+    let two = T::from_f64(2.0);
+    let three = T::from_f64(3.0);
+    let s2 = s * s;
+    let s3 = s2 * s;
+    (
+        two * s3 - three * s2 + one,
+        (s3 - two * s2 + s) * h,
+        three * s2 - two * s3,
+        (s3 - s2) * h,
+    )
 }
 
 /// The event tolerance of the production runs: a bracket `2^-14` of the sub-step wide (3 ns of

@@ -167,20 +167,20 @@ pub(super) struct SwitchSearch<T: Real> {
     pub(super) ends: (T, T),
     pub(super) case: EventCase,
     /// Approach speed, m/s.
-    v_in: T,
+    pub(super) v_in: T,
     /// Width of the final bracket, a fraction of the sub-step.
     pub(super) tol: T,
     /// Where the sub-step starts, s into the current step, and `sin Ωt` at its end.
-    offset: T,
-    s_end: T,
+    pub(super) offset: T,
+    pub(super) s_end: T,
     /// Whether it starts touching.
-    touching: bool,
+    pub(super) touching: bool,
 }
 
 impl<T: Real> SwitchSearch<T> {
     /// The event function of `case` (this search's) at fraction `f` of the sub-step.
     #[inline(always)]
-    fn event_at(&self, hammer: &Hammer<T>, case: EventCase, f: T) -> T {
+    pub(super) fn event_at(&self, hammer: &Hammer<T>, case: EventCase, f: T) -> T {
         let (d, dd) = hammer.penetration(&self.dense.at(f));
         case.value(&hammer.switch().law, d, dd, self.v_in)
     }
@@ -188,7 +188,7 @@ impl<T: Real> SwitchSearch<T> {
     /// Where the event falls, as a fraction of the sub-step (Illinois regula falsi,
     /// [`root_in_unit`]).
     #[inline(always)]
-    fn locate(&self, hammer: &Hammer<T>) -> T {
+    pub(super) fn locate(&self, hammer: &Hammer<T>) -> T {
         // On the host the search with the event function of this case alone (the case a
         // constant in each arm): where only `δ` counts, its rate and the cosine behind it are
         // not computed.
@@ -213,15 +213,6 @@ impl<T: Real> SwitchSearch<T> {
 pub(crate) struct PendingSwitch<T: Real> {
     seg: SegmentStart<T>,
     pub(super) search: SwitchSearch<T>,
-}
-
-impl<T: Real> PendingSwitch<T> {
-    /// Where its event falls, as a fraction of the sub-step, located alone (`sim`: the
-    /// simulator of [`Simulator::switch_begin`]).
-    #[inline]
-    pub(crate) fn locate(&self, sim: &Simulator<'_, T>) -> T {
-        self.search.locate(&sim.hammer)
-    }
 }
 
 /// Where a simulator stands inside its current step, between two segments
@@ -675,8 +666,8 @@ impl<'t, T: Real> Simulator<'t, T> {
     }
 
     /// The next segment from `c` if it is an ordinary sub-step that the contact lanes
-    /// ([`super::contact_lanes`]) can take: not clear of the surface, with the linear contact
-    /// law. Its length, whether it ends the step, `sin Ωt` at its start (used if it starts in
+    /// ([`super::contact_lanes`]) can take: not clear of the surface (or a free-flight trial
+    /// from here came near it: `Cursor::near`), with the linear contact law. Its length, whether it ends the step, `sin Ωt` at its start (used if it starts in
     /// a band, where RK4's first stage is the mode's field, not the switch model's), midpoint
     /// and end, and whether it starts touching.
     #[inline(always)]
@@ -732,8 +723,8 @@ impl<'t, T: Real> Simulator<'t, T> {
                 s.at_x = end;
             }
             LaneTrial::Switches { x, s_end } => {
-                let (touching, k1) = self.substep_begin(c.offset);
-                self.substep_switch(c.offset, p.len, s_end, touching, k1, x);
+                let pending = self.switch_begin(c, p, x, s_end);
+                return self.switch_end(c, p, &pending, None, observe);
             }
             LaneTrial::Inexact => {
                 let s_end = if p.last {
@@ -1056,16 +1047,18 @@ impl<'t, T: Real> Simulator<'t, T> {
     }
 
     /// Ends the sub-step `p` of [`Simulator::switch_begin`] with its event at fraction `frac`
-    /// of it: reports the sample; returns whether the step is done.
+    /// of it (`None`: located here, alone): reports the sample; returns whether the step is
+    /// done.
     #[inline(always)]
     pub(crate) fn switch_end<O: FnMut(&StepSample<T>)>(
         &mut self,
         c: &mut Cursor<T>,
         p: &SubPlan<T>,
         pending: &PendingSwitch<T>,
-        frac: T,
+        frac: Option<T>,
         observe: &mut O,
     ) -> bool {
+        let frac = frac.unwrap_or_else(|| pending.search.locate(&self.hammer));
         self.switch_finish(&pending.search, frac);
         self.end_substep(c, p, &pending.seg, observe)
     }

@@ -6,12 +6,13 @@
 //! A search whose dense output leaves the lanes' short sine (`|θ| > 0.5` rad, the wire
 //! pendulum) reports no result; the caller locates that one alone.
 
-use super::bracket::illinois_step;
+use super::bracket::{illinois_step, illinois_update};
 use super::contact_lanes::LaneContact;
-use super::dense::MAX_EVENT_EVALS;
+use super::dense::{MAX_EVENT_EVALS, hermite_weights};
 use super::free::SmallTrig;
 use super::isa::Isa;
-use super::stepper::{EventCase, PendingSwitch, Simulator};
+use super::stepper::{EventCase, PendingSwitch, Simulator, SwitchSearch};
+use crate::model::Hammer;
 use crate::model::contact::LawCoeffs;
 use crate::real::Real;
 
@@ -79,18 +80,26 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
         self.n
     }
 
-    /// Sets `sim`'s pending search into the next lane. Returns `false` (nothing set) if all
-    /// are taken, or `sim` is not of this suspension and the linear law.
+    /// Sets `sim`'s pending search into the next lane, and returns that lane (`None`, nothing
+    /// set: all are taken, or `sim` is not of this suspension and the linear law).
     #[inline]
-    pub(crate) fn push(&mut self, sim: &Simulator<'_, T>, pending: &PendingSwitch<T>) -> bool {
+    pub(crate) fn push(
+        &mut self,
+        sim: &Simulator<'_, T>,
+        pending: &PendingSwitch<T>,
+    ) -> Option<usize> {
+        self.push_search(sim.hammer(), &pending.search)
+    }
+
+    /// [`SwitchLanes::push`] of a search on `hammer`.
+    #[inline]
+    fn push_search(&mut self, hammer: &Hammer<T>, s: &SwitchSearch<T>) -> Option<usize> {
         let i = self.n;
-        let hammer = sim.hammer();
         let (true, Some(field), LawCoeffs::Linear { k, c }) =
             (i < K, F::of(&hammer.free_flight()), hammer.switch().law)
         else {
-            return false;
+            return None;
         };
-        let s = &pending.search;
         let d = &s.dense;
         self.field[i] = field;
         (self.k[i], self.c[i]) = (k, c);
@@ -105,7 +114,7 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
         self.tol[i] = s.tol;
         (self.g_start[i], self.g_end[i]) = s.ends;
         self.n += 1;
-        true
+        Some(i)
     }
 
     /// Locates the events of the searches set, as fractions of their sub-steps (`None`: a
@@ -152,8 +161,6 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
     fn locate_kernel(&self) -> [Option<T>; K] {
         let zero = T::zero();
         let one = T::from_f64(1.0);
-        let two = T::from_f64(2.0);
-        let three = T::from_f64(3.0);
         let mut lo = [zero; K];
         let mut hi = [one; K];
         let mut g_lo = self.g_start;
@@ -184,13 +191,7 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
             let mut g_mid = [zero; K];
             for i in 0..K {
                 // `DenseStep::at`, component by component.
-                let s = mids[i];
-                let s2 = s * s;
-                let s3 = s2 * s;
-                let h00 = two * s3 - three * s2 + one;
-                let h10 = (s3 - two * s2 + s) * self.h[i];
-                let h01 = three * s2 - two * s3;
-                let h11 = (s3 - s2) * self.h[i];
+                let (h00, h10, h01, h11) = hermite_weights(mids[i], self.h[i]);
                 let u0 = self.x0[i] * h00 + self.f0[i] * h10 + self.y0[i] * h01 + self.g0[i] * h11;
                 let u1 = self.x1[i] * h00 + self.f1[i] * h10 + self.y1[i] * h01 + self.g1[i] * h11;
                 let (d, dd, _, ok) = self.field[i].penetration::<SmallTrig>(u0, u1);
@@ -206,37 +207,164 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
                 exact[i] &= u32::from(ok) | (searching[i] ^ 1);
             }
             for i in 0..K {
-                let on = searching[i] != 0;
-                let above = g_mid[i] > zero;
-                let (up, down) = (on & above, on & !above);
-                let halve_lo = up & (side[i] == 1);
-                let halve_hi = down & (side[i] == 2);
-                let half = T::from_f64(0.5);
-                hi[i] = if up { mids[i] } else { hi[i] };
-                lo[i] = if down { mids[i] } else { lo[i] };
-                g_lo[i] = if down {
-                    g_mid[i]
-                } else if halve_lo {
-                    g_lo[i] * half
-                } else {
-                    g_lo[i]
-                };
-                g_hi[i] = if up {
-                    g_mid[i]
-                } else if halve_hi {
-                    g_hi[i] * half
-                } else {
-                    g_hi[i]
-                };
-                side[i] = if up {
-                    1
-                } else if down {
-                    2
-                } else {
-                    side[i]
-                };
+                illinois_update(
+                    searching[i] != 0,
+                    (mids[i], g_mid[i]),
+                    (&mut lo[i], &mut hi[i]),
+                    (&mut g_lo[i], &mut g_hi[i]),
+                    &mut side[i],
+                );
             }
         }
         core::array::from_fn(|i| (exact[i] != 0).then_some(hi[i]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector2;
+
+    use super::*;
+    use crate::integrate::dense::{DenseStep, EVENT_TOL};
+    use crate::integrate::isa::with_isa;
+    use crate::model::hammer::{BeamFree, Body, WiresFree};
+    use crate::model::{RigId, SwitchBands};
+
+    /// A search on `hammer` over a sub-step of `h` s from `x0` to `x1` (slopes from the
+    /// straight line between them and a constant acceleration `acc`), its ends from the event
+    /// function itself.
+    fn search(
+        hammer: &Hammer<f32>,
+        case: EventCase,
+        x0: Vector2<f32>,
+        x1: Vector2<f32>,
+        acc: f32,
+    ) -> SwitchSearch<f32> {
+        let h = 4.5e-5;
+        let mut s = SwitchSearch {
+            dense: DenseStep {
+                x0,
+                f0: Vector2::new(x0[1], acc),
+                x1,
+                f1: Vector2::new(x1[1], acc),
+                h,
+            },
+            ends: (0.0, 0.0),
+            case,
+            v_in: 0.05,
+            tol: EVENT_TOL as f32,
+            offset: 0.0,
+            s_end: 0.0,
+            touching: case == EventCase::Leaves,
+        };
+        s.ends = (s.event_at(hammer, case, 0.0), s.event_at(hammer, case, 1.0));
+        s
+    }
+
+    /// Searches of every case on `hammer`, whose state `x` at penetration `d` (m) and rate
+    /// `v` (m/s) is `state(d, v)`: arrivals across the surface, departures with the force
+    /// falling through 0, presses from inside, and some that do not bracket a zero.
+    fn searches(
+        hammer: &Hammer<f32>,
+        state: impl Fn(f64, f64) -> Vector2<f32>,
+    ) -> std::vec::Vec<SwitchSearch<f32>> {
+        let mut out = std::vec::Vec::new();
+        for j in 0..12 {
+            let a = 1.0 + j as f64 * 0.37;
+            // An arrival: δ from −2 µm·a to +3 µm, approaching at 0.05·a m/s.
+            let v = 0.05 * a;
+            let (d0, d1) = (-2e-6 * a, 3e-6);
+            out.push(search(
+                hammer,
+                EventCase::Arrives,
+                state(d0, v),
+                state(d1, v),
+                -2.0,
+            ));
+            // A departure: the spring–dashpot force k δ + c δ̇ falling through 0 (δ̇ from 0 to
+            // a rate that outweighs the spring), and inside the surface the same rising.
+            let LawCoeffs::Linear { k, c } = hammer.switch().law else {
+                panic!("the presets' linear law");
+            };
+            let w1 = -2.0 * a * f64::from(k) * 1e-6 / f64::from(c);
+            let (press, release) = (state(1e-6, 0.0), state(0.5e-6, w1));
+            out.push(search(hammer, EventCase::Leaves, press, release, 0.0));
+            out.push(search(hammer, EventCase::Presses, release, press, 0.0));
+        }
+        out
+    }
+
+    /// Every search through the lanes (8 at a time and a last partial set), against the
+    /// stepper's search alone: the same fraction, bit for bit, or none where the lanes' sine
+    /// does not reach.
+    fn lanes_match_alone<F: LaneContact<f32>>(
+        hammer: &Hammer<f32>,
+        all: &[SwitchSearch<f32>],
+        expect_some: bool,
+    ) -> usize {
+        let mut lanes = SwitchLanes::<f32, F, 8>::new();
+        let mut bracketed = 0;
+        for chunk in all.chunks(8) {
+            for s in chunk {
+                assert!(lanes.push_search(hammer, s).is_some());
+            }
+            assert_eq!(lanes.len(), chunk.len());
+            let got = lanes.locate();
+            assert_eq!(lanes.len(), 0);
+            for (s, g) in chunk.iter().zip(got) {
+                let alone = s.locate(hammer);
+                if expect_some {
+                    assert_eq!(g.map(f32::to_bits), Some(alone.to_bits()), "{:?}", s.case);
+                } else {
+                    assert_eq!(g, None, "{:?}", s.case);
+                }
+                bracketed += usize::from(alone > 0.0 && alone < 1.0);
+            }
+        }
+        bracketed
+    }
+
+    #[test]
+    fn switch_lanes_locate_every_event_as_the_stepper_alone() {
+        let bands = SwitchBands::default();
+        let wires = Hammer::<f32>::new(&RigId::Wires.preset(), 1e-3, 20.0, &bands).unwrap();
+        let Body::Wires { length, .. } = *wires.body() else {
+            panic!("the wire rig's body");
+        };
+        let l = f64::from(length);
+        let gap = 1e-3;
+        let pendulum = |d: f64, v: f64| {
+            let theta = ((gap + d) / l).asin();
+            Vector2::new(theta as f32, (v / (l * theta.cos())) as f32)
+        };
+        let beam_hammer = Hammer::<f32>::new(&RigId::Beam170.preset(), 1e-3, 60.0, &bands).unwrap();
+        let beam = |d: f64, v: f64| Vector2::new((gap + d) as f32, v as f32);
+        for isa in Isa::supported() {
+            with_isa(isa, || {
+                let n =
+                    lanes_match_alone::<WiresFree<f32>>(&wires, &searches(&wires, pendulum), true);
+                // Most searches bracket an event (the test is not of the ends alone).
+                assert!(n >= 30, "{n} of 36 bracketed");
+                let n = lanes_match_alone::<BeamFree<f32>>(
+                    &beam_hammer,
+                    &searches(&beam_hammer, beam),
+                    true,
+                );
+                assert!(n >= 30, "{n} of 36 bracketed");
+                // A pendulum at 0.6 rad, past the lanes' short sine: located alone instead.
+                let wide = [search(
+                    &wires,
+                    EventCase::Arrives,
+                    Vector2::new(0.55, 1.0),
+                    Vector2::new(0.65, 1.0),
+                    0.0,
+                )];
+                let mut lanes = SwitchLanes::<f32, WiresFree<f32>, 8>::new();
+                let mut w = wide[0];
+                w.ends = (-1.0, 1.0);
+                assert!(lanes.push_search(&wires, &w).is_some());
+                assert_eq!(lanes.locate()[0], None);
+            });
+        }
     }
 }
