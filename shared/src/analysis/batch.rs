@@ -187,6 +187,10 @@ const NONE: usize = usize::MAX;
 /// (its lane handed on) until this many wait, or until no run is in contact.
 const SWITCHES_TOGETHER: usize = 8;
 
+/// Fewer switching events than this, located when no run is in contact, are located one at a
+/// time (the lanes' rounds cost the same for one search as for eight).
+const SWITCHES_IN_LANES_AT_LEAST: usize = 3;
+
 /// One item's protocol run.
 struct Job<'t, T: Real, O> {
     index: usize,
@@ -418,7 +422,13 @@ where
         contact: &mut Contact<T, K, L>,
     ) {
         let n = contact.switches.len();
-        let fracs = contact.switches.locate();
+        // A few searches cost the lanes as much as a full set: those go alone.
+        let fracs = if n >= SWITCHES_IN_LANES_AT_LEAST {
+            contact.switches.locate()
+        } else {
+            contact.switches.clear();
+            [None; SWITCHES_TOGETHER]
+        };
         let ids = self.switches;
         for (&r, &frac) in ids[..n].iter().zip(&fracs) {
             let run = &mut self.runs[r / L][r % L];

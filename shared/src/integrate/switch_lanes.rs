@@ -117,6 +117,12 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
         Some(i)
     }
 
+    /// Drops the searches set.
+    #[inline]
+    pub(crate) fn clear(&mut self) {
+        self.n = 0;
+    }
+
     /// Locates the events of the searches set, as fractions of their sub-steps (`None`: a
     /// sine outside the short range, to be located alone), and clears the lanes.
     pub(crate) fn locate(&mut self) -> [Option<T>; K] {
