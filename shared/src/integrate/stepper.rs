@@ -32,9 +32,9 @@
 
 use nalgebra::Vector2;
 
-use super::bracket::{Rule, bracket_rising};
 use super::dense::{DenseStep, hermite_min, root_in_unit};
 use super::free::{FreeState, FullTrig, free_step};
+use super::near;
 #[cfg(doc)]
 use super::plan::resting_substeps;
 use super::plan::{PhaseTable, StepPlan, StepSettings, SubstepRule, step_s};
@@ -815,25 +815,11 @@ impl<'t, T: Real> Simulator<'t, T> {
             f1: end.dx,
             h: rest,
         };
-        let delta_at = |t: T| hammer.penetration(&dense.at(t / rest)).0;
-        const SAMPLES: u32 = 8;
-        let dt = rest / T::from_u32(SAMPLES);
-        let (mut best_t, mut best_d) = (T::zero(), start.delta);
-        for i in 1..=SAMPLES {
-            let t = dt * T::from_u32(i);
-            let d = delta_at(t);
-            if d > -eta {
-                // The crossing of −η_δ between the previous sample and this one, to 1/8192 of
-                // the step (10 halvings: this only places the start of the sub-steps).
-                let near = |m: T| delta_at(m) + eta;
-                return Err(bracket_rising(t - dt, t, Rule::Bisect(10), near).0);
-            }
-            if d > best_d {
-                best_t = t;
-                best_d = d;
-            }
+        #[cfg(feature = "std")]
+        if let Some(t) = near::first_near(&hammer, &dense, start.delta, eta) {
+            return Err(t);
         }
-        Err(best_t)
+        Err(near::first_near_alone(&hammer, &dense, start.delta, eta))
     }
 
     /// One free-flight RK4 step of `len` seconds from `offset` (s into the current step).

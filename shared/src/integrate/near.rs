@@ -1,0 +1,350 @@
+//! Where a free-flight trial that came near the surface is split (`Simulator::free_trial`):
+//! the first time its cubic Hermite dense output comes within `η_δ` of the surface, or, if it
+//! never does, where it peaks.
+//!
+//! The search: the penetration `δ` at [`SAMPLES`] evenly spaced points of the trial; in the
+//! first interval whose end has `δ > −η_δ`, [`HALVINGS`] halvings of `δ + η_δ` (this only
+//! places the start of the sub-steps, to 1/8192 of the step); without one, the sample with
+//! the largest `δ` (the trial's start if none exceeds it).
+//!
+//! [`first_near_alone`] evaluates one point after the other (the MCU, and any point of the
+//! host where the lanes cannot: an angle beyond their short sine). On the host,
+//! [`first_near`] evaluates the same points in vector lanes: the eight samples at once, and
+//! the halvings [`LEVELS`] at a time (the `2^LEVELS − 1` midpoints those halvings can reach,
+//! computed as the halvings compute them, then the decisions taken among them). The same
+//! points, values and decisions, so the same time, bit for bit.
+
+use super::bracket::{Rule, bracket_rising};
+use super::dense::DenseStep;
+use crate::model::Hammer;
+use crate::real::Real;
+
+/// Samples of the trial's dense output.
+pub(super) const SAMPLES: u32 = 8;
+
+/// Halvings of the sample interval where the trial first comes near.
+pub(super) const HALVINGS: u32 = 10;
+
+/// The time (s from the trial's start) at which the trial `dense` (of `dense.h` seconds, from a
+/// state with penetration `start_delta`, m) first comes within `eta` (m) of the surface, or
+/// peaks: one point after the other.
+#[inline(always)]
+pub(super) fn first_near_alone<T: Real>(
+    hammer: &Hammer<T>,
+    dense: &DenseStep<T>,
+    start_delta: T,
+    eta: T,
+) -> T {
+    let rest = dense.h;
+    let delta_at = |t: T| hammer.penetration(&dense.at(t / rest)).0;
+    let dt = rest / T::from_u32(SAMPLES);
+    let (mut best_t, mut best_d) = (T::zero(), start_delta);
+    for i in 1..=SAMPLES {
+        let t = dt * T::from_u32(i);
+        let d = delta_at(t);
+        if d > -eta {
+            // The crossing of −η_δ between the previous sample and this one.
+            let near = |m: T| delta_at(m) + eta;
+            return bracket_rising(t - dt, t, Rule::Bisect(HALVINGS), near).0;
+        }
+        if d > best_d {
+            best_t = t;
+            best_d = d;
+        }
+    }
+    best_t
+}
+
+#[cfg(feature = "std")]
+pub(super) use lanes::first_near;
+
+#[cfg(feature = "std")]
+mod lanes {
+    use super::super::contact_lanes::LaneContact;
+    use super::super::dense::hermite_weights;
+    use super::super::free::SmallTrig;
+    use super::super::isa::Isa;
+    use super::*;
+    use crate::model::hammer::FreeFlight;
+
+    /// Halvings taken together: `2^LEVELS − 1` midpoints evaluated at once.
+    const LEVELS: u32 = 4;
+
+    /// Points a halving round evaluates together: its midpoints and one spare.
+    const POINTS: usize = 1 << LEVELS;
+
+    /// [`SAMPLES`] as a length.
+    const SAMPLE_POINTS: usize = SAMPLES as usize;
+
+    /// [`first_near_alone`] with its points evaluated in vector lanes (`None`: a point the lanes
+    /// evaluated lies beyond their short sine, `|θ| > 1/8` rad; the caller then searches alone).
+    #[inline]
+    pub(in super::super) fn first_near<T: Real>(
+        hammer: &Hammer<T>,
+        dense: &DenseStep<T>,
+        start_delta: T,
+        eta: T,
+    ) -> Option<T> {
+        match hammer.free_flight() {
+            FreeFlight::Wires(w) => dispatch(&w, dense, start_delta, eta),
+            FreeFlight::Beam(b) => dispatch(&b, dense, start_delta, eta),
+        }
+    }
+
+    /// [`first_near`] for the suspension `F`, compiled for the CPU's widest instructions.
+    #[inline(always)]
+    fn dispatch<T: Real, F: LaneContact<T>>(
+        field: &F,
+        dense: &DenseStep<T>,
+        start_delta: T,
+        eta: T,
+    ) -> Option<T> {
+        match Isa::detect() {
+            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
+            #[cfg(target_arch = "x86_64")]
+            #[allow(unsafe_code)]
+            Isa::Avx512 => unsafe { search_avx512(field, dense, start_delta, eta) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            #[allow(unsafe_code)]
+            Isa::Avx2 => unsafe { search_avx2(field, dense, start_delta, eta) },
+            Isa::Portable => search(field, dense, start_delta, eta),
+        }
+    }
+
+    /// [`search`] compiled for AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    fn search_avx512<T: Real, F: LaneContact<T>>(
+        field: &F,
+        dense: &DenseStep<T>,
+        start_delta: T,
+        eta: T,
+    ) -> Option<T> {
+        search(field, dense, start_delta, eta)
+    }
+
+    /// [`search`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx,avx2")]
+    fn search_avx2<T: Real, F: LaneContact<T>>(
+        field: &F,
+        dense: &DenseStep<T>,
+        start_delta: T,
+        eta: T,
+    ) -> Option<T> {
+        search(field, dense, start_delta, eta)
+    }
+
+    /// [`first_near_alone`]'s search, its points [`POINTS`] at a time.
+    #[inline(always)]
+    fn search<T: Real, F: LaneContact<T>>(
+        field: &F,
+        dense: &DenseStep<T>,
+        start_delta: T,
+        eta: T,
+    ) -> Option<T> {
+        let rest = dense.h;
+        let dt = rest / T::from_u32(SAMPLES);
+        let t: [T; SAMPLE_POINTS] = core::array::from_fn(|i| dt * T::from_u32(i as u32 + 1));
+        let d = deltas(field, dense, &t)?;
+        let (mut best_t, mut best_d) = (T::zero(), start_delta);
+        for i in 0..SAMPLE_POINTS {
+            if d[i] > -eta {
+                return bisect_rounds(field, dense, t[i] - dt, t[i], eta);
+            }
+            if d[i] > best_d {
+                best_t = t[i];
+                best_d = d[i];
+            }
+        }
+        Some(best_t)
+    }
+
+    /// [`HALVINGS`] halvings of `[lo, hi]` for the rising zero of `δ + eta`, [`LEVELS`] at a
+    /// time: the lower end of the bracket `bracket_rising` leaves (`None`: a point beyond the
+    /// short sine).
+    #[inline(always)]
+    fn bisect_rounds<T: Real, F: LaneContact<T>>(
+        field: &F,
+        dense: &DenseStep<T>,
+        mut lo: T,
+        mut hi: T,
+        eta: T,
+    ) -> Option<T> {
+        let half = T::from_f64(0.5);
+        let zero = T::zero();
+        let mut left = HALVINGS;
+        while left > 0 {
+            let levels = left.min(LEVELS);
+            // The midpoints as a binary tree in heap order (node 1 halves `[lo, hi]`; node
+            // `n`'s halves are nodes `2n` below it and `2n + 1` above), each the halving's own
+            // `(lo + hi) · ½` of its interval; node 0 a spare copy of node 1.
+            let mut p = [zero; POINTS];
+            let mut lo_of = [lo; POINTS];
+            let mut hi_of = [hi; POINTS];
+            p[1] = (lo + hi) * half;
+            for n in 1..POINTS / 2 {
+                (lo_of[2 * n], hi_of[2 * n]) = (lo_of[n], p[n]);
+                (lo_of[2 * n + 1], hi_of[2 * n + 1]) = (p[n], hi_of[n]);
+                p[2 * n] = (lo_of[n] + p[n]) * half;
+                p[2 * n + 1] = (p[n] + hi_of[n]) * half;
+            }
+            p[0] = p[1];
+            let d = deltas(field, dense, &p)?;
+            // Each midpoint's decision as a bit (set: `δ + η_δ > 0`, the bracket's upper end
+            // moves there), so that the walk down the tree waits on no load.
+            let mut up = 0u32;
+            for (i, di) in d.iter().enumerate() {
+                up |= u32::from(*di + eta > zero) << i;
+            }
+            // The walk by indices (selects, not branches: the decisions are coin flips to a
+            // branch predictor); `lo_of[0]`, `hi_of[0]` still hold the round's ends.
+            let (mut n, mut lo_at, mut hi_at) = (1usize, 0usize, 0usize);
+            for _ in 0..levels {
+                let bit = ((up >> n) & 1) as usize;
+                hi_at = if bit != 0 { n } else { hi_at };
+                lo_at = if bit != 0 { lo_at } else { n };
+                n = 2 * n + 1 - bit;
+            }
+            lo = if lo_at == 0 { lo_of[0] } else { p[lo_at] };
+            hi = if hi_at == 0 { hi_of[0] } else { p[hi_at] };
+            left -= levels;
+        }
+        Some(lo)
+    }
+
+    /// `δ` (m) of the dense output at the times `t` (s from its start), lane by lane
+    /// (`DenseStep::at`'s position and `Hammer::penetration`'s operations; `None` if a sine
+    /// left the short range).
+    #[inline(always)]
+    fn deltas<T: Real, F: LaneContact<T>, const K: usize>(
+        field: &F,
+        dense: &DenseStep<T>,
+        t: &[T; K],
+    ) -> Option<[T; K]> {
+        let rest = dense.h;
+        let (x0, f0, x1, f1) = (dense.x0[0], dense.f0[0], dense.x1[0], dense.f1[0]);
+        let mut d = [T::zero(); K];
+        let mut exact = true;
+        for i in 0..K {
+            let (h00, h10, h01, h11) = hermite_weights(t[i] / rest, rest);
+            let u0 = x0 * h00 + f0 * h10 + x1 * h01 + f1 * h11;
+            let (delta, _, _, ok) = field.penetration::<SmallTrig>(u0, T::zero());
+            d[i] = delta;
+            exact &= ok;
+        }
+        exact.then_some(d)
+    }
+}
+
+#[cfg(all(test, feature = "std"))]
+mod tests {
+    use nalgebra::Vector2;
+
+    use super::*;
+    use crate::integrate::isa::{Isa, with_isa};
+    use crate::model::hammer::Body;
+    use crate::model::{RigId, SwitchBands};
+
+    /// Trials of `h` s on `hammer` whose penetration follows `p(t) = p0 + v t + ½ a t²` (m),
+    /// as the stepper's dense output of them (`state(p, ṗ)` the state at penetration `p`
+    /// and rate `ṗ`, `slope(p, ṗ, p̈)` its time derivative): crossings of `−η_δ` in every
+    /// sample interval, near misses that peak below it, and trials that fall away.
+    fn trials(
+        hammer: &Hammer<f32>,
+        state: impl Fn(f64, f64) -> Vector2<f32>,
+        slope: impl Fn(f64, f64, f64) -> Vector2<f32>,
+    ) -> std::vec::Vec<(DenseStep<f32>, f32)> {
+        let eta = f64::from(hammer.eta_delta());
+        let h = 1e-3;
+        let mut out = std::vec::Vec::new();
+        for i in 0..6 {
+            let p0 = -(1.2 + 0.7 * f64::from(i)) * eta;
+            for j in 0..9 {
+                let v = (f64::from(j) - 2.0) * 0.4 * eta / h;
+                for a in [-3.0, 0.0, 2.5] {
+                    let a = a * eta / (h * h);
+                    let p1 = p0 + v * h + 0.5 * a * h * h;
+                    let dense = DenseStep {
+                        x0: state(p0, v),
+                        f0: slope(p0, v, a),
+                        x1: state(p1, v + a * h),
+                        f1: slope(p1, v + a * h, a),
+                        h: h as f32,
+                    };
+                    out.push((dense, hammer.penetration(&dense.x0).0));
+                }
+            }
+        }
+        out
+    }
+
+    /// The lanes' search against the search alone on every trial, bit for bit; how many
+    /// trials came within `η_δ` (of all).
+    fn lanes_match_alone(hammer: &Hammer<f32>, all: &[(DenseStep<f32>, f32)]) -> usize {
+        let eta = hammer.eta_delta();
+        let mut crossed = 0;
+        for (dense, start_delta) in all {
+            let alone = first_near_alone(hammer, dense, *start_delta, eta);
+            let lanes = first_near(hammer, dense, *start_delta, eta);
+            assert_eq!(lanes.map(f32::to_bits), Some(alone.to_bits()));
+            // A crossing lies off the sample grid (the halvings moved it).
+            let on_grid = (alone / dense.h * SAMPLES as f32).fract() == 0.0;
+            crossed += usize::from(!on_grid);
+        }
+        crossed
+    }
+
+    #[test]
+    fn the_lanes_find_where_a_trial_comes_near_as_the_search_alone() {
+        let bands = SwitchBands::default();
+        let gap = 1e-3;
+        let wires = Hammer::<f32>::new(&RigId::Wires.preset(), gap, 20.0, &bands).unwrap();
+        let Body::Wires { length, .. } = *wires.body() else {
+            panic!("the wire rig's body");
+        };
+        let l = f64::from(length);
+        // θ = asin((gap + p)/l): θ̇ = ṗ/(l cos θ), θ̈ from differentiating that.
+        let theta = |p: f64| ((gap + p) / l).asin();
+        let pendulum = |p: f64, v: f64| {
+            let th = theta(p);
+            Vector2::new(th as f32, (v / (l * th.cos())) as f32)
+        };
+        let pendulum_slope = |p: f64, v: f64, a: f64| {
+            let th = theta(p);
+            let w = v / (l * th.cos());
+            Vector2::new(
+                w as f32,
+                ((a + l * w * w * th.sin()) / (l * th.cos())) as f32,
+            )
+        };
+        let beam_hammer = Hammer::<f32>::new(&RigId::Beam170.preset(), gap, 60.0, &bands).unwrap();
+        let beam = |p: f64, v: f64| Vector2::new((gap + p) as f32, v as f32);
+        let beam_slope = |_: f64, v: f64, a: f64| Vector2::new(v as f32, a as f32);
+        let wire_trials = trials(&wires, pendulum, pendulum_slope);
+        let beam_trials = trials(&beam_hammer, beam, beam_slope);
+        for isa in Isa::supported() {
+            with_isa(isa, || {
+                // Both kinds of answer are tested: crossings (halved) and peaks or starts.
+                for (hammer, all) in [(&wires, &wire_trials), (&beam_hammer, &beam_trials)] {
+                    let crossed = lanes_match_alone(hammer, all);
+                    assert!(
+                        crossed >= 40 && crossed + 40 <= all.len(),
+                        "{crossed} of {}",
+                        all.len()
+                    );
+                }
+                // A pendulum at 0.6 rad, past the lanes' short sine: searched alone instead.
+                let wide = DenseStep {
+                    x0: Vector2::new(0.55, 1.0),
+                    f0: Vector2::new(1.0, 0.0),
+                    x1: Vector2::new(0.65, 1.0),
+                    f1: Vector2::new(1.0, 0.0),
+                    h: 0.1,
+                };
+                assert_eq!(first_near(&wires, &wide, -1.0, wires.eta_delta()), None);
+            });
+        }
+    }
+}
