@@ -249,15 +249,16 @@ mod tests {
 
     /// Trials of `h` s on `hammer` whose penetration follows `p(t) = p0 + v t + ½ a t²` (m),
     /// as the stepper's dense output of them (`state(p, ṗ)` the state at penetration `p`
-    /// and rate `ṗ`, `slope(p, ṗ, p̈)` its time derivative): crossings of `−η_δ` in every
-    /// sample interval, near misses that peak below it, and trials that fall away.
-    fn trials(
-        hammer: &Hammer<f32>,
-        state: impl Fn(f64, f64) -> Vector2<f32>,
-        slope: impl Fn(f64, f64, f64) -> Vector2<f32>,
-    ) -> std::vec::Vec<(DenseStep<f32>, f32)> {
-        let eta = f64::from(hammer.eta_delta());
+    /// and rate `ṗ`, `slope(p, ṗ, p̈)` its time derivative, in f64): crossings of `−η_δ` in
+    /// every sample interval, near misses that peak below it, and trials that fall away.
+    fn trials<T: Real>(
+        hammer: &Hammer<T>,
+        state: impl Fn(f64, f64) -> [f64; 2],
+        slope: impl Fn(f64, f64, f64) -> [f64; 2],
+    ) -> std::vec::Vec<(DenseStep<T>, T)> {
+        let eta = hammer.eta_delta().to_f64();
         let h = 1e-3;
+        let v2 = |[a, b]: [f64; 2]| Vector2::new(T::from_f64(a), T::from_f64(b));
         let mut out = std::vec::Vec::new();
         for i in 0..6 {
             let p0 = -(1.2 + 0.7 * f64::from(i)) * eta;
@@ -267,11 +268,11 @@ mod tests {
                     let a = a * eta / (h * h);
                     let p1 = p0 + v * h + 0.5 * a * h * h;
                     let dense = DenseStep {
-                        x0: state(p0, v),
-                        f0: slope(p0, v, a),
-                        x1: state(p1, v + a * h),
-                        f1: slope(p1, v + a * h, a),
-                        h: h as f32,
+                        x0: v2(state(p0, v)),
+                        f0: v2(slope(p0, v, a)),
+                        x1: v2(state(p1, v + a * h)),
+                        f1: v2(slope(p1, v + a * h, a)),
+                        h: T::from_f64(h),
                     };
                     out.push((dense, hammer.penetration(&dense.x0).0));
                 }
@@ -282,48 +283,48 @@ mod tests {
 
     /// The lanes' search against the search alone on every trial, bit for bit; how many
     /// trials came within `η_δ` (of all).
-    fn lanes_match_alone(hammer: &Hammer<f32>, all: &[(DenseStep<f32>, f32)]) -> usize {
+    fn lanes_match_alone<T: Real>(hammer: &Hammer<T>, all: &[(DenseStep<T>, T)]) -> usize {
         let eta = hammer.eta_delta();
         let mut crossed = 0;
         for (dense, start_delta) in all {
-            let alone = first_near_alone(hammer, dense, *start_delta, eta);
-            let lanes = first_near(hammer, dense, *start_delta, eta);
-            assert_eq!(lanes.map(f32::to_bits), Some(alone.to_bits()));
+            let alone = first_near_alone(hammer, dense, *start_delta, eta).to_f64();
+            let lanes = first_near(hammer, dense, *start_delta, eta).map(T::to_f64);
+            assert_eq!(lanes.map(f64::to_bits), Some(alone.to_bits()));
             // A crossing lies off the sample grid (the halvings moved it).
-            let on_grid = (alone / dense.h * SAMPLES as f32).fract() == 0.0;
+            let on_grid = (alone / dense.h.to_f64() * f64::from(SAMPLES)).fract() == 0.0;
             crossed += usize::from(!on_grid);
         }
         crossed
     }
 
-    #[test]
-    fn the_lanes_find_where_a_trial_comes_near_as_the_search_alone() {
+    /// [`lanes_match_alone`] on the wire and the beam rig at a 1 mm gap, in every instruction
+    /// set the CPU runs; the pendulum past the short sine and a trial with NaN are searched
+    /// alone.
+    fn both_rigs<T: Real>() {
         let bands = SwitchBands::default();
         let gap = 1e-3;
-        let wires = Hammer::<f32>::new(&RigId::Wires.preset(), gap, 20.0, &bands).unwrap();
+        let wires = Hammer::<T>::new(&RigId::Wires.preset(), gap, 20.0, &bands).unwrap();
         let Body::Wires { length, .. } = *wires.body() else {
             panic!("the wire rig's body");
         };
-        let l = f64::from(length);
+        let l = length.to_f64();
         // θ = asin((gap + p)/l): θ̇ = ṗ/(l cos θ), θ̈ from differentiating that.
         let theta = |p: f64| ((gap + p) / l).asin();
         let pendulum = |p: f64, v: f64| {
             let th = theta(p);
-            Vector2::new(th as f32, (v / (l * th.cos())) as f32)
+            [th, v / (l * th.cos())]
         };
         let pendulum_slope = |p: f64, v: f64, a: f64| {
             let th = theta(p);
             let w = v / (l * th.cos());
-            Vector2::new(
-                w as f32,
-                ((a + l * w * w * th.sin()) / (l * th.cos())) as f32,
-            )
+            [w, (a + l * w * w * th.sin()) / (l * th.cos())]
         };
-        let beam_hammer = Hammer::<f32>::new(&RigId::Beam170.preset(), gap, 60.0, &bands).unwrap();
-        let beam = |p: f64, v: f64| Vector2::new((gap + p) as f32, v as f32);
-        let beam_slope = |_: f64, v: f64, a: f64| Vector2::new(v as f32, a as f32);
+        let beam_hammer = Hammer::<T>::new(&RigId::Beam170.preset(), gap, 60.0, &bands).unwrap();
+        let beam = |p: f64, v: f64| [gap + p, v];
+        let beam_slope = |_: f64, v: f64, a: f64| [v, a];
         let wire_trials = trials(&wires, pendulum, pendulum_slope);
         let beam_trials = trials(&beam_hammer, beam, beam_slope);
+        let v2 = |a: f64, b: f64| Vector2::new(T::from_f64(a), T::from_f64(b));
         for isa in Isa::supported() {
             with_isa(isa, || {
                 // Both kinds of answer are tested: crossings (halved) and peaks or starts.
@@ -335,16 +336,29 @@ mod tests {
                         all.len()
                     );
                 }
-                // A pendulum at 0.6 rad, past the lanes' short sine: searched alone instead.
+                // A pendulum at 0.6 rad, past the lanes' short sine, and a trial with NaN:
+                // searched alone instead.
                 let wide = DenseStep {
-                    x0: Vector2::new(0.55, 1.0),
-                    f0: Vector2::new(1.0, 0.0),
-                    x1: Vector2::new(0.65, 1.0),
-                    f1: Vector2::new(1.0, 0.0),
-                    h: 0.1,
+                    x0: v2(0.55, 1.0),
+                    f0: v2(1.0, 0.0),
+                    x1: v2(0.65, 1.0),
+                    f1: v2(1.0, 0.0),
+                    h: T::from_f64(0.1),
                 };
-                assert_eq!(first_near(&wires, &wide, -1.0, wires.eta_delta()), None);
+                let eta = wires.eta_delta();
+                assert_eq!(first_near(&wires, &wide, T::from_f64(-1.0), eta), None);
+                let nan = DenseStep {
+                    f1: v2(f64::NAN, 0.0),
+                    ..wire_trials[0].0
+                };
+                assert_eq!(first_near(&wires, &nan, wire_trials[0].1, eta), None);
             });
         }
+    }
+
+    #[test]
+    fn the_lanes_find_where_a_trial_comes_near_as_the_search_alone() {
+        both_rigs::<f32>();
+        both_rigs::<f64>();
     }
 }
