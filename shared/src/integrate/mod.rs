@@ -7,7 +7,8 @@
 //! - `free`: one whole free-flight step and its acceptance test (the stepper's and the lanes'
 //!   kernel).
 //! - `bracket`: the bracketing root finder; `dense`: the step's cubic Hermite dense output,
-//!   event location on it, minima between samples.
+//!   event location on it, minima between samples; `near`: where a free-flight trial that
+//!   came near the surface is split (on the host its points in vector lanes).
 //! - [`stepper`]: the period-locked driver ([`Simulator`]).
 //! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids);
 //!   `contact_lanes`: their ordinary contact sub-steps, several at once; `switch_lanes`: the
