@@ -199,7 +199,7 @@ mod lanes {
                 up |= u32::from(*di + eta > zero) << i;
             }
             // The walk by indices (selects, not branches: the decisions are coin flips to a
-            // branch predictor); `lo_of[0]`, `hi_of[0]` still hold the round's ends.
+            // branch predictor); index 0: the round's own end.
             let (mut n, mut lo_at, mut hi_at) = (1usize, 0usize, 0usize);
             for _ in 0..levels {
                 let bit = ((up >> n) & 1) as usize;
@@ -207,8 +207,8 @@ mod lanes {
                 lo_at = if bit != 0 { lo_at } else { n };
                 n = 2 * n + 1 - bit;
             }
-            lo = if lo_at == 0 { lo_of[0] } else { p[lo_at] };
-            hi = if hi_at == 0 { hi_of[0] } else { p[hi_at] };
+            lo = if lo_at == 0 { lo } else { p[lo_at] };
+            hi = if hi_at == 0 { hi } else { p[hi_at] };
             left -= levels;
         }
         Some(lo)
