@@ -20,6 +20,7 @@ use crate::error::ParamError;
 use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
 use crate::integrate::isa::wide_vectors;
 use crate::integrate::lanes::Lockstep;
+use crate::integrate::near::{NearLanes, NearTrial};
 use crate::integrate::stepper::{Cursor, LaneTrial, PendingSwitch, SubPlan};
 use crate::integrate::switch_lanes::SwitchLanes;
 use crate::integrate::{PhaseTable, Simulator};
@@ -144,6 +145,7 @@ where
         waits_free: Ids::new(),
         waits_contact: Ids::new(),
         switches: [NONE; SWITCHES_TOGETHER],
+        nears: [NONE; NEAR_TOGETHER],
         contact_ended: 0,
         switches_in_lanes: 0,
     };
@@ -187,6 +189,10 @@ const NONE: usize = usize::MAX;
 /// (its lane handed on) until this many wait, or until no run is in contact.
 const SWITCHES_TOGETHER: usize = 8;
 
+/// Free-flight trials that came near the surface searched together: a run whose trial does
+/// waits (its lanes handed on) until this many wait, or until no lane is busy.
+const NEAR_TOGETHER: usize = 8;
+
 /// Fewer switching events than this, located when no run is in contact, are located one at a
 /// time (the lanes' rounds cost the same for one search as for eight).
 const SWITCHES_IN_LANES_AT_LEAST: usize = 3;
@@ -210,6 +216,9 @@ struct Run<'t, T: Real, O> {
     contact_ok: bool,
     /// Its sub-step's switching event, waiting to be located (the run is in `switches`).
     pending: Option<PendingSwitch<T>>,
+    /// Its free-flight trial that came near the surface, waiting to be searched (the run is in
+    /// `nears`; its cursor where the trial starts).
+    near: Option<NearTrial<T>>,
 }
 
 impl<T: Real, O> Run<'_, T, O> {
@@ -219,6 +228,7 @@ impl<T: Real, O> Run<'_, T, O> {
             cursor: Default::default(),
             contact_ok: false,
             pending: None,
+            near: None,
         }
     }
 }
@@ -265,6 +275,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     waits_contact: Ids<L>,
     /// The run of each switching-event lane (those set: `SwitchLanes::len`).
     switches: [usize; SWITCHES_TOGETHER],
+    /// The run of each near-search lane (those set: `NearLanes::len`).
+    nears: [usize; NEAR_TOGETHER],
     /// Sub-steps the contact lanes ended themselves.
     contact_ended: u64,
     /// Switching events located in the switching-event lanes.
@@ -292,6 +304,7 @@ where
             lanes: ContactLanes::<T, K, L>::for_simulator(&first.sim),
             runs: RunLanes::<T, L>::new(),
             switches: SwitchLanes::new(),
+            near: NearLanes::new(),
         };
         for r in 0..RUNS_PER_LANE * L {
             let run = self.run(r);
@@ -309,6 +322,10 @@ where
                 continue;
             }
             if n_free == 0 && n_contact == 0 {
+                if contact.near.len() > 0 {
+                    self.search_near(&mut free, &mut contact);
+                    continue;
+                }
                 break;
             }
             if n_contact > 0 {
@@ -445,6 +462,31 @@ where
         }
     }
 
+    /// Searches the free-flight trials of the runs waiting in `nears` (together, in the
+    /// near-search lanes; one alone where those cannot) and goes on with each.
+    fn search_near<K: LaneContact<T>>(
+        &mut self,
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut Contact<T, K, L>,
+    ) {
+        let n = contact.near.len();
+        let found = contact.near.search();
+        let ids = self.nears;
+        for (&r, &t) in ids[..n].iter().zip(&found) {
+            let run = &mut self.runs[r / L][r % L];
+            let (Some(job), Some(trial)) = (&mut run.job, run.near.take()) else {
+                continue;
+            };
+            let t_near = t.unwrap_or_else(|| trial.search_alone(job.sim.hammer()));
+            let c = &mut run.cursor.0;
+            let mut period_end = false;
+            let done = job.sim.advance_near(c, t_near, run.contact_ok, &mut |smp| {
+                period_end |= job.run.sample(smp, &mut job.obs)
+            });
+            self.after_substep(r, NONE, done, period_end, free, contact);
+        }
+    }
+
     /// After run `r`'s sub-step (`done`: its step ended, with the protocol's `period_end`),
     /// holding contact lane `own` (`NONE`: none): its next ordinary sub-step into a contact
     /// lane, or on through [`Driver::settle`].
@@ -565,9 +607,27 @@ where
                     self.release(own_free, NONE, free, contact);
                     return;
                 }
-                if job.sim.advance(&mut c, run.contact_ok, &mut |smp| {
-                    period_end |= job.run.sample(smp, &mut job.obs)
-                }) {
+                let mut observe = |smp: &_| period_end |= job.run.sample(smp, &mut job.obs);
+                let done = match job.sim.advance_until_near(&mut c, &mut observe) {
+                    Ok(done) => done,
+                    Err(trial) => {
+                        if let Some(lane) = contact.near.push(job.sim.hammer(), &trial) {
+                            // (Samples before the trial end no period: the step goes on.)
+                            run.cursor.0 = c;
+                            run.near = Some(trial);
+                            self.nears[lane] = r;
+                            self.release(own_free, own_contact, free, contact);
+                            if contact.near.len() == NEAR_TOGETHER {
+                                self.search_near(free, contact);
+                            }
+                            return;
+                        }
+                        let t_near = trial.search_alone(job.sim.hammer());
+                        job.sim
+                            .advance_near(&mut c, t_near, run.contact_ok, &mut observe)
+                    }
+                };
+                if done {
                     break;
                 }
             }
@@ -653,6 +713,7 @@ struct Contact<T: Real, K, const L: usize> {
     lanes: ContactLanes<T, K, L>,
     runs: RunLanes<T, L>,
     switches: SwitchLanes<T, K, SWITCHES_TOGETHER>,
+    near: NearLanes<T, K, NEAR_TOGETHER>,
 }
 
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),

@@ -19,11 +19,12 @@
 //! false), and the simulator takes back what the lane did ([`ContactLanes::resume`]) before it
 //! commits the trial itself.
 
+use core::marker::PhantomData;
 use nalgebra::Vector2;
 
 use super::Simulator;
 use super::free::{SmallTrig, Trig};
-use super::isa::Isa;
+use super::isa::{Isa, Kernel};
 use super::lanes::LaneField;
 use super::plan::SubstepRule;
 use super::rk4::rk4_step_compensated;
@@ -329,6 +330,24 @@ pub(crate) struct ContactLanes<T: Real, F, const L: usize> {
     isa: Isa,
 }
 
+/// [`ContactLanes::run`]'s body as a [`Kernel`]: one sub-step of every lane, the pendulum's
+/// viscous term as `V` has it, the samples booked by `B`.
+struct ContactRound<'a, T: Real, F, const L: usize, V, B> {
+    lanes: &'a mut ContactLanes<T, F, L>,
+    runs: &'a mut RunLanes<T, L>,
+    kinds: PhantomData<(V, B)>,
+}
+
+impl<T: Real, F: LaneContact<T>, const L: usize, V: Viscous, B: QuietSample<T>> Kernel
+    for ContactRound<'_, T, F, L, V, B>
+{
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        self.lanes.run_kernel::<V, B>(self.runs);
+    }
+}
+
 impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
     /// Empty lanes.
     pub(crate) fn new() -> Self {
@@ -542,31 +561,12 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
     /// instruction set of [`Isa::detect`].
     #[inline(always)]
     fn run_viscous<V: Viscous, B: QuietSample<T>>(&mut self, runs: &mut RunLanes<T, L>) {
-        match self.isa {
-            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            #[allow(unsafe_code)]
-            Isa::Avx512 => unsafe { self.run_avx512::<V, B>(runs) },
-            // SAFETY: as above.
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            #[allow(unsafe_code)]
-            Isa::Avx2 => unsafe { self.run_avx2::<V, B>(runs) },
-            Isa::Portable => self.run_kernel::<V, B>(runs),
-        }
-    }
-
-    /// [`ContactLanes::run`] compiled for AVX-512.
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-    fn run_avx512<V: Viscous, B: QuietSample<T>>(&mut self, runs: &mut RunLanes<T, L>) {
-        self.run_kernel::<V, B>(runs);
-    }
-
-    /// [`ContactLanes::run`] compiled for AVX2.
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx,avx2")]
-    fn run_avx2<V: Viscous, B: QuietSample<T>>(&mut self, runs: &mut RunLanes<T, L>) {
-        self.run_kernel::<V, B>(runs);
+        let isa = self.isa;
+        isa.run(ContactRound {
+            lanes: self,
+            runs,
+            kinds: PhantomData::<(V, B)>,
+        });
     }
 
     /// The body of [`ContactLanes::run`]: [`Simulator::substep`]'s trial and end field, lane by

@@ -1,9 +1,20 @@
-//! Which vector instructions the host's lane kernels ([`super::lanes`], `contact_lanes`) run,
-//! chosen once per kernel at run time from what the CPU reports.
+//! Which vector instructions the host's lane kernels ([`super::lanes`], `contact_lanes`,
+//! `switch_lanes`, `near`) run, chosen at run time from what the CPU reports, and the one place
+//! that compiles a kernel for each ([`Kernel`], [`Isa::run`]).
 //!
 //! The variants compile the same source with more instructions enabled: the same operations
 //! in the same order and no fused multiply-add (Rust never contracts `a * b + c`), so every
 //! variant gives the same bits. On the MCU (no `std`) the kernels are the portable code.
+
+/// A lane kernel's body with its arguments, run by [`Isa::run`] in the instruction set asked
+/// for. Implementations mark [`Kernel::run`] `#[inline(always)]` (and whatever it calls that
+/// should vectorise), so that the body compiles into each variant.
+pub(crate) trait Kernel {
+    /// What the kernel returns.
+    type Output;
+    /// The body.
+    fn run(self) -> Self::Output;
+}
 
 /// The instruction set a lane kernel runs, narrowest first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -49,6 +60,23 @@ impl Isa {
         .collect()
     }
 
+    /// Runs `kernel` compiled for this variant. The variant must be one the CPU runs: an
+    /// [`Isa`] only comes from [`Isa::detect`] (or, in tests, [`Isa::supported`]).
+    #[inline(always)]
+    pub(crate) fn run<K: Kernel>(self, kernel: K) -> K::Output {
+        match self {
+            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            #[allow(unsafe_code)]
+            Isa::Avx512 => unsafe { run_avx512(kernel) },
+            // SAFETY: as above.
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            #[allow(unsafe_code)]
+            Isa::Avx2 => unsafe { run_avx2(kernel) },
+            Isa::Portable => kernel.run(),
+        }
+    }
+
     /// The widest variant the CPU reports.
     fn widest() -> Isa {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
@@ -66,6 +94,20 @@ impl Isa {
         }
         Isa::Portable
     }
+}
+
+/// [`Kernel::run`] compiled for AVX-512.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run()
+}
+
+/// [`Kernel::run`] compiled for AVX2.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx,avx2")]
+fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run()
 }
 
 #[cfg(test)]

@@ -14,10 +14,11 @@
 
 use super::Simulator;
 use super::free::{FreeField, FreeState, SmallTrig, free_step};
-use super::isa::Isa;
+use super::isa::{Isa, Kernel};
 use super::plan::PhaseTable;
 use crate::model::hammer::{BeamFree, Damped, FreeFlight, Undamped, Viscous, WiresFree};
 use crate::real::Real;
+use core::marker::PhantomData;
 
 /// The free-flight coefficients of one suspension as a lockstep lane holds them: [`WiresFree`]
 /// or [`BeamFree`] (one [`Lockstep`] per suspension).
@@ -134,6 +135,24 @@ pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
     isa: Isa,
 }
 
+/// [`Lockstep::run_at_most`]'s body as a [`Kernel`]: up to `rounds` rounds of the lanes, the
+/// pendulum's viscous term as `V` has it.
+struct FreeRounds<'a, 't, T: Real, F: LaneField<T>, const L: usize, V> {
+    lanes: &'a mut Lockstep<'t, T, F, L>,
+    rounds: u64,
+    viscous: PhantomData<V>,
+}
+
+impl<T: Real, F: LaneField<T>, const L: usize, V: Viscous> Kernel
+    for FreeRounds<'_, '_, T, F, L, V>
+{
+    type Output = [bool; L];
+    #[inline(always)]
+    fn run(self) -> [bool; L] {
+        self.lanes.run_kernel::<V>(self.rounds)
+    }
+}
+
 impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     /// Empty lanes for the simulators that share `sim`'s step grid, suspension and band.
     pub(crate) fn for_simulator(sim: &Simulator<'t, T>) -> Self {
@@ -246,31 +265,12 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     /// instruction set of [`Isa::detect`].
     #[inline(always)]
     fn run_viscous<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
-        match self.isa {
-            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            #[allow(unsafe_code)]
-            Isa::Avx512 => unsafe { self.run_avx512::<V>(rounds) },
-            // SAFETY: as above.
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            #[allow(unsafe_code)]
-            Isa::Avx2 => unsafe { self.run_avx2::<V>(rounds) },
-            Isa::Portable => self.run_kernel::<V>(rounds),
-        }
-    }
-
-    /// [`Lockstep::run`] compiled for AVX-512.
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-    fn run_avx512<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
-        self.run_kernel::<V>(rounds)
-    }
-
-    /// [`Lockstep::run`] compiled for AVX2.
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx,avx2")]
-    fn run_avx2<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
-        self.run_kernel::<V>(rounds)
+        let isa = self.isa;
+        isa.run(FreeRounds {
+            lanes: self,
+            rounds,
+            viscous: PhantomData::<V>,
+        })
     }
 
     /// The body of [`Lockstep::run`] (inlined into each instruction-set variant).

@@ -21,7 +21,7 @@ pub(crate) mod dense;
 pub(crate) mod free;
 pub(crate) mod isa;
 pub mod lanes;
-mod near;
+pub(crate) mod near;
 pub mod plan;
 pub mod rk4;
 pub mod stepper;

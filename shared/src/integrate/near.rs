@@ -15,7 +15,10 @@
 //! points, values and decisions, so the same time, bit for bit.
 
 use super::bracket::{Rule, bracket_rising};
-use super::dense::DenseStep;
+use super::contact_lanes::LaneContact;
+use super::dense::{DenseStep, hermite_weights};
+use super::free::SmallTrig;
+use super::isa::{Isa, Kernel};
 use crate::model::Hammer;
 use crate::real::Real;
 
@@ -24,6 +27,182 @@ pub(super) const SAMPLES: u32 = 8;
 
 /// Halvings of the sample interval where the trial first comes near.
 pub(super) const HALVINGS: u32 = 10;
+
+/// A free-flight trial that came near the surface (`Simulator::free_trial`), to be searched
+/// for where it first comes within `η_δ` of it: its dense output, the penetration at its start
+/// (m) and `η_δ` (m).
+#[derive(Clone, Copy)]
+pub(crate) struct NearTrial<T: Real> {
+    pub(super) dense: DenseStep<T>,
+    pub(super) start_delta: T,
+    pub(super) eta: T,
+}
+
+impl<T: Real> NearTrial<T> {
+    /// Where the trial first comes near (s from its start), searched alone: on the host in
+    /// vector lanes where they can ([`first_near`]), else one point after the other.
+    #[cfg_attr(feature = "std", inline(always))]
+    #[cfg_attr(not(feature = "std"), inline(never))]
+    pub(crate) fn search_alone(&self, hammer: &Hammer<T>) -> T {
+        #[cfg(feature = "std")]
+        if let Some(t) = first_near(hammer, &self.dense, self.start_delta, self.eta) {
+            return t;
+        }
+        first_near_alone(hammer, &self.dense, self.start_delta, self.eta)
+    }
+}
+
+/// `δ` (m) of the trial `(x0, f0, x1, f1)` (its position and the position's slope at both
+/// ends) of `rest` s at `t` s from its start, with `DenseStep::at`'s and
+/// `Hammer::penetration`'s operations, and whether the short sine was exact there.
+#[inline(always)]
+fn delta_at<T: Real, F: LaneContact<T>>(
+    field: &F,
+    [x0, f0, x1, f1]: [T; 4],
+    rest: T,
+    t: T,
+) -> (T, bool) {
+    let (h00, h10, h01, h11) = hermite_weights(t / rest, rest);
+    let u0 = x0 * h00 + f0 * h10 + x1 * h01 + f1 * h11;
+    let (delta, _, _, exact) = field.penetration::<SmallTrig>(u0, T::zero());
+    (delta, exact)
+}
+
+/// Up to `K` trials of runs with the suspension `F` searched side by side (the host's grid
+/// analyses, `analysis::batch`): lane `i` one trial, each round one point of every search, the
+/// points and decisions of [`first_near_alone`] (branch-free: every lane takes all
+/// [`SAMPLES`] samples and [`HALVINGS`] halvings, and keeps what the search alone would).
+pub(crate) struct NearLanes<T: Real, F, const K: usize> {
+    isa: Isa,
+    /// Trials set (lanes `0..n`).
+    n: usize,
+    field: [F; K],
+    /// The position and its slope at the trial's start and end, its length (s), the
+    /// penetration at its start and `η_δ` (m).
+    x0: [T; K],
+    f0: [T; K],
+    x1: [T; K],
+    f1: [T; K],
+    h: [T; K],
+    start_delta: [T; K],
+    eta: [T; K],
+}
+
+/// [`NearLanes::search`]'s searches as a [`Kernel`].
+struct Searches<'a, T: Real, F, const K: usize> {
+    lanes: &'a NearLanes<T, F, K>,
+}
+
+impl<T: Real, F: LaneContact<T>, const K: usize> Kernel for Searches<'_, T, F, K> {
+    type Output = [Option<T>; K];
+    #[inline(always)]
+    fn run(self) -> [Option<T>; K] {
+        self.lanes.search_kernel()
+    }
+}
+
+impl<T: Real, F: LaneContact<T>, const K: usize> NearLanes<T, F, K> {
+    /// Empty lanes, the kernel in the instruction set of [`Isa::detect`].
+    pub(crate) fn new() -> Self {
+        let one = T::from_f64(1.0);
+        let zero = T::zero();
+        NearLanes {
+            isa: Isa::detect(),
+            n: 0,
+            field: [F::default(); K],
+            x0: [zero; K],
+            f0: [zero; K],
+            x1: [zero; K],
+            f1: [zero; K],
+            h: [one; K],
+            start_delta: [zero; K],
+            eta: [zero; K],
+        }
+    }
+
+    /// Trials set.
+    #[inline]
+    pub(crate) fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Sets `trial` of a run on `hammer` into the next lane: its number, or `None` if the lanes
+    /// are full or the hammer is not of the suspension `F`.
+    #[inline]
+    pub(crate) fn push(&mut self, hammer: &Hammer<T>, trial: &NearTrial<T>) -> Option<usize> {
+        let i = self.n;
+        if i >= K {
+            return None;
+        }
+        let field = F::of(&hammer.free_flight())?;
+        let d = &trial.dense;
+        self.field[i] = field;
+        (self.x0[i], self.f0[i], self.x1[i], self.f1[i]) = (d.x0[0], d.f0[0], d.x1[0], d.f1[0]);
+        self.h[i] = d.h;
+        self.start_delta[i] = trial.start_delta;
+        self.eta[i] = trial.eta;
+        self.n += 1;
+        Some(i)
+    }
+
+    /// Searches the trials set, lane `i` giving where trial `i` first comes near (s from its
+    /// start; `None`: a point beyond the short sine, `|θ| > 1/8` rad, to be searched alone),
+    /// and clears the lanes.
+    pub(crate) fn search(&mut self) -> [Option<T>; K] {
+        self.n = 0;
+        self.isa.run(Searches { lanes: self })
+    }
+
+    /// The searches lane by lane (lanes not set search their last trial again, unread).
+    #[inline(always)]
+    fn search_kernel(&self) -> [Option<T>; K] {
+        let zero = T::zero();
+        let half = T::from_f64(0.5);
+        let mut dt = [zero; K];
+        for i in 0..K {
+            dt[i] = self.h[i] / T::from_u32(SAMPLES);
+        }
+        let mut exact = [true; K];
+        // The first sample interval whose end comes within `η_δ` (`found`), else the sample
+        // with the largest `δ` (the start's if none exceeds it).
+        let mut found = [false; K];
+        let (mut lo, mut hi) = ([zero; K], [zero; K]);
+        let (mut best_t, mut best_d) = ([zero; K], self.start_delta);
+        for j in 1..=SAMPLES {
+            for i in 0..K {
+                let t = dt[i] * T::from_u32(j);
+                let (d, ok) = self.delta(i, t);
+                // Samples after the crossing are not the search's: their range does not count.
+                exact[i] &= ok | found[i];
+                let cross = !found[i] & (d > -self.eta[i]);
+                lo[i] = if cross { t - dt[i] } else { lo[i] };
+                hi[i] = if cross { t } else { hi[i] };
+                let better = !found[i] & !cross & (d > best_d[i]);
+                best_t[i] = if better { t } else { best_t[i] };
+                best_d[i] = if better { d } else { best_d[i] };
+                found[i] |= cross;
+            }
+        }
+        for _ in 0..HALVINGS {
+            for i in 0..K {
+                let mid = (lo[i] + hi[i]) * half;
+                let (d, ok) = self.delta(i, mid);
+                exact[i] &= ok | !found[i];
+                let up = d + self.eta[i] > zero;
+                hi[i] = if up { mid } else { hi[i] };
+                lo[i] = if up { lo[i] } else { mid };
+            }
+        }
+        core::array::from_fn(|i| exact[i].then_some(if found[i] { lo[i] } else { best_t[i] }))
+    }
+
+    /// Lane `i`'s `δ` (m) at `t` s into its trial, and whether the short sine was exact.
+    #[inline(always)]
+    fn delta(&self, i: usize, t: T) -> (T, bool) {
+        let ends = [self.x0[i], self.f0[i], self.x1[i], self.f1[i]];
+        delta_at(&self.field[i], ends, self.h[i], t)
+    }
+}
 
 /// The time (s from the trial's start) at which the trial `dense` (of `dense.h` seconds, from a
 /// state with penetration `start_delta`, m) first comes within `eta` (m) of the surface, or
@@ -60,10 +239,6 @@ pub(super) use lanes::first_near;
 
 #[cfg(feature = "std")]
 mod lanes {
-    use super::super::contact_lanes::LaneContact;
-    use super::super::dense::hermite_weights;
-    use super::super::free::SmallTrig;
-    use super::super::isa::Isa;
     use super::*;
     use crate::model::hammer::FreeFlight;
 
@@ -99,41 +274,28 @@ mod lanes {
         start_delta: T,
         eta: T,
     ) -> Option<T> {
-        match Isa::detect() {
-            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
-            #[cfg(target_arch = "x86_64")]
-            #[allow(unsafe_code)]
-            Isa::Avx512 => unsafe { search_avx512(field, dense, start_delta, eta) },
-            // SAFETY: as above.
-            #[cfg(target_arch = "x86_64")]
-            #[allow(unsafe_code)]
-            Isa::Avx2 => unsafe { search_avx2(field, dense, start_delta, eta) },
-            Isa::Portable => search(field, dense, start_delta, eta),
+        Isa::detect().run(Search {
+            field,
+            dense,
+            start_delta,
+            eta,
+        })
+    }
+
+    /// [`search`] with its arguments, as a [`Kernel`].
+    struct Search<'a, T: Real, F> {
+        field: &'a F,
+        dense: &'a DenseStep<T>,
+        start_delta: T,
+        eta: T,
+    }
+
+    impl<T: Real, F: LaneContact<T>> Kernel for Search<'_, T, F> {
+        type Output = Option<T>;
+        #[inline(always)]
+        fn run(self) -> Option<T> {
+            search(self.field, self.dense, self.start_delta, self.eta)
         }
-    }
-
-    /// [`search`] compiled for AVX-512.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-    fn search_avx512<T: Real, F: LaneContact<T>>(
-        field: &F,
-        dense: &DenseStep<T>,
-        start_delta: T,
-        eta: T,
-    ) -> Option<T> {
-        search(field, dense, start_delta, eta)
-    }
-
-    /// [`search`] compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2")]
-    fn search_avx2<T: Real, F: LaneContact<T>>(
-        field: &F,
-        dense: &DenseStep<T>,
-        start_delta: T,
-        eta: T,
-    ) -> Option<T> {
-        search(field, dense, start_delta, eta)
     }
 
     /// [`first_near_alone`]'s search, its points [`POINTS`] at a time.
@@ -223,14 +385,11 @@ mod lanes {
         dense: &DenseStep<T>,
         t: &[T; K],
     ) -> Option<[T; K]> {
-        let rest = dense.h;
-        let (x0, f0, x1, f1) = (dense.x0[0], dense.f0[0], dense.x1[0], dense.f1[0]);
+        let ends = [dense.x0[0], dense.f0[0], dense.x1[0], dense.f1[0]];
         let mut d = [T::zero(); K];
         let mut exact = true;
         for i in 0..K {
-            let (h00, h10, h01, h11) = hermite_weights(t[i] / rest, rest);
-            let u0 = x0 * h00 + f0 * h10 + x1 * h01 + f1 * h11;
-            let (delta, _, _, ok) = field.penetration::<SmallTrig>(u0, T::zero());
+            let (delta, ok) = delta_at(field, ends, dense.h, t[i]);
             d[i] = delta;
             exact &= ok;
         }

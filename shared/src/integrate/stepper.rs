@@ -34,7 +34,7 @@ use nalgebra::Vector2;
 
 use super::dense::{DenseStep, hermite_min, root_in_unit};
 use super::free::{FreeState, FullTrig, free_step};
-use super::near;
+use super::near::NearTrial;
 #[cfg(doc)]
 use super::plan::resting_substeps;
 use super::plan::{PhaseTable, StepPlan, StepSettings, SubstepRule, step_s};
@@ -583,9 +583,25 @@ impl<'t, T: Real> Simulator<'t, T> {
         hand_substep: bool,
         observe: &mut O,
     ) -> bool {
-        let h_c = self.plan.substep.h_c;
-        // Where this segment starts (for the smallest δ over it, reported with its sample).
-        let seg = self.segment_start(c.offset);
+        match self.advance_until_near(c, observe) {
+            Ok(done) => done,
+            Err(trial) => {
+                let t_near = trial.search_alone(&self.hammer);
+                self.advance_near(c, t_near, hand_substep, observe)
+            }
+        }
+    }
+
+    /// [`Simulator::advance`] up to a free-flight trial that comes near the surface: that
+    /// trial (`Err`, nothing taken yet), whose search [`Simulator::advance_near`] takes
+    /// with the time it found (so that the caller may search several runs' trials together,
+    /// `near::NearLanes`).
+    #[inline(always)]
+    pub(crate) fn advance_until_near<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        observe: &mut O,
+    ) -> Result<bool, NearTrial<T>> {
         if self.clear() && !c.near {
             let (sm, se) = if c.first {
                 (c.s_mid, c.s_end)
@@ -594,31 +610,58 @@ impl<'t, T: Real> Simulator<'t, T> {
             };
             match self.free_trial(c.rest, sm, se) {
                 Ok((x1, end)) => {
+                    let seg = self.segment_start(c.offset);
                     self.state.x = x1;
                     self.state.at_x = end;
                     self.finish_step(&seg, observe);
-                    return true;
+                    return Ok(true);
                 }
-                Err(t_near) => {
-                    // Stop half a sub-step short of the surface, so that the arrival
-                    // falls inside the next sub-step (not on its boundary, where the
-                    // switch would go through the Σ_α band instead of being located).
-                    let tau = t_near - h_c * T::from_f64(0.5);
-                    if tau > h_c * T::from_f64(0.25) {
-                        self.free_segment(c.offset, tau);
-                        c.offset += tau;
-                        c.rest -= tau;
-                        c.first = false;
-                        observe(&self.sample(c.offset, false, &seg));
-                        return false;
-                    }
-                    if hand_substep {
-                        c.near = true;
-                        return false;
-                    }
-                }
+                Err(trial) => return Err(trial),
             }
         }
+        Ok(self.substep_segment(c, observe))
+    }
+
+    /// [`Simulator::advance`] after a free-flight trial from `c` came near the surface, first
+    /// within `η_δ` of it `t_near` s into the trial (`NearTrial`'s search).
+    #[inline(always)]
+    pub(crate) fn advance_near<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        t_near: T,
+        hand_substep: bool,
+        observe: &mut O,
+    ) -> bool {
+        let h_c = self.plan.substep.h_c;
+        // Stop half a sub-step short of the surface, so that the arrival falls inside the
+        // next sub-step (not on its boundary, where the switch would go through the Σ_α band
+        // instead of being located).
+        let tau = t_near - h_c * T::from_f64(0.5);
+        if tau > h_c * T::from_f64(0.25) {
+            let seg = self.segment_start(c.offset);
+            self.free_segment(c.offset, tau);
+            c.offset += tau;
+            c.rest -= tau;
+            c.first = false;
+            observe(&self.sample(c.offset, false, &seg));
+            return false;
+        }
+        if hand_substep {
+            c.near = true;
+            return false;
+        }
+        self.substep_segment(c, observe)
+    }
+
+    /// The sub-step that is the next segment from `c` ([`Simulator::advance`]).
+    #[inline(always)]
+    fn substep_segment<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        observe: &mut O,
+    ) -> bool {
+        // Where this segment starts (for the smallest δ over it, reported with its sample).
+        let seg = self.segment_start(c.offset);
         c.first = false;
         c.near = false;
         let (len, last) = self.substep_len(c);
@@ -787,11 +830,16 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// Tries `rest` seconds (to the end of the step) in free flight from the current state, with
     /// `sin Ωt` `s_mid`, `s_end` at the segment's midpoint and end ([`super::free`]). `Ok` with
     /// the end state and its switch-model field if the hammer stays clear; otherwise `Err`
-    /// with the time (s from the segment's start) at which the trial's dense output first
-    /// comes within `η_δ` of the surface, or peaks.
+    /// with the trial, whose dense output is to be searched for where it first comes within
+    /// `η_δ` of the surface, or peaks ([`NearTrial`]).
     #[cfg_attr(feature = "std", inline(always))]
     #[cfg_attr(not(feature = "std"), inline(never))]
-    fn free_trial(&mut self, rest: T, s_mid: T, s_end: T) -> Result<(Vector2<T>, FieldEval<T>), T> {
+    fn free_trial(
+        &mut self,
+        rest: T,
+        s_mid: T,
+        s_end: T,
+    ) -> Result<(Vector2<T>, FieldEval<T>), NearTrial<T>> {
         let hammer = self.hammer;
         let eta = hammer.eta_delta();
         let (x0, start) = (self.state.x, self.state.at_x);
@@ -807,19 +855,17 @@ impl<'t, T: Real> Simulator<'t, T> {
             return Ok((x1, end));
         }
         self.state.counts.split_trials += 1;
-        // Where the free-flight dense output first comes near the surface (or peaks).
-        let dense = DenseStep {
-            x0,
-            f0: start.dx,
-            x1,
-            f1: end.dx,
-            h: rest,
-        };
-        #[cfg(feature = "std")]
-        if let Some(t) = near::first_near(&hammer, &dense, start.delta, eta) {
-            return Err(t);
-        }
-        Err(near::first_near_alone(&hammer, &dense, start.delta, eta))
+        Err(NearTrial {
+            dense: DenseStep {
+                x0,
+                f0: start.dx,
+                x1,
+                f1: end.dx,
+                h: rest,
+            },
+            start_delta: start.delta,
+            eta,
+        })
     }
 
     /// One free-flight RK4 step of `len` seconds from `offset` (s into the current step).

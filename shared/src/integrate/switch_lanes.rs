@@ -10,7 +10,7 @@ use super::bracket::{illinois_step, illinois_update};
 use super::contact_lanes::LaneContact;
 use super::dense::{MAX_EVENT_EVALS, hermite_weights};
 use super::free::SmallTrig;
-use super::isa::Isa;
+use super::isa::{Isa, Kernel};
 use super::stepper::{EventCase, PendingSwitch, Simulator, SwitchSearch};
 use crate::model::Hammer;
 use crate::model::contact::LawCoeffs;
@@ -46,6 +46,19 @@ pub(crate) struct SwitchLanes<T: Real, F, const K: usize> {
     /// The event function at the ends.
     g_start: [T; K],
     g_end: [T; K],
+}
+
+/// [`SwitchLanes::locate`]'s searches as a [`Kernel`].
+struct Locate<'a, T: Real, F, const K: usize> {
+    lanes: &'a SwitchLanes<T, F, K>,
+}
+
+impl<T: Real, F: LaneContact<T>, const K: usize> Kernel for Locate<'_, T, F, K> {
+    type Output = [Option<T>; K];
+    #[inline(always)]
+    fn run(self) -> [Option<T>; K] {
+        self.lanes.locate_kernel()
+    }
 }
 
 impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
@@ -132,31 +145,7 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
             self.tol[i] = T::from_f64(1.0);
         }
         self.n = 0;
-        match self.isa {
-            // SAFETY: the CPU supports the variant's instructions (`Isa::detect`).
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            #[allow(unsafe_code)]
-            Isa::Avx512 => unsafe { self.locate_avx512() },
-            // SAFETY: as above.
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            #[allow(unsafe_code)]
-            Isa::Avx2 => unsafe { self.locate_avx2() },
-            Isa::Portable => self.locate_kernel(),
-        }
-    }
-
-    /// [`SwitchLanes::locate`] compiled for AVX-512.
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-    fn locate_avx512(&self) -> [Option<T>; K] {
-        self.locate_kernel()
-    }
-
-    /// [`SwitchLanes::locate`] compiled for AVX2.
-    #[cfg(all(feature = "std", target_arch = "x86_64"))]
-    #[target_feature(enable = "avx,avx2")]
-    fn locate_avx2(&self) -> [Option<T>; K] {
-        self.locate_kernel()
+        self.isa.run(Locate { lanes: self })
     }
 
     /// The searches lane by lane, branch-free: each round one point of every search still
