@@ -158,10 +158,7 @@ impl<T: Real, F: LaneContact<T>, const K: usize> NearLanes<T, F, K> {
     fn search_kernel(&self) -> [Option<T>; K] {
         let zero = T::zero();
         let half = T::from_f64(0.5);
-        let mut dt = [zero; K];
-        for i in 0..K {
-            dt[i] = self.h[i] / T::from_u32(SAMPLES);
-        }
+        let dt: [T; K] = core::array::from_fn(|i| self.h[i] / T::from_u32(SAMPLES));
         let mut exact = [true; K];
         // The first sample interval whose end comes within `η_δ` (`found`), else the sample
         // with the largest `δ` (the start's if none exceeds it).
@@ -403,7 +400,7 @@ mod tests {
 
     use super::*;
     use crate::integrate::isa::{Isa, with_isa};
-    use crate::model::hammer::Body;
+    use crate::model::hammer::{BeamFree, Body, WiresFree};
     use crate::model::{RigId, SwitchBands};
 
     /// Trials of `h` s on `hammer` whose penetration follows `p(t) = p0 + v t + ½ a t²` (m),
@@ -454,6 +451,49 @@ mod tests {
             crossed += usize::from(!on_grid);
         }
         crossed
+    }
+
+    /// The trials searched side by side in [`NearLanes`] (in sets of 1 to 8, so that lanes
+    /// left from the last set are searched again, unread) against the search alone, bit for
+    /// bit; a hammer of the other suspension is refused.
+    fn near_lanes_match_alone<T: Real, F: LaneContact<T>, G: LaneContact<T>>(
+        hammer: &Hammer<T>,
+        all: &[(DenseStep<T>, T)],
+    ) {
+        let eta = hammer.eta_delta();
+        let mut lanes = NearLanes::<T, F, 8>::new();
+        let mut sizes = (1..=8).cycle();
+        let mut rest = all;
+        while !rest.is_empty() {
+            let (set, next) = rest.split_at(sizes.next().unwrap_or(8).min(rest.len()));
+            for (i, (dense, start_delta)) in set.iter().enumerate() {
+                let trial = NearTrial {
+                    dense: *dense,
+                    start_delta: *start_delta,
+                    eta,
+                };
+                assert_eq!(lanes.push(hammer, &trial), Some(i));
+            }
+            assert_eq!(lanes.len(), set.len());
+            let found = lanes.search();
+            assert_eq!(lanes.len(), 0);
+            for ((dense, start_delta), t) in set.iter().zip(found) {
+                let alone = first_near_alone(hammer, dense, *start_delta, eta).to_f64();
+                assert_eq!(t.map(|t| t.to_f64().to_bits()), Some(alone.to_bits()));
+            }
+            rest = next;
+        }
+        let (dense, start_delta) = all[0];
+        let trial = NearTrial {
+            dense,
+            start_delta,
+            eta,
+        };
+        assert_eq!(NearLanes::<T, G, 8>::new().push(hammer, &trial), None);
+        let mut full = NearLanes::<T, F, 2>::new();
+        assert_eq!(full.push(hammer, &trial), Some(0));
+        assert_eq!(full.push(hammer, &trial), Some(1));
+        assert_eq!(full.push(hammer, &trial), None);
     }
 
     /// [`lanes_match_alone`] on the wire and the beam rig at a 1 mm gap, in every instruction
@@ -511,6 +551,29 @@ mod tests {
                     ..wire_trials[0].0
                 };
                 assert_eq!(first_near(&wires, &nan, wire_trials[0].1, eta), None);
+                // Several runs' trials side by side, the same two searched alone there too.
+                near_lanes_match_alone::<T, WiresFree<T>, BeamFree<T>>(&wires, &wire_trials);
+                near_lanes_match_alone::<T, BeamFree<T>, WiresFree<T>>(&beam_hammer, &beam_trials);
+                let mut lanes = NearLanes::<T, WiresFree<T>, 8>::new();
+                for (dense, start_delta) in [(wide, T::from_f64(-1.0)), (nan, wire_trials[0].1)] {
+                    let trial = NearTrial {
+                        dense,
+                        start_delta,
+                        eta,
+                    };
+                    lanes.push(&wires, &trial);
+                }
+                lanes.push(
+                    &wires,
+                    &NearTrial {
+                        dense: wire_trials[0].0,
+                        start_delta: wire_trials[0].1,
+                        eta,
+                    },
+                );
+                let found = lanes.search();
+                assert_eq!(found[..2], [None, None]);
+                assert!(found[2].is_some());
             });
         }
     }
