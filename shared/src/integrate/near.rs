@@ -41,8 +41,7 @@ pub(crate) struct NearTrial<T: Real> {
 impl<T: Real> NearTrial<T> {
     /// Where the trial first comes near (s from its start), searched alone: on the host in
     /// vector lanes where they can ([`first_near`]), else one point after the other.
-    #[cfg_attr(feature = "std", inline(always))]
-    #[cfg_attr(not(feature = "std"), inline(never))]
+    #[inline(always)]
     pub(crate) fn search_alone(&self, hammer: &Hammer<T>) -> T {
         #[cfg(feature = "std")]
         if let Some(t) = first_near(hammer, &self.dense, self.start_delta, self.eta) {

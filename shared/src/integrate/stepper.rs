@@ -583,13 +583,17 @@ impl<'t, T: Real> Simulator<'t, T> {
         hand_substep: bool,
         observe: &mut O,
     ) -> bool {
-        match self.advance_until_near(c, observe) {
-            Ok(done) => done,
-            Err(trial) => {
+        match self.free_flight_segment(c, observe) {
+            Some(Ok(done)) => return done,
+            Some(Err(trial)) => {
                 let t_near = trial.search_alone(&self.hammer);
-                self.advance_near(c, t_near, hand_substep, observe)
+                if let Some(done) = self.after_near(c, t_near, hand_substep, observe) {
+                    return done;
+                }
             }
+            None => {}
         }
+        self.substep_segment(c, observe)
     }
 
     /// [`Simulator::advance`] up to a free-flight trial that comes near the surface: that
@@ -602,24 +606,10 @@ impl<'t, T: Real> Simulator<'t, T> {
         c: &mut Cursor<T>,
         observe: &mut O,
     ) -> Result<bool, NearTrial<T>> {
-        if self.clear() && !c.near {
-            let (sm, se) = if c.first {
-                (c.s_mid, c.s_end)
-            } else {
-                (self.sin_at(c.offset + c.rest * T::from_f64(0.5)), c.s_end)
-            };
-            match self.free_trial(c.rest, sm, se) {
-                Ok((x1, end)) => {
-                    let seg = self.segment_start(c.offset);
-                    self.state.x = x1;
-                    self.state.at_x = end;
-                    self.finish_step(&seg, observe);
-                    return Ok(true);
-                }
-                Err(trial) => return Err(trial),
-            }
+        match self.free_flight_segment(c, observe) {
+            Some(r) => r,
+            None => Ok(self.substep_segment(c, observe)),
         }
-        Ok(self.substep_segment(c, observe))
     }
 
     /// [`Simulator::advance`] after a free-flight trial from `c` came near the surface, first
@@ -632,6 +622,53 @@ impl<'t, T: Real> Simulator<'t, T> {
         hand_substep: bool,
         observe: &mut O,
     ) -> bool {
+        match self.after_near(c, t_near, hand_substep, observe) {
+            Some(done) => done,
+            None => self.substep_segment(c, observe),
+        }
+    }
+
+    /// A free-flight trial over the rest of the step from `c` if the hammer is clear of the
+    /// surface (`None`: the next segment is a sub-step): `Ok(true)`, the step taken whole; or
+    /// the trial that came near the surface, to be searched.
+    #[inline(always)]
+    fn free_flight_segment<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        observe: &mut O,
+    ) -> Option<Result<bool, NearTrial<T>>> {
+        if !self.clear() || c.near {
+            return None;
+        }
+        let (sm, se) = if c.first {
+            (c.s_mid, c.s_end)
+        } else {
+            (self.sin_at(c.offset + c.rest * T::from_f64(0.5)), c.s_end)
+        };
+        Some(match self.free_trial(c.rest, sm, se) {
+            Ok((x1, end)) => {
+                let seg = self.segment_start(c.offset);
+                self.state.x = x1;
+                self.state.at_x = end;
+                self.finish_step(&seg, observe);
+                Ok(true)
+            }
+            Err(trial) => Err(trial),
+        })
+    }
+
+    /// After a free-flight trial from `c` came near the surface `t_near` s into it: the
+    /// free-flight segment to half a sub-step short of that (`Some(false)`), the sub-step
+    /// handed to the caller (`Some(false)`, with `hand_substep`), or `None`: the next segment
+    /// is a sub-step from here.
+    #[inline(always)]
+    fn after_near<O: FnMut(&StepSample<T>)>(
+        &mut self,
+        c: &mut Cursor<T>,
+        t_near: T,
+        hand_substep: bool,
+        observe: &mut O,
+    ) -> Option<bool> {
         let h_c = self.plan.substep.h_c;
         // Stop half a sub-step short of the surface, so that the arrival falls inside the
         // next sub-step (not on its boundary, where the switch would go through the Σ_α band
@@ -644,13 +681,13 @@ impl<'t, T: Real> Simulator<'t, T> {
             c.rest -= tau;
             c.first = false;
             observe(&self.sample(c.offset, false, &seg));
-            return false;
+            return Some(false);
         }
         if hand_substep {
             c.near = true;
-            return false;
+            return Some(false);
         }
-        self.substep_segment(c, observe)
+        None
     }
 
     /// The sub-step that is the next segment from `c` ([`Simulator::advance`]).
