@@ -206,6 +206,11 @@ fn main() {
         100.0 * g.lanes.switches_in_lanes as f64 / c.events.max(1) as f64,
         c.events
     );
+    println!(
+        "  near the surface: {:.1} % of {} split trials searched several at once in the near-search lanes",
+        100.0 * g.lanes.nears_in_lanes as f64 / c.split_trials.max(1) as f64,
+        c.split_trials
+    );
     let scalar_steps = c.rk4_steps() - c.lane_steps;
     println!(
         "  one at a time: {:.0} ns per RK4 step ({:.3e} steps) against {:.2} ns per lane-step in the kernel",

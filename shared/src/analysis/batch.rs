@@ -8,7 +8,9 @@
 //! its Poincaré section; near the surface; an angle the lanes' short sine does not cover), that
 //! run alone takes ordinary steps ([`ProtocolRun::step`]; its ordinary contact sub-steps in the
 //! contact lanes) until it can rejoin the lanes or is done, when the next point takes its lane;
-//! the other lanes wait without losing their place. Results are exactly those of
+//! the other lanes wait without losing their place; switching events and free-flight trials
+//! that come near the surface wait to be searched eight at a time (`integrate::switch_lanes`,
+//! `integrate::near::NearLanes`). Results are exactly those of
 //! [`super::evaluate_point`] (each run is the same computation, only the order of instructions
 //! between runs changes; tested). No allocation; an in-order MCU gains nothing from it.
 
@@ -73,6 +75,9 @@ pub struct LaneStats {
     /// Switching events of the contact lanes' sub-steps located in the switching-event
     /// lanes, several at once (the rest, one at a time by the stepper).
     pub switches_in_lanes: u64,
+    /// Free-flight trials that came near the surface searched in the near-search lanes,
+    /// several at once (the rest, one at a time by the stepper).
+    pub nears_in_lanes: u64,
 }
 
 impl core::ops::AddAssign for LaneStats {
@@ -86,6 +91,7 @@ impl core::ops::AddAssign for LaneStats {
         self.contact_steps += o.contact_steps;
         self.contact_ended += o.contact_ended;
         self.switches_in_lanes += o.switches_in_lanes;
+        self.nears_in_lanes += o.nears_in_lanes;
     }
 }
 
@@ -148,6 +154,7 @@ where
         nears: [NONE; NEAR_TOGETHER],
         contact_ended: 0,
         switches_in_lanes: 0,
+        nears_in_lanes: 0,
     };
     for s in (0..L).rev() {
         driver.free_empty.push(s);
@@ -179,7 +186,7 @@ where
 
 /// Protocol runs in flight per lane: three times as many runs as lanes of each kind, so that
 /// the free-flight lanes and the contact lanes each find runs to fill them while runs wait for
-/// their switching events.
+/// their switching events and near searches.
 const RUNS_PER_LANE: usize = 3;
 
 /// No run (an empty lane) or no lane.
@@ -281,6 +288,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     contact_ended: u64,
     /// Switching events located in the switching-event lanes.
     switches_in_lanes: u64,
+    /// Near searches done in the near-search lanes.
+    nears_in_lanes: u64,
 }
 
 impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
@@ -381,6 +390,7 @@ where
             contact_steps,
             contact_ended: self.contact_ended,
             switches_in_lanes: self.switches_in_lanes,
+            nears_in_lanes: self.nears_in_lanes,
         }
     }
 
@@ -477,6 +487,7 @@ where
             let (Some(job), Some(trial)) = (&mut run.job, run.near.take()) else {
                 continue;
             };
+            self.nears_in_lanes += u64::from(t.is_some());
             let t_near = t.unwrap_or_else(|| trial.search_alone(job.sim.hammer()));
             let c = &mut run.cursor.0;
             let mut period_end = false;
@@ -828,9 +839,11 @@ mod tests {
             |i, r| got[i] = Some(r.map(|(result, _)| result)),
         );
         // The paths under test were taken: whole free-flight steps in lanes, contact sub-steps
-        // in lanes, most of them ended by the lanes themselves (the rest by the simulator).
+        // in lanes, most of them ended by the lanes themselves (the rest by the simulator),
+        // switching events and near searches several at once.
         assert!(stats.lane_steps > 0, "{rig:?}: {stats:?}");
         assert!(stats.switches_in_lanes > 0, "{rig:?}: {stats:?}");
+        assert!(stats.nears_in_lanes > 0, "{rig:?}: {stats:?}");
         assert!(
             stats.contact_ended > stats.contact_steps / 2
                 && stats.contact_ended < stats.contact_steps,
