@@ -21,7 +21,7 @@ use crate::error::ParamError;
 
 use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
 use crate::integrate::isa::wide_vectors;
-use crate::integrate::lanes::Lockstep;
+use crate::integrate::lanes::{LaneField, Lockstep};
 use crate::integrate::near::{NearLanes, NearTrial};
 use crate::integrate::stepper::{Cursor, LaneTrial, PendingSwitch, SubPlan};
 use crate::integrate::switch_lanes::SwitchLanes;
@@ -155,6 +155,7 @@ where
         contact_ended: 0,
         switches_in_lanes: 0,
         nears_in_lanes: 0,
+        near_since: 0,
     };
     for s in (0..L).rev() {
         driver.free_empty.push(s);
@@ -199,6 +200,14 @@ const SWITCHES_TOGETHER: usize = 8;
 /// Free-flight trials that came near the surface searched together: a run whose trial does
 /// waits (its lanes handed on) until this many wait, or until no lane is busy.
 const NEAR_TOGETHER: usize = 8;
+
+/// Idle free-flight lane slots (a lane empty for one round) the runs waiting for a near search
+/// let pass at most: then they are searched.
+const NEAR_WAIT_IDLE: u64 = 32;
+
+/// Fewer near searches than this, searched when no lane is busy, are searched one at a time
+/// (the lanes' 18 rounds cost the same for one search as for eight).
+const NEAR_IN_LANES_AT_LEAST: usize = 3;
 
 /// Fewer switching events than this, located when no run is in contact, are located one at a
 /// time (the lanes' rounds cost the same for one search as for eight).
@@ -290,6 +299,9 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     switches_in_lanes: u64,
     /// Near searches done in the near-search lanes.
     nears_in_lanes: u64,
+    /// The free-flight lanes' idle slots ([`idle_slots`]) when the first of the runs waiting
+    /// for a near search came.
+    near_since: u64,
 }
 
 impl<'t, T, O, const L: usize, N, F> Driver<'t, T, O, L, N, F>
@@ -379,6 +391,12 @@ where
                         self.settle(r, &mut free, &mut contact, None, false, s, NONE);
                     }
                 }
+            }
+            if contact.near.len() > 0 && idle_slots(&free) >= self.near_since + NEAR_WAIT_IDLE {
+                // The free-flight lanes have idled long enough while runs wait for their near
+                // searches (near the surface is rare where most runs fly free: their empty
+                // lanes cost more than searching the few waiting together saves).
+                self.search_near(&mut free, &mut contact);
             }
         }
         let (rounds, lane_steps) = free.stats();
@@ -480,7 +498,13 @@ where
         contact: &mut Contact<T, K, L>,
     ) {
         let n = contact.near.len();
-        let found = contact.near.search();
+        // A few searches cost the lanes as much as a full set: those go alone.
+        let found = if n >= NEAR_IN_LANES_AT_LEAST {
+            contact.near.search()
+        } else {
+            contact.near.clear();
+            [None; NEAR_TOGETHER]
+        };
         let ids = self.nears;
         for (&r, &t) in ids[..n].iter().zip(&found) {
             let run = &mut self.runs[r / L][r % L];
@@ -622,6 +646,9 @@ where
                 let done = match job.sim.advance_until_near(&mut c, &mut observe) {
                     Ok(done) => done,
                     Err(trial) => {
+                        if contact.near.len() == 0 {
+                            self.near_since = idle_slots(free);
+                        }
                         if let Some(lane) = contact.near.push(job.sim.hammer(), &trial) {
                             // (Samples before the trial end no period: the step goes on.)
                             run.cursor.0 = c;
@@ -701,6 +728,12 @@ where
             }
         }
     }
+}
+
+/// The free-flight lanes' idle slots so far: lanes empty for a round, summed over the rounds.
+fn idle_slots<T: Real, K: LaneField<T>, const L: usize>(free: &Lockstep<'_, T, K, L>) -> u64 {
+    let (rounds, lane_steps) = free.stats();
+    rounds * L as u64 - lane_steps
 }
 
 /// The lane a run takes: the one it holds (`own`), or an empty one, or none (it waits).

@@ -144,6 +144,12 @@ impl<T: Real, F: LaneContact<T>, const K: usize> NearLanes<T, F, K> {
         Some(i)
     }
 
+    /// Drops the trials set.
+    #[inline]
+    pub(crate) fn clear(&mut self) {
+        self.n = 0;
+    }
+
     /// Searches the trials set, lane `i` giving where trial `i` first comes near (s from its
     /// start; `None`: a point beyond the short sine, `|θ| > 1/8` rad, to be searched alone),
     /// and clears the lanes.
