@@ -474,20 +474,19 @@ where
             contact.switches.clear();
             [None; SWITCHES_TOGETHER]
         };
+        self.switches_in_lanes += fracs[..n].iter().filter(|f| f.is_some()).count() as u64;
         let ids = self.switches;
-        for (&r, &frac) in ids[..n].iter().zip(&fracs) {
-            let run = &mut self.runs[r / L][r % L];
+        self.go_on(&ids[..n], &fracs, free, contact, |run, frac| {
             let (Some(job), Some(pending)) = (&mut run.job, run.pending.take()) else {
-                continue;
+                return None;
             };
-            self.switches_in_lanes += u64::from(frac.is_some());
             let (c, p) = &mut run.cursor;
             let mut period_end = false;
             let done = job.sim.switch_end(c, p, &pending, frac, &mut |smp| {
                 period_end |= job.run.sample(smp, &mut job.obs)
             });
-            self.after_substep(r, NONE, done, period_end, free, contact);
-        }
+            Some((done, period_end))
+        });
     }
 
     /// Searches the free-flight trials of the runs waiting in `nears` (together, in the
@@ -505,20 +504,39 @@ where
             contact.near.clear();
             [None; NEAR_TOGETHER]
         };
+        self.nears_in_lanes += found[..n].iter().filter(|t| t.is_some()).count() as u64;
         let ids = self.nears;
-        for (&r, &t) in ids[..n].iter().zip(&found) {
-            let run = &mut self.runs[r / L][r % L];
+        self.go_on(&ids[..n], &found, free, contact, |run, t| {
             let (Some(job), Some(trial)) = (&mut run.job, run.near.take()) else {
-                continue;
+                return None;
             };
-            self.nears_in_lanes += u64::from(t.is_some());
             let t_near = t.unwrap_or_else(|| trial.search_alone(job.sim.hammer()));
-            let c = &mut run.cursor.0;
             let mut period_end = false;
-            let done = job.sim.advance_near(c, t_near, run.contact_ok, &mut |smp| {
-                period_end |= job.run.sample(smp, &mut job.obs)
-            });
-            self.after_substep(r, NONE, done, period_end, free, contact);
+            let done =
+                job.sim
+                    .advance_near(&mut run.cursor.0, t_near, run.contact_ok, &mut |smp| {
+                        period_end |= job.run.sample(smp, &mut job.obs)
+                    });
+            Some((done, period_end))
+        });
+    }
+
+    /// Goes on with the runs `ids` after their searches in lanes (`found`, in their order):
+    /// `segment` takes each run's segment with its search's result and says whether its step
+    /// ended and with it a period (`None`: the run is gone), then [`Driver::after_substep`].
+    #[inline(always)]
+    fn go_on<K: LaneContact<T>, X: Copy>(
+        &mut self,
+        ids: &[usize],
+        found: &[Option<X>],
+        free: &mut Lockstep<'t, T, K, L>,
+        contact: &mut Contact<T, K, L>,
+        mut segment: impl FnMut(&mut Run<'t, T, O>, Option<X>) -> Option<(bool, bool)>,
+    ) {
+        for (&r, &x) in ids.iter().zip(found) {
+            if let Some((done, period_end)) = segment(&mut self.runs[r / L][r % L], x) {
+                self.after_substep(r, NONE, done, period_end, free, contact);
+            }
         }
     }
 
