@@ -198,7 +198,8 @@ const NONE: usize = usize::MAX;
 const SWITCHES_TOGETHER: usize = 8;
 
 /// Free-flight trials that came near the surface searched together: a run whose trial does
-/// waits (its lanes handed on) until this many wait, or until no lane is busy.
+/// waits (its lanes handed on) until this many wait, the free-flight lanes have idled
+/// [`NEAR_WAIT_IDLE`] slots since the first came, or no lane is busy.
 const NEAR_TOGETHER: usize = 8;
 
 /// Idle free-flight lane slots (a lane empty for one round) the runs waiting for a near search
@@ -769,8 +770,9 @@ fn contact_ok<T: Real, O: Observer<T>, K: LaneContact<T>, const L: usize>(
     job.is_some_and(|j| !O::SAMPLES && contact.lanes.accepts(&j.sim))
 }
 
-/// The contact lanes and what they carry of their runs (two objects: see [`RunLanes`]), and
-/// the switching events of their sub-steps waiting to be located.
+/// The contact lanes and what they carry of their runs (two objects: see [`RunLanes`]), the
+/// switching events of their sub-steps waiting to be located, and the free-flight trials that
+/// came near the surface waiting to be searched.
 struct Contact<T: Real, K, const L: usize> {
     lanes: ContactLanes<T, K, L>,
     runs: RunLanes<T, L>,

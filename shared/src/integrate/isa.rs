@@ -61,7 +61,7 @@ impl Isa {
     }
 
     /// Runs `kernel` compiled for this variant. The variant must be one the CPU runs: an
-    /// [`Isa`] only comes from [`Isa::detect`] (or, in tests, [`Isa::supported`]).
+    /// [`Isa`] only comes from [`Isa::detect`] (or, in tests, `Isa::supported`).
     #[inline(always)]
     pub(crate) fn run<K: Kernel>(self, kernel: K) -> K::Output {
         match self {
