@@ -665,10 +665,10 @@ where
                 let done = match job.sim.advance_until_near(&mut c, &mut observe) {
                     Ok(done) => done,
                     Err(trial) => {
-                        if contact.near.len() == 0 {
-                            self.near_since = idle_slots(free);
-                        }
                         if let Some(lane) = contact.near.push(job.sim.hammer(), &trial) {
+                            if lane == 0 {
+                                self.near_since = idle_slots(free);
+                            }
                             // (Samples before the trial end no period: the step goes on.)
                             run.cursor.0 = c;
                             run.near = Some(trial);

@@ -11,8 +11,10 @@
 //! host where the lanes cannot: an angle beyond their short sine). On the host,
 //! [`first_near`] evaluates the same points in vector lanes: the eight samples at once, and
 //! the halvings [`LEVELS`] at a time (the `2^LEVELS − 1` midpoints those halvings can reach,
-//! computed as the halvings compute them, then the decisions taken among them). The same
-//! points, values and decisions, so the same time, bit for bit.
+//! computed as the halvings compute them, then the decisions taken among them). The host's
+//! grid analyses search several runs' trials side by side instead ([`NearLanes`]: lane `i`
+//! one trial, one point of every search per round). The same points, values and decisions in
+//! all three, so the same time, bit for bit.
 
 use super::bracket::{Rule, bracket_rising};
 use super::contact_lanes::LaneContact;
