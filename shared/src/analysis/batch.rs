@@ -336,8 +336,17 @@ where
         let mut contact_rounds = 0u64;
         let mut contact_steps = 0u64;
         loop {
-            let n_free = self.free_owner.iter().filter(|&&r| r != NONE).count();
-            let n_contact = self.contact_owner.iter().filter(|&&r| r != NONE).count();
+            // Every lane is either held by a run or on its kind's empty stack.
+            let n_free = L - self.free_empty.len;
+            let n_contact = L - self.contact_empty.len;
+            debug_assert_eq!(
+                n_free,
+                self.free_owner.iter().filter(|&&r| r != NONE).count()
+            );
+            debug_assert_eq!(
+                n_contact,
+                self.contact_owner.iter().filter(|&&r| r != NONE).count()
+            );
             if n_contact == 0 && contact.switches.len() > 0 {
                 // No run in contact to bring another event: those waiting go on now.
                 self.locate_switches(&mut free, &mut contact);
