@@ -369,10 +369,9 @@ where
                 // (A lane keeps its run until that run's own commit lets it go, so the owners
                 // before the pass are the ones to visit.)
                 let owners = self.contact_owner;
-                for (s, &r) in owners.iter().enumerate() {
-                    if r != NONE && !contact.runs.continues(s) {
-                        self.commit(r, s, &mut free, &mut contact);
-                    }
+                let ends = lanes_where::<L>(|s| (owners[s] != NONE) & !contact.runs.continues(s));
+                for s in ends {
+                    self.commit(owners[s], s, &mut free, &mut contact);
                 }
             }
             if n_free > 0 {
@@ -380,10 +379,7 @@ where
                 // for a few rounds.
                 let max_rounds = if n_contact > 0 { FREE_ROUNDS } else { u64::MAX };
                 let stopped = free.run_at_most(max_rounds);
-                for (s, &st) in stopped.iter().enumerate() {
-                    if !st {
-                        continue;
-                    }
+                for s in lanes_where::<L>(|s| stopped[s]) {
                     let r = self.free_owner[s];
                     let mut period_end = false;
                     if let Some(job) = &mut self.run(r).job
@@ -762,6 +758,34 @@ where
 fn idle_slots<T: Real, K: LaneField<T>, const L: usize>(free: &Lockstep<'_, T, K, L>) -> u64 {
     let (rounds, lane_steps) = free.stats();
     rounds * L as u64 - lane_steps
+}
+
+/// The lanes `s < L` where `at(s)` holds, in increasing order (taken as a bit mask at once,
+/// branch-free, then walked bit by bit: most lanes of a round have nothing to do).
+#[inline(always)]
+fn lanes_where<const L: usize>(at: impl Fn(usize) -> bool) -> LaneMask {
+    const { assert!(L <= 32) };
+    let mut mask = 0u32;
+    for s in 0..L {
+        mask |= u32::from(at(s)) << s;
+    }
+    LaneMask(mask)
+}
+
+/// Lane numbers as the bits of a mask ([`lanes_where`]).
+struct LaneMask(u32);
+
+impl Iterator for LaneMask {
+    type Item = usize;
+    #[inline(always)]
+    fn next(&mut self) -> Option<usize> {
+        if self.0 == 0 {
+            return None;
+        }
+        let s = self.0.trailing_zeros() as usize;
+        self.0 &= self.0 - 1;
+        Some(s)
+    }
 }
 
 /// The lane a run takes: the one it holds (`own`), or an empty one, or none (it waits).
