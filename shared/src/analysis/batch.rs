@@ -379,7 +379,7 @@ where
                 // for a few rounds.
                 let max_rounds = if n_contact > 0 { FREE_ROUNDS } else { u64::MAX };
                 let stopped = free.run_at_most(max_rounds);
-                for s in lanes_where::<L>(|s| stopped[s]) {
+                for s in LaneMask(stopped) {
                     let r = self.free_owner[s];
                     let mut period_end = false;
                     if let Some(job) = &mut self.run(r).job

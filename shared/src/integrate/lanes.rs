@@ -146,9 +146,9 @@ struct FreeRounds<'a, 't, T: Real, F: LaneField<T>, const L: usize, V> {
 impl<T: Real, F: LaneField<T>, const L: usize, V: Viscous> Kernel
     for FreeRounds<'_, '_, T, F, L, V>
 {
-    type Output = [bool; L];
+    type Output = u32;
     #[inline(always)]
-    fn run(self) -> [bool; L] {
+    fn run(self) -> u32 {
         self.lanes.run_kernel::<V>(self.rounds)
     }
 }
@@ -246,14 +246,14 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 
     /// Steps every running lane in lockstep until at least one of them stops (after its
     /// period's last step, or before a step that the stepper would split or that `|θ| > 1/8`
-    /// makes inexact). Returns the stopped lanes (`true`), which must be
-    /// [`Lockstep::unload`]ed before they are loaded again. Nothing happens if no lane runs.
-    pub(crate) fn run(&mut self) -> [bool; L] {
+    /// makes inexact). Returns the stopped lanes as a bit mask (bit `i`: lane `i`), which must
+    /// be [`Lockstep::unload`]ed before they are loaded again. Nothing happens if no lane runs.
+    pub(crate) fn run(&mut self) -> u32 {
         self.run_at_most(u64::MAX)
     }
 
     /// [`Lockstep::run`] for at most `rounds` rounds.
-    pub(crate) fn run_at_most(&mut self, rounds: u64) -> [bool; L] {
+    pub(crate) fn run_at_most(&mut self, rounds: u64) -> u32 {
         if self.damped {
             self.run_viscous::<Damped>(rounds)
         } else {
@@ -264,7 +264,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     /// [`Lockstep::run_at_most`] with the pendulum's viscous term as `V` has it, in the
     /// instruction set of [`Isa::detect`].
     #[inline(always)]
-    fn run_viscous<V: Viscous>(&mut self, rounds: u64) -> [bool; L] {
+    fn run_viscous<V: Viscous>(&mut self, rounds: u64) -> u32 {
         let isa = self.isa;
         isa.run(FreeRounds {
             lanes: self,
@@ -275,8 +275,9 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 
     /// The body of [`Lockstep::run`] (inlined into each instruction-set variant).
     #[inline(always)]
-    fn run_kernel<V: Viscous>(&mut self, max_rounds: u64) -> [bool; L] {
-        let mut stopped = [false; L];
+    fn run_kernel<V: Viscous>(&mut self, max_rounds: u64) -> u32 {
+        const { assert!(L <= 32) };
+        let mut stopped = 0u32;
         if !self.any_running() {
             return stopped;
         }
@@ -336,8 +337,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             }
             rounds += 1;
             if any_stop != 0 {
-                for i in 0..L {
-                    stopped[i] = stop[i] != 0;
+                for (i, &st) in stop.iter().enumerate() {
+                    stopped |= st << i;
                 }
                 break;
             }
@@ -422,7 +423,7 @@ mod tests {
             assert!(lanes.load(i, sim), "{rig:?}: lane {i}");
         }
         let stopped = lanes.run();
-        assert!(stopped.iter().any(|&s| s));
+        assert!(stopped != 0 && stopped < 1 << 8);
         let taken: std::vec::Vec<u32> = sims
             .iter_mut()
             .enumerate()
