@@ -772,7 +772,7 @@ fn lanes_where<const L: usize>(at: impl Fn(usize) -> bool) -> LaneMask {
     LaneMask(mask)
 }
 
-/// Lane numbers as the bits of a mask ([`lanes_where`]).
+/// Lane numbers as the bits of a mask (bit `s`: lane `s`; [`lanes_where`], `Lockstep::run`).
 struct LaneMask(u32);
 
 impl Iterator for LaneMask {
