@@ -875,6 +875,23 @@ mod tests {
     use crate::model::RigId;
 
     #[test]
+    fn lane_masks_name_the_lanes_in_order() {
+        // Against the lanes listed one by one: every subset of 8 lanes, and the 16 of AVX-512.
+        for m in 0u32..256 {
+            let listed: std::vec::Vec<usize> = (0..8).filter(|&s| m >> s & 1 == 1).collect();
+            let walked: std::vec::Vec<usize> = lanes_where::<8>(|s| m >> s & 1 == 1).collect();
+            assert_eq!(walked, listed, "mask {m:#b}");
+            assert_eq!(LaneMask(m).collect::<std::vec::Vec<_>>(), listed);
+        }
+        let all: std::vec::Vec<usize> = lanes_where::<16>(|_| true).collect();
+        assert_eq!(all, (0..16).collect::<std::vec::Vec<_>>());
+        assert_eq!(
+            lanes_where::<16>(|s| s == 15).collect::<std::vec::Vec<_>>(),
+            [15]
+        );
+    }
+
+    #[test]
     fn interleaved_results_equal_one_at_a_time() {
         let p = RigId::Wires.preset();
         let s = SimSettings::default();
