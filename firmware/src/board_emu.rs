@@ -303,9 +303,27 @@ impl Watchdog {
                 self.last_feed_ms,
                 now_ms
             );
+            hold_for_host();
             cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_FAILURE);
         }
     }
+}
+
+/// QEMU's own time to wait before the emulation ends, centiseconds.
+const HOLD_CS: usize = 100;
+
+/// Holds the emulation's end for [`HOLD_CS`] of QEMU's processor time, so that the desktop has
+/// read what the board sent before it. While the board idles, its time runs far ahead of the
+/// host's (`-icount sleep=off`): the second between the last lines and the reset can pass in a
+/// millisecond, and a pty drops what is unread when QEMU closes it (on the rig the reset waits
+/// its own second).
+fn hold_for_host() {
+    let clock_cs = || {
+        // SAFETY: SYS_CLOCK takes no argument and only reads the host's clock.
+        unsafe { cortex_m_semihosting::syscall1(cortex_m_semihosting::nr::CLOCK, 0) }
+    };
+    let start = clock_cs();
+    while clock_cs().wrapping_sub(start) < HOLD_CS {}
 }
 
 /// The emulator's test hooks (`emu …` lines), answered before the console service.
