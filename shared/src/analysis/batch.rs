@@ -23,7 +23,7 @@ use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
 use crate::integrate::isa::wide_vectors;
 use crate::integrate::lanes::{LaneField, Lockstep};
 use crate::integrate::near::{NearLanes, NearTrial};
-use crate::integrate::stepper::{Cursor, LaneTrial, PendingSwitch, SubPlan};
+use crate::integrate::stepper::{Cursor, EventFound, LaneTrial, PendingSwitch, SubPlan};
 use crate::integrate::switch_lanes::SwitchLanes;
 use crate::integrate::{PhaseTable, Simulator};
 use crate::model::RigParams;
@@ -453,9 +453,10 @@ where
                     return;
                 }
                 // (The lanes take every run of their suspension and law: not reached.)
-                job.sim.switch_end(c, p, &pending, None, &mut |smp| {
-                    period_end |= job.run.sample(smp, &mut job.obs)
-                })
+                job.sim
+                    .switch_end(c, p, &pending, EventFound::Alone, &mut |smp| {
+                        period_end |= job.run.sample(smp, &mut job.obs)
+                    })
             }
             trial => job.sim.commit_substep(c, p, trial, &mut |smp| {
                 period_end |= job.run.sample(smp, &mut job.obs)
@@ -474,21 +475,24 @@ where
     ) {
         let n = contact.switches.len();
         // A few searches cost the lanes as much as a full set: those go alone.
-        let fracs = if n >= SWITCHES_IN_LANES_AT_LEAST {
+        let found = if n >= SWITCHES_IN_LANES_AT_LEAST {
             contact.switches.locate()
         } else {
             contact.switches.clear();
-            [None; SWITCHES_TOGETHER]
+            [EventFound::Alone; SWITCHES_TOGETHER]
         };
-        self.switches_in_lanes += fracs[..n].iter().filter(|f| f.is_some()).count() as u64;
+        self.switches_in_lanes += found[..n]
+            .iter()
+            .filter(|f| !matches!(f, EventFound::Alone))
+            .count() as u64;
         let ids = self.switches;
-        self.go_on(&ids[..n], &fracs, free, contact, |run, frac| {
+        self.go_on(&ids[..n], &found, free, contact, |run, found| {
             let (Some(job), Some(pending)) = (&mut run.job, run.pending.take()) else {
                 return None;
             };
             let (c, p) = &mut run.cursor;
             let mut period_end = false;
-            let done = job.sim.switch_end(c, p, &pending, frac, &mut |smp| {
+            let done = job.sim.switch_end(c, p, &pending, found, &mut |smp| {
                 period_end |= job.run.sample(smp, &mut job.obs)
             });
             Some((done, period_end))
@@ -534,10 +538,10 @@ where
     fn go_on<K: LaneContact<T>, X: Copy>(
         &mut self,
         ids: &[usize],
-        found: &[Option<X>],
+        found: &[X],
         free: &mut Lockstep<'t, T, K, L>,
         contact: &mut Contact<T, K, L>,
-        mut segment: impl FnMut(&mut Run<'t, T, O>, Option<X>) -> Option<(bool, bool)>,
+        mut segment: impl FnMut(&mut Run<'t, T, O>, X) -> Option<(bool, bool)>,
     ) {
         for (&r, &x) in ids.iter().zip(found) {
             if let Some((done, period_end)) = segment(&mut self.runs[r / L][r % L], x) {

@@ -669,25 +669,8 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
                 tx1[i],
                 self.s_end[i],
                 |d, dd| {
-                    let (elastic, dissipative) = (kk * d, cc * dd);
-                    let h_beta = elastic + dissipative;
-                    let mut f = zero;
-                    if d > zero && h_beta > zero {
-                        region = CONTACT;
-                        f = h_beta;
-                    }
-                    if h_beta.abs() < eta_f && d >= zero {
-                        region = BAND_BETA;
-                        f = zero;
-                    }
-                    if d.abs() < eta_d && h_beta >= zero {
-                        region = BAND_ALPHA;
-                        f = dissipative.max_of(zero);
-                    }
-                    if d <= -eta_d {
-                        region = FREE;
-                        f = zero;
-                    }
+                    let f;
+                    (f, region) = linear_switch_force(kk, cc, eta_d, eta_f, d, dd);
                     f
                 },
             );
@@ -766,6 +749,43 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
     }
 }
 
+/// The switch-model force (N) and region code at penetration `d` (m) and rate `dd` (m/s) for
+/// the linear law `k δ + c δ̇` (N/m, N·s/m) and the bands `η_δ` = `eta_d` (m), `η_F` = `eta_f`
+/// (N): `SwitchModel::force` (Eq. 3-27–3-29) without a branch, the regions by priority, the last
+/// assignment winning.
+#[inline(always)]
+pub(crate) fn linear_switch_force<T: Real>(
+    k: T,
+    c: T,
+    eta_d: T,
+    eta_f: T,
+    d: T,
+    dd: T,
+) -> (T, u32) {
+    let zero = T::zero();
+    let (elastic, dissipative) = (k * d, c * dd);
+    let h_beta = elastic + dissipative;
+    let mut region = FREE;
+    let mut f = zero;
+    if d > zero && h_beta > zero {
+        region = CONTACT;
+        f = h_beta;
+    }
+    if h_beta.abs() < eta_f && d >= zero {
+        region = BAND_BETA;
+        f = zero;
+    }
+    if d.abs() < eta_d && h_beta >= zero {
+        region = BAND_ALPHA;
+        f = dissipative.max_of(zero);
+    }
+    if d <= -eta_d {
+        region = FREE;
+        f = zero;
+    }
+    (f, region)
+}
+
 /// The lane code of a switch-model region ([`region_of`] reversed).
 #[inline(always)]
 fn code_of(region: Region) -> u32 {
@@ -779,7 +799,7 @@ fn code_of(region: Region) -> u32 {
 
 /// The switch-model region of a lane code.
 #[inline(always)]
-fn region_of(code: u32) -> Region {
+pub(crate) fn region_of(code: u32) -> Region {
     match code {
         CONTACT => Region::Contact,
         BAND_ALPHA => Region::BandAlpha,

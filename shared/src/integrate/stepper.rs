@@ -188,6 +188,55 @@ impl<T: Real> SwitchSearch<T> {
         case.value(&hammer.switch().law, d, dd, self.v_in)
     }
 
+    /// The sub-step ended with its switching event at fraction `frac` of it, in the step whose
+    /// `(Ω, sin Ωt, cos Ωt)` at its start is `(omega, sin0, cos0)` (rad/s, 1, 1): the old mode
+    /// to the event (the trial's dense output), the approach speed taken there on an arrival,
+    /// and the switch model from it to the sub-step's end (one compensated RK4 step, Leine's
+    /// switch model as Eq. 3-27–3-29 have it).
+    #[inline(always)]
+    pub(super) fn finish(
+        &self,
+        hammer: &Hammer<T>,
+        frac: T,
+        (omega, sin0, cos0): (T, T, T),
+    ) -> SwitchDone<T> {
+        let half = T::from_f64(0.5);
+        // `sin Ωt` at `dt` into the step (`Simulator::sin_at`).
+        let sin_at = |dt: T| {
+            let (s, c) = (omega * dt).sin_cos();
+            sin0 * c + cos0 * s
+        };
+        let (offset, len, s_end) = (self.offset, self.dense.h, self.s_end);
+        let tau = frac * len;
+        // The state at the event from the trial's dense output (cubic Hermite: error
+        // `h_c^4/384 · |d⁴x/dt⁴|`, as small as a fresh RK4 step's to `τ`, which it replaces).
+        let x_a = self.dense.at(frac);
+        let kin_a = hammer.kinematics(&x_a);
+        let v_in = if self.touching {
+            self.v_in
+        } else {
+            kin_a.1.max_of(min_approach())
+        };
+        let rest = len - tau;
+        let at_a = hammer.field_with(&x_a, kin_a, sin_at(offset + tau), v_in);
+        let s_rest = sin_at(offset + tau + rest * half);
+        let (x, carry) = rk4_step_compensated(
+            &x_a,
+            &Vector2::new(T::zero(), T::zero()),
+            &at_a.dx,
+            rest,
+            s_rest,
+            s_end,
+            |y, s| hammer.field(y, s, v_in).dx,
+        );
+        SwitchDone {
+            x,
+            carry,
+            at_x: hammer.field(&x, s_end, v_in),
+            approach_speed: v_in,
+        }
+    }
+
     /// Where the event falls, as a fraction of the sub-step (Illinois regula falsi,
     /// [`root_in_unit`]).
     #[inline(always)]
@@ -274,6 +323,28 @@ pub(crate) struct LaneResume<T> {
     pub(crate) rest: T,
     /// Sub-steps taken.
     pub(crate) substeps: u32,
+}
+
+/// How far the switching-event lanes ([`super::switch_lanes`]) took a sub-step's event, for
+/// [`Simulator::switch_end`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum EventFound<T> {
+    /// Not at all: the event is located and the sub-step ended alone.
+    Alone,
+    /// Located, at this fraction of the sub-step (the sub-step is ended alone).
+    At(T),
+    /// Located and the sub-step ended: what [`Simulator::switch_finish`] would have left.
+    Ended(SwitchDone<T>),
+}
+
+/// A sub-step ended after its switching event ([`EventFound::Ended`]): the state, its carry,
+/// its switch-model field and the approach speed of the current impact (m/s).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SwitchDone<T> {
+    pub(crate) x: Vector2<T>,
+    pub(crate) carry: Vector2<T>,
+    pub(crate) at_x: FieldEval<T>,
+    pub(crate) approach_speed: T,
 }
 
 /// A contact lane's sub-step for [`Simulator::commit_substep`].
@@ -807,7 +878,7 @@ impl<'t, T: Real> Simulator<'t, T> {
             }
             LaneTrial::Switches { x, s_end } => {
                 let pending = self.switch_begin(c, p, x, s_end);
-                return self.switch_end(c, p, &pending, None, observe);
+                return self.switch_end(c, p, &pending, EventFound::Alone, observe);
             }
             LaneTrial::Inexact => {
                 let s_end = if p.last {
@@ -1061,37 +1132,20 @@ impl<'t, T: Real> Simulator<'t, T> {
         search
     }
 
-    /// Ends the sub-step of `search` with its switching event at fraction `frac` of it: the
-    /// old mode to the event (the trial's dense output) and the switch model from it to the
-    /// sub-step's end.
+    /// Ends the sub-step of `search` with its switching event at fraction `frac` of it
+    /// ([`SwitchSearch::finish`]).
     #[inline(always)]
     fn switch_finish(&mut self, search: &SwitchSearch<T>, frac: T) {
-        let hammer = &self.hammer;
-        let half = T::from_f64(0.5);
-        let (offset, len, s_end) = (search.offset, search.dense.h, search.s_end);
-        let tau = frac * len;
-        // The state at the event from the trial's dense output (cubic Hermite: error
-        // `h_c^4/384 · |d⁴x/dt⁴|`, as small as a fresh RK4 step's to `τ`, which it replaces).
-        let x_a = search.dense.at(frac);
-        let kin_a = hammer.kinematics(&x_a);
-        if !search.touching {
-            self.state.approach_speed = kin_a.1.max_of(min_approach());
-        }
-        let v_in = self.state.approach_speed;
-        let rest = len - tau;
-        let at_a = hammer.field_with(&x_a, kin_a, self.sin_at(offset + tau), v_in);
-        let s_rest = self.sin_at(offset + tau + rest * half);
+        let done = search.finish(&self.hammer, frac, self.step_phase());
+        self.switch_done(&done);
+    }
+
+    /// Takes the state a sub-step ended after its switching event.
+    #[inline(always)]
+    fn switch_done(&mut self, done: &SwitchDone<T>) {
         let s = &mut self.state;
-        (s.x, s.carry) = rk4_step_compensated(
-            &x_a,
-            &Vector2::new(T::zero(), T::zero()),
-            &at_a.dx,
-            rest,
-            s_rest,
-            s_end,
-            |y, s| hammer.field(y, s, v_in).dx,
-        );
-        s.at_x = hammer.field(&s.x, s_end, v_in);
+        (s.x, s.carry, s.at_x) = (done.x, done.carry, done.at_x);
+        s.approach_speed = done.approach_speed;
         // The trial and the rest of the sub-step.
         s.counts.events += 1;
     }
@@ -1118,20 +1172,29 @@ impl<'t, T: Real> Simulator<'t, T> {
         }
     }
 
-    /// Ends the sub-step `p` of [`Simulator::switch_begin`] with its event at fraction `frac`
-    /// of it (`None`: located here, alone): reports the sample; returns whether the step is
-    /// done.
+    /// Ends the sub-step `p` of [`Simulator::switch_begin`] with its event as `found` has it
+    /// (located and the sub-step ended here, or either in the switching-event lanes): reports
+    /// the sample; returns whether the step is done.
     #[inline(always)]
     pub(crate) fn switch_end<O: FnMut(&StepSample<T>)>(
         &mut self,
         c: &mut Cursor<T>,
         p: &SubPlan<T>,
         pending: &PendingSwitch<T>,
-        frac: Option<T>,
+        found: EventFound<T>,
         observe: &mut O,
     ) -> bool {
-        let frac = frac.unwrap_or_else(|| pending.search.locate(&self.hammer));
-        self.switch_finish(&pending.search, frac);
+        let frac = match found {
+            EventFound::Alone => Some(pending.search.locate(&self.hammer)),
+            EventFound::At(frac) => Some(frac),
+            EventFound::Ended(done) => {
+                self.switch_done(&done);
+                None
+            }
+        };
+        if let Some(frac) = frac {
+            self.switch_finish(&pending.search, frac);
+        }
         self.end_substep(c, p, &pending.seg, observe)
     }
 

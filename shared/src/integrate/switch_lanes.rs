@@ -3,17 +3,30 @@
 //! side by side in vector lanes, each with the operations of the stepper's search alone
 //! (`SwitchSearch::locate`), so with the same points, decisions and result, bit for bit.
 //!
+//! Each lane then ends its sub-step as the stepper would after its event
+//! (`Simulator::switch_finish`: the state at the event from the dense output, one RK4 step of
+//! the switch model to the sub-step's end), with the same operations, so with the same state.
+//!
 //! A search whose dense output leaves the lanes' short sine (`|θ| > 0.5` rad, the wire
-//! pendulum) reports no result; the caller locates that one alone.
+//! pendulum) reports no result, and the caller locates that one alone; a sub-step whose end
+//! leaves it (or the phase's short sine) reports the event only, and the caller ends it.
+
+use core::marker::PhantomData;
+
+use nalgebra::Vector2;
 
 use super::bracket::{illinois_step, illinois_update};
-use super::contact_lanes::LaneContact;
+use super::contact_lanes::{LaneContact, linear_switch_force, region_of};
 use super::dense::{MAX_EVENT_EVALS, hermite_weights};
 use super::free::SmallTrig;
 use super::isa::{Isa, Kernel};
-use super::stepper::{EventCase, PendingSwitch, Simulator, SwitchSearch};
+use super::rk4::rk4_step_compensated;
+use super::stepper::{
+    EventCase, EventFound, PendingSwitch, Simulator, SwitchDone, SwitchSearch, min_approach,
+};
 use crate::model::Hammer;
 use crate::model::contact::LawCoeffs;
+use crate::model::hammer::{Damped, FieldEval, Undamped, Viscous};
 use crate::real::Real;
 
 /// The event function's case as a lane code.
@@ -46,18 +59,36 @@ pub(crate) struct SwitchLanes<T: Real, F, const K: usize> {
     /// The event function at the ends.
     g_start: [T; K],
     g_end: [T; K],
+    // What ending the sub-step after its event takes: its start, s into the step, and `sin Ωt`
+    // at its end; 1 if it starts touching; the approach speed (m/s); `Ω` (rad/s) and `sin Ωt`,
+    // `cos Ωt` at the step's start; the suspension's `inv_mass`; the bands `η_δ` (m), `η_F` (N).
+    offset: [T; K],
+    s_end: [T; K],
+    touching: [u32; K],
+    v_in: [T; K],
+    omega: [T; K],
+    sin0: [T; K],
+    cos0: [T; K],
+    inv_mass: [T; K],
+    eta_d: [T; K],
+    eta_f: [T; K],
+    /// Whether the searches are of the damped pendulum (the [`Damped`] field), once one is set.
+    damped: Option<bool>,
 }
 
-/// [`SwitchLanes::locate`]'s searches as a [`Kernel`].
-struct Locate<'a, T: Real, F, const K: usize> {
+/// [`SwitchLanes::locate`]'s searches and sub-step ends as a [`Kernel`], the pendulum's viscous
+/// term as `V` has it.
+struct Locate<'a, T: Real, F, const K: usize, V> {
     lanes: &'a SwitchLanes<T, F, K>,
+    viscous: PhantomData<V>,
 }
 
-impl<T: Real, F: LaneContact<T>, const K: usize> Kernel for Locate<'_, T, F, K> {
-    type Output = [Option<T>; K];
+impl<T: Real, F: LaneContact<T>, const K: usize, V: Viscous> Kernel for Locate<'_, T, F, K, V> {
+    type Output = [EventFound<T>; K];
     #[inline(always)]
-    fn run(self) -> [Option<T>; K] {
-        self.lanes.locate_kernel()
+    fn run(self) -> [EventFound<T>; K] {
+        let fracs = self.lanes.locate_kernel();
+        self.lanes.finish_kernel::<V>(fracs)
     }
 }
 
@@ -84,6 +115,17 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
             tol: z,
             g_start: z,
             g_end: z,
+            offset: z,
+            s_end: z,
+            touching: [0; K],
+            v_in: z,
+            omega: z,
+            sin0: z,
+            cos0: z,
+            inv_mass: z,
+            eta_d: z,
+            eta_f: z,
+            damped: None,
         }
     }
 
@@ -94,25 +136,45 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
     }
 
     /// Sets `sim`'s pending search into the next lane, and returns that lane (`None`, nothing
-    /// set: all are taken, or `sim` is not of this suspension and the linear law).
+    /// set: all are taken, `sim` is not of this suspension and the linear law, or (the
+    /// pendulum) damped where the searches set since the lanes were made are not, or the other
+    /// way round).
     #[inline]
     pub(crate) fn push(
         &mut self,
         sim: &Simulator<'_, T>,
         pending: &PendingSwitch<T>,
     ) -> Option<usize> {
-        self.push_search(sim.hammer(), &pending.search)
+        self.push_search(sim.hammer(), &pending.search, sim.step_phase())
     }
 
-    /// [`SwitchLanes::push`] of a search on `hammer`.
+    /// [`SwitchLanes::push`] of a search on `hammer` in the step whose `(Ω, sin Ωt, cos Ωt)` at
+    /// its start is `phase` (rad/s, 1, 1).
     #[inline]
-    fn push_search(&mut self, hammer: &Hammer<T>, s: &SwitchSearch<T>) -> Option<usize> {
+    fn push_search(
+        &mut self,
+        hammer: &Hammer<T>,
+        s: &SwitchSearch<T>,
+        phase: (T, T, T),
+    ) -> Option<usize> {
         let i = self.n;
-        let (true, Some(field), LawCoeffs::Linear { k, c }) =
-            (i < K, F::of(&hammer.free_flight()), hammer.switch().law)
-        else {
+        let (true, Some(field), Some(inv_mass), LawCoeffs::Linear { k, c }) = (
+            i < K,
+            F::of(&hammer.free_flight()),
+            F::inv_mass(hammer.body()),
+            hammer.switch().law,
+        ) else {
             return None;
         };
+        let damped = hammer.is_damped_wires();
+        if *self.damped.get_or_insert(damped) != damped {
+            return None;
+        }
+        (self.offset[i], self.s_end[i], self.v_in[i]) = (s.offset, s.s_end, s.v_in);
+        self.touching[i] = u32::from(s.touching);
+        (self.omega[i], self.sin0[i], self.cos0[i]) = phase;
+        self.inv_mass[i] = inv_mass;
+        (self.eta_d[i], self.eta_f[i]) = (hammer.switch().eta_delta, hammer.switch().eta_force);
         let d = &s.dense;
         self.field[i] = field;
         (self.k[i], self.c[i]) = (k, c);
@@ -136,16 +198,28 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
         self.n = 0;
     }
 
-    /// Locates the events of the searches set, as fractions of their sub-steps (`None`: a
-    /// sine outside the short range, to be located alone), and clears the lanes.
-    pub(crate) fn locate(&mut self) -> [Option<T>; K] {
+    /// Locates the events of the searches set and ends their sub-steps, and clears the lanes:
+    /// for each search, the sub-step ended ([`EventFound::Ended`]), or the event only as a
+    /// fraction of the sub-step (`At`: the end's sine outside the short range), or nothing
+    /// (`Alone`: the search's sine outside it).
+    pub(crate) fn locate(&mut self) -> [EventFound<T>; K] {
         // Lanes not set take no step (their ends do not bracket a zero).
         for i in self.n..K {
             (self.g_start[i], self.g_end[i]) = (T::from_f64(1.0), T::from_f64(1.0));
             self.tol[i] = T::from_f64(1.0);
         }
         self.n = 0;
-        self.isa.run(Locate { lanes: self })
+        if self.damped == Some(true) {
+            self.isa.run(Locate {
+                lanes: self,
+                viscous: PhantomData::<Damped>,
+            })
+        } else {
+            self.isa.run(Locate {
+                lanes: self,
+                viscous: PhantomData::<Undamped>,
+            })
+        }
     }
 
     /// The searches lane by lane, branch-free: each round one point of every search still
@@ -213,6 +287,90 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
         }
         core::array::from_fn(|i| (exact[i] != 0).then_some(hi[i]))
     }
+
+    /// Each lane's sub-step ended after its event at fraction `fracs[i]` of it, lane by lane
+    /// with `Simulator::switch_finish`'s operations (branch-free): the state at the event from
+    /// the dense output, its switch-model field (the approach speed taken there on an arrival),
+    /// one compensated RK4 step of the switch model over the rest of the sub-step, and the
+    /// field at its end.
+    #[inline(always)]
+    fn finish_kernel<V: Viscous>(&self, fracs: [Option<T>; K]) -> [EventFound<T>; K] {
+        let zero = T::zero();
+        let half = T::from_f64(0.5);
+        let frac: [T; K] = core::array::from_fn(|i| fracs[i].unwrap_or(zero));
+        // Every lane's end, one array per field (so that the lanes vectorise).
+        let (mut o_x0, mut o_x1, mut o_c0, mut o_c1) = ([zero; K], [zero; K], [zero; K], [zero; K]);
+        let (mut o_acc, mut o_d, mut o_dd, mut o_force) =
+            ([zero; K], [zero; K], [zero; K], [zero; K]);
+        let (mut o_v, mut o_region, mut o_exact) = ([zero; K], [0u32; K], [0u32; K]);
+        for i in 0..K {
+            let (field, inv_mass) = (&self.field[i], self.inv_mass[i]);
+            let (k, c, eta_d, eta_f) = (self.k[i], self.c[i], self.eta_d[i], self.eta_f[i]);
+            let len = self.h[i];
+            let tau = frac[i] * len;
+            // `DenseStep::at`, component by component.
+            let (h00, h10, h01, h11) = hermite_weights(frac[i], len);
+            let xa0 = self.x0[i] * h00 + self.f0[i] * h10 + self.y0[i] * h01 + self.g0[i] * h11;
+            let xa1 = self.x1[i] * h00 + self.f1[i] * h10 + self.y1[i] * h01 + self.g1[i] * h11;
+            let (_, dd_a, _, mut exact) = field.penetration::<SmallTrig>(xa0, xa1);
+            let v_in = if self.touching[i] != 0 {
+                self.v_in[i]
+            } else {
+                dd_a.max_of(min_approach())
+            };
+            // `sin Ωt` at `dt` into the step (`Simulator::sin_at`).
+            let phase = |dt: T| {
+                let (s, c, exact) = (self.omega[i] * dt).sin_cos_lane();
+                (self.sin0[i] * c + self.cos0[i] * s, exact)
+            };
+            let rest = len - tau;
+            let (s_a, exact_a) = phase(self.offset[i] + tau);
+            let (s_rest, exact_rest) = phase(self.offset[i] + tau + rest * half);
+            exact &= exact_a & exact_rest;
+            // The switch-model field (`Hammer::field`, the linear law).
+            let mut field_at = |y0: T, y1: T, s: T| {
+                let mut region = 0;
+                let (acc, d, dd, force, ok) =
+                    field.contact_field::<SmallTrig, V, _>(inv_mass, y0, y1, s, |d, dd| {
+                        let f;
+                        (f, region) = linear_switch_force(k, c, eta_d, eta_f, d, dd);
+                        f
+                    });
+                exact &= ok;
+                (acc, d, dd, force, region)
+            };
+            let (acc_a, ..) = field_at(xa0, xa1, s_a);
+            let (x, carry) = rk4_step_compensated(
+                &Vector2::new(xa0, xa1),
+                &Vector2::new(zero, zero),
+                &Vector2::new(xa1, acc_a),
+                rest,
+                s_rest,
+                self.s_end[i],
+                |y, s| Vector2::new(y[1], field_at(y[0], y[1], s).0),
+            );
+            let (acc, d, dd, force, region) = field_at(x[0], x[1], self.s_end[i]);
+            (o_x0[i], o_x1[i], o_c0[i], o_c1[i]) = (x[0], x[1], carry[0], carry[1]);
+            (o_acc[i], o_d[i], o_dd[i], o_force[i]) = (acc, d, dd, force);
+            (o_v[i], o_region[i], o_exact[i]) = (v_in, region, u32::from(exact));
+        }
+        core::array::from_fn(|i| match fracs[i] {
+            None => EventFound::Alone,
+            Some(frac) if o_exact[i] == 0 => EventFound::At(frac),
+            Some(_) => EventFound::Ended(SwitchDone {
+                x: Vector2::new(o_x0[i], o_x1[i]),
+                carry: Vector2::new(o_c0[i], o_c1[i]),
+                at_x: FieldEval {
+                    dx: Vector2::new(o_x1[i], o_acc[i]),
+                    force: o_force[i],
+                    region: region_of(o_region[i]),
+                    delta: o_d[i],
+                    delta_dot: o_dd[i],
+                },
+                approach_speed: o_v[i],
+            }),
+        })
+    }
 }
 
 #[cfg(test)]
@@ -223,7 +381,7 @@ mod tests {
     use crate::integrate::dense::{DenseStep, EVENT_TOL};
     use crate::integrate::isa::with_isa;
     use crate::model::hammer::{BeamFree, Body, WiresFree};
-    use crate::model::{RigId, SwitchBands};
+    use crate::model::{RigId, Suspension, SwitchBands};
 
     /// A search on `hammer` over a sub-step of `h` s from `x0` to `x1` (slopes from the
     /// straight line between them and a constant acceleration `acc`), its ends from the event
@@ -289,76 +447,152 @@ mod tests {
         out
     }
 
+    /// A search with the phase of its step, `(Ω, sin Ωt, cos Ωt)` at the step's start.
+    type Phased = (SwitchSearch<f32>, (f32, f32, f32));
+
+    /// The phase of the step each search of [`searches`] falls in: `(Ω, sin Ωt, cos Ωt)` at the
+    /// step's start (rad/s, 1, 1), with its start `offset` (s) and `sin Ωt` at its end set in
+    /// the search. Every fourth search starts so late in its step (`Ω · offset` = 1 rad) that
+    /// the lanes' short sine of the phase does not reach: its event located, its end not.
+    fn phased(all: std::vec::Vec<SwitchSearch<f32>>) -> std::vec::Vec<Phased> {
+        all.into_iter()
+            .enumerate()
+            .map(|(j, mut s)| {
+                let (omega, offset) = if j % 4 == 3 {
+                    (1000.0, 1e-3)
+                } else {
+                    (18.85, 1e-4 * j as f64)
+                };
+                let t0 = 0.7 + 0.05 * j as f64;
+                let at = |dt: f64| (t0 + omega * dt).sin() as f32;
+                s.offset = offset as f32;
+                s.s_end = at(offset + f64::from(s.dense.h));
+                (s, (omega as f32, t0.sin() as f32, t0.cos() as f32))
+            })
+            .collect()
+    }
+
+    /// A sub-step's end as bits.
+    fn bits(d: &SwitchDone<f32>) -> [u32; 10] {
+        let e = &d.at_x;
+        [
+            d.x[0],
+            d.x[1],
+            d.carry[0],
+            d.carry[1],
+            e.dx[1],
+            e.force,
+            e.delta,
+            e.delta_dot,
+            d.approach_speed,
+            e.dx[0],
+        ]
+        .map(f32::to_bits)
+    }
+
     /// Every search through the lanes (8 at a time and a last partial set), against the
-    /// stepper's search alone: the same fraction, bit for bit, or none where the lanes' sine
-    /// does not reach.
+    /// stepper's search and sub-step end alone: the same fraction and end, bit for bit, or the
+    /// fraction alone where the lanes' sine of the phase does not reach. Returns the searches
+    /// that bracket an event and the sub-steps the lanes ended.
     fn lanes_match_alone<F: LaneContact<f32>>(
         hammer: &Hammer<f32>,
-        all: &[SwitchSearch<f32>],
-        expect_some: bool,
-    ) -> usize {
+        all: &[Phased],
+    ) -> (usize, usize) {
         let mut lanes = SwitchLanes::<f32, F, 8>::new();
-        let mut bracketed = 0;
+        let (mut bracketed, mut ended) = (0, 0);
         for chunk in all.chunks(8) {
-            for s in chunk {
-                assert!(lanes.push_search(hammer, s).is_some());
+            for (s, phase) in chunk {
+                assert!(lanes.push_search(hammer, s, *phase).is_some());
             }
             assert_eq!(lanes.len(), chunk.len());
             let got = lanes.locate();
             assert_eq!(lanes.len(), 0);
-            for (s, g) in chunk.iter().zip(got) {
+            for ((s, phase), g) in chunk.iter().zip(got) {
                 let alone = s.locate(hammer);
-                if expect_some {
-                    assert_eq!(g.map(f32::to_bits), Some(alone.to_bits()), "{:?}", s.case);
-                } else {
-                    assert_eq!(g, None, "{:?}", s.case);
+                let late = phase.0 * s.offset > 0.5;
+                match g {
+                    EventFound::Ended(d) => {
+                        assert!(!late, "{:?}: ended past the short sine", s.case);
+                        let want = s.finish(hammer, alone, *phase);
+                        assert_eq!(bits(&d), bits(&want), "{:?}", s.case);
+                        assert_eq!(d.at_x.region, want.at_x.region, "{:?}", s.case);
+                        ended += 1;
+                    }
+                    EventFound::At(frac) => {
+                        assert!(late, "{:?}: not ended in the lanes", s.case);
+                        assert_eq!(frac.to_bits(), alone.to_bits(), "{:?}", s.case);
+                    }
+                    EventFound::Alone => panic!("{:?}: not located in the lanes", s.case),
                 }
                 bracketed += usize::from(alone > 0.0 && alone < 1.0);
             }
         }
-        bracketed
+        (bracketed, ended)
     }
 
     #[test]
-    fn switch_lanes_locate_every_event_as_the_stepper_alone() {
+    fn switch_lanes_locate_every_event_and_end_its_substep_as_the_stepper_alone() {
         let bands = SwitchBands::default();
-        let wires = Hammer::<f32>::new(&RigId::Wires.preset(), 1e-3, 20.0, &bands).unwrap();
-        let Body::Wires { length, .. } = *wires.body() else {
-            panic!("the wire rig's body");
+        let mut damped = RigId::Wires.preset();
+        let Suspension::Wires { damping_ratio, .. } = &mut damped.suspension else {
+            panic!("the wire rig's suspension");
         };
-        let l = f64::from(length);
+        *damping_ratio = 0.004;
         let gap = 1e-3;
-        let pendulum = |d: f64, v: f64| {
-            let theta = ((gap + d) / l).asin();
-            Vector2::new(theta as f32, (v / (l * theta.cos())) as f32)
-        };
-        let beam_hammer = Hammer::<f32>::new(&RigId::Beam170.preset(), 1e-3, 60.0, &bands).unwrap();
+        let beam_hammer = Hammer::<f32>::new(&RigId::Beam170.preset(), gap, 60.0, &bands).unwrap();
         let beam = |d: f64, v: f64| Vector2::new((gap + d) as f32, v as f32);
         for isa in Isa::supported() {
             with_isa(isa, || {
-                let n =
-                    lanes_match_alone::<WiresFree<f32>>(&wires, &searches(&wires, pendulum), true);
-                // Most searches bracket an event (the test is not of the ends alone).
+                for rig in [RigId::Wires.preset(), damped] {
+                    let wires = Hammer::<f32>::new(&rig, gap, 20.0, &bands).unwrap();
+                    let Body::Wires { length, .. } = *wires.body() else {
+                        panic!("the wire rig's body");
+                    };
+                    let l = f64::from(length);
+                    let pendulum = |d: f64, v: f64| {
+                        let theta = ((gap + d) / l).asin();
+                        Vector2::new(theta as f32, (v / (l * theta.cos())) as f32)
+                    };
+                    let all = phased(searches(&wires, pendulum));
+                    let (n, ended) = lanes_match_alone::<WiresFree<f32>>(&wires, &all);
+                    // Most searches bracket an event (the test is not of the ends alone), and
+                    // all but the late ones are ended in the lanes.
+                    assert!(n >= 30, "{n} of 36 bracketed");
+                    assert_eq!(ended, 27);
+                }
+                let all = phased(searches(&beam_hammer, beam));
+                let (n, ended) = lanes_match_alone::<BeamFree<f32>>(&beam_hammer, &all);
                 assert!(n >= 30, "{n} of 36 bracketed");
-                let n = lanes_match_alone::<BeamFree<f32>>(
-                    &beam_hammer,
-                    &searches(&beam_hammer, beam),
-                    true,
-                );
-                assert!(n >= 30, "{n} of 36 bracketed");
+                assert_eq!(ended, 27);
                 // A pendulum at 0.6 rad, past the lanes' short sine: located alone instead.
-                let wide = [search(
+                let wires = Hammer::<f32>::new(&RigId::Wires.preset(), gap, 20.0, &bands).unwrap();
+                let mut w = search(
                     &wires,
                     EventCase::Arrives,
                     Vector2::new(0.55, 1.0),
                     Vector2::new(0.65, 1.0),
                     0.0,
-                )];
-                let mut lanes = SwitchLanes::<f32, WiresFree<f32>, 8>::new();
-                let mut w = wide[0];
+                );
                 w.ends = (-1.0, 1.0);
-                assert!(lanes.push_search(&wires, &w).is_some());
-                assert_eq!(lanes.locate()[0], None);
+                let mut lanes = SwitchLanes::<f32, WiresFree<f32>, 8>::new();
+                assert!(lanes.push_search(&wires, &w, (18.85, 0.0, 1.0)).is_some());
+                assert!(matches!(lanes.locate()[0], EventFound::Alone));
+                // The lanes hold searches of one kind: a damped pendulum's after an undamped
+                // one's is refused (the caller then ends it alone).
+                let damped_hammer = Hammer::<f32>::new(&damped, gap, 20.0, &bands).unwrap();
+                let s = search(
+                    &wires,
+                    EventCase::Arrives,
+                    Vector2::new(0.01, 0.1),
+                    Vector2::new(0.02, 0.1),
+                    0.0,
+                );
+                assert!(lanes.push_search(&wires, &s, (18.85, 0.0, 1.0)).is_some());
+                assert!(
+                    lanes
+                        .push_search(&damped_hammer, &s, (18.85, 0.0, 1.0))
+                        .is_none()
+                );
             });
         }
     }
