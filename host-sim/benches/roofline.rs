@@ -202,9 +202,10 @@ fn main() {
         100.0 * g.lanes.contact_ended as f64 / g.lanes.contact_steps.max(1) as f64
     );
     println!(
-        "  switching events: {:.1} % of {} located several at once in the switching-event lanes",
+        "  switching events: {:.1} % of {} located several at once in the switching-event lanes, {:.1} % of them with their sub-step ended there too",
         100.0 * g.lanes.switches_in_lanes as f64 / c.events.max(1) as f64,
-        c.events
+        c.events,
+        100.0 * g.lanes.switches_ended as f64 / g.lanes.switches_in_lanes.max(1) as f64
     );
     println!(
         "  near the surface: {:.1} % of {} split trials searched several at once in the near-search lanes",

@@ -75,6 +75,9 @@ pub struct LaneStats {
     /// Switching events of the contact lanes' sub-steps located in the switching-event
     /// lanes, several at once (the rest, one at a time by the stepper).
     pub switches_in_lanes: u64,
+    /// Of those, the events whose sub-step the lanes ended too (the state after the event,
+    /// lane by lane); the rest the stepper ends from the located time.
+    pub switches_ended: u64,
     /// Free-flight trials that came near the surface searched in the near-search lanes,
     /// several at once (the rest, one at a time by the stepper).
     pub nears_in_lanes: u64,
@@ -91,6 +94,7 @@ impl core::ops::AddAssign for LaneStats {
         self.contact_steps += o.contact_steps;
         self.contact_ended += o.contact_ended;
         self.switches_in_lanes += o.switches_in_lanes;
+        self.switches_ended += o.switches_ended;
         self.nears_in_lanes += o.nears_in_lanes;
     }
 }
@@ -154,6 +158,7 @@ where
         nears: [NONE; NEAR_TOGETHER],
         contact_ended: 0,
         switches_in_lanes: 0,
+        switches_ended: 0,
         nears_in_lanes: 0,
         near_since: 0,
     };
@@ -298,6 +303,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     contact_ended: u64,
     /// Switching events located in the switching-event lanes.
     switches_in_lanes: u64,
+    /// Of those, the events whose sub-step the lanes ended too.
+    switches_ended: u64,
     /// Near searches done in the near-search lanes.
     nears_in_lanes: u64,
     /// The free-flight lanes' idle slots ([`idle_slots`]) when the first of the runs waiting
@@ -414,6 +421,7 @@ where
             contact_steps,
             contact_ended: self.contact_ended,
             switches_in_lanes: self.switches_in_lanes,
+            switches_ended: self.switches_ended,
             nears_in_lanes: self.nears_in_lanes,
         }
     }
@@ -484,6 +492,10 @@ where
         self.switches_in_lanes += found[..n]
             .iter()
             .filter(|f| !matches!(f, EventFound::Alone))
+            .count() as u64;
+        self.switches_ended += found[..n]
+            .iter()
+            .filter(|f| matches!(f, EventFound::Ended(_)))
             .count() as u64;
         let ids = self.switches;
         self.go_on(&ids[..n], &found, free, contact, |run, found| {
@@ -950,6 +962,11 @@ mod tests {
         // switching events and near searches several at once.
         assert!(stats.lane_steps > 0, "{rig:?}: {stats:?}");
         assert!(stats.switches_in_lanes > 0, "{rig:?}: {stats:?}");
+        assert!(stats.switches_ended > 0, "{rig:?}: {stats:?}");
+        assert!(
+            stats.switches_ended <= stats.switches_in_lanes,
+            "{rig:?}: {stats:?}"
+        );
         assert!(stats.nears_in_lanes > 0, "{rig:?}: {stats:?}");
         assert!(
             stats.contact_ended > stats.contact_steps / 2
