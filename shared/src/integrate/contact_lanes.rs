@@ -28,7 +28,7 @@ use super::isa::{Isa, Kernel};
 use super::lanes::LaneField;
 use super::plan::SubstepRule;
 use super::rk4::rk4_step_compensated;
-use super::stepper::{LaneResume, LaneTrial, SubPlan, min_approach};
+use super::stepper::{Handback, LaneResume, LaneTrial, SubPlan, min_approach};
 use crate::model::Region;
 use crate::model::contact::LawCoeffs;
 use crate::model::hammer::{BeamFree, Body, Damped, FieldEval, Undamped, Viscous, WiresFree};
@@ -523,16 +523,18 @@ impl<T: Real, F: LaneContact<T>, const L: usize> ContactLanes<T, F, L> {
         };
         let x1 = st.x1[i];
         let resume = LaneResume {
-            x: Vector2::new(st.x0[i], x1),
-            carry: Vector2::new(st.carry0[i], st.carry1[i]),
-            at_x: FieldEval {
-                dx: Vector2::new(x1, st.a[i]),
-                force: st.force0[i],
-                region: region_of(st.region0[i]),
-                delta: st.d0[i],
-                delta_dot: st.dd0[i],
+            state: Handback {
+                x: Vector2::new(st.x0[i], x1),
+                carry: Vector2::new(st.carry0[i], st.carry1[i]),
+                at_x: FieldEval {
+                    dx: Vector2::new(x1, st.a[i]),
+                    force: st.force0[i],
+                    region: region_of(st.region0[i]),
+                    delta: st.d0[i],
+                    delta_dot: st.dd0[i],
+                },
+                approach_speed: st.approach[i],
             },
-            approach_speed: st.approach[i],
             offset: st.offset[i],
             rest: st.rest[i],
             substeps: runs.taken[i],

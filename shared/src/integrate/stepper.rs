@@ -199,7 +199,7 @@ impl<T: Real> SwitchSearch<T> {
         hammer: &Hammer<T>,
         frac: T,
         (omega, sin0, cos0): (T, T, T),
-    ) -> SwitchDone<T> {
+    ) -> Handback<T> {
         let half = T::from_f64(0.5);
         // `sin Ωt` at `dt` into the step (`Simulator::sin_at`).
         let sin_at = |dt: T| {
@@ -229,7 +229,7 @@ impl<T: Real> SwitchSearch<T> {
             s_end,
             |y, s| hammer.field(y, s, v_in).dx,
         );
-        SwitchDone {
+        Handback {
             x,
             carry,
             at_x: hammer.field(&x, s_end, v_in),
@@ -312,12 +312,8 @@ pub(crate) struct SubPlan<T> {
 /// have left ([`Simulator::resume_substeps`]).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct LaneResume<T> {
-    /// The state, its carry and its switch-model field.
-    pub(crate) x: Vector2<T>,
-    pub(crate) carry: Vector2<T>,
-    pub(crate) at_x: FieldEval<T>,
-    /// Approach speed of the current impact, m/s.
-    pub(crate) approach_speed: T,
+    /// The state the run takes back.
+    pub(crate) state: Handback<T>,
     /// Time since the step's start and to its end, s.
     pub(crate) offset: T,
     pub(crate) rest: T,
@@ -334,13 +330,15 @@ pub(crate) enum EventFound<T> {
     /// Located, at this fraction of the sub-step (the sub-step is ended alone).
     At(T),
     /// Located and the sub-step ended: what [`Simulator::switch_finish`] would have left.
-    Ended(SwitchDone<T>),
+    Ended(Handback<T>),
 }
 
-/// A sub-step ended after its switching event ([`EventFound::Ended`]): the state, its carry,
-/// its switch-model field and the approach speed of the current impact (m/s).
+/// The state a lane hands back to its run's simulator after sub-steps it took itself (a sub-step
+/// ended after its switching event, [`EventFound::Ended`], or ordinary sub-steps,
+/// [`LaneResume`]): the state, its carry, its switch-model field and the approach speed of the
+/// current impact (m/s).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct SwitchDone<T> {
+pub(crate) struct Handback<T> {
     pub(crate) x: Vector2<T>,
     pub(crate) carry: Vector2<T>,
     pub(crate) at_x: FieldEval<T>,
@@ -925,10 +923,8 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// the state, the approach speed, the sub-step count and the cursor `c`.
     #[inline(always)]
     pub(crate) fn resume_substeps(&mut self, c: &mut Cursor<T>, r: &LaneResume<T>) {
-        let s = &mut self.state;
-        (s.x, s.carry, s.at_x) = (r.x, r.carry, r.at_x);
-        s.approach_speed = r.approach_speed;
-        s.counts.substeps += u64::from(r.substeps);
+        self.take_back(&r.state);
+        self.state.counts.substeps += u64::from(r.substeps);
         c.offset = r.offset;
         c.rest = r.rest;
         c.first = false;
@@ -1142,12 +1138,18 @@ impl<'t, T: Real> Simulator<'t, T> {
 
     /// Takes the state a sub-step ended after its switching event.
     #[inline(always)]
-    fn switch_done(&mut self, done: &SwitchDone<T>) {
-        let s = &mut self.state;
-        (s.x, s.carry, s.at_x) = (done.x, done.carry, done.at_x);
-        s.approach_speed = done.approach_speed;
+    fn switch_done(&mut self, done: &Handback<T>) {
+        self.take_back(done);
         // The trial and the rest of the sub-step.
-        s.counts.events += 1;
+        self.state.counts.events += 1;
+    }
+
+    /// Takes back the state a lane (or [`SwitchSearch::finish`]) left.
+    #[inline(always)]
+    fn take_back(&mut self, h: &Handback<T>) {
+        let s = &mut self.state;
+        (s.x, s.carry, s.at_x) = (h.x, h.carry, h.at_x);
+        s.approach_speed = h.approach_speed;
     }
 
     /// A contact lane's sub-step `p` from `c` whose trial `x` ends in the other mode

@@ -22,7 +22,7 @@ use super::free::SmallTrig;
 use super::isa::{Isa, Kernel};
 use super::rk4::rk4_step_compensated;
 use super::stepper::{
-    EventCase, EventFound, PendingSwitch, Simulator, SwitchDone, SwitchSearch, min_approach,
+    EventCase, EventFound, Handback, PendingSwitch, Simulator, SwitchSearch, min_approach,
 };
 use crate::model::Hammer;
 use crate::model::contact::LawCoeffs;
@@ -357,7 +357,7 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
         core::array::from_fn(|i| match fracs[i] {
             None => EventFound::Alone,
             Some(frac) if o_exact[i] == 0 => EventFound::At(frac),
-            Some(_) => EventFound::Ended(SwitchDone {
+            Some(_) => EventFound::Ended(Handback {
                 x: Vector2::new(o_x0[i], o_x1[i]),
                 carry: Vector2::new(o_c0[i], o_c1[i]),
                 at_x: FieldEval {
@@ -473,7 +473,7 @@ mod tests {
     }
 
     /// A sub-step's end as bits.
-    fn bits(d: &SwitchDone<f32>) -> [u32; 10] {
+    fn bits(d: &Handback<f32>) -> [u32; 10] {
         let e = &d.at_x;
         [
             d.x[0],
