@@ -18,6 +18,8 @@
 //!   report task alive (a real IWDG also resets a hung CPU), and it does not reboot: after a
 //!   reset QEMU's timer model restarts its tick offset at the reset time, which would stretch
 //!   every timer period by that time;
+//! - USART2 ready: QEMU drops what reaches the UART before it is enabled, so the image prints
+//!   `console: USART2 ready` (semihosting) once it is, and a desktop writes only after that;
 //! - USART2 transmit: QEMU sends a byte synchronously and raises no transmit-empty interrupt,
 //!   so the UART interrupt is pended in software while bytes wait;
 //! - test hooks on the console, answered before the console service: `emu stall` (TIM2 stops:
@@ -93,6 +95,9 @@ pub fn init(
     dp.TIM2.arr().write(|w| unsafe { w.bits(arr) });
 
     let usart = console_usart(dp.USART2, (gpioa.pa2, gpioa.pa3), &mut rcc);
+    // QEMU drops what reaches USART2 before it is enabled: a desktop waits for this line
+    // (semihosting, QEMU's stdout) before it writes to the pty.
+    hprintln!("console: USART2 ready");
 
     // The capture queue: the TIM3 stand-in produces, the capture task consumes.
     // SAFETY: split once here, before the interrupts that use the halves are enabled.

@@ -26,18 +26,29 @@ const INSN_S: f64 = 8e-9;
 const PREDICT_BUDGET_INSNS: f64 = 84e6;
 /// SRAM, bytes.
 const RAM_BYTES: u64 = 128 * 1024;
+/// What the emulator image prints (semihosting) once its console UART is enabled.
+const UART_READY: &str = "console: USART2 ready";
 
 /// QEMU running the emulator image, its stdout (semihosting) collected.
+/// One emulation at a time: each QEMU runs its CPU flat out (`sleep=off`), and three of them
+/// on the reference machine's two cores left a pty unanswered for 20 s about once in ten runs.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
 struct Qemu {
     child: Child,
     pty: PathBuf,
     out: Arc<Mutex<String>>,
+    _turn: std::sync::MutexGuard<'static, ()>,
 }
 
 impl Qemu {
     /// `None` (with a note) when the image or QEMU is missing outside CI.
     fn start() -> Option<Qemu> {
         let elf = e2e_tests::qemu_image("firmware-qemu")?;
+        // (A test that failed holding the turn poisoned the lock; the next may still run.)
+        let turn = ONE_AT_A_TIME
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         let mut child = Command::new("qemu-system-arm")
             .args([
                 "-machine",
@@ -68,16 +79,29 @@ impl Qemu {
                 }
             });
         }
+        // The pty, and the image's word that its UART is on: QEMU drops what reaches a UART
+        // not yet enabled, so a line sent earlier could be lost or cut.
         let end = Instant::now() + Duration::from_secs(30);
         let pty = loop {
             let text = out.lock().unwrap().clone();
-            if let Some(p) = text.split_whitespace().find(|w| w.starts_with("/dev/pts/")) {
+            let pty = text.split_whitespace().find(|w| w.starts_with("/dev/pts/"));
+            if let Some(p) = pty
+                && text.contains(UART_READY)
+            {
                 break PathBuf::from(p);
             }
-            assert!(Instant::now() < end, "QEMU did not open its pty:\n{text}");
+            assert!(
+                Instant::now() < end,
+                "QEMU did not open its pty, or the image did not say `{UART_READY}`:\n{text}"
+            );
             std::thread::sleep(Duration::from_millis(20));
         };
-        Some(Qemu { child, pty, out })
+        Some(Qemu {
+            child,
+            pty,
+            out,
+            _turn: turn,
+        })
     }
 
     fn port(&self) -> RigPort {
