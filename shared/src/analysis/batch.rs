@@ -9,7 +9,7 @@
 //! run alone takes ordinary steps ([`ProtocolRun::step`]; its ordinary contact sub-steps in the
 //! contact lanes) until it can rejoin the lanes or is done, when the next point takes its lane;
 //! the other lanes wait without losing their place; switching events and free-flight trials
-//! that come near the surface wait to be searched eight at a time (`integrate::switch_lanes`,
+//! that come near the surface wait to be searched `L` at a time (`integrate::switch_lanes`,
 //! `integrate::near::NearLanes`). Results are exactly those of
 //! [`super::evaluate_point`] (each run is the same computation, only the order of instructions
 //! between runs changes; tested). No allocation; an in-order MCU gains nothing from it.
@@ -154,8 +154,8 @@ where
         contact_empty: Ids::new(),
         waits_free: Ids::new(),
         waits_contact: Ids::new(),
-        switches: [NONE; SWITCHES_TOGETHER],
-        nears: [NONE; NEAR_TOGETHER],
+        switches: [NONE; L],
+        nears: [NONE; L],
         contact_ended: 0,
         switches_in_lanes: 0,
         switches_ended: 0,
@@ -198,25 +198,21 @@ const RUNS_PER_LANE: usize = 3;
 /// No run (an empty lane) or no lane.
 const NONE: usize = usize::MAX;
 
-/// Switching events located together: a contact lane's run whose sub-step holds one waits
-/// (its lane handed on) until this many wait, or until no run is in contact.
-const SWITCHES_TOGETHER: usize = 8;
-
-/// Free-flight trials that came near the surface searched together: a run whose trial does
-/// waits (its lanes handed on) until this many wait, the free-flight lanes have idled
-/// [`NEAR_WAIT_IDLE`] slots since the first came, or no lane is busy.
-const NEAR_TOGETHER: usize = 8;
-
-/// Idle free-flight lane slots (a lane empty for one round) the runs waiting for a near search
-/// let pass at most: then they are searched.
-const NEAR_WAIT_IDLE: u64 = 32;
+/// Switching events are located together, and free-flight trials that came near the surface
+/// searched together, as many at a time as there are lanes of a kind (`L`, one vector register
+/// of `f32` per quantity: 16 with AVX-512, 8 otherwise). A contact lane's run whose sub-step
+/// holds an event waits (its lane handed on) until `L` wait, or until no run is in contact; a
+/// run whose trial comes near waits until `L` wait, until the free-flight lanes have idled
+/// this many rounds of `L` slots (a slot: a lane empty for one round) since the first came, or
+/// until no lane is busy.
+const NEAR_WAIT_ROUNDS: u64 = 4;
 
 /// Fewer near searches than this, searched when no lane is busy, are searched one at a time
-/// (the lanes' 18 rounds cost the same for one search as for eight).
+/// (the lanes' 18 rounds cost the same for one search as for `L`).
 const NEAR_IN_LANES_AT_LEAST: usize = 3;
 
 /// Fewer switching events than this, located when no run is in contact, are located one at a
-/// time (the lanes' rounds cost the same for one search as for eight).
+/// time (the lanes' rounds cost the same for one search as for `L`).
 const SWITCHES_IN_LANES_AT_LEAST: usize = 3;
 
 /// One item's protocol run.
@@ -296,9 +292,9 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     waits_free: Ids<L>,
     waits_contact: Ids<L>,
     /// The run of each switching-event lane (those set: `SwitchLanes::len`).
-    switches: [usize; SWITCHES_TOGETHER],
+    switches: [usize; L],
     /// The run of each near-search lane (those set: `NearLanes::len`).
-    nears: [usize; NEAR_TOGETHER],
+    nears: [usize; L],
     /// Sub-steps the contact lanes ended themselves.
     contact_ended: u64,
     /// Switching events located in the switching-event lanes.
@@ -373,12 +369,12 @@ where
                 contact.lanes.run::<ProtocolRun<T>>(&mut contact.runs);
                 contact_rounds += 1;
                 contact_steps += n_contact as u64;
-                // (A lane keeps its run until that run's own commit lets it go, so the owners
-                // before the pass are the ones to visit.)
-                let owners = self.contact_owner;
+                // (A lane keeps its run until that run's own commit lets it go: the lanes still
+                // to visit keep the owners they had before the pass.)
+                let owners = &self.contact_owner;
                 let ends = lanes_where::<L>(|s| (owners[s] != NONE) & !contact.runs.continues(s));
                 for s in ends {
-                    self.commit(owners[s], s, &mut free, &mut contact);
+                    self.commit(self.contact_owner[s], s, &mut free, &mut contact);
                 }
             }
             if n_free > 0 {
@@ -405,7 +401,9 @@ where
                     }
                 }
             }
-            if contact.near.len() > 0 && idle_slots(&free) >= self.near_since + NEAR_WAIT_IDLE {
+            if contact.near.len() > 0
+                && idle_slots(&free) >= self.near_since + NEAR_WAIT_ROUNDS * L as u64
+            {
                 // The free-flight lanes have idled long enough while runs wait for their near
                 // searches (near the surface is rare where most runs fly free: their empty
                 // lanes cost more than searching the few waiting together saves).
@@ -455,7 +453,7 @@ where
                     run.pending = Some(pending);
                     self.switches[lane] = r;
                     self.release(NONE, s, free, contact);
-                    if contact.switches.len() == SWITCHES_TOGETHER {
+                    if contact.switches.len() == L {
                         self.locate_switches(free, contact);
                     }
                     return;
@@ -487,7 +485,7 @@ where
             contact.switches.locate()
         } else {
             contact.switches.clear();
-            [EventFound::Alone; SWITCHES_TOGETHER]
+            [EventFound::Alone; L]
         };
         self.switches_in_lanes += found[..n]
             .iter()
@@ -524,7 +522,7 @@ where
             contact.near.search()
         } else {
             contact.near.clear();
-            [None; NEAR_TOGETHER]
+            [None; L]
         };
         self.nears_in_lanes += found[..n].iter().filter(|t| t.is_some()).count() as u64;
         let ids = self.nears;
@@ -695,7 +693,7 @@ where
                             run.near = Some(trial);
                             self.nears[lane] = r;
                             self.release(own_free, own_contact, free, contact);
-                            if contact.near.len() == NEAR_TOGETHER {
+                            if contact.near.len() == L {
                                 self.search_near(free, contact);
                             }
                             return;
@@ -825,8 +823,8 @@ fn contact_ok<T: Real, O: Observer<T>, K: LaneContact<T>, const L: usize>(
 struct Contact<T: Real, K, const L: usize> {
     lanes: ContactLanes<T, K, L>,
     runs: RunLanes<T, L>,
-    switches: SwitchLanes<T, K, SWITCHES_TOGETHER>,
-    near: NearLanes<T, K, NEAR_TOGETHER>,
+    switches: SwitchLanes<T, K, L>,
+    near: NearLanes<T, K, L>,
 }
 
 /// Runs the canonical protocol from rest at every `(gap_m, omega_ratio)` of `points` (m, `Ω/ω`),
@@ -957,30 +955,34 @@ mod tests {
             points.iter().copied(),
             |i, r| got[i] = Some(r.map(|(result, _)| result)),
         );
-        // The paths under test were taken: whole free-flight steps in lanes, contact sub-steps
-        // in lanes, most of them ended by the lanes themselves (the rest by the simulator),
-        // switching events and near searches several at once.
-        assert!(stats.lane_steps > 0, "{rig:?}: {stats:?}");
-        assert!(stats.switches_in_lanes > 0, "{rig:?}: {stats:?}");
-        assert!(stats.switches_ended > 0, "{rig:?}: {stats:?}");
-        assert!(
-            stats.switches_ended <= stats.switches_in_lanes,
-            "{rig:?}: {stats:?}"
-        );
-        assert!(stats.nears_in_lanes > 0, "{rig:?}: {stats:?}");
-        assert!(
-            stats.contact_ended > stats.contact_steps / 2
-                && stats.contact_ended < stats.contact_steps,
-            "{rig:?}: {stats:?}"
-        );
         let mut wide = std::vec![None; points.len()];
-        evaluate_interleaved::<T, WIDE_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
-            wide[i] = Some(r.map(|(result, _)| result))
-        });
+        let wide_stats =
+            evaluate_interleaved::<T, WIDE_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
+                wide[i] = Some(r.map(|(result, _)| result))
+            });
         assert_eq!(
             wide, got,
             "{rig:?}: {WIDE_LANES} lanes against {DEFAULT_LANES}"
         );
+        // The paths under test were taken, at both widths (the searches wait for as many runs
+        // as there are lanes): whole free-flight steps in lanes, contact sub-steps in lanes,
+        // most of them ended by the lanes themselves (the rest by the simulator), switching
+        // events and near searches several at once.
+        for stats in [stats, wide_stats] {
+            assert!(stats.lane_steps > 0, "{rig:?}: {stats:?}");
+            assert!(stats.switches_in_lanes > 0, "{rig:?}: {stats:?}");
+            assert!(stats.switches_ended > 0, "{rig:?}: {stats:?}");
+            assert!(
+                stats.switches_ended <= stats.switches_in_lanes,
+                "{rig:?}: {stats:?}"
+            );
+            assert!(stats.nears_in_lanes > 0, "{rig:?}: {stats:?}");
+            assert!(
+                stats.contact_ended > stats.contact_steps / 2
+                    && stats.contact_ended < stats.contact_steps,
+                "{rig:?}: {stats:?}"
+            );
+        }
         for (i, &(g, r)) in points.iter().enumerate() {
             assert_eq!(
                 got[i],
