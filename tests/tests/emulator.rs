@@ -29,11 +29,12 @@ const RAM_BYTES: u64 = 128 * 1024;
 /// What the emulator image prints (semihosting) once its console UART is enabled.
 const UART_READY: &str = "console: USART2 ready";
 
-/// QEMU running the emulator image, its stdout (semihosting) collected.
 /// One emulation at a time: each QEMU runs its CPU flat out (`sleep=off`), and three of them
 /// on the reference machine's two cores left a pty unanswered for 20 s about once in ten runs.
 static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 
+/// QEMU running the emulator image, its stdout (semihosting) collected; it holds the turn
+/// ([`ONE_AT_A_TIME`]) until it is dropped.
 struct Qemu {
     child: Child,
     pty: PathBuf,

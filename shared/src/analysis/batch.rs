@@ -198,13 +198,15 @@ const RUNS_PER_LANE: usize = 3;
 /// No run (an empty lane) or no lane.
 const NONE: usize = usize::MAX;
 
-/// Switching events are located together, and free-flight trials that came near the surface
-/// searched together, as many at a time as there are lanes of a kind (`L`, one vector register
-/// of `f32` per quantity: 16 with AVX-512, 8 otherwise). A contact lane's run whose sub-step
-/// holds an event waits (its lane handed on) until `L` wait, or until no run is in contact; a
-/// run whose trial comes near waits until `L` wait, until the free-flight lanes have idled
-/// this many rounds of `L` slots (a slot: a lane empty for one round) since the first came, or
-/// until no lane is busy.
+/// How long runs waiting for a near search let the free-flight lanes idle at most: this many
+/// rounds of `L` idle slots (a slot: a lane empty for one round) since the first came; then
+/// they are searched.
+///
+/// Switching events are located, and free-flight trials that came near the surface searched,
+/// as many at a time as there are lanes of a kind (`L`, one vector register of `f32` per
+/// quantity: 16 with AVX-512, 8 otherwise). A contact lane's run whose sub-step holds an event
+/// waits (its lane handed on) until `L` wait, or until no run is in contact; a run whose trial
+/// comes near waits until `L` wait, until this wait is over, or until no lane is busy.
 const NEAR_WAIT_ROUNDS: u64 = 4;
 
 /// Fewer near searches than this, searched when no lane is busy, are searched one at a time
@@ -371,8 +373,9 @@ where
                 contact_steps += n_contact as u64;
                 // (A lane keeps its run until that run's own commit lets it go: the lanes still
                 // to visit keep the owners they had before the pass.)
-                let owners = &self.contact_owner;
-                let ends = lanes_where::<L>(|s| (owners[s] != NONE) & !contact.runs.continues(s));
+                let ends = lanes_where::<L>(|s| {
+                    (self.contact_owner[s] != NONE) & !contact.runs.continues(s)
+                });
                 for s in ends {
                     self.commit(self.contact_owner[s], s, &mut free, &mut contact);
                 }
