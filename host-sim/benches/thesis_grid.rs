@@ -2,8 +2,8 @@
 //! criterion bench: one run of each workload is long enough to time).
 //!
 //! 1. The thesis' Peterka grid (wire rig, gap 0.00–3.42 mm × 1.00–7.11 Hz, steps 0.01:
-//!    209,916 points, canonical protocol, f32) through the same batched, interleaved,
-//!    rayon-parallel evaluation as `host-sim peterka`: wall time, points/s, µs per point, where
+//!    209,916 points, canonical protocol, f32) through the same chunked, batched,
+//!    interleaved, rayon-parallel evaluation as `host-sim peterka` (`host_sim::grid::run_chunked`): wall time, points/s, µs per point, where
 //!    the time goes (transient lengths, RK4 steps in whole steps vs contact sub-steps), and the
 //!    peak RSS of the process.
 //! 2. A 200 × 200 basin of attraction through the library path of `host-sim basins` (CSV + PNG
@@ -17,7 +17,6 @@
 
 use std::time::Instant;
 
-use rayon::prelude::*;
 use shared::analysis::SimSettings;
 use shared::model::RigId;
 use shared::observe::{PointResult, RecurrenceSettings};
@@ -28,7 +27,7 @@ use host_sim::grid::basins::{self, Attractors, Basins, BasinsGrid, ColorBy};
 use host_sim::grid::fractions::{Fractions, FractionsGrid, Parameter, StartBox};
 use host_sim::grid::{self, CountSweep, Figures};
 use host_sim::output::Outputs;
-use host_sim::runner::{BATCH, OperatingPoint, evaluate_batch};
+use host_sim::runner::{OperatingPoint, evaluate_batch};
 
 fn peak_rss_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -55,14 +54,21 @@ fn main() {
         })
         .collect();
     let t = Instant::now();
-    let results: Vec<PointResult> = points
-        .par_chunks(BATCH)
-        .flat_map_iter(|b| {
-            evaluate_batch(&setup, b)
-                .into_iter()
-                .map(|r| r.expect("valid point"))
-        })
-        .collect();
+    let mut results: Vec<PointResult> = Vec::with_capacity(points.len());
+    grid::run_chunked(
+        0..points.len(),
+        points.len(),
+        "",
+        |batch| {
+            let at: Vec<OperatingPoint> = batch.iter().map(|&i| points[i]).collect();
+            evaluate_batch(&setup, &at)
+        },
+        |_, r| {
+            results.push(r);
+            Ok(())
+        },
+    )
+    .expect("valid points");
     let wall = t.elapsed().as_secs_f64();
     let n = results.len() as f64;
     println!(

@@ -11,15 +11,48 @@ use shared::analysis::evaluate_interleaved_native;
 use shared::error::ParamError;
 use shared::observe::{Observer, PointResult, StroboPoint};
 use shared::orbit::{Label, LabelSettings, MapPoint, label};
+use std::sync::{Mutex, PoisonError};
 
 use crate::config::Setup;
 
-/// Points per parallel task (a task interleaves its points on one core,
-/// [`shared::analysis::run_interleaved`]): the unit of every parallel evaluation. Four times
-/// the runs a core keeps in flight with AVX-512 (32), so that finished runs' places are
-/// refilled, not left to drain (measured on AVX2, one core, the 4,284-point grid: 1.16–1.21 s
-/// with 64 or 128 against 1.20–1.24 s with 32).
+/// The smallest batch of points a core takes ([`guided`]): a batch interleaves its points on
+/// one core ([`shared::analysis::run_interleaved`]), the unit of every parallel evaluation.
+/// Several times the runs a core keeps in flight (48 with AVX-512), so that finished runs'
+/// places are refilled, not left to drain.
 pub const BATCH: usize = 128;
+
+/// `run` over consecutive batches of `items` on every core of the rayon pool; each batch's
+/// result in item order.
+///
+/// The batches are guided: a core takes a `1 / (2 · cores)` share of what is left, at least
+/// [`BATCH`] items (all if fewer are left). A batch ends with its lanes draining while its
+/// last runs finish, so long batches while much is left waste less; short ones at the end keep
+/// a core from waiting long for the other's last batch. (Measured on the thesis grid: 1,640
+/// batches of 128 drain on average ~6 % of a core's time, docs/performance.md.)
+pub fn guided<X: Sync, R: Send>(items: &[X], run: impl Fn(&[X]) -> R + Sync) -> Vec<R> {
+    let cores = rayon::current_num_threads().max(1);
+    let next = Mutex::new(0usize);
+    let take = || {
+        let mut at = next.lock().unwrap_or_else(PoisonError::into_inner);
+        let start = *at;
+        let left = items.len() - start;
+        let n = (left / (2 * cores)).max(BATCH).min(left);
+        *at += n;
+        (n > 0).then_some(start..start + n)
+    };
+    let mut parts: Vec<(usize, R)> = (0..cores)
+        .into_par_iter()
+        .flat_map_iter(|_| {
+            let mut out = Vec::new();
+            while let Some(batch) = take() {
+                out.push((batch.start, run(&items[batch])));
+            }
+            out
+        })
+        .collect();
+    parts.sort_unstable_by_key(|&(start, _)| start);
+    parts.into_iter().map(|(_, r)| r).collect()
+}
 
 /// One operating point: gap (m) and `Ω/ω`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -108,7 +141,7 @@ pub fn evaluate_all(
     in_parallel(points, what, |batch| evaluate_batch(setup, batch))
 }
 
-/// `run` over every [`BATCH`] of `points` in parallel with a progress bar (`what`,
+/// `run` over the [`guided`] batches of `points` in parallel with a progress bar (`what`,
 /// [`progress`]); the results in order.
 ///
 /// # Errors
@@ -119,14 +152,14 @@ fn in_parallel<R: Send>(
     run: impl Fn(&[OperatingPoint]) -> Vec<Result<R>> + Sync,
 ) -> Result<Vec<R>> {
     let bar = progress(points.len(), what);
-    let out: Result<Vec<_>> = points
-        .par_chunks(BATCH)
-        .flat_map_iter(|batch| {
-            let r = run(batch);
-            bar.inc(batch.len() as u64);
-            r
-        })
-        .collect();
+    let out: Result<Vec<_>> = guided(points, |batch| {
+        let r = run(batch);
+        bar.inc(batch.len() as u64);
+        r
+    })
+    .into_iter()
+    .flatten()
+    .collect();
     bar.finish_and_clear();
     out
 }
@@ -188,5 +221,48 @@ impl<T: Real> Observer<T> for WindowSamples {
             self.impacts
                 .push((self.strobes.len() as u32, peak_n.to_f64()));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The batches `guided` takes on `cores` threads over `len` items: their lengths in item
+    /// order, and the items seen in that order.
+    fn batches(len: usize, cores: usize) -> (Vec<usize>, Vec<usize>) {
+        let items: Vec<usize> = (0..len).collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(cores)
+            .build()
+            .expect("a thread pool");
+        let parts = pool.install(|| guided(&items, |b| b.to_vec()));
+        let lens = parts.iter().map(Vec::len).collect();
+        (lens, parts.concat())
+    }
+
+    #[test]
+    fn guided_batches_cover_the_items_in_order_and_shrink_to_the_minimum() {
+        for cores in [1, 2, 3] {
+            let (lens, seen) = batches(16_384, cores);
+            assert_eq!(seen, (0..16_384).collect::<Vec<_>>(), "{cores} cores");
+            // The first batch: 1 / (2 · cores) of everything (2,730 of 16,384 on 3 cores).
+            assert_eq!(lens[0], 16_384 / (2 * cores), "{cores} cores");
+            // Batches never grow, and all but the last hold at least BATCH items.
+            assert!(lens.windows(2).all(|w| w[1] <= w[0]), "{lens:?}");
+            assert!(
+                lens[..lens.len() - 1].iter().all(|&n| n >= BATCH),
+                "{lens:?}"
+            );
+            // Two cores: a quarter of what is left each time (4,096, 3,072, 2,304, …, 130),
+            // then BATCH three times and the last 6.
+            if cores == 2 {
+                assert_eq!(lens[..3], [4096, 3072, 2304]);
+                assert_eq!(lens[12..], [130, 128, 128, 128, 6], "{lens:?}");
+            }
+        }
+        // Fewer items than a batch: one batch; none: no batch.
+        assert_eq!(batches(100, 2).0, vec![100]);
+        assert_eq!(batches(0, 2).0, Vec::<usize>::new());
     }
 }

@@ -6,7 +6,6 @@
 //! the current chunk with [`Interrupted`](crate::interrupt::Interrupted).
 
 use anyhow::{Context, Result, anyhow, bail};
-use rayon::prelude::*;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
@@ -15,7 +14,7 @@ use std::path::Path;
 use crate::config::Setup;
 use crate::interrupt;
 use crate::output::{Outputs, scratch};
-use crate::runner::{BATCH, progress};
+use crate::runner::{guided, progress};
 use crate::shard::{Indexed, Kind, Meta, Shard, ShardFile, create_csv, merge_rows};
 
 pub mod basins;
@@ -25,10 +24,10 @@ pub mod peterka;
 pub mod raster;
 
 /// Points evaluated per parallel chunk.
-pub const CHUNK: usize = 4096;
+pub const CHUNK: usize = 16384;
 
 /// Evaluates `compute(batch)` (the results of the indices in `batch`, in order) over every index
-/// of `indices` (ascending), `CHUNK` at a time with batches of [`BATCH`] in parallel, and passes
+/// of `indices` (ascending), `CHUNK` at a time with [`guided`] batches in parallel, and passes
 /// each result to `sink` in index order. `len` is the number of indices (for the progress bar).
 ///
 /// # Errors
@@ -50,17 +49,14 @@ pub fn run_chunked<R: Send>(
         if chunk.is_empty() {
             break;
         }
-        let results: Vec<Option<Vec<Result<R>>>> = chunk
-            .par_chunks(BATCH)
-            .map(|batch| {
-                if interrupt::requested() {
-                    return None;
-                }
-                let r = compute(batch);
-                bar.inc(batch.len() as u64);
-                Some(r)
-            })
-            .collect();
+        let results: Vec<Option<Vec<Result<R>>>> = guided(&chunk, |batch| {
+            if interrupt::requested() {
+                return None;
+            }
+            let r = compute(batch);
+            bar.inc(batch.len() as u64);
+            Some(r)
+        });
         if let Err(e) = interrupt::check() {
             bar.abandon();
             return Err(e.into());
