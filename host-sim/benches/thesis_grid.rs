@@ -3,9 +3,10 @@
 //!
 //! 1. The thesis' Peterka grid (wire rig, gap 0.00–3.42 mm × 1.00–7.11 Hz, steps 0.01:
 //!    209,916 points, canonical protocol, f32) through the same chunked, batched,
-//!    interleaved, rayon-parallel evaluation as `host-sim peterka` (`host_sim::grid::run_chunked`): wall time, points/s, µs per point, where
-//!    the time goes (transient lengths, RK4 steps in whole steps vs contact sub-steps), and the
-//!    peak RSS of the process.
+//!    interleaved, rayon-parallel evaluation as `host-sim peterka`
+//!    (`host_sim::grid::run_chunked`): wall time, points/s, µs per point, where the time goes
+//!    (transient lengths, RK4 steps in whole steps vs contact sub-steps), and the peak RSS of
+//!    the process.
 //! 2. A 200 × 200 basin of attraction through the library path of `host-sim basins` (CSV + PNG
 //!    into a temporary directory), with the attractor catalogue (early stop on a known
 //!    attractor).

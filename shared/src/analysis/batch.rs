@@ -35,14 +35,17 @@ use crate::real::Real;
 const FREE_ROUNDS: u64 = 4;
 
 /// The contact lanes take a round of sub-steps at once when this many quarters of them are
-/// busy (12 of 16 with AVX-512, 6 of 8 otherwise). Fewer wait for others to come, at most
-/// [`CONTACT_WAIT_ROUNDS`] free-flight rounds, or until the free-flight lanes are less than
-/// half busy (their sub-steps are the same whenever they are taken: the results do not change).
+/// busy (12 of 16 with AVX-512, 6 of 8 otherwise). Fewer wait for others to come, until
+/// [`CONTACT_WAIT_ROUNDS`] free-flight rounds have passed since the contact lanes' last round
+/// or the free-flight lanes are less than half busy (their sub-steps are the same whenever
+/// they are taken: the results do not change).
 const CONTACT_CROWD_QUARTERS: usize = 3;
 
-/// Free-flight rounds that runs in contact wait at most for [`CONTACT_CROWD_QUARTERS`] (chosen
-/// on the 15,300-point grid on one core with AVX-512: 12 lanes and 16 rounds 1.37–1.38 s
-/// against 1.44–1.48 s for a round whenever a lane is busy; 16 lanes 1.42 s, 8 lanes 1.39–1.41 s).
+/// Free-flight rounds since the contact lanes' last round after which their busy lanes take a
+/// round however few they are (see [`CONTACT_CROWD_QUARTERS`]). Chosen on the 15,300-point
+/// grid on one core with AVX-512: a crowd of 12 of 16 lanes and 16 rounds 1.37–1.38 s, against
+/// 1.44–1.48 s for a round whenever a lane is busy, 1.42 s for a crowd of 16 and 1.39–1.41 s
+/// for a crowd of 8.
 const CONTACT_WAIT_ROUNDS: u64 = 16;
 
 /// Lanes interleaved per core where the CPU's vector registers hold 8 `f32` or fewer (AVX2,
@@ -377,8 +380,9 @@ where
                 break;
             }
             // The contact lanes take a round when enough of them are busy, when the free-flight
-            // lanes are less than half busy (most runs are in contact or waiting), or when their
-            // runs have waited long enough; otherwise the free-flight lanes go on.
+            // lanes are less than half busy (most runs are in contact or waiting), or when
+            // enough free-flight rounds have passed since their last; otherwise the free-flight
+            // lanes go on.
             let contact_now = n_contact > 0
                 && (4 * n_contact >= CONTACT_CROWD_QUARTERS * L
                     || 2 * n_free < L
