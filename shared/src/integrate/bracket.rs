@@ -128,8 +128,12 @@ pub(super) fn illinois_step<T: Real>(lo: T, hi: T, g_lo: T, g_hi: T) -> T {
 /// The bracket of an Illinois search after its point `mid` with `g(mid) = g_mid` (if `on`;
 /// else all left as they are): `g_mid > 0` moves `hi` there, otherwise `lo`, and the end that
 /// stays for the second time in a row has its `g` halved (the Illinois modification). `side`:
-/// where the last point fell, 1 above the zero, 2 below, 0 none yet. Written with selects, so
-/// that the switching-event lanes (`super::switch_lanes`) vectorise it.
+/// where the last point fell, 1 above the zero, 2 below, 0 none yet.
+///
+/// Written as one select per value, each on conditions of its own (no `else if` chain), so
+/// that the switching-event lanes (`super::switch_lanes`) vectorise it: a chain of selects
+/// compiles, lane by lane, to branches, and the searches then run one lane at a time (on an
+/// AVX2 core the lanes' round took 520 instructions with 67 branches instead of 155 with 2).
 #[inline(always)]
 pub(super) fn illinois_update<T: Real>(
     on: bool,
@@ -141,31 +145,22 @@ pub(super) fn illinois_update<T: Real>(
     let half = T::from_f64(0.5);
     let above = g_mid > T::zero();
     let (up, down) = (on & above, on & !above);
-    let halve_lo = up & (*side == 1);
-    let halve_hi = down & (*side == 2);
-    *hi = if up { mid } else { *hi };
-    *lo = if down { mid } else { *lo };
-    *g_lo = if down {
-        g_mid
-    } else if halve_lo {
+    // The end that stays, halved if it stayed last time too.
+    let g_lo_kept = if up & (*side == 1) {
         *g_lo * half
     } else {
         *g_lo
     };
-    *g_hi = if up {
-        g_mid
-    } else if halve_hi {
+    let g_hi_kept = if down & (*side == 2) {
         *g_hi * half
     } else {
         *g_hi
     };
-    *side = if up {
-        1
-    } else if down {
-        2
-    } else {
-        *side
-    };
+    *hi = if up { mid } else { *hi };
+    *lo = if down { mid } else { *lo };
+    *g_lo = if down { g_mid } else { g_lo_kept };
+    *g_hi = if up { g_mid } else { g_hi_kept };
+    *side = if on { 2 - u32::from(above) } else { *side };
 }
 
 /// [`Rule::Bisect`] on the MCU: one halving after the other.

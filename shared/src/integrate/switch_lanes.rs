@@ -29,11 +29,6 @@ use crate::model::contact::LawCoeffs;
 use crate::model::hammer::{Damped, FieldEval, Undamped, Viscous};
 use crate::real::Real;
 
-/// The event function's case as a lane code.
-const LEAVES: u32 = 0;
-const ARRIVES: u32 = 1;
-const PRESSES: u32 = 2;
-
 /// Up to `K` switching-event searches of runs with the suspension `F` and the linear law.
 pub(crate) struct SwitchLanes<T: Real, F, const K: usize> {
     isa: Isa,
@@ -54,7 +49,11 @@ pub(crate) struct SwitchLanes<T: Real, F, const K: usize> {
     g0: [T; K],
     g1: [T; K],
     h: [T; K],
-    case: [u32; K],
+    /// The event function's case as two lane masks (1: yes): the force `−F` on a departure,
+    /// the penetration `δ` on an arrival, else the force `F` (a press). (Masks rather than a
+    /// case code: two selects and no comparisons in each round of the searches.)
+    leaves: [u32; K],
+    arrives: [u32; K],
     tol: [T; K],
     /// The event function at the ends.
     g_start: [T; K],
@@ -111,7 +110,8 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
             g0: z,
             g1: z,
             h: z,
-            case: [0; K],
+            leaves: [0; K],
+            arrives: [0; K],
             tol: z,
             g_start: z,
             g_end: z,
@@ -181,11 +181,8 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
         (self.x0[i], self.x1[i], self.f0[i], self.f1[i]) = (d.x0[0], d.x0[1], d.f0[0], d.f0[1]);
         (self.y0[i], self.y1[i], self.g0[i], self.g1[i]) = (d.x1[0], d.x1[1], d.f1[0], d.f1[1]);
         self.h[i] = d.h;
-        self.case[i] = match s.case {
-            EventCase::Leaves => LEAVES,
-            EventCase::Arrives => ARRIVES,
-            EventCase::Presses => PRESSES,
-        };
+        self.leaves[i] = u32::from(s.case == EventCase::Leaves);
+        self.arrives[i] = u32::from(s.case == EventCase::Arrives);
         self.tol[i] = s.tol;
         (self.g_start[i], self.g_end[i]) = s.ends;
         self.n += 1;
@@ -265,14 +262,8 @@ impl<T: Real, F: LaneContact<T>, const K: usize> SwitchLanes<T, F, K> {
                 let u1 = self.x1[i] * h00 + self.f1[i] * h10 + self.y1[i] * h01 + self.g1[i] * h11;
                 let (d, dd, _, ok) = self.field[i].penetration::<SmallTrig>(u0, u1);
                 let f = self.k[i] * d + self.c[i] * dd;
-                let case = self.case[i];
-                g_mid[i] = if case == LEAVES {
-                    -f
-                } else if case == ARRIVES {
-                    d
-                } else {
-                    f
-                };
+                let g = if self.arrives[i] != 0 { d } else { f };
+                g_mid[i] = if self.leaves[i] != 0 { -f } else { g };
                 exact[i] &= u32::from(ok) | (searching[i] ^ 1);
             }
             for i in 0..K {
