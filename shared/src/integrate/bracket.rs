@@ -141,7 +141,7 @@ pub(super) fn illinois_step<T: Real>(lo: T, hi: T, g_lo: T, g_hi: T) -> T {
 /// Written as one select per value, each on conditions of its own (no `else if` chain), so
 /// that the switching-event lanes (`super::switch_lanes`) vectorise it: an `else if` chain
 /// compiles, lane by lane, to branches, and the searches then run one lane at a time (a round
-/// of 8 lanes on AVX2: 520 instructions with 67 branches, against 155 with 2).
+/// of 8 lanes on AVX2, release build: 577 instructions with 64 branches, against 144 with 2).
 #[inline(always)]
 pub(super) fn illinois_update<T: Real>(
     on: bool,
