@@ -24,7 +24,7 @@ use nalgebra::Vector2;
 
 use super::Simulator;
 use super::free::{SmallTrig, Trig};
-use super::isa::{Isa, Kernel};
+use super::isa::{Isa, Kernel, Variant};
 use super::lanes::LaneField;
 use super::plan::SubstepRule;
 use super::rk4::rk4_step_compensated;
@@ -343,7 +343,7 @@ impl<T: Real, F: LaneContact<T>, const L: usize, V: Viscous, B: QuietSample<T>> 
 {
     type Output = ();
     #[inline(always)]
-    fn run(self) {
+    fn run<I: Variant>(self) {
         self.lanes.run_kernel::<V, B>(self.runs);
     }
 }

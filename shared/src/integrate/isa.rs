@@ -5,6 +5,10 @@
 //! The variants compile the same source with more instructions enabled: the same operations
 //! in the same order and no fused multiply-add (Rust never contracts `a * b + c`), so every
 //! variant gives the same bits. On the MCU (no `std`) the kernels are the portable code.
+//! Besides, [`Isa::gather`]: a table read in every lane at once where the variant has an
+//! instruction for it.
+
+use crate::real::Real;
 
 /// A lane kernel's body with its arguments, run by [`Isa::run`] in the instruction set asked
 /// for. Implementations mark [`Kernel::run`] `#[inline(always)]` (and whatever it calls that
@@ -12,8 +16,40 @@
 pub(crate) trait Kernel {
     /// What the kernel returns.
     type Output;
-    /// The body.
-    fn run(self) -> Self::Output;
+    /// The body, compiled for the variant `I` (which it may ask for what only that variant
+    /// has, [`Variant::ISA`]: known at compile time).
+    fn run<I: Variant>(self) -> Self::Output;
+}
+
+/// The variant a [`Kernel`] is being compiled for, as a type.
+pub(crate) trait Variant {
+    /// Its instruction set.
+    const ISA: Isa;
+}
+
+/// [`Isa::Portable`] as a [`Variant`].
+pub(crate) struct PortableCode;
+
+impl Variant for PortableCode {
+    const ISA: Isa = Isa::Portable;
+}
+
+/// [`Isa::Avx2`] as a [`Variant`].
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+pub(crate) struct Avx2Code;
+
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+impl Variant for Avx2Code {
+    const ISA: Isa = Isa::Avx2;
+}
+
+/// [`Isa::Avx512`] as a [`Variant`].
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+pub(crate) struct Avx512Code;
+
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+impl Variant for Avx512Code {
+    const ISA: Isa = Isa::Avx512;
 }
 
 /// The instruction set a lane kernel runs, narrowest first.
@@ -73,8 +109,38 @@ impl Isa {
             #[cfg(all(feature = "std", target_arch = "x86_64"))]
             #[allow(unsafe_code)]
             Isa::Avx2 => unsafe { run_avx2(kernel) },
-            Isa::Portable => kernel.run(),
+            Isa::Portable => kernel.run::<PortableCode>(),
         }
+    }
+
+    /// `table[idx[i]]` in every lane `i`, as one gather instruction where this variant has
+    /// one for `L` lanes of `T` (AVX-512: 16 `f32`) and every index is in range; `None`
+    /// elsewhere, and the caller reads the lanes one by one. The same values either way.
+    #[inline(always)]
+    pub(crate) fn gather<T: Real, const L: usize, const N: usize>(
+        self,
+        table: &[T; N],
+        idx: &[u32; L],
+    ) -> Option<[T; L]> {
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        if self == Isa::Avx512 {
+            use core::any::Any;
+            // Only `f32` in 16 lanes (the types are known at compile time: the casts fold).
+            let mut out = [T::zero(); L];
+            if let (Some(t), Some(i), Some(o)) = (
+                (table as &dyn Any).downcast_ref::<[f32; N]>(),
+                (idx as &dyn Any).downcast_ref::<[u32; 16]>(),
+                (&mut out as &mut dyn Any).downcast_mut::<[f32; 16]>(),
+            ) {
+                // SAFETY: the CPU supports AVX-512 (`Isa::detect`).
+                #[allow(unsafe_code)]
+                let got = unsafe { gather_avx512(t, i) }?;
+                *o = got;
+                return Some(out);
+            }
+        }
+        let _ = (table, idx);
+        None
     }
 
     /// The widest variant the CPU reports.
@@ -100,14 +166,41 @@ impl Isa {
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx,avx2,avx512f,avx512vl,avx512dq,avx512bw")]
 fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
-    kernel.run()
+    kernel.run::<Avx512Code>()
+}
+
+/// [`Isa::gather`] for 16 `f32` lanes: `None` if an index is out of `table`'s range.
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
+#[target_feature(enable = "avx512f")]
+fn gather_avx512<const N: usize>(table: &[f32; N], idx: &[u32; 16]) -> Option<[f32; 16]> {
+    use core::arch::x86_64::{
+        _mm512_cmplt_epu32_mask, _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_set1_epi32,
+        _mm512_storeu_ps,
+    };
+    // Lengths beyond `i32` would not index as the instruction's signed offsets.
+    let len = i32::try_from(N).ok()?;
+    // SAFETY: `idx` is 16 `u32`, 64 bytes, read unaligned.
+    #[allow(unsafe_code)]
+    let j = unsafe { _mm512_loadu_si512(idx.as_ptr().cast()) };
+    if _mm512_cmplt_epu32_mask(j, _mm512_set1_epi32(len)) != u16::MAX {
+        return None;
+    }
+    let mut out = [0.0f32; 16];
+    // SAFETY: every index is below `N` (the mask above), so every lane reads an element of
+    // `table`; `out` is 16 `f32`, written unaligned.
+    #[allow(unsafe_code)]
+    unsafe {
+        let v = _mm512_i32gather_ps::<4>(j, table.as_ptr().cast());
+        _mm512_storeu_ps(out.as_mut_ptr(), v);
+    }
+    Some(out)
 }
 
 /// [`Kernel::run`] compiled for AVX2.
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 #[target_feature(enable = "avx,avx2")]
 fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
-    kernel.run()
+    kernel.run::<Avx2Code>()
 }
 
 #[cfg(test)]
@@ -152,5 +245,32 @@ mod tests {
         // Outside `with_isa` the widest again.
         assert_eq!(Isa::detect(), Isa::widest());
         assert_eq!(wide_vectors(), all.len() == 3);
+    }
+
+    #[test]
+    fn a_gather_reads_what_the_lanes_read_one_by_one() {
+        let table: [f32; 40] = core::array::from_fn(|i| (i as f32).mul_add(0.37, -3.1));
+        let idx: [u32; 16] = core::array::from_fn(|i| (7 * i as u32 + 3) % 40);
+        let one_by_one = idx.map(|i| table[i as usize]);
+        for isa in Isa::supported() {
+            let got = isa.gather(&table, &idx);
+            // Only AVX-512 gathers, and only 16 `f32` lanes.
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            let gathers = isa == Isa::Avx512;
+            #[cfg(not(all(feature = "std", target_arch = "x86_64")))]
+            let gathers = false;
+            assert_eq!(got.is_some(), gathers, "{isa:?}");
+            if let Some(got) = got {
+                assert_eq!(got.map(f32::to_bits), one_by_one.map(f32::to_bits));
+            }
+            let eight: [u32; 8] = core::array::from_fn(|i| idx[i]);
+            assert_eq!(isa.gather(&table, &eight), None);
+            let wide: [f64; 40] = table.map(f64::from);
+            assert_eq!(isa.gather(&wide, &idx), None);
+            // An index out of range: no gather (the caller's read panics, as any slice's).
+            let mut bad = idx;
+            bad[11] = 40;
+            assert_eq!(isa.gather(&table, &bad), None);
+        }
     }
 }

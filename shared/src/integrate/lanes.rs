@@ -14,7 +14,7 @@
 
 use super::Simulator;
 use super::free::{FreeField, FreeState, SmallTrig, free_step};
-use super::isa::{Isa, Kernel};
+use super::isa::{Isa, Kernel, Variant};
 use super::plan::PhaseTable;
 use crate::model::hammer::{BeamFree, Damped, FreeFlight, Undamped, Viscous, WiresFree};
 use crate::real::Real;
@@ -148,8 +148,8 @@ impl<T: Real, F: LaneField<T>, const L: usize, V: Viscous> Kernel
 {
     type Output = u32;
     #[inline(always)]
-    fn run(self) -> u32 {
-        self.lanes.run_kernel::<V>(self.rounds)
+    fn run<I: Variant>(self) -> u32 {
+        self.lanes.run_kernel::<V, I>(self.rounds)
     }
 }
 
@@ -275,7 +275,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
 
     /// The body of [`Lockstep::run`] (inlined into each instruction-set variant).
     #[inline(always)]
-    fn run_kernel<V: Viscous>(&mut self, max_rounds: u64) -> u32 {
+    fn run_kernel<V: Viscous, I: Variant>(&mut self, max_rounds: u64) -> u32 {
         const { assert!(L <= 32) };
         let mut stopped = 0u32;
         if !self.any_running() {
@@ -291,15 +291,20 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         let taken_before = taken;
         let mut rounds = 0u64;
         loop {
+            // k < N on running lanes (the end of the period's last step is the next period's
+            // start, `PhaseTable::step_mid_end`); the others read a valid entry and are
+            // discarded. One gather per array where the variant has it, else lane by lane.
             let mut s_mid = [T::zero(); L];
             let mut s_end = [T::zero(); L];
-            for i in 0..L {
-                // k < N on running lanes (the end of the period's last step is the next
-                // period's start, `PhaseTable::step_mid_end`); the others read a valid entry
-                // and are discarded.
-                let j = 2 * k[i].min(n - 1) as usize;
-                s_mid[i] = table.sin_half(j + 1);
-                s_end[i] = table.sin_half(j + 2);
+            if let Some((mid, end)) = gathered::<T, L, I>(table, &k) {
+                s_mid = mid;
+                s_end = end;
+            } else {
+                for i in 0..L {
+                    let j = 2 * k[i].min(n - 1) as usize;
+                    s_mid[i] = table.sin_half(j + 1);
+                    s_end[i] = table.sin_half(j + 2);
+                }
             }
             let mut next = States::<T, L>::new();
             let mut ok = [0u32; L];
@@ -357,6 +362,20 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     }
 }
 
+/// [`PhaseTable::step_mid_end_gathered`] where the variant `I` gathers (AVX-512), else `None`
+/// without a trace in the variant's code.
+#[inline(always)]
+fn gathered<T: Real, const L: usize, I: Variant>(
+    table: &PhaseTable<T>,
+    k: &[u32; L],
+) -> Option<([T; L], [T; L])> {
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
+    if I::ISA == Isa::Avx512 {
+        return table.step_mid_end_gathered(I::ISA, k);
+    }
+    None
+}
+
 /// Takes whole free-flight steps on the simulators of `sims` (at most `L` of them; further ones
 /// are left alone) in lockstep until the first of them stops (`Lockstep`). A simulator takes
 /// part if it has the first one's `N`, suspension and band `η_δ`, and is clear of the surface
@@ -399,31 +418,34 @@ mod tests {
     use std::format;
 
     /// Lockstep steps leave every simulator exactly where as many scalar steps do, and they do
-    /// run (from rest, far from the surface, until a lane reaches its period's last step).
-    fn check<F: LaneField<f32>>(rig: RigId, zeta: f64, gap_m: f64) {
+    /// run (from rest, far from the surface, until a lane reaches its period's last step). In
+    /// `L` lanes: 16 reads the phase table with AVX-512's gather where the CPU has it.
+    fn check<F: LaneField<f32>, const L: usize>(rig: RigId, zeta: f64, gap_m: f64) {
         let p = rig.preset().with_damping_ratio(zeta);
         let s = SimSettings::default();
-        let ratios = [0.6, 0.9, 1.3, 1.7, 2.0, 2.6, 3.1, 3.9];
+        let ratios = &[
+            0.6, 0.9, 1.3, 1.7, 2.0, 2.6, 3.1, 3.9, 0.65, 0.95, 1.35, 1.75, 2.05, 2.65, 3.15, 3.85,
+        ][..L];
         let phases = PhaseTable::new(s.steps.steps_per_period).expect("valid N");
         let mut sims: std::vec::Vec<Simulator<f32>> = ratios
             .iter()
             .map(|&r| simulator_at::<f32>(&p, gap_m, r, &s, &phases).expect("valid"))
             .collect();
-        // Stagger the phases so that the lanes are not all at step 0.
+        // Stagger the phases so that the lanes are not all at step 0 (lanes 8–15 as 0–7).
         for (i, sim) in sims.iter_mut().enumerate() {
-            for _ in 0..3 * i {
+            for _ in 0..3 * (i % 8) {
                 sim.step(&mut |_| {});
             }
         }
         let reference = sims.clone();
-        let mut lanes = Lockstep::<f32, F, 8>::for_simulator(&sims[0]);
+        let mut lanes = Lockstep::<f32, F, L>::for_simulator(&sims[0]);
         assert_eq!(lanes.isa, Isa::detect());
         assert_eq!(lanes.damped, rig == RigId::Wires && zeta > 0.0);
         for (i, sim) in sims.iter().enumerate() {
             assert!(lanes.load(i, sim), "{rig:?}: lane {i}");
         }
         let stopped = lanes.run();
-        assert!(stopped != 0 && stopped < 1 << 8);
+        assert!(stopped != 0 && u64::from(stopped) < 1 << L);
         let taken: std::vec::Vec<u32> = sims
             .iter_mut()
             .enumerate()
@@ -480,10 +502,13 @@ mod tests {
     fn lockstep_steps_equal_scalar_steps() {
         for isa in Isa::supported() {
             with_isa(isa, || {
-                check::<WiresFree<f32>>(RigId::Wires, 0.0, 3.0e-3);
+                check::<WiresFree<f32>, 8>(RigId::Wires, 0.0, 3.0e-3);
+                check::<WiresFree<f32>, 16>(RigId::Wires, 0.0, 3.0e-3);
                 // The damped pendulum: the lanes run the `Damped` kernel, the stepper `AsSet`.
-                check::<WiresFree<f32>>(RigId::Wires, 0.003, 3.0e-3);
-                check::<BeamFree<f32>>(RigId::Beam170, 0.004, 3.0e-3);
+                check::<WiresFree<f32>, 8>(RigId::Wires, 0.003, 3.0e-3);
+                check::<WiresFree<f32>, 16>(RigId::Wires, 0.003, 3.0e-3);
+                check::<BeamFree<f32>, 8>(RigId::Beam170, 0.004, 3.0e-3);
+                check::<BeamFree<f32>, 16>(RigId::Beam170, 0.004, 3.0e-3);
             });
         }
     }

@@ -20,7 +20,7 @@ use super::bracket::{Rule, bracket_rising};
 use super::contact_lanes::LaneContact;
 use super::dense::{DenseStep, hermite_weights};
 use super::free::SmallTrig;
-use super::isa::{Isa, Kernel};
+use super::isa::{Isa, Kernel, Variant};
 use crate::model::Hammer;
 use crate::real::Real;
 
@@ -97,7 +97,7 @@ struct Searches<'a, T: Real, F, const K: usize> {
 impl<T: Real, F: LaneContact<T>, const K: usize> Kernel for Searches<'_, T, F, K> {
     type Output = [Option<T>; K];
     #[inline(always)]
-    fn run(self) -> [Option<T>; K] {
+    fn run<I: Variant>(self) -> [Option<T>; K] {
         self.lanes.search_kernel()
     }
 }
@@ -297,7 +297,7 @@ mod lanes {
     impl<T: Real, F: LaneContact<T>> Kernel for Search<'_, T, F> {
         type Output = Option<T>;
         #[inline(always)]
-        fn run(self) -> Option<T> {
+        fn run<I: Variant>(self) -> Option<T> {
             search(self.field, self.dense, self.start_delta, self.eta)
         }
     }

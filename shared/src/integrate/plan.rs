@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::isa::Isa;
 use crate::error::{ParamError, check_count, check_range};
 use crate::real::Real;
 
@@ -105,6 +106,28 @@ impl<T: Real> PhaseTable<T> {
     pub(crate) fn step_mid_end(&self, k: u32) -> (T, T) {
         let k2 = 2 * k as usize;
         (self.sin_half[k2 + 1], self.sin_half[k2 + 2])
+    }
+
+    /// [`PhaseTable::step_mid_end`] of every lane's step `k[i]`, clamped to `N − 1` (a lane
+    /// past its period's end reads a valid entry): `(sin Ωt at the midpoints, at the ends)`,
+    /// read with one gather instruction per array where `isa` has one ([`Isa::gather`]);
+    /// `None` where it has not (the caller reads the lanes one by one).
+    #[inline(always)]
+    pub(crate) fn step_mid_end_gathered<const L: usize>(
+        &self,
+        isa: Isa,
+        k: &[u32; L],
+    ) -> Option<([T; L], [T; L])> {
+        let last = self.n - 1;
+        let mut j = [0u32; L];
+        for i in 0..L {
+            j[i] = 2 * k[i].min(last) + 1;
+        }
+        let mid = isa.gather(&self.sin_half, &j)?;
+        for ji in &mut j {
+            *ji += 1;
+        }
+        Some((mid, isa.gather(&self.sin_half, &j)?))
     }
 }
 

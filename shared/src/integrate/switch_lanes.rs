@@ -19,7 +19,7 @@ use super::bracket::{illinois_step, illinois_update};
 use super::contact_lanes::{LaneContact, linear_switch_force, region_of};
 use super::dense::{MAX_EVENT_EVALS, hermite_weights};
 use super::free::SmallTrig;
-use super::isa::{Isa, Kernel};
+use super::isa::{Isa, Kernel, Variant};
 use super::rk4::rk4_step_compensated;
 use super::stepper::{
     EventCase, EventFound, Handback, PendingSwitch, Simulator, SwitchSearch, min_approach,
@@ -85,7 +85,7 @@ struct Locate<'a, T: Real, F, const K: usize, V> {
 impl<T: Real, F: LaneContact<T>, const K: usize, V: Viscous> Kernel for Locate<'_, T, F, K, V> {
     type Output = [EventFound<T>; K];
     #[inline(always)]
-    fn run(self) -> [EventFound<T>; K] {
+    fn run<I: Variant>(self) -> [EventFound<T>; K] {
         let fracs = self.lanes.locate_kernel();
         self.lanes.finish_kernel::<V>(fracs)
     }
