@@ -25,7 +25,15 @@ use core::marker::PhantomData;
 pub(crate) trait LaneField<T: Real>: FreeField<T> + Default {
     /// This suspension's coefficients, if `ff` is of it.
     fn of(ff: &FreeFlight<T>) -> Option<Self>;
+    /// The coefficients as an array (the lanes keep one array of `L` per coefficient, so that
+    /// a round reads each as one vector; unused entries 0).
+    fn to_coefs(&self) -> [T; COEFS];
+    /// From [`LaneField::to_coefs`]'s array.
+    fn from_coefs(c: [T; COEFS]) -> Self;
 }
+
+/// Coefficients a lane holds at most (the pendulum's five).
+const COEFS: usize = 5;
 
 impl<T: Real> LaneField<T> for WiresFree<T> {
     #[inline(always)]
@@ -33,6 +41,26 @@ impl<T: Real> LaneField<T> for WiresFree<T> {
         match ff {
             FreeFlight::Wires(w) => Some(*w),
             FreeFlight::Beam(_) => None,
+        }
+    }
+    #[inline(always)]
+    fn to_coefs(&self) -> [T; COEFS] {
+        [
+            self.length,
+            self.g_over_l,
+            self.damping,
+            self.a0w2_over_l,
+            self.gap,
+        ]
+    }
+    #[inline(always)]
+    fn from_coefs([length, g_over_l, damping, a0w2_over_l, gap]: [T; COEFS]) -> Self {
+        WiresFree {
+            length,
+            g_over_l,
+            damping,
+            a0w2_over_l,
+            gap,
         }
     }
 }
@@ -43,6 +71,19 @@ impl<T: Real> LaneField<T> for BeamFree<T> {
         match ff {
             FreeFlight::Beam(b) => Some(*b),
             FreeFlight::Wires(_) => None,
+        }
+    }
+    #[inline(always)]
+    fn to_coefs(&self) -> [T; COEFS] {
+        [self.k_over_m, self.c_over_m, self.a0w2, self.gap, T::zero()]
+    }
+    #[inline(always)]
+    fn from_coefs([k_over_m, c_over_m, a0w2, gap, _]: [T; COEFS]) -> Self {
+        BeamFree {
+            k_over_m,
+            c_over_m,
+            a0w2,
+            gap,
         }
     }
 }
@@ -119,7 +160,9 @@ pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
     wires: bool,
     /// The damped pendulum: the lanes run the [`Damped`] kernel (else [`Undamped`]).
     damped: bool,
-    coef: [F; L],
+    /// Each lane's coefficients ([`LaneField::to_coefs`]), one array per coefficient.
+    coef: [[T; L]; COEFS],
+    suspension: PhantomData<F>,
     h: [T; L],
     state: States<T, L>,
     /// Step index within the period of each lane.
@@ -162,7 +205,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             eta,
             wires,
             damped,
-            coef: [F::default(); L],
+            coef: [[T::zero(); L]; COEFS],
+            suspension: PhantomData,
             h: [T::zero(); L],
             state: States::new(),
             k: [0; L],
@@ -189,7 +233,9 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         let Some(c) = F::of(&ff) else {
             return false;
         };
-        self.coef[i] = c;
+        for (lanes, v) in self.coef.iter_mut().zip(c.to_coefs()) {
+            lanes[i] = v;
+        }
         self.h[i] = h;
         self.state.set(i, st);
         self.k[i] = self.n() - r;
@@ -284,6 +330,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         let n = self.n();
         let table = self.phases;
         let eta = self.eta;
+        let coef = self.coef;
         let mut state = self.state;
         let mut k = self.k;
         let mut rem = self.rem;
@@ -310,7 +357,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             let mut ok = [0u32; L];
             for i in 0..L {
                 let (nx, exact, near) = free_step::<T, F, SmallTrig, V>(
-                    &self.coef[i],
+                    &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
                     &state.get(i),
                     self.h[i],
                     s_mid[i],
