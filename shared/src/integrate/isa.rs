@@ -8,6 +8,7 @@
 //! Besides, [`Isa::gather`]: a table read in every lane at once where the variant has an
 //! instruction for it.
 
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
 use crate::real::Real;
 
 /// A lane kernel's body with its arguments, run by [`Isa::run`] in the instruction set asked
@@ -21,7 +22,8 @@ pub(crate) trait Kernel {
     fn run<I: Variant>(self) -> Self::Output;
 }
 
-/// The variant a [`Kernel`] is being compiled for, as a type.
+/// The variant a [`Kernel`] is being compiled for, as a type ([`Isa::run`] picks it after
+/// [`Isa::detect`]; nothing else names the types).
 pub(crate) trait Variant {
     /// Its instruction set.
     const ISA: Isa;
@@ -115,14 +117,16 @@ impl Isa {
 
     /// `table[idx[i]]` in every lane `i`, as one gather instruction where this variant has
     /// one for `L` lanes of `T` (AVX-512: 16 `f32`) and every index is in range; `None`
-    /// elsewhere, and the caller reads the lanes one by one. The same values either way.
+    /// elsewhere, and the caller reads the lanes one by one. The same values either way. As
+    /// with [`Isa::run`], the variant must be one the CPU runs ([`Isa::detect`], or the
+    /// [`Variant`] a kernel is compiled for).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[inline(always)]
     pub(crate) fn gather<T: Real, const L: usize, const N: usize>(
         self,
         table: &[T; N],
         idx: &[u32; L],
     ) -> Option<[T; L]> {
-        #[cfg(all(feature = "std", target_arch = "x86_64"))]
         if self == Isa::Avx512 {
             use core::any::Any;
             // Only `f32` in 16 lanes (the types are known at compile time: the casts fold).
@@ -139,7 +143,6 @@ impl Isa {
                 return Some(out);
             }
         }
-        let _ = (table, idx);
         None
     }
 
@@ -247,6 +250,7 @@ mod tests {
         assert_eq!(wide_vectors(), all.len() == 3);
     }
 
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[test]
     fn a_gather_reads_what_the_lanes_read_one_by_one() {
         let table: [f32; 40] = core::array::from_fn(|i| (i as f32).mul_add(0.37, -3.1));
@@ -255,11 +259,7 @@ mod tests {
         for isa in Isa::supported() {
             let got = isa.gather(&table, &idx);
             // Only AVX-512 gathers, and only 16 `f32` lanes.
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            let gathers = isa == Isa::Avx512;
-            #[cfg(not(all(feature = "std", target_arch = "x86_64")))]
-            let gathers = false;
-            assert_eq!(got.is_some(), gathers, "{isa:?}");
+            assert_eq!(got.is_some(), isa == Isa::Avx512, "{isa:?}");
             if let Some(got) = got {
                 assert_eq!(got.map(f32::to_bits), one_by_one.map(f32::to_bits));
             }

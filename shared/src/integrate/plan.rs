@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+#[cfg(all(feature = "std", target_arch = "x86_64"))]
 use super::isa::Isa;
 use crate::error::{ParamError, check_count, check_range};
 use crate::real::Real;
@@ -112,6 +113,7 @@ impl<T: Real> PhaseTable<T> {
     /// past its period's end reads a valid entry): `(sin Ωt at the midpoints, at the ends)`,
     /// read with one gather instruction per array where `isa` has one ([`Isa::gather`]);
     /// `None` where it has not (the caller reads the lanes one by one).
+    #[cfg(all(feature = "std", target_arch = "x86_64"))]
     #[inline(always)]
     pub(crate) fn step_mid_end_gathered<const L: usize>(
         &self,
