@@ -111,17 +111,18 @@ fn stage<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
 
 /// One RK4 step of `h` seconds in free flight from `st`, with `sin Ωt` `s_mid`, `s_end` at
 /// the midpoint and the end: the end state, whether every field evaluation was exact (`G`),
-/// and whether the step comes within `eta` of the surface (then [`super::Simulator::step`]
-/// splits it; module docs). The pendulum's viscous term as `V` has it.
+/// whether a stage or the end came within `eta` of the surface, and whether the step turned
+/// round (then [`peak_near`] tests its peak; [`free_step`] takes both). The pendulum's viscous
+/// term as `V` has it.
 #[inline(always)]
-pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
+pub(crate) fn free_step_parts<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
     c: &F,
     st: &FreeState<T>,
     h: T,
     s_mid: T,
     s_end: T,
     eta: T,
-) -> (FreeState<T>, bool, bool) {
+) -> (FreeState<T>, bool, bool, bool) {
     let neg_eta = -eta;
     let mut touched = false;
     let mut exact = true;
@@ -134,11 +135,9 @@ pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
         |y, s| stage::<T, F, G, V>(c, y, s, neg_eta, &mut touched, &mut exact),
     );
     let (a, d, dd, ok) = c.field::<G, V>(x1[0], x1[1], s_end);
-    let mut near = touched | (d > neg_eta);
+    let near = touched | (d > neg_eta);
     // Turned round inside the step: the peak lies under the two tangent lines.
     let turned = (st.dd > T::zero()) & (dd < T::zero());
-    let t_star = (d - st.d - dd * h) / (st.dd - dd);
-    near |= turned & (st.d + st.dd * t_star > neg_eta);
     let next = FreeState {
         x0: x1[0],
         x1: x1[1],
@@ -146,5 +145,34 @@ pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
         d,
         dd,
     };
-    (next, exact & ok, near)
+    (next, exact & ok, near, turned)
+}
+
+/// Whether the peak of a step that turned round (from `start` to `end`, `h` seconds) lies
+/// above `neg_eta` under the two tangent lines ([`free_step`]'s last test).
+#[inline(always)]
+pub(crate) fn peak_near<T: Real>(
+    start: &FreeState<T>,
+    end: &FreeState<T>,
+    h: T,
+    neg_eta: T,
+) -> bool {
+    let t_star = (end.d - start.d - end.dd * h) / (start.dd - end.dd);
+    start.d + start.dd * t_star > neg_eta
+}
+
+/// [`free_step_parts`] with the peak test: the end state, whether every field evaluation was
+/// exact (`G`), and whether the step comes within `eta` of the surface (then
+/// [`super::Simulator::step`] splits it; module docs).
+#[inline(always)]
+pub(crate) fn free_step<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
+    c: &F,
+    st: &FreeState<T>,
+    h: T,
+    s_mid: T,
+    s_end: T,
+    eta: T,
+) -> (FreeState<T>, bool, bool) {
+    let (next, exact, near, turned) = free_step_parts::<T, F, G, V>(c, st, h, s_mid, s_end, eta);
+    (next, exact, near | (turned & peak_near(st, &next, h, -eta)))
 }

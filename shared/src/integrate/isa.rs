@@ -27,6 +27,10 @@ pub(crate) trait Kernel {
 pub(crate) trait Variant {
     /// Its instruction set.
     const ISA: Isa;
+    /// Whether the free-flight lanes take the peak test (a division) only in the rounds where
+    /// a lane turned round: with AVX-512's mask registers the test costs a branch and saves
+    /// the division's latency; the other variants take it in every round.
+    const SPLIT_PEAK_TEST: bool = false;
 }
 
 /// [`Isa::Portable`] as a [`Variant`].
@@ -52,6 +56,7 @@ pub(crate) struct Avx512Code;
 #[cfg(all(feature = "std", target_arch = "x86_64"))]
 impl Variant for Avx512Code {
     const ISA: Isa = Isa::Avx512;
+    const SPLIT_PEAK_TEST: bool = true;
 }
 
 /// The instruction set a lane kernel runs, narrowest first.

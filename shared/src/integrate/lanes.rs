@@ -13,7 +13,7 @@
 //! the other lanes never wait.
 
 use super::Simulator;
-use super::free::{FreeField, FreeState, SmallTrig, free_step};
+use super::free::{FreeField, FreeState, SmallTrig, free_step, free_step_parts, peak_near};
 use super::isa::{Isa, Kernel, Variant};
 use super::plan::PhaseTable;
 use crate::model::hammer::{BeamFree, Damped, FreeFlight, Undamped, Viscous, WiresFree};
@@ -355,17 +355,45 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             }
             let mut next = States::<T, L>::new();
             let mut ok = [0u32; L];
-            for i in 0..L {
-                let (nx, exact, near) = free_step::<T, F, SmallTrig, V>(
-                    &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
-                    &state.get(i),
-                    self.h[i],
-                    s_mid[i],
-                    s_end[i],
-                    eta,
-                );
-                next.set(i, nx);
-                ok[i] = u32::from(exact & !near);
+            if !I::SPLIT_PEAK_TEST {
+                for i in 0..L {
+                    let (nx, exact, near) = free_step::<T, F, SmallTrig, V>(
+                        &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
+                        &state.get(i),
+                        self.h[i],
+                        s_mid[i],
+                        s_end[i],
+                        eta,
+                    );
+                    next.set(i, nx);
+                    ok[i] = u32::from(exact & !near);
+                }
+            } else {
+                let mut exact = [false; L];
+                let mut near = [false; L];
+                let mut turned = [false; L];
+                for i in 0..L {
+                    let (nx, ex, nr, tn) = free_step_parts::<T, F, SmallTrig, V>(
+                        &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
+                        &state.get(i),
+                        self.h[i],
+                        s_mid[i],
+                        s_end[i],
+                        eta,
+                    );
+                    next.set(i, nx);
+                    (exact[i], near[i], turned[i]) = (ex, nr, tn);
+                }
+                // The peak test (a division) only in the rounds where a lane turned round.
+                if turned.iter().any(|&t| t) {
+                    for i in 0..L {
+                        near[i] |=
+                            turned[i] & peak_near(&state.get(i), &next.get(i), self.h[i], -eta);
+                    }
+                }
+                for i in 0..L {
+                    ok[i] = u32::from(exact[i] & !near[i]);
+                }
             }
             // Branch-free, one array at a time (so that it vectorises too): a running lane
             // takes the step if it may, and stops if it may not or if that step ended its
