@@ -13,7 +13,7 @@
 //! the other lanes never wait.
 
 use super::Simulator;
-use super::free::{FreeField, FreeState, SmallTrig, free_step, free_step_parts, peak_near};
+use super::free::{FreeField, FreeState, SmallTrig, free_step_parts, peak_near};
 use super::isa::{Isa, Kernel, Variant};
 use super::plan::PhaseTable;
 use crate::model::hammer::{BeamFree, Damped, FreeFlight, Undamped, Viscous, WiresFree};
@@ -355,16 +355,22 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             }
             let mut next = States::<T, L>::new();
             let mut ok = [0u32; L];
+            let step = |i: usize| {
+                free_step_parts::<T, F, SmallTrig, V>(
+                    &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
+                    &state.get(i),
+                    self.h[i],
+                    s_mid[i],
+                    s_end[i],
+                    eta,
+                )
+            };
             if !I::SPLIT_PEAK_TEST {
+                // `free_step`, the peak test in every round (lane `i` of several arrays).
+                #[allow(clippy::needless_range_loop)]
                 for i in 0..L {
-                    let (nx, exact, near) = free_step::<T, F, SmallTrig, V>(
-                        &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
-                        &state.get(i),
-                        self.h[i],
-                        s_mid[i],
-                        s_end[i],
-                        eta,
-                    );
+                    let (nx, exact, near, turned) = step(i);
+                    let near = near | (turned & peak_near(&state.get(i), &nx, self.h[i], -eta));
                     next.set(i, nx);
                     ok[i] = u32::from(exact & !near);
                 }
@@ -373,16 +379,9 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
                 let mut near = [false; L];
                 let mut turned = [false; L];
                 for i in 0..L {
-                    let (nx, ex, nr, tn) = free_step_parts::<T, F, SmallTrig, V>(
-                        &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
-                        &state.get(i),
-                        self.h[i],
-                        s_mid[i],
-                        s_end[i],
-                        eta,
-                    );
+                    let nx;
+                    (nx, exact[i], near[i], turned[i]) = step(i);
                     next.set(i, nx);
-                    (exact[i], near[i], turned[i]) = (ex, nr, tn);
                 }
                 // The peak test (a division) only in the rounds where a lane turned round.
                 if turned.iter().any(|&t| t) {
