@@ -220,9 +220,10 @@ fn main() {
         100.0 * g.lanes.switches_ended as f64 / g.lanes.switches_in_lanes.max(1) as f64
     );
     println!(
-        "  near the surface: {:.1} % of {} split trials searched several at once in the near-search lanes",
+        "  near the surface: {:.1} % of {} split trials searched several at once in the near-search lanes; {:.1} % of them taken from a free-flight lane that stopped before the step",
         100.0 * g.lanes.nears_in_lanes as f64 / c.split_trials.max(1) as f64,
-        c.split_trials
+        c.split_trials,
+        100.0 * g.lanes.lane_trials as f64 / c.split_trials.max(1) as f64
     );
     let scalar_steps = c.rk4_steps() - c.lane_steps;
     println!(

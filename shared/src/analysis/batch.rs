@@ -20,6 +20,7 @@ use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 
 use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
+use crate::integrate::free::FreeState;
 use crate::integrate::isa::wide_vectors;
 use crate::integrate::lanes::{LaneField, Lockstep};
 use crate::integrate::near::{NearLanes, NearTrial};
@@ -95,6 +96,9 @@ pub struct LaneStats {
     /// Free-flight trials that came near the surface searched in the near-search lanes,
     /// several at once (the rest, one at a time by the stepper).
     pub nears_in_lanes: u64,
+    /// Free-flight trials that came near the surface taken from a free-flight lane that
+    /// stopped before that step (the lane's step, not computed again).
+    pub lane_trials: u64,
 }
 
 impl core::ops::AddAssign for LaneStats {
@@ -110,6 +114,7 @@ impl core::ops::AddAssign for LaneStats {
         self.switches_in_lanes += o.switches_in_lanes;
         self.switches_ended += o.switches_ended;
         self.nears_in_lanes += o.nears_in_lanes;
+        self.lane_trials += o.lane_trials;
     }
 }
 
@@ -174,6 +179,7 @@ where
         switches_in_lanes: 0,
         switches_ended: 0,
         nears_in_lanes: 0,
+        lane_trials: 0,
         near_since: 0,
     };
     for s in (0..L).rev() {
@@ -319,6 +325,8 @@ struct Driver<'t, T: Real, O, const L: usize, N, F> {
     switches_ended: u64,
     /// Near searches done in the near-search lanes.
     nears_in_lanes: u64,
+    /// Near trials taken from the free-flight lanes.
+    lane_trials: u64,
     /// The free-flight lanes' idle slots ([`idle_slots`]) when the first of the runs waiting
     /// for a near search came.
     near_since: u64,
@@ -350,7 +358,7 @@ where
         for r in 0..RUNS_PER_LANE * L {
             let run = self.run(r);
             run.contact_ok = contact_ok(run.job.as_ref(), &contact);
-            self.settle(r, &mut free, &mut contact, None, true, NONE, NONE);
+            self.settle(r, &mut free, &mut contact, None, true, NONE, NONE, None);
         }
         let mut contact_rounds = 0u64;
         let mut contact_steps = 0u64;
@@ -424,10 +432,13 @@ where
                     if period_end {
                         // The run took its period's last step: the Poincaré section, then on.
                         self.end_step(r, true, &contact);
-                        self.settle(r, &mut free, &mut contact, None, true, s, NONE);
+                        self.settle(r, &mut free, &mut contact, None, true, s, NONE, None);
                     } else {
-                        // Its next step is one the free-flight lanes do not take.
-                        self.settle(r, &mut free, &mut contact, None, false, s, NONE);
+                        // Its next step is one the free-flight lanes do not take: a trial that
+                        // comes near the surface (the lane's, where it was exact) or another.
+                        let trial = free.take_trial(s);
+                        self.lane_trials += u64::from(trial.is_some());
+                        self.settle(r, &mut free, &mut contact, None, false, s, NONE, trial);
                     }
                 }
             }
@@ -451,6 +462,7 @@ where
             switches_in_lanes: self.switches_in_lanes,
             switches_ended: self.switches_ended,
             nears_in_lanes: self.nears_in_lanes,
+            lane_trials: self.lane_trials,
         }
     }
 
@@ -466,7 +478,7 @@ where
     ) {
         let run = &mut self.runs[r / L][r % L];
         let Some(job) = &mut run.job else {
-            self.settle(r, free, contact, None, true, NONE, s);
+            self.settle(r, free, contact, None, true, NONE, s, None);
             return;
         };
         let (c, p) = &mut run.cursor;
@@ -604,12 +616,12 @@ where
     ) {
         if done {
             self.end_step(r, period_end, contact);
-            self.settle(r, free, contact, None, true, NONE, own);
+            self.settle(r, free, contact, None, true, NONE, own, None);
             return;
         }
         let run = &mut self.runs[r / L][r % L];
         let Some(job) = &mut run.job else {
-            self.settle(r, free, contact, None, true, NONE, own);
+            self.settle(r, free, contact, None, true, NONE, own, None);
             return;
         };
         let (c, p) = &mut run.cursor;
@@ -626,7 +638,7 @@ where
             return;
         }
         let c = *c;
-        self.settle(r, free, contact, Some(c), true, NONE, own);
+        self.settle(r, free, contact, Some(c), true, NONE, own, None);
     }
 
     /// Ends the step of run `r` for its protocol; a run that is done is emitted and the next
@@ -662,6 +674,9 @@ where
     /// is done is emitted and the next item takes its place; the place stays idle when the
     /// items are exhausted. `own_free`, `own_contact`: the lanes the run held (`NONE`: none),
     /// kept if it goes on in one of them, else handed to a waiting run or left empty.
+    /// `trial`: the free-flight trial from the step's start that came near the surface, taken
+    /// by a lane that stopped before it (with `cursor` `None` and `may_load` false; it stands
+    /// for the run's first trial).
     #[allow(clippy::too_many_arguments)]
     fn settle<K: LaneContact<T>>(
         &mut self,
@@ -672,6 +687,7 @@ where
         mut may_load: bool,
         own_free: usize,
         own_contact: usize,
+        mut trial: Option<FreeState<T>>,
     ) {
         loop {
             let run = &mut self.runs[r / L][r % L];
@@ -711,7 +727,11 @@ where
                     return;
                 }
                 let mut observe = |smp: &_| period_end |= job.run.sample(smp, &mut job.obs);
-                let done = match job.sim.advance_until_near(&mut c, &mut observe) {
+                let next = match trial.take() {
+                    Some(end) => Err(job.sim.lane_trial(&end)),
+                    None => job.sim.advance_until_near(&mut c, &mut observe),
+                };
+                let done = match next {
                     Ok(done) => done,
                     Err(trial) => {
                         if let Some(lane) = contact.near.push(job.sim.hammer(), &trial) {
@@ -1007,6 +1027,7 @@ mod tests {
                 "{rig:?}: {stats:?}"
             );
             assert!(stats.nears_in_lanes > 0, "{rig:?}: {stats:?}");
+            assert!(stats.lane_trials > 0, "{rig:?}: {stats:?}");
             assert!(
                 stats.contact_ended > stats.contact_steps / 2
                     && stats.contact_ended < stats.contact_steps,

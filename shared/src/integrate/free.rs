@@ -132,6 +132,7 @@ pub(crate) fn free_step_parts<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
         h,
         s_mid,
         s_end,
+        #[inline(always)]
         |y, s| stage::<T, F, G, V>(c, y, s, neg_eta, &mut touched, &mut exact),
     );
     let (a, d, dd, ok) = c.field::<G, V>(x1[0], x1[1], s_end);

@@ -10,7 +10,9 @@
 //! (wires) before an angle outside the short sine polynomial's range `|θ| ≤ 1/8`.
 //! `Lockstep::run` returns as soon as one lane stops; the caller takes that simulator's next
 //! steps with [`Simulator::step`] and loads it (or another simulator) into the lane again, so
-//! the other lanes never wait.
+//! the other lanes never wait. A lane that stopped before a step that came near the surface
+//! hands that step on (`Lockstep::take_trial`), so that the caller's first free-flight trial
+//! is not computed twice.
 
 use super::Simulator;
 use super::free::{FreeField, FreeState, SmallTrig, free_step_parts, peak_near};
@@ -171,6 +173,11 @@ pub(crate) struct Lockstep<'t, T: Real, F, const L: usize> {
     rem: [u32; L],
     /// Steps taken since the lane was loaded.
     taken: [u32; L],
+    /// The lanes that stopped in the last call before a step that came near the surface
+    /// (bit `i`: lane `i`; exact, so the stepper's trial of that step would be the same), and
+    /// that step's end in each (`Lockstep::take_trial`).
+    trials: u32,
+    trial_end: States<T, L>,
     /// Lockstep rounds run, and lane-steps taken in them (`Lockstep::stats`).
     rounds: u64,
     lane_steps: u64,
@@ -212,6 +219,8 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             k: [0; L],
             rem: [0; L],
             taken: [0; L],
+            trials: 0,
+            trial_end: States::new(),
             rounds: 0,
             lane_steps: 0,
             isa: Isa::detect(),
@@ -275,6 +284,19 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
         taken
     }
 
+    /// The end of the step before which lane `i` stopped in the last call, if it stopped because
+    /// that step came near the surface (every field evaluation exact): the step the stepper's
+    /// next free-flight trial would take, bit for bit ([`Simulator::lane_trial`]). Once.
+    #[inline]
+    pub(crate) fn take_trial(&mut self, i: usize) -> Option<FreeState<T>> {
+        let bit = 1u32 << i;
+        if self.trials & bit == 0 {
+            return None;
+        }
+        self.trials &= !bit;
+        Some(self.trial_end.get(i))
+    }
+
     /// Whether any lane is loaded and running.
     #[inline]
     pub(crate) fn any_running(&self) -> bool {
@@ -324,6 +346,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
     fn run_kernel<V: Viscous, I: Variant>(&mut self, max_rounds: u64) -> u32 {
         const { assert!(L <= 32) };
         let mut stopped = 0u32;
+        self.trials = 0;
         if !self.any_running() {
             return stopped;
         }
@@ -355,6 +378,7 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             }
             let mut next = States::<T, L>::new();
             let mut ok = [0u32; L];
+            let mut exact = [false; L];
             let step = |i: usize| {
                 free_step_parts::<T, F, SmallTrig, V>(
                     &F::from_coefs(core::array::from_fn(|f| coef[f][i])),
@@ -369,13 +393,13 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
                 // `free_step`, the peak test in every round (lane `i` of several arrays).
                 #[allow(clippy::needless_range_loop)]
                 for i in 0..L {
-                    let (nx, exact, near, turned) = step(i);
+                    let (nx, ex, near, turned) = step(i);
                     let near = near | (turned & peak_near(&state.get(i), &nx, self.h[i], -eta));
                     next.set(i, nx);
-                    ok[i] = u32::from(exact & !near);
+                    exact[i] = ex;
+                    ok[i] = u32::from(ex & !near);
                 }
             } else {
-                let mut exact = [false; L];
                 let mut near = [false; L];
                 let mut turned = [false; L];
                 for i in 0..L {
@@ -416,8 +440,16 @@ impl<'t, T: Real, F: LaneField<T>, const L: usize> Lockstep<'t, T, F, L> {
             }
             rounds += 1;
             if any_stop != 0 {
-                for (i, &st) in stop.iter().enumerate() {
-                    stopped |= st << i;
+                // A lane that stopped without its step, though exact there, stopped because the
+                // step came near the surface: its end goes to the caller.
+                let mut trials = 0u32;
+                for i in 0..L {
+                    stopped |= stop[i] << i;
+                    trials |= (stop[i] & (go[i] ^ 1) & u32::from(exact[i])) << i;
+                }
+                if trials != 0 {
+                    self.trials = trials;
+                    self.trial_end = next;
                 }
                 break;
             }

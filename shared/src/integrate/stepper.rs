@@ -946,20 +946,28 @@ impl<'t, T: Real> Simulator<'t, T> {
     ) -> Result<(Vector2<T>, FieldEval<T>), NearTrial<T>> {
         let hammer = self.hammer;
         let eta = hammer.eta_delta();
-        let (x0, start) = (self.state.x, self.state.at_x);
         let st = self.free_state();
         // A plain update (the carry is left for the next compensated one): the increment of a
         // free-flight step is a tenth of the state, not small enough for compensation to pay,
         // and the lockstep lanes take the same steps without carrying a second state.
         let c = hammer.free_flight();
         let (next, _, near) = free_step::<T, _, FullTrig, AsSet>(&c, &st, rest, s_mid, s_end, eta);
-        self.state.counts.free_trials += 1;
-        let (x1, end) = clear_of_surface(&next);
         if !near {
-            return Ok((x1, end));
+            self.state.counts.free_trials += 1;
+            return Ok(clear_of_surface(&next));
         }
+        Err(self.split_trial(rest, &next))
+    }
+
+    /// The free-flight trial of `rest` s from the current state that ended at `next` and came
+    /// near the surface, counted as a split trial.
+    #[inline(always)]
+    fn split_trial(&mut self, rest: T, next: &FreeState<T>) -> NearTrial<T> {
+        let (x0, start) = (self.state.x, self.state.at_x);
+        let (x1, end) = clear_of_surface(next);
+        self.state.counts.free_trials += 1;
         self.state.counts.split_trials += 1;
-        Err(NearTrial {
+        NearTrial {
             dense: DenseStep {
                 x0,
                 f0: start.dx,
@@ -968,8 +976,18 @@ impl<'t, T: Real> Simulator<'t, T> {
                 h: rest,
             },
             start_delta: start.delta,
-            eta,
-        })
+            eta: self.hammer.eta_delta(),
+        }
+    }
+
+    /// The trial [`Simulator::advance_until_near`] would take first from the step's start
+    /// ([`Simulator::begin_step`]; the hammer clear of the surface), given its end `next` from
+    /// a lockstep lane that stopped before it because it came near the surface
+    /// (`Lockstep::take_trial`: the same step bit for bit): counted as that trial is.
+    #[inline(always)]
+    pub(crate) fn lane_trial(&mut self, next: &FreeState<T>) -> NearTrial<T> {
+        debug_assert!(self.clear());
+        self.split_trial(self.plan.h, next)
     }
 
     /// One free-flight RK4 step of `len` seconds from `offset` (s into the current step).
