@@ -72,14 +72,49 @@ impl<T: Real> SectionHistory<T> {
     ) -> Option<usize> {
         // `back` with the slice and the newest index looked up once.
         let (points, recent) = (self.buf.as_slice(), self.buf.recent_index()?);
+        let far = FarBound::new(tol, u_scale, v_scale);
         smallest_period(
             max_q,
             |q| Some((cycles + 1) * q).filter(|&need| need <= points.len()),
             |a, b| match (nth_back(points, recent, a), nth_back(points, recent, b)) {
-                (Some(a), Some(b)) => a.distance(b, u_scale, v_scale) <= tol,
+                (Some(a), Some(b)) => !far.beyond(a, b) && a.distance(b, u_scale, v_scale) <= tol,
                 _ => false,
             },
         )
+    }
+}
+
+/// A bound past which two points are certainly farther apart than `tol`
+/// ([`StroboPoint::distance`]) without its divisions: most pairs the steady-state test
+/// compares are, and a multiplication decides them; the others go through `distance` itself, so
+/// every decision is `distance`'s, bit for bit.
+#[derive(Clone, Copy)]
+struct FarBound<T> {
+    /// `|Δu|` and `|Δu̇|` above which the scaled distance exceeds `tol` (`None`: no bound, for
+    /// scales that are not positive and finite).
+    du_dv: Option<(T, T)>,
+}
+
+impl<T: Real> FarBound<T> {
+    #[inline(always)]
+    fn new(tol: T, u_scale: T, v_scale: T) -> Self {
+        // `fl(tol·s)·(1 + 2⁻²⁰)` exceeds `tol·s·(1 + 13 ε)` in f32 (ε = 2⁻²⁴; more in f64), so a
+        // difference above it gives `fl(Δ/s) ≥ (Δ/s)(1 − ε) > tol`.
+        let margin = T::from_f64(1.0 + 1.0 / 1_048_576.0);
+        let positive = |s: T| s > T::zero() && s.is_finite();
+        let du_dv = (positive(u_scale) && positive(v_scale))
+            .then(|| (tol * u_scale * margin, tol * v_scale * margin));
+        FarBound { du_dv }
+    }
+
+    /// Whether `a` and `b` are certainly farther apart than `tol` (false: perhaps not; a NaN
+    /// difference is never beyond).
+    #[inline(always)]
+    fn beyond(&self, a: &StroboPoint<T>, b: &StroboPoint<T>) -> bool {
+        match self.du_dv {
+            Some((bu, bv)) => ((a.u - b.u).abs() > bu) | ((a.du - b.du).abs() > bv),
+            None => false,
+        }
     }
 }
 
@@ -96,6 +131,76 @@ fn nth_back<P>(points: &[P], recent: usize, j: usize) -> Option<&P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Differences ulp by ulp around `tol·scale` (where `distance` turns) and around the bound
+    /// (where `beyond` turns), over tolerances and scales of several magnitudes: a pair the
+    /// bound calls far is farther than `tol` by `distance` itself, and pairs farther by 1e-5
+    /// relative are called far.
+    fn far_bound_agrees_with_distance<T: Real>(ulps: impl Fn(T, i64) -> T) {
+        let zero = StroboPoint {
+            u: T::zero(),
+            du: T::zero(),
+        };
+        let mut far_seen = 0;
+        for tol in [1e-4, 1e-3, 3.7e-2] {
+            for (su, sv) in [(1.0e-3, 2.0e-2), (3.3e-3, 7.1e-1), (1.0, 1.0)] {
+                let (tol, su, sv) = (T::from_f64(tol), T::from_f64(su), T::from_f64(sv));
+                let far = FarBound::new(tol, su, sv);
+                let Some((bu, bv)) = far.du_dv else {
+                    panic!("positive scales have a bound");
+                };
+                for (scale, bound, on_u) in [(su, bu, true), (sv, bv, false)] {
+                    for centre in [tol * scale, bound] {
+                        for k in -300..=300 {
+                            let d = ulps(centre, k);
+                            let b = if on_u {
+                                StroboPoint {
+                                    u: d,
+                                    du: T::zero(),
+                                }
+                            } else {
+                                StroboPoint {
+                                    u: T::zero(),
+                                    du: d,
+                                }
+                            };
+                            let exact_far = !(zero.distance(&b, su, sv) <= tol);
+                            if far.beyond(&zero, &b) {
+                                assert!(exact_far, "tol {tol:?} scale {scale:?} Δ {d:?}");
+                                far_seen += 1;
+                            }
+                        }
+                    }
+                    let clearly = tol * scale * T::from_f64(1.0 + 1e-5);
+                    assert!(far.beyond(
+                        &zero,
+                        &StroboPoint {
+                            u: clearly,
+                            du: clearly
+                        }
+                    ));
+                }
+            }
+        }
+        assert!(far_seen > 0);
+        // No bound for scales that are not positive: `distance` decides.
+        let none = FarBound::new(T::from_f64(1e-3), T::zero(), T::from_f64(1.0));
+        let p = StroboPoint {
+            u: T::from_f64(1.0),
+            du: T::from_f64(1.0),
+        };
+        assert!(!none.beyond(&p, &zero));
+    }
+
+    #[test]
+    fn the_far_bound_only_decides_what_distance_decides() {
+        far_bound_agrees_with_distance::<f32>(|x, k| {
+            f32::from_bits(x.to_bits().wrapping_add_signed(k as i32))
+        });
+        far_bound_agrees_with_distance::<f64>(|x, k| {
+            f64::from_bits(x.to_bits().wrapping_add_signed(k))
+        });
+    }
 
     #[test]
     fn finds_the_smallest_repeating_period() {
