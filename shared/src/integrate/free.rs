@@ -25,6 +25,10 @@ pub(crate) struct FreeState<T> {
 
 /// Which `(sin θ, cos θ)` the wire pendulum's field takes, and whether it is exact there.
 pub(crate) trait Trig {
+    /// Whether a step's RK4 stages are inlined by force on the host: the stepper's steps one at
+    /// a time, whose stages the compiler otherwise leaves as calls (the lanes inline theirs,
+    /// and forcing it there changes their vector code for the worse).
+    const INLINE_STAGES: bool;
     /// `(sin x, cos x, exact)`.
     fn sin_cos<T: Real>(x: T) -> (T, T, bool);
 }
@@ -33,6 +37,8 @@ pub(crate) trait Trig {
 pub(crate) struct FullTrig;
 
 impl Trig for FullTrig {
+    // (The MCU keeps one copy of a stage for flash: `stage`.)
+    const INLINE_STAGES: bool = cfg!(feature = "std");
     #[inline(always)]
     fn sin_cos<T: Real>(x: T) -> (T, T, bool) {
         let (s, c) = x.sin_cos();
@@ -45,6 +51,7 @@ impl Trig for FullTrig {
 pub(crate) struct SmallTrig;
 
 impl Trig for SmallTrig {
+    const INLINE_STAGES: bool = false;
     #[inline(always)]
     fn sin_cos<T: Real>(x: T) -> (T, T, bool) {
         let (s, c) = x.sin_cos_small();
@@ -126,15 +133,22 @@ pub(crate) fn free_step_parts<T: Real, F: FreeField<T>, G: Trig, V: Viscous>(
     let neg_eta = -eta;
     let mut touched = false;
     let mut exact = true;
-    let x1 = rk4_step(
-        &Vector2::new(st.x0, st.x1),
-        &Vector2::new(st.x1, st.a),
-        h,
-        s_mid,
-        s_end,
-        #[inline(always)]
-        |y, s| stage::<T, F, G, V>(c, y, s, neg_eta, &mut touched, &mut exact),
-    );
+    let (x, k1) = (Vector2::new(st.x0, st.x1), Vector2::new(st.x1, st.a));
+    let x1 = if G::INLINE_STAGES {
+        rk4_step(
+            &x,
+            &k1,
+            h,
+            s_mid,
+            s_end,
+            #[inline(always)]
+            |y, s| stage::<T, F, G, V>(c, y, s, neg_eta, &mut touched, &mut exact),
+        )
+    } else {
+        rk4_step(&x, &k1, h, s_mid, s_end, |y, s| {
+            stage::<T, F, G, V>(c, y, s, neg_eta, &mut touched, &mut exact)
+        })
+    };
     let (a, d, dd, ok) = c.field::<G, V>(x1[0], x1[1], s_end);
     let near = touched | (d > neg_eta);
     // Turned round inside the step: the peak lies under the two tangent lines.

@@ -87,7 +87,8 @@ impl<T: Real> SectionHistory<T> {
 /// A bound past which two points are certainly farther apart than `tol`
 /// ([`StroboPoint::distance`]) without its divisions: most pairs the steady-state test
 /// compares are, and a multiplication decides them; the others go through `distance` itself, so
-/// every decision is `distance`'s, bit for bit.
+/// every decision is `distance`'s, bit for bit. (Host only: without the `std` feature there is
+/// no bound.)
 #[derive(Clone, Copy)]
 struct FarBound<T> {
     /// `|Δu|` and `|Δu̇|` above which the scaled distance exceeds `tol` (`None`: no bound, for
@@ -102,7 +103,8 @@ impl<T: Real> FarBound<T> {
         // difference above it gives `fl(Δ/s) ≥ (Δ/s)(1 − ε) > tol`.
         let margin = T::from_f64(1.0 + 1.0 / 1_048_576.0);
         let positive = |s: T| s > T::zero() && s.is_finite();
-        let du_dv = (positive(u_scale) && positive(v_scale))
+        // On the host only: the MCU keeps its flash (its section test runs once a period).
+        let du_dv = (cfg!(feature = "std") && positive(u_scale) && positive(v_scale))
             .then(|| (tol * u_scale * margin, tol * v_scale * margin));
         FarBound { du_dv }
     }
@@ -136,6 +138,7 @@ mod tests {
     /// (where `beyond` turns), over tolerances and scales of several magnitudes: a pair the
     /// bound calls far is farther than `tol` by `distance` itself, and pairs farther by 1e-5
     /// relative are called far.
+    #[cfg(feature = "std")]
     fn far_bound_agrees_with_distance<T: Real>(ulps: impl Fn(T, i64) -> T) {
         let zero = StroboPoint {
             u: T::zero(),
@@ -194,6 +197,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "std")]
     fn the_far_bound_only_decides_what_distance_decides() {
         far_bound_agrees_with_distance::<f32>(|x, k| {
             f32::from_bits(x.to_bits().wrapping_add_signed(k as i32))
