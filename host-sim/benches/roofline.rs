@@ -9,8 +9,9 @@
 //!    kernel calls only. Lane-steps per second per core.
 //! 2. **Grid**: every 49th gap of the thesis grid (gap 0.00–2.94 mm × 1.00–7.11 Hz: 4,284
 //!    points, the grid of the instruction count in docs/performance.md) through the same
-//!    batched, interleaved evaluation as `host-sim peterka`
-//!    (`shared::analysis::run_interleaved_native` in the batches `host_sim::runner::guided` takes),
+//!    streamed, interleaved evaluation as `host-sim peterka` on one core
+//!    (`shared::analysis::run_interleaved_native` over every point, as
+//!    `host_sim::grid::run_streamed` runs it on each core),
 //!    on one core. RK4 steps per second per core, by kind ([`shared::integrate::StepCounts`]), and
 //!    the lanes' occupancy.
 //! 3. **Efficiency** = grid RK4 steps/s ÷ kernel lane-steps/s, and the grid's time split into
@@ -33,8 +34,6 @@ use shared::integrate::lanes::free_flight;
 use shared::integrate::{PhaseTable, Simulator, StepCounts};
 use shared::model::RigId;
 use shared::observe::ProtocolRun;
-
-use host_sim::runner::guided;
 
 /// Whole free-flight lane-steps per second per core, and seconds per lockstep round, with every
 /// lane busy.
@@ -88,36 +87,22 @@ fn grid() -> Grid {
             (0..612).map(move |j| (f64::from(i) * 1e-5, (1.0 + f64::from(j) * 0.01) / fn_hz))
         })
         .collect();
-    // One core: the batches `host-sim peterka` takes there.
-    let one_core = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("a one-thread pool");
+    // One core: `host-sim peterka` streams every point through one interleaved evaluation per
+    // core (`host_sim::grid::run_streamed`).
     let t = Instant::now();
-    let batches = one_core.install(|| {
-        guided(&points, |batch| {
-            let mut counts = StepCounts::default();
-            let lanes = run_interleaved_native::<f32, (), _, _, _>(
-                batch.iter().copied(),
-                |(gap_m, ratio)| {
-                    let sim = simulator_at::<f32>(&p, gap_m, ratio, &s, &phases)?;
-                    let run = ProtocolRun::new(&sim, &s.protocol, p.weight_n())?;
-                    Ok((sim, run, ()))
-                },
-                |_, r| {
-                    let (_, (), sim) = r.expect("valid point");
-                    counts += sim.counts();
-                },
-            );
-            (counts, lanes)
-        })
-    });
     let mut counts = StepCounts::default();
-    let mut lanes = LaneStats::default();
-    for (c, l) in batches {
-        counts += c;
-        lanes += l;
-    }
+    let lanes = run_interleaved_native::<f32, (), _, _, _>(
+        points.iter().copied(),
+        |(gap_m, ratio)| {
+            let sim = simulator_at::<f32>(&p, gap_m, ratio, &s, &phases)?;
+            let run = ProtocolRun::new(&sim, &s.protocol, p.weight_n())?;
+            Ok((sim, run, ()))
+        },
+        |_, r| {
+            let (_, (), sim) = r.expect("valid point");
+            counts += sim.counts();
+        },
+    );
     Grid {
         wall: t.elapsed().as_secs_f64(),
         counts,

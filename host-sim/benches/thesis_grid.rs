@@ -2,9 +2,9 @@
 //! criterion bench: one run of each workload is long enough to time).
 //!
 //! 1. The thesis' Peterka grid (wire rig, gap 0.00–3.42 mm × 1.00–7.11 Hz, steps 0.01:
-//!    209,916 points, canonical protocol, f32) through the same chunked, batched,
-//!    interleaved, rayon-parallel evaluation as `host-sim peterka`
-//!    (`host_sim::grid::run_chunked`): wall time, points/s, µs per point, where the time goes
+//!    209,916 points, canonical protocol, f32) through the same streamed,
+//!    interleaved, parallel evaluation as `host-sim peterka`
+//!    (`host_sim::grid::run_streamed`): wall time, points/s, µs per point, where the time goes
 //!    (transient lengths, RK4 steps in whole steps vs contact sub-steps), and the peak RSS of
 //!    the process.
 //! 2. A 200 × 200 basin of attraction through the library path of `host-sim basins` (CSV + PNG
@@ -28,7 +28,7 @@ use host_sim::grid::basins::{self, Attractors, Basins, BasinsGrid, ColorBy};
 use host_sim::grid::fractions::{Fractions, FractionsGrid, Parameter, StartBox};
 use host_sim::grid::{self, CountSweep, Figures};
 use host_sim::output::Outputs;
-use host_sim::runner::{OperatingPoint, evaluate_batch};
+use host_sim::runner::{OperatingPoint, evaluate_keyed};
 
 fn peak_rss_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -56,13 +56,12 @@ fn main() {
         .collect();
     let t = Instant::now();
     let mut results: Vec<PointResult> = Vec::with_capacity(points.len());
-    grid::run_chunked(
+    grid::run_streamed(
         0..points.len(),
         points.len(),
         "",
-        |batch| {
-            let at: Vec<OperatingPoint> = batch.iter().map(|&i| points[i]).collect();
-            evaluate_batch(&setup, &at)
+        &|source: &mut dyn Iterator<Item = usize>, emit: &mut dyn FnMut(usize, _)| {
+            evaluate_keyed(&setup, source.map(|i| (i, points[i])), emit)
         },
         |_, r| {
             results.push(r);
@@ -157,9 +156,13 @@ fn main() {
         boundaries: None,
         attractors: None,
     };
-    grid::run::<Basins, _>(&mut outputs, &meta, &out, figures, |batch| {
-        basins::rows(&setup, &grid, &catalogue, batch)
-    })
+    grid::run::<Basins, _>(
+        &mut outputs,
+        &meta,
+        &out,
+        figures,
+        grid::batches(|batch| basins::rows(&setup, &grid, &catalogue, batch)),
+    )
     .expect("basins run");
     outputs.commit().expect("outputs");
     println!(
@@ -200,9 +203,13 @@ fn main() {
         boundaries: None,
         attractors: None,
     };
-    grid::run::<Fractions, _>(&mut outputs, &meta, &out, figures, |batch| {
-        grid.rows(&beam, &catalogues, batch)
-    })
+    grid::run::<Fractions, _>(
+        &mut outputs,
+        &meta,
+        &out,
+        figures,
+        grid::batches(|batch| grid.rows(&beam, &catalogues, batch)),
+    )
     .expect("fractions run");
     outputs.commit().expect("outputs");
     let s = t.elapsed().as_secs_f64();

@@ -11,6 +11,8 @@ use shared::analysis::evaluate_interleaved_native;
 use shared::error::ParamError;
 use shared::observe::{Observer, PointResult, StroboPoint};
 use shared::orbit::{Label, LabelSettings, MapPoint, label};
+use std::cell::RefCell;
+use std::collections::HashMap;
 use std::sync::{Mutex, PoisonError};
 
 use crate::config::Setup;
@@ -76,40 +78,58 @@ pub fn in_order<R>(
         .collect()
 }
 
-/// Runs the canonical protocol at every point of `points` on the calling thread,
-/// [`shared::analysis::lanes_per_core`] interleaved, in `T`, and ends each run with
-/// `finish(result, x_end)` (`x_end`: the state it ended on); results in order, an error naming
-/// its point.
-fn interleaved<T: Real, R>(
+/// Runs the canonical protocol at every point `points` yields (with a key) on the calling
+/// thread, [`shared::analysis::lanes_per_core`] interleaved, in `T`, taken as the lanes free up,
+/// and ends each run with `finish(point, result, x_end)` (`x_end`: the state it ended on):
+/// `emit(key, result)` as soon as a point is done (so not in order), an error naming its
+/// point. `points` may end for a while (`None`) and go on later: a place left idle is filled
+/// when a run ends after it goes on.
+fn interleaved_keyed<T: Real, K: Copy, R>(
     setup: &Setup,
-    points: &[OperatingPoint],
+    points: impl Iterator<Item = (K, OperatingPoint)>,
     mut finish: impl FnMut(&OperatingPoint, PointResult, Vector2<T>) -> Result<R, ParamError>,
-) -> Vec<Result<R>> {
-    in_order(points.len(), |emit| {
-        evaluate_interleaved_native::<T, _, _>(
-            &setup.params,
-            &setup.settings,
-            points.iter().map(|p| (p.gap_m, p.omega_ratio)),
-            |i, r| {
-                let p = points[i];
-                let finished = r.and_then(|(result, x)| finish(&p, result, x));
-                emit(
-                    i,
-                    finished.map_err(|e| {
-                        anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)
-                    }),
-                );
-            },
+    emit: &mut dyn FnMut(K, Result<R>),
+) {
+    // The points in flight by their place in the sequence (`run_interleaved` emits places).
+    let in_flight: RefCell<HashMap<usize, (K, OperatingPoint)>> = RefCell::default();
+    let mut taken = 0usize;
+    let items = points.map(|(key, p)| {
+        in_flight.borrow_mut().insert(taken, (key, p));
+        taken += 1;
+        (p.gap_m, p.omega_ratio)
+    });
+    evaluate_interleaved_native::<T, _, _>(&setup.params, &setup.settings, items, |i, r| {
+        let Some((key, p)) = in_flight.borrow_mut().remove(&i) else {
+            return;
+        };
+        let finished = r.and_then(|(result, x)| finish(&p, result, x));
+        emit(
+            key,
+            finished
+                .map_err(|e| anyhow!("gap {:.4} mm, Ω/ω {:.4}: {e}", p.gap_m * 1e3, p.omega_ratio)),
         );
-    })
+    });
 }
 
 /// Runs the canonical protocol at every point of `points` on the calling thread,
 /// [`shared::analysis::lanes_per_core`] interleaved, in the setup's precision; results in
 /// order, identical to one-at-a-time [`shared::analysis::evaluate_point`].
 pub fn evaluate_batch(setup: &Setup, points: &[OperatingPoint]) -> Vec<Result<PointResult>> {
+    in_order(points.len(), |emit| {
+        evaluate_keyed(setup, points.iter().copied().enumerate(), emit);
+    })
+}
+
+/// [`evaluate_batch`] over the keyed points `points` yields, taken as the lanes free up
+/// (`points` may end for a while and go on later): `emit(key, result)` as each is done, not in
+/// order, an error naming its point.
+pub fn evaluate_keyed<K: Copy>(
+    setup: &Setup,
+    points: impl Iterator<Item = (K, OperatingPoint)>,
+    emit: &mut dyn FnMut(K, Result<PointResult>),
+) {
     crate::with_precision!(setup.precision, T => {
-        interleaved::<T, _>(setup, points, |_, result, _| Ok(result))
+        interleaved_keyed::<T, K, _>(setup, points, |_, result, _| Ok(result), emit)
     })
 }
 
@@ -172,16 +192,33 @@ pub fn evaluate_batch_labelled(
     points: &[OperatingPoint],
     settings: &LabelSettings,
 ) -> Vec<Result<(PointResult, Label)>> {
+    in_order(points.len(), |emit| {
+        evaluate_keyed_labelled(setup, points.iter().copied().enumerate(), settings, emit);
+    })
+}
+
+/// [`evaluate_batch_labelled`] over the keyed points `points` yields, as [`evaluate_keyed`].
+pub fn evaluate_keyed_labelled<K: Copy>(
+    setup: &Setup,
+    points: impl Iterator<Item = (K, OperatingPoint)>,
+    settings: &LabelSettings,
+    emit: &mut dyn FnMut(K, Result<(PointResult, Label)>),
+) {
     crate::with_precision!(setup.precision, T => {
-        interleaved::<T, _>(setup, points, |p, result, x| {
-            let at = MapPoint {
-                params: setup.params,
-                settings: setup.settings,
-                gap_m: p.gap_m,
-                omega_ratio: p.omega_ratio,
-            };
-            label::<T>(&at, &result, x, settings).map(|l| (result, l))
-        })
+        interleaved_keyed::<T, K, _>(
+            setup,
+            points,
+            |p, result, x| {
+                let at = MapPoint {
+                    params: setup.params,
+                    settings: setup.settings,
+                    gap_m: p.gap_m,
+                    omega_ratio: p.omega_ratio,
+                };
+                label::<T>(&at, &result, x, settings).map(|l| (result, l))
+            },
+            emit,
+        )
     })
 }
 

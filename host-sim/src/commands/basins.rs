@@ -99,7 +99,11 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         Attractors::scales(&setup.params, grid.omega_ratio),
         attractor_tol,
     );
-    grid::from_rest::<Basins, _>(&setup, &grid, grid.points(), dest, |b| {
-        basins::rows(&setup, &grid, &catalogue, b)
-    })
+    grid::from_rest::<Basins, _>(
+        &setup,
+        &grid,
+        grid.points(),
+        dest,
+        grid::batches(|b| basins::rows(&setup, &grid, &catalogue, b)),
+    )
 }

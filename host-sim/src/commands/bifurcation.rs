@@ -71,7 +71,9 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
                 meta,
                 out,
                 f,
-                per_point(|i| bifurcation::from_rest(&setup, gap_m, &sweep, i, !a.no_lyapunov)),
+                grid::batches(per_point(|i| {
+                    bifurcation::from_rest(&setup, gap_m, &sweep, i, !a.no_lyapunov)
+                })),
             ),
         }
     })

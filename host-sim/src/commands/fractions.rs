@@ -195,7 +195,11 @@ pub fn run(a: &FractionsArgs) -> Result<()> {
         );
     }
     let catalogues = grid.catalogues(&setup);
-    grid::from_rest::<Fractions, _>(&setup, &grid, total, dest, |b| {
-        grid.rows(&setup, &catalogues, b)
-    })
+    grid::from_rest::<Fractions, _>(
+        &setup,
+        &grid,
+        total,
+        dest,
+        grid::batches(|b| grid.rows(&setup, &catalogues, b)),
+    )
 }

@@ -114,7 +114,11 @@ pub fn run(a: &PeterkaArgs) -> Result<()> {
     let dest = a
         .output
         .destination(a.force_plot.as_deref(), a.boundaries_out.as_deref())?;
-    grid::from_rest::<Peterka, _>(&setup, &grid, grid.points(), dest, |b| {
-        peterka::rows(&setup, &grid, b)
-    })
+    grid::from_rest::<Peterka, _>(
+        &setup,
+        &grid,
+        grid.points(),
+        dest,
+        grid::streamed(|source, emit| peterka::rows(&setup, &grid, source, emit)),
+    )
 }

@@ -1,9 +1,12 @@
-//! Long grid runs with flat memory: the points of a grid (or of one shard of it) are taken in
-//! chunks of [`CHUNK`] in ascending index order; each chunk is evaluated in parallel (rayon, all
-//! cores or `RAYON_NUM_THREADS`) and its results are handed to a sink in index order, so the
-//! sink can stream CSV rows to disk and nothing grows with the grid. A progress bar with rate and
-//! ETA is drawn on a terminal (nothing when stderr is not a terminal). Ctrl-C stops the run after
-//! the current chunk with [`Interrupted`](crate::interrupt::Interrupted).
+//! Long grid runs with flat memory: the points of a grid (or of one shard of it) are evaluated
+//! in parallel (all cores or `RAYON_NUM_THREADS`) and their results are handed to a sink in
+//! index order, so the sink can stream CSV rows to disk and nothing grows with the grid. Grids
+//! whose points are independent (the Peterka map) stream them through every core's interleaved
+//! lanes ([`run_streamed`]: at most [`stream::WINDOW`] points ahead of the rows written); the
+//! others take them in chunks of [`CHUNK`] in ascending index order, each chunk in batches
+//! ([`run_chunked`]). A progress bar with rate and ETA is drawn on a terminal (nothing when
+//! stderr is not a terminal). Ctrl-C stops the run, after the runs in flight or the current
+//! chunk, with [`Interrupted`](crate::interrupt::Interrupted).
 
 use anyhow::{Context, Result, anyhow, bail};
 use serde::de::DeserializeOwned;
@@ -22,6 +25,9 @@ pub mod bifurcation;
 pub mod fractions;
 pub mod peterka;
 pub mod raster;
+pub mod stream;
+
+pub use stream::{Batches, GridCompute, Streamed, batches, run_streamed, streamed};
 
 /// Points evaluated per parallel chunk.
 pub const CHUNK: usize = 16384;
@@ -84,16 +90,16 @@ pub fn per_point<R>(
 }
 
 /// Writes the rows of a from-rest grid run to the CSV `path`: the points of `meta.shard` (or
-/// all), `compute(batch)` giving the rows of each point of `batch`, in index order. A shard file
-/// starts with its metadata line; a whole-grid file is a plain CSV.
+/// all), `compute` giving the rows of each point ([`GridCompute`]: in batches or streamed), in
+/// index order. A shard file starts with its metadata line; a whole-grid file is a plain CSV.
 ///
 /// # Errors
-/// As [`run_chunked`], or I/O failure.
+/// As [`GridCompute::evaluate`], or I/O failure.
 pub fn write_grid<I>(
     path: &Path,
     meta: &Meta,
     what: &str,
-    compute: impl Fn(&[usize]) -> Vec<Result<I>> + Sync,
+    compute: impl GridCompute<I>,
 ) -> Result<()>
 where
     I: IntoIterator + Send,
@@ -102,18 +108,12 @@ where
     let total = usize::try_from(meta.points).context("grid too large for this platform")?;
     let shard = meta.shard.unwrap_or(Shard::WHOLE);
     let mut w = create_csv::<I::Item>(path, meta.shard.is_some().then_some(meta))?;
-    run_chunked(
-        shard.indices(total),
-        shard.len(total),
-        what,
-        compute,
-        |_, rows| {
-            for r in rows {
-                w.serialize(r)?;
-            }
-            Ok(())
-        },
-    )?;
+    compute.evaluate(shard.indices(total), shard.len(total), what, |_, rows| {
+        for r in rows {
+            w.serialize(r)?;
+        }
+        Ok(())
+    })?;
     w.flush()?;
     Ok(())
 }
@@ -222,8 +222,8 @@ pub fn complete<K: GridFigures>(
 }
 
 /// A from-rest grid run of kind `K` into `out` (a reserved file): the shard file of
-/// `meta.shard`, or the complete outputs ([`complete`]); `compute(batch)` gives the rows of each
-/// point of `batch` ([`write_grid`]).
+/// `meta.shard`, or the complete outputs ([`complete`]); `compute` gives the rows of each
+/// point ([`write_grid`]).
 ///
 /// # Errors
 /// As [`write_grid`] and [`GridKind::finish`].
@@ -232,7 +232,7 @@ pub fn run<K: GridFigures, I>(
     meta: &Meta,
     out: &Path,
     figures: Figures<'_>,
-    compute: impl Fn(&[usize]) -> Vec<Result<I>> + Sync,
+    compute: impl GridCompute<I>,
 ) -> Result<()>
 where
     I: IntoIterator<Item = K::Row> + Send,
@@ -307,8 +307,8 @@ pub fn command<K: GridKind>(
     Ok(())
 }
 
-/// A from-rest grid command ([`command`] with [`run`]): `compute(batch)` gives the rows of
-/// each point of `batch`.
+/// A from-rest grid command ([`command`] with [`run`]): `compute` gives the rows of each
+/// point ([`GridCompute`]).
 ///
 /// # Errors
 /// As [`command`] and [`run`].
@@ -317,7 +317,7 @@ pub fn from_rest<K: GridFigures, I>(
     grid: &K::Grid,
     points: u64,
     dest: Destination<'_>,
-    compute: impl Fn(&[usize]) -> Vec<Result<I>> + Sync,
+    compute: impl GridCompute<I>,
 ) -> Result<()>
 where
     I: IntoIterator<Item = K::Row> + Send,

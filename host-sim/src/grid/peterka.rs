@@ -14,7 +14,7 @@ use super::{Finish, GridKind};
 use crate::config::Setup;
 use crate::orbits::{CurveOut, boundary_curves, curve_rows};
 use crate::output::write_csv;
-use crate::runner::{OperatingPoint, evaluate_batch, evaluate_batch_labelled};
+use crate::runner::{OperatingPoint, evaluate_keyed, evaluate_keyed_labelled};
 use crate::shard::{Indexed, Kind, Meta, open_csv};
 
 /// Largest Peterka grid, points.
@@ -123,52 +123,32 @@ impl Indexed for PeterkaRow {
     }
 }
 
-/// The rows of the points `batch` (indices of `grid`), evaluated on the calling thread.
-pub fn rows(setup: &Setup, grid: &PeterkaGrid, batch: &[usize]) -> Vec<Result<[PeterkaRow; 1]>> {
+/// The rows of the points `source` gives (indices of `grid`), evaluated on the calling thread
+/// as its lanes free up ([`super::streamed`]): `emit(index, row)` as each is done.
+pub fn rows(
+    setup: &Setup,
+    grid: &PeterkaGrid,
+    source: &mut dyn Iterator<Item = usize>,
+    emit: &mut dyn FnMut(usize, Result<[PeterkaRow; 1]>),
+) {
     let a0_mm = setup.params.amplitude_m * 1e3;
     let fn_hz = setup.params.natural_freq_hz();
     let at = |i: usize| {
         let (ig, jf) = grid.split(i);
         (grid.gap(ig, a0_mm), grid.freq(jf, fn_hz))
     };
-    let points: Vec<OperatingPoint> = batch
-        .iter()
-        .map(|&i| {
-            let ((gap_mm, _), (omega_ratio, _)) = at(i);
-            OperatingPoint {
-                gap_m: gap_mm * 1e-3,
-                omega_ratio,
-            }
-        })
-        .collect();
-    let results: Vec<Result<(PointResult, Option<f64>)>> = if grid.lyapunov {
-        evaluate_batch_labelled(setup, &points, &LabelSettings::default())
-            .into_iter()
-            .map(|r| {
-                r.map(|(p, l)| {
-                    (
-                        PointResult {
-                            regime: l.regime,
-                            ..p
-                        },
-                        Some(l.exponent.per_period),
-                    )
-                })
-            })
-            .collect()
-    } else {
-        evaluate_batch(setup, &points)
-            .into_iter()
-            .map(|r| r.map(|p| (p, None)))
-            .collect()
-    };
-    batch
-        .iter()
-        .zip(results)
-        .map(|(&i, r)| {
-            let (r, lyapunov) = r?;
+    let points = source.map(|i| {
+        let ((gap_mm, _), (omega_ratio, _)) = at(i);
+        let p = OperatingPoint {
+            gap_m: gap_mm * 1e-3,
+            omega_ratio,
+        };
+        (i, p)
+    });
+    let mut row = |i: usize, r: Result<(PointResult, Option<f64>)>| {
+        let row = r.map(|(r, lyapunov)| {
             let ((gap_mm, gap_ratio), (omega_ratio, freq_hz)) = at(i);
-            Ok([PeterkaRow {
+            [PeterkaRow {
                 index: i as u64,
                 gap_mm,
                 gap_ratio,
@@ -180,9 +160,26 @@ pub fn rows(setup: &Setup, grid: &PeterkaGrid, batch: &[usize]) -> Vec<Result<[P
                 transient_periods: r.transient_periods,
                 settled: r.settled,
                 lyapunov_per_period: lyapunov,
-            }])
-        })
-        .collect()
+            }]
+        });
+        emit(i, row);
+    };
+    if grid.lyapunov {
+        evaluate_keyed_labelled(setup, points, &LabelSettings::default(), &mut |i, r| {
+            let r = r.map(|(p, l)| {
+                (
+                    PointResult {
+                        regime: l.regime,
+                        ..p
+                    },
+                    Some(l.exponent.per_period),
+                )
+            });
+            row(i, r);
+        });
+    } else {
+        evaluate_keyed(setup, points, &mut |i, r| row(i, r.map(|p| (p, None))));
+    }
 }
 
 /// The Peterka map as a [`GridKind`]: its rows are the CSV (the figures are drawn from them).
