@@ -492,9 +492,10 @@ where
         let mut period_end = false;
         let done = match contact.lanes.result(&contact.runs, s) {
             LaneTrial::Switches { x, s_end } => {
-                let pending = job.sim.switch_begin(c, p, x, s_end);
-                if let Some(lane) = contact.switches.push(&job.sim, &pending) {
-                    run.pending = Some(pending);
+                // (Built in its place: a copy from the stack, right after the stores that
+                // wrote it, stalls on them.)
+                let pending = run.pending.insert(job.sim.switch_begin(c, p, x, s_end));
+                if let Some(lane) = contact.switches.push(&job.sim, pending) {
                     self.switches[lane] = r;
                     self.release(NONE, s, free, contact);
                     if contact.switches.len() == L {
@@ -503,6 +504,8 @@ where
                     return;
                 }
                 // (The lanes take every run of their suspension and law: not reached.)
+                let pending = *pending;
+                run.pending = None;
                 job.sim
                     .switch_end(c, p, &pending, EventFound::Alone, &mut |smp| {
                         period_end |= job.run.sample(smp, &mut job.obs)
@@ -736,13 +739,14 @@ where
                 let done = match next {
                     Ok(done) => done,
                     Err(trial) => {
-                        if let Some(lane) = contact.near.push(job.sim.hammer(), &trial) {
+                        // (Kept in its place at once: see `commit`.)
+                        let trial = run.near.insert(trial);
+                        if let Some(lane) = contact.near.push(job.sim.hammer(), trial) {
                             if lane == 0 {
                                 self.near_since = idle_slots(free);
                             }
                             // (Samples before the trial end no period: the step goes on.)
                             run.cursor.0 = c;
-                            run.near = Some(trial);
                             self.nears[lane] = r;
                             self.release(own_free, own_contact, free, contact);
                             if contact.near.len() == L {
@@ -751,6 +755,7 @@ where
                             return;
                         }
                         let t_near = trial.search_alone(job.sim.hammer());
+                        run.near = None;
                         job.sim
                             .advance_near(&mut c, t_near, run.contact_ok, &mut observe)
                     }
