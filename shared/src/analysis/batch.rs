@@ -214,7 +214,9 @@ where
 /// the free-flight lanes and the contact lanes each find runs to fill them while runs wait for
 /// their switching events and near searches. Chosen on the full thesis grid on 2 cores with
 /// AVX-512 (`host-sim peterka`): 19.6–20.1 s CPU against 20.1–20.6 s with three, four pairs
-/// of alternating runs; two: 17 % slower on the 15,300-point grid.
+/// of alternating runs; two: 17 % slower on the 15,300-point grid. (The basin-fraction
+/// continuation of docs/analysis.md, whose runs are few and long, takes 2.5 % more CPU time
+/// with four than with three.)
 const RUNS_PER_LANE: usize = 4;
 
 /// No run (an empty lane) or no lane.
