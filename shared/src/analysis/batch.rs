@@ -362,7 +362,7 @@ where
         for r in 0..RUNS_PER_LANE * L {
             let run = self.run(r);
             run.contact_ok = contact_ok(run.job.as_ref(), &contact);
-            self.settle(r, &mut free, &mut contact, None, true, NONE, NONE, None);
+            self.settle(r, &mut free, &mut contact, false, true, NONE, NONE, None);
         }
         let mut contact_rounds = 0u64;
         let mut contact_steps = 0u64;
@@ -436,13 +436,13 @@ where
                     if period_end {
                         // The run took its period's last step: the Poincaré section, then on.
                         self.end_step(r, true, &contact);
-                        self.settle(r, &mut free, &mut contact, None, true, s, NONE, None);
+                        self.settle(r, &mut free, &mut contact, false, true, s, NONE, None);
                     } else {
                         // Its next step is one the free-flight lanes do not take: a trial that
                         // comes near the surface (the lane's, where it was exact) or another.
                         let trial = free.take_trial(s);
                         self.lane_trials += u64::from(trial.is_some());
-                        self.settle(r, &mut free, &mut contact, None, false, s, NONE, trial);
+                        self.settle(r, &mut free, &mut contact, false, false, s, NONE, trial);
                     }
                 }
             }
@@ -482,7 +482,7 @@ where
     ) {
         let run = &mut self.runs[r / L][r % L];
         let Some(job) = &mut run.job else {
-            self.settle(r, free, contact, None, true, NONE, s, None);
+            self.settle(r, free, contact, false, true, NONE, s, None);
             return;
         };
         let (c, p) = &mut run.cursor;
@@ -623,12 +623,12 @@ where
     ) {
         if done {
             self.end_step(r, period_end, contact);
-            self.settle(r, free, contact, None, true, NONE, own, None);
+            self.settle(r, free, contact, false, true, NONE, own, None);
             return;
         }
         let run = &mut self.runs[r / L][r % L];
         let Some(job) = &mut run.job else {
-            self.settle(r, free, contact, None, true, NONE, own, None);
+            self.settle(r, free, contact, false, true, NONE, own, None);
             return;
         };
         let (c, p) = &mut run.cursor;
@@ -644,8 +644,9 @@ where
             }
             return;
         }
-        let c = *c;
-        self.settle(r, free, contact, Some(c), true, NONE, own, None);
+        // (The run's cursor read in `settle`, not copied here: its fields were just stored one by
+        // one, and a copy of the whole right after them waits for them.)
+        self.settle(r, free, contact, true, true, NONE, own, None);
     }
 
     /// Ends the step of run `r` for its protocol; a run that is done is emitted and the next
@@ -674,7 +675,7 @@ where
         }
     }
 
-    /// Ordinary segments for run `r`, from inside its step at `cursor` or from a step
+    /// Ordinary segments for run `r`, from inside its step at its cursor (`in_step`) or from a step
     /// boundary, until its next segment is one the lanes take: whole free-flight steps (then
     /// loaded into a free-flight lane, or waiting for one; not at once if `may_load` is false)
     /// or an ordinary sub-step (then set into a contact lane, or waiting for one). A run that
@@ -682,7 +683,7 @@ where
     /// items are exhausted. `own_free`, `own_contact`: the lanes the run held (`NONE`: none),
     /// kept if it goes on in one of them, else handed to a waiting run or left empty.
     /// `trial`: the free-flight trial from the step's start that came near the surface, taken
-    /// by a lane that stopped before it (with `cursor` `None` and `may_load` false; it stands
+    /// by a lane that stopped before it (with `in_step` and `may_load` false; it stands
     /// for the run's first trial).
     #[allow(clippy::too_many_arguments)]
     fn settle<K: LaneContact<T>>(
@@ -690,7 +691,7 @@ where
         r: usize,
         free: &mut Lockstep<'t, T, K, L>,
         contact: &mut Contact<T, K, L>,
-        mut cursor: Option<Cursor<T>>,
+        mut in_step: bool,
         mut may_load: bool,
         own_free: usize,
         own_contact: usize,
@@ -702,9 +703,9 @@ where
                 self.release(own_free, own_contact, free, contact);
                 return;
             };
-            let mut c = match cursor.take() {
-                Some(c) => c,
-                None => {
+            let mut c = match core::mem::take(&mut in_step) {
+                true => run.cursor.0,
+                false => {
                     if may_load && job.run.free_flight_allowed::<O>() && free.accepts(&job.sim) {
                         match lane_for(own_free, &mut self.free_empty) {
                             Some(s) => {
