@@ -19,7 +19,7 @@ use crate::config::Setup;
 
 /// The smallest batch of points a core takes ([`guided`]): a batch interleaves its points on
 /// one core ([`shared::analysis::run_interleaved`]), the unit of every parallel evaluation.
-/// Several times the runs a core keeps in flight (64 with AVX-512), so that finished runs'
+/// Twice the runs a core keeps in flight (64 with AVX-512), so that finished runs'
 /// places are refilled, not left to drain.
 pub const BATCH: usize = 128;
 
