@@ -19,8 +19,8 @@ use crate::config::Setup;
 
 /// The smallest batch of points a core takes ([`guided`]): a batch interleaves its points on
 /// one core ([`shared::analysis::run_interleaved`]), the unit of every parallel evaluation.
-/// Twice the runs a core keeps in flight (64 with AVX-512), so that finished runs'
-/// places are refilled, not left to drain.
+/// Twice the runs a core keeps in flight with AVX-512 (64), four times those with AVX2 (32),
+/// so that finished runs' places are refilled, not left to drain.
 pub const BATCH: usize = 128;
 
 /// `run` over consecutive batches of `items` on every core of the rayon pool; each batch's
