@@ -19,7 +19,9 @@
 //!    the rest (one-at-a-time steps: trials, segments, contact sub-steps, Poincaré sections
 //!    and event bookkeeping).
 //!
-//! `cargo bench -p host-sim --bench roofline` (about 10 s after its build). The instruction
+//! `cargo bench -p host-sim --bench roofline` (about 10 s after its build; with
+//! `VIBRO_ISA=avx2` in the environment, the AVX2 kernels and 8 lanes on an AVX-512 CPU:
+//! `shared::integrate::ISA_VAR`). The instruction
 //! counts of the same workloads: `-- --kernel-only` or `-- --grid-only` under
 //! `valgrind --tool=cachegrind` (docs/performance.md; valgrind hides AVX-512, so what it counts
 //! is the 8-lane AVX2 code).
@@ -140,8 +142,9 @@ fn main() {
     }
     let (rate, per_round, _) = native_kernel(2.0);
     let lanes = lanes_per_core();
+    let isa = shared::integrate::kernel_isa();
     println!(
-        "Kernel (whole free-flight steps, {lanes} lanes busy, f32, one core): {:.1} M lane-steps/s ({:.2} ns per lane-step, {:.1} ns per round)",
+        "Kernel (whole free-flight steps, {lanes} lanes busy, {isa}, f32, one core): {:.1} M lane-steps/s ({:.2} ns per lane-step, {:.1} ns per round)",
         rate / 1e6,
         1e9 / rate,
         1e9 * per_round

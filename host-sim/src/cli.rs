@@ -97,6 +97,11 @@ pub enum Command {
 /// Ctrl-C).
 pub fn main() -> ExitCode {
     let cli = Cli::parse_from(negative_values_attached(std::env::args_os()));
+    // A variable that asks for vector instructions this CPU lacks is refused, not ignored.
+    if let Err(e) = shared::integrate::check_isa_var() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Select(a) => commands::select::run(&a),
         Command::Response(a) => commands::response::run(&a),

@@ -57,6 +57,53 @@ fn select_json_reports_the_operating_point() {
     assert!(mu > 0.0 && mu < 1.0 && check["orbit"]["stable"] == true);
 }
 
+/// `VIBRO_ISA` narrows the lane kernels' vector instructions and changes no bit of a Peterka
+/// grid whose runs go through every kind of lane (free flight, contact, switching events, near
+/// searches); a value naming no variant this CPU runs is refused by name, before any output.
+#[test]
+fn the_isa_variable_changes_no_bit_and_refuses_what_the_cpu_lacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = |name: &str, isa: Option<&str>| {
+        let out = dir.path().join(name);
+        let mut c = host_sim();
+        c.args(line(&format!(
+            "peterka --rig wires --gap-mm 0:1.0:0.5 --freq-hz 1:7:0.25 --out {}",
+            out.display()
+        )));
+        if let Some(isa) = isa {
+            c.env("VIBRO_ISA", isa);
+        }
+        (c.output().unwrap(), out)
+    };
+    let (o, widest) = grid("widest.csv", None);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let widest = fs::read(widest).unwrap();
+    let mut variants = vec!["portable"];
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        variants.push("avx2");
+    }
+    for isa in variants {
+        let (o, out) = grid(&format!("{isa}.csv"), Some(isa));
+        assert!(
+            o.status.success(),
+            "{isa}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(fs::read(out).unwrap() == widest, "{isa}: the grid differs");
+    }
+    for bad in ["sse9", "AVX2"] {
+        let (o, out) = grid("bad.csv", Some(bad));
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{bad} accepted");
+        assert!(
+            stderr.contains(&format!("VIBRO_ISA=\"{bad}\"")) && stderr.contains("portable"),
+            "{stderr}"
+        );
+        assert!(!out.exists(), "{bad}: output written");
+    }
+}
+
 #[test]
 fn response_writes_csv_and_png() {
     let dir = tempfile::tempdir().unwrap();

@@ -16,7 +16,8 @@ use assert_cmd::Command;
 pub fn host_sim() -> Command {
     let mut c = Command::cargo_bin("host-sim").unwrap();
     c.env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("SLURM_ARRAY_TASK_COUNT");
+        .env_remove("SLURM_ARRAY_TASK_COUNT")
+        .env_remove("VIBRO_ISA");
     c
 }
 

@@ -90,17 +90,7 @@ impl Isa {
     /// The variants this CPU runs, narrowest first.
     #[cfg(test)]
     pub(crate) fn supported() -> std::vec::Vec<Isa> {
-        let widest = Self::widest();
-        [
-            Isa::Portable,
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            Isa::Avx2,
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            Isa::Avx512,
-        ]
-        .into_iter()
-        .filter(|&isa| isa <= widest)
-        .collect()
+        up_to(Self::widest())
     }
 
     /// Runs `kernel` compiled for this variant. The variant must be one the CPU runs: an
@@ -151,8 +141,23 @@ impl Isa {
         None
     }
 
-    /// The widest variant the CPU reports.
+    /// The widest variant the kernels may run: the widest the CPU reports, narrowed by
+    /// [`ISA_VAR`] where that names a narrower one (read once).
     fn widest() -> Isa {
+        #[cfg(feature = "std")]
+        {
+            static WIDEST: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+            *WIDEST.get_or_init(|| {
+                let cpu = Self::cpu_widest();
+                narrowed(cpu, std::env::var_os(ISA_VAR).as_deref()).unwrap_or(cpu)
+            })
+        }
+        #[cfg(not(feature = "std"))]
+        Self::cpu_widest()
+    }
+
+    /// The widest variant the CPU reports.
+    fn cpu_widest() -> Isa {
         #[cfg(all(feature = "std", target_arch = "x86_64"))]
         {
             if std::is_x86_feature_detected!("avx512f")
@@ -168,6 +173,104 @@ impl Isa {
         }
         Isa::Portable
     }
+}
+
+impl Isa {
+    /// The name [`ISA_VAR`] and [`kernel_isa`] use: `avx512`, `avx2` or `portable`.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Isa::Portable => "portable",
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx2 => "avx2",
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx512 => "avx512",
+        }
+    }
+}
+
+/// The environment variable that narrows the vector instructions of the host's lane kernels
+/// below the widest the CPU runs: `avx2` or `portable` (`avx512`, or the variable unset or
+/// empty: the widest). Every variant gives the same bits (module docs); this is for measuring
+/// one variant on a CPU that also runs a wider one (docs/performance.md). Read once, when the
+/// first kernel is made; [`check_isa_var`] says whether it names a variant this CPU runs (a
+/// value that does not is ignored).
+#[cfg(feature = "std")]
+pub const ISA_VAR: &str = "VIBRO_ISA";
+
+/// [`ISA_VAR`] names no variant this CPU runs.
+#[cfg(feature = "std")]
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IsaVarError {
+    /// The variable's value (lossy where it is not UTF-8).
+    pub value: std::string::String,
+    /// The variants this CPU runs, narrowest first, by name.
+    pub allowed: std::vec::Vec<&'static str>,
+}
+
+#[cfg(feature = "std")]
+impl core::fmt::Display for IsaVarError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "{ISA_VAR}={:?}: expected one of the variants this CPU runs: {}",
+            self.value,
+            self.allowed.join(", ")
+        )
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for IsaVarError {}
+
+/// The variants up to `widest`, narrowest first.
+#[cfg(any(test, feature = "std"))]
+fn up_to(widest: Isa) -> std::vec::Vec<Isa> {
+    [
+        Isa::Portable,
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        Isa::Avx2,
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        Isa::Avx512,
+    ]
+    .into_iter()
+    .filter(|&isa| isa <= widest)
+    .collect()
+}
+
+/// The variant [`ISA_VAR`]'s value `var` asks for on a CPU whose widest is `cpu`: `cpu` if
+/// unset or empty, the named one if the CPU runs it; an [`IsaVarError`] otherwise.
+#[cfg(feature = "std")]
+fn narrowed(cpu: Isa, var: Option<&std::ffi::OsStr>) -> Result<Isa, IsaVarError> {
+    let Some(var) = var.filter(|v| !v.is_empty()) else {
+        return Ok(cpu);
+    };
+    let allowed = up_to(cpu);
+    allowed
+        .iter()
+        .copied()
+        .find(|isa| var.to_str() == Some(isa.name()))
+        .ok_or_else(|| IsaVarError {
+            value: var.to_string_lossy().into_owned(),
+            allowed: allowed.iter().map(|isa| isa.name()).collect(),
+        })
+}
+
+/// The vector instructions the host's lane kernels run: `"avx512"`, `"avx2"` or `"portable"`
+/// (the widest the CPU runs, or the narrower one [`ISA_VAR`] names; always `"portable"` on
+/// the MCU).
+pub fn kernel_isa() -> &'static str {
+    Isa::detect().name()
+}
+
+/// Whether [`ISA_VAR`] is unset, empty or names a variant this CPU runs: the variant the
+/// kernels run ([`kernel_isa`]); else an [`IsaVarError`] with the names allowed.
+///
+/// # Errors
+/// [`IsaVarError`] where the value names no variant this CPU runs (`avx512` on an AVX2 CPU,
+/// `sse2`, …).
+#[cfg(feature = "std")]
+pub fn check_isa_var() -> Result<&'static str, IsaVarError> {
+    narrowed(Isa::cpu_widest(), std::env::var_os(ISA_VAR).as_deref()).map(Isa::name)
 }
 
 /// [`Kernel::run`] compiled for AVX-512.
@@ -253,6 +356,45 @@ mod tests {
         // Outside `with_isa` the widest again.
         assert_eq!(Isa::detect(), Isa::widest());
         assert_eq!(wide_vectors(), all.len() == 3);
+    }
+
+    #[cfg(feature = "std")]
+    #[test]
+    fn the_variable_narrows_to_a_variant_the_cpu_runs_and_nothing_else() {
+        use std::ffi::OsStr;
+        let all = Isa::supported();
+        let cpu = Isa::cpu_widest();
+        assert_eq!(narrowed(cpu, None), Ok(cpu));
+        assert_eq!(narrowed(cpu, Some(OsStr::new(""))), Ok(cpu));
+        for &isa in &all {
+            assert_eq!(narrowed(cpu, Some(OsStr::new(isa.name()))), Ok(isa));
+        }
+        let names: std::vec::Vec<_> = all.iter().map(|isa| isa.name()).collect();
+        for bad in ["sse2", "AVX2", " avx2", "avx"] {
+            let e = narrowed(cpu, Some(OsStr::new(bad))).unwrap_err();
+            assert_eq!(e.value, bad);
+            assert_eq!(e.allowed, names);
+            let text = e.to_string();
+            assert!(
+                text.starts_with("VIBRO_ISA=") && text.ends_with(&names.join(", ")),
+                "{text}"
+            );
+        }
+        // A CPU without AVX-512 refuses it; the portable one refuses both vector variants.
+        #[cfg(all(feature = "std", target_arch = "x86_64"))]
+        {
+            let e = narrowed(Isa::Avx2, Some(OsStr::new("avx512"))).unwrap_err();
+            assert_eq!(e.allowed, ["portable", "avx2"]);
+            let e = narrowed(Isa::Portable, Some(OsStr::new("avx2"))).unwrap_err();
+            assert_eq!(e.allowed, ["portable"]);
+        }
+        // Not UTF-8: refused, shown lossily.
+        #[cfg(unix)]
+        {
+            use std::os::unix::ffi::OsStrExt;
+            let e = narrowed(cpu, Some(OsStr::from_bytes(b"avx\xff"))).unwrap_err();
+            assert_eq!(e.value, "avx\u{fffd}");
+        }
     }
 
     #[cfg(all(feature = "std", target_arch = "x86_64"))]

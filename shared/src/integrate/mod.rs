@@ -13,7 +13,8 @@
 //! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids);
 //!   `contact_lanes`: their ordinary contact sub-steps, several at once; `switch_lanes`: the
 //!   switching events inside those sub-steps, several located at once; `isa`: the vector
-//!   instructions those kernels run, chosen at run time.
+//!   instructions those kernels run, chosen at run time ([`kernel_isa`]; on the host
+//!   `ISA_VAR` narrows them).
 
 pub(crate) mod bracket;
 pub(crate) mod contact_lanes;
@@ -27,5 +28,8 @@ pub mod rk4;
 pub mod stepper;
 pub(crate) mod switch_lanes;
 
+pub use isa::kernel_isa;
+#[cfg(feature = "std")]
+pub use isa::{ISA_VAR, IsaVarError, check_isa_var};
 pub use plan::{MAX_STEPS_PER_PERIOD, PhaseTable, StepPlan, StepSettings, resting_substeps};
 pub use stepper::{Simulator, StepCounts, StepSample};
