@@ -259,8 +259,9 @@ impl ContactLaw {
         libm::sqrt(n * k * libm::pow(dm, n - 1.0) / mass_kg)
     }
 
-    /// The law in the float type `T`, ready for the integrator.
-    pub fn compile<T: Real>(&self) -> LawCoeffs<T> {
+    /// The law in the float type `T`, ready for the integrator, for a hammer of `mass_kg` (kg,
+    /// > 0: Lankarani–Nikravesh's floor on the approach speed, [`PowerDissipation`]).
+    pub fn compile<T: Real>(&self, mass_kg: f64) -> LawCoeffs<T> {
         let c = T::from_f64;
         match *self {
             ContactLaw::Hertz {
@@ -298,6 +299,7 @@ impl ContactLaw {
                 n: c(exponent),
                 dissipation: PowerDissipation::LankaraniNikravesh {
                     coef: c(0.75 * (1.0 - restitution * restitution)),
+                    reach_speed_sq: c(2.0 / ((exponent + 1.0) * mass_kg)),
                 },
             },
         }
@@ -332,7 +334,7 @@ impl ContactLaw {
         if !usable {
             return None;
         }
-        let law = self.compile::<f64>();
+        let law = self.compile::<f64>(mass_kg);
         let v0 = impact_speed_m_s;
         let force = |d: f64, dd: f64| law.unswitched_force(d, dd, v0);
         let accel = |d: f64, dd: f64| -force(d, dd) / mass_kg;
@@ -426,10 +428,22 @@ pub enum PowerDissipation<T> {
         /// `λ_i`, s/m.
         lambda: T,
     },
-    /// Lankarani–Nikravesh: `k δ^n · coef · δ̇/δ̇⁻`, `coef = 3(1 − e²)/4`.
+    /// Lankarani–Nikravesh: `k δ^n · coef · δ̇/v`, `coef = 3(1 − e²)/4`, `v` the approach
+    /// speed `δ̇⁻`, but never below the speed at which an impact reaches the current
+    /// penetration, `v_δ = √(2 k δ^(n+1) / ((n + 1) m))` (its elastic energy as kinetic energy).
+    ///
+    /// An impact alone never reaches a penetration beyond its approach speed's, so `v = δ̇⁻`
+    /// there (the law's restitution is unchanged); the floor acts where other forces hold the
+    /// hammer deeper than its arrival would (resting contact after a slow arrival). There the
+    /// law's damping `k δ^n coef/δ̇⁻` would grow without bound as `δ̇⁻ → 0`, and with it the
+    /// contact's fastest rate: beyond any fixed step's stability (an explicit RK4 sub-step
+    /// diverged to NaN). With the floor the damping rate is at most
+    /// `coef √((n + 1)/(2n)) ω_c(δ)`, of the order of the contact's own frequency.
     LankaraniNikravesh {
         /// `3(1 − e²)/4`.
         coef: T,
+        /// `2/((n + 1) m)`, 1/kg: `v_δ² = reach_speed_sq · k δ^n · δ`.
+        reach_speed_sq: T,
     },
 }
 
@@ -470,8 +484,13 @@ impl<T: Real> LawCoeffs<T> {
                 let dissipative = match dissipation {
                     PowerDissipation::None => T::zero(),
                     PowerDissipation::HuntCrossley { lambda } => elastic * lambda * delta_dot,
-                    PowerDissipation::LankaraniNikravesh { coef } => {
-                        elastic * coef * delta_dot / approach_speed
+                    PowerDissipation::LankaraniNikravesh {
+                        coef,
+                        reach_speed_sq,
+                    } => {
+                        // `approach_speed` itself wherever it is the larger (the same bits).
+                        let v = approach_speed.max_of((reach_speed_sq * elastic * delta).sqrt());
+                        elastic * coef * delta_dot / v
                     }
                 };
                 (elastic, dissipative)
@@ -541,7 +560,7 @@ mod tests {
 
     #[test]
     fn power_law_parts() {
-        let law = ContactLaw::preset(ContactLawKind::HuntCrossley).compile::<f64>();
+        let law = ContactLaw::preset(ContactLawKind::HuntCrossley).compile::<f64>(1.0);
         let (e, d) = law.parts(1e-5, 0.1, 0.1);
         let expect = 2.1e8 * libm::pow(1e-5, 1.6);
         assert!((e - expect).abs() < 1e-9 * expect);
@@ -594,5 +613,66 @@ mod tests {
         assert!((ln(0.317, 3.0).restitution(m, 1.0).unwrap() - preset).abs() < 1e-6);
         assert_eq!(hc.restitution(m, 0.0), None);
         assert_eq!(hc.restitution(f64::NAN, 0.1), None);
+    }
+
+    /// Lankarani–Nikravesh's floor on the approach speed (`v_δ`, the speed that reaches the
+    /// penetration) never acts in an impact alone: along a whole impact (RK4 in f64, 2,000
+    /// steps per `π/ω_c`), at every speed from the floor of the integrator (1e-4 m/s) to 1 m/s
+    /// and every mass, `v_δ ≤ δ̇⁻` at every stage (energy: the dissipation only takes), so the
+    /// force is the law's own, bit for bit.
+    #[test]
+    fn lankarani_nikravesh_floor_stays_below_the_approach_speed_in_an_impact() {
+        for n in [1.0, 1.5, 3.0] {
+            let law = ContactLaw::LankaraniNikravesh {
+                stiffness: 2.1e8,
+                exponent: n,
+                restitution: 0.317,
+            };
+            for m in [0.02, 0.12, 2.0] {
+                let LawCoeffs::Power {
+                    dissipation: PowerDissipation::LankaraniNikravesh { reach_speed_sq, .. },
+                    ..
+                } = law.compile::<f64>(m)
+                else {
+                    panic!("not a power law");
+                };
+                let coeffs = law.compile::<f64>(m);
+                for v0 in [1e-4, 1e-3, 0.03, 1.0] {
+                    let h = core::f64::consts::PI / law.contact_omega(m, v0) / 2000.0;
+                    let mut worst: f64 = 0.0;
+                    let mut accel = |d: f64, dd: f64| {
+                        let (elastic, dissipative) = coeffs.parts(d, dd, v0);
+                        if d > 0.0 {
+                            worst = worst.max(libm::sqrt(reach_speed_sq * elastic * d) / v0);
+                        }
+                        -(elastic + dissipative) / m
+                    };
+                    let (mut d, mut dd) = (0.0, v0);
+                    for _ in 0..20_000 {
+                        let (k1x, k1v) = (dd, accel(d, dd));
+                        let (k2x, k2v) = (
+                            dd + 0.5 * h * k1v,
+                            accel(d + 0.5 * h * k1x, dd + 0.5 * h * k1v),
+                        );
+                        let (k3x, k3v) = (
+                            dd + 0.5 * h * k2v,
+                            accel(d + 0.5 * h * k2x, dd + 0.5 * h * k2v),
+                        );
+                        let (k4x, k4v) = (dd + h * k3v, accel(d + h * k3x, dd + h * k3v));
+                        d += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+                        dd += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+                        if d < 0.0 {
+                            break;
+                        }
+                    }
+                    assert!(d < 0.0, "n {n} m {m} v0 {v0}: the impact did not end");
+                    // Near 1 at the deepest point, never above: the compression dissipates.
+                    assert!(
+                        worst > 0.5 && worst <= 1.0,
+                        "n {n} m {m} v0 {v0}: v_δ/δ̇⁻ {worst}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -319,7 +319,7 @@ impl<T: Real> Hammer<T> {
         };
         Ok(Hammer {
             body,
-            switch: SwitchModel::new(params.contact.compile(), bands),
+            switch: SwitchModel::new(params.contact.compile(m), bands),
             gap: c(gap_m),
             omega_exc,
             amplitude: c(params.amplitude_m),

@@ -118,7 +118,7 @@ impl<T: Real> SwitchModel<T> {
     /// ```
     /// use shared::model::switch::SwitchModel;
     /// use shared::model::{ContactLaw, Region, SwitchBands};
-    /// let sw = SwitchModel::<f64>::new(ContactLaw::identified().compile(), &SwitchBands::default());
+    /// let sw = SwitchModel::<f64>::new(ContactLaw::identified().compile(0.1), &SwitchBands::default());
     /// let (f, region) = sw.force(1e-5, 0.1, 0.1);
     /// assert!((f - 175.0).abs() < 1e-9);
     /// assert_eq!(region, Region::Contact);
@@ -152,7 +152,10 @@ mod tests {
     use crate::model::ContactLaw;
 
     fn sd() -> SwitchModel<f64> {
-        SwitchModel::new(ContactLaw::identified().compile(), &SwitchBands::default())
+        SwitchModel::new(
+            ContactLaw::identified().compile(0.1),
+            &SwitchBands::default(),
+        )
     }
 
     #[test]
