@@ -76,7 +76,7 @@ proptest! {
 /// Lankarani–Nikravesh in resting contact after a slow arrival (the beam rigs at 0 gap, and
 /// the case a random rig found: `beam-135`, 0.0396 mm, Ω/ω 2.0685): its damping `k δ^n
 /// coef/δ̇⁻` grew without bound as the approach speed went to 0, beyond any sub-step's
-/// stability, and the state diverged to NaN within a few periods (at 0.3–0.5 % of a grid of
+/// stability, and the state diverged to NaN within a few periods (at 0.25–0.43 % of a grid of
 /// rigs, gaps and frequencies). With the approach speed never below the speed that reaches
 /// the penetration (`PowerDissipation`), every run at the production, embedded and test
 /// settings stays finite over 20 periods and never far through the surface.
