@@ -338,22 +338,7 @@ impl ContactLaw {
         let v0 = impact_speed_m_s;
         let force = |d: f64, dd: f64| law.unswitched_force(d, dd, v0);
         let accel = |d: f64, dd: f64| -force(d, dd) / mass_kg;
-        let rk4 = |(d, dd): (f64, f64), h: f64| {
-            let (k1x, k1v) = (dd, accel(d, dd));
-            let (k2x, k2v) = (
-                dd + 0.5 * h * k1v,
-                accel(d + 0.5 * h * k1x, dd + 0.5 * h * k1v),
-            );
-            let (k3x, k3v) = (
-                dd + 0.5 * h * k2v,
-                accel(d + 0.5 * h * k2x, dd + 0.5 * h * k2v),
-            );
-            let (k4x, k4v) = (dd + h * k3v, accel(d + h * k3x, dd + h * k3v));
-            (
-                d + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x),
-                dd + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
-            )
-        };
+        let rk4 = |s: (f64, f64), h: f64| impact_rk4(&accel, s, h);
         let wc = self.contact_omega(mass_kg, v0);
         if !(wc > 0.0 && wc.is_finite()) {
             return None;
@@ -416,6 +401,25 @@ pub fn spring_dashpot_restitution(
     let decay = libm::exp(-zeta * wn * tc);
     let rate = decay * (libm::cos(phase) - zeta / s * libm::sin(phase));
     Some((-rate, tc))
+}
+
+/// One RK4 step over `h` s of a lone impact, `δ̈ = accel(δ, δ̇)`, from `(δ, δ̇)` (m, m/s)
+/// ([`ContactLaw::restitution`]).
+fn impact_rk4(mut accel: impl FnMut(f64, f64) -> f64, (d, dd): (f64, f64), h: f64) -> (f64, f64) {
+    let (k1x, k1v) = (dd, accel(d, dd));
+    let (k2x, k2v) = (
+        dd + 0.5 * h * k1v,
+        accel(d + 0.5 * h * k1x, dd + 0.5 * h * k1v),
+    );
+    let (k3x, k3v) = (
+        dd + 0.5 * h * k2v,
+        accel(d + 0.5 * h * k2x, dd + 0.5 * h * k2v),
+    );
+    let (k4x, k4v) = (dd + h * k3v, accel(d + h * k3x, dd + h * k3v));
+    (
+        d + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x),
+        dd + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
+    )
 }
 
 /// How a power law dissipates.
@@ -647,24 +651,14 @@ mod tests {
                         }
                         -(elastic + dissipative) / m
                     };
-                    let (mut d, mut dd) = (0.0, v0);
+                    let mut s = (0.0, v0);
                     for _ in 0..20_000 {
-                        let (k1x, k1v) = (dd, accel(d, dd));
-                        let (k2x, k2v) = (
-                            dd + 0.5 * h * k1v,
-                            accel(d + 0.5 * h * k1x, dd + 0.5 * h * k1v),
-                        );
-                        let (k3x, k3v) = (
-                            dd + 0.5 * h * k2v,
-                            accel(d + 0.5 * h * k2x, dd + 0.5 * h * k2v),
-                        );
-                        let (k4x, k4v) = (dd + h * k3v, accel(d + h * k3x, dd + h * k3v));
-                        d += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-                        dd += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-                        if d < 0.0 {
+                        s = impact_rk4(&mut accel, s, h);
+                        if s.0 < 0.0 {
                             break;
                         }
                     }
+                    let d = s.0;
                     assert!(d < 0.0, "n {n} m {m} v0 {v0}: the impact did not end");
                     // Near 1 at the deepest point, never above: the compression dissipates.
                     assert!(
