@@ -84,7 +84,7 @@ proptest! {
 fn lankarani_nikravesh_resting_contact_stays_finite() {
     let law = ContactLaw::preset(ContactLawKind::LankaraniNikravesh);
     let mut cases: Vec<(RigId, f64, f64)> =
-        vec![(RigId::ALL[3], 0.0395666545139703, 2.0685137880872513)];
+        vec![(RigId::Beam135, 0.0395666545139703, 2.0685137880872513)];
     for rig in RigId::ALL
         .into_iter()
         .filter(|r| matches!(r.preset().suspension, Suspension::Beam { .. }))

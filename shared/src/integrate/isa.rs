@@ -141,6 +141,17 @@ impl Isa {
         None
     }
 
+    /// The name [`ISA_VAR`] and [`kernel_isa`] use: `avx512`, `avx2` or `portable`.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Isa::Portable => "portable",
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx2 => "avx2",
+            #[cfg(all(feature = "std", target_arch = "x86_64"))]
+            Isa::Avx512 => "avx512",
+        }
+    }
+
     /// The widest variant the kernels may run: the widest the CPU reports, narrowed by
     /// [`ISA_VAR`] where that names a narrower one (read once).
     fn widest() -> Isa {
@@ -172,19 +183,6 @@ impl Isa {
             }
         }
         Isa::Portable
-    }
-}
-
-impl Isa {
-    /// The name [`ISA_VAR`] and [`kernel_isa`] use: `avx512`, `avx2` or `portable`.
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            Isa::Portable => "portable",
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            Isa::Avx2 => "avx2",
-            #[cfg(all(feature = "std", target_arch = "x86_64"))]
-            Isa::Avx512 => "avx512",
-        }
     }
 }
 
