@@ -19,6 +19,10 @@
 //!    the rest (one-at-a-time steps: trials, segments, contact sub-steps, Poincaré sections
 //!    and event bookkeeping).
 //!
+//! Kernel (0.5 s) and grid alternate for a number of rounds (`-- --rounds N`, 1–100, default
+//! 5), each round's efficiency its grid against its own kernel; it prints the medians and the
+//! rounds' ranges (on a shared or virtual machine one run of either can be 10 % off).
+//!
 //! `cargo bench -p host-sim --bench roofline` (about 10 s after its build; with
 //! `VIBRO_ISA=avx2` in the environment, the AVX2 kernels and 8 lanes on an AVX-512 CPU:
 //! `shared::integrate::ISA_VAR`). The instruction
@@ -113,6 +117,13 @@ fn grid() -> Grid {
     }
 }
 
+/// The median of `xs` (the upper one of an even count: one of the values) and its range.
+fn median_range(xs: &[f64]) -> (f64, f64, f64) {
+    let mut v = xs.to_vec();
+    v.sort_by(f64::total_cmp);
+    (v[v.len() / 2], v[0], v[v.len() - 1])
+}
+
 /// [`kernel`] at the lanes the grid runs on this CPU ([`lanes_per_core`]).
 fn native_kernel(seconds: f64) -> (f64, f64, u64) {
     if lanes_per_core() == WIDE_LANES {
@@ -140,31 +151,67 @@ fn main() {
         );
         return;
     }
-    let (rate, per_round, _) = native_kernel(2.0);
+    // Kernel and grid alternate, so that each round's efficiency compares the two under the
+    // same state of the machine (a shared or throttled core moves both); the medians are
+    // reported, with the rounds' range.
+    let rounds = args
+        .iter()
+        .position(|a| a == "--rounds")
+        .map(
+            |i| match args.get(i + 1).and_then(|v| v.parse::<usize>().ok()) {
+                Some(n @ 1..=100) => n,
+                _ => {
+                    eprintln!("roofline: --rounds takes a whole number from 1 to 100");
+                    std::process::exit(2);
+                }
+            },
+        )
+        .unwrap_or(5);
+    let runs: Vec<((f64, f64, u64), Grid)> =
+        (0..rounds).map(|_| (native_kernel(0.5), grid())).collect();
     let lanes = lanes_per_core();
     let isa = shared::integrate::kernel_isa();
+    let rates: Vec<f64> = runs.iter().map(|((r, _, _), _)| *r).collect();
+    let walls: Vec<f64> = runs.iter().map(|(_, g)| g.wall).collect();
+    let rk4 = runs[0].1.counts.rk4_steps() as f64;
+    let effs: Vec<f64> = runs.iter().map(|((r, _, _), g)| rk4 / g.wall / r).collect();
+    let (rate, rate_lo, rate_hi) = median_range(&rates);
+    let (wall, wall_lo, wall_hi) = median_range(&walls);
+    let (eff, eff_lo, eff_hi) = median_range(&effs);
+    // The breakdown from the round whose grid took the median time (every round's grid takes
+    // the same steps), at the median kernel's speed per round.
+    let per_round = lanes as f64 / rate;
+    let g = runs
+        .into_iter()
+        .map(|(_, g)| g)
+        .find(|g| g.wall == wall)
+        .expect("the median is one of the rounds");
     println!(
-        "Kernel (whole free-flight steps, {lanes} lanes busy, {isa}, f32, one core): {:.1} M lane-steps/s ({:.2} ns per lane-step, {:.1} ns per round)",
+        "Kernel (whole free-flight steps, {lanes} lanes busy, {isa}, f32, one core; median of {rounds} rounds alternating with the grid): {:.1} M lane-steps/s ({:.1}–{:.1} M; {:.2} ns per lane-step, {:.1} ns per round)",
         rate / 1e6,
+        rate_lo / 1e6,
+        rate_hi / 1e6,
         1e9 / rate,
         1e9 * per_round
     );
-    let g = grid();
-    let c = g.counts;
-    let rk4 = c.rk4_steps() as f64;
-    let achieved = rk4 / g.wall;
+    let achieved = rk4 / wall;
     println!(
-        "Grid (wires, gap 0.00–2.94 mm every 0.49 × 1.00–7.11 Hz: {} points, f32, one core): {:.2} s, {:.1} M RK4 steps/s ({:.0} ns per RK4 step, {:.0} µs per point)",
+        "Grid (wires, gap 0.00–2.94 mm every 0.49 × 1.00–7.11 Hz: {} points, f32, one core): {:.2} s ({:.2}–{:.2} s), {:.1} M RK4 steps/s ({:.0} ns per RK4 step, {:.0} µs per point)",
         g.points,
-        g.wall,
+        wall,
+        wall_lo,
+        wall_hi,
         achieved / 1e6,
         1e9 / achieved,
-        1e6 * g.wall / g.points as f64
+        1e6 * wall / g.points as f64
     );
     println!(
-        "Efficiency (grid RK4 steps/s ÷ kernel lane-steps/s): {:.1} %",
-        100.0 * achieved / rate
+        "Efficiency (grid RK4 steps/s ÷ kernel lane-steps/s, each round's grid against its own kernel): {:.1} % ({:.1}–{:.1} %)",
+        100.0 * eff,
+        100.0 * eff_lo,
+        100.0 * eff_hi
     );
+    let c = g.counts;
     let pct = |x: u64| 100.0 * x as f64 / rk4;
     println!(
         "  RK4 steps {:.3e}: lanes {:.1} %, one-at-a-time free-flight trials {:.1} % (of which split near the surface {:.1} %), segments before an arrival {:.1} %, contact sub-steps {:.1} % (+ {:.1} % second steps at switching events)",
