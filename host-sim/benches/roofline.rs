@@ -21,7 +21,7 @@
 //!
 //! Kernel (0.5 s) and grid alternate for a number of rounds (`-- --rounds N`, 1–100, default
 //! 5), each round's efficiency its grid against its own kernel; it prints the medians and the
-//! rounds' ranges (on a shared or virtual machine one run of either can be 10 % off).
+//! rounds' ranges (on a shared or virtual machine one run of either can be a third slower than the next).
 //!
 //! `cargo bench -p host-sim --bench roofline` (about 10 s after its build; with
 //! `VIBRO_ISA=avx2` in the environment, the AVX2 kernels and 8 lanes on an AVX-512 CPU:
@@ -41,9 +41,9 @@ use shared::integrate::{PhaseTable, Simulator, StepCounts};
 use shared::model::RigId;
 use shared::observe::ProtocolRun;
 
-/// Whole free-flight lane-steps per second per core, and seconds per lockstep round, with every
-/// lane busy.
-fn kernel<const L: usize>(seconds: f64) -> (f64, f64, u64) {
+/// Whole free-flight lane-steps per second per core with every lane busy, and the lane-steps
+/// taken (a round of `L` lanes takes `L / rate` seconds).
+fn kernel<const L: usize>(seconds: f64) -> (f64, u64) {
     let p = RigId::Wires.preset();
     let s = SimSettings::default();
     let phases = PhaseTable::<f32>::new(s.steps.steps_per_period).expect("valid N");
@@ -53,7 +53,7 @@ fn kernel<const L: usize>(seconds: f64) -> (f64, f64, u64) {
             simulator_at::<f32>(&p, 0.018, ratio, &s, &phases).expect("valid point")
         })
         .collect();
-    let (mut busy, mut steps, mut rounds) = (0.0f64, 0u64, 0u64);
+    let (mut busy, mut steps) = (0.0f64, 0u64);
     let t0 = Instant::now();
     while t0.elapsed().as_secs_f64() < seconds {
         let mut refs: Vec<&mut Simulator<f32>> = sims.iter_mut().collect();
@@ -65,13 +65,12 @@ fn kernel<const L: usize>(seconds: f64) -> (f64, f64, u64) {
             "every lane busy: {taken:?}"
         );
         steps += taken.iter().map(|&k| u64::from(k)).sum::<u64>();
-        rounds += u64::from(taken[0]);
         // The period's last step, one at a time (not timed), back to phase 0.
         for sim in sims.iter_mut() {
             sim.step(&mut |_| {});
         }
     }
-    (steps as f64 / busy, busy / rounds as f64, steps)
+    (steps as f64 / busy, steps)
 }
 
 struct Grid {
@@ -125,7 +124,7 @@ fn median_range(xs: &[f64]) -> (f64, f64, f64) {
 }
 
 /// [`kernel`] at the lanes the grid runs on this CPU ([`lanes_per_core`]).
-fn native_kernel(seconds: f64) -> (f64, f64, u64) {
+fn native_kernel(seconds: f64) -> (f64, u64) {
     if lanes_per_core() == WIDE_LANES {
         kernel::<WIDE_LANES>(seconds)
     } else {
@@ -138,7 +137,7 @@ fn main() {
     let kernel_only = args.iter().any(|a| a == "--kernel-only");
     let grid_only = args.iter().any(|a| a == "--grid-only");
     if kernel_only {
-        let (_, _, steps) = native_kernel(0.5);
+        let (_, steps) = native_kernel(0.5);
         println!("kernel: {steps} lane-steps");
         return;
     }
@@ -167,14 +166,17 @@ fn main() {
             },
         )
         .unwrap_or(5);
-    let runs: Vec<((f64, f64, u64), Grid)> =
-        (0..rounds).map(|_| (native_kernel(0.5), grid())).collect();
+    let runs: Vec<((f64, u64), Grid)> = (0..rounds).map(|_| (native_kernel(0.5), grid())).collect();
     let lanes = lanes_per_core();
     let isa = shared::integrate::kernel_isa();
-    let rates: Vec<f64> = runs.iter().map(|((r, _, _), _)| *r).collect();
+    let rates: Vec<f64> = runs.iter().map(|((r, _), _)| *r).collect();
     let walls: Vec<f64> = runs.iter().map(|(_, g)| g.wall).collect();
     let rk4 = runs[0].1.counts.rk4_steps() as f64;
-    let effs: Vec<f64> = runs.iter().map(|((r, _, _), g)| rk4 / g.wall / r).collect();
+    assert!(
+        runs.iter().all(|(_, g)| g.counts == runs[0].1.counts),
+        "every round's grid takes the same steps"
+    );
+    let effs: Vec<f64> = runs.iter().map(|((r, _), g)| rk4 / g.wall / r).collect();
     let (rate, rate_lo, rate_hi) = median_range(&rates);
     let (wall, wall_lo, wall_hi) = median_range(&walls);
     let (eff, eff_lo, eff_hi) = median_range(&effs);
