@@ -417,6 +417,14 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
         );
         assert!((a - b).abs() < 1e-9 * b.abs(), "{a} vs {b}");
     }
+    // The report names a given start as typed (not its round trip through metres).
+    let text = ok(&line(
+        "orbit --rig wires --gap-mm 0 --omega-ratio 2.0 --u0-mm -3.2e-05 --v0-mm-s 0.1",
+    ));
+    assert!(
+        text.contains("the protocol from u0 = -0.000032 mm, u̇0 = 0.1 mm/s settled on 1/1"),
+        "{text}"
+    );
 }
 
 #[test]

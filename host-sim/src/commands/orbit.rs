@@ -157,8 +157,11 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
             setup.precision.name(),
             match start {
                 Start::Rest => "rest".to_string(),
-                Start::Relative { u_m, du_m_s } =>
-                    format!("u0 = {} mm, u̇0 = {} mm/s", u_m * 1e3, du_m_s * 1e3),
+                // As given (the start in m, times 1e3, prints the conversion's rounding).
+                Start::Relative { .. } => format!(
+                    "u0 = {} mm, u̇0 = {} mm/s",
+                    a.point.u0_mm, a.point.v0_mm_s
+                ),
             },
             protocol.regime,
             protocol.transient_periods
