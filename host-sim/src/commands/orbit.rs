@@ -158,10 +158,8 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
             match start {
                 Start::Rest => "rest".to_string(),
                 // As given (the start in m, times 1e3, prints the conversion's rounding).
-                Start::Relative { .. } => format!(
-                    "u0 = {} mm, u̇0 = {} mm/s",
-                    a.point.u0_mm, a.point.v0_mm_s
-                ),
+                Start::Relative { .. } =>
+                    format!("u0 = {} mm, u̇0 = {} mm/s", a.point.u0_mm, a.point.v0_mm_s),
             },
             protocol.regime,
             protocol.transient_periods
