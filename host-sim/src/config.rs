@@ -370,9 +370,17 @@ fn merge<T: serde::Serialize + serde::de::DeserializeOwned>(
 ) -> Result<T> {
     let mut value = toml::Value::try_from(base).context("internal: serialising defaults")?;
     overlay(&mut value, toml::Value::Table(over));
-    value
-        .try_into()
-        .map_err(|e: toml::de::Error| anyhow::anyhow!("[{table}]: {}", e.message()))
+    // The error names the key's whole path: `rig.contact.hertz: missing field `stiffness``,
+    // `rig.mass_kg: invalid type …`.
+    serde_path_to_error::deserialize(value).map_err(|e| {
+        let path = e.path().to_string();
+        let at = if path == "." {
+            table.to_string()
+        } else {
+            format!("{table}.{path}")
+        };
+        anyhow::anyhow!("{at}: {}", e.into_inner().message())
+    })
 }
 
 fn overlay(base: &mut toml::Value, over: toml::Value) {
@@ -524,7 +532,26 @@ mod tests {
         );
         let bad: toml::Table = toml::from_str("mass = 0.5").unwrap();
         let e = merge(&p, bad, "rig").unwrap_err().to_string();
-        assert!(e.contains("mass"), "{e}");
+        assert!(e.starts_with("rig.mass: unknown field `mass`"), "{e}");
+        // Every error names the key's whole path, however deep.
+        for (text, expect) in [
+            (
+                "[contact.hertz]\nexponent = 1.5\n",
+                "rig.contact.hertz: missing field `stiffness`",
+            ),
+            (
+                "[suspension.wires]\nlen = 1.0\n",
+                "rig.suspension.wires.len: unknown field `len`",
+            ),
+            (
+                "mass_kg = \"a\"\n",
+                "rig.mass_kg: invalid type: string \"a\", expected f64",
+            ),
+        ] {
+            let t: toml::Table = toml::from_str(text).unwrap();
+            let e = merge(&p, t, "rig").unwrap_err().to_string();
+            assert!(e.starts_with(expect), "{text}: {e}");
+        }
     }
 
     #[test]
