@@ -373,11 +373,9 @@ fn merge<T: serde::Serialize + serde::de::DeserializeOwned>(
     // The error names the key's whole path: `rig.contact.hertz: missing field `stiffness``,
     // `rig.mass_kg: invalid type …`.
     serde_path_to_error::deserialize(value).map_err(|e| {
-        let path = e.path().to_string();
-        let at = if path == "." {
-            table.to_string()
-        } else {
-            format!("{table}.{path}")
+        let at = match e.path().iter().next() {
+            None => table.to_string(),
+            Some(_) => format!("{table}.{}", e.path()),
         };
         anyhow::anyhow!("{at}: {}", e.into_inner().message())
     })
