@@ -220,6 +220,108 @@ fn adc_overrun_and_missed_deadline_trip() {
     assert_eq!(rig.c.fault(), Some(Fault::MissedDeadline));
 }
 
+/// A `freq` re-arms nothing the no-signal check needs near the model's target: the sensor
+/// opening with the command still trips `sensor-open`, as does a `start` with the sensor
+/// already open (where no impact is ever seen). Away from the target (where a regime without
+/// impacts is legitimate) the check still waits for a first impact.
+#[test]
+fn sensor_open_trips_across_a_freq_change_and_from_a_start() {
+    // Opened together with a `freq` inside ±5 % of the 3.60 Hz target.
+    let mut rig = tracking_rig();
+    rig.sensor = Sensor::Open;
+    rig.c.execute(Command::Freq(3.70)).unwrap();
+    assert_fault_ramps_down_and_latches(&mut rig, Fault::SensorOpen, 1.0);
+    // Started with the sensor open: the ramp (1.78 s), then the check's 0.4 s.
+    let mut rig = Rig::new();
+    rig.sensor = Sensor::Open;
+    rig.c.execute(Command::Start).unwrap();
+    assert_fault_ramps_down_and_latches(&mut rig, Fault::SensorOpen, 2.5);
+    // Started at 3.0 Hz, 17 % below the target, without a first impact: no fault (the regime
+    // may be one without impacts there).
+    let mut rig = Rig::new();
+    rig.sensor = Sensor::Open;
+    rig.c.execute(Command::Freq(3.0)).unwrap();
+    rig.c.execute(Command::Start).unwrap();
+    rig.run(10.0);
+    assert_eq!(rig.c.fault(), None);
+    assert_eq!(rig.c.state(), State::Dwell);
+}
+
+/// Values the console's parser would refuse are refused by the controller too (it is a public
+/// API): a gap or link timeout that is not finite or out of range, and a positive link timeout
+/// shorter than one sample, which would read as off.
+#[test]
+fn out_of_range_values_are_refused_by_the_controller_too() {
+    let mut rig = Rig::new();
+    let before = rig.c.status();
+    for g in [f32::NAN, -5.0, 10.5, f32::INFINITY] {
+        assert_eq!(
+            rig.c.execute(Command::Gap(g)),
+            Err(CommandError::OutOfRange {
+                min: 0.0,
+                max: 10.0
+            }),
+            "{g}"
+        );
+    }
+    for s in [f32::NAN, -1.0, 0.00004, 0.009, 3600.5] {
+        assert_eq!(
+            rig.c.execute(Command::LinkTimeout(s)),
+            Err(CommandError::OutOfRange {
+                min: 0.01,
+                max: 3600.0
+            }),
+            "{s}"
+        );
+    }
+    assert_eq!(rig.c.status(), before);
+    assert_eq!(rig.c.link_timeout_samples(), 0);
+    // The console line reads the reply back.
+    let line = CommandError::OutOfRange {
+        min: 0.01,
+        max: 3600.0,
+    }
+    .to_string();
+    assert_eq!(
+        line,
+        "value out of range: allowed 0.01 ..= 3600.00 (0: off for link-timeout)"
+    );
+    assert_eq!(
+        line.parse::<CommandError>(),
+        Ok(CommandError::OutOfRange {
+            min: 0.01,
+            max: 3600.0
+        })
+    );
+    rig.c.execute(Command::LinkTimeout(0.01)).unwrap();
+    assert_eq!(rig.c.link_timeout_samples(), 100);
+}
+
+/// A target that arrives during the ramp is checked against the frequency window as one
+/// present at `start` is: outside it, `bad-config` trips instead of tracking a clamped target.
+#[test]
+fn a_target_outside_the_window_that_arrives_during_the_ramp_trips() {
+    let mut config = ControllerConfig::default();
+    config.limits.freq_min_hz = 1.0;
+    config.limits.freq_max_hz = 3.0;
+    let mut c = Controller::new(config, RigId::Wires, 0.0).unwrap();
+    c.execute(Command::Freq(2.0)).unwrap();
+    c.execute(Command::Start).unwrap();
+    assert_eq!(c.state(), State::Ramp);
+    c.execute(Command::Tune).unwrap();
+    let req = c.take_model_request().unwrap();
+    c.set_prediction(req.generation, Ok(prediction(3.64)));
+    let mut t_us = 0;
+    for _ in 0..3 * SAMPLE_RATE_HZ {
+        t_us += u64::from(SAMPLE_PERIOD_US);
+        c.on_sample(Ok(2048), t_us);
+        if c.state() != State::Ramp {
+            break;
+        }
+    }
+    assert_eq!(c.fault(), Some(Fault::BadConfig));
+}
+
 #[test]
 fn bad_commands_change_nothing() {
     let mut rig = tracking_rig();

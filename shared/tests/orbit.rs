@@ -797,3 +797,40 @@ fn shooting_converges_along_the_1_1_band() {
     );
     assert!(next.is_ok(), "Ω/ω 2.5091: {}", next.unwrap_err());
 }
+
+/// Step sizes that cannot make progress end the branch (`a step below the minimum`) instead of
+/// halving a NaN or a zero step for ever: a NaN first step, a NaN smallest step, a smallest
+/// step of 0.
+#[test]
+fn continuation_with_unusable_steps_ends() {
+    let at = point(RigId::Beam170, ContactLawKind::SpringDashpot, 0.0, 2.0);
+    let (_, start) = orbit_at::<f64>(&at);
+    for (first, min) in [
+        (f64::NAN, 1e-6),
+        (0.02, f64::NAN),
+        (0.02, 0.0),
+        (f64::NAN, 0.0),
+    ] {
+        let mut settings = ContinuationSettings::new::<f64>(Param::OmegaRatio, [0.5, 5.0]);
+        settings.steps.first = first;
+        settings.steps.min = min;
+        settings.max_points = 3;
+        let mut points = 0;
+        let end = continue_branch(
+            &start,
+            &settings,
+            1.0,
+            None,
+            |_| points += 1,
+            |_| ControlFlow::Continue(()),
+        );
+        // Only the start is reported when the first step is NaN.
+        if first.is_nan() {
+            assert_eq!(points, 1, "{first} {min}");
+            assert!(
+                matches!(end, shared::orbit::BranchEnd::StepTooSmall(v) if v == 2.0),
+                "{end}"
+            );
+        }
+    }
+}

@@ -231,6 +231,8 @@ fn answer_error() -> impl Strategy<Value = AnswerError> {
             Just(CommandError::NoTarget),
             (dec(2, 0.0, 999.0), dec(2, 0.0, 999.0))
                 .prop_map(|(min, max)| CommandError::FreqOutOfWindow { min, max }),
+            (dec(2, 0.0, 999.0), dec(2, 0.0, 3600.0))
+                .prop_map(|(min, max)| CommandError::OutOfRange { min, max }),
         ]
         .prop_map(AnswerError::Command),
         prop_oneof![
@@ -404,6 +406,28 @@ fn bad_numbers_are_refused_at_the_edge_and_named() {
             "{line}"
         );
     }
+    // A model-ready event: the target's bits within the same range as its text, in hex digits.
+    let target = |bits: &str, hz: &str| {
+        format!(
+            "!E seq=7 t_s=1.0000 event=model-ready target_hz={hz} target_bits={bits} \
+             band_hz=2.10..4.84 predicted_mg=32.85"
+        )
+    };
+    let good = f32::to_bits(3.64);
+    assert!(
+        target(&format!("0x{good:08x}"), "3.6400")
+            .parse::<AsyncRecord>()
+            .is_ok()
+    );
+    let negative = f32::to_bits(-4e-5);
+    assert_eq!(
+        target(&format!("0x{negative:08x}"), "0.0000").parse::<AsyncRecord>(),
+        Err(WireError::Bad("target_bits"))
+    );
+    assert_eq!(
+        target(&format!("0x+{good:08x}"), "3.6400").parse::<AsyncRecord>(),
+        Err(WireError::Bad("target_bits"))
+    );
     // Peak given without impacts, and impacts without a peak.
     assert_eq!(
         t.replace("impacts=1", "impacts=0").parse::<AsyncRecord>(),

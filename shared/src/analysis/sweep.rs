@@ -8,8 +8,10 @@ use crate::error::ParamError;
 /// Largest number of points in one sweep.
 pub const MAX_SWEEP_POINTS: u32 = 10_000_000;
 
-/// `lo, lo + step, …, ≤ hi` (the last point within `1e-9·step` of `hi` counts).
+/// `lo, lo + step, …, ≤ hi` (the last point within `1e-9·step` of `hi` counts). Read from a
+/// file it is validated as [`Sweep::new`] does.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "SweepFields")]
 pub struct Sweep {
     /// First value.
     pub lo: f64,
@@ -17,6 +19,22 @@ pub struct Sweep {
     pub hi: f64,
     /// Spacing, > 0.
     pub step: f64,
+}
+
+/// A sweep as a file states it, before [`Sweep::new`]'s checks.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SweepFields {
+    lo: f64,
+    hi: f64,
+    step: f64,
+}
+
+impl TryFrom<SweepFields> for Sweep {
+    type Error = ParamError;
+    fn try_from(f: SweepFields) -> Result<Self, ParamError> {
+        Sweep::new("sweep", f.lo, f.hi, f.step)
+    }
 }
 
 impl Sweep {
@@ -53,7 +71,8 @@ impl Sweep {
 
     /// Number of points.
     pub fn len(&self) -> usize {
-        libm::floor((self.hi - self.lo) / self.step + 1e-9) as usize + 1
+        // `as` saturates (a sweep not made by `new` cannot overflow the count).
+        (libm::floor((self.hi - self.lo) / self.step + 1e-9) as usize).saturating_add(1)
     }
 
     /// Never empty (a valid sweep has at least `lo`).
@@ -70,6 +89,23 @@ impl Sweep {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sweep read from a file goes through `new`'s checks; one built by hand with a zero
+    /// step counts `usize::MAX` points instead of overflowing.
+    #[test]
+    fn a_read_sweep_is_checked_and_a_hand_made_one_cannot_overflow() {
+        let read = |lo, hi, step| Sweep::try_from(SweepFields { lo, hi, step });
+        assert_eq!(read(0.5, 5.0, 0.5).map(|s| s.len()), Ok(10));
+        assert!(read(0.5, 5.0, 0.0).is_err());
+        assert!(read(f64::NAN, 5.0, 0.1).is_err());
+        assert!(read(5.0, 0.5, 0.1).is_err());
+        let zero_step = Sweep {
+            lo: 0.5,
+            hi: 5.0,
+            step: 0.0,
+        };
+        assert_eq!(zero_step.len(), usize::MAX);
+    }
 
     #[test]
     fn counts_inclusive_points() {

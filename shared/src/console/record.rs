@@ -172,10 +172,18 @@ fn event_fields(w: &mut Fields<'_>) -> Result<Event, WireError> {
             let shown = w.raw("target_hz")?;
             decimal("target_hz", shown, 0.0, MAX_FREQ_HZ)?;
             let bits = w.with("target_bits", |v| {
-                u32::from_str_radix(v.strip_prefix("0x")?, 16).ok()
+                let hex = v.strip_prefix("0x")?;
+                // Hex digits only (`from_str_radix` would take a sign too).
+                if !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+                    return None;
+                }
+                u32::from_str_radix(hex, 16).ok()
             })?;
             let target_hz = f32::from_bits(bits);
-            // The bits are the target; the rounded text must say the same.
+            // The bits are the target, in the same range; the rounded text must say the same.
+            if !(0.0..=MAX_FREQ_HZ).contains(&target_hz) {
+                return Err(WireError::Bad("target_bits"));
+            }
             if !super::displays_as(&Decimal(target_hz, 4), shown) {
                 return Err(WireError::Mismatch("target_bits"));
             }

@@ -512,6 +512,11 @@ const NOT_IDLE: (&str, &str, &str) = (
 );
 const FREQ_WINDOW: (&str, &str, &str) =
     ("frequency out of the safe window: allowed ", " ..= ", " Hz");
+const OUT_OF_RANGE: (&str, &str, &str) = (
+    "value out of range: allowed ",
+    " ..= ",
+    " (0: off for link-timeout)",
+);
 
 impl fmt::Display for CommandError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -546,6 +551,15 @@ impl fmt::Display for CommandError {
                 Decimal(*max, 2),
                 FREQ_WINDOW.2
             ),
+            CommandError::OutOfRange { min, max } => write!(
+                f,
+                "{}{}{}{}{}",
+                OUT_OF_RANGE.0,
+                Decimal(*min, 2),
+                OUT_OF_RANGE.1,
+                Decimal(*max, 2),
+                OUT_OF_RANGE.2
+            ),
         }
     }
 }
@@ -577,15 +591,22 @@ impl FromStr for CommandError {
         {
             return Fault::from_token(name).map(CommandError::Tripped).ok_or(());
         }
-        let range = s
-            .strip_prefix(FREQ_WINDOW.0)
-            .and_then(|r| r.strip_suffix(FREQ_WINDOW.2))
-            .ok_or(())?;
-        let (min, max) = range.split_once(FREQ_WINDOW.1).ok_or(())?;
-        Ok(CommandError::FreqOutOfWindow {
-            min: super::parse_decimal(min).ok_or(())?,
-            max: super::parse_decimal(max).ok_or(())?,
-        })
+        for (text, window) in [(FREQ_WINDOW, true), (OUT_OF_RANGE, false)] {
+            let Some(range) = s.strip_prefix(text.0).and_then(|r| r.strip_suffix(text.2)) else {
+                continue;
+            };
+            let (min, max) = range.split_once(text.1).ok_or(())?;
+            let (min, max) = (
+                super::parse_decimal(min).ok_or(())?,
+                super::parse_decimal(max).ok_or(())?,
+            );
+            return Ok(if window {
+                CommandError::FreqOutOfWindow { min, max }
+            } else {
+                CommandError::OutOfRange { min, max }
+            });
+        }
+        Err(())
     }
 }
 

@@ -21,8 +21,7 @@ pub const MAX_CAPTURE_LEVEL_N: f32 = 100.0;
 pub const MIN_CAPTURE_LEVEL_N: f32 = 0.1;
 /// Shortest capture of `capture arm`, s.
 pub const MIN_CAPTURE_S: f32 = 0.01;
-/// Longest link timeout, s.
-pub const MAX_LINK_TIMEOUT_S: f32 = 3600.0;
+pub use crate::control::{MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S};
 /// Largest number `freq` takes before the controller's own window check, Hz.
 pub const MAX_FREQ_HZ: f32 = 1000.0;
 

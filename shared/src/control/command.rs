@@ -45,6 +45,14 @@ pub enum CommandError {
     ModelPending,
     /// `start` without a target: the model found none (use `freq`).
     NoTarget,
+    /// `gap` or `link-timeout` with a value outside its range (not finite, negative, beyond
+    /// the largest, or a link timeout between 0 and [`super::MIN_LINK_TIMEOUT_S`]).
+    OutOfRange {
+        /// Smallest, in the command's unit.
+        min: f32,
+        /// Largest.
+        max: f32,
+    },
     /// `freq` outside the safe window.
     FreqOutOfWindow {
         /// Lowest, Hz.

@@ -12,6 +12,11 @@ use crate::error::{ParamError, check_range};
 
 /// Largest gap the controller takes, mm.
 pub const MAX_GAP_MM: f32 = 10.0;
+/// Longest link timeout, s.
+pub const MAX_LINK_TIMEOUT_S: f32 = 3600.0;
+/// Shortest link timeout other than 0 (off), s: ten milliseconds, so that a positive request
+/// is never rounded to no samples (which would mean off).
+pub const MIN_LINK_TIMEOUT_S: f32 = 0.01;
 
 /// Force sampling rate, Hz: the ADC is triggered from a hardware timer at this rate and the
 /// sampling task runs once per sample.

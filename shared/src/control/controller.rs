@@ -63,6 +63,9 @@ enum Model {
     Failed,
 }
 
+/// An empty frequency window (no frequency lies in it).
+const NO_FREQUENCIES: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
+
 /// What the controller is doing, with the data that means something only there.
 #[derive(Debug, Clone, Copy)]
 enum Mode {
@@ -118,6 +121,9 @@ pub struct Controller {
     generator: SineGenerator,
     detector: ImpactDetector,
     monitor: SensorMonitor,
+    /// Drive frequencies at which the model expects impacts, Hz (the target ±
+    /// [`super::faults::IMPACTS_EXPECTED_PCT`]; empty without a model result).
+    impacts_expected_hz: [f32; 2],
     /// Drive cycles completed.
     cycles: u32,
     /// Longest impact-free stretch the measured regime allows, samples (updated per cycle).
@@ -161,6 +167,7 @@ impl Controller {
             detector: ImpactDetector::new(&config.detector),
             meter: RegimeMeter::new(),
             monitor: SensorMonitor::new(&config.faults),
+            impacts_expected_hz: NO_FREQUENCIES,
             config,
             rig,
             gap_mm,
@@ -319,6 +326,8 @@ impl Controller {
         match result {
             Ok(p) => {
                 self.model = Model::Ready(p);
+                let half = p.target_hz * (super::faults::IMPACTS_EXPECTED_PCT / 100.0);
+                self.impacts_expected_hz = [p.target_hz - half, p.target_hz + half];
                 self.push(Event::ModelReady(Target::from(&p)));
                 if self.mode.measuring() && self.manual_hz.is_none() {
                     if self.target_in_window(&p) {
@@ -331,6 +340,7 @@ impl Controller {
             }
             Err(_) => {
                 self.model = Model::Failed;
+                self.impacts_expected_hz = NO_FREQUENCIES;
                 self.push(Event::ModelFailed);
             }
         }
@@ -352,12 +362,26 @@ impl Controller {
                 self.request_model();
             }
             Command::Gap(gap_mm) => {
+                if !(0.0..=super::MAX_GAP_MM).contains(&gap_mm) {
+                    return Err(CommandError::OutOfRange {
+                        min: 0.0,
+                        max: super::MAX_GAP_MM,
+                    });
+                }
                 self.require_idle()?;
                 self.gap_mm = gap_mm;
                 self.reset_measurement();
                 self.request_model();
             }
             Command::LinkTimeout(seconds) => {
+                if seconds != 0.0
+                    && !(super::MIN_LINK_TIMEOUT_S..=super::MAX_LINK_TIMEOUT_S).contains(&seconds)
+                {
+                    return Err(CommandError::OutOfRange {
+                        min: super::MIN_LINK_TIMEOUT_S,
+                        max: super::MAX_LINK_TIMEOUT_S,
+                    });
+                }
                 self.link_timeout = super::config::samples(seconds, 0);
                 self.link_alive();
             }
@@ -468,7 +492,13 @@ impl Controller {
             let driving = self.generator.amplitude_mm() > 0.0;
             let full = self.mode.measuring();
             let gap = self.regime_gap_samples;
-            if let Some(f) = self.monitor.check(c, driving, full, impact.is_some(), gap) {
+            let [lo, hi] = self.impacts_expected_hz;
+            let f = self.generator.freq_hz();
+            let expected = f >= lo && f <= hi;
+            if let Some(f) = self
+                .monitor
+                .check(c, driving, full, impact.is_some(), gap, expected)
+            {
                 self.trip(f);
             }
         }
@@ -482,11 +512,17 @@ impl Controller {
         match self.mode {
             Mode::Ramp if self.generator.settled() => {
                 self.reset_measurement();
-                let mode = match (self.manual_hz, self.model) {
-                    (None, Model::Ready(p)) => self.begin_tracking(&p),
-                    _ => Mode::Dwell(Measurement::Settling(0)),
-                };
-                self.set_mode(mode);
+                match (self.manual_hz, self.model) {
+                    // A target that arrived during the ramp is checked as at `start`.
+                    (None, Model::Ready(p)) if !self.target_in_window(&p) => {
+                        self.trip(Fault::BadConfig);
+                    }
+                    (None, Model::Ready(p)) => {
+                        let mode = self.begin_tracking(&p);
+                        self.set_mode(mode);
+                    }
+                    _ => self.set_mode(Mode::Dwell(Measurement::Settling(0))),
+                }
             }
             Mode::Stopping if self.generator.amplitude_mm() == 0.0 => {
                 self.set_mode(Mode::Idle);
@@ -634,6 +670,7 @@ impl Controller {
     fn request_model(&mut self) {
         self.generation = self.generation.wrapping_add(1);
         self.model = Model::Pending;
+        self.impacts_expected_hz = NO_FREQUENCIES;
         self.request_open = true;
     }
 

@@ -9,8 +9,9 @@ use super::config::{FaultSettings, samples};
 pub enum Fault {
     /// An impact's peak force exceeded `force_limit_n`.
     OverForce,
-    /// No impact for `no_signal_s` while driving at full amplitude after impacts had been seen:
-    /// the sensor or its cable is open.
+    /// No impact for `no_signal_s` while driving at full amplitude after impacts had been seen,
+    /// or within [`IMPACTS_EXPECTED_PCT`] of the model's target (where the model has `z = 1/1`
+    /// at every point): the sensor or its cable is open.
     SensorOpen,
     /// The ADC sat at a rail for `rail_s` while the drive was on.
     SensorStuck,
@@ -37,6 +38,13 @@ impl Fault {
         Fault::LinkLost,
     ];
 }
+
+/// Half-width of the frequency window around the model's target inside which impacts are
+/// expected from the first sample at full amplitude, %: the selection's robustness margin
+/// (every point within ±5 % of the target is `z = 1/1` at the gap ± 0.1 mm,
+/// `crate::analysis::selection`). Elsewhere the no-signal check waits for a first impact, since
+/// a regime without impacts is legitimate there.
+pub const IMPACTS_EXPECTED_PCT: f32 = 5.0;
 
 /// Per-sample sensor checks: pinned at a rail, and no signal.
 #[derive(Debug, Clone)]
@@ -77,7 +85,9 @@ impl SensorMonitor {
 
     /// Checks one sample. `driving`: the drive is on; `full_drive`: at full amplitude in a
     /// measuring state; `impact`: an impact was reported at this sample; `expected_gap_samples`:
-    /// the longest impact-free stretch the measured regime allows (`q` periods).
+    /// the longest impact-free stretch the measured regime allows (`q` periods);
+    /// `impacts_expected`: the model expects impacts at this frequency (then no first impact
+    /// is waited for).
     pub fn check(
         &mut self,
         code: u16,
@@ -85,6 +95,7 @@ impl SensorMonitor {
         full_drive: bool,
         impact: bool,
         expected_gap_samples: u32,
+        impacts_expected: bool,
     ) -> Option<Fault> {
         if driving && self.at_rail(code) {
             self.at_rail = self.at_rail.saturating_add(1);
@@ -107,7 +118,7 @@ impl SensorMonitor {
         let limit = self
             .no_signal_min
             .max(expected_gap_samples.saturating_add(expected_gap_samples / 2));
-        (self.armed && self.since_impact > limit).then_some(Fault::SensorOpen)
+        ((self.armed || impacts_expected) && self.since_impact > limit).then_some(Fault::SensorOpen)
     }
 }
 
@@ -125,7 +136,7 @@ mod tests {
         expected_gap_samples: u32,
     ) {
         for i in 0..n {
-            let f = m.check(code, driving, driving, false, expected_gap_samples);
+            let f = m.check(code, driving, driving, false, expected_gap_samples, false);
             assert_eq!(f, None, "sample {i}");
         }
     }
@@ -135,10 +146,10 @@ mod tests {
         let mut m = SensorMonitor::new(&FaultSettings::default());
         // A 5 ms saturated impact: no fault.
         assert_quiet(&mut m, 50, 4095, true, 0);
-        assert_eq!(m.check(1000, true, true, true, 0), None);
+        assert_eq!(m.check(1000, true, true, true, 0, false), None);
         // Pinned: the 200th consecutive rail sample (20 ms) trips.
         for i in 1..=200 {
-            let f = m.check(0, true, true, false, 0);
+            let f = m.check(0, true, true, false, 0, false);
             assert_eq!(f.is_some(), i == 200, "{i}");
         }
         // Not while the drive is off.
@@ -153,10 +164,10 @@ mod tests {
         assert_quiet(&mut m, 20_000, 250, true, 2733);
         // After an impact, 1/1 at 3.659 Hz (2733 samples per period): max(0.4 s, 1.5 T) =
         // 4099 samples.
-        assert_eq!(m.check(250, true, true, true, 2733), None);
+        assert_eq!(m.check(250, true, true, true, 2733, false), None);
         let mut tripped = 0;
         for i in 1..=5000 {
-            if m.check(250, true, true, false, 2733).is_some() {
+            if m.check(250, true, true, false, 2733, false).is_some() {
                 tripped = i;
                 break;
             }
@@ -164,8 +175,8 @@ mod tests {
         assert_eq!(tripped, 4100);
         // A short period: the 0.4 s floor.
         let mut m = SensorMonitor::new(&FaultSettings::default());
-        m.check(250, true, true, true, 1000);
-        let n = (1..10_000).find(|_| m.check(250, true, true, false, 1000).is_some());
+        m.check(250, true, true, true, 1000, false);
+        let n = (1..10_000).find(|_| m.check(250, true, true, false, 1000, false).is_some());
         assert_eq!(n, Some(4001));
     }
 }

@@ -23,7 +23,8 @@ pub mod tracker;
 pub use command::{Command, CommandError, Reply};
 pub use config::{
     ControllerConfig, DetectorSettings, DriveChain, FaultSettings, Limits, MAX_GAP_MM,
-    SAMPLE_PERIOD_US, SAMPLE_RATE_HZ, SensorChain, TrackSettings,
+    MAX_LINK_TIMEOUT_S, MIN_LINK_TIMEOUT_S, SAMPLE_PERIOD_US, SAMPLE_RATE_HZ, SensorChain,
+    TrackSettings,
 };
 pub use controller::Controller;
 pub use detector::{DetectedImpact, ImpactDetector};

@@ -73,6 +73,9 @@ impl<T: Real> SectionHistory<T> {
         // `back` with the slice and the newest index looked up once.
         let (points, recent) = (self.buf.as_slice(), self.buf.recent_index()?);
         let far = FarBound::new(tol, u_scale, v_scale);
+        // No q needing more points than the history holds is tried (nor can `(cycles + 1)·q`
+        // overflow then).
+        let max_q = max_q.min(points.len() / cycles.saturating_add(1).max(1));
         smallest_period(
             max_q,
             |q| Some((cycles + 1) * q).filter(|&need| need <= points.len()),
@@ -133,6 +136,26 @@ fn nth_back<P>(points: &[P], recent: usize, j: usize) -> Option<&P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Any cycle count and `max_q` are answered, without overflow or a long search: a period-2
+    /// history repeats for the cycles it holds, and not for more.
+    #[test]
+    fn repeating_period_takes_any_counts() {
+        let mut h = SectionHistory::<f64>::default();
+        for j in 0..HISTORY {
+            h.push(StroboPoint {
+                u: (j % 2) as f64,
+                du: 0.0,
+            });
+        }
+        assert_eq!(h.repeating_period(usize::MAX, 3, 1e-9, 1.0, 1.0), Some(2));
+        assert_eq!(h.repeating_period(8, usize::MAX, 1e-9, 1.0, 1.0), None);
+        assert_eq!(
+            h.repeating_period(usize::MAX, usize::MAX, 1e-9, 1.0, 1.0),
+            None
+        );
+        assert_eq!(h.repeating_period(0, 3, 1e-9, 1.0, 1.0), None);
+    }
 
     /// Differences ulp by ulp around `tol·scale` (where `distance` turns) and around the bound
     /// (where `beyond` turns), over tolerances and scales of several magnitudes: a pair the

@@ -95,6 +95,8 @@ pub fn classify<T: Real>(
     if impacts[..n].iter().all(|&c| c == 0) {
         return Regime::NoImpact;
     }
+    // No q beyond half the window repeats in it, nor one that a regime cannot state.
+    let max_q = max_q.min(n / 2).min(usize::from(u16::MAX));
     let period = smallest_period(
         max_q,
         |q| (2 * q <= n).then_some(n),
@@ -107,7 +109,7 @@ pub fn classify<T: Real>(
             let p: u32 = impacts[n - q..n].iter().map(|&c| u32::from(c)).sum();
             Regime::Periodic {
                 p: u16::try_from(p).unwrap_or(u16::MAX),
-                q: q as u16,
+                q: u16::try_from(q).unwrap_or(u16::MAX),
             }
         }
         None => Regime::Irregular,
@@ -154,6 +156,40 @@ mod tests {
         }
         assert!("1/0".parse::<Regime>().is_err());
         assert!("one".parse::<Regime>().is_err());
+    }
+
+    /// A `max_q` beyond what the window can show costs no more than half the window, and a
+    /// period beyond what a regime can state (`q ≤ 65,535`) is `irregular`, not a wrapped `q`.
+    #[test]
+    fn huge_periods_neither_hang_nor_wrap() {
+        let pts: std::vec::Vec<_> = (0..10)
+            .map(|j| StroboPoint {
+                u: j as f32,
+                du: 0.0,
+            })
+            .collect();
+        let imp = [1u16; 10];
+        assert_eq!(
+            classify(&pts, &imp, usize::MAX, 1e-6, 1.0, 1.0),
+            Regime::Irregular
+        );
+        // Period 65,536 over 131,072 points: one impact per cycle.
+        let n = 131_072;
+        let pts: std::vec::Vec<_> = (0..n)
+            .map(|j| StroboPoint {
+                u: (j % 65_536) as f32,
+                du: 0.0,
+            })
+            .collect();
+        let imp: std::vec::Vec<u16> = (0..n).map(|j| u16::from(j % 65_536 == 0)).collect();
+        assert_eq!(
+            classify(&pts, &imp, usize::MAX, 1e-6, 1.0, 1.0),
+            Regime::Irregular
+        );
+        assert_eq!(
+            classify(&pts[..n - 2], &imp[..n - 2], usize::MAX, 1e-6, 1.0, 1.0),
+            Regime::Irregular
+        );
     }
 
     #[test]

@@ -78,6 +78,13 @@ pub struct StepSizes {
 }
 
 impl StepSizes {
+    /// Whether the step `h` has fallen below the smallest, which ends a continuation: also
+    /// when `h` or the smallest step is NaN, and when `h` has reached 0 (a smallest step that
+    /// is not positive), so that halving the step always ends.
+    pub fn below_min(&self, h: f64) -> bool {
+        !(h >= self.min && h > 0.0)
+    }
+
     /// The defaults in the float type `T`: 0.02, within 1e-6 ..= 0.05 (f32: from 1e-4).
     pub fn for_type<T: Real>() -> Self {
         StepSizes {
@@ -427,7 +434,7 @@ pub fn continue_branch<T: Real>(
         let value_a = node.z[2] * s_lambda;
         // A step: predict, correct, check the tangent turned little and the impacts held.
         let next = loop {
-            if h < settings.steps.min {
+            if settings.steps.below_min(h) {
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {

@@ -329,7 +329,7 @@ pub fn continue_curve<T: Real>(
     let mut h = settings.steps.first;
     for _ in 0..settings.max_points {
         let next = loop {
-            if h < settings.steps.min {
+            if settings.steps.below_min(h) {
                 return CurveEnd::StepTooSmall(p[0], p[1] * a0);
             }
             let pred = [p[0] + h * t[0], p[1] + h * t[1]];
@@ -442,7 +442,7 @@ fn fold_curve<T: Real>(
     let mut h = settings.steps.first;
     for _ in 0..settings.max_points {
         let (r, g) = plane(lam, mu);
-        if h < settings.steps.min {
+        if settings.steps.below_min(h) {
             return CurveEnd::StepTooSmall(r, g);
         }
         let mu_next = mu + direction * h;
