@@ -429,9 +429,42 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && stderr.contains("[[faults]] and [[drops]]"),
+        !out.status.success() && stderr.contains("faults belong to the virtual rig"),
         "{stderr}"
     );
+    // A file without commands, or with the virtual rig's plant: nothing is sent (the virtual
+    // rig's default `start` never reaches a rig).
+    for (name, text, says) in [
+        ("empty.toml", "", "no [[commands]] to run"),
+        (
+            "plant.toml",
+            "[plant]\ncontact_stiffness_factor = 16.0\n",
+            "plant belong to the virtual rig",
+        ),
+    ] {
+        let path = write_file(dir.path(), name, text);
+        let out = rig_cmd(&server.pty, &format!("run --scenario {}", path.display()));
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(says), "{stderr}");
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("start"));
+    }
+    // A refused line ends the run before the lines planned on it.
+    let refused = write_file(
+        dir.path(),
+        "refused.toml",
+        "[[commands]]\nat_s = 0.1\nline = \"freq 50\"\n[[commands]]\nat_s = 0.3\nline = \"start\"\n",
+    );
+    let out = rig_cmd(
+        &server.pty,
+        &format!("run --scenario {}", refused.display()),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        !out.status.success() && stderr.contains("the rig refused `freq 50`"),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("> start"), "{stdout}");
     let commands = write_file(
         dir.path(),
         "commands.toml",

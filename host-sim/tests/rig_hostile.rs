@@ -54,6 +54,9 @@ enum Misbehaviour {
     NeverDwells,
     /// Stops answering after connecting.
     GoesQuiet,
+    /// Never dwells (as `NeverDwells`), and every `stop` is lost on the way (`error: line
+    /// lost`, untagged, as a damaged line gets).
+    LosesStop,
 }
 
 /// The fake rig's state.
@@ -64,6 +67,8 @@ struct Fake {
     sample: u64,
     capture_samples: u32,
     lines: usize,
+    /// Every line received (tags stripped).
+    log: Vec<String>,
 }
 
 fn id_info(bad: Misbehaviour) -> IdInfo {
@@ -116,6 +121,7 @@ impl Fake {
     fn reply(&mut self, line: &str) -> Option<String> {
         use Misbehaviour::*;
         self.lines += 1;
+        self.log.push(line.to_string());
         if self.bad == GoesQuiet && self.lines > 3 {
             return None;
         }
@@ -176,7 +182,7 @@ impl Fake {
             self.streaming = false;
             return vec![b'x'; 20 << 20];
         }
-        let state = if self.bad == NeverDwells {
+        let state = if matches!(self.bad, NeverDwells | LosesStop) {
             State::Ramp
         } else {
             State::Dwell
@@ -219,6 +225,11 @@ impl Fake {
 
 /// A pseudo-terminal the test plays the rig on, misbehaving as `bad`.
 fn fake_rig(bad: Misbehaviour) -> PathBuf {
+    fake_rig_logged(bad).0
+}
+
+/// [`fake_rig`], with the fake's state (its log of the lines received).
+fn fake_rig_logged(bad: Misbehaviour) -> (PathBuf, Arc<Mutex<Fake>>) {
     let pair = nix::pty::openpty(None, None).unwrap();
     let mut t = nix::sys::termios::tcgetattr(&pair.slave).unwrap();
     nix::sys::termios::cfmakeraw(&mut t);
@@ -240,7 +251,9 @@ fn fake_rig(bad: Misbehaviour) -> PathBuf {
         sample: 0,
         capture_samples: 0,
         lines: 0,
+        log: Vec::new(),
     }));
+    let state = Arc::clone(&fake);
     std::thread::spawn(move || {
         let _slave = pair.slave;
         let mut master = master;
@@ -300,6 +313,7 @@ fn fake_rig(bad: Misbehaviour) -> PathBuf {
                         send(&mut master, b"ok\r\n");
                         send(&mut master, tagged.as_bytes());
                     }
+                    (LosesStop, "stop") => send(&mut master, b"error: line lost\r\n"),
                     (LongGarbageThenOk, "status") => {
                         let mut v = vec![b'g'; 70 << 10];
                         v.extend_from_slice(b"ok\r\n");
@@ -320,7 +334,7 @@ fn fake_rig(bad: Misbehaviour) -> PathBuf {
             }
         }
     });
-    path
+    (path, state)
 }
 
 /// `host-sim rig --port PORT --timeout-s 0.5 ARGS` in `dir`, run to its end; asserts it ended
@@ -509,4 +523,63 @@ fn a_sweep_whose_rig_never_dwells_ends_with_a_partial_file() {
         "{partial}"
     );
     assert!(leftovers(dir.path()).is_empty());
+}
+
+/// The drive guard's `stop` lost on the way: the client sends it again (three times in all),
+/// says the drive may still run, and leaves the rig's link-loss watchdog armed (no
+/// `link-timeout 0` after a failed stop).
+#[test]
+fn a_lost_stop_is_retried_and_the_watchdog_stays_armed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (port, fake) = fake_rig_logged(Misbehaviour::LosesStop);
+    let stderr = rig_fails(
+        &port,
+        dir.path(),
+        "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 1 --out fr.csv",
+        Duration::from_secs(60),
+    );
+    assert!(stderr.contains("`stop` failed 3 times"), "{stderr}");
+    assert!(stderr.contains("the drive may still run"), "{stderr}");
+    assert!(!stderr.contains("ramped to zero"), "{stderr}");
+    std::thread::sleep(Duration::from_millis(200));
+    let log = fake.lock().unwrap().log.clone();
+    let stops = log.iter().filter(|l| *l == "stop").count();
+    assert_eq!(stops, 3, "{log:?}");
+    let last_stop = log.iter().rposition(|l| l == "stop").unwrap();
+    assert!(
+        !log[last_stop..]
+            .iter()
+            .any(|l| l.starts_with("link-timeout")),
+        "{log:?}"
+    );
+}
+
+/// A `link-timeout` or `stream on` the operator sends is left as they set it when the client
+/// closes (the client's own settings are undone, theirs are not).
+#[test]
+fn the_operators_settings_are_left_as_set() {
+    // (`send` asks no `status`: this fake answers every line it is sent at once.)
+    let (port, fake) = fake_rig_logged(Misbehaviour::DelaysStatus);
+    for (args, last) in [
+        (vec!["send", "link-timeout 30"], "link-timeout 30"),
+        (vec!["send", "stream on"], "stream on"),
+    ] {
+        let out = Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
+            .arg("rig")
+            .arg("--port")
+            .arg(&port)
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::thread::sleep(Duration::from_millis(200));
+        let log = fake.lock().unwrap().log.clone();
+        let kind = last.split_whitespace().next().unwrap();
+        let final_setting = log.iter().rfind(|l| l.starts_with(kind)).unwrap();
+        assert_eq!(final_setting, last, "{log:?}");
+    }
 }

@@ -87,8 +87,8 @@ pub struct ConsoleArgs {
 /// `rig run`.
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// Scenario TOML; only its `[[commands]]` are used (`[[faults]]` and `[[drops]]` are the virtual
-    /// rig's and are refused).
+    /// Scenario TOML with `[[commands]]` only (every other table is the virtual rig's and is
+    /// refused); a refused command ends the run and stops the drive.
     #[arg(long, value_name = "FILE.toml")]
     pub scenario: PathBuf,
 }
@@ -299,7 +299,13 @@ pub fn run(a: &RigArgs) -> Result<()> {
                         SweepEnd::Fault(f) => {
                             // The rig ramps its drive to zero itself.
                             port.release_drive();
-                            (format!("the fault `{}`", f.token()), None)
+                            (
+                                format!(
+                                    "the fault `{}` (the rig ramps the drive to zero)",
+                                    f.token()
+                                ),
+                                None,
+                            )
                         }
                         SweepEnd::Failed(e) => (format!("{e:#}"), Some(e)),
                     };
@@ -312,7 +318,8 @@ pub fn run(a: &RigArgs) -> Result<()> {
                     return Err(match error {
                         // An interruption keeps its kind (exit status 130).
                         Some(e) if e.is::<crate::interrupt::Interrupted>() => e.context(written),
-                        _ => anyhow::anyhow!("{note} (the drive is ramped to zero); {written}"),
+                        // The guard stops the drive on the way out and says how that went.
+                        _ => anyhow::anyhow!("{note}; {written}"),
                     });
                 }
             }
@@ -371,13 +378,30 @@ fn write_sweep(
     outputs.commit()
 }
 
-/// The scenario's commands, refusing what only the virtual rig can do.
+/// The scenario's commands, refusing what only the virtual rig can do, and a file without
+/// commands (the virtual rig's default `start` is not sent to a rig).
 fn scenario_commands(path: &Path) -> Result<Vec<(f64, String)>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read --scenario {}", path.display()))?;
+    let table: toml::Table = toml::from_str(&text)
+        .with_context(|| format!("malformed --scenario {}", path.display()))?;
+    let virtual_only: Vec<&str> = table
+        .keys()
+        .map(String::as_str)
+        .filter(|k| *k != "commands")
+        .collect();
+    ensure!(
+        virtual_only.is_empty(),
+        "--scenario {}: {} belong to the virtual rig (`host-sim hil --scenario`: its plant, \
+         chains, controller, injected faults and drops); a rig runs only [[commands]]: remove \
+         them to run the commands",
+        path.display(),
+        virtual_only.join(", ")
+    );
     let s = Scenario::from_file(path)?;
     ensure!(
-        s.faults.is_empty() && s.drops.is_empty(),
-        "--scenario {}: [[faults]] and [[drops]] are injected by the virtual rig \
-         (`host-sim hil --scenario`); a rig cannot run them: remove them to run the commands",
+        table.contains_key("commands") && !s.commands.is_empty(),
+        "--scenario {}: no [[commands]] to run",
         path.display()
     );
     let mut c: Vec<(f64, String)> = s.commands.into_iter().map(|c| (c.at_s, c.line)).collect();
@@ -385,9 +409,10 @@ fn scenario_commands(path: &Path) -> Result<Vec<(f64, String)>> {
     Ok(c)
 }
 
+/// Sends each command at its rig time; a refused one ends the run (the guard stops the drive:
+/// the lines after it were planned on its success).
 fn run_scenario(port: &mut RigPort, commands: Vec<(f64, String)>) -> Result<()> {
     let t0 = port.uptime_s()?;
-    let mut refused = 0;
     for (at, line) in commands {
         loop {
             let t = port.uptime_s()? - t0;
@@ -399,11 +424,11 @@ fn run_scenario(port: &mut RigPort, commands: Vec<(f64, String)>) -> Result<()> 
         let t = port.uptime_s()? - t0;
         let reply = port.send_line(&line)?;
         println!("[{t:8.3} s] > {line}\n             {reply}");
-        if reply.starts_with("error:") {
-            refused += 1;
-        }
+        ensure!(
+            !reply.starts_with("error:"),
+            "the rig refused `{line}` at {t:.3} s: the scenario ends there"
+        );
     }
-    ensure!(refused == 0, "{refused} command(s) refused by the rig");
     Ok(())
 }
 

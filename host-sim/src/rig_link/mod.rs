@@ -49,6 +49,8 @@ const SHOWN_CHARS: usize = 120;
 /// Bytes without a line end after which the reader discards what it holds and the rest of
 /// that line.
 const MAX_PENDING_BYTES: usize = 1 << 16;
+/// Times the drive guard sends `stop` before it gives up (each waits the reply timeout).
+pub const STOP_ATTEMPTS: u32 = 3;
 /// Granularity of every wait (how soon Ctrl-C is seen).
 const POLL: Duration = Duration::from_millis(50);
 
@@ -164,6 +166,11 @@ pub struct RigPort {
     /// The `id` reply as received (for file headers).
     id_line: String,
     closed: Option<String>,
+    /// The link-loss watchdog's time to leave the rig with, s: what `diag` said at the
+    /// connection, or what the operator set since (`rig send link-timeout …`).
+    leave_link_timeout_s: f32,
+    /// Whether the operator turned telemetry on (`rig send stream on`): then it stays on.
+    leave_streaming: bool,
 }
 
 impl RigPort {
@@ -213,6 +220,8 @@ impl RigPort {
             id: placeholder_id(),
             id_line: String::new(),
             closed: None,
+            leave_link_timeout_s: 0.0,
+            leave_streaming: false,
         };
         rig.sync()?;
         if opts.link_timeout_s > 0.0 {
@@ -264,7 +273,13 @@ impl RigPort {
         let deadline = Instant::now() + self.opts.timeout;
         loop {
             match self.recv(deadline, true)? {
-                Some(Incoming::Reply { tag: Some(t), .. }) if t == tag => return Ok(()),
+                Some(Incoming::Reply { tag: Some(t), text }) if t == tag => {
+                    // The watchdog as the operator left it, to leave it so again.
+                    if let Ok(Answer::Diag(d)) = text.parse::<Answer>() {
+                        self.leave_link_timeout_s = d.link_timeout_ms as f32 / 1e3;
+                    }
+                    return Ok(());
+                }
                 Some(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
                 Some(_) => {}
                 None => bail!("no reply to `diag` after `id`"),
@@ -425,7 +440,26 @@ impl RigPort {
     /// # Errors
     /// No reply within the timeout, a reply to another line, the link closed, Ctrl-C.
     pub fn send_line(&mut self, line: &str) -> Result<String> {
-        self.exchange(line, false)
+        let reply = self.exchange(line, false)?;
+        self.operator_set(line, &reply);
+        Ok(reply)
+    }
+
+    /// Takes note of a setting the operator made with a line of their own (`link-timeout`,
+    /// `stream`) that the rig accepted: the port leaves the rig so when it closes, and keeps
+    /// the link alive at the operator's watchdog time.
+    fn operator_set(&mut self, line: &str, reply: &str) {
+        if !matches!(reply.parse::<Answer>(), Ok(Answer::Reply(_))) {
+            return;
+        }
+        match shared::console::parse(line) {
+            Ok(Request::Control(Command::LinkTimeout(s))) => {
+                self.leave_link_timeout_s = s;
+                self.opts.link_timeout_s = s;
+            }
+            Ok(Request::Control(Command::Stream(on))) => self.leave_streaming = on,
+            _ => {}
+        }
     }
 
     /// Sends several console lines at once (pipelined, each tagged) and returns the texts of their replies
@@ -444,7 +478,9 @@ impl RigPort {
         let mut out = Vec::new();
         for (line, &tag) in lines.iter().zip(&tags) {
             let deadline = Instant::now() + self.opts.timeout;
-            out.push(self.await_reply(tag, line, deadline, false)?);
+            let reply = self.await_reply(tag, line, deadline, false)?;
+            self.operator_set(line, &reply);
+            out.push(reply);
         }
         Ok(out)
     }
@@ -645,45 +681,63 @@ impl RigPort {
         self.guard = false;
     }
 
-    /// Stops the drive (the guard's action): sends `stop`, waits for its reply and the status
-    /// after it, and says on stderr what happened.
-    fn stop_drive(&mut self) {
+    /// Stops the drive (the guard's action): sends `stop` (again, up to [`STOP_ATTEMPTS`]
+    /// times, while its reply does not come or does not read), waits for the status after it,
+    /// ends a capture being armed, and says on stderr what happened. Whether the rig accepted
+    /// `stop`.
+    fn stop_drive(&mut self) -> bool {
+        let mut accepted = None;
+        let mut last_error = String::new();
+        for _ in 0..STOP_ATTEMPTS {
+            match self.exchange("stop", true) {
+                Ok(reply) if matches!(reply.parse::<Answer>(), Ok(Answer::Reply(_))) => {
+                    accepted = Some(reply);
+                    break;
+                }
+                Ok(reply) => last_error = format!("answered `{}`", escaped(&reply)),
+                Err(e) => last_error = format!("{e:#}"),
+            }
+        }
+        let Some(reply) = accepted else {
+            eprintln!(
+                "stopping the drive: `stop` failed {STOP_ATTEMPTS} times (last: {last_error}); \
+                 the drive may still run: the rig's link-loss watchdog (left armed) stops it \
+                 {:.0} s after the last line, or stop it at the rig",
+                self.opts.link_timeout_s
+            );
+            return false;
+        };
+        let state = self
+            .exchange("status", true)
+            .ok()
+            .and_then(|s| s.parse::<Status>().ok())
+            .map_or("the status did not read".to_string(), |s| {
+                format!(
+                    "the rig is {} at {:.3} mm, ramping to 0",
+                    shared::console::Token::token(s.state),
+                    s.amplitude_mm
+                )
+            });
+        eprintln!("stopping the drive: `stop` answered `{reply}`; {state}");
         // A capture being armed ends too (its segments stay readable).
         let _ = self.exchange("capture stop", true);
-        match self.exchange("stop", true) {
-            Ok(reply) => {
-                let state = self
-                    .exchange("status", true)
-                    .ok()
-                    .and_then(|s| s.parse::<Status>().ok())
-                    .map_or("the status did not read".to_string(), |s| {
-                        format!(
-                            "the rig is {} at {:.3} mm, ramping to 0",
-                            shared::console::Token::token(s.state),
-                            s.amplitude_mm
-                        )
-                    });
-                eprintln!("stopping the drive: `stop` answered `{reply}`; {state}");
-            }
-            Err(e) => eprintln!(
-                "stopping the drive: `stop` failed ({e:#}); the rig's link-loss watchdog stops \
-                 it {:.0} s after the last line",
-                self.opts.link_timeout_s
-            ),
-        }
+        true
     }
 }
 
 impl Drop for RigPort {
     fn drop(&mut self) {
         if self.closed.is_none() {
-            if self.guard {
-                self.stop_drive();
+            let stopped = !self.guard || self.stop_drive();
+            // Leave the rig as the operator had it: telemetry off unless they turned it on, the
+            // watchdog as it was at the connection or as they set it, but armed whatever it
+            // was while a drive this port started may still run.
+            if !self.leave_streaming {
+                let _ = self.exchange("stream off", true);
             }
-            // Leave the rig as a terminal finds it: no telemetry, no watchdog.
-            let _ = self.exchange("stream off", true);
-            if self.opts.link_timeout_s > 0.0 {
-                let _ = self.exchange("link-timeout 0", true);
+            if stopped && self.opts.link_timeout_s != self.leave_link_timeout_s {
+                let line = Request::Control(Command::LinkTimeout(self.leave_link_timeout_s));
+                let _ = self.exchange(&line.to_string(), true);
             }
         }
         let n = self.garbled();
