@@ -275,6 +275,35 @@ fn a_measured_sweep_follows_the_model_response_and_compare_reads_it() {
         &server.pty,
         &format!("sweep --freq-hz 2.2:4.6:0.1 --out {}", fr.display()),
     );
+    // A second sweep right after the first waits for its stop to end.
+    let fr2 = dir.path().join("fr2.csv");
+    rig_ok(
+        &server.pty,
+        &format!(
+            "sweep --freq-hz 3.0:3.0:0.1 --dwell-cycles 2 --out {}",
+            fr2.display()
+        ),
+    );
+    // The sweep's manual frequencies are handed back: `start` goes to the model's target.
+    {
+        let mut port = server.port();
+        let s = wait_for(
+            &mut port,
+            |s| model_ready(s) && s.state == State::Idle,
+            Duration::from_secs(60),
+        );
+        let ModelStatus::Ready(target) = s.model else {
+            unreachable!()
+        };
+        port.command(RigCommand::Start).unwrap();
+        let s = port.status().unwrap();
+        assert!(
+            (s.freq_hz - target.target_hz).abs() < 1e-3,
+            "{s} (target {})",
+            target.target_hz
+        );
+        port.command(RigCommand::Stop).unwrap();
+    }
     server.stop();
     let text = std::fs::read_to_string(&fr).unwrap();
     let body: Vec<&str> = text.lines().filter(|l| !l.starts_with('#')).collect();

@@ -117,12 +117,28 @@ pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
             "--freq-hz: {f} Hz is outside the rig's safe window {lo} ..= {hi} Hz"
         );
     }
-    let status = port.status()?;
+    let mut status = port.status()?;
+    if status.state == State::Stopping {
+        // A drive ramping down (the last sweep's end): wait for idle, at most twice the ramp
+        // at the rig's `ramp_mm_per_s` and 5 s more.
+        let ramp_s = f64::from(status.amplitude_mm) / f64::from(port.id().ramp_mm_per_s.max(0.01));
+        let deadline = std::time::Instant::now() + Duration::from_secs_f64(2.0 * ramp_s + 5.0);
+        while status.state == State::Stopping && std::time::Instant::now() < deadline {
+            crate::interrupt::check()?;
+            std::thread::sleep(Duration::from_millis(100));
+            status = port.status()?;
+        }
+    }
     match status.state {
         State::Idle => Ok(()),
         State::Fault => bail!(
             "the rig is in fault ({}): `rig send clear` first",
             status.fault.map_or("?", Token::token)
+        ),
+        State::Stopping => bail!(
+            "the drive is still stopping ({:.3} mm) after waiting for idle: try again when the \
+             rig is idle",
+            status.amplitude_mm
         ),
         s => bail!(
             "the drive is running (`{}`): `rig send stop` first",
@@ -198,6 +214,9 @@ fn run(
         previous = Some(f);
     }
     port.command(Command::Stop)?;
+    // The sweep's frequencies were manual: `tune` hands the next `start` back to the model's
+    // target (the model is computed again).
+    port.command(Command::Tune)?;
     port.command(Command::Stream(false))?;
     Ok(None)
 }
