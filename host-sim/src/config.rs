@@ -293,6 +293,22 @@ struct ConfigFile {
 }
 
 impl Setup {
+    /// The largest gap of this rig, mm (`RigParams::max_gap_m`: 50 mm, the wire pendulum at
+    /// most `l/4`, 18.75 mm for Table 3.2's).
+    pub fn max_gap_mm(&self) -> f64 {
+        self.params.max_gap_m() * 1e3
+    }
+
+    /// `gap_mm` given to `flag`, checked against this rig's largest gap, in metres.
+    ///
+    /// # Errors
+    /// NaN, negative, or beyond [`Setup::max_gap_mm`] (the flag and the range named).
+    pub fn gap_m(&self, flag: &str, gap_mm: f64) -> Result<f64> {
+        check_range("gap_mm", gap_mm, 0.0, self.max_gap_mm())
+            .with_context(|| format!("{flag} (the {} rig's range)", self.rig))?;
+        Ok(gap_mm * 1e-3)
+    }
+
     /// The setup of a rig preset with every option at its default ([`RigOpts::preset`]).
     ///
     /// # Errors

@@ -1,5 +1,8 @@
 //! Output files that appear whole or not at all: every file is written to a temporary file in
-//! the target's folder and renamed into place only when the command has succeeded.
+//! the target's folder and renamed into place only when the command has succeeded. A target
+//! that is a symbolic link to a file is written through the link (the file it names is
+//! replaced, the link stays); one that is not a file (`/dev/stdout`, a named pipe, a device)
+//! is written to at the end from a temporary file elsewhere, since it cannot be replaced.
 
 use std::path::{Path, PathBuf};
 
@@ -9,7 +12,32 @@ use tempfile::NamedTempFile;
 /// Pending output files, committed together.
 #[derive(Debug, Default)]
 pub struct Outputs {
-    pending: Vec<(NamedTempFile, PathBuf)>,
+    pending: Vec<(NamedTempFile, Place)>,
+}
+
+/// Where an output goes at the end.
+#[derive(Debug, Clone, PartialEq)]
+enum Place {
+    /// Renamed onto this file (the target, or the file its link names).
+    Rename(PathBuf),
+    /// Copied into this path, opened for writing (not a file: a pipe, a device, a link to one,
+    /// or a link to nothing yet).
+    WriteInto(PathBuf),
+}
+
+impl Place {
+    fn of(target: &Path) -> Place {
+        let link = std::fs::symlink_metadata(target).is_ok_and(|m| m.file_type().is_symlink());
+        match std::fs::metadata(target) {
+            Ok(m) if m.is_file() && link => Place::Rename(
+                std::fs::canonicalize(target).unwrap_or_else(|_| target.to_path_buf()),
+            ),
+            Ok(m) if m.is_file() || m.is_dir() => Place::Rename(target.to_path_buf()),
+            Ok(_) => Place::WriteInto(target.to_path_buf()),
+            Err(_) if link => Place::WriteInto(target.to_path_buf()),
+            Err(_) => Place::Rename(target.to_path_buf()),
+        }
+    }
 }
 
 impl Outputs {
@@ -29,18 +57,30 @@ impl Outputs {
             .unwrap_or_default();
         let tmp = scratch(target, &suffix)?;
         let path = tmp.path().to_path_buf();
-        self.pending.push((tmp, target.to_path_buf()));
+        self.pending.push((tmp, Place::of(target)));
         Ok(path)
     }
 
-    /// Renames every reserved file into place.
+    /// Renames every reserved file into place (or writes it into a target that is not a file).
     ///
     /// # Errors
-    /// A rename failed.
+    /// A rename or the write failed.
     pub fn commit(self) -> Result<()> {
-        for (tmp, target) in self.pending {
-            tmp.persist(&target)
-                .with_context(|| format!("cannot move the output into {}", target.display()))?;
+        for (tmp, place) in self.pending {
+            match place {
+                Place::Rename(target) => {
+                    tmp.persist(&target).with_context(|| {
+                        format!("cannot move the output into {}", target.display())
+                    })?;
+                }
+                Place::WriteInto(target) => {
+                    let mut from = std::fs::File::open(tmp.path())?;
+                    let mut into = std::fs::File::create(&target)
+                        .with_context(|| format!("cannot write {}", target.display()))?;
+                    std::io::copy(&mut from, &mut into)
+                        .with_context(|| format!("cannot write {}", target.display()))?;
+                }
+            }
         }
         Ok(())
     }
@@ -64,9 +104,13 @@ pub fn write_whole(target: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Re
 /// # Errors
 /// The folder does not exist or is not writable.
 pub fn scratch(target: &Path, suffix: &str) -> Result<NamedTempFile> {
-    let dir = match target.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
+    let dir = match Place::of(target) {
+        // Not renamed onto its target: the system's temporary folder.
+        Place::WriteInto(_) => std::env::temp_dir(),
+        Place::Rename(t) => match t.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        },
     };
     let mut builder = tempfile::Builder::new();
     builder.prefix(".host-sim-").suffix(suffix);
@@ -85,6 +129,36 @@ pub fn scratch(target: &Path, suffix: &str) -> Result<NamedTempFile> {
     })
 }
 
+/// The command line's parser of an output file (`--out`): its folder must exist and take a
+/// file, checked when the command line is read, before any work.
+///
+/// # Errors
+/// The folder is missing or not writable (said with the path).
+pub fn out_target(text: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(text);
+    // A temporary file made and removed at once: what the output will need.
+    scratch(&path, ".check")
+        .map(drop)
+        .map_err(|e| format!("{e:#}"))?;
+    Ok(path)
+}
+
+/// The command line's parser of a figure (`--plot` and the like): a name ending in `.png` (the
+/// format every figure is drawn in) in a folder that takes a file ([`out_target`]).
+///
+/// # Errors
+/// Another extension, or as [`out_target`].
+pub fn png_target(text: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(text);
+    if !path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        return Err("figures are drawn as PNG: give a file name ending in .png".into());
+    }
+    out_target(text)
+}
+
 /// Writes `rows` as CSV (header from the row type) to `path`.
 ///
 /// # Errors
@@ -100,4 +174,60 @@ pub fn write_csv<R: serde::Serialize>(
     }
     w.flush()?;
     Ok(())
+}
+
+#[cfg(all(test, unix))]
+mod tests {
+    use super::*;
+
+    fn write_text(target: &Path, text: &str) -> Result<()> {
+        write_whole(target, |tmp| Ok(std::fs::write(tmp, text)?))
+    }
+
+    /// Through a link to a file: the file is replaced, the link stays a link. Through a link to
+    /// nothing: the file it names is created. Into a named pipe: the reader gets the bytes and
+    /// the pipe stays a pipe. No temporary file is left beside any of them.
+    #[test]
+    fn links_and_pipes_are_written_through() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join("file.csv"), "old").unwrap();
+        std::os::unix::fs::symlink(d.join("file.csv"), d.join("link.csv")).unwrap();
+        write_text(&d.join("link.csv"), "new").unwrap();
+        assert!(
+            std::fs::symlink_metadata(d.join("link.csv"))
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read_to_string(d.join("file.csv")).unwrap(), "new");
+
+        std::os::unix::fs::symlink(d.join("later.csv"), d.join("dangling.csv")).unwrap();
+        write_text(&d.join("dangling.csv"), "made").unwrap();
+        assert_eq!(
+            std::fs::read_to_string(d.join("later.csv")).unwrap(),
+            "made"
+        );
+
+        let fifo = d.join("fifo");
+        nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+        };
+        write_text(&fifo, "piped").unwrap();
+        assert_eq!(reader.join().unwrap(), "piped");
+        assert!(std::os::unix::fs::FileTypeExt::is_fifo(
+            &std::fs::symlink_metadata(&fifo).unwrap().file_type()
+        ));
+        let mut names: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(
+            names,
+            ["dangling.csv", "fifo", "file.csv", "later.csv", "link.csv"]
+        );
+    }
 }

@@ -10,7 +10,7 @@ use shared::model::rig::IMPACT_SPEEDS_M_S;
 use shared::Real;
 use shared::orbit::{ContinuationSettings, Edge, Orbit, Param, band_edges};
 
-use crate::config::{Setup, gap_m_from_mm};
+use crate::config::Setup;
 use crate::orbits::{self, OrbitReport, Start};
 use crate::precision::Precision;
 use crate::response;
@@ -218,7 +218,7 @@ fn edge_report<T: Real>(
 /// # Errors
 /// No orbit at the chosen point (the reason).
 pub fn check_band(setup: &Setup, rep: &mut SelectReport) -> Result<()> {
-    let gap_m = gap_m_from_mm("--gap-mm", rep.gap_mm)?;
+    let gap_m = setup.gap_m("--gap-mm", rep.gap_mm)?;
     let at = orbits::map_point(setup, gap_m, rep.omega_ratio);
     let sweep = setup.selection.omega_ratio;
     let range = [sweep.lo, sweep.hi];
@@ -355,7 +355,7 @@ pub fn compute_parts(
     Result<SelectReport, SelectionError>,
     Vec<shared::observe::PointResult>,
 )> {
-    let gap_m = gap_m_from_mm("--gap-mm", gap_mm)?;
+    let gap_m = setup.gap_m("--gap-mm", gap_mm)?;
     let spec = setup.selection;
     let sweep = spec.omega_ratio;
     let mut gaps = vec![gap_m];

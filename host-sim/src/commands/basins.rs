@@ -20,7 +20,7 @@ use shared::error::check_range;
 
 use super::{AttractorOpts, GridOutArgs};
 use crate::attractors::Catalogue;
-use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::config::{RigOpts, Setup};
 use crate::grid::basins::{self, Attractors, Basins, BasinsGrid, ColorBy, MAX_U0_MM, MAX_V0_MM_S};
 use crate::grid::{self, CountSweep};
 
@@ -53,7 +53,7 @@ pub struct BasinsArgs {
     pub color_by: ColorBy,
     /// CSV: the attractor catalogue (attractor, regime, count, fraction, ci95_lo, ci95_hi,
     /// impact_force_mg, and one row per Poincaré point k, u_mm, v_mm_s).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub attractors_out: Option<PathBuf>,
     /// CSV and figure.
     #[command(flatten)]
@@ -66,7 +66,7 @@ pub struct BasinsArgs {
 /// Bad input, I/O failure or Ctrl-C; no output file is left half-written.
 pub fn run(a: &BasinsArgs) -> Result<()> {
     let mut setup = Setup::from_opts(&a.rig)?;
-    gap_m_from_mm("--gap-mm", a.gap_mm)?;
+    setup.gap_m("--gap-mm", a.gap_mm)?;
     check_range(
         "omega_ratio",
         a.omega_ratio,

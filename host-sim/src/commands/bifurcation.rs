@@ -6,7 +6,7 @@ use clap::Args;
 
 use super::GridOutArgs;
 use super::omega_sweep;
-use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::config::{RigOpts, Setup};
 use crate::grid::bifurcation::{self, BifGrid, Bifurcation, Continuation};
 use crate::grid::{self, per_point};
 
@@ -43,7 +43,7 @@ pub struct BifurcationArgs {
 /// Bad input, I/O failure or Ctrl-C; no output file is left half-written.
 pub fn run(a: &BifurcationArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
-    let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
+    let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
     let dest = a.output.destination(None, None)?;
     if a.continuation.is_some() && dest.shard.is_some() {

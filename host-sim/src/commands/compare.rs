@@ -22,7 +22,7 @@ use shared::error::{check_count, check_range};
 
 use super::TimeOpts;
 use crate::comparison;
-use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::config::{RigOpts, Setup};
 use crate::output::write_whole;
 use crate::trace::{LabTable, MotionUnit, trace_from_table};
 
@@ -55,7 +55,7 @@ pub struct CompareArgs {
     #[arg(long, default_value_t = 200)]
     pub transient_periods: u32,
     /// PNG with the overlay.
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(value_parser = crate::output::png_target, long, value_name = "FILE.png")]
     pub out: PathBuf,
 }
 
@@ -65,7 +65,7 @@ pub struct CompareArgs {
 /// Bad input or I/O failure; nothing is written then.
 pub fn run(a: &CompareArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
-    let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
+    let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let table = LabTable::read(&a.experiment).context("--experiment")?;
     let summary = if comparison::is_response(&table) {
         let meas = comparison::measured_response(&table, &setup)

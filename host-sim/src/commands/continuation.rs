@@ -10,7 +10,6 @@ use shared::error::{check_count, check_range};
 use shared::orbit::{Orbit, Param};
 
 use super::orbit::PointArgs;
-use crate::config::MAX_GAP_MM;
 use crate::figures::orbits::{Dots, branches as branch_figure};
 use crate::orbits::{self, Background, BranchOut, BranchSpec, Direction, param_value};
 use crate::output::{Outputs, write_csv};
@@ -35,7 +34,8 @@ pub struct ContinueArgs {
     #[arg(long, value_enum, default_value = "omega-ratio")]
     pub param: ParamArg,
     /// Its range, LO:HI (Ω/ω within 0.05..=20, default the whole range; the gap in mm within
-    /// 0..=50, default 0:10). The branch ends where it leaves the range.
+    /// the rig's range, 0..=50 and for the wire pendulum at most l/4 (18.75 mm for the thesis'
+    /// wires), default 0:10). The branch ends where it leaves the range.
     #[arg(long)]
     pub range: Option<String>,
     /// More starting points, in the parameter's units (Ω/ω, or the gap in mm), comma-separated:
@@ -54,11 +54,11 @@ pub struct ContinueArgs {
     /// direction, omega_ratio, freq_hz, gap_mm, u_mm, du_mm_s, regime, impact_force_mg,
     /// mu1_re, mu1_im, mu2_re, mu2_im, max_abs_mu, stable, event (empty for an orbit; fold,
     /// period-doubling, neimark-sacker or grazing).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
     /// PNG: the branches (stable solid, unstable dashed, coloured by regime; bifurcations
     /// marked) over a brute-force bifurcation diagram of the same range.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
     /// The brute-force diagram behind the figure.
     #[arg(long, value_enum, default_value = "sweeps")]
@@ -180,8 +180,8 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         ),
         ParamArg::GapMm => {
             let mm = match &a.range {
-                Some(t) => parse_range("--range", t, 0.0, MAX_GAP_MM)?,
-                None => [0.0, 10.0],
+                Some(t) => parse_range("--range", t, 0.0, setup.max_gap_mm())?,
+                None => [0.0, setup.max_gap_mm().min(10.0)],
             };
             (Param::GapM, [mm[0] * 1e-3, mm[1] * 1e-3])
         }
@@ -242,7 +242,7 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         write_csv(&tmp, orbits::rows(param, &branches))?;
     }
     if let Some(p) = &a.plot {
-        let values = background_values(param, &branches, a.background_points);
+        let values = background_values(param, &branches, a.background_points, setup.max_gap_mm());
         let runs = crate::with_precision!(setup.precision, T => {
             orbits::background::<T>(&at, param, &values, a.background)?
         });
@@ -305,8 +305,9 @@ fn param_value_shown(param: Param, v: f64) -> String {
     }
 }
 
-/// `n` values of `param` evenly over the span of `branches` (gap in m), padded 4 %.
-fn background_values(param: Param, branches: &[BranchOut], n: usize) -> Vec<f64> {
+/// `n` values of `param` evenly over the span of `branches` (gap in m), padded 4 % (the gap
+/// within the rig's `max_gap_mm`).
+fn background_values(param: Param, branches: &[BranchOut], n: usize, max_gap_mm: f64) -> Vec<f64> {
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
     for b in branches {
@@ -323,7 +324,7 @@ fn background_values(param: Param, branches: &[BranchOut], n: usize) -> Vec<f64>
     let (lo, hi) = (lo - pad, hi + pad);
     let (lo, hi) = match param {
         Param::OmegaRatio => (lo.max(OMEGA_RATIO_RANGE.0), hi.min(OMEGA_RATIO_RANGE.1)),
-        Param::GapM => (lo.max(0.0) * 1e-3, hi.min(MAX_GAP_MM) * 1e-3),
+        Param::GapM => (lo.max(0.0) * 1e-3, hi.min(max_gap_mm) * 1e-3),
     };
     (0..n)
         .map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64)

@@ -55,7 +55,7 @@ pub struct DropArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// CSV output: `#` comment lines with the setup, then t_s, force_n.
-    #[arg(long, value_name = "FILE.csv")]
+    #[arg(value_parser = crate::output::out_target, long, value_name = "FILE.csv")]
     pub out: PathBuf,
 }
 

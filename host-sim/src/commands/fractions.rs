@@ -8,7 +8,7 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 
 use super::{AttractorOpts, GridOutArgs};
-use crate::config::{MAX_GAP_MM, RigOpts, Setup, parse_sweep};
+use crate::config::{RigOpts, Setup, parse_sweep};
 use crate::grid::basins::{MAX_U0_MM, MAX_V0_MM_S};
 use crate::grid::fractions::{
     Fractions, FractionsGrid, MAX_SAMPLES, Parameter, StartBox, check_width, run_adaptive,
@@ -103,7 +103,7 @@ fn range(flag: &str, text: &str, min: f64, max: f64) -> Result<(f64, f64)> {
 /// Bad input, I/O failure or Ctrl-C; no output file is left half-written.
 pub fn run(a: &FractionsArgs) -> Result<()> {
     let mut setup = Setup::from_opts(&a.rig)?;
-    let gaps = values("--gap-mm", &a.gap_mm, 0.0, MAX_GAP_MM)?;
+    let gaps = values("--gap-mm", &a.gap_mm, 0.0, setup.max_gap_mm())?;
     let ratios = values(
         "--omega-ratio",
         &a.omega_ratio,
@@ -124,7 +124,7 @@ pub fn run(a: &FractionsArgs) -> Result<()> {
         }
     };
     for &(g, _) in &points {
-        crate::config::gap_m_from_mm("--gap-mm", g)?;
+        setup.gap_m("--gap-mm", g)?;
     }
     let (attractor_tol, recurrence) = a.attractors.apply(&mut setup)?;
     if !(1..=MAX_SAMPLES).contains(&a.samples) {

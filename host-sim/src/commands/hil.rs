@@ -48,10 +48,10 @@ pub struct HilArgs {
     /// CSV log, one row per drive cycle: t_s, state, freq_hz, amp_cmd_mm, cart_amp_mm,
     /// measured_impacts, measured_peak_n, true_impacts, true_peak_n, measured_regime, fault,
     /// lost_cycles, force_vs_model_pct.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
     /// PNG: frequency, force and state against time.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
 }
 

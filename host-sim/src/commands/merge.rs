@@ -26,20 +26,20 @@ pub struct MergeArgs {
     #[arg(long, value_enum)]
     pub kind: Option<Kind>,
     /// Merged CSV (the columns of the one-run command).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
     /// PNG: the command's figure (Peterka regime map, basins map or bifurcation diagram).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
     /// PNG (peterka only): the z = 1/1 region coloured by F_i/mg.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub force_plot: Option<PathBuf>,
     /// CSV (peterka shards run with --boundaries): the curves bounding the z = 1/1 region.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub boundaries_out: Option<PathBuf>,
     /// CSV (basins and fractions): the attractor catalogue (id, regime, fraction with its 95 %
     /// interval, F_i/mg, Poincaré points).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub attractors_out: Option<PathBuf>,
     /// Shard CSVs, in any order.
     #[arg(required = true, value_name = "SHARD.csv")]

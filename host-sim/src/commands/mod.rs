@@ -92,10 +92,10 @@ pub fn excitation_ratio(
 pub struct GridOutArgs {
     /// CSV output, its rows and columns as listed in `--help`. With a shard: the shard's
     /// rows, line 1 `# host-sim-shard {metadata}`, for `merge`.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
     /// PNG: the command's figure (described in `--help`); not with a shard (`merge` draws it).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
     /// Shard of the grid to compute.
     #[command(flatten)]
@@ -140,8 +140,9 @@ pub struct AttractorOpts {
     /// Periods in a row on a catalogued attractor that assign a trajectory to it (1 ..= 10000).
     #[arg(long, default_value_t = RecurrenceSettings::default().confirm)]
     pub confirm: u32,
-    /// Longest transient, periods (the protocol's max_transient_periods; a trajectory that has
-    /// not recurred by then and whose window does not repeat counts as never recurrent).
+    /// Longest transient, periods (1 ..= 1000000; the protocol's max_transient_periods: a
+    /// trajectory that has not recurred by then and whose window does not repeat counts as
+    /// never recurrent).
     #[arg(long)]
     pub max_periods: Option<u32>,
     /// Steady-state tolerance that ends a transient, scaled (1e-9 ..= 1; the other commands'
@@ -167,6 +168,11 @@ impl AttractorOpts {
         };
         rec.validate().context("--recurrence-tol / --confirm")?;
         if let Some(n) = self.max_periods {
+            anyhow::ensure!(
+                (1..=1_000_000).contains(&n),
+                "--max-periods {n}: out of range: allowed 1 ..= 1000000 (a start must have \
+                 periods to reach an attractor)"
+            );
             setup.settings.protocol.max_transient_periods = n;
             setup
                 .settings
@@ -178,6 +184,20 @@ impl AttractorOpts {
         setup.settings.protocol.validate().context("--steady-tol")?;
         Ok((self.attractor_tol, rec))
     }
+}
+
+/// A start off the impact surface: `u0 ≤ gap` (mm), as `basins` and `fractions` require.
+///
+/// # Errors
+/// `u0` beyond the surface, naming `--u0-mm`.
+pub fn check_start_off_surface(u0_mm: f64, gap_mm: f64) -> Result<()> {
+    if u0_mm > gap_mm {
+        bail!(
+            "--u0-mm {u0_mm} lies beyond the impact surface (gap {gap_mm} mm): allowed u0 ≤ gap \
+             (the hammer cannot start pressed into the surface)"
+        );
+    }
+    Ok(())
 }
 
 /// Where a lab file's time comes from and its unit (`identify`, `compare`).

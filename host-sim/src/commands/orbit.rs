@@ -7,7 +7,7 @@ use shared::error::{check_count, check_range};
 use shared::orbit::{MAX_Q, MapPoint, Orbit};
 
 use super::excitation_ratio;
-use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::config::{RigOpts, Setup};
 use crate::orbits::{self, OrbitReport, Start};
 
 /// Where an orbit is sought: the rig, the point, the start and the period.
@@ -45,13 +45,14 @@ impl PointArgs {
     /// Bad input (the flag and its range named).
     pub fn resolve(&self) -> Result<(Setup, MapPoint, Start)> {
         let setup = Setup::from_opts(&self.rig)?;
-        let gap_m = gap_m_from_mm("--gap-mm", self.gap_mm)?;
+        let gap_m = setup.gap_m("--gap-mm", self.gap_mm)?;
         let ratio = excitation_ratio(&setup, self.omega_ratio, self.freq_hz)?;
         if let Some(q) = self.q {
             check_count("q", q, 1, MAX_Q).context("--q")?;
         }
         check_range("u0_mm", self.u0_mm, -20.0, 20.0).context("--u0-mm")?;
         check_range("v0_mm_s", self.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
+        super::check_start_off_surface(self.u0_mm, self.gap_mm)?;
         let start = if self.u0_mm == 0.0 && self.v0_mm_s == 0.0 {
             Start::Rest
         } else {

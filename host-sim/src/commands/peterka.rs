@@ -9,7 +9,7 @@ use clap::{ArgGroup, Args};
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 
 use super::{GridOutArgs, omega_sweep};
-use crate::config::{MAX_GAP_MM, RigOpts, Setup, parse_sweep};
+use crate::config::{RigOpts, Setup, parse_sweep};
 use crate::grid;
 use crate::grid::peterka::{self, Axis, AxisUnit, MAX_POINTS, Peterka, PeterkaGrid};
 
@@ -39,7 +39,7 @@ pub struct PeterkaArgs {
     #[command(flatten)]
     pub output: GridOutArgs,
     /// PNG: the z = 1/1 region coloured by F_i/mg, with a colour bar (Fig. 3.26).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub force_plot: Option<PathBuf>,
     /// Refine each point's label by its largest Lyapunov exponent (column
     /// lyapunov_per_period): `chaotic` where positive beyond its uncertainty; where negative
@@ -53,7 +53,7 @@ pub struct PeterkaArgs {
     #[arg(long)]
     pub boundaries: bool,
     /// The boundary curves' CSV (curve, kind, regime, omega_ratio, gap_mm); implies --boundaries.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub boundaries_out: Option<PathBuf>,
 }
 
@@ -63,11 +63,11 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
     let gap = match (&a.gap_mm, &a.gap_ratio) {
         (Some(t), None) => Axis {
             unit: AxisUnit::GapMm,
-            sweep: parse_sweep("--gap-mm", t, 0.0, MAX_GAP_MM)?,
+            sweep: parse_sweep("--gap-mm", t, 0.0, setup.max_gap_mm())?,
         },
         (None, Some(t)) => Axis {
             unit: AxisUnit::GapRatio,
-            sweep: parse_sweep("--gap-ratio", t, 0.0, MAX_GAP_MM / a0_mm)?,
+            sweep: parse_sweep("--gap-ratio", t, 0.0, setup.max_gap_mm() / a0_mm)?,
         },
         _ => bail!("give exactly one of --gap-mm and --gap-ratio"),
     };

@@ -24,7 +24,7 @@ pub struct PointsArgs {
     #[arg(long)]
     pub input: PathBuf,
     /// Output CSV: gap_mm, omega_ratio, freq_hz, regime, impacts, impact_force_mg.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
 }
 

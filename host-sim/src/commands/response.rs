@@ -7,7 +7,7 @@ use clap::Args;
 use shared::orbit::LabelSettings;
 
 use super::{omega_sweep, write_response};
-use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::config::{RigOpts, Setup};
 use crate::figures::response::{points, title};
 use crate::output::Outputs;
 use crate::response;
@@ -27,7 +27,7 @@ pub struct ResponseArgs {
     pub omega_ratio: String,
     /// CSV output: omega_ratio, freq_hz, impact_force_mg, regime, impacts, transient_periods,
     /// settled, lyapunov_per_period, lyapunov_uncertainty, window_regime, extra_periods.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
     /// The protocol's labels alone: no Lyapunov exponent (its columns empty), `irregular`
     /// where no period `q ≤ 16` showed in the window. By default the largest exponent over 64
@@ -37,7 +37,7 @@ pub struct ResponseArgs {
     #[arg(long)]
     pub no_lyapunov: bool,
     /// PNG plot of F_i/mg vs Ω/ω coloured by regime.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
 }
 
@@ -47,7 +47,7 @@ pub struct ResponseArgs {
 /// Bad input or I/O failure; no output file is left half-written.
 pub fn run(a: &ResponseArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
-    let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
+    let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
     let (results, labels) = if a.no_lyapunov {
         (

@@ -100,10 +100,10 @@ pub struct LogArgs {
     #[arg(long)]
     pub seconds: f64,
     /// CSV, one row per drive cycle.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
     /// PNG: frequency, measured peak force and state against time.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
 }
 
@@ -111,7 +111,7 @@ pub struct LogArgs {
 #[derive(Debug, Args)]
 pub struct CaptureArgs {
     /// The trace: `t_s,force_n` (N on the rig's calibration from `id`).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
     /// Trigger level, N (0.1 ..= 100).
     #[arg(long, default_value_t = 1.0)]
@@ -135,10 +135,10 @@ pub struct SweepArgs {
     pub settle_cycles: u32,
     /// CSV: freq_hz, impact_force_mg, impact_force_n, regime, cycles, impact_cycles. A sweep
     /// ended by a fault writes what it measured to `<name>.partial.csv` instead.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
     /// PNG: F_i/mg against Ω/ω (ω of the rig's preset), coloured by regime.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
 }
 

@@ -58,16 +58,17 @@ pub struct SelectArgs {
     /// Flag the chosen point when its 1/1 basin fraction lies below this (0 ..= 1).
     #[arg(long, default_value_t = BASIN_THRESHOLD)]
     pub basin_threshold: f64,
-    /// Transient limit of the basin check, excitation periods: a start that has not settled on
-    /// an attractor by then counts as none (lightly damped non-impacting motions settle slowly).
+    /// Transient limit of the basin check, excitation periods (1 ..= 1000000): a start that has
+    /// not settled on an attractor by then counts as none (lightly damped non-impacting motions
+    /// settle slowly).
     #[arg(long, default_value_t = BASIN_MAX_PERIODS)]
     pub basin_max_periods: u32,
     /// CSV of the nominal-gap response (columns as `response`).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
     /// PNG of the nominal-gap response with the band, window and chosen point (with
     /// --uncertainty: the response's 95 % range over the draws, and the robust point).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
     /// Propagate the identified contact law's uncertainty (the `[uncertainty]` table of a
     /// `--config` written by `identify contact --out`): the selection for parameter sets drawn
@@ -110,6 +111,25 @@ pub fn run(a: &SelectArgs) -> Result<()> {
         .selection
         .validate()
         .map_err(|e| anyhow!("{e} (--freq-margin-pct / --gap-margin-mm)"))?;
+    if !a.no_basin_check {
+        // Checked before the sweep, not after it.
+        anyhow::ensure!(
+            (1..=1_000_000).contains(&a.basin_samples),
+            "--basin-samples {}: out of range: allowed 1 ..= 1000000",
+            a.basin_samples
+        );
+        anyhow::ensure!(
+            (0.0..=1.0).contains(&a.basin_threshold),
+            "--basin-threshold {}: out of range: allowed 0 ..= 1",
+            a.basin_threshold
+        );
+        anyhow::ensure!(
+            (1..=1_000_000).contains(&a.basin_max_periods),
+            "--basin-max-periods {}: out of range: allowed 1 ..= 1000000 (a start must have \
+             periods to reach an attractor)",
+            a.basin_max_periods
+        );
+    }
     let table = if a.uncertainty {
         let t = setup.uncertainty.clone().ok_or_else(|| {
             anyhow!(

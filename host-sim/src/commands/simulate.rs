@@ -7,7 +7,7 @@ use clap::Args;
 use shared::error::{check_count, check_range};
 
 use super::excitation_ratio;
-use crate::config::{RigOpts, Setup, gap_m_from_mm};
+use crate::config::{RigOpts, Setup};
 use crate::figures::response::{TsPoint, time_series};
 use crate::output::{Outputs, write_csv};
 use crate::series::{self, SeriesSpec};
@@ -40,10 +40,10 @@ pub struct SimulateArgs {
     /// CSV: t_s, u_mm, du_mm_s, x_mm, impact_force_n, impact_force_mg, region, poincare,
     /// lyapunov_per_period (at Poincaré rows: the running estimate of the largest Lyapunov
     /// exponent over the periods so far).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
     /// PNG: displacement, impact force and phase plane with the Poincaré points.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
 }
 
@@ -53,11 +53,12 @@ pub struct SimulateArgs {
 /// Bad input or I/O failure.
 pub fn run(a: &SimulateArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
-    let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
+    let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let fn_hz = setup.params.natural_freq_hz();
     let ratio = excitation_ratio(&setup, a.omega_ratio, a.freq_hz)?;
     check_count("periods", a.periods, 1, 100_000).context("--periods")?;
     check_range("u0_mm", a.u0_mm, -20.0, 20.0).context("--u0-mm")?;
+    super::check_start_off_surface(a.u0_mm, a.gap_mm)?;
     check_range("v0_mm_s", a.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
     let omega_exc = ratio * setup.params.omega_n();
     let (rows, summary) = series::simulate(

@@ -24,8 +24,7 @@ use super::switch::{Region, SwitchBands, SwitchModel};
 use crate::error::{ParamError, check_range};
 use crate::real::Real;
 
-/// Largest accepted gap, m (the wire pendulum additionally needs `gap ≤ l/4`).
-pub const MAX_GAP_M: f64 = 0.05;
+pub use super::rig::MAX_GAP_M;
 /// Accepted excitation angular frequencies `Ω`, rad/s.
 pub const OMEGA_EXC_RANGE: (f64, f64) = (1e-2, 1e4);
 
@@ -287,11 +286,7 @@ impl<T: Real> Hammer<T> {
     ) -> Result<Self, ParamError> {
         params.validate()?;
         bands.validate()?;
-        let max_gap = match params.suspension {
-            Suspension::Wires { length_m, .. } => MAX_GAP_M.min(0.25 * length_m),
-            Suspension::Beam { .. } => MAX_GAP_M,
-        };
-        check_range("gap_m", gap_m, 0.0, max_gap)?;
+        check_range("gap_m", gap_m, 0.0, params.max_gap_m())?;
         check_range("omega_exc", omega_exc, OMEGA_EXC_RANGE.0, OMEGA_EXC_RANGE.1)?;
         let c = T::from_f64;
         let m = params.mass_kg;

@@ -155,7 +155,20 @@ pub struct RigParams {
     pub contact: ContactLaw,
 }
 
+/// Largest accepted gap, m (the wire pendulum additionally needs `gap ≤ l/4`:
+/// [`RigParams::max_gap_m`]).
+pub const MAX_GAP_M: f64 = 0.05;
+
 impl RigParams {
+    /// The largest gap these parameters take, m: [`MAX_GAP_M`], and for the wire pendulum at
+    /// most `l/4` (what `Hammer::new` accepts).
+    pub fn max_gap_m(&self) -> f64 {
+        match self.suspension {
+            Suspension::Wires { length_m, .. } => MAX_GAP_M.min(0.25 * length_m),
+            Suspension::Beam { .. } => MAX_GAP_M,
+        }
+    }
+
     /// These parameters with the contact stiffness scaled by `factor` (spring–dashpot damping
     /// by `sqrt(factor)`, which keeps its restitution): a harder or softer contact than
     /// identified (the virtual rig's drifts and hard-contact scenario).

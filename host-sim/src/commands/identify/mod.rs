@@ -107,10 +107,10 @@ pub struct ContactArgs {
     pub force_unit: ForceUnit,
     /// Config file with the fitted law (the best one with --law all), for --config of the
     /// other commands.
-    #[arg(long, value_name = "FILE.toml")]
+    #[arg(value_parser = crate::output::out_target, long, value_name = "FILE.toml")]
     pub out: Option<PathBuf>,
     /// PNG: the measured trace and the fitted simulation(s), whole and impact by impact.
-    #[arg(long, value_name = "FILE.png")]
+    #[arg(value_parser = crate::output::png_target, long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
     /// Print one JSON object instead of the table.
     #[arg(long)]
@@ -143,7 +143,7 @@ pub struct FreeArgs {
     #[arg(long, value_parser = crate::config::parse_rig, default_value = "beam-170")]
     pub rig: RigId,
     /// Config file with the mass and the identified suspension.
-    #[arg(long, value_name = "FILE.toml")]
+    #[arg(value_parser = crate::output::out_target, long, value_name = "FILE.toml")]
     pub out: Option<PathBuf>,
     /// Print one JSON object instead of the text.
     #[arg(long)]
