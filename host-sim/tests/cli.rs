@@ -259,6 +259,71 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
         &[&out],
     );
     rejected(&["select", "--rig", "beam-171"], &["unknown rig"], &[]);
+    // Checked when the command line is read, before any work: a figure not named .png, an
+    // output in a missing folder (the CSV is not written either).
+    let missing = dir.path().join("no-such-folder").join("p.png");
+    for (plot, says) in [
+        (dir.path().join("fr.svg"), "ending in .png"),
+        (missing.clone(), "no-such-folder"),
+    ] {
+        rejected(
+            &line(&format!(
+                "peterka --gap-mm 0:1:0.5 --freq-hz 1:7:0.5 --out {o} --plot {}",
+                plot.display()
+            )),
+            &["--plot", says],
+            &[&out],
+        );
+    }
+    rejected(
+        &line(&format!(
+            "basins --gap-mm 1 --omega-ratio 2 --u0-mm -1:1:4 --v0-mm-s -1:1:4 --out {o} \
+             --attractors-out {}",
+            missing.with_extension("csv").display()
+        )),
+        &["--attractors-out", "no-such-folder"],
+        &[&out],
+    );
+    // The gap against the rig's own range (the wire pendulum's l/4 = 18.75 mm), named as the
+    // flag, on a value and on a grid's axis.
+    rejected(
+        &line(&format!("response --gap-mm 20 --out {o}")),
+        &["--gap-mm", "18.75"],
+        &[&out],
+    );
+    rejected(
+        &line(&format!(
+            "peterka --gap-mm 0:30:0.5 --freq-hz 1:7:0.5 --out {o}"
+        )),
+        &["--gap-mm", "18.75"],
+        &[&out],
+    );
+    // A start pressed into the surface; a transient limit of no periods.
+    rejected(
+        &line(&format!(
+            "simulate --gap-mm 0 --omega-ratio 2 --u0-mm 0.2 --out {o}"
+        )),
+        &["--u0-mm", "beyond the impact surface"],
+        &[&out],
+    );
+    rejected(
+        &line("orbit --gap-mm 0.5 --omega-ratio 2 --u0-mm 1"),
+        &["--u0-mm", "beyond the impact surface"],
+        &[],
+    );
+    rejected(
+        &line(&format!(
+            "fractions --rig beam-170 --gap-mm 3 --omega-ratio 1.3 --samples 50 --max-periods 0 \
+             --out {o}"
+        )),
+        &["--max-periods", "1 ..= 1000000"],
+        &[&out],
+    );
+    rejected(
+        &line("select --basin-max-periods 0"),
+        &["--basin-max-periods"],
+        &[],
+    );
 
     // Bad input files: a config and an operating-point list.
     let cfg = dir.path().join("bad.toml");
@@ -494,7 +559,7 @@ fn continue_writes_the_branch_with_located_events_and_rejects_bad_input() {
             "continue --rig wires --gap-mm -1 --omega-ratio 2.0 --range 1:3 --out {}",
             out.display()
         )),
-        &["gap_mm", "0 ..= 50"],
+        &["gap_mm", "0 ..= 18.75"],
         &[&out],
     );
     // No orbit at the start: the protocol from rest sees no period (the 1.0 mm response's

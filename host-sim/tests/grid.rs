@@ -139,6 +139,24 @@ fn basins_fractions_and_bifurcation_shards_merge_to_the_one_run_bytes() {
         .concat(),
         &["--plot"],
     );
+    // Values whose decimal text needs 17 digits (1.1 + 3 × 0.01 = 1.1300000000000001) pass
+    // through the shards' metadata exactly.
+    shards_equal_one_run(
+        dir.path(),
+        "fractions17",
+        &[
+            "fractions",
+            "--rig",
+            "beam-170",
+            "--gap-mm",
+            "3.0",
+            "--omega-ratio",
+            "1.10:1.14:0.01",
+            "--samples",
+            "12",
+        ],
+        &[],
+    );
     shards_equal_one_run(
         dir.path(),
         "bif",

@@ -237,6 +237,9 @@ impl RigPort {
         let deadline = Instant::now() + self.opts.timeout;
         let first = self.next_tag;
         let mut next_send = Instant::now();
+        // What came instead of the reply (stale output, another program's talk), for the
+        // timeout's message.
+        let mut seen: Option<String> = None;
         loop {
             if Instant::now() >= next_send {
                 let tag = self.take_tag();
@@ -260,10 +263,19 @@ impl RigPort {
                     break;
                 }
                 Some(Incoming::Closed(why)) => bail!("the rig closed the link: {why}"),
-                Some(_) => {}
+                Some(Incoming::Reply { tag, text }) => {
+                    seen = Some(escaped(&match tag {
+                        Some(t) => format!("#{t} {text}"),
+                        None => text,
+                    }));
+                }
+                Some(Incoming::Record(_)) => {}
                 None if Instant::now() >= deadline => bail!(
-                    "no reply to `id` within {:.1} s: is this the rig's console (115200 8N1)?",
-                    self.opts.timeout.as_secs_f64()
+                    "no reply to `id` within {:.1} s{}: is this the rig's console (115200 8N1)?",
+                    self.opts.timeout.as_secs_f64(),
+                    seen.map_or(String::new(), |l| format!(
+                        " (received instead, last: `{l}`)"
+                    ))
                 ),
                 None => {}
             }

@@ -19,7 +19,7 @@ use super::link::{Link, MAX_REPLY};
 use super::reply::{Answer, AnswerError, BoardInfo, CaptureError, DiagInfo, IdInfo};
 use super::request::{ParseError, Request, parse};
 use crate::capture::{CAPTURE_RATE_HZ, Capture, CaptureCommand};
-use crate::control::{AsyncRecord, Command, Controller, SAMPLE_RATE_HZ, State};
+use crate::control::{AsyncRecord, Command, CommandError, Controller, SAMPLE_RATE_HZ, State};
 
 /// Access to the rig's pieces, each for the duration of one closure.
 pub trait RigAccess {
@@ -209,6 +209,10 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
         })),
         CaptureCommand::Arm { level_n, seconds } => {
             let (state, sensor) = rig.controller(|c| (c.state(), c.config().sensor));
+            if state == State::Fault {
+                // As every command refused in a fault says: `stop` does not leave it.
+                return Answer::Error(AnswerError::Command(CommandError::FaultLatched));
+            }
             if state != State::Idle {
                 return Answer::Error(AnswerError::Capture(CaptureError::NotIdle));
             }
@@ -346,6 +350,14 @@ mod tests {
             "error: segment 0 not recorded (0 recorded)"
         );
         assert!(say(&mut c, &mut cap, "capture stop").starts_with("capture state=done"));
+        // With a fault latched, `capture arm` says what every refused command says then.
+        c.on_sample(Err(crate::hal::SampleError::Overrun), 100);
+        assert_eq!(c.state(), State::Fault);
+        assert_eq!(
+            say(&mut c, &mut cap, "capture arm 2 1"),
+            "error: fault latched: clear first"
+        );
+        assert_eq!(say(&mut c, &mut cap, "clear"), "ok");
         // Tagged lines get tagged replies; a bad tag is refused untagged.
         assert_eq!(say(&mut c, &mut cap, "#17 stream off"), "#17 ok");
         assert!(!c.streaming());
