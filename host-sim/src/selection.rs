@@ -8,7 +8,7 @@ use shared::model::ContactLaw;
 use shared::model::rig::IMPACT_SPEEDS_M_S;
 
 use shared::Real;
-use shared::orbit::{ContinuationSettings, Edge, Orbit, Param, band_edges};
+use shared::orbit::{BranchEnd, ContinuationSettings, Edge, Orbit, Param, band_edges};
 
 use crate::config::Setup;
 use crate::orbits::{self, OrbitReport, Start};
@@ -93,10 +93,11 @@ pub struct BandCheck {
 /// One located edge of the band.
 #[derive(Debug, Clone, Serialize)]
 pub struct EdgeReport {
-    /// `grazing`, `period-doubling`, `fold`, `neimark-sacker`, or `open` (none within the
-    /// sweep's range: the edge is the range's end).
+    /// `grazing`, `period-doubling`, `fold`, `neimark-sacker`, `open` (none within the
+    /// sweep's range: the edge is the range's end) or `stalled` (the continuation could not
+    /// follow the branch: no edge located on this side, which keeps the sweep's edge).
     pub kind: String,
-    /// Where, `Ω/ω`.
+    /// Where, `Ω/ω` (`stalled`: the sweep's last `1/1` point on that side).
     pub omega_ratio: f64,
     /// Where, Hz.
     pub freq_hz: f64,
@@ -110,6 +111,9 @@ pub struct EdgeReport {
     /// If not, what the sweep shows there and why.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub disagreement: Option<String>,
+    /// `stalled`: where the continuation stopped, `Ω/ω`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stalled_at: Option<f64>,
 }
 
 /// The strongest non-`1/1` periodic point.
@@ -167,14 +171,35 @@ fn edge_report<T: Real>(
     outward: f64,
     step: f64,
 ) -> EdgeReport {
-    let value = edge.value();
+    let located = edge.value();
     let (kind, multiplier) = match edge {
         Edge::Event(e) => (
             e.kind.name().to_string(),
             Some([e.critical.re, e.critical.im]),
         ),
-        Edge::Open(_) => ("open".to_string(), None),
+        Edge::Open(BranchEnd::RangeEnd(_)) => ("open".to_string(), None),
+        Edge::Open(BranchEnd::Grazing(_)) => ("grazing".to_string(), None),
+        // Newton could not follow the branch (or the budget ran out): not an edge.
+        Edge::Open(_) => ("stalled".to_string(), None),
     };
+    if kind == "stalled" {
+        // No edge on this side: the sweep's stands, and the report says why.
+        return EdgeReport {
+            kind,
+            omega_ratio: sweep_edge,
+            freq_hz: setup.params.freq_hz_from_ratio(sweep_edge),
+            multiplier: None,
+            sweep_omega_ratio: sweep_edge,
+            agrees: false,
+            disagreement: Some(format!(
+                "the continuation could not follow the orbit's branch beyond Ω/ω {located:.5} \
+                 (Newton failed at the smallest step, or the point budget ran out): no edge is \
+                 located on this side, and the sweep's last 1/1 point {sweep_edge:.4} stands there"
+            )),
+            stalled_at: Some(located),
+        };
+    }
+    let value = located;
     // The sweep's edge is midway between its last 1/1 point and the next: the located edge
     // agrees within one step of it.
     let beyond = (value - sweep_edge) * outward;
@@ -208,6 +233,7 @@ fn edge_report<T: Real>(
         sweep_omega_ratio: sweep_edge,
         agrees,
         disagreement,
+        stalled_at: None,
     }
 }
 

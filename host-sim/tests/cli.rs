@@ -57,6 +57,33 @@ fn select_json_reports_the_operating_point() {
     assert!(mu > 0.0 && mu < 1.0 && check["orbit"]["stable"] == true);
 }
 
+/// Where the continuation cannot follow the chosen orbit's branch (the Hunt–Crossley law on the
+/// wire rig: Newton stalls a step away), no edge is claimed: the side is `stalled`, the sweep's
+/// edge stands there, the margin is the sweep's, and a warning says why.
+#[test]
+fn select_says_when_the_branch_could_not_be_followed() {
+    let out = ok(&line("select --law hunt-crossley --no-basin-check --json"));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let check = &v["band_check"];
+    for side in ["lower", "upper"] {
+        let e = &check[side];
+        assert_eq!(e["kind"], "stalled", "{side}: {e}");
+        assert!(e["stalled_at"].as_f64().is_some());
+        assert_eq!(e["omega_ratio"], e["sweep_omega_ratio"]);
+    }
+    let margin = v["margin_freq_pct"].as_f64().unwrap();
+    let sweep_margin = check["sweep_margin_freq_pct"].as_f64().unwrap();
+    assert!(
+        (margin - sweep_margin).abs() < 1e-9,
+        "{margin} vs {sweep_margin}"
+    );
+    let warnings = v["warnings"].to_string();
+    assert!(
+        warnings.contains("no edge is located on this side"),
+        "{warnings}"
+    );
+}
+
 /// `VIBRO_ISA` narrows the lane kernels' vector instructions and changes no bit of a Peterka
 /// grid whose runs go through every kind of lane (free flight, contact, switching events, near
 /// searches); a value naming no variant this CPU runs is refused by name, before any output.

@@ -348,7 +348,7 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
         (peterka("NaN:1:0.1", "2:3:0.1"), &["--gap-mm", "finite"]),
         (
             peterka("-0.5:1:0.1", "2:3:0.1"),
-            &["--gap-mm", "allowed 0 ..= 50"],
+            &["--gap-mm", "allowed 0 ..= 18.75"],
         ),
         (peterka("0:1:0.1", "0.01:3:0.1"), &["--freq-hz", "allowed"]),
         (peterka("0:1:0.1", "2:200:0.1"), &["--freq-hz", "allowed"]),

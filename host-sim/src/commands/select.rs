@@ -175,6 +175,14 @@ pub fn run(a: &SelectArgs) -> Result<()> {
                 rep.warnings.push(format!("band edge: {d}"));
             }
         }
+        // The sweep's margin met the requirement; the located edges may not.
+        if rep.margin_freq_pct < rep.required_margin_freq_pct {
+            rep.warnings.push(format!(
+                "the margin to the nearer band edge is {:.1} %, below the required ±{} %: the \
+                 point is less robust in frequency than the sweep showed",
+                rep.margin_freq_pct, rep.required_margin_freq_pct
+            ));
+        }
     }
     if !a.no_basin_check {
         let mut basin_setup = setup.clone();
@@ -410,6 +418,7 @@ fn print_report(r: &SelectReport) {
                     "{} at {:.4} Hz (Ω/ω {:.5}{})",
                     match e.kind.as_str() {
                         "open" => "no bifurcation before the sweep's end",
+                        "stalled" => "no edge located (the branch was not followed); the sweep's",
                         k => k,
                     },
                     e.freq_hz,
