@@ -11,8 +11,8 @@ use serde::Serialize;
 use shared::Real;
 use shared::observe::Regime;
 use shared::orbit::{
-    BifEvent, BranchPoint, ContinuationSettings, EventKind, MapPoint, Multiplier, Orbit, Param,
-    ShootSettings, continue_branch, doubling_start, iterate, orbit_from, relative, state_of,
+    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MapPoint, Multiplier, Orbit,
+    Param, ShootSettings, continue_branch, doubling_start, iterate, orbit_from, relative, state_of,
 };
 
 use crate::config::Setup;
@@ -306,10 +306,25 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                     })
                 })
                 .collect::<Result<_>>()?,
-            end: end.to_string(),
+            end: end_text(&end, spec.param),
         });
     }
     Ok(out)
+}
+
+/// Why a branch ended, with the value in the report's units (`Ω/ω`, or the gap in mm).
+fn end_text(end: &BranchEnd, param: Param) -> String {
+    let (what, v) = match *end {
+        BranchEnd::RangeEnd(v) => ("the end of the range", v),
+        BranchEnd::Grazing(v) => ("a grazing", v),
+        BranchEnd::StepTooSmall(v) => ("a step below the minimum", v),
+        BranchEnd::MaxPoints(v) => ("the point budget", v),
+        BranchEnd::Stopped(v) => ("an event", v),
+    };
+    match param {
+        Param::OmegaRatio => format!("{what} at Ω/ω {v:.6}"),
+        Param::GapM => format!("{what} at gap {:.6} mm", v * 1e3),
+    }
 }
 
 /// The value of `param` in a report (`Ω/ω`, or the gap in mm).

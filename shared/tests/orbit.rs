@@ -834,3 +834,26 @@ fn continuation_with_unusable_steps_ends() {
         }
     }
 }
+
+/// From a gap of 0 (the field case, the edge of the gap's domain) the `1/1` branch is followed
+/// up in the gap: the derivative in the gap is one-sided there (no gap below 0), and the
+/// branch's first points have gaps above 0.
+#[test]
+fn the_gap_branch_starts_at_gap_zero() {
+    let at = point(RigId::Wires, ContactLawKind::SpringDashpot, 0.0, 2.0);
+    let (_, start) = orbit_at::<f64>(&at);
+    let mut settings = ContinuationSettings::new::<f64>(Param::GapM, [0.0, 0.003]);
+    settings.max_points = 6;
+    let mut gaps = Vec::new();
+    continue_branch(
+        &start,
+        &settings,
+        1.0,
+        None,
+        |p| gaps.push(p.value),
+        |_| ControlFlow::Continue(()),
+    );
+    assert!(gaps.len() >= 3, "{gaps:?}");
+    assert_eq!(gaps[0], 0.0);
+    assert!(gaps[1..].iter().all(|&g| g > 0.0), "{gaps:?}");
+}

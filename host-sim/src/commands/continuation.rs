@@ -189,8 +189,7 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
     let value = at.get(param);
     if value < range[0] || value > range[1] {
         bail!(
-            "--range: the start ({} {}) lies outside {}..{}",
-            param.name(),
+            "--range: the start ({}) lies outside {}..{}",
             param_value_shown(param, value),
             param_value_shown(param, range[0]),
             param_value_shown(param, range[1])
@@ -226,7 +225,7 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         let mut all: Vec<BranchOut> = Vec::new();
         for p in &starts {
             let (r, o): (_, Orbit<T>) = orbits::find::<T>(p, start, a.point.q)?;
-            regimes.push(format!("{} at {} {}", r.regime, param.name(), shown(p.get(param))));
+            regimes.push(format!("{} at {}", r.regime, param_value_shown(param, p.get(param))));
             let base = all.len();
             for mut b in orbits::branches(&o, &spec)? {
                 b.id += base;
@@ -300,8 +299,8 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
 
 fn param_value_shown(param: Param, v: f64) -> String {
     match param {
-        Param::OmegaRatio => format!("{v}"),
-        Param::GapM => format!("{} mm", v * 1e3),
+        Param::OmegaRatio => format!("Ω/ω {v}"),
+        Param::GapM => format!("gap {} mm", v * 1e3),
     }
 }
 

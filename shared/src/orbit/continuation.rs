@@ -224,18 +224,25 @@ fn evaluate<T: Real>(fr: &Frame, z: &[f64; 3], fd_step: f64) -> Option<Eval<T>> 
         (img.x[0].to_f64() - x[0].to_f64()) / fr.s[0],
         (img.x[1].to_f64() - x[1].to_f64()) / fr.s[1],
     ];
-    // ∂F/∂λ̂ by central differences of the plain map.
+    // ∂F/∂λ̂ by central differences of the plain map; one-sided at the edge of the
+    // parameter's domain (a gap of 0, where `λ − d` is no gap).
     let lam = z[2] * fr.s_lambda;
     let d = fd_step * fr.s_lambda;
-    let plus = iterate(&fr.at.with(fr.param, lam + d), fr.q, x).ok()?;
-    let minus = iterate(&fr.at.with(fr.param, lam - d), fr.q, x).ok()?;
+    let plus = iterate(&fr.at.with(fr.param, lam + d), fr.q, x).ok();
+    let minus = iterate(&fr.at.with(fr.param, lam - d), fr.q, x).ok();
+    let (hi, lo, width) = match (plus, minus) {
+        (Some(p), Some(m)) => (p.x, m.x, 2.0 * fd_step),
+        (Some(p), None) => (p.x, img.x, fd_step),
+        (None, Some(m)) => (img.x, m.x, fd_step),
+        (None, None) => return None,
+    };
     let mut jac = [[0.0; 3]; 2];
     for i in 0..2 {
         for j in 0..2 {
             let ident = if i == j { 1.0 } else { 0.0 };
             jac[i][j] = (m[i][j] - ident) * fr.s[j] / fr.s[i];
         }
-        jac[i][2] = (plus.x[i].to_f64() - minus.x[i].to_f64()) / (2.0 * fd_step) / fr.s[i];
+        jac[i][2] = (hi[i].to_f64() - lo[i].to_f64()) / width / fr.s[i];
     }
     if !(f.iter().chain(jac.iter().flatten()).all(|v| v.is_finite())) {
         return None;
