@@ -9,10 +9,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 static REQUESTED: AtomicBool = AtomicBool::new(false);
 
-/// The run was interrupted by Ctrl-C; nothing was written.
+/// The run was interrupted (Ctrl-C, SIGTERM or SIGHUP); its temporary files are removed as the
+/// error unwinds (what a command keeps, such as a sweep's partial file, its message says).
 #[derive(Debug, thiserror::Error)]
 #[error(
-    "interrupted (Ctrl-C): stopped after the current chunk, temporary files removed, no output written"
+    "interrupted (Ctrl-C or a termination signal): stopped after the current step, temporary \
+     files removed"
 )]
 pub struct Interrupted;
 

@@ -4,8 +4,8 @@
 //!
 //! ```text
 //! state=track rig=wires gap_mm=0.00 freq_hz=3.7000 amp_mm=0.890 regime=1/1 peak_n=95.4 peak_mg=32.64 model=ready target_hz=3.6404 band_hz=2.184..4.733 predicted_mg=32.76 force_vs_model_pct=-0.4 fault=none impacts=1042 lost_cycles=0
-//! id firmware=0.1.0 board=rig rig=wires gap_mm=0.00 sample_rate_hz=10000 capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 adc_full_scale_v=3.3000 mass_kg=0.2980 freq_window_hz=1.00..30.00
-//! diag samples=123456 uptime_ms=12346 sample_gap_max_us=123 rx_errors=0 lines_lost=0 async_sent=41 async_dropped=0 lost_cycles=0 stack_hwm_bytes=37990 stack_size_bytes=114220
+//! id firmware=0.1.0 board=rig rig=wires gap_mm=0.00 sample_rate_hz=10000 capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 adc_full_scale_v=3.3000 mass_kg=0.2980 freq_window_hz=1.00..30.00 slew_hz_per_s=0.500 ramp_mm_per_s=0.500 force_limit_n=280.0
+//! diag samples=123456 uptime_ms=12346 sample_gap_max_us=123 rx_errors=0 lines_lost=0 async_sent=41 async_dropped=0 lost_cycles=0 stack_hwm_bytes=37990 stack_size_bytes=114220 link_timeout_ms=0
 //! capture state=done segments=3 samples=1200000 level_n=1.00 rate_hz=100000 segment_len=160 pre_trigger=32 max_segments=32
 //! segment k=0 start=99968 n=160 codes=0f80f80f8…
 //! error: only while idle: stop first
