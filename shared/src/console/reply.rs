@@ -542,26 +542,28 @@ impl fmt::Display for CommandError {
             CommandError::NoTarget => {
                 f.write_str("the model found no robust 1/1 target: use freq <Hz>")
             }
-            CommandError::FreqOutOfWindow { min, max } => write!(
-                f,
-                "{}{}{}{}{}",
-                FREQ_WINDOW.0,
-                Decimal(*min, 2),
-                FREQ_WINDOW.1,
-                Decimal(*max, 2),
-                FREQ_WINDOW.2
-            ),
-            CommandError::OutOfRange { min, max } => write!(
-                f,
-                "{}{}{}{}{}",
-                OUT_OF_RANGE.0,
-                Decimal(*min, 2),
-                OUT_OF_RANGE.1,
-                Decimal(*max, 2),
-                OUT_OF_RANGE.2
-            ),
+            CommandError::FreqOutOfWindow { min, max } => write_range(f, FREQ_WINDOW, *min, *max),
+            CommandError::OutOfRange { min, max } => write_range(f, OUT_OF_RANGE, *min, *max),
         }
     }
+}
+
+/// A range's text: `(before, between, after)` around its ends, each to 2 decimals.
+fn write_range(
+    f: &mut fmt::Formatter<'_>,
+    text: (&str, &str, &str),
+    min: f32,
+    max: f32,
+) -> fmt::Result {
+    write!(
+        f,
+        "{}{}{}{}{}",
+        text.0,
+        Decimal(min, 2),
+        text.1,
+        Decimal(max, 2),
+        text.2
+    )
 }
 
 impl FromStr for CommandError {
