@@ -458,8 +458,9 @@ impl RigPort {
     }
 
     /// Takes note of a setting the operator made with a line of their own (`link-timeout`,
-    /// `stream`) that the rig accepted: the port leaves the rig so when it closes, and keeps
-    /// the link alive at the operator's watchdog time.
+    /// `stream`) that the rig accepted: the port leaves the rig so when it closes, and, if it
+    /// keeps the link alive at all (a link timeout of its own, not `--link-timeout-s 0`), keeps
+    /// it alive at the operator's watchdog time.
     fn operator_set(&mut self, line: &str, reply: &str) {
         if !matches!(reply.parse::<Answer>(), Ok(Answer::Reply(_))) {
             return;
@@ -467,7 +468,9 @@ impl RigPort {
         match shared::console::parse(line) {
             Ok(Request::Control(Command::LinkTimeout(s))) => {
                 self.leave_link_timeout_s = s;
-                self.opts.link_timeout_s = s;
+                if self.opts.link_timeout_s > 0.0 {
+                    self.opts.link_timeout_s = s;
+                }
             }
             Ok(Request::Control(Command::Stream(on))) => self.leave_streaming = on,
             _ => {}
