@@ -493,8 +493,8 @@ impl Controller {
             let full = self.mode.measuring();
             let gap = self.regime_gap_samples;
             let [lo, hi] = self.impacts_expected_hz;
-            let f = self.generator.freq_hz();
-            let expected = f >= lo && f <= hi;
+            let generator = &self.generator;
+            let expected = || (lo..=hi).contains(&generator.freq_hz());
             if let Some(f) = self
                 .monitor
                 .check(c, driving, full, impact.is_some(), gap, expected)

@@ -86,8 +86,8 @@ impl SensorMonitor {
     /// Checks one sample. `driving`: the drive is on; `full_drive`: at full amplitude in a
     /// measuring state; `impact`: an impact was reported at this sample; `expected_gap_samples`:
     /// the longest impact-free stretch the measured regime allows (`q` periods);
-    /// `impacts_expected`: the model expects impacts at this frequency (then no first impact
-    /// is waited for).
+    /// `impacts_expected`: whether the model expects impacts at this frequency (then no first
+    /// impact is waited for; asked only when that decides).
     pub fn check(
         &mut self,
         code: u16,
@@ -95,7 +95,7 @@ impl SensorMonitor {
         full_drive: bool,
         impact: bool,
         expected_gap_samples: u32,
-        impacts_expected: bool,
+        impacts_expected: impl FnOnce() -> bool,
     ) -> Option<Fault> {
         if driving && self.at_rail(code) {
             self.at_rail = self.at_rail.saturating_add(1);
@@ -118,7 +118,8 @@ impl SensorMonitor {
         let limit = self
             .no_signal_min
             .max(expected_gap_samples.saturating_add(expected_gap_samples / 2));
-        ((self.armed || impacts_expected) && self.since_impact > limit).then_some(Fault::SensorOpen)
+        (self.since_impact > limit && (self.armed || impacts_expected()))
+            .then_some(Fault::SensorOpen)
     }
 }
 
@@ -136,7 +137,9 @@ mod tests {
         expected_gap_samples: u32,
     ) {
         for i in 0..n {
-            let f = m.check(code, driving, driving, false, expected_gap_samples, false);
+            let f = m.check(code, driving, driving, false, expected_gap_samples, || {
+                false
+            });
             assert_eq!(f, None, "sample {i}");
         }
     }
@@ -146,10 +149,10 @@ mod tests {
         let mut m = SensorMonitor::new(&FaultSettings::default());
         // A 5 ms saturated impact: no fault.
         assert_quiet(&mut m, 50, 4095, true, 0);
-        assert_eq!(m.check(1000, true, true, true, 0, false), None);
+        assert_eq!(m.check(1000, true, true, true, 0, || false), None);
         // Pinned: the 200th consecutive rail sample (20 ms) trips.
         for i in 1..=200 {
-            let f = m.check(0, true, true, false, 0, false);
+            let f = m.check(0, true, true, false, 0, || false);
             assert_eq!(f.is_some(), i == 200, "{i}");
         }
         // Not while the drive is off.
@@ -164,10 +167,10 @@ mod tests {
         assert_quiet(&mut m, 20_000, 250, true, 2733);
         // After an impact, 1/1 at 3.659 Hz (2733 samples per period): max(0.4 s, 1.5 T) =
         // 4099 samples.
-        assert_eq!(m.check(250, true, true, true, 2733, false), None);
+        assert_eq!(m.check(250, true, true, true, 2733, || false), None);
         let mut tripped = 0;
         for i in 1..=5000 {
-            if m.check(250, true, true, false, 2733, false).is_some() {
+            if m.check(250, true, true, false, 2733, || false).is_some() {
                 tripped = i;
                 break;
             }
@@ -175,8 +178,8 @@ mod tests {
         assert_eq!(tripped, 4100);
         // A short period: the 0.4 s floor.
         let mut m = SensorMonitor::new(&FaultSettings::default());
-        m.check(250, true, true, true, 1000, false);
-        let n = (1..10_000).find(|_| m.check(250, true, true, false, 1000, false).is_some());
+        m.check(250, true, true, true, 1000, || false);
+        let n = (1..10_000).find(|_| m.check(250, true, true, false, 1000, || false).is_some());
         assert_eq!(n, Some(4001));
     }
 }

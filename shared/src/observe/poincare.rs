@@ -73,9 +73,9 @@ impl<T: Real> SectionHistory<T> {
         // `back` with the slice and the newest index looked up once.
         let (points, recent) = (self.buf.as_slice(), self.buf.recent_index()?);
         let far = FarBound::new(tol, u_scale, v_scale);
-        // No q needing more points than the history holds is tried (nor can `(cycles + 1)·q`
-        // overflow then).
-        let max_q = max_q.min(points.len() / cycles.saturating_add(1).max(1));
+        // Neither a period nor a cycle count beyond the history can repeat in it: clamped, no
+        // q past it is tried and `(cycles + 1)·q` cannot overflow.
+        let (max_q, cycles) = (max_q.min(HISTORY), cycles.min(HISTORY));
         smallest_period(
             max_q,
             |q| Some((cycles + 1) * q).filter(|&need| need <= points.len()),
