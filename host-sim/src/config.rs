@@ -43,7 +43,7 @@ pub enum Profile {
     /// Analysis defaults: N = 64, K = 16, 200-period transient, Ω/ω 0.5:5.0:0.01 for `select`.
     #[default]
     Host,
-    /// The firmware's on-target model: N = 32, K = 8, 40-period transient, q ≤ 4, 8-period
+    /// The firmware's on-target model: N = 32, K = 8, 60-period transient, q ≤ 4, 8-period
     /// window, Ω/ω 1.0:3.6:0.1 for `select` (gives the firmware's target bit for bit).
     Embedded,
 }

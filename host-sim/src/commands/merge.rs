@@ -37,7 +37,7 @@ pub struct MergeArgs {
     /// CSV (peterka shards run with --boundaries): the curves bounding the z = 1/1 region.
     #[arg(long, value_parser = crate::output::out_target)]
     pub boundaries_out: Option<PathBuf>,
-    /// CSV (basins and fractions): the attractor catalogue (id, regime, fraction with its 95 %
+    /// CSV (basins shards): the attractor catalogue (id, regime, fraction with its 95 %
     /// interval, F_i/mg, Poincaré points).
     #[arg(long, value_parser = crate::output::out_target)]
     pub attractors_out: Option<PathBuf>,
