@@ -63,9 +63,6 @@ enum Model {
     Failed,
 }
 
-/// An empty frequency window (no frequency lies in it).
-const NO_FREQUENCIES: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
-
 /// What the controller is doing, with the data that means something only there.
 #[derive(Debug, Clone, Copy)]
 enum Mode {
@@ -121,9 +118,6 @@ pub struct Controller {
     generator: SineGenerator,
     detector: ImpactDetector,
     monitor: SensorMonitor,
-    /// Drive frequencies at which the model expects impacts, Hz (the target ±
-    /// [`super::faults::IMPACTS_EXPECTED_PCT`]; empty without a model result).
-    impacts_expected_hz: [f32; 2],
     /// Drive cycles completed.
     cycles: u32,
     /// Longest impact-free stretch the measured regime allows, samples (updated per cycle).
@@ -167,7 +161,6 @@ impl Controller {
             detector: ImpactDetector::new(&config.detector),
             meter: RegimeMeter::new(),
             monitor: SensorMonitor::new(&config.faults),
-            impacts_expected_hz: NO_FREQUENCIES,
             config,
             rig,
             gap_mm,
@@ -326,8 +319,6 @@ impl Controller {
         match result {
             Ok(p) => {
                 self.model = Model::Ready(p);
-                let half = p.target_hz * (super::faults::IMPACTS_EXPECTED_PCT / 100.0);
-                self.impacts_expected_hz = [p.target_hz - half, p.target_hz + half];
                 self.push(Event::ModelReady(Target::from(&p)));
                 if self.mode.measuring() && self.manual_hz.is_none() {
                     if self.target_in_window(&p) {
@@ -340,7 +331,6 @@ impl Controller {
             }
             Err(_) => {
                 self.model = Model::Failed;
-                self.impacts_expected_hz = NO_FREQUENCIES;
                 self.push(Event::ModelFailed);
             }
         }
@@ -492,9 +482,15 @@ impl Controller {
             let driving = self.generator.amplitude_mm() > 0.0;
             let full = self.mode.measuring();
             let gap = self.regime_gap_samples;
-            let [lo, hi] = self.impacts_expected_hz;
-            let generator = &self.generator;
-            let expected = || (lo..=hi).contains(&generator.freq_hz());
+            // Within ± IMPACTS_EXPECTED_PCT of the model's target (asked only when it decides).
+            let (model, generator) = (&self.model, &self.generator);
+            let expected = || match model {
+                Model::Ready(p) => {
+                    let half = p.target_hz * (super::faults::IMPACTS_EXPECTED_PCT / 100.0);
+                    (generator.freq_hz() - p.target_hz).abs() <= half
+                }
+                _ => false,
+            };
             if let Some(f) = self
                 .monitor
                 .check(c, driving, full, impact.is_some(), gap, expected)
@@ -670,7 +666,6 @@ impl Controller {
     fn request_model(&mut self) {
         self.generation = self.generation.wrapping_add(1);
         self.model = Model::Pending;
-        self.impacts_expected_hz = NO_FREQUENCIES;
         self.request_open = true;
     }
 
