@@ -109,9 +109,6 @@ pub fn parse_law(s: &str) -> Result<ContactLawKind, String> {
     s.parse().map_err(|e| format!("{e}"))
 }
 
-/// Largest gap accepted on the command line, mm.
-pub const MAX_GAP_MM: f64 = 50.0;
-
 /// A validated rig and numerical setup.
 #[derive(Debug, Clone)]
 pub struct Setup {
@@ -491,15 +488,6 @@ pub fn check_damping_ratio(zeta: f64) -> Result<f64> {
         .context("--damping-ratio")
 }
 
-/// Checks a gap given in mm on the command line and returns it in m.
-///
-/// # Errors
-/// NaN, negative or larger than [`MAX_GAP_MM`].
-pub fn gap_m_from_mm(flag: &str, gap_mm: f64) -> Result<f64> {
-    check_range("gap_mm", gap_mm, 0.0, MAX_GAP_MM).with_context(|| flag.to_string())?;
-    Ok(gap_mm * 1e-3)
-}
-
 /// Parses a sweep `A:B:STEP` given to `flag`.
 ///
 /// # Errors
@@ -590,7 +578,5 @@ mod tests {
                 "{bad}"
             );
         }
-        assert!(gap_m_from_mm("--gap-mm", -0.1).is_err());
-        assert!(gap_m_from_mm("--gap-mm", f64::NAN).is_err());
     }
 }

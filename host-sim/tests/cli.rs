@@ -325,6 +325,23 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
         &["--gap-mm", "18.75"],
         &[&out],
     );
+    rejected(
+        &line(&format!(
+            "drop --rig wires --gap-mm 30 --release-mm 40 --out {o}"
+        )),
+        &["--gap-mm", "wires rig's range", "0 ..= 18.75"],
+        &[&out],
+    );
+    let far = dir.path().join("far.csv");
+    std::fs::write(&far, "gap_mm,omega_ratio\n1,1.0\n30,1.0\n").unwrap();
+    rejected(
+        &line(&format!(
+            "points --rig wires --input {} --out {o}",
+            far.display()
+        )),
+        &["line 3", "gap_mm", "0 ..= 18.75"],
+        &[&out],
+    );
     // A start pressed into the surface; a transient limit of no periods.
     rejected(
         &line(&format!(

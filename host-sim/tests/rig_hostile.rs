@@ -554,8 +554,8 @@ fn a_lost_stop_is_retried_and_the_watchdog_stays_armed() {
     );
 }
 
-/// A `link-timeout` or `stream on` the operator sends is left as they set it when the client
-/// closes (the client's own settings are undone, theirs are not).
+/// A `link-timeout` or `stream on` the operator sends (tagged by them or not) is left as they
+/// set it when the client closes (the client's own settings are undone, theirs are not).
 #[test]
 fn the_operators_settings_are_left_as_set() {
     // (`send` asks no `status`: this fake answers every line it is sent at once.)
@@ -563,6 +563,8 @@ fn the_operators_settings_are_left_as_set() {
     for (args, last) in [
         (vec!["send", "link-timeout 30"], "link-timeout 30"),
         (vec!["send", "stream on"], "stream on"),
+        // A tag the operator typed is the port's to give: the line goes with the port's own.
+        (vec!["send", "#7 link-timeout 20"], "link-timeout 20"),
     ] {
         let out = Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
             .arg("rig")

@@ -856,4 +856,17 @@ fn the_gap_branch_starts_at_gap_zero() {
     assert!(gaps.len() >= 3, "{gaps:?}");
     assert_eq!(gaps[0], 0.0);
     assert!(gaps[1..].iter().all(|&g| g > 0.0), "{gaps:?}");
+    // Downwards from gap 0 the branch is at the range's end at once, and says so (the
+    // corrector cannot take a negative gap: the steps would shrink below the minimum).
+    let mut gaps = Vec::new();
+    let end = continue_branch(
+        &start,
+        &settings,
+        -1.0,
+        None,
+        |p| gaps.push(p.value),
+        |_| ControlFlow::Continue(()),
+    );
+    assert_eq!(end, shared::orbit::BranchEnd::RangeEnd(0.0));
+    assert_eq!(gaps, [0.0]);
 }

@@ -13,7 +13,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
@@ -84,15 +84,11 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         recurrence,
         color_by: a.color_by,
     };
-    if grid.u0_mm.end > grid.gap_mm {
-        bail!(
-            "--u0-mm {}: END = {} mm lies beyond the impact surface (gap {} mm): allowed u0 ≤ gap \
-             (the hammer cannot start pressed into the surface)",
-            a.u0_mm,
-            grid.u0_mm.end,
-            grid.gap_mm
-        );
-    }
+    super::check_start_off_surface(
+        &format!("--u0-mm {}: END = {} mm", a.u0_mm, grid.u0_mm.end),
+        grid.u0_mm.end,
+        grid.gap_mm,
+    )?;
     let mut dest = a.output.destination(None, None)?;
     dest.figures.attractors = a.attractors_out.as_deref();
     let catalogue = Catalogue::new(

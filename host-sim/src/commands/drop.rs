@@ -12,7 +12,7 @@ use shared::analysis::drop::DropSpec;
 use shared::error::check_range;
 
 use crate::config::RigOpts;
-use crate::config::{Setup, gap_m_from_mm};
+use crate::config::Setup;
 use crate::identify::synth::{
     Recorded, Sensor, TRUTH_STEPS, clean_record, record_displacement, synthetic_drop,
 };
@@ -67,7 +67,7 @@ pub fn run(a: &DropArgs) -> Result<()> {
     let mut opts = a.rig.clone();
     opts.precision = Precision::F64;
     let setup = Setup::from_opts(&opts)?;
-    let gap_m = gap_m_from_mm("--gap-mm", a.gap_mm)?;
+    let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     check_range("duration_s", a.duration_s, 1e-3, 100.0).context("--duration-s")?;
     check_range("release_mm", a.release_mm, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
     let spec = DropSpec {

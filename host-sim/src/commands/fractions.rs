@@ -144,13 +144,11 @@ pub fn run(a: &FractionsArgs) -> Result<()> {
             let u0_mm = range("--u0-mm", u, -MAX_U0_MM, MAX_U0_MM)?;
             let v0_mm_s = range("--v0-mm-s", v, -MAX_V0_MM_S, MAX_V0_MM_S)?;
             let least_gap = points.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-            if u0_mm.1 > least_gap {
-                bail!(
-                    "--u0-mm {u}: HI = {} mm lies beyond the impact surface (gap {least_gap} mm): \
-                     allowed u0 ≤ gap (the hammer cannot start pressed into the surface)",
-                    u0_mm.1
-                );
-            }
+            super::check_start_off_surface(
+                &format!("--u0-mm {u}: HI = {} mm", u0_mm.1),
+                u0_mm.1,
+                least_gap,
+            )?;
             StartBox::Explicit { u0_mm, v0_mm_s }
         }
         _ => StartBox::Startup,

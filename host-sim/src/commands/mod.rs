@@ -186,14 +186,15 @@ impl AttractorOpts {
     }
 }
 
-/// A start off the impact surface: `u0 ≤ gap` (mm), as `basins` and `fractions` require.
+/// A start off the impact surface: `u0 ≤ gap` (mm), which every command that takes `--u0-mm`
+/// requires; `given` names the flag and its value as the message should quote them.
 ///
 /// # Errors
-/// `u0` beyond the surface, naming `--u0-mm`.
-pub fn check_start_off_surface(u0_mm: f64, gap_mm: f64) -> Result<()> {
+/// `u0` beyond the surface, naming `given`.
+pub fn check_start_off_surface(given: &str, u0_mm: f64, gap_mm: f64) -> Result<()> {
     if u0_mm > gap_mm {
         bail!(
-            "--u0-mm {u0_mm} lies beyond the impact surface (gap {gap_mm} mm): allowed u0 ≤ gap \
+            "{given} lies beyond the impact surface (gap {gap_mm} mm): allowed u0 ≤ gap \
              (the hammer cannot start pressed into the surface)"
         );
     }

@@ -52,7 +52,11 @@ impl PointArgs {
         }
         check_range("u0_mm", self.u0_mm, -20.0, 20.0).context("--u0-mm")?;
         check_range("v0_mm_s", self.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
-        super::check_start_off_surface(self.u0_mm, self.gap_mm)?;
+        super::check_start_off_surface(
+            &format!("--u0-mm {}", self.u0_mm),
+            self.u0_mm,
+            self.gap_mm,
+        )?;
         let start = if self.u0_mm == 0.0 && self.v0_mm_s == 0.0 {
             Start::Rest
         } else {

@@ -9,7 +9,7 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 
 use crate::config::RigOpts;
-use crate::config::{Setup, gap_m_from_mm};
+use crate::config::Setup;
 use crate::output::{write_csv, write_whole};
 use crate::runner::{OperatingPoint, evaluate_all};
 
@@ -51,11 +51,11 @@ pub struct OutRow {
     pub impact_force_mg: f64,
 }
 
-/// Reads and validates the input points.
+/// Reads and validates the input points (gaps within `setup`'s rig range).
 ///
 /// # Errors
 /// Unreadable file, missing columns, unparsable or out-of-range values (row number named).
-pub fn read_points(path: &PathBuf) -> Result<Vec<(f64, f64)>> {
+pub fn read_points(setup: &Setup, path: &PathBuf) -> Result<Vec<(f64, f64)>> {
     let mut rdr = csv::Reader::from_path(path)
         .with_context(|| format!("cannot read --input {}", path.display()))?;
     let mut out = Vec::new();
@@ -67,7 +67,8 @@ pub fn read_points(path: &PathBuf) -> Result<Vec<(f64, f64)>> {
                 path.display()
             )
         })?;
-        gap_m_from_mm("gap_mm", r.gap_mm)
+        setup
+            .gap_m("gap_mm", r.gap_mm)
             .with_context(|| format!("{} line {line}", path.display()))?;
         check_range(
             "omega_ratio",
@@ -93,7 +94,7 @@ pub fn read_points(path: &PathBuf) -> Result<Vec<(f64, f64)>> {
 /// Bad input or I/O failure; the output appears only when every point succeeded.
 pub fn run(a: &PointsArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
-    let pts = read_points(&a.input)?;
+    let pts = read_points(&setup, &a.input)?;
     let ops: Vec<OperatingPoint> = pts
         .iter()
         .map(|&(g, r)| OperatingPoint {

@@ -58,7 +58,7 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
     let ratio = excitation_ratio(&setup, a.omega_ratio, a.freq_hz)?;
     check_count("periods", a.periods, 1, 100_000).context("--periods")?;
     check_range("u0_mm", a.u0_mm, -20.0, 20.0).context("--u0-mm")?;
-    super::check_start_off_surface(a.u0_mm, a.gap_mm)?;
+    super::check_start_off_surface(&format!("--u0-mm {}", a.u0_mm), a.u0_mm, a.gap_mm)?;
     check_range("v0_mm_s", a.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
     let omega_exc = ratio * setup.params.omega_n();
     let (rows, summary) = series::simulate(

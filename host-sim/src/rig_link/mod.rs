@@ -446,12 +446,13 @@ impl RigPort {
         }
     }
 
-    /// Sends a console line as it is (tagged on the way) and returns the reply's text: for
+    /// Sends a console line as it is (tagged on the way, in place of a tag the operator typed) and returns the reply's text: for
     /// `rig send` and `rig console`, which print what the rig says.
     ///
     /// # Errors
     /// No reply within the timeout, a reply to another line, the link closed, Ctrl-C.
     pub fn send_line(&mut self, line: &str) -> Result<String> {
+        let line = untagged(line);
         let reply = self.exchange(line, false)?;
         self.operator_set(line, &reply);
         Ok(reply)
@@ -483,6 +484,7 @@ impl RigPort {
     /// # Errors
     /// As [`RigPort::send_line`], for the first line whose reply fails.
     pub fn send_lines(&mut self, lines: &[&str]) -> Result<Vec<String>> {
+        let lines: Vec<&str> = lines.iter().map(|l| untagged(l)).collect();
         let tags: Vec<u32> = lines.iter().map(|_| self.take_tag()).collect();
         let text: String = lines
             .iter()
@@ -907,6 +909,15 @@ fn read_lines(
             buf.clear();
             skipping = true;
         }
+    }
+}
+
+/// `line` without a tag the operator typed (`#5 status`): the port tags every line it sends
+/// with its own, by which it matches the reply. A malformed tag is left for the rig to refuse.
+fn untagged(line: &str) -> &str {
+    match split_tag(line) {
+        Ok((Some(_), rest)) => rest.trim_start(),
+        _ => line,
     }
 }
 

@@ -442,6 +442,11 @@ pub fn continue_branch<T: Real>(
         // A step: predict, correct, check the tangent turned little and the impacts held.
         let next = loop {
             if settings.steps.below_min(h) {
+                // At the range's edge heading out of it (gap 0 going down, where the corrector
+                // cannot take the predicted value): the range's end.
+                if at_edge_heading_out(settings.range, value_a, node.t[2]) {
+                    return BranchEnd::RangeEnd(value_a);
+                }
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -567,6 +572,13 @@ pub fn continue_branch<T: Real>(
         };
     }
     BranchEnd::MaxPoints(node.z[2] * s_lambda)
+}
+
+/// Whether `value` lies at an end of `range` (within 10⁻⁹ of its width) and `dvalue`, the
+/// tangent's component in the parameter, points out of the range there.
+fn at_edge_heading_out(range: [f64; 2], value: f64, dvalue: f64) -> bool {
+    let eps = 1e-9 * (range[1] - range[0]).abs();
+    (dvalue < 0.0 && value <= range[0] + eps) || (dvalue > 0.0 && value >= range[1] - eps)
 }
 
 /// Whether a branch whose steps fell below the minimum at `last` ends at a grazing, where, and

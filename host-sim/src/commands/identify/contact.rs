@@ -10,7 +10,7 @@ use shared::error::check_range;
 use shared::model::{ContactLaw, ContactLawKind};
 
 use super::{ContactArgs, LawChoice, describe_law, pair_releases};
-use crate::config::{MAX_GAP_MM, Setup, config_text};
+use crate::config::{Setup, config_text};
 use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, Weights};
 use crate::identify::data::{DropData, analyse_drop};
 use crate::identify::fit::{Fit, best_by_aicc, fit_laws};
@@ -137,7 +137,6 @@ impl LoadedTrace {
 
 pub(super) fn run(a: &ContactArgs) -> Result<()> {
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
-    check_range("gap_mm", a.gap_mm, 0.0, MAX_GAP_MM).context("--gap-mm")?;
     let releases = pair_releases(&a.release_mm, a.trace.len()).context("--release-mm")?;
     for &r in &releases {
         check_range("release_mm", r, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
@@ -149,6 +148,7 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         precision: crate::precision::Precision::F64,
         ..crate::config::RigOpts::preset(a.rig)
     })?;
+    setup.gap_m("--gap-mm", a.gap_mm)?;
     let mut params = setup.params;
     params.mass_kg = a.mass_kg;
     params.validate().context("rig parameters")?;
