@@ -16,6 +16,18 @@ mem_mb=$(awk '/MemTotal/ { print int($2 / 1024) - 512 }' /proc/meminfo)
 conf=/etc/slurm/slurm.conf
 run=/run/local-slurm
 
+# Whether a process named $1 runs: a zombie (a daemon killed with its parent still about, as a
+# killed CI run leaves one) answers nothing and does not count.
+alive() {
+    for p in $(pgrep -x "$1"); do
+        case "$(ps -o stat= -p "$p" 2>/dev/null)" in
+            Z* | '') ;;
+            *) return 0 ;;
+        esac
+    done
+    return 1
+}
+
 start() {
     command -v slurmctld >/dev/null && command -v munged >/dev/null || {
         echo "needs Debian's slurm-wlm and munge (apt-get install slurm-wlm munge)" >&2
@@ -57,12 +69,12 @@ PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP
 EOF
     # A running controller rereads the file; one that does not answer (left over from a run
     # that was killed) is replaced.
-    if ! { pgrep -x slurmctld >/dev/null && scontrol reconfigure 2>/dev/null; }; then
+    if ! { alive slurmctld && scontrol reconfigure 2>/dev/null; }; then
         pkill -x slurmctld 2>/dev/null || true
-        for _ in $(seq 100); do pgrep -x slurmctld >/dev/null || break; sleep 0.1; done
+        for _ in $(seq 100); do alive slurmctld || break; sleep 0.1; done
         slurmctld -c
     fi
-    pgrep -x slurmd >/dev/null || slurmd
+    alive slurmd || slurmd
     for _ in $(seq 100); do
         if sinfo -h -o '%t' 2>/dev/null | grep -qE '^(idle|mix|alloc)'; then
             sinfo
@@ -79,7 +91,7 @@ EOF
 stop() {
     for d in slurmd slurmctld munged; do
         pkill -x "$d" 2>/dev/null || true
-        for _ in $(seq 100); do pgrep -x "$d" >/dev/null || break; sleep 0.1; done
+        for _ in $(seq 100); do alive "$d" || break; sleep 0.1; done
     done
 }
 

@@ -128,7 +128,16 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 )
             };
             let beyond = if e.kind == "grazing" {
-                format!(", {} impacts per {} periods beyond", e.impacts_beyond, b.q)
+                let per = if b.q == 1 {
+                    "period".to_string()
+                } else {
+                    format!("{} periods", b.q)
+                };
+                let n = e.impacts_beyond;
+                format!(
+                    ", {n} impact{} per {per} beyond",
+                    if n == 1 { "" } else { "s" }
+                )
             } else {
                 String::new()
             };

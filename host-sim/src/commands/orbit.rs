@@ -91,15 +91,25 @@ struct OrbitJson<'a> {
     orbit: &'a OrbitReport,
 }
 
+/// `x`, or `+0` where it prints as zero at `decimals` places (no `-0.000000` for a value a
+/// hair below zero).
+fn unsigned_zero(x: f64, decimals: i32) -> f64 {
+    if (x * 10f64.powi(decimals)).round() == 0.0 {
+        0.0
+    } else {
+        x
+    }
+}
+
 /// The report's text: the orbit, its multipliers and stability.
 pub fn describe(o: &OrbitReport) -> String {
     let mu = |m: [f64; 2]| {
         if m[1] == 0.0 {
-            format!("{:+.6}", m[0])
+            format!("{:+.6}", unsigned_zero(m[0], 6))
         } else {
             format!(
                 "{:+.6} {} {:.6}i",
-                m[0],
+                unsigned_zero(m[0], 6),
                 if m[1] < 0.0 { '−' } else { '+' },
                 m[1].abs()
             )
@@ -113,8 +123,8 @@ pub fn describe(o: &OrbitReport) -> String {
         s += &format!(
             "  Poincaré point {}: u = {:+.6} mm, u̇ = {:+.4} mm/s\n",
             k + 1,
-            p[0],
-            p[1]
+            unsigned_zero(p[0], 6),
+            unsigned_zero(p[1], 4)
         );
     }
     s += &format!("  impact peak F_i/mg = {:.3}\n", o.impact_force_mg);
@@ -178,4 +188,17 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
         println!("{}", describe(&report));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::unsigned_zero;
+
+    #[test]
+    fn a_value_a_hair_below_zero_prints_as_plus_zero() {
+        assert_eq!(format!("{:+.6}", unsigned_zero(-4e-7, 6)), "+0.000000");
+        assert_eq!(format!("{:+.6}", unsigned_zero(-6e-7, 6)), "-0.000001");
+        assert_eq!(format!("{:+.4}", unsigned_zero(-0.0, 4)), "+0.0000");
+        assert_eq!(unsigned_zero(-2.5, 6), -2.5);
+    }
 }

@@ -167,17 +167,56 @@ fn legend_panel(
             LegendMark::Text => (-4, 13),
             _ => (1, 15),
         };
-        area.draw(&Text::new(
-            name.clone(),
-            (x + 28, y + dy),
-            (SANS, size).into_font(),
-        ))?;
-        y += match mark {
-            LegendMark::Text => 22,
-            _ => 26,
-        };
+        let room = area.dim_in_pixel().0.saturating_sub(x as u32 + 28 + 6);
+        let (lines, size) = fit_text(area, name, size, room)?;
+        for (k, line) in lines.iter().enumerate() {
+            area.draw(&Text::new(
+                line.clone(),
+                (x + 28, y + dy + k as i32 * (size as i32 + 3)),
+                (SANS, size).into_font(),
+            ))?;
+        }
+        let extra = (lines.len() as i32 - 1) * (size as i32 + 3);
+        y += extra
+            + match mark {
+                LegendMark::Text => 22,
+                _ => 26,
+            };
     }
     Ok(())
+}
+
+/// `text` set to fit `room` pixels across: at `size`, else a smaller size down to 11, else
+/// broken at spaces into lines of that size (a word wider than `room` stands alone).
+fn fit_text(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    text: &str,
+    size: u32,
+    room: u32,
+) -> Result<(Vec<String>, u32)> {
+    let width = |t: &str, size: u32| -> Result<u32> {
+        Ok(area
+            .estimate_text_size(t, &(SANS, size).into_text_style(area))
+            .map_err(|e| anyhow::anyhow!("legend text: {e}"))?
+            .0)
+    };
+    let smallest = size.min(11);
+    for s in (smallest..=size).rev() {
+        if width(text, s)? <= room {
+            return Ok((vec![text.to_string()], s));
+        }
+    }
+    let mut lines: Vec<String> = Vec::new();
+    for word in text.split(' ') {
+        match lines.last_mut() {
+            Some(line) if width(&format!("{line} {word}"), smallest)? <= room => {
+                line.push(' ');
+                line.push_str(word);
+            }
+            _ => lines.push(word.to_string()),
+        }
+    }
+    Ok((lines, smallest))
 }
 
 /// Regime over `x × y` cells with a legend of the regimes present (thesis Fig. 3.24).
@@ -381,10 +420,8 @@ pub fn attractor_colors(
             (true, ColorBy::Impact) => WHITE,
         })
         .collect();
-    let share = |n: u64| {
-        let total: u64 = attractors.iter().map(|a| a.cells).sum::<u64>().max(1);
-        100.0 * n as f64 / total as f64
-    };
+    let total: u64 = attractors.iter().map(|a| a.cells).sum();
+    let share = |n: u64| percent(n, total);
     let mut entries: Vec<(String, LegendMark)> = Vec::new();
     match color_by {
         ColorBy::Attractor => {
@@ -397,7 +434,7 @@ pub fn attractor_colors(
                     others += a.cells;
                     continue;
                 }
-                let name = format!("{} ({:.1} %)", a.label, share(a.cells));
+                let name = format!("{} ({})", a.label, share(a.cells));
                 match a.point {
                     Some((u, v)) => {
                         entries.push((name, LegendMark::Dot(*c)));
@@ -420,7 +457,7 @@ pub fn attractor_colors(
             }
             if others > 0 {
                 entries.push((
-                    format!("other attractors ({:.1} %)", share(others)),
+                    format!("other attractors ({})", share(others)),
                     LegendMark::Swatch(RGBColor(80, 80, 80)),
                 ));
             }
@@ -434,7 +471,7 @@ pub fn attractor_colors(
                     .filter(|a| a.recurrent && regime_class(a.regime).1 == name)
                     .map(|a| a.cells)
                     .sum();
-                entries.push((format!("{name} ({:.1} %)", share(n)), LegendMark::Swatch(c)));
+                entries.push((format!("{name} ({})", share(n)), LegendMark::Swatch(c)));
             }
         }
         // The impact view colours each run's own window ([`basins_map`]), not attractors.
@@ -447,11 +484,24 @@ pub fn attractor_colors(
         .sum();
     if never > 0 {
         entries.push((
-            format!("no attractor ({:.1} %)", share(never)),
+            format!("no attractor ({})", share(never)),
             LegendMark::Swatch(NO_ATTRACTOR),
         ));
     }
     (colors, entries)
+}
+
+/// `n` of `total` as a percentage to one decimal, never rounded to `0.0 %` or `100.0 %` while
+/// some are in or out (`< 0.1 %`, `> 99.9 %`).
+fn percent(n: u64, total: u64) -> String {
+    let p = 100.0 * n as f64 / total.max(1) as f64;
+    if n > 0 && p < 0.05 {
+        "< 0.1 %".into()
+    } else if n < total && p >= 99.95 {
+        "> 99.9 %".into()
+    } else {
+        format!("{p:.1} %")
+    }
 }
 
 /// Basins of attraction over `(u0, u̇0)` cells (thesis Figs. 3.36–3.38): cells hold the sorted
@@ -485,26 +535,20 @@ pub fn basins_map(
             .filter(|a| !a.recurrent)
             .map(|a| a.cells)
             .sum();
-        let share = |n: u64| 100.0 * n as f64 / total.max(1) as f64;
+        let share = |n: u64| percent(n, total);
         entries = vec![
             (
-                format!("impacting ({:.1} %)", share(summary.impacting_count)),
+                format!("impacting ({})", share(summary.impacting_count)),
                 LegendMark::Swatch(BLACK),
             ),
             (
-                format!(
-                    "no impact ({:.1} %)",
-                    share(total - summary.impacting_count)
-                ),
+                format!("no impact ({})", share(total - summary.impacting_count)),
                 LegendMark::Swatch(WHITE),
             ),
         ];
         entries.push(("in each run's last window".into(), LegendMark::Text));
         if never > 0 {
-            entries.push((
-                format!("no attractor: {:.1} %", share(never)),
-                LegendMark::Text,
-            ));
+            entries.push((format!("no attractor: {}", share(never)), LegendMark::Text));
         }
     } else {
         blit(
@@ -925,5 +969,20 @@ impl GridFigures for Fractions {
             grid.seed
         );
         fractions_stack(&tmp, &title, &x_label, &summary)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::percent;
+
+    #[test]
+    fn a_share_is_never_rounded_away() {
+        assert_eq!(percent(6, 40_000), "< 0.1 %");
+        assert_eq!(percent(39_994, 40_000), "> 99.9 %");
+        assert_eq!(percent(0, 40_000), "0.0 %");
+        assert_eq!(percent(40_000, 40_000), "100.0 %");
+        assert_eq!(percent(140, 40_000), "0.4 %");
+        assert_eq!(percent(0, 0), "0.0 %");
     }
 }
