@@ -982,7 +982,7 @@ mod tests {
         assert_eq!(percent(39_994, 40_000), "> 99.9 %");
         assert_eq!(percent(0, 40_000), "0.0 %");
         assert_eq!(percent(40_000, 40_000), "100.0 %");
-        assert_eq!(percent(140, 40_000), "0.4 %");
+        assert_eq!(percent(141, 40_000), "0.4 %");
         assert_eq!(percent(0, 0), "0.0 %");
     }
 }
