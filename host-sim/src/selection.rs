@@ -36,7 +36,8 @@ pub struct SelectReport {
     pub regime: String,
     /// Predicted max impact force, `F_i/mg`.
     pub impact_force_mg: f64,
-    /// Edges of its `1/1` band, Hz.
+    /// Edges of its `1/1` band as the sweep found them (its last `1/1` points), Hz; the edges
+    /// located on the orbit's branch are `band_check`'s `lower` and `upper`.
     pub band_hz: [f64; 2],
     /// The same in `Ω/ω`.
     pub band_omega_ratio: [f64; 2],
