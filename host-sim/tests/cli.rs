@@ -230,13 +230,39 @@ fn points_evaluates_a_batch() {
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(
         lines[0],
-        "gap_mm,omega_ratio,freq_hz,regime,impacts,impact_force_mg"
+        "gap_mm,omega_ratio,freq_hz,regime,impacts,impact_force_mg,lyapunov_per_period,\
+         lyapunov_uncertainty,window_regime,extra_periods"
     );
     assert_eq!(lines.len(), 4);
     assert!(lines[1].starts_with("0.0,2.0,"));
     assert!(lines[1].contains(",1/1,64,"), "{}", lines[1]);
     // Far below resonance with a 2.4 mm gap the pendulum never reaches the surface.
     assert!(lines[3].contains(",no impact,0,0.0"), "{}", lines[3]);
+    // Without --lyapunov the exponent's columns are empty.
+    assert!(lines[1..].iter().all(|l| l.ends_with(",,,,")), "{text}");
+
+    // With it: the 1.0 mm response's point Ω/ω 2.33, `irregular` by the protocol's window,
+    // is chaotic (exponent positive beyond three uncertainties); the 1/1 orbit keeps its label
+    // with a negative exponent (its multipliers').
+    fs::write(&input, "gap_mm,omega_ratio\n0,2.0\n1.0,2.33\n").unwrap();
+    host_sim()
+        .args(["points", "--rig", "wires", "--lyapunov", "--input"])
+        .arg(&input)
+        .arg("--out")
+        .arg(&output)
+        .assert()
+        .success();
+    let mut rdr = csv::Reader::from_path(&output).unwrap();
+    let rows: Vec<csv::StringRecord> = rdr.records().map(|r| r.unwrap()).collect();
+    assert_eq!(rows.len(), 2);
+    let num = |r: &csv::StringRecord, k: usize| r[k].parse::<f64>().unwrap();
+    assert_eq!(&rows[0][3], "1/1");
+    assert!(num(&rows[0], 6) < -0.1, "{:?}", rows[0]);
+    assert_eq!(&rows[0][8], "");
+    assert_eq!(&rows[1][3], "chaotic");
+    assert_eq!(&rows[1][8], "irregular");
+    assert!(num(&rows[1], 6) > 3.0 * num(&rows[1], 7), "{:?}", rows[1]);
+    assert_eq!(&rows[1][9], "0");
 }
 
 #[test]

@@ -7,11 +7,13 @@ use clap::Args;
 use serde::{Deserialize, Serialize};
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
+use shared::observe::PointResult;
+use shared::orbit::{Label, LabelSettings};
 
 use crate::config::RigOpts;
 use crate::config::Setup;
 use crate::output::{write_csv, write_whole};
-use crate::runner::{OperatingPoint, evaluate_all};
+use crate::runner::{OperatingPoint, evaluate_all, evaluate_all_labelled};
 
 /// Arguments of `points`.
 #[derive(Debug, Args)]
@@ -23,9 +25,17 @@ pub struct PointsArgs {
     /// Input CSV with header columns `gap_mm` and `omega_ratio` (other columns are ignored).
     #[arg(long)]
     pub input: PathBuf,
-    /// Output CSV: gap_mm, omega_ratio, freq_hz, regime, impacts, impact_force_mg.
+    /// Output CSV: gap_mm, omega_ratio, freq_hz, regime, impacts, impact_force_mg,
+    /// lyapunov_per_period, lyapunov_uncertainty, window_regime, extra_periods (the last four
+    /// empty without --lyapunov).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
+    /// Refine each point's label by its largest Lyapunov exponent, as `response` does by
+    /// default: `chaotic` where positive beyond its uncertainty; where negative but no period
+    /// showed, the run goes on (up to 2,000 periods) until a period q ≤ 64 shows
+    /// (`window_regime` then gives the protocol window's label).
+    #[arg(long)]
+    pub lyapunov: bool,
 }
 
 #[derive(Debug, Deserialize)]
@@ -49,6 +59,14 @@ pub struct OutRow {
     pub impacts: u32,
     /// Max `F_i/mg` over the window.
     pub impact_force_mg: f64,
+    /// Largest Lyapunov exponent, per period (`--lyapunov`).
+    pub lyapunov_per_period: Option<f64>,
+    /// Its uncertainty, per period.
+    pub lyapunov_uncertainty: Option<f64>,
+    /// The protocol window's regime, where the exponent changed the label.
+    pub window_regime: Option<String>,
+    /// Periods run after the window to find a period.
+    pub extra_periods: Option<u32>,
 }
 
 /// Reads and validates the input points (gaps within `setup`'s rig range).
@@ -102,15 +120,44 @@ pub fn run(a: &PointsArgs) -> Result<()> {
             omega_ratio: r,
         })
         .collect();
-    let results = evaluate_all(&setup, &ops, "points")?;
-    let rows = pts.iter().zip(&results).map(|(&(g, r), res)| OutRow {
-        gap_mm: g,
-        omega_ratio: r,
-        freq_hz: setup.params.freq_hz_from_ratio(r),
-        regime: res.regime.to_string(),
-        impacts: res.impacts,
-        impact_force_mg: res.impact_force_mg,
-    });
+    let (results, labels): (Vec<PointResult>, Option<Vec<Label>>) = if a.lyapunov {
+        let (r, l) = evaluate_all_labelled(&setup, &ops, "points", &LabelSettings::default())?
+            .into_iter()
+            .map(|(r, l)| {
+                (
+                    PointResult {
+                        regime: l.regime,
+                        ..r
+                    },
+                    l,
+                )
+            })
+            .unzip();
+        (r, Some(l))
+    } else {
+        (evaluate_all(&setup, &ops, "points")?, None)
+    };
+    let rows = pts
+        .iter()
+        .zip(&results)
+        .enumerate()
+        .map(|(i, (&(g, r), res))| {
+            let l = labels.as_ref().and_then(|l| l.get(i));
+            OutRow {
+                gap_mm: g,
+                omega_ratio: r,
+                freq_hz: setup.params.freq_hz_from_ratio(r),
+                regime: res.regime.to_string(),
+                impacts: res.impacts,
+                impact_force_mg: res.impact_force_mg,
+                lyapunov_per_period: l.map(|l| l.exponent.per_period),
+                lyapunov_uncertainty: l.map(|l| l.exponent.uncertainty()),
+                window_regime: l
+                    .filter(|l| l.window_regime != l.regime)
+                    .map(|l| l.window_regime.to_string()),
+                extra_periods: l.map(|l| l.extra_periods),
+            }
+        });
     write_whole(&a.out, |tmp| write_csv(tmp, rows))?;
     eprintln!("{} points → {}", pts.len(), a.out.display());
     Ok(())
