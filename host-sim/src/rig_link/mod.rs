@@ -446,8 +446,9 @@ impl RigPort {
         }
     }
 
-    /// Sends a console line as it is (tagged on the way, in place of a tag the operator typed) and returns the reply's text: for
-    /// `rig send` and `rig console`, which print what the rig says.
+    /// Sends a console line as it is (tagged on the way, in place of a tag the operator typed)
+    /// and returns the reply's text: for `rig send` and `rig console`, which print what the rig
+    /// says.
     ///
     /// # Errors
     /// No reply within the timeout, a reply to another line, the link closed, Ctrl-C.

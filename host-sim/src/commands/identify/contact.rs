@@ -137,10 +137,6 @@ impl LoadedTrace {
 
 pub(super) fn run(a: &ContactArgs) -> Result<()> {
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
-    let releases = pair_releases(&a.release_mm, a.trace.len()).context("--release-mm")?;
-    for &r in &releases {
-        check_range("release_mm", r, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
-    }
     check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
     shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
     let setup = Setup::from_opts(&crate::config::RigOpts {
@@ -149,6 +145,10 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         ..crate::config::RigOpts::preset(a.rig)
     })?;
     setup.gap_m("--gap-mm", a.gap_mm)?;
+    let releases = pair_releases(&a.release_mm, a.trace.len()).context("--release-mm")?;
+    for &r in &releases {
+        check_range("release_mm", r, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
+    }
     let mut params = setup.params;
     params.mass_kg = a.mass_kg;
     params.validate().context("rig parameters")?;
