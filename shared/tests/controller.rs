@@ -100,6 +100,42 @@ fn prediction(target_hz: f32) -> Prediction {
     }
 }
 
+/// A model whose predicted force is tiny against the measured one: the discrepancy is capped at
+/// `MAX_FORCE_VS_MODEL_PCT`, so that the status line stays within what its reader accepts.
+#[test]
+fn the_force_discrepancy_is_capped_within_the_status_lines_range() {
+    let mut rig = Rig::new();
+    let mut c = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
+    let req = c.take_model_request().unwrap();
+    c.set_prediction(
+        req.generation,
+        Ok(Prediction {
+            impact_force_n: 1e-3,
+            ..prediction(3.60)
+        }),
+    );
+    rig.c = c;
+    assert_eq!(
+        rig.c.execute(Command::Start),
+        Ok(shared::control::Reply::Ok)
+    );
+    rig.run(20.0);
+    let s = rig.c.status();
+    // 96 N measured against 1 mN predicted: 9.6e6 %, capped.
+    assert!(s.peak.unwrap().n > 50.0, "{s:?}");
+    assert_eq!(
+        s.force_vs_model_pct,
+        Some(shared::control::MAX_FORCE_VS_MODEL_PCT)
+    );
+    let text = shared::console::Answer::Reply(shared::control::Reply::Status(s)).to_string();
+    match text.parse::<shared::console::Answer>() {
+        Ok(shared::console::Answer::Reply(shared::control::Reply::Status(read))) => {
+            assert_eq!(read.force_vs_model_pct, s.force_vs_model_pct, "{text}");
+        }
+        other => panic!("{text}: {other:?}"),
+    }
+}
+
 #[test]
 fn start_ramps_then_tracks_to_the_force_maximum() {
     let mut rig = Rig::new();

@@ -24,8 +24,8 @@ use crate::capture::{
     CAPTURE_RATE_HZ, CaptureStatus, PRE_TRIGGER, SEGMENT_LEN, SEGMENTS, SegmentView,
 };
 use crate::control::{
-    CommandError, Fault, MAX_GAP_MM, ModelStatus, PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain,
-    State, Status, Target,
+    CommandError, Fault, MAX_FORCE_VS_MODEL_PCT, MAX_GAP_MM, ModelStatus, PeakForce, Reply,
+    SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
 };
 use crate::hal::ADC_MAX;
 use crate::model::RigId;
@@ -470,7 +470,12 @@ impl FromStr for Status {
             _ => return Err(WireError::Bad("model")),
         };
         let force_vs_model_pct = match w.optional("force_vs_model_pct") {
-            Some(v) => Some(decimal("force_vs_model_pct", v, -1e6, 1e6)?),
+            Some(v) => Some(decimal(
+                "force_vs_model_pct",
+                v,
+                -MAX_FORCE_VS_MODEL_PCT,
+                MAX_FORCE_VS_MODEL_PCT,
+            )?),
             None => None,
         };
         let status = Status {

@@ -18,8 +18,8 @@ use super::meter::RegimeMeter;
 use super::prediction::Prediction;
 use super::sine::SineGenerator;
 use super::status::{
-    AsyncKind, AsyncRecord, CycleTelemetry, Event, ModelRequest, ModelStatus, PeakForce, State,
-    Status, Target,
+    AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,
+    ModelStatus, PeakForce, State, Status, Target,
 };
 use super::tracker::HillClimber;
 use crate::analysis::SelectionError;
@@ -243,7 +243,7 @@ impl Controller {
             },
             force_vs_model_pct: match (self.peak_n, self.model) {
                 (Some(n), Model::Ready(p)) if p.impact_force_n > 0.0 => {
-                    Some((n / p.impact_force_n - 1.0) * 100.0)
+                    Some(((n / p.impact_force_n - 1.0) * 100.0).min(MAX_FORCE_VS_MODEL_PCT))
                 }
                 _ => None,
             },

@@ -33,8 +33,8 @@ pub use meter::RegimeMeter;
 pub use prediction::{Prediction, predict};
 pub use sine::{DriveSample, SineGenerator, sin_turn};
 pub use status::{
-    AsyncKind, AsyncRecord, CycleTelemetry, Event, ModelRequest, ModelStatus, PeakForce, State,
-    Status, Target,
+    AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,
+    ModelStatus, PeakForce, State, Status, Target,
 };
 pub use tracker::HillClimber;
 

@@ -149,6 +149,10 @@ pub struct AsyncRecord {
     pub kind: AsyncKind,
 }
 
+/// Largest [`Status::force_vs_model_pct`], % (a peak 10,000 times the prediction): a larger
+/// discrepancy reads as this, within what the status line's reader accepts.
+pub const MAX_FORCE_VS_MODEL_PCT: f32 = 1e6;
+
 /// A snapshot for the console's `status` and the periodic log line.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Status {
@@ -169,7 +173,8 @@ pub struct Status {
     /// Model status.
     pub model: ModelStatus,
     /// Measured peak force against the model's prediction, % (`(measured − predicted) /
-    /// predicted`): the discrepancy a wrong gap or a drifted rig shows.
+    /// predicted`, at most [`MAX_FORCE_VS_MODEL_PCT`]): the discrepancy a wrong gap or a
+    /// drifted rig shows.
     pub force_vs_model_pct: Option<f32>,
     /// Latched fault.
     pub fault: Option<Fault>,
