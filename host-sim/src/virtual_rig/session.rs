@@ -255,6 +255,12 @@ impl Session {
         self.k as f64 / f64::from(SAMPLE_RATE_HZ)
     }
 
+    /// Rig time at the end of the sample being run, s: the sample count's, not the plant's
+    /// sum of steps (which drifts in the last digits: 0.9999999999999062 for 1 s).
+    fn sample_end_s(&self) -> f64 {
+        (self.k + 1) as f64 / f64::from(SAMPLE_RATE_HZ)
+    }
+
     /// Samples run.
     pub fn samples(&self) -> u64 {
         self.k
@@ -405,8 +411,8 @@ impl Session {
         }
         while let Some(e) = self.controller.pop_event() {
             match e {
-                Event::State { to, .. } => self.out.states.push((self.plant.t_s(), to)),
-                Event::Fault(f) => self.out.faults.push((self.plant.t_s(), f)),
+                Event::State { to, .. } => self.out.states.push((self.sample_end_s(), to)),
+                Event::Fault(f) => self.out.faults.push((self.sample_end_s(), f)),
                 Event::ModelReady(_) | Event::ModelFailed | Event::SamplingStalled { .. } => {}
             }
         }
@@ -414,19 +420,19 @@ impl Session {
             let s = self.controller.status();
             let last = self.controller.last_cycle();
             self.out.rows.push(CycleRow {
-                t_s: self.plant.t_s(),
+                t_s: self.sample_end_s(),
                 state: s.state.token(),
-                freq_hz: f64::from(s.freq_hz),
-                amp_cmd_mm: f64::from(s.amplitude_mm),
+                freq_hz: shortest(s.freq_hz),
+                amp_cmd_mm: shortest(s.amplitude_mm),
                 cart_amp_mm: self.cart_max * 1e3,
                 measured_impacts: last.map_or(0, |c| u32::from(c.impacts)),
-                measured_peak_n: last.filter(|c| c.impacts > 0).map(|c| f64::from(c.peak_n)),
+                measured_peak_n: last.filter(|c| c.impacts > 0).map(|c| shortest(c.peak_n)),
                 true_impacts: self.true_n,
                 true_peak_n: self.true_peak,
                 measured_regime: s.regime.map_or("-".into(), |r| r.to_string()),
                 fault: s.fault.map_or("none", Fault::token),
                 lost_cycles: s.lost_cycles,
-                force_vs_model_pct: s.force_vs_model_pct.map(f64::from),
+                force_vs_model_pct: s.force_vs_model_pct.map(shortest),
             });
             (self.cart_max, self.true_n, self.true_peak) = (0.0, 0, None);
         }
@@ -467,4 +473,10 @@ pub fn run(setup: &HilSetup) -> Result<HilRun> {
         session.end_sample();
     }
     Ok(session.finish())
+}
+
+/// `x` as the `f64` of its shortest decimal (`1.0000006`, not `1.0000005960464478`): the
+/// controller's `f32` values as the log shows them.
+fn shortest(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(f64::from(x))
 }
