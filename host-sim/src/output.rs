@@ -159,6 +159,37 @@ pub fn png_target(text: &str) -> Result<PathBuf, String> {
     out_target(text)
 }
 
+/// Checks that no output (a flag and its path) is one of the `inputs` or another output: it
+/// would replace the data being read, or the other result.
+///
+/// # Errors
+/// Two of them name the same file (both flags and the path said).
+pub fn distinct_files(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
+    // The file a path names: its canonical form, or its folder's with its name if it does
+    // not exist yet.
+    let identity = |p: &Path| {
+        std::fs::canonicalize(p).unwrap_or_else(|_| {
+            let dir = p.parent().filter(|d| !d.as_os_str().is_empty());
+            let dir = dir.map_or_else(|| std::fs::canonicalize("."), std::fs::canonicalize);
+            match (dir, p.file_name()) {
+                (Ok(d), Some(n)) => d.join(n),
+                _ => p.to_path_buf(),
+            }
+        })
+    };
+    for (k, (flag, out)) in outputs.iter().enumerate() {
+        let id = identity(out);
+        for (other, path) in inputs.iter().chain(&outputs[..k]) {
+            anyhow::ensure!(
+                identity(path) != id,
+                "{flag} {} is also {other}: it would replace it; give another file",
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Writes `rows` as CSV (header from the row type) to `path`.
 ///
 /// # Errors
@@ -187,6 +218,23 @@ mod tests {
     /// Through a link to a file: the file is replaced, the link stays a link. Through a link to
     /// nothing: the file it names is created. Into a named pipe: the reader gets the bytes and
     /// the pipe stays a pipe. No temporary file is left beside any of them.
+    #[test]
+    fn an_output_may_not_be_an_input_or_another_output() {
+        let dir = tempfile::tempdir().unwrap();
+        let data = dir.path().join("d.csv");
+        std::fs::write(&data, "t_s,force_n\n").unwrap();
+        let out = dir.path().join("fit.toml");
+        let plot = dir.path().join("fit.png");
+        let ins = [("--trace", data.as_path())];
+        assert!(distinct_files(&ins, &[("--out", &out), ("--plot", &plot)]).is_ok());
+        // The same file under another spelling.
+        let again = dir.path().join(".").join("d.csv");
+        let e = distinct_files(&ins, &[("--out", &again)]).unwrap_err();
+        assert!(e.to_string().contains("is also --trace"), "{e}");
+        let e = distinct_files(&ins, &[("--out", &plot), ("--plot", &plot)]).unwrap_err();
+        assert!(e.to_string().starts_with("--plot"), "{e}");
+    }
+
     #[test]
     fn links_and_pipes_are_written_through() {
         let dir = tempfile::tempdir().unwrap();

@@ -10,7 +10,8 @@
 //!   (`--sample-rate-hz`), or as a `sample_rate_hz` column (constant down the file).
 //!
 //! What is rejected, with the line number: a value that is not a number or not finite, a
-//! line with too few cells, a time that does not increase, a sample-rate column that changes;
+//! line with too few cells or with more than the first line (empty trailing cells aside: a
+//! decimal comma in a `,`-separated file splits every number in two), a time that does not increase, a sample-rate column that changes;
 //! and files with fewer than [`MIN_SAMPLES`] samples.
 //!
 //! [`LabTable`] is the one reader of such files (traces here, measured responses in
@@ -213,6 +214,20 @@ impl LabTable {
         }
         let mut header = None;
         let width = rows.first().map_or(0, |r| r.1.len());
+        for (line, rec) in &rows {
+            if rec.iter().skip(width).any(|c| !c.is_empty()) {
+                let hint = if delimiter.flatten() == Some(b',') {
+                    " (a decimal comma? in a `,`-separated file it splits each number in two: \
+                     separate the columns with `;` or a tab)"
+                } else {
+                    ""
+                };
+                bail!(
+                    "line {line}: {} cells, more than the first line's {width}{hint}",
+                    rec.len()
+                );
+            }
+        }
         if let Some((_, first)) = rows.first()
             && first.iter().any(|c| c.parse::<f64>().is_err())
         {
@@ -503,12 +518,23 @@ mod tests {
             ("3,7", &["line 9", "does not increase"]),
             ("7,NaN", &["line 9", "not finite"]),
             ("7", &["line 9"]),
+            // A decimal comma: three cells where the header has two.
+            ("7,0,5", &["line 9", "3 cells", "decimal comma"]),
         ] {
             let mut lines: Vec<String> = (0..20).map(|i| format!("{},{}", i, i)).collect();
             lines[7] = bad.into();
             let e = error(&format!("t_s,force_n\n{}", lines.join("\n")));
             assert!(expect.iter().all(|x| e.contains(x)), "{bad}: {e}");
         }
+        // Empty trailing cells are tolerated (a delimiter at the end of the line).
+        let lines: Vec<String> = (0..20).map(|i| format!("{i},{i},")).collect();
+        let tr = parse_trace(
+            &format!("t_s,force_n\n{}", lines.join("\n")),
+            &fmt("t_s", "force_n", None),
+            "force",
+        )
+        .unwrap();
+        assert_eq!(tr.value[19], 19.0);
         let e = error("t_s,force_n\n0,1\n1,2");
         assert!(e.contains("at least"), "{e}");
         let e = error("t_s,f\n0,1\n1,2");

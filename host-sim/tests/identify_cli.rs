@@ -235,6 +235,61 @@ fn identify_contact_rejects_bad_input() {
     );
 }
 
+/// What the fit cannot stand on is refused, with no config written: data in other units than
+/// the options say (the misfit cannot be told from the noise: every noise redraw of a force
+/// in kN is below the impact threshold), a release from which the hammer cannot reach the
+/// surface, an output that is the input.
+#[test]
+fn identify_contact_refuses_what_it_cannot_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let drop = dir.path().join("drop.csv");
+    ok(&line(&format!(
+        "drop --noise-pct 1 --seed 1 --out {}",
+        drop.display()
+    )));
+    let data = fs::read(&drop).unwrap();
+    let out = dir.path().join("fit.toml");
+    let fit = |extra: &str| {
+        line(&format!(
+            "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot --out {} {extra}",
+            drop.display(),
+            out.display()
+        ))
+    };
+    // The same data in N is fitted and written (the control).
+    ok(&fit(""));
+    assert!(out.exists());
+    fs::remove_file(&out).unwrap();
+    rejected(
+        &fit("--force-unit kN"),
+        &[
+            "cannot be checked against the sensor noise",
+            "not written",
+            "--force-unit",
+        ],
+        &[&out],
+    );
+    rejected(
+        &fit("--gap-mm 5 --release-mm 9"),
+        &[
+            "--release-mm 9",
+            "4.000 mm past its rest position",
+            "release > 2 × gap = 10 mm",
+        ],
+        &[&out],
+    );
+    rejected(
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot --out {}",
+            drop.display(),
+            dir.path().join(".").join("drop.csv").display()
+        )),
+        &["is also --trace"],
+        &[],
+    );
+    assert_eq!(fs::read(&drop).unwrap(), data, "the trace was overwritten");
+}
+
 #[test]
 fn identify_free_gives_the_beam_suspension() {
     let dir = tempfile::tempdir().unwrap();

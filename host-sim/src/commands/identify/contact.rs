@@ -2,9 +2,9 @@
 //! its config and figure.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail, ensure};
 use serde::Serialize;
 use shared::error::check_range;
 use shared::model::{ContactLaw, ContactLawKind};
@@ -15,7 +15,7 @@ use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, 
 use crate::identify::data::{DropData, analyse_drop};
 use crate::identify::fit::{Fit, best_by_aicc, fit_laws};
 use crate::identify::uncertainty::{LACK_OF_FIT_FACTOR, STRONG_CORRELATION, Uncertainty, WIDE_REL};
-use crate::output::Outputs;
+use crate::output::{Outputs, distinct_files};
 use crate::trace::read_trace;
 use shared::model::rig::IMPACT_SPEEDS_M_S;
 
@@ -136,6 +136,13 @@ impl LoadedTrace {
 }
 
 pub(super) fn run(a: &ContactArgs) -> Result<()> {
+    let mut inputs: Vec<(&str, &Path)> = a.trace.iter().map(|t| ("--trace", t.as_path())).collect();
+    inputs.extend(a.config.as_deref().map(|c| ("--config", c)));
+    let outputs: Vec<(&str, &Path)> = [("--out", &a.out), ("--plot", &a.plot)]
+        .into_iter()
+        .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+        .collect();
+    distinct_files(&inputs, &outputs)?;
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
     check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
     shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
@@ -148,6 +155,17 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
     let releases = pair_releases(&a.release_mm, a.trace.len()).context("--release-mm")?;
     for &r in &releases {
         check_range("release_mm", r, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
+        // Released at rest `r` from the surface, the hammer swings at most `r − gap` past its
+        // rest position: it reaches the surface only from beyond twice the gap.
+        ensure!(
+            r > 2.0 * a.gap_mm,
+            "--release-mm {r}: released at rest {r} mm from the surface, the hammer swings at \
+             most {:.3} mm past its rest position, short of the {} mm gap: allowed release > 2 × \
+             gap = {} mm",
+            r - a.gap_mm,
+            a.gap_mm,
+            2.0 * a.gap_mm
+        );
     }
     let mut params = setup.params;
     params.mass_kg = a.mass_kg;
@@ -215,8 +233,11 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         .map(|l| l.data.impacts.len().to_string())
         .collect();
 
+    // A fit whose misfit cannot be told from the sensor noise is not written as a config that
+    // other commands would take on trust.
+    let unchecked = best_fit.uncertainty.as_ref().err();
     let mut outputs = Outputs::new();
-    if let Some(p) = &a.out {
+    if let (Some(p), None) = (&a.out, unchecked) {
         let tmp = outputs.reserve(p)?;
         let mut out_params = params;
         out_params.contact = best_fit.law;
@@ -290,7 +311,22 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         crate::figures::identify::drop_fit(&tmp, &title, &panels, &curves)?;
     }
     outputs.commit()?;
-    print_contact(a, &run, &loaded, &fits, best)
+    print_contact(a, &run, &loaded, &fits, best)?;
+    if let Some(why) = unchecked {
+        bail!(
+            "the {best} fit cannot be checked against the sensor noise ({why}){}: the data may \
+             not be what the options say; check the force and time units (--force-unit, \
+             --time-unit), one --release-mm per trace, and the rig (--rig, --config)",
+            match &a.out {
+                Some(p) => format!(
+                    "; its parameters are printed above but not written to {}",
+                    p.display()
+                ),
+                None => String::new(),
+            }
+        );
+    }
+    Ok(())
 }
 
 /// How the error was chosen.

@@ -8,7 +8,7 @@ use shared::model::Suspension;
 use super::FreeArgs;
 use crate::config::config_text;
 use crate::identify::free::{FreeDecay, identify_free};
-use crate::output::Outputs;
+use crate::output::{Outputs, distinct_files};
 use crate::trace::read_trace;
 
 #[derive(Serialize)]
@@ -22,6 +22,12 @@ struct FreeReport {
 }
 
 pub(super) fn run(a: &FreeArgs) -> Result<()> {
+    if let Some(out) = &a.out {
+        distinct_files(
+            &[("--trace", a.trace.as_path())],
+            &[("--out", out.as_path())],
+        )?;
+    }
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
     let trace = read_trace(
         &a.trace,
