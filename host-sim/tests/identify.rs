@@ -344,6 +344,33 @@ fn free_decay_recovers_the_analytic_oscillator() {
     }
 }
 
+/// Records that are no free decay are refused: an oscillation growing 20 % per second, and a
+/// beat of two modes of equal amplitude (4.5 and 4.9 Hz) that one damped oscillation cannot fit.
+#[test]
+fn free_decay_refuses_growing_or_beating_records() {
+    let t_s: Vec<f64> = (0..20_000).map(|i| i as f64 / 1000.0).collect();
+    let growing: Vec<f64> = t_s
+        .iter()
+        .map(|&t| 1.2f64.powf(t) * damped(t, 4.5, 0.0, 1e-3).0)
+        .collect();
+    let e = identify_free(&Trace {
+        t_s: t_s.clone(),
+        value: growing,
+    })
+    .unwrap_err();
+    assert!(format!("{e:#}").contains("grows"), "{e:#}");
+    let beating: Vec<f64> = t_s
+        .iter()
+        .map(|&t| damped(t, 4.5, 0.002, 1e-3).0 + damped(t, 4.9, 0.002, 1e-3).0)
+        .collect();
+    let e = identify_free(&Trace {
+        t_s,
+        value: beating,
+    })
+    .unwrap_err();
+    assert!(format!("{e:#}").contains("unexplained"), "{e:#}");
+}
+
 #[test]
 fn free_decay_of_the_simulated_beam_rig_gives_its_parameters() {
     // The beam-170 rig released 2 mm from rest with the surface 10 mm away: a free decay of

@@ -129,10 +129,20 @@ impl CostFunction for Problem<'_> {
     }
 }
 
+/// Largest growth of the amplitude over a record taken as a free decay (10 %: noise on an
+/// undamped pendulum's constant amplitude stays well below).
+pub const MAX_GROWTH: f64 = 0.1;
+
+/// Largest residual of the fit, over the record's rms, for a free decay of one mode (50 %; a
+/// 1 % sensor noise leaves about 1 %).
+pub const MAX_RESIDUAL_REL: f64 = 0.5;
+
 /// Identifies `ω_n` and `ζ` from a free-decay trace (displacement or acceleration, SI).
 ///
 /// # Errors
-/// Fewer than 3 full cycles, or a record that does not oscillate about a level.
+/// Fewer than 3 full cycles, a record that does not oscillate about a level, one whose
+/// amplitude grows more than [`MAX_GROWTH`], or one a single damped oscillation fits worse than
+/// [`MAX_RESIDUAL_REL`].
 pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
     let (t, y) = (&trace.t_s, &trace.value);
     let n = y.len();
@@ -174,6 +184,13 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
         }
     }
     let slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
+    let span = t[n - 1] - t[0];
+    ensure!(
+        !(slope.is_finite() && slope * span > MAX_GROWTH.ln_1p()),
+        "the amplitude grows {:.0} % over the record's {span:.2} s: not a free decay (a drive \
+         still on, or an unstable record)",
+        100.0 * (slope * span).exp_m1()
+    );
     let sigma0 = if slope.is_finite() {
         (-slope).max(0.0)
     } else {
@@ -202,6 +219,15 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
     let Some((ab, rss)) = project(t, y, sigma, wd) else {
         bail!("the free-decay fit is singular");
     };
+    let residual_rel = (rss / scale).sqrt();
+    ensure!(
+        residual_rel <= MAX_RESIDUAL_REL,
+        "one damped oscillation leaves {:.0} % of the record's rms unexplained (at most {:.0} %): \
+         not the free decay of one mode (a drive still on, beating between modes, or the wrong \
+         column?)",
+        100.0 * residual_rel,
+        100.0 * MAX_RESIDUAL_REL
+    );
     let wn = (wd * wd + sigma * sigma).sqrt();
     let two_pi = 2.0 * std::f64::consts::PI;
     let (sd_fn, sd_zeta, rho) = covariance(t, sigma, wd, ab, rss)?;
@@ -218,7 +244,7 @@ pub fn identify_free(trace: &Trace) -> Result<FreeDecay> {
         damping_ratio: sigma / wn,
         amplitude: ab[0].hypot(ab[1]),
         offset: ab[2],
-        residual_rel: (rss / scale).sqrt(),
+        residual_rel,
         cycles: (t[n - 1] - t[0]) * wd / two_pi,
     })
 }
