@@ -129,13 +129,17 @@ pub fn scratch(target: &Path, suffix: &str) -> Result<NamedTempFile> {
     })
 }
 
-/// The command line's parser of an output file (`--out`): its folder must exist and take a
-/// file, checked when the command line is read, before any work.
+/// The command line's parser of an output file (`--out`): a file name (not empty, not a
+/// folder) whose folder exists and takes a file, checked when the command line is read, before
+/// any work.
 ///
 /// # Errors
-/// The folder is missing or not writable (said with the path).
+/// No file name, or the folder is missing or not writable (said with the path).
 pub fn out_target(text: &str) -> Result<PathBuf, String> {
     let path = PathBuf::from(text);
+    if text.is_empty() || text.ends_with('/') || path.is_dir() {
+        return Err(format!("`{text}` is not a file name: give a file to write"));
+    }
     // A temporary file made and removed at once: what the output will need.
     scratch(&path, ".check")
         .map(drop)

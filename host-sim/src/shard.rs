@@ -11,7 +11,7 @@
 //! the rows in index order through the same writer as a one-run command.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -279,8 +279,36 @@ impl ShardFile {
     /// # Errors
     /// Unreadable file, or a first line that is not `# host-sim-shard {JSON}` metadata.
     pub fn open(path: &Path) -> Result<Self> {
-        let file =
-            File::open(path).with_context(|| format!("cannot read shard {}", path.display()))?;
+        let mut file = File::open(path).map_err(|e| {
+            // EMFILE: every shard stays open while they are merged.
+            let hint = if e.raw_os_error() == Some(24) {
+                " (every shard is open while they merge: raise the limit of open files, e.g. \
+                 `ulimit -n 8192`, above the number of shards)"
+            } else {
+                ""
+            };
+            anyhow!("cannot read shard {}: {e}{hint}", path.display())
+        })?;
+        // A shard is complete only with its last line's end: one cut short (a task killed as it
+        // wrote, a copy interrupted) would end in a truncated value that still reads.
+        let len = file
+            .metadata()
+            .with_context(|| format!("cannot read shard {}", path.display()))?
+            .len();
+        if len > 0 {
+            let mut last = [0u8; 1];
+            file.seek(SeekFrom::End(-1))
+                .and_then(|_| file.read_exact(&mut last))
+                .and_then(|()| file.seek(SeekFrom::Start(0)).map(drop))
+                .with_context(|| format!("cannot read shard {}", path.display()))?;
+            if last[0] != b'\n' {
+                bail!(
+                    "{}: the last line has no line end: the file was cut short (a task killed \
+                     while writing, an interrupted copy); run that shard again",
+                    path.display()
+                );
+            }
+        }
         let mut buf = BufReader::new(file);
         let mut first = String::new();
         buf.read_line(&mut first)
@@ -371,8 +399,8 @@ impl<R: DeserializeOwned + Indexed> Input<R> {
 }
 
 /// Streams the rows of `files` to `sink` in ascending point index, checking the CSV header
-/// against `R`'s ([`header`]), that every index `0 .. total` appears in exactly one file, and that each
-/// file is in ascending index order. With `grouped`, one index may span several consecutive
+/// against `R`'s ([`header`]), that every index `0 .. total` appears in exactly one file, that each
+/// file is in ascending index order, and each row with `check`. With `grouped`, one index may span several consecutive
 /// rows of one file (bifurcation: the samples of one frequency).
 ///
 /// # Errors
@@ -381,6 +409,7 @@ pub fn merge_rows<R: DeserializeOwned + Indexed>(
     files: Vec<ShardFile>,
     total: u64,
     grouped: bool,
+    check: impl Fn(&R) -> Result<(), String>,
     mut sink: impl FnMut(R) -> Result<()>,
 ) -> Result<()> {
     interrupt::install();
@@ -437,13 +466,26 @@ pub fn merge_rows<R: DeserializeOwned + Indexed>(
         }
         let k = owner.ok_or_else(|| {
             anyhow!(
-                "point index {e} is missing: no shard holds it (the grid has indices 0 ..= {}; is a shard file missing or truncated?)",
-                total - 1
+                "point index {e} is missing: no shard holds it where it belongs (the grid has \
+                 indices 0 ..= {}; is a shard file missing or truncated, or are a file's rows out \
+                 of order? the next rows are at indices {})",
+                total - 1,
+                inputs
+                    .iter()
+                    .filter_map(|i| i.next.as_ref().map(|r| format!(
+                        "{} in {} line {}",
+                        r.index(),
+                        i.path.display(),
+                        i.line
+                    )))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )
         })?;
         let inp = &mut inputs[k];
         loop {
             let r = inp.next.take().expect("owner has a row");
+            check(&r).map_err(|why| anyhow!("{} line {}: {why}", inp.path.display(), inp.line))?;
             sink(r)?;
             inp.advance()?;
             match &inp.next {

@@ -487,6 +487,55 @@ fn merge_rejects_bad_shards_and_writes_nothing() {
         &["precision"],
         &[&out],
     );
+    // A row edited: a coordinate that is not its index's, a force that is not a number; a
+    // file cut in its last line (the value still reads, the line end is gone).
+    let edit = |name: &str, field: usize, value: &str| -> PathBuf {
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        let mut cells: Vec<&str> = lines[2].split(',').collect();
+        cells[field] = value;
+        lines[2] = cells.join(",");
+        let path = d.join(name);
+        fs::write(&path, lines.join("\n") + "\n").unwrap();
+        path
+    };
+    for (path, says) in [
+        (edit("gap.csv", 1, "0.5"), "gap_mm = 0.5 is not the grid's"),
+        (edit("nan.csv", 7, "NaN"), "impact_force_mg = NaN"),
+    ] {
+        rejected(
+            &line(&format!("merge --out {} {} {}", o, s(&a0), s(&path))),
+            &["line 3", says],
+            &[&out],
+        );
+    }
+    let cut = d.join("cut.csv");
+    fs::write(&cut, &text[..text.len() - 3]).unwrap();
+    rejected(
+        &line(&format!("merge --out {} {} {}", o, s(&a0), s(&cut))),
+        &["cut.csv", "no line end"],
+        &[&out],
+    );
+    // Outputs onto an input, onto each other, or onto a folder.
+    rejected(
+        &line(&format!("merge --out {} {} {}", s(&a1), s(&a0), s(&a1))),
+        &["is also a shard"],
+        &[],
+    );
+    assert_eq!(fs::read_to_string(&a1).unwrap(), text);
+    rejected(
+        &line(&format!(
+            "merge --out {o} --plot {p} --force-plot {p} {} {}",
+            s(&a0),
+            s(&a1)
+        )),
+        &["--force-plot", "is also --plot"],
+        &[&out, &png],
+    );
+    rejected(
+        &line(&format!("merge --out {} {} {}", s(d), s(&a0), s(&a1))),
+        &["not a file name"],
+        &[],
+    );
     // The good pair merges.
     ok(&line(&format!("merge --out {} {} {}", o, s(&a0), s(&a1))));
     assert_eq!(read_rows(&out).len(), 4);

@@ -6,7 +6,7 @@
 //! precision, grid) and that every point index appears exactly once. Memory stays flat: the
 //! shards are read in step (a k-way merge by index).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use clap::Args;
@@ -66,15 +66,17 @@ pub fn run(a: &MergeArgs) -> Result<()> {
             bail!("--boundaries-out: only for peterka shards run with --boundaries");
         }
     }
-    let n_files = files.len();
-    let mut outputs = Outputs::new();
-    let out = outputs.reserve(&a.out)?;
     let figures = Figures {
         plot: a.plot.as_deref(),
         force_plot: a.force_plot.as_deref(),
         boundaries: a.boundaries_out.as_deref(),
         attractors: a.attractors_out.as_deref(),
     };
+    let inputs: Vec<(&str, &Path)> = a.shards.iter().map(|p| ("a shard", p.as_path())).collect();
+    figures.check_distinct(&a.out, &inputs)?;
+    let n_files = files.len();
+    let mut outputs = Outputs::new();
+    let out = outputs.reserve(&a.out)?;
     if a.attractors_out.is_some() && !matches!(meta.kind, Kind::Basins | Kind::Fractions) {
         bail!(
             "--attractors-out: only for basins or fractions shards (these are {})",

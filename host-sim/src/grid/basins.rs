@@ -157,6 +157,25 @@ impl<'de> Deserialize<'de> for Points {
     }
 }
 
+impl BasinRaw {
+    /// `Err` naming the field unless the values are finite (`F_i/mg` also ≥ 0).
+    pub(crate) fn check_values(&self) -> Result<(), String> {
+        super::finite_non_negative("impact_force_mg", self.impact_force_mg)?;
+        if let Some((u, v)) = self
+            .points
+            .0
+            .iter()
+            .find(|(u, v)| !(u.is_finite() && v.is_finite()))
+        {
+            return Err(format!("points: {u}:{v} is not finite"));
+        }
+        if !(self.u0_mm.is_finite() && self.v0_mm_s.is_finite()) {
+            return Err("u0_mm, v0_mm_s: not finite".into());
+        }
+        Ok(())
+    }
+}
+
 impl Indexed for BasinRaw {
     fn index(&self) -> u64 {
         self.index
@@ -735,6 +754,18 @@ impl GridKind for Basins {
     /// Groups the ungrouped rows of a complete grid (`raw`) into attractors and writes the
     /// final CSV to `out` and the figure.
     type Summary = BasinsSummary;
+
+    fn check_row(
+        _meta: &crate::shard::Meta,
+        grid: &BasinsGrid,
+        row: &BasinRaw,
+    ) -> Result<(), String> {
+        let i = usize::try_from(row.index).map_err(|_| "index beyond the grid".to_string())?;
+        let (u0_mm, v0_mm_s) = grid.initial(i);
+        super::same_coordinate("u0_mm", row.u0_mm, u0_mm)?;
+        super::same_coordinate("v0_mm_s", row.v0_mm_s, v0_mm_s)?;
+        row.check_values()
+    }
 
     fn finish(job: &mut Finish<'_>) -> Result<BasinsSummary> {
         let (meta, raw, out) = (job.meta, job.rows, job.out);

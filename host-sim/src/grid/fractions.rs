@@ -382,6 +382,10 @@ impl GridKind for Fractions {
     type Row = BasinRaw;
     type Summary = FractionsSummary;
 
+    fn check_row(_meta: &Meta, _grid: &FractionsGrid, row: &BasinRaw) -> Result<(), String> {
+        row.check_values()
+    }
+
     fn finish(job: &mut Finish<'_>) -> Result<FractionsSummary> {
         let (meta, raw, out) = (job.meta, job.rows, job.out);
         let grid = meta.grid::<FractionsGrid>()?;

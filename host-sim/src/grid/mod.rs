@@ -131,6 +131,27 @@ pub struct Figures<'a> {
     pub attractors: Option<&'a Path>,
 }
 
+impl Figures<'_> {
+    /// Checks that the CSV `out` and these figures are distinct files, none of them one of
+    /// `inputs` ([`crate::output::distinct_files`]).
+    ///
+    /// # Errors
+    /// Two of them name the same file.
+    pub fn check_distinct(&self, out: &Path, inputs: &[(&str, &Path)]) -> Result<()> {
+        let outputs: Vec<(&str, &Path)> = [
+            ("--out", Some(out)),
+            ("--plot", self.plot),
+            ("--force-plot", self.force_plot),
+            ("--boundaries-out", self.boundaries),
+            ("--attractors-out", self.attractors),
+        ]
+        .into_iter()
+        .filter_map(|(flag, p)| p.map(|p| (flag, p)))
+        .collect();
+        crate::output::distinct_files(inputs, &outputs)
+    }
+}
+
 /// A gridded analysis that runs whole or in shards and whose shards merge into the one-run
 /// outputs: its grid, its row type (the CSV header is derived from it) and its figures.
 pub trait GridKind {
@@ -155,6 +176,37 @@ pub trait GridKind {
     /// # Errors
     /// Unreadable rows, file errors.
     fn finish(job: &mut Finish<'_>) -> Result<Self::Summary>;
+
+    /// Checks a row read back from a shard against the grid it claims to belong to (its
+    /// coordinates are those of its index; its values finite): `Err` says which field is off.
+    /// The default checks nothing.
+    ///
+    /// # Errors
+    /// A coordinate that is not its index's, or a value that cannot be the command's.
+    fn check_row(_meta: &Meta, _grid: &Self::Grid, _row: &Self::Row) -> Result<(), String> {
+        Ok(())
+    }
+}
+
+/// `Err` naming `field` unless `value` is `expected` exactly (coordinates of a grid index are
+/// computed, written and read back to the same bits).
+pub fn same_coordinate(field: &str, value: f64, expected: f64) -> Result<(), String> {
+    if value.to_bits() == expected.to_bits() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{field} = {value} is not the grid's {expected} at this index (an edited row?)"
+        ))
+    }
+}
+
+/// `Err` naming `field` unless `value` is finite and not negative.
+pub fn finite_non_negative(field: &str, value: f64) -> Result<(), String> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{field} = {value}: expected a finite value ≥ 0"))
+    }
 }
 
 /// The figures of a grid kind, drawn from a complete grid (implemented where the figures are,
@@ -277,6 +329,7 @@ pub fn command<K: GridKind>(
         figures,
         shard,
     } = dest;
+    figures.check_distinct(out, &[])?;
     if shard.is_some() {
         let asked: Vec<&str> = [
             ("--plot", figures.plot),
@@ -339,9 +392,16 @@ pub fn merge<K: GridFigures>(
     out: &Path,
     figures: Figures<'_>,
 ) -> Result<()> {
+    let grid: K::Grid = meta.grid()?;
     complete::<K>(outputs, meta, out, figures, |path| {
         let mut w = create_csv::<K::Row>(path, None)?;
-        merge_rows::<K::Row>(files, meta.points, K::GROUPED, |r| Ok(w.serialize(r)?))?;
+        merge_rows::<K::Row>(
+            files,
+            meta.points,
+            K::GROUPED,
+            |r| K::check_row(meta, &grid, r),
+            |r| Ok(w.serialize(r)?),
+        )?;
         w.flush()?;
         Ok(())
     })

@@ -193,6 +193,22 @@ impl GridKind for Peterka {
     /// The boundary curves of the `1/1` region (empty unless asked for).
     type Summary = Vec<CurveOut>;
 
+    fn check_row(meta: &Meta, grid: &PeterkaGrid, row: &PeterkaRow) -> Result<(), String> {
+        let i = usize::try_from(row.index).map_err(|_| "index beyond the grid".to_string())?;
+        let (ig, jf) = grid.split(i);
+        let (gap_mm, gap_ratio) = grid.gap(ig, meta.params.amplitude_m * 1e3);
+        let (omega_ratio, freq_hz) = grid.freq(jf, meta.params.natural_freq_hz());
+        super::same_coordinate("gap_mm", row.gap_mm, gap_mm)?;
+        super::same_coordinate("gap_ratio", row.gap_ratio, gap_ratio)?;
+        super::same_coordinate("omega_ratio", row.omega_ratio, omega_ratio)?;
+        super::same_coordinate("freq_hz", row.freq_hz, freq_hz)?;
+        super::finite_non_negative("impact_force_mg", row.impact_force_mg)?;
+        match row.lyapunov_per_period {
+            Some(l) if !l.is_finite() => Err(format!("lyapunov_per_period = {l}: not finite")),
+            _ => Ok(()),
+        }
+    }
+
     fn finish(job: &mut Finish<'_>) -> Result<Vec<CurveOut>> {
         let grid = job.meta.grid::<PeterkaGrid>()?;
         if !grid.boundaries {
