@@ -9,7 +9,8 @@
 # Writes RUN/shards/KIND_i.csv, then RUN/KIND.csv and its figures; logs in RUN/logs. Prints the
 # two job ids (`array ID merge ID`). HOST_SIM overrides the host-sim binary (default: on PATH);
 # use the same binary for every task and the merge (its version is part of the shards' metadata).
-# A failed task: resubmit just its index with the line this prints, then the merge.
+# A failed task: resubmit just its index and the merge with the line this prints. RUN_DIR must
+# be new (no shards or results of an earlier run) and without a comma.
 set -euo pipefail
 if [ $# -lt 3 ]; then
     echo "usage: $0 peterka|basins|fractions SHARDS RUN_DIR GRID_OPTIONS..." >&2
@@ -20,12 +21,25 @@ shift 3
 case "$kind" in peterka | basins | fractions) ;; *) echo "KIND must be peterka, basins or fractions" >&2; exit 2 ;; esac
 [[ "$n" =~ ^[1-9][0-9]*$ ]] || { echo "SHARDS must be a positive whole number" >&2; exit 2; }
 here=$(cd "$(dirname "$0")" && pwd)
+case "$run" in *,*) echo "RUN_DIR must not contain a comma (sbatch --export splits at commas): $run" >&2; exit 2 ;; esac
 mkdir -p "$run/logs"
 run=$(cd "$run" && pwd)
+# sbatch --export splits its list at commas: the folder would be cut there.
+case "$run" in *,*) echo "RUN_DIR must not contain a comma (sbatch --export splits at commas): $run" >&2; exit 2 ;; esac
+# Shards or results of an earlier run would be merged with this one's, or stand as its results.
+if compgen -G "$run/shards/*.csv" >/dev/null || [ -e "$run/$kind.csv" ]; then
+    echo "$run holds shards or results of an earlier run: give a new RUN_DIR, or remove $run/shards and $run/$kind.*" >&2
+    exit 2
+fi
 common=(--export="ALL,KIND=$kind,N=$n,OUTDIR=$run")
 array=$(sbatch --parsable "${common[@]}" --array="0-$((n - 1))" \
     --output="$run/logs/${kind}_%A_%a.out" "$here/grid-array.sbatch" "$@")
 merge=$(sbatch --parsable "${common[@]}" --dependency="afterok:$array" \
     --output="$run/logs/${kind}_merge_%j.out" "$here/grid-merge.sbatch")
 echo "array $array merge $merge"
-echo "to rerun task I: sbatch ${common[*]} --array=I --output=$run/logs/${kind}_%A_%a.out $here/grid-array.sbatch $*" >&2
+# The lines that rerun task I and then the merge, quoted to be pasted as they are.
+env=${HOST_SIM:+HOST_SIM=$(printf '%q' "$HOST_SIM") }
+rerun="sbatch --parsable $(printf '%q ' "${common[@]}")--array=I $(printf '%q ' "--output=$run/logs/${kind}_%A_%a.out" "$here/grid-array.sbatch" "$@")"
+remerge="sbatch $(printf '%q ' "${common[@]}")--dependency=afterok:\$id $(printf '%q ' "--output=$run/logs/${kind}_merge_%j.out" "$here/grid-merge.sbatch")"
+echo "to rerun task I (replace I), then the merge once it has run:" >&2
+echo "  id=\$(${env}${rerun% }) && ${env}${remerge% }" >&2

@@ -100,12 +100,31 @@ impl Shard {
             return Self::parse("--shard", s).map(Some);
         }
         match (std::env::var(SLURM_VARS.0), std::env::var(SLURM_VARS.1)) {
-            (Ok(i), Ok(n)) => Self::from_parts(
-                &format!("{}/{} (no --shard given)", SLURM_VARS.0, SLURM_VARS.1),
-                &i,
-                &n,
-            )
-            .map(Some),
+            (Ok(i), Ok(n)) => {
+                // Task ids are the shard indices only in an array 0-(N-1) with step 1: any
+                // other fails in every task, not only in those whose id is out of range.
+                let var = |name: &str| std::env::var(name).ok().map(|v| v.trim().to_string());
+                let (min, step) = (var("SLURM_ARRAY_TASK_MIN"), var("SLURM_ARRAY_TASK_STEP"));
+                if min.as_deref().is_some_and(|m| m != "0")
+                    || step.as_deref().is_some_and(|s| s != "1")
+                {
+                    bail!(
+                        "the SLURM array runs from {} in steps of {}: its task ids are not the \
+                         shard indices; submit it as --array=0-{} (or pass --shard I/N)",
+                        min.as_deref().unwrap_or("0"),
+                        step.as_deref().unwrap_or("1"),
+                        n.trim()
+                            .parse::<u32>()
+                            .map_or_else(|_| "(N-1)".into(), |n| n.saturating_sub(1).to_string())
+                    );
+                }
+                Self::from_parts(
+                    &format!("{}/{} (no --shard given)", SLURM_VARS.0, SLURM_VARS.1),
+                    &i,
+                    &n,
+                )
+                .map(Some)
+            }
             (Err(_), Err(_)) => Ok(None),
             _ => bail!(
                 "only one of {} and {} is set: set both, or pass --shard I/N",

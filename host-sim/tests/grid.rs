@@ -191,10 +191,28 @@ fn slurm_variables_select_the_shard() {
         .args(["--out", s(&b)])
         .env("SLURM_ARRAY_TASK_ID", "1")
         .env("SLURM_ARRAY_TASK_COUNT", "2")
+        .env("SLURM_ARRAY_TASK_MIN", "0")
+        .env("SLURM_ARRAY_TASK_STEP", "1")
         .output()
         .unwrap();
     assert!(out.status.success());
     assert_eq!(fs::read(&a).unwrap(), fs::read(&b).unwrap());
+    // An array 1-2 (or with a step): its task 1 is in range, and refused all the same, as
+    // every task of it is.
+    for (min, step) in [("1", "1"), ("0", "2")] {
+        let out = host_sim()
+            .args(cmd)
+            .args(["--out", s(&b)])
+            .env("SLURM_ARRAY_TASK_ID", "1")
+            .env("SLURM_ARRAY_TASK_COUNT", "2")
+            .env("SLURM_ARRAY_TASK_MIN", min)
+            .env("SLURM_ARRAY_TASK_STEP", step)
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(e.contains("--array=0-1"), "{e}");
+    }
     let out = host_sim()
         .args(cmd)
         .args(["--out", s(&b)])
