@@ -1,13 +1,40 @@
 //! Ctrl-C for long runs: the first SIGINT/SIGTERM sets a flag; grid runs stop after the current
 //! chunk (points not yet started are skipped), every temporary file is removed as the error
 //! unwinds, and the process exits with status 130; the virtual rig's pty server stops, writes
-//! its log and exits 0. A second Ctrl-C exits at once (status 130; hidden `.host-sim-*`
-//! temporary files may then remain in the output folder).
+//! its log and exits 0. A second Ctrl-C (or a signal delivered twice, as `timeout` does to a
+//! process and its group) exits at once, status 130, after removing the temporary files made so
+//! far ([`temporary`]).
 
-use std::sync::Once;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, Once};
 
 static REQUESTED: AtomicBool = AtomicBool::new(false);
+
+/// The temporary files made so far (output.rs `scratch`): removed by the exit at once. A path
+/// already renamed onto its target, or removed, no longer exists and is left alone.
+static TEMPORARY: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Notes a temporary file, for the exit at once to remove.
+pub fn temporary(path: PathBuf) {
+    if let Ok(mut t) = TEMPORARY.lock() {
+        t.push(path);
+    }
+}
+
+/// Removes the temporary files noted (those still there), without waiting for a lock held
+/// elsewhere.
+fn remove_temporaries() {
+    for _ in 0..100 {
+        if let Ok(t) = TEMPORARY.try_lock() {
+            for p in t.iter() {
+                let _ = std::fs::remove_file(p);
+            }
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+}
 
 /// The run was interrupted (Ctrl-C, SIGTERM or SIGHUP); its temporary files are removed as the
 /// error unwinds (what a command keeps, such as a sweep's partial file, its message says).
@@ -25,6 +52,7 @@ pub fn install() {
     ONCE.call_once(|| {
         let _ = ctrlc::set_handler(|| {
             if REQUESTED.swap(true, Ordering::SeqCst) {
+                remove_temporaries();
                 std::process::exit(130);
             }
             eprintln!(

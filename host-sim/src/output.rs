@@ -120,13 +120,15 @@ pub fn scratch(target: &Path, suffix: &str) -> Result<NamedTempFile> {
         use std::os::unix::fs::PermissionsExt;
         builder.permissions(std::fs::Permissions::from_mode(0o644));
     }
-    builder.tempfile_in(&dir).with_context(|| {
+    let file = builder.tempfile_in(&dir).with_context(|| {
         format!(
             "cannot write {} (folder {})",
             target.display(),
             dir.display()
         )
-    })
+    })?;
+    crate::interrupt::temporary(file.path().to_path_buf());
+    Ok(file)
 }
 
 /// The command line's parser of an output file (`--out`): a file name (not empty, not a

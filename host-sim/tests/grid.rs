@@ -562,13 +562,16 @@ fn merge_rejects_bad_shards_and_writes_nothing() {
 #[cfg(unix)]
 #[test]
 fn ctrl_c_stops_and_leaves_no_file() {
-    interrupt_leaves_nothing(&[
+    let peterka = [
         "peterka",
         "--gap-mm",
         "0:3.42:0.01",
         "--freq-hz",
         "1:7.11:0.01",
-    ]);
+    ];
+    interrupt_leaves_nothing(&peterka, false);
+    // Two signals at once (the second exits at once): the temporary files go too.
+    interrupt_leaves_nothing(&peterka, true);
     // Adaptive fractions over a continuation (rounds of 256 starts at each point).
     interrupt_leaves_nothing(
         &[
@@ -577,13 +580,15 @@ fn ctrl_c_stops_and_leaves_no_file() {
             &["--samples", "200000", "--width", "0.005"],
         ]
         .concat(),
+        false,
     );
 }
 
 /// Starts `host-sim cmd --out big.csv --plot big.png`, interrupts it once its temporary CSV
-/// exists, and checks it stops within 15 s with status 130, saying so, writing nothing.
+/// exists (`twice`: SIGINT and SIGTERM together), and checks it stops within 15 s with status
+/// 130, saying so (unless it exited at once), writing nothing.
 #[cfg(unix)]
-fn interrupt_leaves_nothing(cmd: &[&str]) {
+fn interrupt_leaves_nothing(cmd: &[&str], twice: bool) {
     use std::process::Stdio;
     use std::time::{Duration, Instant};
     let dir = tempfile::tempdir().unwrap();
@@ -604,11 +609,17 @@ fn interrupt_leaves_nothing(cmd: &[&str]) {
         std::thread::sleep(Duration::from_millis(20));
     }
     std::thread::sleep(Duration::from_millis(300));
-    let status = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    for signal in if twice {
+        &["-INT", "-TERM"][..]
+    } else {
+        &["-INT"]
+    } {
+        let status = std::process::Command::new("kill")
+            .args([*signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
     let t1 = Instant::now();
     let output = child.wait_with_output().unwrap();
     assert!(
@@ -616,7 +627,7 @@ fn interrupt_leaves_nothing(cmd: &[&str]) {
         "{cmd:?}: slow to stop"
     );
     assert_eq!(output.status.code(), Some(130), "{cmd:?}");
-    assert!(String::from_utf8_lossy(&output.stderr).contains("interrupted"));
+    assert!(twice || String::from_utf8_lossy(&output.stderr).contains("interrupted"));
     assert!(!out.exists() && !png.exists(), "{cmd:?}");
     assert!(
         leftovers(dir.path()).is_empty(),
