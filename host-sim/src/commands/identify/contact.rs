@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail, ensure};
 use serde::Serialize;
 use shared::error::check_range;
-use shared::model::{ContactLaw, ContactLawKind};
+use shared::model::{ContactLaw, ContactLawKind, Suspension};
 
 use super::{ContactArgs, LawChoice, describe_law, pair_releases};
 use crate::config::{Setup, config_text};
@@ -221,6 +221,14 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
     }
     let best = best_by_aicc(&fits).context("no fit")?;
     let run = ContactRun {
+        suspension: match params.suspension {
+            Suspension::Wires { length_m, .. } => {
+                format!("wires suspension (pendulum l = {:.2} mm)", length_m * 1e3)
+            }
+            Suspension::Beam {
+                natural_freq_hz, ..
+            } => format!("beam-spring suspension (f_n = {natural_freq_hz:.4} Hz)"),
+        },
         error,
         requested: a.error,
         samples_per_contact: spc,
@@ -329,8 +337,10 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
     Ok(())
 }
 
-/// How the error was chosen.
+/// How the error was chosen, and the suspension fitted with.
 struct ContactRun {
+    /// The suspension as the fit used it (`--rig`'s, or `--config`'s in its place), in words.
+    suspension: String,
     /// The error used.
     error: FitError,
     /// The one asked for (`auto` or the same).
@@ -477,7 +487,7 @@ fn print_contact(
     }
     let releases: Vec<String> = loaded.iter().map(|l| l.release_mm.to_string()).collect();
     println!(
-        "{} ({} error{}{}), {} suspension, m = {} kg, released {} mm from the surface, gap {} mm:",
+        "{} ({} error{}{}), {}, m = {} kg, released {} mm from the surface, gap {} mm:",
         if loaded.len() > 1 {
             format!("Joint fit of {} drop tests", loaded.len())
         } else {
@@ -497,7 +507,7 @@ fn print_contact(
         } else {
             ""
         },
-        a.rig,
+        run.suspension,
         a.mass_kg,
         releases.join(" and "),
         a.gap_mm
