@@ -117,7 +117,12 @@ pub fn rows(
         .enumerate()
         .map(|(i, r)| {
             let ratio = sweep.value(i);
-            let l = labels.and_then(|l| l.get(i));
+            let LabelCells {
+                lyapunov_per_period,
+                lyapunov_uncertainty,
+                window_regime,
+                extra_periods,
+            } = LabelCells::of(labels.and_then(|l| l.get(i)));
             ResponseRow {
                 omega_ratio: ratio,
                 freq_hz: setup.params.freq_hz_from_ratio(ratio),
@@ -126,13 +131,38 @@ pub fn rows(
                 impacts: r.impacts,
                 transient_periods: r.transient_periods,
                 settled: r.settled,
-                lyapunov_per_period: l.map(|l| l.exponent.per_period),
-                lyapunov_uncertainty: l.map(|l| l.exponent.uncertainty()),
-                window_regime: l
-                    .filter(|l| l.window_regime != l.regime)
-                    .map(|l| l.window_regime.to_string()),
-                extra_periods: l.map(|l| l.extra_periods),
+                lyapunov_per_period,
+                lyapunov_uncertainty,
+                window_regime,
+                extra_periods,
             }
         })
         .collect()
+}
+
+/// The CSV cells of a Lyapunov label (`response`, `points --lyapunov`), all empty without one:
+/// the exponent per period and its uncertainty, the protocol window's regime where the label
+/// changed it, and the periods run after the window.
+#[derive(Debug, Clone, Default)]
+pub struct LabelCells {
+    /// Largest Lyapunov exponent, per period.
+    pub lyapunov_per_period: Option<f64>,
+    /// Its uncertainty, per period.
+    pub lyapunov_uncertainty: Option<f64>,
+    /// The window's regime, where the exponent changed the label.
+    pub window_regime: Option<String>,
+    /// Periods run after the window to find a period.
+    pub extra_periods: Option<u32>,
+}
+
+impl LabelCells {
+    /// The cells of `label` (empty for `None`).
+    pub fn of(label: Option<&Label>) -> Self {
+        label.map_or_else(Self::default, |l| LabelCells {
+            lyapunov_per_period: Some(l.exponent.per_period),
+            lyapunov_uncertainty: Some(l.exponent.uncertainty()),
+            window_regime: (l.window_regime != l.regime).then(|| l.window_regime.to_string()),
+            extra_periods: Some(l.extra_periods),
+        })
+    }
 }

@@ -13,6 +13,7 @@ use shared::orbit::{Label, LabelSettings};
 use crate::config::RigOpts;
 use crate::config::Setup;
 use crate::output::{write_csv, write_whole};
+use crate::response::LabelCells;
 use crate::runner::{OperatingPoint, evaluate_all, evaluate_all_labelled};
 
 /// Arguments of `points`.
@@ -142,7 +143,12 @@ pub fn run(a: &PointsArgs) -> Result<()> {
         .zip(&results)
         .enumerate()
         .map(|(i, (&(g, r), res))| {
-            let l = labels.as_ref().and_then(|l| l.get(i));
+            let LabelCells {
+                lyapunov_per_period,
+                lyapunov_uncertainty,
+                window_regime,
+                extra_periods,
+            } = LabelCells::of(labels.as_ref().and_then(|l| l.get(i)));
             OutRow {
                 gap_mm: g,
                 omega_ratio: r,
@@ -150,12 +156,10 @@ pub fn run(a: &PointsArgs) -> Result<()> {
                 regime: res.regime.to_string(),
                 impacts: res.impacts,
                 impact_force_mg: res.impact_force_mg,
-                lyapunov_per_period: l.map(|l| l.exponent.per_period),
-                lyapunov_uncertainty: l.map(|l| l.exponent.uncertainty()),
-                window_regime: l
-                    .filter(|l| l.window_regime != l.regime)
-                    .map(|l| l.window_regime.to_string()),
-                extra_periods: l.map(|l| l.extra_periods),
+                lyapunov_per_period,
+                lyapunov_uncertainty,
+                window_regime,
+                extra_periods,
             }
         });
     write_whole(&a.out, |tmp| write_csv(tmp, rows))?;
