@@ -78,17 +78,20 @@ pub fn measured_response(table: &LabTable, setup: &Setup) -> Result<Vec<Measured
         let x = row.number(x_col, "frequency")?;
         let y = row.number(y_col, "impact force")?;
         let ratio = if x_is_ratio {
-            x
+            check_range("omega_ratio", x, OMEGA_RATIO_RANGE.0, OMEGA_RATIO_RANGE.1)
+                .with_context(|| format!("line {line}"))?
         } else {
+            // Checked in the file's own unit: the range of Ω/ω in Hz on this rig.
+            let fn_hz = setup.params.natural_freq_hz();
+            check_range(
+                "freq_hz",
+                x,
+                OMEGA_RATIO_RANGE.0 * fn_hz,
+                OMEGA_RATIO_RANGE.1 * fn_hz,
+            )
+            .with_context(|| format!("line {line}"))?;
             setup.params.ratio_from_freq_hz(x)
         };
-        check_range(
-            "omega_ratio",
-            ratio,
-            OMEGA_RATIO_RANGE.0,
-            OMEGA_RATIO_RANGE.1,
-        )
-        .with_context(|| format!("line {line}"))?;
         ensure!(y >= 0.0, "line {line}: the impact force {y} is negative");
         out.push(Measured {
             omega_ratio: ratio,

@@ -409,6 +409,17 @@ fn compare_a_response_with_itself_has_no_error() {
         &["line 3", "impact_force_n"],
         &[&dir.path().join("bad.png")],
     );
+    // A negative frequency is named as the file's column, in Hz.
+    fs::write(p("neg.csv"), "freq_hz,impact_force_n\n3.0,40\n-3.0,40\n").unwrap();
+    rejected(
+        &line(&format!(
+            "compare --rig wires --gap-mm 0 --experiment {} --out {}",
+            p("neg.csv"),
+            p("neg.png")
+        )),
+        &["line 3", "freq_hz", "-3"],
+        &[&dir.path().join("neg.png")],
+    );
 }
 
 #[test]
