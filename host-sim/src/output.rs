@@ -165,6 +165,14 @@ pub fn png_target(text: &str) -> Result<PathBuf, String> {
     out_target(text)
 }
 
+/// The flags of `flags` that were given, with their paths (for [`distinct_files`]).
+pub fn given<'a>(flags: &[(&'a str, Option<&'a Path>)]) -> Vec<(&'a str, &'a Path)> {
+    flags
+        .iter()
+        .filter_map(|&(flag, p)| p.map(|p| (flag, p)))
+        .collect()
+}
+
 /// Checks that no output (a flag and its path) is one of the `inputs` or another output: it
 /// would replace the data being read, or the other result.
 ///

@@ -5,7 +5,7 @@ use std::fs;
 
 mod common;
 
-use common::{host_sim, line, ok, rejected, rejected_files, spawn_first_line};
+use common::{host_sim, line, ok, rejected, rejected_files, spawn_first_line, write_file};
 
 #[test]
 fn select_json_reports_the_operating_point() {
@@ -416,6 +416,73 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
         ],
         &[&out],
     );
+}
+
+/// No command writes over a file it reads or over another of its outputs: each is refused
+/// before any work, the file it names as both, and the file left as it was.
+#[test]
+fn no_output_replaces_an_input_or_another_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = write_file(dir.path(), "c.toml", "[rig]\nmass_kg = 0.298\n");
+    let csv = write_file(dir.path(), "in.csv", "gap_mm,omega_ratio\n0,2\n");
+    let scenario = write_file(
+        dir.path(),
+        "s.toml",
+        "[[commands]]\nat_s = 1.0\nline = \"start\"\n",
+    );
+    let (c, i, s) = (config.display(), csv.display(), scenario.display());
+    let png = dir.path().join("a.png");
+    let p = png.display();
+    for (args, flags) in [
+        (
+            format!("simulate --config {c} --gap-mm 0 --omega-ratio 2 --out {c}"),
+            "--out {c} is also --config",
+        ),
+        (
+            format!("response --config {c} --gap-mm 0 --omega-ratio 1:2:0.5 --out {c}"),
+            "--out {c} is also --config",
+        ),
+        (
+            format!("select --config {c} --out {c}"),
+            "--out {c} is also --config",
+        ),
+        (
+            format!("continue --config {c} --omega-ratio 2 --range 1:3 --out {c}"),
+            "--out {c} is also --config",
+        ),
+        (
+            format!("drop --config {c} --out {c}"),
+            "--out {c} is also --config",
+        ),
+        (
+            format!("points --input {i} --out {i}"),
+            "--out {i} is also --input",
+        ),
+        (
+            format!("hil --scenario {s} --out {s}"),
+            "--out {s} is also --scenario",
+        ),
+        (
+            format!("simulate --gap-mm 0 --omega-ratio 2 --out {p} --plot {p}"),
+            "--plot {p} is also --out",
+        ),
+    ] {
+        let before: Vec<Vec<u8>> = [&config, &csv, &scenario]
+            .iter()
+            .map(|f| fs::read(f).unwrap())
+            .collect();
+        let flags = flags
+            .replace("{c}", &c.to_string())
+            .replace("{i}", &i.to_string())
+            .replace("{s}", &s.to_string())
+            .replace("{p}", &p.to_string());
+        rejected(&line(&args), &[&flags], &[&png]);
+        let after: Vec<Vec<u8>> = [&config, &csv, &scenario]
+            .iter()
+            .map(|f| fs::read(f).unwrap())
+            .collect();
+        assert_eq!(before, after, "{args}: an input was changed");
+    }
 }
 
 #[test]

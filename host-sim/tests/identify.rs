@@ -5,8 +5,8 @@
 //!
 //! What a drop test identifies (docs/identification.md):
 //! - spring–dashpot `k_i`, `c_i`: from the peaks (and impact times) alone, within 5 % (worst of
-//!   noise seeds 1–16: 3.6 % and 1.8 % for `k_i` = 4e6 N/m, `c_i` = 900 N s/m; 2.2 % and
-//!   1.9 % for Table 3.1's law), with the profile within 3 %;
+//!   noise seeds 1–16: 1.6 % and 1.6 % for `k_i` = 4e6 N/m, `c_i` = 900 N s/m; 2.2 % and
+//!   1.7 % for Table 3.1's law), with the profile within 3 %;
 //! - power laws: `n`, `λ_i`, `e` and the force at a reference penetration `k_i δ_ref^n`;
 //!   `k_i` alone is not identifiable to 5 % at 1 % noise: along `k δ_ref^n = const` a change of
 //!   `n` by 0.01 moves `k` by `e^{0.01·|ln δ_ref|}` ≈ 12 % (`δ_ref ≈ 1e-5 m`) while the forces
@@ -16,9 +16,10 @@
 //!   seeds 1–16 3.3–5.4 % with the profile, 6.4–7.9 % from the peaks.
 
 use host_sim::identify::cost::{DropTest, FIT_STEPS, Weights, simulate_drop};
+use host_sim::identify::data::{NOISE_FLOOR, analyse_drop};
 use host_sim::identify::fit::{Fit, fit_law, fit_law_joint};
 use host_sim::identify::free::identify_free;
-use host_sim::identify::synth::{LabDrop, TRUTH_STEPS};
+use host_sim::identify::synth::{LabDrop, Sensor, TRUTH_STEPS, record};
 use host_sim::trace::Trace;
 use shared::analysis::drop::DropSpec;
 use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams, Suspension};
@@ -161,6 +162,64 @@ fn dissipation_of_the_power_laws_is_recovered_from_peaks_alone() {
         assert!(rel(third, third0) < 0.05, "{truth:?}: {third} vs {third0}");
         assert!(rel(n, n0) < 0.03, "{truth:?}: n {n}");
         assert!(rel(fr, fr0) < 0.03, "{truth:?}: k δ_ref^n {fr} vs {fr0}");
+    }
+}
+
+/// A quieter sensor than the lab's (0.1 % of the peak, and none at all): the 3 mm drop of
+/// Table 3.1's law has a fourth impact just above the 3 % detection threshold (1.29 N against
+/// 1.24 N). Its run above the threshold is only the pulse's top, so its centroid is not the
+/// contact's; taken, it moved `k_i` by 4.7 %. It is left out (below twice the threshold), and
+/// a trace without noise takes the noise floor (0.1 % of the peak) instead of zero.
+#[test]
+fn a_quiet_sensor_leaves_out_an_impact_too_weak_to_time() {
+    let lab = LabDrop {
+        law: ContactLaw::identified(),
+        release_mm: 3.0,
+    };
+    let clean = lab.clean().unwrap();
+    let fmax = clean.value.iter().copied().fold(0.0, f64::max);
+    let (k0, c0) = spring_dashpot(&lab.law);
+    for noise_pct in [0.0, 0.1] {
+        let sensor = Sensor {
+            noise_pct,
+            ..Sensor::lab(1)
+        };
+        let data = analyse_drop(&record(&clean, &sensor).unwrap(), 6).unwrap();
+        let peaks: Vec<f64> = data.impacts.iter().map(|i| i.peak_n).collect();
+        assert_eq!(peaks.len(), 3, "{noise_pct} %: {peaks:?}");
+        let (weak, threshold) = data.too_weak.expect("the fourth impact left out");
+        assert!(
+            weak > threshold && weak < 2.0 * threshold,
+            "{weak} N against {threshold} N"
+        );
+        // The floor, 0.1 % of the peak, where the trace has no noise; the 0.1 % sensor's own
+        // estimate is that level within its scatter.
+        assert!(
+            rel(data.noise_n, NOISE_FLOOR * fmax) < 0.05,
+            "noise {} N",
+            data.noise_n
+        );
+        if noise_pct == 0.0 {
+            assert!(data.noise_floored);
+            assert!(rel(data.noise_n, NOISE_FLOOR * fmax) < 1e-9);
+        }
+        let test = DropTest {
+            setup: lab.measured(&clean, 1).unwrap().setup,
+            data,
+        };
+        let f = fit_law(
+            &test.setup,
+            &test.data,
+            ContactLawKind::SpringDashpot,
+            PROFILE,
+            400,
+        )
+        .unwrap();
+        let (k, c) = spring_dashpot(&f.law);
+        assert!(rel(k, k0) < 0.01, "{noise_pct} %: k {k}");
+        assert!(rel(c, c0) < 0.02, "{noise_pct} %: c {c}");
+        let u = f.uncertainty.as_ref().unwrap();
+        assert!(!u.fit_check.misses, "{noise_pct} %: {:?}", u.fit_check);
     }
 }
 

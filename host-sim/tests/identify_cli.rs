@@ -290,6 +290,34 @@ fn identify_contact_refuses_what_it_cannot_check() {
     assert_eq!(fs::read(&drop).unwrap(), data, "the trace was overwritten");
 }
 
+/// A noise-free drop: the noise floor and the impact too weak to time are said; fitted from its
+/// three peaks alone, no law has enough terms for the AICc (n > p + 1), and the ranking says so
+/// rather than naming a law "best by more than 2".
+#[test]
+fn identify_contact_says_what_it_floored_left_out_or_cannot_rank() {
+    let dir = tempfile::tempdir().unwrap();
+    let drop = dir.path().join("clean.csv");
+    ok(&line(&format!(
+        "drop --noise-pct 0 --out {}",
+        drop.display()
+    )));
+    let text = ok(&line(&format!(
+        "identify contact --trace {} --mass-kg 0.298 --law all --error peaks --time-weight 0",
+        drop.display()
+    )));
+    for said in [
+        "(the floor, 0.1 % of the largest force",
+        "3 impacts",
+        "(the next, 1.29 N, is below twice the detection threshold 1.24 N",
+        "! not ranked by AICc: spring-dashpot (2 parameters)",
+        "the error has 3)",
+    ] {
+        assert!(text.contains(said), "{said:?} not in\n{text}");
+    }
+    assert!(!text.contains("NaN"), "{text}");
+    assert!(!text.contains("best by more than 2"), "{text}");
+}
+
 #[test]
 fn identify_free_gives_the_beam_suspension() {
     let dir = tempfile::tempdir().unwrap();

@@ -11,7 +11,7 @@ use std::io::Write as _;
 use shared::console::Token;
 
 use crate::figures::rig_log;
-use crate::output::{Outputs, write_csv};
+use crate::output::{Outputs, distinct_files, given, write_csv};
 use crate::virtual_rig::pty::{ServeOptions, serve};
 use crate::virtual_rig::scenario::Scenario;
 use crate::virtual_rig::{self, HilRun, HilSetup};
@@ -71,6 +71,10 @@ fn parse_speed(s: &str) -> Result<f64, String> {
 /// Bad arguments or scenario (named, checked by [`run`]), or an output that cannot be written
 /// (nothing is left).
 pub fn run(a: &HilArgs) -> Result<()> {
+    distinct_files(
+        &given(&[("--scenario", a.scenario.as_deref())]),
+        &given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]),
+    )?;
     let actual = a.actual_gap_mm.unwrap_or(a.gap_mm);
     let mut scenario = match &a.scenario {
         Some(p) => Scenario::from_file(p)?,

@@ -12,7 +12,7 @@ use shared::orbit::{Label, LabelSettings};
 
 use crate::config::RigOpts;
 use crate::config::Setup;
-use crate::output::{write_csv, write_whole};
+use crate::output::{distinct_files, given, write_csv, write_whole};
 use crate::response::LabelCells;
 use crate::runner::{OperatingPoint, evaluate_all, evaluate_all_labelled};
 
@@ -112,6 +112,13 @@ pub fn read_points(setup: &Setup, path: &PathBuf) -> Result<Vec<(f64, f64)>> {
 /// # Errors
 /// Bad input or I/O failure; the output appears only when every point succeeded.
 pub fn run(a: &PointsArgs) -> Result<()> {
+    distinct_files(
+        &given(&[
+            ("--input", Some(a.input.as_path())),
+            ("--config", a.rig.config.as_deref()),
+        ]),
+        &[("--out", a.out.as_path())],
+    )?;
     let setup = Setup::from_opts(&a.rig)?;
     let pts = read_points(&setup, &a.input)?;
     let ops: Vec<OperatingPoint> = pts

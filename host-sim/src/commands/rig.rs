@@ -12,7 +12,7 @@ use shared::control::Command;
 
 use crate::figures::response::{ResponsePoint, response};
 use crate::figures::rig_log;
-use crate::output::{Outputs, write_csv};
+use crate::output::{Outputs, distinct_files, given, write_csv};
 use crate::rig_link::capture::{capture, write_trace};
 use crate::rig_link::log::{Log, record};
 use crate::rig_link::sweep::{SweepEnd, check};
@@ -166,6 +166,18 @@ pub fn run(a: &RigArgs) -> Result<()> {
         a.link_timeout_s
     );
     // Check the subcommand's own arguments before touching the rig.
+    let port = [("--port", a.port.as_path())];
+    match &a.what {
+        RigCommand::Log(LogArgs { out, plot, .. })
+        | RigCommand::Sweep(SweepArgs { out, plot, .. }) => {
+            distinct_files(
+                &port,
+                &given(&[("--out", Some(out)), ("--plot", plot.as_deref())]),
+            )?;
+        }
+        RigCommand::Capture(c) => distinct_files(&port, &[("--out", c.out.as_path())])?,
+        _ => {}
+    }
     match &a.what {
         RigCommand::Log(l) => ensure!(
             l.seconds.is_finite() && l.seconds > 0.0 && l.seconds <= 86_400.0,

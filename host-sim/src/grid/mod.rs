@@ -138,16 +138,13 @@ impl Figures<'_> {
     /// # Errors
     /// Two of them name the same file.
     pub fn check_distinct(&self, out: &Path, inputs: &[(&str, &Path)]) -> Result<()> {
-        let outputs: Vec<(&str, &Path)> = [
+        let outputs = crate::output::given(&[
             ("--out", Some(out)),
             ("--plot", self.plot),
             ("--force-plot", self.force_plot),
             ("--boundaries-out", self.boundaries),
             ("--attractors-out", self.attractors),
-        ]
-        .into_iter()
-        .filter_map(|(flag, p)| p.map(|p| (flag, p)))
-        .collect();
+        ]);
         crate::output::distinct_files(inputs, &outputs)
     }
 }

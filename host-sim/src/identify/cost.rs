@@ -47,7 +47,7 @@ use shared::integrate::StepSettings;
 use shared::model::contact::spring_dashpot_restitution;
 use shared::model::{ContactLaw, ContactLawKind, RigParams, SwitchBands};
 
-use super::data::{DropData, analyse_drop, peak_estimate};
+use super::data::{DropData, analyse_redraw, peak_estimate};
 use crate::trace::Trace;
 
 /// Which error the fit minimises.
@@ -790,7 +790,7 @@ impl Problem<'_> {
                     t_s: tc.data.t_s.clone(),
                     value,
                 };
-                let d = analyse_drop(&trace, n).map_err(|_| RedrawFailure::NoImpact)?;
+                let d = analyse_redraw(&trace, n).map_err(|_| RedrawFailure::NoImpact)?;
                 if d.impacts.len() < n {
                     return Err(RedrawFailure::FewerImpacts);
                 }

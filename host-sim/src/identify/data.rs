@@ -3,10 +3,16 @@
 //! noise level and impacts.
 //!
 //! - Sensor offset: the median of the trace (most samples are free flight, `F = 0`); it is
-//!   subtracted. Noise level `σ`: 1.4826 × the median absolute deviation.
+//!   subtracted. Noise level `σ`: 1.4826 × the median absolute deviation, at least
+//!   [`NOISE_FLOOR`] of the largest force (a noise-free or coarsely quantised trace has a
+//!   median absolute deviation of 0, and a fit's intervals and lack-of-fit test need a noise
+//!   level: the floor is about what the fit's own simulation and peak estimate reproduce).
 //! - Impacts: runs of samples above `max(5σ, 3 % of the largest force)` with at least 3
 //!   samples; runs closer than twice the previous run's length are one impact (re-contacts).
-//!   At most `max_impacts`, in time order.
+//!   At most `max_impacts`, in time order, and only up to the first whose peak is below twice
+//!   the threshold: its run above the threshold is then only the pulse's top, its window
+//!   (below) does not hold the whole pulse, and its centroid is not the contact's (the
+//!   simulated one is): such an impact would bias the fit.
 //! - Peak force of an impact: the vertex of a least-squares parabola through the 5 samples
 //!   around the largest one (when all 5 are above 80 % of it), else the largest sample.
 //! - Impact time: the force-weighted centroid `∫ t F dt / ∫ F dt` over the impact's window
@@ -56,11 +62,19 @@ pub struct DropData {
     pub force_n: Vec<f64>,
     /// Removed sensor offset, N.
     pub offset_n: f64,
-    /// Noise standard deviation, N.
+    /// Noise standard deviation, N (at least [`NOISE_FLOOR`] of the largest force).
     pub noise_n: f64,
+    /// Whether the trace's own noise (its median absolute deviation) was below the floor.
+    pub noise_floored: bool,
     /// Impacts, in time order.
     pub impacts: Vec<MeasuredImpact>,
+    /// The peak of the first impact left out as too weak to time (below twice the
+    /// threshold), N, with the threshold, N.
+    pub too_weak: Option<(f64, f64)>,
 }
+
+/// The smallest noise level taken, as a fraction of the largest force (0.1 %).
+pub const NOISE_FLOOR: f64 = 1e-3;
 
 /// The median of `v` (reordered; selection, not a sort).
 fn median(v: &mut [f64]) -> f64 {
@@ -110,8 +124,24 @@ pub(crate) fn peak_estimate(t: &[f64], f: &[f64], a: usize, b: usize) -> f64 {
 /// Finds the sensor offset, the noise level and the impacts of a measured drop test.
 ///
 /// # Errors
-/// No impact stands out of the noise (largest force below 10 σ).
+/// No impact stands out of the noise (largest force below 10 σ), or the first is too weak to
+/// time (its peak below twice the threshold).
 pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
+    analyse(trace, max_impacts, true)
+}
+
+/// [`analyse_drop`] of a noise redraw of the fit (the bootstrap) that is to show the measured
+/// trace's `impacts`: the first `impacts` above the threshold, with no impact left out as too
+/// weak to time (the measurement chose the impacts; a redraw only moves their noise).
+///
+/// # Errors
+/// No impact stands out of the noise.
+pub(crate) fn analyse_redraw(trace: &Trace, impacts: usize) -> Result<DropData> {
+    analyse(trace, impacts, false)
+}
+
+/// [`analyse_drop`], leaving out the impacts too weak to time where `cut_weak`.
+fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData> {
     let mut sorted = trace.value.clone();
     let offset = median(&mut sorted);
     let mut dev: Vec<f64> = trace.value.iter().map(|v| (v - offset).abs()).collect();
@@ -120,7 +150,8 @@ pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
         .iter()
         .map(|v| v - offset)
         .fold(f64::NEG_INFINITY, f64::max);
-    let noise = (1.4826 * median(&mut dev)).max(1e-12 * fmax.abs());
+    let own_noise = 1.4826 * median(&mut dev);
+    let noise = own_noise.max(NOISE_FLOOR * fmax.abs());
     ensure!(
         fmax > 10.0 * noise,
         "no impact stands out of the noise: largest force {fmax:.4} N above the offset \
@@ -160,10 +191,15 @@ pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
     merged.retain(|&(a, b)| b >= a + 2);
     let n = f.len();
     let mut impacts = Vec::new();
+    let mut too_weak = None;
     for (a, b) in merged.into_iter().take(max_impacts) {
         let pad = (b - a).div_ceil(2).max(3);
         let window = (a.saturating_sub(pad), (b + pad).min(n - 1));
         let peak = peak_estimate(t, &f, a, b);
+        if cut_weak && peak < 2.0 * threshold {
+            too_weak = Some((peak, threshold));
+            break;
+        }
         let (mut sf, mut stf) = (0.0, 0.0);
         for i in window.0..=window.1 {
             sf += f[i];
@@ -183,12 +219,20 @@ pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
             run: (a, b),
         });
     }
-    ensure!(!impacts.is_empty(), "no impact found in the trace");
+    ensure!(
+        !impacts.is_empty(),
+        "no impact found in the trace{}",
+        too_weak.map_or(String::new(), |(p, thr)| format!(
+            ": the first, peak {p:.4} N, is below twice the detection threshold {thr:.4} N"
+        ))
+    );
     Ok(DropData {
         t_s: t.clone(),
         force_n: f,
         offset_n: offset,
         noise_n: noise,
+        noise_floored: own_noise < noise,
         impacts,
+        too_weak,
     })
 }

@@ -149,12 +149,18 @@ pub fn fit_laws(
         .collect()
 }
 
-/// The law of `fits` with the lowest AICc ([`Fit::aicc`]: the same error terms for every law); `None` if
-/// `fits` is empty.
+/// The law of `fits` with the lowest AICc ([`Fit::aicc`]: the same error terms for every law);
+/// among laws with too few terms to rank (`+∞`), the lowest error `J`; `None` if `fits` is
+/// empty.
 pub fn best_by_aicc(fits: &[(ContactLawKind, Fit)]) -> Option<ContactLawKind> {
-    fits.iter()
-        .min_by(|x, y| x.1.aicc().total_cmp(&y.1.aicc()))
-        .map(|f| f.0)
+    fits.iter().min_by(|x, y| by_aicc(&x.1, &y.1)).map(|f| f.0)
+}
+
+/// The order of [`best_by_aicc`]: AICc, then the error `J`.
+pub fn by_aicc(x: &Fit, y: &Fit) -> std::cmp::Ordering {
+    x.aicc()
+        .total_cmp(&y.aicc())
+        .then(x.residual.cost.total_cmp(&y.residual.cost))
 }
 
 /// Fits one parameter set of `law` to several drop tests at once (e.g. two release heights):

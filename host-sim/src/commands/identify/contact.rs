@@ -12,10 +12,10 @@ use shared::model::{ContactLaw, ContactLawKind, Suspension};
 use super::{ContactArgs, LawChoice, describe_law, pair_releases};
 use crate::config::{Setup, config_text};
 use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, Weights};
-use crate::identify::data::{DropData, analyse_drop};
-use crate::identify::fit::{Fit, best_by_aicc, fit_laws};
+use crate::identify::data::{DropData, NOISE_FLOOR, analyse_drop};
+use crate::identify::fit::{Fit, best_by_aicc, by_aicc, fit_laws};
 use crate::identify::uncertainty::{LACK_OF_FIT_FACTOR, STRONG_CORRELATION, Uncertainty, WIDE_REL};
-use crate::output::{Outputs, distinct_files};
+use crate::output::{Outputs, distinct_files, given};
 use crate::trace::read_trace;
 use shared::model::rig::IMPACT_SPEEDS_M_S;
 
@@ -95,7 +95,11 @@ struct TraceReport {
     samples: usize,
     offset_n: f64,
     noise_n: f64,
+    /// Whether `noise_n` is the floor (the trace's own noise was below it).
+    noise_floored: bool,
     impact_peaks_n: Vec<f64>,
+    /// The peak of the first impact left out as too weak to time, N.
+    too_weak_peak_n: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -130,7 +134,9 @@ impl LoadedTrace {
             samples: self.data.t_s.len(),
             offset_n: self.data.offset_n,
             noise_n: self.data.noise_n,
+            noise_floored: self.data.noise_floored,
             impact_peaks_n: self.data.impacts.iter().map(|i| i.peak_n).collect(),
+            too_weak_peak_n: self.data.too_weak.map(|(p, _)| p),
         }
     }
 }
@@ -138,10 +144,7 @@ impl LoadedTrace {
 pub(super) fn run(a: &ContactArgs) -> Result<()> {
     let mut inputs: Vec<(&str, &Path)> = a.trace.iter().map(|t| ("--trace", t.as_path())).collect();
     inputs.extend(a.config.as_deref().map(|c| ("--config", c)));
-    let outputs: Vec<(&str, &Path)> = [("--out", &a.out), ("--plot", &a.plot)]
-        .into_iter()
-        .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
-        .collect();
+    let outputs = given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]);
     distinct_files(&inputs, &outputs)?;
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
     check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
@@ -474,15 +477,27 @@ fn print_contact(
             .map(|i| format!("{:.2}", i.peak_n))
             .collect();
         println!(
-            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N; {} impacts, peaks {} N",
+            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N{}; {} impacts, peaks {} N{}",
             l.path.display(),
             data.t_s.len(),
             segments,
             1e-3 / dt,
             data.offset_n,
             data.noise_n,
+            if data.noise_floored {
+                format!(
+                    " (the floor, {} % of the largest force: the trace's own noise is below it)",
+                    100.0 * NOISE_FLOOR
+                )
+            } else {
+                String::new()
+            },
             data.impacts.len(),
-            peaks.join(", ")
+            peaks.join(", "),
+            data.too_weak.map_or(String::new(), |(p, thr)| format!(
+                " (the next, {p:.2} N, is below twice the detection threshold {thr:.2} N: too \
+                 weak to time, left out)"
+            ))
         );
     }
     let releases: Vec<String> = loaded.iter().map(|l| l.release_mm.to_string()).collect();
@@ -570,7 +585,7 @@ fn print_contact(
         );
     };
     let mut ranked: Vec<&(ContactLawKind, Fit)> = fits.iter().collect();
-    ranked.sort_by(|x, y| x.1.aicc().total_cmp(&y.1.aicc()));
+    ranked.sort_by(|x, y| by_aicc(&x.1, &y.1));
     let check = |f: &Fit| f.uncertainty.as_ref().ok().map(|u| u.fit_check.clone());
     for (k, f) in &ranked {
         let e = Restitution::of(f, a.mass_kg).at_first_impact;
@@ -589,7 +604,11 @@ fn print_contact(
                 },
             ),
             e: e.map_or_else(|| "–".to_string(), |e| format!("{e:.3}")),
-            aicc: format!("{:.1}", f.aicc() - best_aicc),
+            aicc: if f.aicc().is_finite() {
+                format!("{:.1}", f.aicc() - best_aicc)
+            } else {
+                "–".to_string()
+            },
             evals: f.evaluations.to_string(),
         });
         if loaded.len() > 1 {
@@ -606,7 +625,20 @@ fn print_contact(
             }
         }
     }
-    if fits.len() > 1 {
+    let unranked: Vec<String> = ranked
+        .iter()
+        .filter(|f| !f.1.aicc().is_finite())
+        .map(|f| format!("{} ({} parameters)", f.0, f.1.parameters()))
+        .collect();
+    if !unranked.is_empty() {
+        println!(
+            "  ! not ranked by AICc: {} (AICc needs more terms than parameters + 1; the error has {}): \
+             fit more impacts or a second trace, or keep the impact times or the profile in the error",
+            unranked.join(", "),
+            ranked[0].1.terms
+        );
+    }
+    if fits.len() > 1 && ranked[0].1.aicc().is_finite() {
         let close: Vec<String> = ranked
             .iter()
             .skip(1)
