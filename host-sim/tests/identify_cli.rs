@@ -9,6 +9,13 @@ mod common;
 
 use common::{line, ok, rejected};
 
+/// `host-sim drop {options} --out dir/name`: the recorded drop test's path.
+fn recorded(dir: &Path, name: &str, options: &str) -> std::path::PathBuf {
+    let path = dir.join(name);
+    ok(&line(&format!("drop {options} --out {}", path.display())));
+    path
+}
+
 #[test]
 fn drop_identify_contact_and_use_the_fit_as_config() {
     let dir = tempfile::tempdir().unwrap();
@@ -242,11 +249,7 @@ fn identify_contact_rejects_bad_input() {
 #[test]
 fn identify_contact_refuses_what_it_cannot_check() {
     let dir = tempfile::tempdir().unwrap();
-    let drop = dir.path().join("drop.csv");
-    ok(&line(&format!(
-        "drop --noise-pct 1 --seed 1 --out {}",
-        drop.display()
-    )));
+    let drop = recorded(dir.path(), "drop.csv", "--noise-pct 1 --seed 1");
     let data = fs::read(&drop).unwrap();
     let out = dir.path().join("fit.toml");
     let fit = |extra: &str| {
@@ -296,11 +299,7 @@ fn identify_contact_refuses_what_it_cannot_check() {
 #[test]
 fn identify_contact_says_what_it_floored_left_out_or_cannot_rank() {
     let dir = tempfile::tempdir().unwrap();
-    let drop = dir.path().join("clean.csv");
-    ok(&line(&format!(
-        "drop --noise-pct 0 --out {}",
-        drop.display()
-    )));
+    let drop = recorded(dir.path(), "clean.csv", "--noise-pct 0");
     let text = ok(&line(&format!(
         "identify contact --trace {} --mass-kg 0.298 --law all --error peaks --time-weight 0",
         drop.display()

@@ -23,7 +23,7 @@ use shared::error::{check_count, check_range};
 use super::TimeOpts;
 use crate::comparison;
 use crate::config::{RigOpts, Setup};
-use crate::output::{distinct_files, given, write_whole};
+use crate::output::write_whole;
 use crate::trace::{LabTable, MotionUnit, trace_from_table};
 
 /// Arguments of `compare`.
@@ -64,13 +64,6 @@ pub struct CompareArgs {
 /// # Errors
 /// Bad input or I/O failure; nothing is written then.
 pub fn run(a: &CompareArgs) -> Result<()> {
-    distinct_files(
-        &given(&[
-            ("--experiment", Some(a.experiment.as_path())),
-            ("--config", a.rig.config.as_deref()),
-        ]),
-        &[("--out", a.out.as_path())],
-    )?;
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let table = LabTable::read(&a.experiment).context("--experiment")?;
