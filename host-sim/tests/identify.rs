@@ -223,6 +223,33 @@ fn a_quiet_sensor_leaves_out_an_impact_too_weak_to_time() {
     }
 }
 
+/// A glitch of one sample 50 times the largest impact is not an impact and does not raise the
+/// threshold above the impacts: the impacts and their peaks are those of the trace without it.
+#[test]
+fn a_glitch_is_not_an_impact() {
+    let lab = LabDrop {
+        law: ContactLaw::identified(),
+        release_mm: 3.0,
+    };
+    let trace = record(&lab.clean().unwrap(), &Sensor::lab(1)).unwrap();
+    let plain = analyse_drop(&trace, 6).unwrap();
+    assert_eq!(plain.spike_n, None);
+    let mut glitched = trace.clone();
+    let fmax = plain.impacts[0].peak_n;
+    // Between the second and third impacts.
+    let at = (plain.impacts[1].window.1 + plain.impacts[2].window.0) / 2;
+    glitched.value[at] = 50.0 * fmax;
+    let data = analyse_drop(&glitched, 6).unwrap();
+    assert!(rel(data.spike_n.unwrap(), 50.0 * fmax - data.offset_n) < 1e-9);
+    // (One changed sample moves the median offset by a few µN.)
+    assert_eq!(data.impacts.len(), plain.impacts.len());
+    for (a, b) in data.impacts.iter().zip(&plain.impacts) {
+        assert_eq!((a.run, a.window), (b.run, b.window));
+        assert!(rel(a.peak_n, b.peak_n) < 1e-5, "{a:?} against {b:?}");
+    }
+    assert!(rel(data.noise_n, plain.noise_n) < 1e-3);
+}
+
 /// Release distances of the joint recovery tests, mm: impact speeds a factor ~12 apart.
 const TWO_HEIGHTS_MM: [f64; 2] = [0.25, 3.0];
 

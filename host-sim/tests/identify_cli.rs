@@ -291,6 +291,44 @@ fn identify_contact_refuses_what_it_cannot_check() {
         &[],
     );
     assert_eq!(fs::read(&drop).unwrap(), data, "the trace was overwritten");
+    // The same record with its force negated (a sensor wired the other way), and with its time
+    // in ms read as s: each is named as such.
+    let text = String::from_utf8(data).unwrap();
+    let rewrite = |name: &str, cell: fn(f64, f64) -> (f64, f64)| {
+        let body: String = text
+            .lines()
+            .map(
+                |l| match l.split_once(',').map(|(t, f)| (t.parse(), f.parse())) {
+                    Some((Ok(t), Ok(f))) => {
+                        let (t, f) = cell(t, f);
+                        format!("{t},{f}\n")
+                    }
+                    _ => format!("{l}\n"),
+                },
+            )
+            .collect();
+        let path = dir.path().join(name);
+        fs::write(&path, body).unwrap();
+        path
+    };
+    let inverted = rewrite("inverted.csv", |t, f| (t, -f));
+    let in_ms = rewrite("ms.csv", |t, f| (1e3 * t, f));
+    for (path, said) in [
+        (&inverted, "(41.96"),
+        (&inverted, "is the sensor's sign inverted?"),
+        (&in_ms, "its first two impacts are 2.7549e2 s apart"),
+        (&in_ms, "--time-unit"),
+    ] {
+        rejected(
+            &line(&format!(
+                "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot --out {}",
+                path.display(),
+                out.display()
+            )),
+            &[said],
+            &[&out],
+        );
+    }
 }
 
 /// A noise-free drop: the noise floor and the impact too weak to time are said; fitted from its

@@ -7,6 +7,8 @@
 //!   [`NOISE_FLOOR`] of the largest force (a noise-free or coarsely quantised trace has a
 //!   median absolute deviation of 0, and a fit's intervals and lack-of-fit test need a noise
 //!   level: the floor is about what the fit's own simulation and peak estimate reproduce).
+//! - Largest force: the largest sample, or, where that is more than `1/`[`SPIKE_RATIO`] times
+//!   the largest force held over three samples, the latter (a glitch is not an impact).
 //! - Impacts: runs of samples above `max(5σ, 3 % of the largest force)` with at least 3
 //!   samples; runs closer than twice the previous run's length are one impact (re-contacts).
 //!   At most `max_impacts`, in time order, and only up to the first whose peak is below twice
@@ -71,10 +73,43 @@ pub struct DropData {
     /// The peak of the first impact left out as too weak to time (below twice the
     /// threshold), N, with the threshold, N.
     pub too_weak: Option<(f64, f64)>,
+    /// The largest sample where it is a glitch ([`SPIKE_RATIO`]), N: not an impact, and not
+    /// the largest force the threshold and the noise floor refer to.
+    pub spike_n: Option<f64>,
 }
 
 /// The smallest noise level taken, as a fraction of the largest force (0.1 %).
 pub const NOISE_FLOOR: f64 = 1e-3;
+
+/// A largest sample more than `1/SPIKE_RATIO` times the largest force held over three samples is
+/// a glitch, not an impact (an impact resolved by 4 samples holds 38 % of its peak).
+pub const SPIKE_RATIO: f64 = 0.2;
+
+impl DropData {
+    /// Checks that the first two impacts are as far apart as the hammer's free flight makes
+    /// them: a quarter to four times its natural period `natural_period_s` (s) — half a period
+    /// at gap 0, up to a whole one with a gap, longer for a wide pendulum swing. A trace whose
+    /// time column was read in the wrong unit is off by a factor of 1000.
+    ///
+    /// # Errors
+    /// The spacing is outside that range (said with both times and the flags to check).
+    pub fn check_spacing(&self, natural_period_s: f64) -> Result<()> {
+        let [first, second, ..] = self.impacts[..] else {
+            return Ok(());
+        };
+        let spacing = second.centroid_s - first.centroid_s;
+        ensure!(
+            (0.25 * natural_period_s..=4.0 * natural_period_s).contains(&spacing),
+            "its first two impacts are {spacing:.4e} s apart, where this rig's hammer flies \
+             {:.3}–{:.3} s between impacts (half to one natural period, {natural_period_s:.3} s, \
+             with a margin): is the time column's unit right (--time-unit, or \
+             --sample-rate-hz)?",
+            0.25 * natural_period_s,
+            4.0 * natural_period_s
+        );
+        Ok(())
+    }
+}
 
 /// The median of `v` (reordered; selection, not a sort).
 fn median(v: &mut [f64]) -> f64 {
@@ -145,18 +180,48 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
     let mut sorted = trace.value.clone();
     let offset = median(&mut sorted);
     let mut dev: Vec<f64> = trace.value.iter().map(|v| (v - offset).abs()).collect();
-    let fmax = trace
+    let sample_max = trace
         .value
         .iter()
         .map(|v| v - offset)
         .fold(f64::NEG_INFINITY, f64::max);
+    // The largest force held over three samples: a glitch of one or two samples far above
+    // every impact is not one, and must not set the threshold above them.
+    let held = trace
+        .value
+        .windows(3)
+        .map(|w| w[0].min(w[1]).min(w[2]) - offset)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let (fmax, spike) = if held > 0.0 && held < SPIKE_RATIO * sample_max {
+        (held, Some(sample_max))
+    } else {
+        (sample_max, None)
+    };
     let own_noise = 1.4826 * median(&mut dev);
     let noise = own_noise.max(NOISE_FLOOR * fmax.abs());
-    ensure!(
-        fmax > 10.0 * noise,
-        "no impact stands out of the noise: largest force {fmax:.4} N above the offset \
-         {offset:.4} N, noise {noise:.4} N"
-    );
+    if fmax <= 10.0 * noise {
+        // An impact presses the sensor: a trace whose pulses stand out below the offset was
+        // recorded with the opposite sign.
+        let fmin = trace
+            .value
+            .iter()
+            .map(|v| v - offset)
+            .fold(f64::INFINITY, f64::min);
+        let inverted = if -fmin > 10.0 * noise {
+            format!(
+                "; its pulses point the other way ({:.4} N below the offset): an impact \
+                 presses the sensor, so its force is positive — is the sensor's sign inverted? \
+                 (negate the force column)",
+                -fmin
+            )
+        } else {
+            String::new()
+        };
+        anyhow::bail!(
+            "no impact stands out of the noise: largest force {fmax:.4} N above the offset \
+             {offset:.4} N, noise {noise:.4} N{inverted}"
+        );
+    }
     let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
     let t = &trace.t_s;
     let threshold = (5.0 * noise).max(0.03 * fmax);
@@ -234,5 +299,6 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
         noise_floored: own_noise < noise,
         impacts,
         too_weak,
+        spike_n: spike,
     })
 }

@@ -181,6 +181,10 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
             "force",
         )?;
         let data = analyse_drop(&trace, a.max_impacts as usize)
+            .and_then(|d| {
+                d.check_spacing(1.0 / params.natural_freq_hz())?;
+                Ok(d)
+            })
             .with_context(|| format!("trace {}", path.display()))?;
         loaded.push(LoadedTrace {
             path: path.clone(),
@@ -477,7 +481,7 @@ fn print_contact(
             .map(|i| format!("{:.2}", i.peak_n))
             .collect();
         println!(
-            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N{}; {} impacts, peaks {} N{}",
+            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N{}; {} impacts, peaks {} N{}{}",
             l.path.display(),
             data.t_s.len(),
             segments,
@@ -497,6 +501,9 @@ fn print_contact(
             data.too_weak.map_or(String::new(), |(p, thr)| format!(
                 " (the next, {p:.2} N, is below twice the detection threshold {thr:.2} N: too \
                  weak to time, left out)"
+            )),
+            data.spike_n.map_or(String::new(), |f| format!(
+                "; a glitch of {f:.2} N (one or two samples) is not an impact"
             ))
         );
     }
