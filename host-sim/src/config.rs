@@ -91,6 +91,18 @@ impl RigOpts {
             damping_ratio: None,
         }
     }
+
+    /// Checks that none of a command's `outputs` (its flags and paths, `None` where not
+    /// given) is the `--config` file or another output ([`crate::output::distinct_files`]).
+    ///
+    /// # Errors
+    /// Two of them name the same file.
+    pub fn check_outputs(&self, outputs: &[(&str, Option<&Path>)]) -> Result<()> {
+        crate::output::distinct_files(
+            &crate::output::given(&[("--config", self.config.as_deref())]),
+            &crate::output::given(outputs),
+        )
+    }
 }
 
 /// Parses a rig preset name (`wires`, `beam-170`, …) for a command-line option.

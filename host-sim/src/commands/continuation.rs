@@ -12,7 +12,7 @@ use shared::orbit::{Orbit, Param};
 use super::orbit::PointArgs;
 use crate::figures::orbits::{Dots, branches as branch_figure};
 use crate::orbits::{self, Background, BranchOut, BranchSpec, Direction, param_value};
-use crate::output::{Outputs, distinct_files, given, write_csv};
+use crate::output::{Outputs, write_csv};
 
 /// The continuation parameter on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -169,10 +169,9 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
 /// # Errors
 /// Bad input, no orbit at the start, I/O failure or Ctrl-C; nothing is half-written.
 pub fn run(a: &ContinueArgs) -> Result<()> {
-    distinct_files(
-        &given(&[("--config", a.point.rig.config.as_deref())]),
-        &given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]),
-    )?;
+    a.point
+        .rig
+        .check_outputs(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())])?;
     crate::interrupt::install();
     let (setup, at, start) = a.point.resolve()?;
     check_count("follow_doublings", a.follow_doublings, 0, 6).context("--follow-doublings")?;

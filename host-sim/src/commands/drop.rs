@@ -16,7 +16,7 @@ use crate::config::Setup;
 use crate::identify::synth::{
     Recorded, Sensor, TRUTH_STEPS, clean_record, record_displacement, synthetic_drop,
 };
-use crate::output::{Outputs, distinct_files, given};
+use crate::output::Outputs;
 use crate::precision::Precision;
 
 /// Arguments of `drop`.
@@ -64,10 +64,7 @@ pub struct DropArgs {
 /// # Errors
 /// Bad input or I/O failure.
 pub fn run(a: &DropArgs) -> Result<()> {
-    distinct_files(
-        &given(&[("--config", a.rig.config.as_deref())]),
-        &[("--out", a.out.as_path())],
-    )?;
+    a.rig.check_outputs(&[("--out", Some(&a.out))])?;
     let mut opts = a.rig.clone();
     opts.precision = Precision::F64;
     let setup = Setup::from_opts(&opts)?;

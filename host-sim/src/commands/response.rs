@@ -9,7 +9,7 @@ use shared::orbit::LabelSettings;
 use super::{omega_sweep, write_response};
 use crate::config::{RigOpts, Setup};
 use crate::figures::response::{points, title};
-use crate::output::{Outputs, distinct_files, given};
+use crate::output::Outputs;
 use crate::response;
 
 /// Arguments of `response`.
@@ -46,10 +46,8 @@ pub struct ResponseArgs {
 /// # Errors
 /// Bad input or I/O failure; no output file is left half-written.
 pub fn run(a: &ResponseArgs) -> Result<()> {
-    distinct_files(
-        &given(&[("--config", a.rig.config.as_deref())]),
-        &given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]),
-    )?;
+    a.rig
+        .check_outputs(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())])?;
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;

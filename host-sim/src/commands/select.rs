@@ -8,7 +8,7 @@ use clap::Args;
 use super::omega_sweep;
 use crate::config::{RigOpts, Setup};
 use crate::figures::response::{Highlight, points, response_band};
-use crate::output::{Outputs, distinct_files, given};
+use crate::output::Outputs;
 use crate::propagate::{Propagation, propagate};
 use crate::response;
 use crate::selection::{
@@ -97,10 +97,8 @@ struct ReportWithUncertainty<'a> {
 /// # Errors
 /// Bad input, no robust point, or I/O failure.
 pub fn run(a: &SelectArgs) -> Result<()> {
-    distinct_files(
-        &given(&[("--config", a.rig.config.as_deref())]),
-        &given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]),
-    )?;
+    a.rig
+        .check_outputs(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())])?;
     let mut setup = Setup::from_opts(&a.rig)?;
     if let Some(s) = &a.omega_ratio {
         setup.selection.omega_ratio = omega_sweep(s)?;

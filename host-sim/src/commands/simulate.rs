@@ -9,7 +9,7 @@ use shared::error::{check_count, check_range};
 use super::excitation_ratio;
 use crate::config::{RigOpts, Setup};
 use crate::figures::response::{TsPoint, time_series};
-use crate::output::{Outputs, distinct_files, given, write_csv};
+use crate::output::{Outputs, write_csv};
 use crate::series::{self, SeriesSpec};
 
 /// Arguments of `simulate`.
@@ -52,10 +52,8 @@ pub struct SimulateArgs {
 /// # Errors
 /// Bad input or I/O failure.
 pub fn run(a: &SimulateArgs) -> Result<()> {
-    distinct_files(
-        &given(&[("--config", a.rig.config.as_deref())]),
-        &given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]),
-    )?;
+    a.rig
+        .check_outputs(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())])?;
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let fn_hz = setup.params.natural_freq_hz();
