@@ -739,6 +739,32 @@ fn identify_free_gives_the_wire_pendulum_its_damping_ratio() {
         )))
     };
     assert_ne!(run(&format!("--config {}", p("wires.toml"))), run(""));
+    // The same record with its times in ms under `t_s`: a 75 km pendulum, said as a unit question.
+    let in_ms = p("decay_ms.csv");
+    fs::write(
+        &in_ms,
+        text.lines()
+            .map(
+                |l| match l.split_once(',').map(|(t, x)| (t.parse::<f64>(), x)) {
+                    Some((Ok(t), x)) => format!("{},{x}\n", 1e3 * t),
+                    _ => format!("{l}\n"),
+                },
+            )
+            .collect::<String>(),
+    )
+    .unwrap();
+    rejected(
+        &line(&format!(
+            "identify free --rig wires --trace {in_ms} --mass-kg 0.298 --unit mm --out {}",
+            p("ms.toml")
+        )),
+        &[
+            "natural frequency 1.8202e-3 Hz",
+            "wires preset has 1.820 Hz",
+            "--time-unit",
+        ],
+        &[Path::new(&p("ms.toml"))],
+    );
     // Displacement records take no force offset.
     rejected(
         &line(&format!(

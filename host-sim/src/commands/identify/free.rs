@@ -43,9 +43,16 @@ pub(super) fn run(a: &FreeArgs) -> Result<()> {
     let mut params = a.rig.preset();
     params.mass_kg = a.mass_kg;
     params.suspension = decay.suspension(&params.suspension, params.gravity_m_s2);
-    params
-        .validate()
-        .context("the identified suspension is out of range")?;
+    params.validate().with_context(|| {
+        format!(
+            "the identified suspension is out of range (natural frequency {:.4e} Hz, where the \
+             {} preset has {:.3} Hz: is the time column's unit right? --time-unit, or \
+             --sample-rate-hz)",
+            decay.natural_freq_hz,
+            a.rig,
+            a.rig.preset().natural_freq_hz()
+        )
+    })?;
     let report = FreeReport {
         decay,
         mass_kg: a.mass_kg,
