@@ -305,7 +305,7 @@ fn describe_method(method: IntervalMethod, redraws: &Redraws, ratio: f64) -> Str
     match method {
         IntervalMethod::Noise => format!("{boot}; sensor noise only"),
         IntervalMethod::Scaled if ratio > 1.0 => {
-            format!("{boot}; widened by √(reduced χ²) = √{ratio:.2}")
+            format!("{boot}; widened by √(reduced χ²) = √{}", ratio_text(ratio, 2))
         }
         IntervalMethod::Scaled => {
             format!("{boot}; the fit is within the noise (reduced χ² {ratio:.2})")
@@ -644,20 +644,21 @@ fn check_fit(
             .iter()
             .map(|c| {
                 format!(
-                    "{} {:.1}×{}",
+                    "{} {}×{}",
                     c.part.name(),
-                    c.ratio,
+                    ratio_text(c.ratio, 1),
                     if c.fitted { "" } else { " (not fitted)" }
                 )
             })
             .collect();
         format!(
-            "the {} law does not fit these data: the residual is {worst:.1}× what the sensor \
+            "the {} law does not fit these data: the residual is {}× what the sensor \
              noise explains (reduced χ²: {}; about 1 when a law fits); its parameters describe \
-             this drop test only, and its intervals are widened √{:.1}×",
+             this drop test only, and its intervals are widened √{}×",
             problem.law,
+            ratio_text(worst, 1),
             each.join(", "),
-            ratio.max(1.0)
+            ratio_text(ratio.max(1.0), 1)
         )
     });
     FitCheck {
@@ -867,9 +868,28 @@ fn notes(u: &Uncertainty, cs: &[Coord]) -> Vec<String> {
     out
 }
 
+/// A ratio as the reports print it: fixed-point with `decimals` below 10⁵, else in e-notation
+/// (a law with as many parameters as error terms has no noise to compare with, and its ratio
+/// runs to 10³⁰).
+pub fn ratio_text(x: f64, decimals: usize) -> String {
+    if x.abs() < 1e5 {
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.1e}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ratios_print_fixed_then_in_e_notation() {
+        assert_eq!(ratio_text(0.67, 1), "0.7");
+        assert_eq!(ratio_text(91.37, 2), "91.37");
+        assert_eq!(ratio_text(99_999.0, 0), "99999");
+        assert_eq!(ratio_text(6.019e30, 1), "6.0e30");
+    }
 
     #[test]
     fn chi2_survival_matches_closed_forms() {

@@ -14,7 +14,9 @@ use crate::config::{Setup, config_text};
 use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, Weights};
 use crate::identify::data::{DropData, NOISE_FLOOR, analyse_drop};
 use crate::identify::fit::{Fit, best_by_aicc, by_aicc, fit_laws};
-use crate::identify::uncertainty::{LACK_OF_FIT_FACTOR, STRONG_CORRELATION, Uncertainty, WIDE_REL};
+use crate::identify::uncertainty::{
+    LACK_OF_FIT_FACTOR, STRONG_CORRELATION, Uncertainty, WIDE_REL, ratio_text,
+};
 use crate::output::{Outputs, distinct_files, given};
 use crate::trace::read_trace;
 use shared::model::rig::IMPACT_SPEEDS_M_S;
@@ -604,8 +606,8 @@ fn print_contact(
                 || "–".to_string(),
                 |c| {
                     format!(
-                        "{:.1}{}",
-                        c.headline_ratio(),
+                        "{}{}",
+                        ratio_text(c.headline_ratio(), 1),
                         if c.misses { " !" } else { "" }
                     )
                 },
@@ -637,7 +639,7 @@ fn print_contact(
         .filter(|f| !f.1.aicc().is_finite())
         .map(|f| format!("{} ({} parameters)", f.0, f.1.parameters()))
         .collect();
-    if !unranked.is_empty() {
+    if fits.len() > 1 && !unranked.is_empty() {
         println!(
             "  ! not ranked by AICc: {} (AICc needs more terms than parameters + 1; the error has {}): \
              fit more impacts or a second trace, or keep the impact times or the profile in the error",
@@ -675,19 +677,19 @@ fn print_contact(
             .iter()
             .map(|(k, c)| {
                 format!(
-                    "{k} (residual {:.1}× the noise{})",
-                    c.headline_ratio(),
+                    "{k} (residual {}× the noise{})",
+                    ratio_text(c.headline_ratio(), 1),
                     c.worst_part().map_or_else(String::new, |p| format!(
-                        ", its {} {:.0}×",
+                        ", its {} {}×",
                         p.part.name(),
-                        p.ratio
+                        ratio_text(p.ratio, 0)
                     ))
                 )
             })
             .collect();
         let fine: Vec<String> = fit
             .iter()
-            .map(|(k, c)| format!("{k} ({:.1}×)", c.headline_ratio()))
+            .map(|(k, c)| format!("{k} ({}×)", ratio_text(c.headline_ratio(), 1)))
             .collect();
         println!(
             "  ! lack of fit (χ²/noise: the residual over what the sensor noise explains, 1 when a \
