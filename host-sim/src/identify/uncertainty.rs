@@ -305,7 +305,10 @@ fn describe_method(method: IntervalMethod, redraws: &Redraws, ratio: f64) -> Str
     match method {
         IntervalMethod::Noise => format!("{boot}; sensor noise only"),
         IntervalMethod::Scaled if ratio > 1.0 => {
-            format!("{boot}; widened by √(reduced χ²) = √{}", ratio_text(ratio, 2))
+            format!(
+                "{boot}; widened by √(reduced χ²) = √{}",
+                ratio_text(ratio, 2)
+            )
         }
         IntervalMethod::Scaled => {
             format!("{boot}; the fit is within the noise (reduced χ² {ratio:.2})")
