@@ -209,7 +209,7 @@ pub(crate) fn resample(samples: &[(f64, f64)], times: impl Iterator<Item = f64>)
 pub struct DropTest {
     /// Rig, release distance, gap and the fit's integrator settings.
     pub setup: DropSetup,
-    /// The measured trace after preprocessing ([`analyse_drop`]).
+    /// The measured trace after preprocessing ([`super::data::analyse_drop`]).
     pub data: DropData,
 }
 
