@@ -12,7 +12,10 @@
 //! What is rejected, with the line number: a value that is not a number or not finite, a
 //! line with too few cells or with more than the first line (empty trailing cells aside: a
 //! decimal comma in a `,`-separated file splits every number in two), a time that does not increase, a sample-rate column that changes;
-//! and files with fewer than [`MIN_SAMPLES`] samples.
+//! a time column whose median step is not the period of the rate the file states (a
+//! `sample_rate_hz` column or metadata line; within [`RATE_TOLERANCE`], naming the
+//! `--time-unit` that would explain the difference); and files with fewer than
+//! [`MIN_SAMPLES`] samples.
 //!
 //! [`LabTable`] is the one reader of such files (traces here, measured responses in
 //! [`crate::comparison`]).
@@ -43,6 +46,15 @@ impl TimeUnit {
             TimeUnit::S => 1.0,
             TimeUnit::Ms => 1e-3,
             TimeUnit::Us => 1e-6,
+        }
+    }
+
+    /// The unit as `--time-unit` names it.
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeUnit::S => "s",
+            TimeUnit::Ms => "ms",
+            TimeUnit::Us => "us",
         }
     }
 }
@@ -413,7 +425,8 @@ pub fn trace_from_table(table: &LabTable, format: &TraceFormat, what: &str) -> R
                 );
             }
             t.push(ts);
-        } else if let Some(rc) = rate_col {
+        }
+        if let Some(rc) = rate_col {
             let r = row.number(rc, "sample rate")?;
             match rate_from_col {
                 None => {
@@ -433,6 +446,12 @@ pub fn trace_from_table(table: &LabTable, format: &TraceFormat, what: &str) -> R
         "{} samples: at least {MIN_SAMPLES} are needed",
         v.len()
     );
+    let stated = rate_from_col
+        .map(|r| (r, "the `sample_rate_hz` column"))
+        .or(meta_rate.map(|r| (r, "the `# sample_rate_hz` line")));
+    if let (Some((rate, source)), false) = (stated, t.is_empty()) {
+        check_time_step(&t, rate, source, format.time_to_s)?;
+    }
     if t.is_empty() {
         let rate = format
             .sample_rate_hz
@@ -443,6 +462,45 @@ pub fn trace_from_table(table: &LabTable, format: &TraceFormat, what: &str) -> R
         t = (0..v.len()).map(|i| i as f64 / rate).collect();
     }
     Ok(Trace { t_s: t, value: v })
+}
+
+/// Largest relative difference between a time column's median step and the file's stated
+/// sample period that [`trace_from_table`] accepts.
+pub const RATE_TOLERANCE: f64 = 0.01;
+
+/// Checks that the median step of the time column `t` (s, read with `time_to_s` s per unit)
+/// is the period of the `rate` (Hz) that `source` states, within [`RATE_TOLERANCE`]; a
+/// mismatch by a factor that another [`TimeUnit`] explains names that unit.
+fn check_time_step(t: &[f64], rate: f64, source: &str, time_to_s: f64) -> Result<()> {
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if steps.is_empty() {
+        return Ok(());
+    }
+    let mid = steps.len() / 2;
+    let (_, &mut median, _) = steps.select_nth_unstable_by(mid, f64::total_cmp);
+    let factor = median * rate;
+    if (factor - 1.0).abs() <= RATE_TOLERANCE {
+        return Ok(());
+    }
+    let unit = [TimeUnit::S, TimeUnit::Ms, TimeUnit::Us]
+        .into_iter()
+        .find(|u| (u.to_s() / (time_to_s / factor) - 1.0).abs() <= RATE_TOLERANCE);
+    let hint = match unit {
+        Some(u) => format!(
+            "the time column reads as if it were in {} (--time-unit {})",
+            u.name(),
+            u.name()
+        ),
+        None => "is the time column in the unit --time-unit says (s, ms or us), and is the \
+                 stated rate this file's?"
+            .to_string(),
+    };
+    bail!(
+        "the time column steps {median:.3e} s (median) but {source} says {rate} Hz, a period of \
+         {:.3e} s ({factor:.3}× apart, more than {} %): {hint}",
+        1.0 / rate,
+        RATE_TOLERANCE * 100.0
+    )
 }
 
 #[cfg(test)]
@@ -502,6 +560,61 @@ mod tests {
         let text = format!("force_n\n{}", body(20, |i| format!("{i}")));
         let e = parse_trace(&text, &fmt("t_s", "force_n", None), "force").unwrap_err();
         assert!(format!("{e:#}").contains("no time base"), "{e:#}");
+    }
+
+    #[test]
+    fn a_time_column_must_step_at_the_stated_rate() {
+        // 20 samples 1 ms apart, the time in ms, and a stated rate of 1 kHz.
+        let ms = |rate_line: &str, rate_cell: &str| {
+            format!(
+                "{rate_line}t,force_n{}\n{}",
+                if rate_cell.is_empty() {
+                    ""
+                } else {
+                    ",sample_rate_hz"
+                },
+                body(20, |i| format!("{i},{i}{rate_cell}"))
+            )
+        };
+        let mut f = fmt("t", "force_n", None);
+        f.time_to_s = 1e-3;
+        let tr = parse_trace(&ms("# sample_rate_hz = 1000\n", ""), &f, "force").unwrap();
+        assert_eq!(tr.t_s[19], 19e-3);
+        parse_trace(&ms("", ",1000"), &f, "force").unwrap();
+        // Read as s: 1000× the period, named as ms.
+        let error = |text: &str, f: &TraceFormat| {
+            format!("{:#}", parse_trace(text, f, "force").unwrap_err())
+        };
+        let s = fmt("t", "force_n", None);
+        let e = error(&ms("# sample_rate_hz = 1000\n", ""), &s);
+        for said in [
+            "steps 1.000e0 s (median)",
+            "the `# sample_rate_hz` line says 1000 Hz, a period of 1.000e-3 s",
+            "(1000.000× apart",
+            "(--time-unit ms)",
+        ] {
+            assert!(e.contains(said), "{said:?} not in {e}");
+        }
+        let e = error(&ms("", ",1000"), &s);
+        assert!(
+            e.contains("the `sample_rate_hz` column says 1000 Hz"),
+            "{e}"
+        );
+        // In µs read as ms: named as us.
+        let e = error(&ms("# sample_rate_hz = 1e6\n", ""), &f);
+        assert!(e.contains("(--time-unit us)"), "{e}");
+        // 2 % off: no unit explains it.
+        let e = error(&ms("# sample_rate_hz = 1020\n", ""), &f);
+        assert!(e.contains("is the stated rate this file's?"), "{e}");
+        // Within 1 %, and an explicit --sample-rate-hz (the time column unread): accepted.
+        parse_trace(&ms("# sample_rate_hz = 1005\n", ""), &f, "force").unwrap();
+        let tr = parse_trace(
+            &ms("# sample_rate_hz = 1020\n", ""),
+            &fmt("t", "force_n", Some(1020.0)),
+            "force",
+        )
+        .unwrap();
+        assert_eq!(tr.t_s[1], 1.0 / 1020.0);
     }
 
     #[test]

@@ -134,7 +134,7 @@ fn assert_coverage(
         .iter()
         .map(|f| &f.uncertainty.as_ref().unwrap().fit_check)
         .filter(|c| c.misses)
-        .map(|c| c.headline_ratio())
+        .filter_map(|c| c.headline_ratio())
         .collect();
     assert!(
         flagged.len() * 100 <= 5 * n,

@@ -31,7 +31,11 @@
 //! their mean over the redraws are the reduced χ² of each part, `ρ = J / E[J]` (1 when the law
 //! fits; the redraws' relative standard deviation is its expected spread). A part misses the
 //! data when `ρ > LACK_OF_FIT_FACTOR` and `J` lies above every redraw's: then the law does not
-//! fit these data, and the notes say so instead of asking for more data.
+//! fit these data, and the notes say so instead of asking for more data. With no more fitted
+//! terms than parameters the fit (and each redraw's) follows every fitted term, so `J` and
+//! `E[J]` are both residuals of nothing: the fitted parts are not tested then
+//! ([`FitCheck::testable`]), only the parts the fit leaves out, and the intervals are not
+//! scaled.
 //!
 //! ## Intervals ([`IntervalMethod`])
 //! - `scaled` (default): `C = max(1, ρ) · C_noise`, `ρ` the reduced χ² of the error as fitted
@@ -163,11 +167,20 @@ pub struct FitCheck {
     pub ratio: f64,
     /// Whether some part misses the data.
     pub misses: bool,
+    /// The fitted error's degrees of freedom: its terms (those with weight) less the law's
+    /// parameters. At 0 or below the fit can follow every fitted term, so the fitted parts
+    /// cannot test the law ([`FitCheck::testable`]): only a part the fit leaves out can.
+    pub degrees_of_freedom: i64,
     /// What it means, in words (`None` when the law fits).
     pub note: Option<String>,
 }
 
 impl FitCheck {
+    /// Whether the fitted error can test the law: more terms than parameters.
+    pub fn testable(&self) -> bool {
+        self.degrees_of_freedom > 0
+    }
+
     /// The part that misses the data by the largest ratio, if any.
     pub fn worst_part(&self) -> Option<&PartCheck> {
         self.parts
@@ -177,13 +190,15 @@ impl FitCheck {
     }
 
     /// The residual over what the noise explains, in one number: the fitted error's ratio, or
-    /// an unfitted part's (the profile of a peaks fit) if that one misses the data by more.
-    pub fn headline_ratio(&self) -> f64 {
+    /// an unfitted part's (the profile of a peaks fit) if that one misses the data by more;
+    /// `None` when neither says anything (no degrees of freedom, no unfitted part missing).
+    pub fn headline_ratio(&self) -> Option<f64> {
+        let fitted = self.testable().then_some(self.ratio);
         self.parts
             .iter()
             .filter(|p| p.misses && !p.fitted)
             .map(|p| p.ratio)
-            .fold(self.ratio, f64::max)
+            .fold(fitted, |acc, r| Some(acc.map_or(r, |a| a.max(r))))
     }
 }
 
@@ -268,10 +283,15 @@ impl Uncertainty {
             mean: self.mean.clone(),
             covariance: self.covariance.clone(),
             method: Some(self.method.clone()),
-            lack_of_fit: self.fit_check.note.as_ref().map(|note| LackOfFit {
-                residual_over_noise: self.fit_check.headline_ratio(),
-                note: note.clone(),
-            }),
+            lack_of_fit: self
+                .fit_check
+                .note
+                .as_ref()
+                .zip(self.fit_check.headline_ratio())
+                .map(|(note, ratio)| LackOfFit {
+                    residual_over_noise: ratio,
+                    note: note.clone(),
+                }),
         }
     }
 
@@ -281,12 +301,12 @@ impl Uncertainty {
         let mut u = self.clone();
         let p = u.mean.len();
         let scale = match method {
-            IntervalMethod::Noise => 1.0,
-            IntervalMethod::Scaled => self.fit_check.ratio.max(1.0),
+            IntervalMethod::Scaled if self.fit_check.testable() => self.fit_check.ratio.max(1.0),
+            _ => 1.0,
         };
         let cov = DMatrix::from_fn(p, p, |i, j| self.noise_covariance[i][j] * scale);
         u.intervals = method;
-        u.method = describe_method(method, &self.redraws, self.fit_check.ratio);
+        u.method = describe_method(method, &self.redraws, &self.fit_check);
         u.covariance = rows(&cov);
         let cs = coords(self.law);
         let free: Vec<bool> = (0..p).map(|i| !cov[(i, i)].is_finite()).collect();
@@ -297,13 +317,18 @@ impl Uncertainty {
     }
 }
 
-fn describe_method(method: IntervalMethod, redraws: &Redraws, ratio: f64) -> String {
+fn describe_method(method: IntervalMethod, redraws: &Redraws, check: &FitCheck) -> String {
     let boot = format!(
         "parametric bootstrap: {}, one Gauss–Newton step each",
         redraws.describe()
     );
+    let ratio = check.ratio;
     match method {
         IntervalMethod::Noise => format!("{boot}; sensor noise only"),
+        IntervalMethod::Scaled if !check.testable() => format!(
+            "{boot}; sensor noise only: the fitted error has no degrees of freedom to measure \
+             a misfit by"
+        ),
         IntervalMethod::Scaled if ratio > 1.0 => {
             format!(
                 "{boot}; widened by √(reduced χ²) = √{}",
@@ -600,6 +625,8 @@ fn check_fit(
     used: &[Redrawn],
 ) -> FitCheck {
     let (measured, cost) = sums(r, parts, w);
+    let fitted_terms = w.iter().filter(|wi| **wi > 0.0).count();
+    let degrees_of_freedom = fitted_terms as i64 - coords(problem.law).len() as i64;
     let nu = used.len() as f64;
     let stats = |values: &mut dyn Iterator<Item = f64>| {
         let v: Vec<f64> = values.collect();
@@ -620,11 +647,16 @@ fn check_fit(
         // The redraws' J/E[J] as χ²_ν/ν with the same spread (Satterthwaite): ν = 2/spread².
         let nu = 2.0 / spread.max(1e-6).powi(2);
         let p_value = chi2_sf(nu * ratio, nu);
-        let misses = ratio > LACK_OF_FIT_FACTOR && p_value < LACK_OF_FIT_P;
+        let fitted = parts.iter().zip(w).any(|(p, wi)| p == part && *wi > 0.0);
+        // (A fitted part without degrees of freedom is followed by the redraws' fits too:
+        // its ratio compares two residuals of nothing.)
+        let misses = ratio > LACK_OF_FIT_FACTOR
+            && p_value < LACK_OF_FIT_P
+            && (degrees_of_freedom > 0 || !fitted);
         checks.push(PartCheck {
             part: *part,
             terms,
-            fitted: parts.iter().zip(w).any(|(p, wi)| p == part && *wi > 0.0),
+            fitted,
             j: measured[k],
             expected: mean,
             ratio,
@@ -642,32 +674,34 @@ fn check_fit(
             .iter()
             .filter(|c| c.misses && !c.fitted)
             .map(|c| c.ratio)
-            .fold(ratio, f64::max);
+            .fold(if degrees_of_freedom > 0 { ratio } else { 0.0 }, f64::max);
         let each: Vec<String> = checks
             .iter()
-            .map(|c| {
-                format!(
-                    "{} {}×{}",
-                    c.part.name(),
-                    ratio_text(c.ratio, 1),
-                    if c.fitted { "" } else { " (not fitted)" }
-                )
+            .map(|c| match (c.fitted, degrees_of_freedom > 0) {
+                (true, true) => format!("{} {}×", c.part.name(), ratio_text(c.ratio, 1)),
+                (true, false) => format!("{} – (fitted without degrees of freedom)", c.part.name()),
+                (false, _) => format!("{} {}× (not fitted)", c.part.name(), ratio_text(c.ratio, 1)),
             })
             .collect();
         format!(
             "the {} law does not fit these data: the residual is {}× what the sensor \
              noise explains (reduced χ²: {}; about 1 when a law fits); its parameters describe \
-             this drop test only, and its intervals are widened √{}×",
+             this drop test only, and its intervals are {}",
             problem.law,
             ratio_text(worst, 1),
             each.join(", "),
-            ratio_text(ratio.max(1.0), 1)
+            if degrees_of_freedom > 0 {
+                format!("widened √{}×", ratio_text(ratio.max(1.0), 1))
+            } else {
+                "the sensor noise's (the fitted error cannot scale them)".to_string()
+            }
         )
     });
     FitCheck {
         parts: checks,
         ratio,
         misses,
+        degrees_of_freedom,
         note,
     }
 }
@@ -762,6 +796,20 @@ fn notes(u: &Uncertainty, cs: &[Coord]) -> Vec<String> {
     if let Some(n) = &u.fit_check.note {
         out.push(n.clone());
     }
+    if !u.fit_check.testable() {
+        let p = cs.len() as i64;
+        out.push(format!(
+            "the fitted error has {} terms for the law's {p} parameters: the fit can follow \
+             every one, so its residual cannot tell whether the {} law fits{}",
+            p + u.fit_check.degrees_of_freedom,
+            u.law,
+            if u.fit_check.parts.iter().any(|c| !c.fitted) {
+                " (the parts it leaves out still can)"
+            } else {
+                ""
+            }
+        ));
+    }
     for (c, par) in cs.iter().zip(&u.params) {
         if let Some((lo, hi)) = c.bounds
             && (par.value <= lo + 1e-3 * (hi - lo) || par.value >= hi - 1e-3 * (hi - lo))
@@ -822,9 +870,9 @@ fn notes(u: &Uncertainty, cs: &[Coord]) -> Vec<String> {
                     }
                 });
             out.push(format!(
-                "{} is fixed to ±{:.0} % only (95 %){}",
+                "{} is fixed to ±{} % only (95 %){}",
                 par.name,
-                100.0 * par.rel_half_width(),
+                ratio_text(100.0 * par.rel_half_width(), 0),
                 partner.map_or(String::new(), |q| format!(
                     ", through its trade-off with {q}"
                 ))
@@ -842,6 +890,13 @@ fn notes(u: &Uncertainty, cs: &[Coord]) -> Vec<String> {
                     .to_string(),
             );
         } else {
+            if !u.fit_check.testable() {
+                fixes.push(
+                    "more terms than parameters: more impacts or a second trace, or the impact \
+                     times or the profile in the error"
+                        .to_string(),
+                );
+            }
             if !u.profile_fitted {
                 if spc >= PROFILE_MIN_SAMPLES {
                     fixes.push(format!(
@@ -871,9 +926,8 @@ fn notes(u: &Uncertainty, cs: &[Coord]) -> Vec<String> {
     out
 }
 
-/// A ratio as the reports print it: fixed-point with `decimals` below 10⁵, else in e-notation
-/// (a law with as many parameters as error terms has no noise to compare with, and its ratio
-/// runs to 10³⁰).
+/// A ratio or a percentage as the reports print it: fixed-point with `decimals` below 10⁵,
+/// else in e-notation (a misfit of 3·10⁵, an interval of ±10¹¹ % along a trade-off).
 pub fn ratio_text(x: f64, decimals: usize) -> String {
     if x.abs() < 1e5 {
         format!("{x:.decimals$}")

@@ -379,7 +379,7 @@ fn print_uncertainty(label: &str, u: &Result<Uncertainty, String>, restitution: 
     );
     for p in &u.params {
         let width = if p.sd.is_finite() {
-            format!("±{:.1} %", 100.0 * p.rel_half_width())
+            format!("±{} %", ratio_text(100.0 * p.rel_half_width(), 1))
         } else {
             "not identifiable".to_string()
         };
@@ -602,16 +602,13 @@ fn print_contact(
             label: k.to_string(),
             params: describe_law(&f.law),
             r: &f.residual,
-            chi2: check(f).map_or_else(
-                || "–".to_string(),
-                |c| {
-                    format!(
-                        "{}{}",
-                        ratio_text(c.headline_ratio(), 1),
-                        if c.misses { " !" } else { "" }
-                    )
-                },
-            ),
+            chi2: check(f)
+                .and_then(|c| {
+                    c.headline_ratio().map(|r| {
+                        format!("{}{}", ratio_text(r, 1), if c.misses { " !" } else { "" })
+                    })
+                })
+                .unwrap_or_else(|| "–".to_string()),
             e: e.map_or_else(|| "–".to_string(), |e| format!("{e:.3}")),
             aicc: if f.aicc().is_finite() {
                 format!("{:.1}", f.aicc() - best_aicc)
@@ -667,18 +664,23 @@ fn print_contact(
             }
         );
     }
-    // Lack of fit, said for every law: which miss the data, which fit to the noise.
+    // Lack of fit, said for every law: which miss the data, which fit to the noise (those
+    // whose fitted error has no degrees of freedom are neither: their own notes say so).
     let (miss, fit): (Vec<_>, Vec<_>) = ranked
         .iter()
         .filter_map(|(k, f)| check(f).map(|c| (*k, c)))
         .partition(|(_, c)| c.misses);
+    let (fit, untested): (Vec<_>, Vec<_>) = fit
+        .into_iter()
+        .map(|(k, c)| (k, c.headline_ratio()))
+        .partition(|(_, r)| r.is_some());
     if !miss.is_empty() {
         let said: Vec<String> = miss
             .iter()
             .map(|(k, c)| {
                 format!(
                     "{k} (residual {}× the noise{})",
-                    ratio_text(c.headline_ratio(), 1),
+                    ratio_text(c.headline_ratio().unwrap_or(f64::NAN), 1),
                     c.worst_part().map_or_else(String::new, |p| format!(
                         ", its {} {}×",
                         p.part.name(),
@@ -689,13 +691,22 @@ fn print_contact(
             .collect();
         let fine: Vec<String> = fit
             .iter()
-            .map(|(k, c)| format!("{k} ({}×)", ratio_text(c.headline_ratio(), 1)))
+            .map(|(k, r)| format!("{k} ({}×)", ratio_text(r.unwrap_or(f64::NAN), 1)))
             .collect();
+        let untested: Vec<String> = untested.iter().map(|(k, _)| k.to_string()).collect();
         println!(
             "  ! lack of fit (χ²/noise: the residual over what the sensor noise explains, 1 when a \
-             law fits; ! beyond {LACK_OF_FIT_FACTOR}× and the noise's reach): {} {} not fit these data{}",
+             law fits; ! beyond {LACK_OF_FIT_FACTOR}× and the noise's reach): {} {} not fit these data{}{}",
             said.join(", "),
             if miss.len() == 1 { "does" } else { "do" },
+            if untested.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; {} cannot be tested (as many error terms as parameters)",
+                    untested.join(", ")
+                )
+            },
             if fine.is_empty() && fits.len() > 1 {
                 String::from("; no law fits to the noise")
             } else if fine.is_empty() {
