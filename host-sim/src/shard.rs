@@ -301,8 +301,9 @@ impl ShardFile {
         let mut file = File::open(path).map_err(|e| {
             // EMFILE: every shard stays open while they are merged.
             let hint = if e.raw_os_error() == Some(24) {
-                " (every shard is open while they merge: raise the limit of open files, e.g. \
-                 `ulimit -n 8192`, above the number of shards)"
+                " (every shard is open while they merge, and merge raised its limit of open \
+                 files as far as the hard limit allows: raise that above the number of shards, \
+                 e.g. `ulimit -Hn 8192` where permitted, or ask for it on the cluster)"
             } else {
                 ""
             };
@@ -348,6 +349,23 @@ impl ShardFile {
     }
 }
 
+/// Files a merge may hold open besides its shards (standard streams, the outputs, the
+/// figures' fonts).
+const SPARE_FILES: u64 = 64;
+
+/// Raises this process's soft limit of open files towards `needed` (as far as the hard limit
+/// allows; a limit it cannot read or raise stays, and opening the shards says so): a SLURM
+/// array of 1,000 tasks makes 1,000 shards, which a merge holds open together, where the
+/// usual soft limit is 1,024.
+fn allow_open_files(needed: u64) {
+    use nix::sys::resource::{Resource, getrlimit, setrlimit};
+    if let Ok((soft, hard)) = getrlimit(Resource::RLIMIT_NOFILE)
+        && soft < needed
+    {
+        let _ = setrlimit(Resource::RLIMIT_NOFILE, needed.min(hard), hard);
+    }
+}
+
 /// Opens every shard, checks that they are of one kind (`kind` if given) with identical
 /// metadata apart from the shard, and returns them with the shared metadata (shard removed).
 ///
@@ -357,6 +375,7 @@ pub fn open_all(paths: &[PathBuf], kind: Option<Kind>) -> Result<(Meta, Vec<Shar
     if paths.is_empty() {
         bail!("merge: give at least one shard CSV");
     }
+    allow_open_files(paths.len() as u64 + SPARE_FILES);
     let files: Vec<ShardFile> = paths
         .iter()
         .map(|p| ShardFile::open(p))

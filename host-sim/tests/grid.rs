@@ -106,6 +106,35 @@ fn peterka_shards_merge_to_the_one_run_bytes() {
     assert!(lines[6].starts_with("5,0.1,"), "{}", lines[6]);
 }
 
+/// A SLURM array of many tasks makes more shards than a shell's usual soft limit of open files
+/// allows at once (1,024): `merge`, which holds them all open, raises its soft limit as far as
+/// the hard one allows. Here 40 shards under a soft limit of 32.
+#[test]
+fn merge_takes_more_shards_than_the_soft_limit_of_open_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let grid = "peterka --rig wires --gap-mm 0:0.3:0.1 --omega-ratio 1.2:3.0:0.2";
+    let one = dir.path().join("one.csv");
+    ok(&line(&format!("{grid} --out {}", s(&one))));
+    let shards: Vec<String> = (0..40)
+        .map(|i| {
+            let p = dir.path().join(format!("shard{i}.csv"));
+            ok(&line(&format!("{grid} --shard {i}/40 --out {}", s(&p))));
+            s(&p).to_string()
+        })
+        .collect();
+    let merged = dir.path().join("merged.csv");
+    let status = std::process::Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -Sn 32 && exec \"$0\" \"$@\"")
+        .arg(assert_cmd::cargo::cargo_bin("host-sim"))
+        .args(["merge", "--out", s(&merged)])
+        .args(&shards)
+        .status()
+        .unwrap();
+    assert!(status.success(), "merge under ulimit -Sn 32: {status}");
+    assert_eq!(fs::read(&one).unwrap(), fs::read(&merged).unwrap());
+}
+
 #[test]
 fn basins_fractions_and_bifurcation_shards_merge_to_the_one_run_bytes() {
     let dir = tempfile::tempdir().unwrap();
