@@ -167,24 +167,21 @@ pub fn run(a: &RigArgs) -> Result<()> {
     );
     // Check the subcommand's own arguments before touching the rig.
     let port = [("--port", a.port.as_path())];
+    let outputs = |out: &Path, plot: Option<&Path>| {
+        distinct_files(&port, &given(&[("--out", Some(out)), ("--plot", plot)]))
+    };
     match &a.what {
-        RigCommand::Log(LogArgs { out, plot, .. })
-        | RigCommand::Sweep(SweepArgs { out, plot, .. }) => {
-            distinct_files(
-                &port,
-                &given(&[("--out", Some(out)), ("--plot", plot.as_deref())]),
-            )?;
+        RigCommand::Log(l) => {
+            outputs(&l.out, l.plot.as_deref())?;
+            ensure!(
+                l.seconds.is_finite() && l.seconds > 0.0 && l.seconds <= 86_400.0,
+                "--seconds = {} is out of range: allowed (0, 86400]",
+                l.seconds
+            );
         }
-        RigCommand::Capture(c) => distinct_files(&port, &[("--out", c.out.as_path())])?,
-        _ => {}
-    }
-    match &a.what {
-        RigCommand::Log(l) => ensure!(
-            l.seconds.is_finite() && l.seconds > 0.0 && l.seconds <= 86_400.0,
-            "--seconds = {} is out of range: allowed (0, 86400]",
-            l.seconds
-        ),
+        RigCommand::Sweep(s) => outputs(&s.out, s.plot.as_deref())?,
         RigCommand::Capture(c) => {
+            distinct_files(&port, &[("--out", c.out.as_path())])?;
             ensure!(
                 c.level_n.is_finite() && (0.1..=100.0).contains(&c.level_n),
                 "--level-n = {} is out of range: allowed 0.1 ..= 100",
