@@ -374,6 +374,41 @@ fn identify_contact_says_what_it_floored_left_out_or_cannot_rank() {
     assert!(!text.contains("best by more than 2"), "{text}");
 }
 
+/// A drop recorded at 1 kHz: each contact (about 0.7 ms) falls on one sample at most, which
+/// stands alone like a glitch; the refusal says so and asks for a faster record.
+#[test]
+fn identify_contact_says_when_the_sampling_steps_over_the_contacts() {
+    let dir = tempfile::tempdir().unwrap();
+    let slow = dir.path().join("slow.csv");
+    let said = ok(&line(&format!(
+        "drop --sample-rate-hz 1000 --noise-pct 1 --out {}",
+        slow.display()
+    )));
+    // The spring–dashpot contact of Table 3.1 from 3 mm: π √(m/k_i) = 0.73 ms undamped, 0.57 ms
+    // with c_i.
+    for part in [
+        "the first contact lasts 0.574 ms",
+        "0.6 samples at 1000 Hz",
+        "fewer than the 3 that time an impact",
+    ] {
+        assert!(said.contains(part), "{part:?} not in {said}");
+    }
+    rejected(
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot",
+            slow.display()
+        )),
+        &[
+            "no impact stands out of the noise",
+            "the largest sample, 11.63",
+            "stands out alone",
+            "contacts shorter than the sampling step (1.0000 ms, 1000 Hz)",
+            "record faster",
+        ],
+        &[],
+    );
+}
+
 #[test]
 fn identify_free_gives_the_beam_suspension() {
     let dir = tempfile::tempdir().unwrap();

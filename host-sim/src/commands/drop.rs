@@ -13,6 +13,7 @@ use shared::error::check_range;
 
 use crate::config::RigOpts;
 use crate::config::Setup;
+use crate::identify::cost::{PROFILE_MIN_SAMPLES, simulate_drop};
 use crate::identify::synth::{
     Recorded, Sensor, TRUTH_STEPS, clean_record, record_displacement, synthetic_drop,
 };
@@ -153,5 +154,38 @@ pub fn run(a: &DropArgs) -> Result<()> {
         a.duration_s,
         peak
     );
+    if a.record == Recorded::Force {
+        // How finely the record resolves a contact: what `identify contact` can do with it.
+        let sim = simulate_drop(&setup.params, &spec, &TRUTH_STEPS, false)?;
+        if let Some(first) = sim.impacts.first()
+            && let (Some(a0), Some(a1)) = (first.profile.first(), first.profile.last())
+        {
+            let half: Vec<f64> = first
+                .profile
+                .iter()
+                .filter(|(_, f)| *f > 0.5 * first.peak_n)
+                .map(|(t, _)| *t)
+                .collect();
+            let fwhm = half.last().zip(half.first()).map_or(0.0, |(b, a)| b - a);
+            let (lasts, at_half) = (a1.0 - a0.0, fwhm);
+            let (n_lasts, n_half) = (lasts * a.sample_rate_hz, at_half * a.sample_rate_hz);
+            println!(
+                "  the first contact lasts {:.3} ms ({:.3} ms at half maximum): {n_lasts:.1} \
+                 samples at {} Hz ({n_half:.1} at half maximum); {}",
+                1e3 * lasts,
+                1e3 * at_half,
+                a.sample_rate_hz,
+                if n_lasts < 3.0 {
+                    "fewer than the 3 that time an impact: `identify contact` cannot use this \
+                     record, record faster"
+                } else if n_half < PROFILE_MIN_SAMPLES {
+                    "enough to time the impacts; the profile error wants 8 or more at half \
+                     maximum"
+                } else {
+                    "enough for the profile error"
+                }
+            );
+        }
+    }
     Ok(())
 }

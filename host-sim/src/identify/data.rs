@@ -217,9 +217,21 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
         } else {
             String::new()
         };
+        // A largest sample that stands alone: a glitch, or contacts the sampling steps over.
+        let alone = spike.map_or(String::new(), |s| {
+            let dt = trace.t_s[1] - trace.t_s[0];
+            format!(
+                "; the largest sample, {s:.4} N, stands out alone (the largest held over \
+                 three samples is the {fmax:.4} N above): a glitch, or contacts shorter than \
+                 the sampling step ({:.4} ms, {:.0} Hz) — record faster (`rig capture` \
+                 records at 100 kHz)",
+                1e3 * dt,
+                1.0 / dt
+            )
+        });
         anyhow::bail!(
             "no impact stands out of the noise: largest force {fmax:.4} N above the offset \
-             {offset:.4} N, noise {noise:.4} N{inverted}"
+             {offset:.4} N, noise {noise:.4} N{inverted}{alone}"
         );
     }
     let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
