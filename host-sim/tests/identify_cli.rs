@@ -354,6 +354,7 @@ fn identify_contact_says_what_it_floored_left_out_or_cannot_rank() {
     )));
     for said in [
         "(the floor, 0.1 % of the largest force",
+        "the sampling limits the fit, by more than the intervals say below 100 kHz",
         "3 impacts",
         "(the next, 1.29 N, is below twice the detection threshold 1.24 N",
         "! not ranked by AICc: spring-dashpot (2 parameters)",

@@ -492,7 +492,9 @@ fn print_contact(
             data.noise_n,
             if data.noise_floored {
                 format!(
-                    " (the floor, {} % of the largest force: the trace's own noise is below it)",
+                    " (the floor, {} % of the largest force: the trace's own noise is below \
+                     it; at this level the sampling limits the fit, by more than the intervals \
+                     say below 100 kHz: docs/identification.md, \"A quiet sensor\")",
                     100.0 * NOISE_FLOOR
                 )
             } else {
