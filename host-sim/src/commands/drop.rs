@@ -178,11 +178,14 @@ pub fn run(a: &DropArgs) -> Result<()> {
                 if n_lasts < 3.0 {
                     "fewer than the 3 that time an impact: `identify contact` cannot use this \
                      record, record faster"
+                        .to_string()
                 } else if n_half < PROFILE_MIN_SAMPLES {
-                    "enough to time the impacts; the profile error wants 8 or more at half \
-                     maximum"
+                    format!(
+                        "enough to time the impacts; the profile error wants \
+                         {PROFILE_MIN_SAMPLES:.0} or more at half maximum"
+                    )
                 } else {
-                    "enough for the profile error"
+                    "enough for the profile error".to_string()
                 }
             );
         }
