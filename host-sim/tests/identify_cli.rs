@@ -375,7 +375,7 @@ fn identify_contact_says_what_it_floored_left_out_or_cannot_rank() {
     assert!(!text.contains("best by more than 2"), "{text}");
 }
 
-/// A drop recorded at 1 kHz: each contact (about 0.7 ms) falls on one sample at most, which
+/// A drop recorded at 1 kHz: each contact (about 0.6 ms) falls on one sample at most, which
 /// stands alone like a glitch; the refusal says so and asks for a faster record.
 #[test]
 fn identify_contact_says_when_the_sampling_steps_over_the_contacts() {

@@ -157,17 +157,8 @@ pub fn run(a: &DropArgs) -> Result<()> {
     if a.record == Recorded::Force {
         // How finely the record resolves a contact: what `identify contact` can do with it.
         let sim = simulate_drop(&setup.params, &spec, &TRUTH_STEPS, false)?;
-        if let Some(first) = sim.impacts.first()
-            && let (Some(a0), Some(a1)) = (first.profile.first(), first.profile.last())
-        {
-            let half: Vec<f64> = first
-                .profile
-                .iter()
-                .filter(|(_, f)| *f > 0.5 * first.peak_n)
-                .map(|(t, _)| *t)
-                .collect();
-            let fwhm = half.last().zip(half.first()).map_or(0.0, |(b, a)| b - a);
-            let (lasts, at_half) = (a1.0 - a0.0, fwhm);
+        if let Some(first) = sim.impacts.first() {
+            let (lasts, at_half) = (first.duration_s(), first.fwhm_s());
             let (n_lasts, n_half) = (lasts * a.sample_rate_hz, at_half * a.sample_rate_hz);
             println!(
                 "  the first contact lasts {:.3} ms ({:.3} ms at half maximum): {n_lasts:.1} \

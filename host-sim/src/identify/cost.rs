@@ -103,6 +103,26 @@ pub struct SimImpact {
 }
 
 impl SimImpact {
+    /// How long the contact lasts, s (its profile's span).
+    pub fn duration_s(&self) -> f64 {
+        match (self.profile.first(), self.profile.last()) {
+            (Some(a), Some(b)) => b.0 - a.0,
+            _ => 0.0,
+        }
+    }
+
+    /// Its width at half maximum, s (between the first and last profile samples above half the
+    /// peak).
+    pub fn fwhm_s(&self) -> f64 {
+        let mut above = self
+            .profile
+            .iter()
+            .filter(|(_, f)| *f > 0.5 * self.peak_n)
+            .map(|(t, _)| *t);
+        let first = above.next();
+        first.map_or(0.0, |a| above.next_back().unwrap_or(a) - a)
+    }
+
     /// Linear interpolation of the force at `t` (0 outside the episode).
     pub fn force_at(&self, t: f64) -> f64 {
         let p = &self.profile;

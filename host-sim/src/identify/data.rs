@@ -179,18 +179,14 @@ pub(crate) fn analyse_redraw(trace: &Trace, impacts: usize) -> Result<DropData> 
 fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData> {
     let mut sorted = trace.value.clone();
     let offset = median(&mut sorted);
-    let mut dev: Vec<f64> = trace.value.iter().map(|v| (v - offset).abs()).collect();
-    let sample_max = trace
-        .value
-        .iter()
-        .map(|v| v - offset)
-        .fold(f64::NEG_INFINITY, f64::max);
+    let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
+    let mut dev: Vec<f64> = f.iter().map(|v| v.abs()).collect();
+    let sample_max = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     // The largest force held over three samples: a glitch of one or two samples far above
     // every impact is not one, and must not set the threshold above them.
-    let held = trace
-        .value
+    let held = f
         .windows(3)
-        .map(|w| w[0].min(w[1]).min(w[2]) - offset)
+        .map(|w| w[0].min(w[1]).min(w[2]))
         .fold(f64::NEG_INFINITY, f64::max);
     let (fmax, spike) = if held > 0.0 && held < SPIKE_RATIO * sample_max {
         (held, Some(sample_max))
@@ -202,11 +198,7 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
     if fmax <= 10.0 * noise {
         // An impact presses the sensor: a trace whose pulses stand out below the offset was
         // recorded with the opposite sign.
-        let fmin = trace
-            .value
-            .iter()
-            .map(|v| v - offset)
-            .fold(f64::INFINITY, f64::min);
+        let fmin = f.iter().copied().fold(f64::INFINITY, f64::min);
         let inverted = if -fmin > 10.0 * noise {
             format!(
                 "; its pulses point the other way ({:.4} N below the offset): an impact \
@@ -234,7 +226,6 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
              {offset:.4} N, noise {noise:.4} N{inverted}{alone}"
         );
     }
-    let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
     let t = &trace.t_s;
     let threshold = (5.0 * noise).max(0.03 * fmax);
     // Runs above the threshold.
