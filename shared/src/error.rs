@@ -77,7 +77,7 @@ impl fmt::Display for ParamError {
                 value,
                 min,
                 max,
-            } => out_of_range(f, field, &value, &min, &max),
+            } => out_of_range(f, field, &value, &Bound::min(min), &Bound::max(max)),
             ParamError::OutOfHalfOpenRange {
                 field,
                 value,
@@ -85,7 +85,9 @@ impl fmt::Display for ParamError {
                 max,
             } => write!(
                 f,
-                "`{field}` = {value} is out of range: allowed {min} ≤ {field} < {max}"
+                "`{field}` = {value} is out of range: allowed {} ≤ {field} < {}",
+                Bound::min(min),
+                Bound::max(max)
             ),
             ParamError::CountOutOfRange {
                 field,
@@ -112,6 +114,44 @@ fn out_of_range(
         f,
         "`{field}` = {value} is out of range: allowed {min} ..= {max}"
     )
+}
+
+/// A bound of an allowed range as a reader takes it: as it is when 8 significant digits hold
+/// it, else to 6 significant digits rounded into the range (a smallest value up, a largest
+/// down: `91.01102550109582` shows as `91.011`), so that the number shown is allowed too.
+struct Bound {
+    value: f64,
+    /// Whether this is the smallest allowed value (rounded up), else the largest (down).
+    up: bool,
+}
+
+impl Bound {
+    fn min(value: f64) -> Self {
+        Bound { value, up: true }
+    }
+    fn max(value: f64) -> Self {
+        Bound { value, up: false }
+    }
+}
+
+impl fmt::Display for Bound {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v = self.value;
+        if !v.is_finite() || v == 0.0 {
+            return write!(f, "{v}");
+        }
+        let exp = libm::floor(libm::log10(libm::fabs(v)));
+        let at = |digits: f64, round: fn(f64) -> f64| {
+            let scale = libm::pow(10.0, digits - 1.0 - exp);
+            round(v * scale) / scale
+        };
+        if at(8.0, libm::round) == v {
+            return write!(f, "{v}");
+        }
+        let shown = at(6.0, if self.up { libm::ceil } else { libm::floor });
+        // (A subnormal bound's scale overflows: shown as it is.)
+        write!(f, "{}", if shown.is_finite() { shown } else { v })
+    }
 }
 
 /// Checks that `value` is finite and in `[min, max]`.
@@ -171,4 +211,61 @@ pub fn check_count(field: &'static str, value: u32, min: u32, max: u32) -> Resul
         });
     }
     Ok(value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::string::ToString;
+
+    #[test]
+    fn a_range_shows_its_bounds_as_a_reader_takes_them() {
+        // A range worked out from the rig (Ω/ω 0.01–10 at f_n = 9.1011 Hz): six significant
+        // digits, rounded into it.
+        let e = ParamError::OutOfRange {
+            field: "freq_hz",
+            value: 1e9,
+            min: 0.09101102550109583,
+            max: 91.01102550109582,
+        };
+        assert_eq!(
+            e.to_string(),
+            "`freq_hz` = 1000000000 is out of range: allowed 0.0910111 ..= 91.011"
+        );
+        // Short bounds as they are, negative ones rounded into the range too.
+        for (min, max, shown) in [
+            (0.0, 18.75, "0 ..= 18.75"),
+            (1e-6, 0.05, "0.000001 ..= 0.05"),
+            (-core::f64::consts::PI, 1.2345678, "-3.14159 ..= 1.2345678"),
+            (0.1, 12345678.0, "0.1 ..= 12345678"),
+        ] {
+            let e = ParamError::OutOfRange {
+                field: "x",
+                value: f64::MAX,
+                min,
+                max,
+            };
+            let text = e.to_string();
+            assert!(text.ends_with(shown), "{text}");
+        }
+        // The bounds shown lie in the range.
+        let pi = core::f64::consts::PI;
+        for k in -12..12 {
+            let (min, max) = (pi * 10f64.powi(k), core::f64::consts::E * 10f64.powi(k + 1));
+            let e = ParamError::OutOfHalfOpenRange {
+                field: "x",
+                value: -1.0,
+                min,
+                max,
+            };
+            let text = e.to_string();
+            let (lo, hi) = text
+                .rsplit_once("allowed ")
+                .and_then(|(_, r)| r.split_once(" ≤ x < "))
+                .expect("both bounds");
+            let (lo, hi): (f64, f64) = (lo.parse().expect("lo"), hi.parse().expect("hi"));
+            assert!(lo >= min && lo <= min * (1.0 + 1e-5), "{text}");
+            assert!(hi <= max && hi >= max * (1.0 - 1e-5), "{text}");
+        }
+    }
 }
