@@ -167,6 +167,28 @@ pub fn find<T: Real>(
     })
 }
 
+/// Above this [`Orbit::slope_mismatch`] (at ±1e-4 of the scales) the map's own slope is not
+/// the monodromy's, and a report says so.
+pub const SLOPE_MISMATCH_WARN: f64 = 0.05;
+
+/// A warning for an orbit whose map jumps so much that its monodromy is not the map's slope
+/// ([`Orbit::slope_mismatch`] above [`SLOPE_MISMATCH_WARN`]); `None` where it is.
+///
+/// # Errors
+/// A displaced state outside the rig's limits.
+pub fn slope_warning<T: Real>(o: &Orbit<T>) -> Result<Option<String>> {
+    let mismatch = o.slope_mismatch(1e-4)?;
+    Ok((mismatch > SLOPE_MISMATCH_WARN).then(|| {
+        format!(
+            "! warning: at this orbit the map's slope differs from its monodromy by {mismatch:.2} \
+             (over ±1e-4 of the state's scales; {SLOPE_MISMATCH_WARN} at most where they agree): \
+             the discretised map jumps where a step that nears the surface is split (slow \
+             arrivals), so its Floquet multipliers, stability, exponent and the bifurcations \
+             located from them may be wrong (docs/accuracy.md)"
+        )
+    }))
+}
+
 /// Which ways a branch is followed from its start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Direction {

@@ -588,6 +588,31 @@ fn a_reader_that_stops_early_ends_the_command_quietly() {
     assert!(stderr.is_empty(), "{stderr}");
 }
 
+/// Where the discretised map jumps so much that the monodromy is not its slope (the wire rig's
+/// 3/1 orbit at 0.0 mm, Ω/ω 0.9: three slow arrivals a period), `orbit` says so on stderr;
+/// at the main job's 1/1 orbit it does not.
+#[test]
+fn orbit_warns_where_the_map_jumps_more_than_its_slope() {
+    let run = |ratio: &str| {
+        let out = host_sim()
+            .args(line(&format!(
+                "orbit --rig wires --gap-mm 0 --omega-ratio {ratio}"
+            )))
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let warned = run("0.9");
+    assert!(
+        warned.contains("the map's slope differs from its monodromy by 0.98"),
+        "{warned}"
+    );
+    assert!(warned.contains("may be wrong"), "{warned}");
+    let quiet = run("2.0");
+    assert!(quiet.is_empty(), "{quiet}");
+}
+
 #[test]
 fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
     let v: serde_json::Value = serde_json::from_str(&ok(&line(

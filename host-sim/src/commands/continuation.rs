@@ -237,6 +237,9 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         let mut all: Vec<BranchOut> = Vec::new();
         for p in &starts {
             let (r, o): (_, Orbit<T>) = orbits::find::<T>(p, start, a.point.q)?;
+            if let Some(w) = orbits::slope_warning(&o)? {
+                eprintln!("{w} (the branch's start)");
+            }
             regimes.push(format!("{} at {}", r.regime, param_value_shown(param, p.get(param))));
             let base = all.len();
             for mut b in orbits::branches(&o, &spec)? {

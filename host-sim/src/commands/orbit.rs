@@ -155,6 +155,9 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
     let (setup, at, start) = a.point.resolve()?;
     let (protocol, report) = crate::with_precision!(setup.precision, T => {
         let (r, o): (_, Orbit<T>) = orbits::find::<T>(&at, start, a.point.q)?;
+        if let Some(w) = orbits::slope_warning(&o)? {
+            eprintln!("{w}");
+        }
         (r, orbits::report(&o)?)
     });
     if a.json {
