@@ -233,9 +233,10 @@ impl<T: Real, const N: usize> Real for Dual<T, N> {
         if slope.v == T::zero() || !slope.v.is_finite() {
             return self;
         }
-        let mut d = residual.d;
-        for x in &mut d {
-            *x = -*x / slope.v;
+        // The residual's derivative holds the iterate's own through g's slope: take it out.
+        let mut d = self.d;
+        for (x, r) in d.iter_mut().zip(residual.d.iter()) {
+            *x = *x - *r / slope.v;
         }
         Dual { v: self.v, d }
     }
@@ -293,6 +294,13 @@ mod tests {
         let root = t.root_derivative(g, D::from_f64(2.0 * t.v));
         assert!((root.d[0] - 0.5 / libm::sqrt(2.0)).abs() < 1e-15);
         assert_eq!(root.v, t.v);
+        // An iterate that carries a derivative of its own (a regula falsi's last point): the
+        // result is the root's, not the iterate's.
+        let mut t_iter = D::from_f64(libm::sqrt(2.0));
+        t_iter.d[0] = 7.0;
+        let g_iter = t_iter * t_iter - s;
+        let root_iter = t_iter.root_derivative(g_iter, D::from_f64(2.0 * t_iter.v));
+        assert!((root_iter.d[0] - 0.5 / libm::sqrt(2.0)).abs() < 1e-15);
         // Plain floats ignore it.
         assert_eq!(Real::root_derivative(1.5f64, 3.0, 2.0), 1.5);
     }

@@ -27,6 +27,27 @@ impl<T: Real> DenseStep<T> {
         let (h00, h10, h01, h11) = hermite_weights(s, self.h);
         self.x0 * h00 + self.f0 * h10 + self.x1 * h01 + self.f1 * h11
     }
+
+    /// The interpolated state at `t` s from the step's start and its rate there (per s): the
+    /// interpolant's time derivative, not the field.
+    #[inline(always)]
+    pub(super) fn position_and_rate(&self, t: T) -> (Vector2<T>, Vector2<T>) {
+        let s = t / self.h;
+        let x = self.at(s);
+        let (two, three, four, six) = (
+            T::from_f64(2.0),
+            T::from_f64(3.0),
+            T::from_f64(4.0),
+            T::from_f64(6.0),
+        );
+        let s2 = s * s;
+        // d/ds of the Hermite weights, over h for d/dt; the slope weights carry an h.
+        let d00 = (six * s2 - six * s) / self.h;
+        let d10 = three * s2 - four * s + T::from_f64(1.0);
+        let d11 = three * s2 - two * s;
+        let rate = self.x0 * d00 + self.f0 * d10 - self.x1 * d00 + self.f1 * d11;
+        (x, rate)
+    }
 }
 
 /// The cubic Hermite weights at fraction `s` of a step of `h` seconds: of the start, its slope,

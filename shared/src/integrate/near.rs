@@ -18,11 +18,12 @@
 
 use super::bracket::{Rule, bracket_rising};
 use super::contact_lanes::LaneContact;
-use super::dense::{DenseStep, hermite_weights};
+use super::dense::{DenseStep, MAX_EVENT_EVALS, hermite_weights};
 use super::free::SmallTrig;
 use super::isa::{Isa, Kernel, Variant};
 use crate::model::Hammer;
 use crate::real::Real;
+use nalgebra::Vector2;
 
 /// Samples of the trial's dense output.
 pub(super) const SAMPLES: u32 = 8;
@@ -50,6 +51,14 @@ impl<T: Real> NearTrial<T> {
             return t;
         }
         first_near_alone(hammer, &self.dense, self.start_delta, self.eta)
+    }
+
+    /// Where the trial first comes near (s from its start), located to a few rounding units
+    /// and differentiated through its root ([`first_near_exact`]): the periodic-orbit map's
+    /// split (`Simulator::step_exact`).
+    #[inline]
+    pub(crate) fn search_exact(&self, hammer: &Hammer<T>) -> T {
+        first_near_exact(hammer, &self.dense, self.start_delta, self.eta)
     }
 }
 
@@ -234,6 +243,50 @@ pub(super) fn first_near_alone<T: Real>(
             best_t = t;
             best_d = d;
         }
+    }
+    best_t
+}
+
+/// [`first_near_alone`] with the crossing of `−η_δ` located by Illinois regula falsi to four
+/// rounding units of the trial (at most [`MAX_EVENT_EVALS`] evaluations) instead of
+/// [`HALVINGS`] halvings, and its time differentiated through the root
+/// ([`Real::root_derivative`]: `−(∂δ/∂x·∂x/∂s)/(dδ/dt)` along the dense output) rather than
+/// held fixed. The halvings make the periodic-orbit map jump wherever the split moves by a
+/// halving, with a slope between jumps that need not be the map's (`crate::orbit`); this split
+/// moves with the state, so the map is smooth and its tangent is its derivative. Where the
+/// trial only peaks (no crossing) the sample of the peak, as alone.
+pub(super) fn first_near_exact<T: Real>(
+    hammer: &Hammer<T>,
+    dense: &DenseStep<T>,
+    start_delta: T,
+    eta: T,
+) -> T {
+    let rest = dense.h;
+    let delta_at = |t: T| hammer.penetration(&dense.at(t / rest)).0;
+    let near = |t: T| delta_at(t) + eta;
+    let dt = rest / T::from_u32(SAMPLES);
+    let (mut best_t, mut best_d) = (T::zero(), start_delta);
+    let mut g_before = start_delta + eta;
+    for i in 1..=SAMPLES {
+        let t = dt * T::from_u32(i);
+        let d = delta_at(t);
+        let g = d + eta;
+        if d > -eta {
+            let rule = Rule::Illinois {
+                tol: rest * T::from_f64(4.0 * T::EPSILON),
+                max_evals: MAX_EVENT_EVALS,
+                ends: (g_before, g),
+            };
+            let root = bracket_rising(t - dt, t, rule, near).0;
+            let (x, rate) = dense.position_and_rate(root);
+            let slope = hammer.penetration(&Vector2::new(x[0], rate[0])).1;
+            return root.root_derivative(near(root), slope);
+        }
+        if d > best_d {
+            best_t = t;
+            best_d = d;
+        }
+        g_before = g;
     }
     best_t
 }

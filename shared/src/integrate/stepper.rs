@@ -623,7 +623,18 @@ impl<'t, T: Real> Simulator<'t, T> {
     #[inline]
     pub fn step<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
         let mut c = self.begin_step();
-        while !self.advance(&mut c, false, observe) {}
+        while !self.advance::<false, O>(&mut c, false, observe) {}
+    }
+
+    /// [`Simulator::step`] with the split of a free-flight trial that comes near the surface
+    /// located to round-off and differentiated through its root (`near::first_near_exact`)
+    /// instead of halved to 1/8192 of the step: the periodic-orbit map's step
+    /// (`crate::orbit`), smooth in the state where the production step jumps. Everything else
+    /// is [`Simulator::step`]'s.
+    #[inline]
+    pub(crate) fn step_exact<O: FnMut(&StepSample<T>)>(&mut self, observe: &mut O) {
+        let mut c = self.begin_step();
+        while !self.advance::<true, O>(&mut c, false, observe) {}
     }
 
     /// Where the next step starts (its first segment).
@@ -644,9 +655,10 @@ impl<'t, T: Real> Simulator<'t, T> {
     /// step, a free-flight segment, or a sub-step), reported to `observe`. Returns whether the
     /// step is done. With `hand_substep`, a trial that comes near the surface too soon for a
     /// free-flight segment leaves the sub-step that follows to the caller (marked in `c`: then
-    /// [`Simulator::plain_substep`] gives it), and nothing is reported.
+    /// [`Simulator::plain_substep`] gives it), and nothing is reported. `EXACT`: the near split
+    /// as [`Simulator::step_exact`] takes it.
     #[inline(always)]
-    pub(crate) fn advance<O: FnMut(&StepSample<T>)>(
+    pub(crate) fn advance<const EXACT: bool, O: FnMut(&StepSample<T>)>(
         &mut self,
         c: &mut Cursor<T>,
         hand_substep: bool,
@@ -655,7 +667,11 @@ impl<'t, T: Real> Simulator<'t, T> {
         match self.free_flight_segment(c, observe) {
             Some(Ok(done)) => return done,
             Some(Err(trial)) => {
-                let t_near = trial.search_alone(&self.hammer);
+                let t_near = if EXACT {
+                    trial.search_exact(&self.hammer)
+                } else {
+                    trial.search_alone(&self.hammer)
+                };
                 if let Some(done) = self.after_near(c, t_near, hand_substep, observe) {
                     return done;
                 }

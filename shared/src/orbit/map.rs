@@ -190,7 +190,7 @@ pub(crate) fn run<U: Real>(
         .then(|| (0.0, delta0.to_f64(), ddelta0.to_f64()));
     let mut periods = 0;
     while periods < q {
-        sim.step(&mut |s: &StepSample<U>| {
+        sim.step_exact(&mut |s: &StepSample<U>| {
             if let Some(ImpactEvent::Arrival) = tracker.update(s.delta, s.delta_min, s.force) {
                 trace.impacts += 1;
                 trace.slowest_arrival_m_s = trace.slowest_arrival_m_s.min(s.delta_dot.to_f64());
