@@ -643,4 +643,71 @@ mod tests {
         both_rigs::<f32>();
         both_rigs::<f64>();
     }
+
+    /// The exact split on the beam, whose dense output reproduces a parabola `p(t) = p0 + v t
+    /// + ½ a t²` exactly: the first root of `p(t) = −η_δ` (closed form) to 1e-10 of the step, within
+    /// one halving (`h/8/1024`) above the bisected split, and its derivative in `p0` the
+    /// implicit one, `−1/ṗ(t*)` (a dual seed on the whole trial).
+    #[test]
+    fn the_exact_split_is_the_crossing_and_moves_with_the_state() {
+        use crate::dual::Dual;
+        type D = Dual<f64, 1>;
+        let bands = SwitchBands::default();
+        let gap = 1e-3;
+        let preset = RigId::Beam170.preset();
+        let beam = Hammer::<f64>::new(&preset, gap, 60.0, &bands).unwrap();
+        let beam_d = Hammer::<D>::new(&preset, gap, 60.0, &bands).unwrap();
+        let eta = beam.eta_delta();
+        let all = trials(&beam, |p, v| [gap + p, v], |_, v, a| [v, a]);
+        let mut crossed = 0;
+        for (dense, start_delta) in &all {
+            let h = dense.h;
+            let alone = first_near_alone(&beam, dense, *start_delta, eta);
+            let exact = first_near_exact(&beam, dense, *start_delta, eta);
+            let dt = h / f64::from(SAMPLES);
+            let crosses = (1..=SAMPLES)
+                .any(|i| beam.penetration(&dense.at(dt * f64::from(i) / h)).0 > -eta);
+            if !crosses {
+                assert_eq!(exact, alone, "no crossing: the same sample");
+                continue;
+            }
+            crossed += 1;
+            // The parabola through the trial's ends: p0, v = ṗ(0), a from ṗ(h).
+            let (p0, v) = (dense.x0[0] - gap, dense.x0[1]);
+            let a = (dense.x1[1] - v) / h;
+            let c = p0 + eta;
+            let root = if a == 0.0 {
+                -c / v
+            } else {
+                // The smaller root in (0, h] of ½a t² + v t + c = 0, rising.
+                let disc = (v * v - 2.0 * a * c).sqrt();
+                let roots = [(-v - disc) / a, (-v + disc) / a];
+                roots
+                    .into_iter()
+                    .filter(|t| *t > 0.0 && *t <= h * (1.0 + 1e-12) && v + a * t > 0.0)
+                    .fold(f64::INFINITY, f64::min)
+            };
+            assert!((exact - root).abs() < 1e-10 * h, "{exact} vs {root}");
+            let halving = h / f64::from(SAMPLES) / f64::from(1u32 << HALVINGS);
+            assert!(alone <= exact && exact - alone < halving * (1.0 + 1e-9));
+            // The whole trial moved by ε in p: the crossing moves by −ε/ṗ(t*).
+            let lift = |x: Vector2<f64>| Vector2::new(D::seed(x[0], 0), D::from_f64(x[1]));
+            let flat = |x: Vector2<f64>| Vector2::new(D::from_f64(x[0]), D::from_f64(x[1]));
+            let dual = DenseStep {
+                x0: lift(dense.x0),
+                f0: flat(dense.f0),
+                x1: lift(dense.x1),
+                f1: flat(dense.f1),
+                h: D::from_f64(h),
+            };
+            let t = first_near_exact(&beam_d, &dual, D::seed(*start_delta, 0), D::from_f64(eta));
+            let expect = -1.0 / (v + a * root);
+            assert!(
+                (t.d[0] - expect).abs() < 1e-9 * expect.abs(),
+                "{} vs {expect}",
+                t.d[0]
+            );
+        }
+        assert!(crossed >= 40, "{crossed} of {}", all.len());
+    }
 }
