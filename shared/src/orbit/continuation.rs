@@ -44,13 +44,18 @@ pub struct ContinuationSettings {
     /// Where Newton stalls, a grazing monitor within this much of 0 (in units of the cart's
     /// motion) says the branch ends at a grazing (1e-4; f32: 1e-2).
     pub grazing_near: f64,
+    /// The width of a kink of the discretised map, in the scaled parameter (1e-5): two folds
+    /// closer than this are the branch zig-zagging over a kink (where a sub-step boundary
+    /// meets an impact or a switching band), and neither is reported; nor is a fold within
+    /// this of where the branch stalls.
+    pub kink_span: f64,
 }
 
 impl ContinuationSettings {
     /// The defaults for `param` over `range` in the float type `T`: steps 0.02 (1e-6 ..= 0.05)
     /// in the scaled unknowns, events located to 1e-7 in the parameter (f64; f32: 1e-5, its
     /// own resolution), Newton as [`ShootSettings::for_type`], grazing monitors near 0 within
-    /// 1e-4 (f32: 1e-2).
+    /// 1e-4 (f32: 1e-2), kinks 1e-5 wide.
     pub fn new<T: Real>(param: Param, range: [f64; 2]) -> Self {
         let f64_like = T::EPSILON < 1e-10;
         ContinuationSettings {
@@ -61,6 +66,7 @@ impl ContinuationSettings {
             locate_tol: if f64_like { 1e-7 } else { 1e-5 },
             newton: ShootSettings::for_type::<T>(),
             grazing_near: if f64_like { 1e-4 } else { 1e-2 },
+            kink_span: 1e-5,
         }
     }
 }
@@ -384,11 +390,44 @@ fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
     }
 }
 
+/// A located fold held back until the branch has moved [`ContinuationSettings::kink_span`]
+/// away from it (in the parameter), or meets another event first.
+struct HeldFold<T> {
+    event: Option<BifEvent<T>>,
+    span: f64,
+}
+
+impl<T: Copy> HeldFold<T> {
+    /// A new fold: the one held before, to report now (it is told before the new one), or
+    /// nothing; two folds within the span are a zig-zag over a kink, and both are dropped.
+    fn fold(&mut self, ev: BifEvent<T>) -> Option<BifEvent<T>> {
+        match self.event.take() {
+            Some(held) if libm::fabs(held.value - ev.value) < self.span => None,
+            held => {
+                self.event = Some(ev);
+                held
+            }
+        }
+    }
+
+    /// The held fold, if the branch at `value` has moved the span away from it (`all`: in
+    /// any case), to report now.
+    fn release(&mut self, value: f64, all: bool) -> Option<BifEvent<T>> {
+        match self.event {
+            Some(held) if all || libm::fabs(held.value - value) >= self.span => self.event.take(),
+            _ => None,
+        }
+    }
+}
+
 /// Continues the branch through `start` (a converged orbit) in `settings.param`, towards
 /// increasing values if `direction > 0` (else decreasing), or along `initial_tangent` if given
 /// (in the scaled unknowns `(x₀/s₀, x₁/s₁, λ/s_λ)`: branch switching). Every accepted point goes
 /// to `on_point` (the start first), every located bifurcation to `on_event` (in the order met;
-/// [`ControlFlow::Break`] ends the branch there: [`BranchEnd::Stopped`]).
+/// [`ControlFlow::Break`] ends the branch there: [`BranchEnd::Stopped`]). A fold is told once
+/// the branch has moved [`ContinuationSettings::kink_span`] past it, or before the next event
+/// or the branch's end; two folds within that span, and a fold within it of where the branch
+/// stalls, are kinks of the discretised map and are not told.
 pub fn continue_branch<T: Real>(
     start: &Orbit<T>,
     settings: &ContinuationSettings,
@@ -432,6 +471,20 @@ pub fn continue_branch<T: Real>(
         value: value0,
         orbit: first,
     });
+    let mut held = HeldFold {
+        event: None,
+        span: settings.kink_span * s_lambda,
+    };
+    // Tells the held fold (if `release` gives it) and ends the branch if the caller stops there.
+    macro_rules! tell_held {
+        ($release:expr) => {
+            if let Some(ev) = $release
+                && on_event(&ev).is_break()
+            {
+                return BranchEnd::Stopped(ev.value);
+            }
+        };
+    }
     let mut h = settings.steps.first;
     let in_range = |v: f64| v >= settings.range[0] && v <= settings.range[1];
     let mut previous: Option<Node<T>> = None;
@@ -445,8 +498,12 @@ pub fn continue_branch<T: Real>(
                 // At the range's edge heading out of it (gap 0 going down, where the corrector
                 // cannot take the predicted value): the range's end.
                 if at_edge_heading_out(settings.range, value_a, node.t[2]) {
+                    tell_held!(held.release(value_a, true));
                     return BranchEnd::RangeEnd(value_a);
                 }
+                // A fold within the span of where the branch stalls is the kink that stalls
+                // it: not told.
+                tell_held!(held.release(value_a, false));
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -488,6 +545,7 @@ pub fn continue_branch<T: Real>(
         let value_b = b.z[2] * s_lambda;
         // The range's end: the last point inside is reported, the branch ends.
         if !in_range(value_b) {
+            tell_held!(held.release(value_a, true));
             return BranchEnd::RangeEnd(value_a);
         }
         // A grazing: the impact count changed between a and b.
@@ -496,6 +554,7 @@ pub fn continue_branch<T: Real>(
                 e.orbit.trace.impacts == node.e.orbit.trace.impacts
             });
             let value = ev.z[2] * s_lambda;
+            tell_held!(held.release(value, true));
             let _ = on_event(&BifEvent {
                 kind: EventKind::Grazing,
                 value,
@@ -548,11 +607,17 @@ pub fn continue_branch<T: Real>(
                 .abs()
                 .total_cmp(&(y.value - value_a).abs())
         });
-        for ev in &found {
-            if on_event(ev).is_break() {
-                return BranchEnd::Stopped(ev.value);
+        for ev in found {
+            if ev.kind == EventKind::Fold {
+                tell_held!(held.fold(ev));
+            } else {
+                tell_held!(held.release(ev.value, true));
+                if on_event(&ev).is_break() {
+                    return BranchEnd::Stopped(ev.value);
+                }
             }
         }
+        tell_held!(held.release(value_b, false));
         on_point(&BranchPoint {
             value: value_b,
             orbit: b.e.orbit,
@@ -571,7 +636,9 @@ pub fn continue_branch<T: Real>(
             h
         };
     }
-    BranchEnd::MaxPoints(node.z[2] * s_lambda)
+    let value = node.z[2] * s_lambda;
+    tell_held!(held.release(value, true));
+    BranchEnd::MaxPoints(value)
 }
 
 /// Whether `value` lies at an end of `range` (within 10⁻⁹ of its width) and `dvalue`, the
