@@ -171,8 +171,10 @@ pub fn find<T: Real>(
 /// the monodromy's, and a report says so.
 pub const SLOPE_MISMATCH_WARN: f64 = 0.05;
 
-/// A warning for an orbit whose map jumps so much that its monodromy is not the map's slope
-/// ([`Orbit::slope_mismatch`] above [`SLOPE_MISMATCH_WARN`]); `None` where it is.
+/// A warning for an orbit whose monodromy is not the map's slope over ±1e-4 of the state's
+/// scales ([`Orbit::slope_mismatch`] above [`SLOPE_MISMATCH_WARN`]): the map is not smooth
+/// that close to the orbit, as within that of a grazing (an impact appears or vanishes);
+/// `None` where it is.
 ///
 /// # Errors
 /// A displaced state outside the rig's limits.
@@ -182,9 +184,9 @@ pub fn slope_warning<T: Real>(o: &Orbit<T>) -> Result<Option<String>> {
         format!(
             "! warning: at this orbit the map's slope differs from its monodromy by {mismatch:.2} \
              (over ±1e-4 of the state's scales; {SLOPE_MISMATCH_WARN} at most where they agree): \
-             the discretised map jumps where a step that nears the surface is split (slow \
-             arrivals), so its Floquet multipliers, stability, exponent and the bifurcations \
-             located from them may be wrong (docs/accuracy.md)"
+             the map is not smooth that close to the orbit (within that of a grazing, an impact \
+             appears or vanishes), so its Floquet multipliers, stability, exponent and the \
+             bifurcations located from them may describe one side only (docs/accuracy.md)"
         )
     }))
 }
