@@ -14,7 +14,8 @@
 //! computed as the halvings compute them, then the decisions taken among them). The host's
 //! grid analyses search several runs' trials side by side instead ([`NearLanes`]: lane `i`
 //! one trial, one point of every search per round). The same points, values and decisions in
-//! all three, so the same time, bit for bit.
+//! all three, so the same time, bit for bit. The periodic-orbit map takes the crossing
+//! to round-off instead, differentiated through its root ([`first_near_exact`]).
 
 use super::bracket::{Rule, bracket_rising};
 use super::contact_lanes::LaneContact;

@@ -3,8 +3,11 @@
 //! The state `x` is the simulator's: `(θ, θ̇)` for the wire pendulum, `(u, u̇)` for the beam
 //! springs, at excitation phase 0. `P^q` runs `q` periods of the same simulator (same step plan,
 //! vector field, switch model and sub-steps) from `x`, with its switching events located to
-//! round-off rather than to `2^-14` of a sub-step (the production map differs by about 1e-5 of
-//! the cart's amplitude, in steps Newton cannot cross: `Simulator::locate_events_exactly`); [`tangent`] runs it in
+//! round-off rather than to `2^-14` of a sub-step (`Simulator::locate_events_exactly`) and the
+//! split of a free-flight step that nears the surface located to round-off and differentiated
+//! through its root rather than bisected to 1/8192 of the step (`Simulator::step_exact`): the
+//! production map jumps by up to 1e-5 of the cart's amplitude where those move, in steps
+//! Newton cannot cross and whose slope is not the map's. [`tangent`] runs it in
 //! [`Dual`] numbers seeded with the identity, which gives `DP^q` (the monodromy matrix) as the
 //! exact derivative of the discrete map (crate::dual). Along the way the map records what the
 //! orbit does: its impacts (arrivals through `δ = 0`, counted as the canonical protocol counts
@@ -85,8 +88,8 @@ impl MapPoint {
     }
 
     /// The map's simulator: the analyses' at this point, its switching events located to
-    /// round-off ([`Simulator::locate_events_exactly`]) so that the map is smooth where the
-    /// orbit's impacts do not change.
+    /// round-off ([`Simulator::locate_events_exactly`]) so that the map (run with
+    /// `Simulator::step_exact`) is smooth where the orbit's impacts do not change.
     pub(crate) fn simulator<'t, U: Real>(
         &self,
         table: &'t PhaseTable<U>,

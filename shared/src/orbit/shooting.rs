@@ -63,12 +63,11 @@ impl<T: Real> Orbit<T> {
     /// between a central secant of `P^q` over ±`h` of the state's scales ([`MapPoint::scales`])
     /// and the matching entry of the monodromy, both scaled, over the monodromy's largest
     /// entry or 1, whichever is larger (the scale on which multipliers are judged). Small
-    /// (8.7e-4 at `h` = 1e-4 at the wire rig's `1/1` orbit, 0.0 mm, Ω/ω 2.0) where the
-    /// monodromy is the map's derivative. Where a free-flight step that comes near the
-    /// surface is split at a time held to 1/8192 of the step, the map moves in small jumps with
-    /// the state; at slow arrivals they dominate its slope (order one: the wire rig's `3/1`
-    /// orbits at 0.0 mm below the `1/1` band), and the multipliers, the stability and the
-    /// bifurcations located from them do not describe the map.
+    /// where the map is smooth over that span (3.0e-10 at `h` = 1e-4 at the wire rig's `1/1`
+    /// orbit, 0.0 mm, Ω/ω 2.0, in f64; f32's rounding adds about 2e-3). Large within `h` of a
+    /// grazing (37 at that rig's `1/1` orbit at Ω/ω 1.15172, 3e-5 above the band's lower
+    /// edge), where an impact appears or vanishes and the multipliers, the stability and the
+    /// bifurcations located from them describe one side of the map only.
     ///
     /// # Errors
     /// [`ParamError`] where a displaced state is invalid.
