@@ -666,8 +666,8 @@ mod tests {
             let alone = first_near_alone(&beam, dense, *start_delta, eta);
             let exact = first_near_exact(&beam, dense, *start_delta, eta);
             let dt = h / f64::from(SAMPLES);
-            let crosses = (1..=SAMPLES)
-                .any(|i| beam.penetration(&dense.at(dt * f64::from(i) / h)).0 > -eta);
+            let crosses =
+                (1..=SAMPLES).any(|i| beam.penetration(&dense.at(dt * f64::from(i) / h)).0 > -eta);
             if !crosses {
                 assert_eq!(exact, alone, "no crossing: the same sample");
                 continue;
