@@ -236,7 +236,7 @@ impl<T: Real, const N: usize> Real for Dual<T, N> {
         // The residual's derivative holds the iterate's own through g's slope: take it out.
         let mut d = self.d;
         for (x, r) in d.iter_mut().zip(residual.d.iter()) {
-            *x = *x - *r / slope.v;
+            *x -= *r / slope.v;
         }
         Dual { v: self.v, d }
     }
