@@ -228,24 +228,10 @@ pub(super) fn first_near_alone<T: Real>(
     start_delta: T,
     eta: T,
 ) -> T {
-    let rest = dense.h;
-    let delta_at = |t: T| hammer.penetration(&dense.at(t / rest)).0;
-    let dt = rest / T::from_u32(SAMPLES);
-    let (mut best_t, mut best_d) = (T::zero(), start_delta);
-    for i in 1..=SAMPLES {
-        let t = dt * T::from_u32(i);
-        let d = delta_at(t);
-        if d > -eta {
-            // The crossing of −η_δ between the previous sample and this one.
-            let near = |m: T| delta_at(m) + eta;
-            return bracket_rising(t - dt, t, Rule::Bisect(HALVINGS), near).0;
-        }
-        if d > best_d {
-            best_t = t;
-            best_d = d;
-        }
-    }
-    best_t
+    scan_samples(hammer, dense, start_delta, eta, |lo, hi, _| {
+        let near = |m: T| hammer.penetration(&dense.at(m / dense.h)).0 + eta;
+        bracket_rising(lo, hi, Rule::Bisect(HALVINGS), near).0
+    })
 }
 
 /// [`first_near_alone`] with the crossing of `−η_δ` located by Illinois regula falsi to four
@@ -262,32 +248,47 @@ pub(super) fn first_near_exact<T: Real>(
     start_delta: T,
     eta: T,
 ) -> T {
+    scan_samples(hammer, dense, start_delta, eta, |lo, hi, (d_lo, d_hi)| {
+        let near = |m: T| hammer.penetration(&dense.at(m / dense.h)).0 + eta;
+        let rule = Rule::Illinois {
+            tol: dense.h * T::from_f64(4.0 * T::EPSILON),
+            max_evals: MAX_EVENT_EVALS,
+            ends: (d_lo + eta, d_hi + eta),
+        };
+        let root = bracket_rising(lo, hi, rule, near).0;
+        let (x, rate) = dense.position_and_rate(root);
+        let slope = hammer.penetration(&Vector2::new(x[0], rate[0])).1;
+        root.root_derivative(near(root), slope)
+    })
+}
+
+/// The trial's [`SAMPLES`] evenly spaced points, one after the other: at the first whose `δ`
+/// exceeds `−eta`, what `locate` makes of the interval from the previous sample to it (its
+/// ends, s from the trial's start, and `δ` there, m); without one, the sample with the largest
+/// `δ` (the trial's start if none exceeds `start_delta`).
+#[inline(always)]
+fn scan_samples<T: Real>(
+    hammer: &Hammer<T>,
+    dense: &DenseStep<T>,
+    start_delta: T,
+    eta: T,
+    locate: impl FnOnce(T, T, (T, T)) -> T,
+) -> T {
     let rest = dense.h;
-    let delta_at = |t: T| hammer.penetration(&dense.at(t / rest)).0;
-    let near = |t: T| delta_at(t) + eta;
     let dt = rest / T::from_u32(SAMPLES);
     let (mut best_t, mut best_d) = (T::zero(), start_delta);
-    let mut g_before = start_delta + eta;
+    let mut d_before = start_delta;
     for i in 1..=SAMPLES {
         let t = dt * T::from_u32(i);
-        let d = delta_at(t);
-        let g = d + eta;
+        let d = hammer.penetration(&dense.at(t / rest)).0;
         if d > -eta {
-            let rule = Rule::Illinois {
-                tol: rest * T::from_f64(4.0 * T::EPSILON),
-                max_evals: MAX_EVENT_EVALS,
-                ends: (g_before, g),
-            };
-            let root = bracket_rising(t - dt, t, rule, near).0;
-            let (x, rate) = dense.position_and_rate(root);
-            let slope = hammer.penetration(&Vector2::new(x[0], rate[0])).1;
-            return root.root_derivative(near(root), slope);
+            return locate(t - dt, t, (d_before, d));
         }
         if d > best_d {
             best_t = t;
             best_d = d;
         }
-        g_before = g;
+        d_before = d;
     }
     best_t
 }
