@@ -914,3 +914,37 @@ fn the_gap_branch_starts_at_gap_zero() {
     assert_eq!(end, shared::orbit::BranchEnd::RangeEnd(0.0));
     assert_eq!(gaps, [0.0]);
 }
+
+/// The wire rig's `3/1` branch at 0.0 mm from Ω/ω 0.9 (slow arrivals) turns once: one fold at
+/// 0.94687 (`μ` through +1, where the brute-force sweep up leaves `3/1`), then the unstable
+/// branch ends at a grazing. With the near split bisected to 1/8192 of the step the map
+/// jumped there and the monodromy was not its slope: the branch reported 30 folds between
+/// 0.9347 and 0.9401.
+#[test]
+fn the_slow_arrival_3_1_branch_turns_once() {
+    let at = point(RigId::Wires, ContactLawKind::SpringDashpot, 0.0, 0.9);
+    let (_, start) = orbit_at::<f32>(&at);
+    assert_eq!((start.p(), start.q), (3, 1));
+    let settings = ContinuationSettings::new::<f32>(Param::OmegaRatio, [0.6, 1.4]);
+    let mut events: Vec<BifEvent<f32>> = Vec::new();
+    let end = continue_branch(
+        &start,
+        &settings,
+        1.0,
+        None,
+        |_| {},
+        |e| {
+            events.push(*e);
+            ControlFlow::Continue(())
+        },
+    );
+    let kinds: Vec<_> = events.iter().map(|e| (e.kind, e.value)).collect();
+    println!("3/1 from 0.9 up: {kinds:?}, ends at {end}");
+    // Measured: fold at 0.94686866 (μ +0.99924), grazing at 0.94284080.
+    assert_eq!(events.len(), 2, "{kinds:?}");
+    assert_eq!(events[0].kind, EventKind::Fold);
+    assert!((events[0].value - 0.946869).abs() < 1e-4, "{kinds:?}");
+    assert!((events[0].critical.re - 1.0).abs() < 0.01);
+    assert_eq!(events[1].kind, EventKind::Grazing);
+    assert!(events[1].value < events[0].value, "the branch turned back");
+}
