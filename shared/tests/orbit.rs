@@ -681,19 +681,7 @@ fn beam_fold_and_grazing_bound_the_hysteresis() {
     assert_eq!((upper.p(), upper.q), (1, 1));
     assert!(upper.floquet.stable());
     let settings = ContinuationSettings::new::<f64>(Param::OmegaRatio, [0.5, 5.0]);
-    let mut events = Vec::new();
-    let mut unstable_points = 0;
-    let end = continue_branch(
-        &upper,
-        &settings,
-        1.0,
-        None,
-        |p| unstable_points += usize::from(!p.orbit.floquet.stable()),
-        |e| {
-            events.push(*e);
-            ControlFlow::Continue(())
-        },
-    );
+    let (events, unstable_points, end) = branch_up(&upper, &settings);
     let kinds: Vec<_> = events.iter().map(|e| (e.kind, e.value)).collect();
     println!("from 1.35 up: {kinds:?}, {unstable_points} unstable points, ends at {end}");
     assert_eq!(events.len(), 2, "{kinds:?}");
@@ -926,18 +914,7 @@ fn the_slow_arrival_3_1_branch_turns_once() {
     let (_, start) = orbit_at::<f32>(&at);
     assert_eq!((start.p(), start.q), (3, 1));
     let settings = ContinuationSettings::new::<f32>(Param::OmegaRatio, [0.6, 1.4]);
-    let mut events: Vec<BifEvent<f32>> = Vec::new();
-    let end = continue_branch(
-        &start,
-        &settings,
-        1.0,
-        None,
-        |_| {},
-        |e| {
-            events.push(*e);
-            ControlFlow::Continue(())
-        },
-    );
+    let (events, _, end) = branch_up(&start, &settings);
     let kinds: Vec<_> = events.iter().map(|e| (e.kind, e.value)).collect();
     println!("3/1 from 0.9 up: {kinds:?}, ends at {end}");
     // Measured: fold at 0.94686866 (μ +0.99924), grazing at 0.94284080.
@@ -947,4 +924,26 @@ fn the_slow_arrival_3_1_branch_turns_once() {
     assert!((events[0].critical.re - 1.0).abs() < 0.01);
     assert_eq!(events[1].kind, EventKind::Grazing);
     assert!(events[1].value < events[0].value, "the branch turned back");
+}
+
+/// The branch through `start` continued towards increasing values: its events, how many of its
+/// points are unstable, and how it ended.
+fn branch_up<T: Real>(
+    start: &Orbit<T>,
+    settings: &ContinuationSettings,
+) -> (Vec<BifEvent<T>>, usize, shared::orbit::BranchEnd) {
+    let mut events = Vec::new();
+    let mut unstable_points = 0;
+    let end = continue_branch(
+        start,
+        settings,
+        1.0,
+        None,
+        |p| unstable_points += usize::from(!p.orbit.floquet.stable()),
+        |e| {
+            events.push(*e);
+            ControlFlow::Continue(())
+        },
+    );
+    (events, unstable_points, end)
 }

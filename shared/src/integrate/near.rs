@@ -15,7 +15,7 @@
 //! grid analyses search several runs' trials side by side instead ([`NearLanes`]: lane `i`
 //! one trial, one point of every search per round). The same points, values and decisions in
 //! all three, so the same time, bit for bit. The periodic-orbit map takes the crossing
-//! to round-off instead, differentiated through its root ([`first_near_exact`]).
+//! to round-off instead, differentiated through its root ([`NearTrial::search_exact`]).
 
 use super::bracket::{Rule, bracket_rising};
 use super::contact_lanes::LaneContact;
@@ -54,12 +54,36 @@ impl<T: Real> NearTrial<T> {
         first_near_alone(hammer, &self.dense, self.start_delta, self.eta)
     }
 
-    /// Where the trial first comes near (s from its start), located to a few rounding units
-    /// and differentiated through its root ([`first_near_exact`]): the periodic-orbit map's
-    /// split (`Simulator::step_exact`).
+    /// [`first_near_alone`] with the crossing of `−η_δ` located by Illinois regula falsi to
+    /// four rounding units of the trial (at most [`MAX_EVENT_EVALS`] evaluations) instead of
+    /// [`HALVINGS`] halvings, and its time differentiated through the root
+    /// ([`Real::root_derivative`]: `−(∂δ/∂x·∂x/∂s)/(dδ/dt)` along the dense output) rather
+    /// than held fixed: the periodic-orbit map's split (`Simulator::step_exact`). The halvings
+    /// make that map jump wherever the split moves by a halving, with a slope between jumps
+    /// that need not be the map's (`crate::orbit`); this split moves with the state, so the
+    /// map is smooth and its tangent is its derivative. Where the trial only peaks (no
+    /// crossing) the sample of the peak, as alone.
     #[inline]
     pub(crate) fn search_exact(&self, hammer: &Hammer<T>) -> T {
-        first_near_exact(hammer, &self.dense, self.start_delta, self.eta)
+        let (dense, eta) = (&self.dense, self.eta);
+        scan_samples(
+            hammer,
+            dense,
+            self.start_delta,
+            eta,
+            |lo, hi, (d_lo, d_hi)| {
+                let near = |m: T| hammer.penetration(&dense.at(m / dense.h)).0 + eta;
+                let rule = Rule::Illinois {
+                    tol: dense.h * T::from_f64(4.0 * T::EPSILON),
+                    max_evals: MAX_EVENT_EVALS,
+                    ends: (d_lo + eta, d_hi + eta),
+                };
+                let root = bracket_rising(lo, hi, rule, near).0;
+                let (x, rate) = dense.position_and_rate(root);
+                let slope = hammer.penetration(&Vector2::new(x[0], rate[0])).1;
+                root.root_derivative(near(root), slope)
+            },
+        )
     }
 }
 
@@ -231,34 +255,6 @@ pub(super) fn first_near_alone<T: Real>(
     scan_samples(hammer, dense, start_delta, eta, |lo, hi, _| {
         let near = |m: T| hammer.penetration(&dense.at(m / dense.h)).0 + eta;
         bracket_rising(lo, hi, Rule::Bisect(HALVINGS), near).0
-    })
-}
-
-/// [`first_near_alone`] with the crossing of `−η_δ` located by Illinois regula falsi to four
-/// rounding units of the trial (at most [`MAX_EVENT_EVALS`] evaluations) instead of
-/// [`HALVINGS`] halvings, and its time differentiated through the root
-/// ([`Real::root_derivative`]: `−(∂δ/∂x·∂x/∂s)/(dδ/dt)` along the dense output) rather than
-/// held fixed. The halvings make the periodic-orbit map jump wherever the split moves by a
-/// halving, with a slope between jumps that need not be the map's (`crate::orbit`); this split
-/// moves with the state, so the map is smooth and its tangent is its derivative. Where the
-/// trial only peaks (no crossing) the sample of the peak, as alone.
-pub(super) fn first_near_exact<T: Real>(
-    hammer: &Hammer<T>,
-    dense: &DenseStep<T>,
-    start_delta: T,
-    eta: T,
-) -> T {
-    scan_samples(hammer, dense, start_delta, eta, |lo, hi, (d_lo, d_hi)| {
-        let near = |m: T| hammer.penetration(&dense.at(m / dense.h)).0 + eta;
-        let rule = Rule::Illinois {
-            tol: dense.h * T::from_f64(4.0 * T::EPSILON),
-            max_evals: MAX_EVENT_EVALS,
-            ends: (d_lo + eta, d_hi + eta),
-        };
-        let root = bracket_rising(lo, hi, rule, near).0;
-        let (x, rate) = dense.position_and_rate(root);
-        let slope = hammer.penetration(&Vector2::new(x[0], rate[0])).1;
-        root.root_derivative(near(root), slope)
     })
 }
 
@@ -665,7 +661,12 @@ mod tests {
         for (dense, start_delta) in &all {
             let h = dense.h;
             let alone = first_near_alone(&beam, dense, *start_delta, eta);
-            let exact = first_near_exact(&beam, dense, *start_delta, eta);
+            let exact = NearTrial {
+                dense: *dense,
+                start_delta: *start_delta,
+                eta,
+            }
+            .search_exact(&beam);
             let dt = h / f64::from(SAMPLES);
             let crosses =
                 (1..=SAMPLES).any(|i| beam.penetration(&dense.at(dt * f64::from(i) / h)).0 > -eta);
@@ -702,7 +703,12 @@ mod tests {
                 f1: flat(dense.f1),
                 h: D::from_f64(h),
             };
-            let t = first_near_exact(&beam_d, &dual, D::seed(*start_delta, 0), D::from_f64(eta));
+            let t = NearTrial {
+                dense: dual,
+                start_delta: D::seed(*start_delta, 0),
+                eta: D::from_f64(eta),
+            }
+            .search_exact(&beam_d);
             let expect = -1.0 / (v + a * root);
             assert!(
                 (t.d[0] - expect).abs() < 1e-9 * expect.abs(),

@@ -627,7 +627,7 @@ impl<'t, T: Real> Simulator<'t, T> {
     }
 
     /// [`Simulator::step`] with the split of a free-flight trial that comes near the surface
-    /// located to round-off and differentiated through its root (`near::first_near_exact`)
+    /// located to round-off and differentiated through its root (`NearTrial::search_exact`)
     /// instead of halved to 1/8192 of the step: the periodic-orbit map's step
     /// (`crate::orbit`), smooth in the state where the production step jumps. Everything else
     /// is [`Simulator::step`]'s.
