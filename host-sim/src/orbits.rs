@@ -171,16 +171,16 @@ pub fn find<T: Real>(
 /// the monodromy's, and a report says so.
 pub const SLOPE_MISMATCH_WARN: f64 = 0.05;
 
-/// A warning for an orbit whose monodromy is not the map's slope over ±1e-4 of the state's
-/// scales ([`Orbit::slope_mismatch`] above [`SLOPE_MISMATCH_WARN`]): the map is not smooth
-/// that close to the orbit, as within that of a grazing (an impact appears or vanishes);
-/// `None` where it is.
+/// The orbit's [`Orbit::slope_mismatch`] over ±1e-4 of the state's scales, and a warning where
+/// it is above [`SLOPE_MISMATCH_WARN`] (`None` where the monodromy is the map's slope): the
+/// map is not smooth that close to the orbit, as within that of a grazing (an impact appears
+/// or vanishes).
 ///
 /// # Errors
 /// A displaced state outside the rig's limits.
-pub fn slope_warning<T: Real>(o: &Orbit<T>) -> Result<Option<String>> {
+pub fn slope_check<T: Real>(o: &Orbit<T>) -> Result<(f64, Option<String>)> {
     let mismatch = o.slope_mismatch(1e-4)?;
-    Ok((mismatch > SLOPE_MISMATCH_WARN).then(|| {
+    let warning = (mismatch > SLOPE_MISMATCH_WARN).then(|| {
         format!(
             "! warning: at this orbit the map's slope differs from its monodromy by {mismatch:.2} \
              (over ±1e-4 of the state's scales; {SLOPE_MISMATCH_WARN} at most where they agree): \
@@ -188,7 +188,8 @@ pub fn slope_warning<T: Real>(o: &Orbit<T>) -> Result<Option<String>> {
              appears or vanishes), so its Floquet multipliers, stability, exponent and the \
              bifurcations located from them may describe one side only (docs/accuracy.md)"
         )
-    }))
+    });
+    Ok((mismatch, warning))
 }
 
 /// Which ways a branch is followed from its start.

@@ -16,7 +16,7 @@ use shared::orbit::{MapPoint, Param, ShootSettings, iterate, orbit_from};
 
 mod common;
 
-use common::{host_sim, line, ok, rejected};
+use common::{Outputs, host_sim, line, ok, rejected};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -373,10 +373,8 @@ fn the_impact_view_counts_each_runs_window_and_the_forced_response_island_never_
 
 #[test]
 fn bad_attractor_input_is_rejected_with_the_field_named_and_nothing_written() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("o.csv");
-    let png = dir.path().join("o.png");
-    let (o, p) = (s(&out), s(&png));
+    let outputs = Outputs::new();
+    let (o, p) = (outputs.csv(), outputs.png());
     let fr = |extra: &str| {
         format!(
             "fractions --rig beam-170 --gap-mm 3.0 --omega-ratio 1.4 --out {o} --plot {p} {extra}"
@@ -410,9 +408,7 @@ fn bad_attractor_input_is_rejected_with_the_field_named_and_nothing_written() {
             &["--width", "shard"],
         ),
     ];
-    for (cmd, needles) in &cases {
-        rejected(&line(cmd), needles, &[&out, &png]);
-    }
+    outputs.rejected(&cases);
     rejected(
         &line("select --rig wires --gap-mm 0 --basin-samples 0 --json --no-orbit-check"),
         &["--basin-samples", "allowed 1"],

@@ -592,6 +592,7 @@ fn a_reader_that_stops_early_ends_the_command_quietly() {
 /// wire rig's `1/1` orbit at Ω/ω 1.15172, 3e-5 above the band's lower grazing (1.151689 in
 /// f32), the secant crosses the grazing; at the main job's orbit and at the `3/1` orbit at 0.9
 /// (slow arrivals, where the split near the surface is located to round-off) it does not.
+/// `--json` carries the mismatch as `slope_mismatch`.
 #[test]
 fn orbit_warns_where_the_map_is_not_smooth() {
     let run = |ratio: &str| {
@@ -618,6 +619,18 @@ fn orbit_warns_where_the_map_is_not_smooth() {
         let out = run(quiet);
         assert!(out.is_empty(), "Ω/ω {quiet}: {out}");
     }
+    // `--json` gives the mismatch as a number: the warning's, and below 0.05 where quiet.
+    let mismatch = |ratio: &str| {
+        let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
+            "orbit --rig wires --gap-mm 0 --omega-ratio {ratio} --json"
+        ))))
+        .unwrap();
+        v["slope_mismatch"].as_f64().unwrap()
+    };
+    let m = mismatch("1.15172");
+    assert!((m - by).abs() <= 0.005 + 1e-9, "{m} vs the warning's {by}");
+    let m = mismatch("2.0");
+    assert!((0.0..0.05).contains(&m), "{m}");
 }
 
 #[test]

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-use common::{BEAM_HYSTERESIS_FRACTIONS, host_sim, leftovers, line, ok, rejected};
+use common::{BEAM_HYSTERESIS_FRACTIONS, Outputs, host_sim, leftovers, line, ok, rejected};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -258,17 +258,19 @@ fn read_rows(path: &Path) -> Vec<csv::StringRecord> {
     r.records().map(Result::unwrap).collect()
 }
 
+/// Runs `host-sim {args} --out <a CSV in a temporary folder>` and reads the CSV's rows.
+fn rows_of(args: &str) -> Vec<csv::StringRecord> {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.csv");
+    ok(&line(&format!("{args} --out {}", s(&out))));
+    read_rows(&out)
+}
+
 #[test]
 fn peterka_wire_rig_at_gap_zero_is_one_one_up_to_the_force_peak() {
     // The thesis (docs/model.md, "What the thesis reports"): wires, gap 0: a z = 1/1 band (Ω/ω ≈ 1.16–2.64) whose maximum force,
     // F_i/mg ≈ 32.9 near Ω/ω = 2.0, is about 3× the force at Ω = ω.
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("p.csv");
-    ok(&line(&format!(
-        "peterka --rig wires --gap-ratio 0:0:0.1 --omega-ratio 1.5:2.1:0.1 --out {}",
-        s(&out)
-    )));
-    let rows = read_rows(&out);
+    let rows = rows_of("peterka --rig wires --gap-ratio 0:0:0.1 --omega-ratio 1.5:2.1:0.1");
     assert_eq!(rows.len(), 7);
     let mut best = (0.0, 0.0);
     for r in &rows {
@@ -285,14 +287,9 @@ fn peterka_wire_rig_at_gap_zero_is_one_one_up_to_the_force_peak() {
 
 #[test]
 fn basins_with_a_unique_attractor_give_one_attractor_everywhere() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("b.csv");
-    ok(&line(&format!(
-        "basins --rig wires --gap-mm 0 --omega-ratio 1.5 --u0-mm -1:0:3 \
-            --v0-mm-s -10:10:3 --out {}",
-        s(&out)
-    )));
-    let rows = read_rows(&out);
+    let rows = rows_of(
+        "basins --rig wires --gap-mm 0 --omega-ratio 1.5 --u0-mm -1:0:3 --v0-mm-s -10:10:3",
+    );
     assert_eq!(rows.len(), 9);
     let first = &rows[0];
     for r in &rows {
@@ -303,12 +300,9 @@ fn basins_with_a_unique_attractor_give_one_attractor_everywhere() {
         assert_eq!(&r[7], &first[7]);
     }
     // The attractor's Poincaré point is the from-rest steady state (bifurcation, same point).
-    let bif = dir.path().join("f.csv");
-    ok(&line(&format!(
-        "bifurcation --gap-mm 0 --omega-ratio 1.5:1.5:0.1 --out {}",
-        s(&bif)
-    )));
-    let u: f64 = read_rows(&bif)[0][7].parse().unwrap();
+    let u: f64 = rows_of("bifurcation --gap-mm 0 --omega-ratio 1.5:1.5:0.1")[0][7]
+        .parse()
+        .unwrap();
     let ua: f64 = first[6].parse().unwrap();
     assert!((u - ua).abs() < 0.01 * 0.89, "{u} vs {ua}");
 }
@@ -316,14 +310,12 @@ fn basins_with_a_unique_attractor_give_one_attractor_everywhere() {
 #[test]
 fn bifurcation_from_rest_at_gap_zero_is_period_one_with_one_impact_per_period() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("f.csv");
     let png = dir.path().join("f.png");
-    ok(&line(&format!(
-        "bifurcation --rig wires --gap-mm 0 --omega-ratio 1.5:1.5:0.1 --out {} --plot {}",
-        s(&out),
+    let rows = rows_of(&format!(
+        "bifurcation --rig wires --gap-mm 0 --omega-ratio 1.5:1.5:0.1 --plot {}",
         s(&png)
-    )));
-    let rows = read_rows(&out);
+    ));
+    assert!(fs::metadata(&png).unwrap().len() > 10_000);
     let strobes: Vec<f64> = rows
         .iter()
         .filter(|r| &r[5] == "strobe")
@@ -343,13 +335,7 @@ fn bifurcation_from_rest_at_gap_zero_is_period_one_with_one_impact_per_period() 
 
 #[test]
 fn bifurcation_continuation_writes_two_branches() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("c.csv");
-    ok(&line(&format!(
-        "bifurcation --gap-mm 0 --omega-ratio 1.5:1.9:0.2 --continuation both --out {}",
-        s(&out)
-    )));
-    let rows = read_rows(&out);
+    let rows = rows_of("bifurcation --gap-mm 0 --omega-ratio 1.5:1.9:0.2 --continuation both");
     let order: Vec<(String, String)> = rows
         .iter()
         .filter(|r| &r[5] == "strobe" && &r[6] == "0")
@@ -375,10 +361,8 @@ fn bifurcation_continuation_writes_two_branches() {
 
 #[test]
 fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("o.csv");
-    let png = dir.path().join("o.png");
-    let (o, p) = (s(&out), s(&png));
+    let outputs = Outputs::new();
+    let (o, p) = (outputs.csv(), outputs.png());
     let peterka = |gap: &str, freq: &str| {
         format!("peterka --gap-mm {gap} --freq-hz {freq} --out {o} --plot {p}")
     };
@@ -425,16 +409,11 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
             &["--shard", "continuation"],
         ),
     ];
-    for (cmd, needles) in &cases {
-        rejected(&line(cmd), needles, &[&out, &png]);
-    }
-    rejected(
-        &line(&format!(
-            "bifurcation --gap-mm 0 --omega-ratio 0.001:2:0.5 --out {o}"
-        )),
+    outputs.rejected(&cases);
+    outputs.rejected(&[(
+        format!("bifurcation --gap-mm 0 --omega-ratio 0.001:2:0.5 --out {o}"),
         &["--omega-ratio", "allowed"],
-        &[&out],
-    );
+    )]);
 }
 
 #[test]

@@ -16,6 +16,10 @@ fn recorded(dir: &Path, name: &str, options: &str) -> std::path::PathBuf {
     path
 }
 
+/// A Hunt–Crossley law as a config file (`k = 1e9 N/m^1.5`, `λ = 10 s/m`).
+const HUNT_CROSSLEY: &str =
+    "[rig.contact.hunt-crossley]\nstiffness = 1.0e9\nexponent = 1.5\nlambda_s_m = 10.0\n";
+
 #[test]
 fn drop_identify_contact_and_use_the_fit_as_config() {
     let dir = tempfile::tempdir().unwrap();
@@ -83,20 +87,17 @@ fn identify_contact_joint_fit_of_two_release_heights() {
     // parameter set, the error summed over the traces; per-trace residuals in the report.
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
-    fs::write(
-        p("truth.toml"),
-        "[rig.contact.hunt-crossley]\nstiffness = 1.0e9\nexponent = 1.5\nlambda_s_m = 10.0\n",
-    )
-    .unwrap();
+    fs::write(p("truth.toml"), HUNT_CROSSLEY).unwrap();
     for (name, release, seed) in [("low.csv", "0.25", "3"), ("high.csv", "3", "4")] {
-        ok(&line(&format!(
-            "drop --rig wires --config {} --release-mm {} --duration-s 1.0 \
-                --noise-pct 1 --offset-n 0.5 --seed {} --out {}",
-            p("truth.toml"),
-            release,
-            seed,
-            p(name)
-        )));
+        let truth = p("truth.toml");
+        recorded(
+            dir.path(),
+            name,
+            &format!(
+                "--rig wires --config {truth} --release-mm {release} --duration-s 1.0 \
+                 --noise-pct 1 --offset-n 0.5 --seed {seed}"
+            ),
+        );
     }
     let json = ok(&line(&format!(
         "identify contact --trace {} --release-mm 0.25 --trace {} \
@@ -177,69 +178,43 @@ fn identify_contact_rejects_bad_input() {
     .unwrap();
     let out = dir.path().join("fit.toml");
     let o = out.to_string_lossy().into_owned();
-    rejected(
-        &line(&format!(
-            "identify contact --trace {} --mass-kg -0.3 --law all --out {}",
-            p("good.csv"),
-            o
-        )),
-        &["mass_kg", "-0.3", "allowed"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!(
-            "identify contact --trace {} --mass-kg NaN --law all --out {}",
-            p("good.csv"),
-            o
-        )),
-        &["mass_kg", "finite"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!(
-            "identify contact --trace {} --mass-kg 0.3 --law all --out {}",
-            p("bad.csv"),
-            o
-        )),
-        &["line 15", "force_n", "12..5"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!(
-            "identify contact --trace {} --mass-kg 0.3 --law hertz --out {}",
-            p("good.csv"),
-            o
-        )),
-        &["no impact"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!(
-            "identify contact --trace {} --mass-kg 0.3 --law spring --out {}",
-            p("good.csv"),
-            o
-        )),
-        &["unknown contact law"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!(
-            "identify contact --trace {} --mass-kg 0.3 --law all --release-mm -1 --out {}",
-            p("good.csv"),
-            o
-        )),
-        &["release_mm"],
-        &[&out],
-    );
-    rejected(
-        &line(&format!(
-            "identify contact --trace {} --mass-kg 0.3 --law all --force-col F --out {}",
-            p("good.csv"),
-            o
-        )),
-        &["no force column `F`"],
-        &[&out],
-    );
+    let cases: [(&str, &str, &[&str]); 7] = [
+        (
+            "good.csv",
+            "--mass-kg -0.3 --law all",
+            &["mass_kg", "-0.3", "allowed"],
+        ),
+        (
+            "good.csv",
+            "--mass-kg NaN --law all",
+            &["mass_kg", "finite"],
+        ),
+        (
+            "bad.csv",
+            "--mass-kg 0.3 --law all",
+            &["line 15", "force_n", "12..5"],
+        ),
+        ("good.csv", "--mass-kg 0.3 --law hertz", &["no impact"]),
+        (
+            "good.csv",
+            "--mass-kg 0.3 --law spring",
+            &["unknown contact law"],
+        ),
+        (
+            "good.csv",
+            "--mass-kg 0.3 --law all --release-mm -1",
+            &["release_mm"],
+        ),
+        (
+            "good.csv",
+            "--mass-kg 0.3 --law all --force-col F",
+            &["no force column `F`"],
+        ),
+    ];
+    for (trace, options, says) in cases {
+        let cmd = format!("identify contact --trace {} {options} --out {o}", p(trace));
+        rejected(&line(&cmd), says, &[&out]);
+    }
 }
 
 /// What the fit cannot stand on is refused, with no config written: data in other units than
@@ -464,15 +439,19 @@ fn identify_free_gives_the_beam_suspension() {
 fn compare_a_response_with_itself_has_no_error() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    // `compare` of the experiment `exp` against the wire rig at 0.0 mm, its figure in `png`.
+    let compare = |exp: &str, png: &str| {
+        line(&format!(
+            "compare --rig wires --gap-mm 0 --experiment {} --out {}",
+            p(exp),
+            p(png)
+        ))
+    };
     ok(&line(&format!(
         "response --rig wires --gap-mm 0 --omega-ratio 1.5:2.5:0.5 --out {}",
         p("exp.csv")
     )));
-    let out = ok(&line(&format!(
-        "compare --rig wires --gap-mm 0 --experiment {} --out {}",
-        p("exp.csv"),
-        p("cmp.png")
-    )));
+    let out = ok(&compare("exp.csv", "cmp.png"));
     assert!(
         out.contains("3 points") && out.contains("RMS 0.00"),
         "{out}"
@@ -494,11 +473,7 @@ fn compare_a_response_with_itself_has_no_error() {
         shifted += &(cells.join(",") + "\n");
     }
     fs::write(p("shifted.csv"), shifted).unwrap();
-    let out = ok(&line(&format!(
-        "compare --rig wires --gap-mm 0 --experiment {} --out {}",
-        p("shifted.csv"),
-        p("shifted.png")
-    )));
+    let out = ok(&compare("shifted.csv", "shifted.png"));
     assert!(out.contains("bias -1.00, RMS 1.00, largest -1.00"), "{out}");
     // A lab export: `%` and `#` comment lines, `;` as the delimiter (the trace reader's rules).
     let exp = fs::read_to_string(p("exp.csv")).unwrap();
@@ -510,33 +485,21 @@ fn compare_a_response_with_itself_has_no_error() {
         ),
     )
     .unwrap();
-    let out = ok(&line(&format!(
-        "compare --rig wires --gap-mm 0 --experiment {} --out {}",
-        p("lab.csv"),
-        p("lab.png")
-    )));
+    let out = ok(&compare("lab.csv", "lab.png"));
     assert!(
         out.contains("3 points") && out.contains("RMS 0.00"),
         "{out}"
     );
     fs::write(p("bad.csv"), "freq_hz,impact_force_n\n3.0,40\n3.1,x\n").unwrap();
     rejected(
-        &line(&format!(
-            "compare --rig wires --gap-mm 0 --experiment {} --out {}",
-            p("bad.csv"),
-            p("bad.png")
-        )),
+        &compare("bad.csv", "bad.png"),
         &["line 3", "impact_force_n"],
         &[&dir.path().join("bad.png")],
     );
     // A negative frequency is named as the file's column, in Hz.
     fs::write(p("neg.csv"), "freq_hz,impact_force_n\n3.0,40\n-3.0,40\n").unwrap();
     rejected(
-        &line(&format!(
-            "compare --rig wires --gap-mm 0 --experiment {} --out {}",
-            p("neg.csv"),
-            p("neg.png")
-        )),
+        &compare("neg.csv", "neg.png"),
         &["line 3", "freq_hz", "-3"],
         &[&dir.path().join("neg.png")],
     );
@@ -662,16 +625,15 @@ fn a_wrong_law_is_called_so_and_select_warns_before_using_it() {
     let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
     // A strongly dissipative Hunt–Crossley contact (e = 0.81 at the drop's 34 mm/s), one 3 mm
     // drop, fitted with the spring–dashpot law and with every law.
-    fs::write(
-        p("hc.toml"),
-        "[rig.contact.hunt-crossley]\nstiffness = 1.0e9\nexponent = 1.5\nlambda_s_m = 10.0\n",
-    )
-    .unwrap();
-    ok(&line(&format!(
-        "drop --config {} --release-mm 3 --duration-s 1.2 --noise-pct 1 --offset-n 0.5 --seed 1 --out {}",
-        p("hc.toml"),
-        p("hc.csv")
-    )));
+    fs::write(p("hc.toml"), HUNT_CROSSLEY).unwrap();
+    recorded(
+        dir.path(),
+        "hc.csv",
+        &format!(
+            "--config {} --release-mm 3 --duration-s 1.2 --noise-pct 1 --offset-n 0.5 --seed 1",
+            p("hc.toml")
+        ),
+    );
     let text = ok(&line(&format!(
         "identify contact --trace {} --mass-kg 0.298 --law all",
         p("hc.csv")

@@ -446,69 +446,48 @@ fn killing_the_rig_mid_log_is_a_clear_error_with_no_csv_left() {
 #[test]
 fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
     let dir = tempfile::tempdir().unwrap();
-    let with_faults = write_file(
-        dir.path(),
-        "faults.toml",
-        "[[commands]]\nat_s = 0.5\nline = \"status\"\n[[faults]]\nat_s = 1.0\nkind = \"sensor-open\"\n",
-    );
     let server = Server::start("20", "");
-    let out = rig_cmd(
-        &server.pty,
-        &format!("run --scenario {}", with_faults.display()),
-    );
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && stderr.contains("faults belong to the virtual rig"),
-        "{stderr}"
-    );
-    // A file without commands, or with the virtual rig's plant: nothing is sent (the virtual
-    // rig's default `start` never reaches a rig).
-    for (name, text, says) in [
-        ("empty.toml", "", "no [[commands]] to run"),
+    // `rig run` with the scenario `text`: its stdout and stderr, and whether it succeeded.
+    let run = |name: &str, text: &str| {
+        let path = write_file(dir.path(), name, text);
+        let out = rig_cmd(&server.pty, &format!("run --scenario {}", path.display()));
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        (out.status.success(), stdout, stderr)
+    };
+    // Refused before anything is sent: faults, a file without commands, the virtual rig's
+    // plant (the virtual rig's default `start` never reaches a rig). A line the rig refuses
+    // ends the run before the lines planned after it.
+    for (name, text, says, absent) in [
+        (
+            "faults.toml",
+            "[[commands]]\nat_s = 0.5\nline = \"status\"\n[[faults]]\nat_s = 1.0\nkind = \"sensor-open\"\n",
+            "faults belong to the virtual rig",
+            "start",
+        ),
+        ("empty.toml", "", "no [[commands]] to run", "start"),
         (
             "plant.toml",
             "[plant]\ncontact_stiffness_factor = 16.0\n",
             "plant belong to the virtual rig",
+            "start",
+        ),
+        (
+            "refused.toml",
+            "[[commands]]\nat_s = 0.1\nline = \"freq 50\"\n[[commands]]\nat_s = 0.3\nline = \"start\"\n",
+            "the rig refused `freq 50`",
+            "> start",
         ),
     ] {
-        let path = write_file(dir.path(), name, text);
-        let out = rig_cmd(&server.pty, &format!("run --scenario {}", path.display()));
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && stderr.contains(says), "{stderr}");
-        assert!(!String::from_utf8_lossy(&out.stdout).contains("start"));
+        let (success, stdout, stderr) = run(name, text);
+        assert!(!success && stderr.contains(says), "{name}: {stderr}");
+        assert!(!stdout.contains(absent), "{name}: {stdout}");
     }
-    // A refused line ends the run before the lines planned on it.
-    let refused = write_file(
-        dir.path(),
-        "refused.toml",
-        "[[commands]]\nat_s = 0.1\nline = \"freq 50\"\n[[commands]]\nat_s = 0.3\nline = \"start\"\n",
-    );
-    let out = rig_cmd(
-        &server.pty,
-        &format!("run --scenario {}", refused.display()),
-    );
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        !out.status.success() && stderr.contains("the rig refused `freq 50`"),
-        "{stderr}"
-    );
-    assert!(!stdout.contains("> start"), "{stdout}");
-    let commands = write_file(
-        dir.path(),
+    let (success, stdout, stderr) = run(
         "commands.toml",
         "[[commands]]\nat_s = 0.2\nline = \"gap 0.5\"\n[[commands]]\nat_s = 1.0\nline = \"status\"\n",
     );
-    let out = rig_cmd(
-        &server.pty,
-        &format!("run --scenario {}", commands.display()),
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(success, "{stderr}");
     assert!(stdout.contains("> gap 0.5\n             ok"), "{stdout}");
     assert!(stdout.contains("gap_mm=0.50"), "{stdout}");
     server.stop();

@@ -504,16 +504,15 @@ fn sequences_and_clocks_that_go_back_are_errors() {
     );
 }
 
+/// A two-point sweep, one cycle to settle and one to dwell, into `fr.csv`.
+const SHORT_SWEEP: &str =
+    "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 1 --out fr.csv";
+
 #[test]
 fn a_sweep_whose_rig_never_dwells_ends_with_a_partial_file() {
     let dir = tempfile::tempdir().unwrap();
     let port = fake_rig(Misbehaviour::NeverDwells);
-    let stderr = rig_fails(
-        &port,
-        dir.path(),
-        "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 1 --out fr.csv",
-        Duration::from_secs(60),
-    );
+    let stderr = rig_fails(&port, dir.path(), SHORT_SWEEP, Duration::from_secs(60));
     assert!(stderr.contains("did not dwell"), "{stderr}");
     assert!(stderr.contains("last seen: state=ramp"), "{stderr}");
     assert!(!dir.path().join("fr.csv").exists());
@@ -532,12 +531,7 @@ fn a_sweep_whose_rig_never_dwells_ends_with_a_partial_file() {
 fn a_lost_stop_is_retried_and_the_watchdog_stays_armed() {
     let dir = tempfile::tempdir().unwrap();
     let (port, fake) = fake_rig_logged(Misbehaviour::LosesStop);
-    let stderr = rig_fails(
-        &port,
-        dir.path(),
-        "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 1 --out fr.csv",
-        Duration::from_secs(60),
-    );
+    let stderr = rig_fails(&port, dir.path(), SHORT_SWEEP, Duration::from_secs(60));
     assert!(stderr.contains("`stop` failed 3 times"), "{stderr}");
     assert!(stderr.contains("the drive may still run"), "{stderr}");
     assert!(!stderr.contains("ramped to zero"), "{stderr}");

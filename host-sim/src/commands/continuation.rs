@@ -237,7 +237,7 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         let mut all: Vec<BranchOut> = Vec::new();
         for p in &starts {
             let (r, o): (_, Orbit<T>) = orbits::find::<T>(p, start, a.point.q)?;
-            if let Some(w) = orbits::slope_warning(&o)? {
+            if let (_, Some(w)) = orbits::slope_check(&o)? {
                 eprintln!("{w} (the branch's start)");
             }
             regimes.push(format!("{} at {}", r.regime, param_value_shown(param, p.get(param))));

@@ -52,6 +52,52 @@ pub fn omega_sweep(text: &str) -> Result<Sweep> {
     )
 }
 
+/// The excitation frequency of one operating point, as `Ω/ω` or in Hz (`simulate`, `orbit`).
+#[derive(Debug, Clone, Args)]
+pub struct ExcitationOpts {
+    /// Excitation frequency as Ω/ω (give this or --freq-hz).
+    #[arg(long, conflicts_with = "freq_hz")]
+    pub omega_ratio: Option<f64>,
+    /// Excitation frequency, Hz.
+    #[arg(long)]
+    pub freq_hz: Option<f64>,
+}
+
+impl ExcitationOpts {
+    /// `Ω/ω` ([`excitation_ratio`]).
+    ///
+    /// # Errors
+    /// Neither or both given, or out of range (the flag and the range named).
+    pub fn ratio(&self, setup: &Setup) -> Result<f64> {
+        excitation_ratio(setup, self.omega_ratio, self.freq_hz)
+    }
+}
+
+/// Where a run starts, relative to the cart (`simulate`, `orbit`).
+#[derive(Debug, Clone, Args)]
+pub struct StartOpts {
+    /// Initial relative displacement u0, mm (default: at rest, 0).
+    #[arg(long, default_value_t = 0.0)]
+    pub u0_mm: f64,
+    /// Initial relative velocity u̇0, mm/s.
+    #[arg(long, default_value_t = 0.0)]
+    pub v0_mm_s: f64,
+}
+
+impl StartOpts {
+    /// The start `(u0, u̇0)` in m and m/s, checked: `u0` within ±20 mm and not beyond the
+    /// surface at `gap_mm`, `u̇0` within ±10 m/s.
+    ///
+    /// # Errors
+    /// Out of range (the flag and the range named).
+    pub fn start_m(&self, gap_mm: f64) -> Result<(f64, f64)> {
+        check_range("u0_mm", self.u0_mm, -20.0, 20.0).context("--u0-mm")?;
+        check_start_off_surface(&format!("--u0-mm {}", self.u0_mm), self.u0_mm, gap_mm)?;
+        check_range("v0_mm_s", self.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
+        Ok((self.u0_mm * 1e-3, self.v0_mm_s * 1e-3))
+    }
+}
+
 /// The excitation as `Ω/ω` from `--omega-ratio` or `--freq-hz` (exactly one given), within
 /// the analyses' range.
 ///

@@ -3,10 +3,10 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use shared::error::{check_count, check_range};
+use shared::error::check_count;
 use shared::orbit::{MAX_Q, MapPoint, Orbit};
 
-use super::excitation_ratio;
+use super::{ExcitationOpts, StartOpts};
 use crate::config::{RigOpts, Setup};
 use crate::orbits::{self, OrbitReport, Start};
 
@@ -19,23 +19,15 @@ pub struct PointArgs {
     /// Gap, mm (≥ 0).
     #[arg(long, default_value_t = 0.0)]
     pub gap_mm: f64,
-    /// Excitation frequency as Ω/ω (give this or --freq-hz).
-    #[arg(long, conflicts_with = "freq_hz")]
-    pub omega_ratio: Option<f64>,
-    /// Excitation frequency, Hz.
-    #[arg(long)]
-    pub freq_hz: Option<f64>,
+    #[command(flatten)]
+    pub excitation: ExcitationOpts,
     /// Period q of the orbit sought, excitation periods (1..=256; default: the period the
     /// protocol settles on from the start).
     #[arg(long)]
     pub q: Option<u32>,
-    /// Initial relative displacement u0, mm, of the protocol run the search starts from
-    /// (default: at rest, 0).
-    #[arg(long, default_value_t = 0.0)]
-    pub u0_mm: f64,
-    /// Initial relative velocity u̇0, mm/s.
-    #[arg(long, default_value_t = 0.0)]
-    pub v0_mm_s: f64,
+    /// The start of the protocol run the search starts from.
+    #[command(flatten)]
+    pub start: StartOpts,
 }
 
 impl PointArgs {
@@ -46,24 +38,15 @@ impl PointArgs {
     pub fn resolve(&self) -> Result<(Setup, MapPoint, Start)> {
         let setup = Setup::from_opts(&self.rig)?;
         let gap_m = setup.gap_m("--gap-mm", self.gap_mm)?;
-        let ratio = excitation_ratio(&setup, self.omega_ratio, self.freq_hz)?;
+        let ratio = self.excitation.ratio(&setup)?;
         if let Some(q) = self.q {
             check_count("q", q, 1, MAX_Q).context("--q")?;
         }
-        check_range("u0_mm", self.u0_mm, -20.0, 20.0).context("--u0-mm")?;
-        check_range("v0_mm_s", self.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
-        super::check_start_off_surface(
-            &format!("--u0-mm {}", self.u0_mm),
-            self.u0_mm,
-            self.gap_mm,
-        )?;
-        let start = if self.u0_mm == 0.0 && self.v0_mm_s == 0.0 {
+        let (u_m, du_m_s) = self.start.start_m(self.gap_mm)?;
+        let start = if self.start.u0_mm == 0.0 && self.start.v0_mm_s == 0.0 {
             Start::Rest
         } else {
-            Start::Relative {
-                u_m: self.u0_mm * 1e-3,
-                du_m_s: self.v0_mm_s * 1e-3,
-            }
+            Start::Relative { u_m, du_m_s }
         };
         let at = orbits::map_point(&setup, gap_m, ratio);
         Ok((setup, at, start))
@@ -89,6 +72,10 @@ struct OrbitJson<'a> {
     precision: &'static str,
     protocol_regime: String,
     orbit: &'a OrbitReport,
+    /// The map's slope against its monodromy over ±1e-4 of the state's scales
+    /// ([`Orbit::slope_mismatch`]; above [`orbits::SLOPE_MISMATCH_WARN`] the map is not smooth
+    /// that close to the orbit, and a warning says so).
+    slope_mismatch: f64,
 }
 
 /// `x`, or `+0` where it prints as zero at `decimals` places (no `-0.000000` for a value a
@@ -155,17 +142,20 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
     let (setup, at, start) = a.point.resolve()?;
     let (protocol, report) = crate::with_precision!(setup.precision, T => {
         let (r, o): (_, Orbit<T>) = orbits::find::<T>(&at, start, a.point.q)?;
-        if let Some(w) = orbits::slope_warning(&o)? {
+        let (mismatch, warning) = orbits::slope_check(&o)?;
+        if let Some(w) = warning {
             eprintln!("{w}");
         }
-        (r, orbits::report(&o)?)
+        (r, (orbits::report(&o)?, mismatch))
     });
+    let (report, slope_mismatch) = report;
     if a.json {
         let j = OrbitJson {
             rig: setup.rig.to_string(),
             precision: setup.precision.name(),
             protocol_regime: protocol.regime.to_string(),
             orbit: &report,
+            slope_mismatch,
         };
         println!("{}", serde_json::to_string_pretty(&j)?);
     } else {
@@ -176,8 +166,10 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
             match start {
                 Start::Rest => "rest".to_string(),
                 // As given (the start in m, times 1e3, prints the conversion's rounding).
-                Start::Relative { .. } =>
-                    format!("u0 = {} mm, u̇0 = {} mm/s", a.point.u0_mm, a.point.v0_mm_s),
+                Start::Relative { .. } => format!(
+                    "u0 = {} mm, u̇0 = {} mm/s",
+                    a.point.start.u0_mm, a.point.start.v0_mm_s
+                ),
             },
             protocol.regime,
             protocol.transient_periods

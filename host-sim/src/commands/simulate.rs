@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use shared::error::{check_count, check_range};
+use shared::error::check_count;
 
-use super::excitation_ratio;
+use super::{ExcitationOpts, StartOpts};
 use crate::config::{RigOpts, Setup};
 use crate::figures::response::{TsPoint, time_series};
 use crate::output::{Outputs, write_csv};
@@ -22,21 +22,13 @@ pub struct SimulateArgs {
     /// Gap, mm (≥ 0).
     #[arg(long)]
     pub gap_mm: f64,
-    /// Excitation frequency as Ω/ω (give this or --freq-hz).
-    #[arg(long, conflicts_with = "freq_hz")]
-    pub omega_ratio: Option<f64>,
-    /// Excitation frequency, Hz.
-    #[arg(long)]
-    pub freq_hz: Option<f64>,
+    #[command(flatten)]
+    pub excitation: ExcitationOpts,
     /// Excitation periods to simulate (1..=100000).
     #[arg(long, default_value_t = 20)]
     pub periods: u32,
-    /// Initial relative displacement u0, mm (default: at rest, 0).
-    #[arg(long, default_value_t = 0.0)]
-    pub u0_mm: f64,
-    /// Initial relative velocity u̇0, mm/s.
-    #[arg(long, default_value_t = 0.0)]
-    pub v0_mm_s: f64,
+    #[command(flatten)]
+    pub start: StartOpts,
     /// CSV: t_s, u_mm, du_mm_s, x_mm, impact_force_n, impact_force_mg, region, poincare,
     /// lyapunov_per_period (at Poincaré rows: the running estimate of the largest Lyapunov
     /// exponent over the periods so far).
@@ -57,11 +49,9 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let fn_hz = setup.params.natural_freq_hz();
-    let ratio = excitation_ratio(&setup, a.omega_ratio, a.freq_hz)?;
+    let ratio = a.excitation.ratio(&setup)?;
     check_count("periods", a.periods, 1, 100_000).context("--periods")?;
-    check_range("u0_mm", a.u0_mm, -20.0, 20.0).context("--u0-mm")?;
-    super::check_start_off_surface(&format!("--u0-mm {}", a.u0_mm), a.u0_mm, a.gap_mm)?;
-    check_range("v0_mm_s", a.v0_mm_s, -1e4, 1e4).context("--v0-mm-s")?;
+    let (u0_m, v0_m_s) = a.start.start_m(a.gap_mm)?;
     let omega_exc = ratio * setup.params.omega_n();
     let (rows, summary) = series::simulate(
         &setup,
@@ -69,8 +59,8 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
             gap_m,
             omega_exc,
             periods: a.periods,
-            u0_m: a.u0_mm * 1e-3,
-            v0_m_s: a.v0_mm_s * 1e-3,
+            u0_m,
+            v0_m_s,
         },
     )?;
     let mut outputs = Outputs::new();

@@ -90,6 +90,45 @@ pub fn rejected<S: AsRef<OsStr> + Debug>(args: &[S], needles: &[&str], outputs: 
     }
 }
 
+/// A temporary folder and the paths of a command's CSV (`o.csv`) and figure (`o.png`) in it,
+/// for the rejection tests: [`Outputs::rejected`] asserts that neither is written.
+pub struct Outputs {
+    /// The folder (removed when dropped).
+    pub dir: tempfile::TempDir,
+    /// The CSV's path.
+    pub csv: PathBuf,
+    /// The figure's path.
+    pub png: PathBuf,
+}
+
+impl Outputs {
+    /// A new temporary folder.
+    pub fn new() -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("o.csv");
+        let png = dir.path().join("o.png");
+        Self { dir, csv, png }
+    }
+
+    /// The CSV's path as text.
+    pub fn csv(&self) -> &str {
+        self.csv.to_str().unwrap()
+    }
+
+    /// The figure's path as text.
+    pub fn png(&self) -> &str {
+        self.png.to_str().unwrap()
+    }
+
+    /// Asserts that every `(command line, needles)` is [`rejected`] naming its needles, with
+    /// neither output written.
+    pub fn rejected(&self, cases: &[(String, &[&str])]) {
+        for (cmd, needles) in cases {
+            rejected(&line(cmd), needles, &[&self.csv, &self.png]);
+        }
+    }
+}
+
 /// Bad input files: for each `(file, args, text, needle)`, writes `text` to `file`, runs the
 /// command line `args` (which reads `file`) and asserts it is [`rejected`] naming `needle`
 /// with none of `outputs` written.

@@ -390,33 +390,46 @@ fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
     }
 }
 
-/// A located fold held back until the branch has moved [`ContinuationSettings::kink_span`]
-/// away from it (in the parameter), or meets another event first.
-struct HeldFold<T> {
-    event: Option<BifEvent<T>>,
+/// A located fold (`E`, at the parameter's value) held back until the branch has moved
+/// [`ContinuationSettings::kink_span`] away from it (in the parameter), or meets another event
+/// first.
+struct HeldFold<E> {
+    held: Option<(f64, E)>,
     span: f64,
 }
 
-impl<T: Copy> HeldFold<T> {
-    /// A new fold: the one held before, to report now (it is told before the new one), or
-    /// nothing; two folds within the span are a zig-zag over a kink, and both are dropped.
-    fn fold(&mut self, ev: BifEvent<T>) -> Option<BifEvent<T>> {
-        match self.event.take() {
-            Some(held) if libm::fabs(held.value - ev.value) < self.span => None,
+impl<E> HeldFold<E> {
+    /// Nothing held; folds within `span` of each other are a zig-zag.
+    fn new(span: f64) -> Self {
+        Self { held: None, span }
+    }
+
+    /// A new fold at `value`: the one held before, to report now (it is told before the new
+    /// one), or nothing; two folds within the span are a zig-zag over a kink, and both are
+    /// dropped.
+    fn fold(&mut self, value: f64, ev: E) -> Option<E> {
+        match self.held.take() {
+            Some((v, _)) if libm::fabs(v - value) < self.span => None,
             held => {
-                self.event = Some(ev);
-                held
+                self.held = Some((value, ev));
+                held.map(|(_, e)| e)
             }
         }
     }
 
-    /// The held fold, if the branch at `value` has moved the span away from it (`all`: in
-    /// any case), to report now.
-    fn release(&mut self, value: f64, all: bool) -> Option<BifEvent<T>> {
-        match self.event {
-            Some(held) if all || libm::fabs(held.value - value) >= self.span => self.event.take(),
-            _ => None,
-        }
+    /// The held fold if the branch, now at `value`, has moved the span away from it, to report
+    /// now (else it stays held).
+    fn release_past(&mut self, value: f64) -> Option<E> {
+        let past = self
+            .held
+            .as_ref()
+            .is_some_and(|(v, _)| libm::fabs(v - value) >= self.span);
+        if past { self.release() } else { None }
+    }
+
+    /// The held fold, to report now (another event comes first, or the branch ends).
+    fn release(&mut self) -> Option<E> {
+        self.held.take().map(|(_, e)| e)
     }
 }
 
@@ -471,10 +484,7 @@ pub fn continue_branch<T: Real>(
         value: value0,
         orbit: first,
     });
-    let mut held = HeldFold {
-        event: None,
-        span: settings.kink_span * s_lambda,
-    };
+    let mut held = HeldFold::new(settings.kink_span * s_lambda);
     // Tells the held fold (if `release` gives it) and ends the branch if the caller stops there.
     macro_rules! tell_held {
         ($release:expr) => {
@@ -498,12 +508,12 @@ pub fn continue_branch<T: Real>(
                 // At the range's edge heading out of it (gap 0 going down, where the corrector
                 // cannot take the predicted value): the range's end.
                 if at_edge_heading_out(settings.range, value_a, node.t[2]) {
-                    tell_held!(held.release(value_a, true));
+                    tell_held!(held.release());
                     return BranchEnd::RangeEnd(value_a);
                 }
                 // A fold within the span of where the branch stalls is the kink that stalls
                 // it: not told.
-                tell_held!(held.release(value_a, false));
+                tell_held!(held.release_past(value_a));
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -545,7 +555,7 @@ pub fn continue_branch<T: Real>(
         let value_b = b.z[2] * s_lambda;
         // The range's end: the last point inside is reported, the branch ends.
         if !in_range(value_b) {
-            tell_held!(held.release(value_a, true));
+            tell_held!(held.release());
             return BranchEnd::RangeEnd(value_a);
         }
         // A grazing: the impact count changed between a and b.
@@ -554,7 +564,7 @@ pub fn continue_branch<T: Real>(
                 e.orbit.trace.impacts == node.e.orbit.trace.impacts
             });
             let value = ev.z[2] * s_lambda;
-            tell_held!(held.release(value, true));
+            tell_held!(held.release());
             let _ = on_event(&BifEvent {
                 kind: EventKind::Grazing,
                 value,
@@ -609,15 +619,15 @@ pub fn continue_branch<T: Real>(
         });
         for ev in found {
             if ev.kind == EventKind::Fold {
-                tell_held!(held.fold(ev));
+                tell_held!(held.fold(ev.value, ev));
             } else {
-                tell_held!(held.release(ev.value, true));
+                tell_held!(held.release());
                 if on_event(&ev).is_break() {
                     return BranchEnd::Stopped(ev.value);
                 }
             }
         }
-        tell_held!(held.release(value_b, false));
+        tell_held!(held.release_past(value_b));
         on_point(&BranchPoint {
             value: value_b,
             orbit: b.e.orbit,
@@ -637,7 +647,7 @@ pub fn continue_branch<T: Real>(
         };
     }
     let value = node.z[2] * s_lambda;
-    tell_held!(held.release(value, true));
+    tell_held!(held.release());
     BranchEnd::MaxPoints(value)
 }
 
@@ -784,4 +794,35 @@ pub fn doubling_start<T: Real>(event: &BifEvent<T>) -> Option<(Orbit<T>, [f64; 3
         iterations: 0,
     };
     Some((doubled, [t[0] / n, t[1] / n, 0.0]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::HeldFold;
+
+    #[test]
+    fn a_held_fold_is_told_once_the_branch_is_a_span_past_it() {
+        let mut held = HeldFold::new(1e-5);
+        assert_eq!(held.fold(2.0, 'a'), None);
+        // Still within the span: held.
+        assert_eq!(held.release_past(2.0 + 0.5e-5), None);
+        assert_eq!(held.release_past(2.0 - 0.9e-5), None);
+        // A span past it, either way: told once.
+        assert_eq!(held.release_past(2.0 + 1.5e-5), Some('a'));
+        assert_eq!(held.release_past(2.1), None);
+        assert_eq!(held.release(), None);
+    }
+
+    #[test]
+    fn two_folds_within_the_span_are_a_zig_zag_and_neither_is_told() {
+        let mut held = HeldFold::new(1e-5);
+        assert_eq!(held.fold(2.0, 'a'), None);
+        assert_eq!(held.fold(2.0 + 0.3e-5, 'b'), None);
+        assert_eq!(held.release(), None);
+        assert_eq!(held.release_past(3.0), None);
+        // Two folds farther apart: the first is told when the second comes, the second held.
+        assert_eq!(held.fold(2.0, 'c'), None);
+        assert_eq!(held.fold(2.0 + 2e-5, 'd'), Some('c'));
+        assert_eq!(held.release(), Some('d'));
+    }
 }
