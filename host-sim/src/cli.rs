@@ -209,7 +209,7 @@ mod tests {
         let super::Command::Simulate(a) = cli.command else {
             panic!("{args:?}")
         };
-        assert_eq!((a.u0_mm, a.v0_mm_s), (-3.2e-5, -0.5));
+        assert_eq!((a.start.u0_mm, a.start.v0_mm_s), (-3.2e-5, -0.5));
         // A sweep starting below zero, and an option that already has its value.
         let args = words("host-sim basins --u0-mm -4e-1:1:3 --v0-mm-s=-1:1:3");
         assert_eq!(args[2], "--u0-mm=-4e-1:1:3");

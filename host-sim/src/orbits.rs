@@ -12,7 +12,8 @@ use shared::Real;
 use shared::observe::Regime;
 use shared::orbit::{
     BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MapPoint, Multiplier, Orbit,
-    Param, ShootSettings, continue_branch, doubling_start, iterate, orbit_from, relative, state_of,
+    Param, ShootSettings, continue_branch, doubling_start, iterate, orbit_from, relative, shoot,
+    state_of,
 };
 
 use crate::config::Setup;
@@ -236,6 +237,93 @@ pub struct EventOut {
     pub critical: [f64; 2],
     /// Impacts per period `q` beyond it (grazing).
     pub impacts_beyond: u32,
+    /// Its test function along the branch round it (period doubling and Neimark–Sacker;
+    /// [`crossings`]).
+    pub crossings: Option<Crossings>,
+}
+
+/// Spacing of the probes of [`crossings`], in the scaled parameter (`Ω/ω`, or gap/A0).
+pub const PROBE_STEP: f64 = 5e-4;
+
+/// Probes of [`crossings`] on each side of the event.
+pub const PROBE_POINTS: u32 = 20;
+
+/// How a located period doubling or Neimark–Sacker bifurcation stands on its branch: its test
+/// function (`det(M + I)`, or `det M − 1` while the pair is complex) at [`PROBE_POINTS`] orbits
+/// each side, [`PROBE_STEP`] apart. On a smooth branch it changes sign once, at the event. On
+/// the discretised map the monodromy also moves in small jumps as the parameter moves the
+/// contact's sub-steps; where those are as large as the multiplier's own motion, the test
+/// changes sign several times, and the bifurcation lies somewhere in the span of those
+/// crossings rather than at the one located (docs/accuracy.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Crossings {
+    /// Changes of sign among the probes (1 on a smooth branch).
+    pub count: u32,
+    /// The probes that enclose the first and the last change, in the report's units (`Ω/ω`,
+    /// or the gap in mm).
+    pub span: [f64; 2],
+    /// The probes' spacing, in the report's units.
+    pub step: f64,
+}
+
+/// [`Crossings`] of the event `e` on its branch in `param`: each side probed outward from the
+/// event's orbit by Newton's method, a side ending early where Newton fails or the orbit's
+/// impacts change (a grazing); `None` for the other events, or where no probe converged on
+/// either side.
+pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
+    let test = |o: &Orbit<T>| -> Option<f64> {
+        let f = &o.floquet;
+        match e.kind {
+            EventKind::PeriodDoubling => Some(f.doubling_test()),
+            EventKind::NeimarkSacker => f.complex().then(|| f.torus_test()),
+            EventKind::Fold | EventKind::Grazing => None,
+        }
+    };
+    test(&e.orbit)?;
+    let (scale, unit) = match param {
+        Param::OmegaRatio => (1.0, 1.0),
+        Param::GapM => (e.orbit.at.params.amplitude_m, 1e3),
+    };
+    let settings = ShootSettings::for_type::<T>();
+    let mut probes: Vec<(f64, Option<f64>)> = Vec::new();
+    let mut sides = 0;
+    for dir in [-1.0, 1.0] {
+        let mut x = e.orbit.x;
+        let mut any = false;
+        for k in 1..=PROBE_POINTS {
+            let value = e.value + dir * f64::from(k) * PROBE_STEP * scale;
+            if param == Param::GapM && value < 0.0 {
+                break;
+            }
+            match shoot(&e.orbit.at.with(param, value), e.orbit.q, x, &settings) {
+                Ok(o) if o.trace.impacts == e.orbit.trace.impacts => {
+                    x = o.x;
+                    any = true;
+                    probes.push((value, test(&o)));
+                }
+                _ => break,
+            }
+        }
+        sides += u32::from(any);
+    }
+    if sides < 2 {
+        return None;
+    }
+    probes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Consecutive probes with a test value (a Neimark–Sacker's pair may turn real on the way).
+    let signed: Vec<(f64, bool)> = probes
+        .iter()
+        .filter_map(|&(v, t)| t.filter(|t| t.is_finite()).map(|t| (v, t > 0.0)))
+        .collect();
+    let changes: Vec<usize> = (1..signed.len())
+        .filter(|&i| signed[i].1 != signed[i - 1].1)
+        .collect();
+    let (first, last) = (changes.first()?, changes.last()?);
+    Some(Crossings {
+        count: changes.len() as u32,
+        span: [signed[first - 1].0 * unit, signed[*last].0 * unit],
+        step: PROBE_STEP * scale * unit,
+    })
 }
 
 /// A continued branch.
@@ -328,6 +416,7 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                         orbit: report(&e.orbit)?,
                         critical: [e.critical.re, e.critical.im],
                         impacts_beyond: e.impacts_beyond,
+                        crossings: crossings(e, spec.param),
                     })
                 })
                 .collect::<Result<_>>()?,

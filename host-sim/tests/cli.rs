@@ -674,6 +674,59 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
     );
 }
 
+/// A located doubling's test function probed along its branch: on the wire rig's `1/1` branch
+/// (spring–dashpot) it changes sign once, at the doubling; with Lankarani–Nikravesh the
+/// multiplier moves in jumps of the discretised map as large as its own motion, and the test
+/// changes sign several times in a span that holds the doublings located from either start
+/// (2.63604 from 2.3, 2.64222 from 1.99), which the report says.
+#[test]
+fn continue_says_where_a_doubling_is_smeared_by_kinks_of_the_map() {
+    let doublings = |args: &str| -> Vec<serde_json::Value> {
+        let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
+            "continue --rig wires --gap-mm 0 {args} --json"
+        ))))
+        .unwrap();
+        v.as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|b| b["events"].as_array().unwrap().clone())
+            .filter(|e| e["kind"] == "period-doubling")
+            .collect()
+    };
+    let smooth = doublings("--omega-ratio 2.0 --range 2.0:2.8 --direction up");
+    assert_eq!(smooth.len(), 1, "{smooth:?}");
+    let c = &smooth[0]["crossings"];
+    assert_eq!(c["count"], 1, "{c}");
+    let value = smooth[0]["value"].as_f64().unwrap();
+    let span = [
+        c["span"][0].as_f64().unwrap(),
+        c["span"][1].as_f64().unwrap(),
+    ];
+    assert!(
+        span[0] < value && value < span[1] && span[1] - span[0] < 1.5e-3,
+        "{c}"
+    );
+
+    let args = "--law lankarani-nikravesh --omega-ratio 2.3 --range 2.2:2.8 --direction up";
+    let kinked = doublings(args);
+    assert_eq!(kinked.len(), 1, "{kinked:?}");
+    let c = &kinked[0]["crossings"];
+    assert!(c["count"].as_u64().unwrap() >= 3, "{c}");
+    let span = [
+        c["span"][0].as_f64().unwrap(),
+        c["span"][1].as_f64().unwrap(),
+    ];
+    for located in [2.63604, 2.64222] {
+        assert!(span[0] < located && located < span[1], "{located}: {c}");
+    }
+    let text = ok(&line(&format!("continue --rig wires --gap-mm 0 {args}")));
+    assert!(
+        text.contains("its test function changes sign")
+            && text.contains("kinks of the discretised map"),
+        "{text}"
+    );
+}
+
 #[test]
 fn continue_writes_the_branch_with_located_events_and_rejects_bad_input() {
     let dir = tempfile::tempdir().unwrap();

@@ -158,6 +158,18 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 crit,
                 beyond
             );
+            if let Some(c) = e.crossings.filter(|c| c.count > 1) {
+                let (what, mm) = match param {
+                    Param::OmegaRatio => ("Ω/ω", ""),
+                    Param::GapM => ("gap", " mm"),
+                };
+                s += &format!(
+                    "    its test function changes sign {} times between {what} {:.4} and {:.4}{mm} \
+                     (probed every {:.4}{mm}): kinks of the discretised map, the bifurcation lies \
+                     in that span, not at one point\n",
+                    c.count, c.span[0], c.span[1], c.step
+                );
+            }
         }
         s += &format!("  ended at {}\n", b.end);
     }
