@@ -11,7 +11,7 @@ use shared::Real;
 use shared::orbit::{BranchEnd, ContinuationSettings, Edge, Orbit, Param, band_edges};
 
 use crate::config::Setup;
-use crate::orbits::{self, OrbitReport, Start};
+use crate::orbits::{self, Crossings, OrbitReport, Start};
 use crate::precision::Precision;
 use crate::response;
 
@@ -115,6 +115,11 @@ pub struct EdgeReport {
     /// `stalled`: where the continuation stopped, `Ω/ω`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stalled_at: Option<f64>,
+    /// A period doubling or Neimark–Sacker edge whose test function changes sign more than
+    /// once among the probes along the branch ([`orbits::crossings`]): the edge lies in that
+    /// span; absent where it changes sign once.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smeared: Option<Crossings>,
 }
 
 /// The strongest non-`1/1` periodic point.
@@ -173,6 +178,10 @@ fn edge_report<T: Real>(
     step: f64,
 ) -> EdgeReport {
     let located = edge.value();
+    let smeared = match edge {
+        Edge::Event(e) => orbits::crossings(e, Param::OmegaRatio).filter(|c| c.count > 1),
+        Edge::Open(_) => None,
+    };
     let (kind, multiplier) = match edge {
         Edge::Event(e) => (
             e.kind.name().to_string(),
@@ -198,6 +207,7 @@ fn edge_report<T: Real>(
                  located on this side, and the sweep's last 1/1 point {sweep_edge:.4} stands there"
             )),
             stalled_at: Some(located),
+            smeared: None,
         };
     }
     let value = located;
@@ -235,6 +245,7 @@ fn edge_report<T: Real>(
         agrees,
         disagreement,
         stalled_at: None,
+        smeared,
     }
 }
 

@@ -678,7 +678,7 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
 /// (spring–dashpot) it changes sign once, at the doubling; with Lankarani–Nikravesh the
 /// multiplier moves in jumps of the discretised map as large as its own motion, and the test
 /// changes sign several times in a span that holds the doublings located from either start
-/// (2.63604 from 2.3, 2.64222 from 1.99), which the report says.
+/// (2.63604 from 2.3, 2.64222 from 1.99), which the reports of `continue` and `select` say.
 #[test]
 fn continue_says_where_a_doubling_is_smeared_by_kinks_of_the_map() {
     let doublings = |args: &str| -> Vec<serde_json::Value> {
@@ -718,6 +718,26 @@ fn continue_says_where_a_doubling_is_smeared_by_kinks_of_the_map() {
     ];
     for located in [2.63604, 2.64222] {
         assert!(span[0] < located && located < span[1], "{located}: {c}");
+    }
+    // `select` says so of the band edges it measures its margin to; the main job's edges (a
+    // grazing and the smooth doubling) carry no such note.
+    let select = |law: &str| -> serde_json::Value {
+        serde_json::from_str(&ok(&line(&format!(
+            "select --law {law} --gap-mm 0 --no-basin-check --json"
+        ))))
+        .unwrap()
+    };
+    let v = select("lankarani-nikravesh");
+    let upper = &v["band_check"]["upper"];
+    assert!(upper["smeared"]["count"].as_u64().unwrap() >= 3, "{upper}");
+    let warnings = v["warnings"].to_string();
+    assert!(
+        warnings.contains("changes of sign of its test function"),
+        "{warnings}"
+    );
+    let v = select("spring-dashpot");
+    for side in ["lower", "upper"] {
+        assert!(v["band_check"][side].get("smeared").is_none(), "{v}");
     }
     let text = ok(&line(&format!("continue --rig wires --gap-mm 0 {args}")));
     assert!(
