@@ -257,19 +257,47 @@ pub const PROBE_POINTS: u32 = 20;
 /// crossings rather than at the one located (docs/accuracy.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Crossings {
-    /// Changes of sign among the probes (1 on a smooth branch).
+    /// Changes of sign among the probes (1 on a smooth branch; 0 where the located point is a
+    /// kink at which the test only touches zero).
     pub count: u32,
-    /// The probes that enclose the first and the last change, in the report's units (`Ω/ω`,
-    /// or the gap in mm).
+    /// The probes that enclose the first and the last change (with no change, the outermost
+    /// probes), in the report's units (`Ω/ω`, or the gap in mm).
     pub span: [f64; 2],
     /// The probes' spacing, in the report's units.
     pub step: f64,
 }
 
+impl Crossings {
+    /// Whether the test function changes sign other than once among the probes: the
+    /// bifurcation is not located at one point ([`Crossings::describe`]).
+    pub fn smeared(&self) -> bool {
+        self.count != 1
+    }
+
+    /// What the probes show, for a report (`what`: `Ω/ω` or `gap`, with `mm` for the gap).
+    pub fn describe(&self, what: &str, mm: &str) -> String {
+        if self.count == 0 {
+            format!(
+                "its test function keeps its sign at every probe between {what} {:.4} and \
+                 {:.4}{mm} (every {:.4}{mm}): the located point is a kink of the discretised map \
+                 where it touches zero, not a crossing",
+                self.span[0], self.span[1], self.step
+            )
+        } else {
+            format!(
+                "its test function changes sign {} times between {what} {:.4} and {:.4}{mm} \
+                 (probed every {:.4}{mm}): kinks of the discretised map, the bifurcation lies in \
+                 that span, not at one point",
+                self.count, self.span[0], self.span[1], self.step
+            )
+        }
+    }
+}
+
 /// [`Crossings`] of the event `e` on its branch in `param`: each side probed outward from the
 /// event's orbit by Newton's method, a side ending early where Newton fails or the orbit's
 /// impacts change (a grazing); `None` for the other events, or where no probe converged on
-/// either side.
+/// one side. [`Crossings::smeared`] says whether the event is not the one crossing.
 pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     let test = |o: &Orbit<T>| -> Option<f64> {
         let f = &o.floquet;
@@ -318,10 +346,14 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     let changes: Vec<usize> = (1..signed.len())
         .filter(|&i| signed[i].1 != signed[i - 1].1)
         .collect();
-    let (first, last) = (changes.first()?, changes.last()?);
+    // No change among the probes: the span is theirs.
+    let span = match (changes.first(), changes.last()) {
+        (Some(&first), Some(&last)) => [signed[first - 1].0, signed[last].0],
+        _ => [signed.first()?.0, signed.last()?.0],
+    };
     Some(Crossings {
         count: changes.len() as u32,
-        span: [signed[first - 1].0 * unit, signed[*last].0 * unit],
+        span: span.map(|v| v * unit),
         step: PROBE_STEP * scale * unit,
     })
 }
@@ -834,4 +866,30 @@ pub fn boundary_curves<T: Real>(
         }
     }
     Ok(kept)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Crossings;
+
+    #[test]
+    fn an_event_is_smeared_unless_its_test_changes_sign_once() {
+        let c = |count| Crossings {
+            count,
+            span: [2.6355, 2.6425],
+            step: 5e-4,
+        };
+        assert!(!c(1).smeared());
+        assert!(c(0).smeared() && c(5).smeared());
+        let five = c(5).describe("Ω/ω", "");
+        assert!(
+            five.contains("changes sign 5 times between Ω/ω 2.6355 and 2.6425"),
+            "{five}"
+        );
+        let none = c(0).describe("gap", " mm");
+        assert!(
+            none.contains("keeps its sign") && none.contains("2.6425 mm"),
+            "{none}"
+        );
+    }
 }

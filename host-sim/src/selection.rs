@@ -115,7 +115,7 @@ pub struct EdgeReport {
     /// `stalled`: where the continuation stopped, `Ω/ω`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stalled_at: Option<f64>,
-    /// A period doubling or Neimark–Sacker edge whose test function changes sign more than
+    /// A period doubling or Neimark–Sacker edge whose test function changes sign other than
     /// once among the probes along the branch ([`orbits::crossings`]): the edge lies in that
     /// span; absent where it changes sign once.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -179,7 +179,7 @@ fn edge_report<T: Real>(
 ) -> EdgeReport {
     let located = edge.value();
     let smeared = match edge {
-        Edge::Event(e) => orbits::crossings(e, Param::OmegaRatio).filter(|c| c.count > 1),
+        Edge::Event(e) => orbits::crossings(e, Param::OmegaRatio).filter(Crossings::smeared),
         Edge::Open(_) => None,
     };
     let (kind, multiplier) = match edge {

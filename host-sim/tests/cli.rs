@@ -732,7 +732,7 @@ fn continue_says_where_a_doubling_is_smeared_by_kinks_of_the_map() {
     assert!(upper["smeared"]["count"].as_u64().unwrap() >= 3, "{upper}");
     let warnings = v["warnings"].to_string();
     assert!(
-        warnings.contains("changes of sign of its test function"),
+        warnings.contains("its test function changes sign"),
         "{warnings}"
     );
     let v = select("spring-dashpot");

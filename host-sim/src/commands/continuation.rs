@@ -11,7 +11,7 @@ use shared::orbit::{Orbit, Param};
 
 use super::orbit::PointArgs;
 use crate::figures::orbits::{Dots, branches as branch_figure};
-use crate::orbits::{self, Background, BranchOut, BranchSpec, Direction, param_value};
+use crate::orbits::{self, Background, BranchOut, BranchSpec, Crossings, Direction, param_value};
 use crate::output::{Outputs, write_csv};
 
 /// The continuation parameter on the command line.
@@ -158,17 +158,12 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 crit,
                 beyond
             );
-            if let Some(c) = e.crossings.filter(|c| c.count > 1) {
+            if let Some(c) = e.crossings.filter(Crossings::smeared) {
                 let (what, mm) = match param {
                     Param::OmegaRatio => ("Ω/ω", ""),
                     Param::GapM => ("gap", " mm"),
                 };
-                s += &format!(
-                    "    its test function changes sign {} times between {what} {:.4} and {:.4}{mm} \
-                     (probed every {:.4}{mm}): kinks of the discretised map, the bifurcation lies \
-                     in that span, not at one point\n",
-                    c.count, c.span[0], c.span[1], c.step
-                );
+                s += &format!("    {}\n", c.describe(what, mm));
             }
         }
         s += &format!("  ended at {}\n", b.end);

@@ -178,11 +178,11 @@ pub fn run(a: &SelectArgs) -> Result<()> {
             }
             if let Some(s) = &e.smeared {
                 rep.warnings.push(format!(
-                    "band edge: the {} at Ω/ω {:.5} is one of {} changes of sign of its test \
-                     function between Ω/ω {:.4} and {:.4} (probed every {:.4}; kinks of the \
-                     discretised map): the edge lies in that span, and the margin measured to \
-                     it is known to that width",
-                    e.kind, e.omega_ratio, s.count, s.span[0], s.span[1], s.step
+                    "band edge: the {} at Ω/ω {:.5}: {}; the margin measured to it is known to \
+                     that span",
+                    e.kind,
+                    e.omega_ratio,
+                    s.describe("Ω/ω", "")
                 ));
             }
         }
