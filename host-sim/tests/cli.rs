@@ -778,18 +778,18 @@ fn continue_writes_the_branch_with_located_events_and_rejects_bad_input() {
             .find(|c| c[16] == kind && c[8] == regime)
             .unwrap_or_else(|| panic!("no {kind} of {regime} in {events:?}"))
     };
-    // The 1/1 band's upper edge: a period doubling at Ω/ω 2.66037 (f64; f32 within its own
-    // resolution), the critical multiplier −1; its lower edge: a grazing at 1.15169.
+    // The 1/1 band's upper edge: a period doubling at Ω/ω 2.66035 (f32; 2.66036 in f64), the
+    // critical multiplier −1; its lower edge: a grazing at 1.15169.
     let pd = find("period-doubling", "1/1");
     let value = pd[3].parse::<f64>().unwrap();
-    assert!((value - 2.66037).abs() < 1e-3, "{value}");
+    assert!((value - 2.66035).abs() < 1e-3, "{value}");
     assert!((pd[10].parse::<f64>().unwrap() + 1.0).abs() < 0.01);
     let graze = find("grazing", "1/1");
     assert!((graze[3].parse::<f64>().unwrap() - 1.15169).abs() < 1e-3);
-    // The doubled branch (parent 0) doubles again at 2.82916.
+    // The doubled branch (parent 0) doubles again at 2.82918.
     let pd2 = find("period-doubling", "2/2");
     assert_eq!(pd2[1], "0");
-    assert!((pd2[3].parse::<f64>().unwrap() - 2.82916).abs() < 1e-3);
+    assert!((pd2[3].parse::<f64>().unwrap() - 2.82918).abs() < 1e-3);
     assert!(fs::metadata(&png).unwrap().len() > 10_000);
 
     let out = dir.path().join("bad.csv");

@@ -140,7 +140,7 @@ pub fn describe(o: &OrbitReport) -> String {
 /// Bad input, or no orbit at the point (the reason, with the point).
 pub fn run(a: &OrbitArgs) -> Result<()> {
     let (setup, at, start) = a.point.resolve()?;
-    let (protocol, report) = crate::with_precision!(setup.precision, T => {
+    let (protocol, (report, slope_mismatch)) = crate::with_precision!(setup.precision, T => {
         let (r, o): (_, Orbit<T>) = orbits::find::<T>(&at, start, a.point.q)?;
         let (mismatch, warning) = orbits::slope_check(&o)?;
         if let Some(w) = warning {
@@ -148,7 +148,6 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
         }
         (r, (orbits::report(&o)?, mismatch))
     });
-    let (report, slope_mismatch) = report;
     if a.json {
         let j = OrbitJson {
             rig: setup.rig.to_string(),
