@@ -299,14 +299,11 @@ impl Crossings {
 /// impacts change (a grazing); `None` for the other events, or where no probe converged on
 /// one side. [`Crossings::smeared`] says whether the event is not the one crossing.
 pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
-    let test = |o: &Orbit<T>| -> Option<f64> {
-        let f = &o.floquet;
-        match e.kind {
-            EventKind::PeriodDoubling => Some(f.doubling_test()),
-            EventKind::NeimarkSacker => f.complex().then(|| f.torus_test()),
-            EventKind::Fold | EventKind::Grazing => None,
-        }
-    };
+    // A fold's branch turns there: probes at fixed parameter values see one side only.
+    if !matches!(e.kind, EventKind::PeriodDoubling | EventKind::NeimarkSacker) {
+        return None;
+    }
+    let test = |o: &Orbit<T>| e.kind.multiplier_test(&o.floquet);
     test(&e.orbit)?;
     let (scale, unit) = match param {
         Param::OmegaRatio => (1.0, 1.0),

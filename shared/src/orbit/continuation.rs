@@ -133,6 +133,19 @@ impl EventKind {
             EventKind::Grazing => "grazing",
         }
     }
+
+    /// Its test function on an orbit's multipliers `f`, which changes sign at the event along
+    /// a branch: `det(M − I)` for a fold, `det(M + I)` for a period doubling, `det M − 1` for
+    /// a Neimark–Sacker while the pair is complex; `None` for a Neimark–Sacker with a real
+    /// pair, and for a grazing (told by the orbit's impacts, not its multipliers).
+    pub fn multiplier_test(self, f: &Floquet) -> Option<f64> {
+        match self {
+            EventKind::Fold => Some(f.fold_test()),
+            EventKind::PeriodDoubling => Some(f.doubling_test()),
+            EventKind::NeimarkSacker => f.complex().then(|| f.torus_test()),
+            EventKind::Grazing => None,
+        }
+    }
 }
 
 impl fmt::Display for EventKind {
@@ -346,17 +359,14 @@ struct Node<T> {
     e: Eval<T>,
 }
 
+/// The fold, doubling and Neimark–Sacker tests at `o` (NaN where one has no value).
 fn tests<T: Real>(o: &Orbit<T>) -> [f64; 3] {
-    let f = &o.floquet;
     [
-        f.fold_test(),
-        f.doubling_test(),
-        if f.complex() {
-            f.torus_test()
-        } else {
-            f64::NAN
-        },
+        EventKind::Fold,
+        EventKind::PeriodDoubling,
+        EventKind::NeimarkSacker,
     ]
+    .map(|k| k.multiplier_test(&o.floquet).unwrap_or(f64::NAN))
 }
 
 fn critical(kind: EventKind, f: &Floquet) -> Multiplier {
