@@ -11,9 +11,9 @@ use serde::Serialize;
 use shared::Real;
 use shared::observe::Regime;
 use shared::orbit::{
-    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MapPoint, Multiplier, Orbit,
-    Param, ShootSettings, continue_branch, doubling_start, iterate, orbit_from, relative, shoot,
-    state_of,
+    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MIN_TURN_COSINE, MapPoint,
+    Multiplier, Orbit, Param, ShootSettings, continue_branch, doubling_start, iterate, orbit_from,
+    relative, shoot, state_of,
 };
 
 use crate::config::Setup;
@@ -295,8 +295,9 @@ impl Crossings {
 }
 
 /// [`Crossings`] of the event `e` on its branch in `param`: each side probed outward from the
-/// event's orbit by Newton's method, a side ending early where Newton fails or the orbit's
-/// impacts change (a grazing); `None` for the other events, or where no probe converged on
+/// event's orbit by Newton's method, a side ending early where Newton fails, the orbit's
+/// impacts change (a grazing) or a probe's secant turns further than a continuation step may
+/// ([`MIN_TURN_COSINE`]: it converged onto another orbit); `None` for the other events, or where no probe converged on
 /// one side. [`Crossings::smeared`] says whether the event is not the one crossing.
 pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     // A fold's branch turns there: probes at fixed parameter values see one side only.
@@ -310,10 +311,16 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
         Param::GapM => (e.orbit.at.params.amplitude_m, 1e3),
     };
     let settings = ShootSettings::for_type::<T>();
+    // The branch's scaled frame, as the continuation has it.
+    let s = e.orbit.at.scales();
+    let scaled = |x: &nalgebra::Vector2<T>, value: f64| {
+        [x[0].to_f64() / s[0], x[1].to_f64() / s[1], value / scale]
+    };
     let mut probes: Vec<(f64, Option<f64>)> = Vec::new();
     let mut sides = 0;
     for dir in [-1.0, 1.0] {
         let mut x = e.orbit.x;
+        let mut walk = Walk::from(scaled(&x, e.value));
         let mut any = false;
         for k in 1..=PROBE_POINTS {
             let value = e.value + dir * f64::from(k) * PROBE_STEP * scale;
@@ -321,7 +328,10 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
                 break;
             }
             match shoot(&e.orbit.at.with(param, value), e.orbit.q, x, &settings) {
-                Ok(o) if o.trace.impacts == e.orbit.trace.impacts => {
+                Ok(o)
+                    if o.trace.impacts == e.orbit.trace.impacts
+                        && walk.step_to(scaled(&o.x, value)) =>
+                {
                     x = o.x;
                     any = true;
                     probes.push((value, test(&o)));
@@ -353,6 +363,37 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
         span: span.map(|v| v * unit),
         step: PROBE_STEP * scale * unit,
     })
+}
+
+/// Probes walked outward along a branch in its scaled frame: each secant must keep within
+/// [`MIN_TURN_COSINE`] of the one before, as a continuation step must, else the probe has left
+/// the branch (Newton converged onto another orbit with as many impacts).
+struct Walk {
+    at: [f64; 3],
+    heading: Option<[f64; 3]>,
+}
+
+impl Walk {
+    fn from(at: [f64; 3]) -> Self {
+        Walk { at, heading: None }
+    }
+
+    /// Whether `next` continues the walk (then it is the walk's new end); the first step is
+    /// taken as it comes.
+    fn step_to(&mut self, next: [f64; 3]) -> bool {
+        let d = [0, 1, 2].map(|i| next[i] - self.at[i]);
+        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let heading = d.map(|c| c / n);
+        // A NaN heading (no step) is not taken either.
+        let turn = self.heading.map_or(1.0, |h| {
+            h[0] * heading[0] + h[1] * heading[1] + h[2] * heading[2]
+        });
+        if turn.is_nan() || turn < MIN_TURN_COSINE {
+            return false;
+        }
+        (self.at, self.heading) = (next, Some(heading));
+        true
+    }
 }
 
 /// A continued branch.
@@ -867,7 +908,27 @@ pub fn boundary_curves<T: Real>(
 
 #[cfg(test)]
 mod tests {
-    use super::Crossings;
+    use super::{Crossings, Walk};
+
+    #[test]
+    fn probes_that_turn_further_than_a_continuation_step_have_left_the_branch() {
+        // Along a straight branch every probe is taken, the first one whatever its heading.
+        let mut w = Walk::from([0.0, 0.0, 0.0]);
+        assert!(w.step_to([3.0, 0.0, 1.0]));
+        assert!(w.step_to([6.0, 0.0, 2.0]));
+        // A gentle bend, the state's part of the secant turned by 0.2 rad (cos 0.982), is taken.
+        let (c, s) = (0.2f64.cos(), 0.2f64.sin());
+        assert!(w.step_to([6.0 + 3.0 * c, 3.0 * s, 3.0]));
+        // A jump across to another orbit at the next parameter value: the secant turns by
+        // 0.71 rad (cos 0.757), below MIN_TURN_COSINE = 0.9; the walk keeps its end.
+        let end = w.at;
+        let jump = [end[0] + 3.0, end[1] + 4.0, end[2] + 1.0];
+        assert!(!w.step_to(jump));
+        assert_eq!(w.at, end);
+        // Back the way it came, and a probe at its own end (no direction), are not taken.
+        assert!(!w.step_to([0.0, 0.0, 0.0]));
+        assert!(!w.step_to(end));
+    }
 
     #[test]
     fn an_event_is_smeared_unless_its_test_changes_sign_once() {

@@ -26,6 +26,12 @@ use super::map::{MapPoint, Param, iterate, tangent};
 use super::shooting::{Orbit, ShootSettings, scaled_norm};
 use crate::real::Real;
 
+/// The least cosine between successive directions of a branch in its scaled frame (the
+/// state over [`MapPoint::scales`], `Ω/ω` as it is, the gap over `A0`): a step whose
+/// direction turns further has not stayed on the branch (the corrector converged onto another
+/// orbit, or stepped across a fold) and is not taken.
+pub const MIN_TURN_COSINE: f64 = 0.9;
+
 /// How a branch is continued.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContinuationSettings {
@@ -552,7 +558,7 @@ pub fn continue_branch<T: Real>(
                     if dot(&t, &node.t) < 0.0 {
                         t = t.map(|v| -v);
                     }
-                    if dot(&t, &node.t) < 0.9 {
+                    if dot(&t, &node.t) < MIN_TURN_COSINE {
                         h *= 0.5;
                         continue;
                     }
