@@ -368,6 +368,7 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
 /// Probes walked outward along a branch in its scaled frame: each secant must keep within
 /// [`MIN_TURN_COSINE`] of the one before, as a continuation step must, else the probe has left
 /// the branch (Newton converged onto another orbit with as many impacts).
+#[derive(Clone)]
 struct Walk {
     at: [f64; 3],
     heading: Option<[f64; 3]>,
@@ -396,6 +397,78 @@ impl Walk {
     }
 }
 
+/// Jumps of the discretised map a branch may step over ([`bridge`]).
+pub const MAX_BRIDGES: usize = 100;
+
+/// Steps over a jump of the discretised map where the continuation of the branch `points`
+/// stalled (its step below the minimum) while moving the way it set out (from its first point
+/// to the first a probe's step away): the orbit at the first of up to four values
+/// [`PROBE_STEP`] apart beyond the last point (scaled as [`crossings`] scales it) at which
+/// Newton's method converges from the last point's state with as many impacts, the secant from
+/// the branch's recent points turning no further than a continuation step may
+/// ([`MIN_TURN_COSINE`]), and no test function (fold, period doubling; Neimark–Sacker while
+/// both pairs are complex) changing sign between the two orbits; with that way (+1: up, −1:
+/// down). `None` where none qualifies, or the branch had turned back: the stall stands (a
+/// bifurcation, a turn, or Newton failing for another cause).
+fn bridge<T: Real>(
+    points: &[BranchPoint<T>],
+    param: Param,
+    settings: &ContinuationSettings,
+) -> Option<(Orbit<T>, f64)> {
+    let (first, last) = (points.first()?, points.last()?);
+    let o = &last.orbit;
+    let scale = match param {
+        Param::OmegaRatio => 1.0,
+        Param::GapM => o.at.params.amplitude_m,
+    };
+    let away = |a: &BranchPoint<T>, b: &BranchPoint<T>| {
+        ((a.value - b.value).abs() >= PROBE_STEP * scale).then(|| (a.value - b.value).signum())
+    };
+    let heading = points.iter().find_map(|p| away(p, first))?;
+    let s = o.at.scales();
+    let scaled = |x: &nalgebra::Vector2<T>, value: f64| {
+        [x[0].to_f64() / s[0], x[1].to_f64() / s[1], value / scale]
+    };
+    // The heading: from the latest point at least a probe's step behind.
+    let (behind, sign) = points
+        .iter()
+        .rev()
+        .find_map(|p| away(last, p).map(|sign| (p, sign)))?;
+    if sign != heading {
+        return None;
+    }
+    let mut walk = Walk::from(scaled(&behind.orbit.x, behind.value));
+    walk.step_to(scaled(&o.x, last.value));
+    let shoot_settings = ShootSettings::for_type::<T>();
+    let kinds = [
+        EventKind::Fold,
+        EventKind::PeriodDoubling,
+        EventKind::NeimarkSacker,
+    ];
+    (1..=4).find_map(|k| {
+        let value = last.value + sign * f64::from(k) * PROBE_STEP * scale;
+        if value < settings.range[0] || value > settings.range[1] {
+            return None;
+        }
+        let next = shoot(&o.at.with(param, value), o.q, o.x, &shoot_settings).ok()?;
+        let same_side = |kind: EventKind| {
+            match (
+                kind.multiplier_test(&o.floquet),
+                kind.multiplier_test(&next.floquet),
+            ) {
+                (Some(a), Some(b)) => (a > 0.0) == (b > 0.0),
+                // Neimark–Sacker's test only while the pair is complex: a pair turning real
+                // crosses neither +1 nor −1 unless the fold's or the doubling's test says so.
+                _ => true,
+            }
+        };
+        (next.trace.impacts == o.trace.impacts
+            && kinds.into_iter().all(same_side)
+            && walk.clone().step_to(scaled(&next.x, value)))
+        .then_some((next, heading))
+    })
+}
+
 /// A continued branch.
 #[derive(Debug, Clone, Serialize)]
 pub struct BranchOut {
@@ -413,6 +486,10 @@ pub struct BranchOut {
     pub events: Vec<EventOut>,
     /// Why it ended.
     pub end: String,
+    /// The jumps of the discretised map stepped over where Newton could not follow the
+    /// branch ([`bridge`]): the last value before each and the first after, in the report's
+    /// units (`Ω/ω`, or the gap in mm).
+    pub bridges: Vec<[f64; 2]>,
 }
 
 /// Continues the branch of `start` as `spec` says: the start's branch in the asked
@@ -438,17 +515,35 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
         interrupt::check()?;
         let mut points: Vec<BranchPoint<T>> = Vec::new();
         let mut events: Vec<BifEvent<T>> = Vec::new();
-        let end = continue_branch(
-            &orbit,
-            &settings,
-            dir,
-            tangent,
-            |p| points.push(*p),
-            |e| {
-                events.push(*e);
-                ControlFlow::Continue(())
-            },
-        );
+        let mut bridges: Vec<[f64; 2]> = Vec::new();
+        let (mut from, mut along, mut toward) = (orbit, tangent, dir);
+        let end = loop {
+            let end = continue_branch(
+                &from,
+                &settings,
+                toward,
+                along,
+                |p| points.push(*p),
+                |e| {
+                    events.push(*e);
+                    ControlFlow::Continue(())
+                },
+            );
+            // Where Newton could not follow the branch, a jump of the discretised map may
+            // be what stopped it: stepped over, the branch goes on.
+            let BranchEnd::StepTooSmall(at) = end else {
+                break end;
+            };
+            if bridges.len() >= MAX_BRIDGES || points.len() >= settings.max_points as usize {
+                break end;
+            }
+            interrupt::check()?;
+            let Some((next, heading)) = bridge(&points, spec.param, &settings) else {
+                break end;
+            };
+            bridges.push([at, next.at.get(spec.param)]);
+            (from, along, toward) = (next, None, heading);
+        };
         let id = out.len();
         if depth < spec.follow_doublings {
             for e in &events {
@@ -491,6 +586,13 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                 })
                 .collect::<Result<_>>()?,
             end: end_text(&end, spec.param),
+            bridges: bridges
+                .iter()
+                .map(|b| match spec.param {
+                    Param::OmegaRatio => *b,
+                    Param::GapM => b.map(|v| v * 1e3),
+                })
+                .collect(),
         });
     }
     Ok(out)

@@ -674,6 +674,68 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
     );
 }
 
+/// Where Newton cannot follow a branch across a jump of the discretised map, `continue` steps
+/// over it and goes on: the wire rig's `1/1` branch with Lankarani–Nikravesh in f64 from Ω/ω
+/// 1.99 stalls at 1.99552 (the orbit's state and force jump there as the contact's sub-steps
+/// change), is taken up again at 1.99602, and reaches the doubling that the f32 branch from 2.3
+/// locates at 2.63604; the smooth spring–dashpot branch steps over nothing.
+#[test]
+fn continue_steps_over_a_jump_of_the_discretised_map() {
+    let branch = |args: &str| -> serde_json::Value {
+        let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
+            "continue --rig wires --gap-mm 0 {args} --direction up --json"
+        ))))
+        .unwrap();
+        v[0].clone()
+    };
+    let args = "--law lankarani-nikravesh --precision f64 --omega-ratio 1.99 --range 1.9:2.8";
+    let b = branch(args);
+    let bridges = b["bridges"].as_array().unwrap();
+    assert_eq!(bridges.len(), 1, "{bridges:?}");
+    let [from, to] = [0, 1].map(|i| bridges[0][i].as_f64().unwrap());
+    assert!(
+        (from - 1.99552).abs() < 1e-4 && (to - from - 5e-4).abs() < 1e-9,
+        "{from} {to}"
+    );
+    let pd: Vec<f64> = b["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["kind"] == "period-doubling")
+        .map(|e| e["value"].as_f64().unwrap())
+        .collect();
+    assert_eq!(pd.len(), 1, "{pd:?}");
+    assert!((pd[0] - 2.63604).abs() < 1e-3, "{pd:?}");
+    let text = ok(&line(&format!(
+        "continue --rig wires --gap-mm 0 {args} --direction up"
+    )));
+    assert!(
+        text.contains("stepped over 1 jump of the discretised map")
+            && text.contains("Ω/ω 1.995520"),
+        "{text}"
+    );
+    let smooth = branch("--omega-ratio 2.0 --range 2.0:2.8");
+    assert_eq!(smooth["bridges"], serde_json::json!([]), "{smooth}");
+    // Up to Ω/ω 50, the parameter's limit: the steps that stall within two of the smallest
+    // steps of it are the ones that would leave it, so the branch ends at the range's end
+    // (f64's smallest step 1e-6, f32's 1e-4), not at a stall or a grazing.
+    for precision in ["f64", "f32"] {
+        let b = branch(&format!("--omega-ratio 2.0 --precision {precision}"));
+        let end = b["end"].as_str().unwrap();
+        assert!(
+            end.starts_with("the end of the range at Ω/ω 49.999"),
+            "{end}"
+        );
+        let kinds: Vec<&str> = b["events"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["kind"].as_str().unwrap())
+            .collect();
+        assert!(!kinds.contains(&"grazing"), "{kinds:?}");
+    }
+}
+
 /// A located doubling's test function probed along its branch: on the wire rig's `1/1` branch
 /// (spring–dashpot) it changes sign once, at the doubling; with Lankarani–Nikravesh the
 /// multiplier moves in jumps of the discretised map as large as its own motion, and the test

@@ -33,7 +33,7 @@ pub struct ContinueArgs {
     /// The parameter continued.
     #[arg(long, value_enum, default_value = "omega-ratio")]
     pub param: ParamArg,
-    /// Its range, LO:HI (Ω/ω within 0.05..=20, default the whole range; the gap in mm within
+    /// Its range, LO:HI (Ω/ω within 0.05..=50, default the whole range; the gap in mm within
     /// the rig's range, 0..=50 and for the wire pendulum at most l/4 (18.75 mm for the thesis'
     /// wires), default 0:10). The branch ends where it leaves the range.
     #[arg(long)]
@@ -165,6 +165,22 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 };
                 s += &format!("    {}\n", c.describe(what, mm));
             }
+        }
+        if !b.bridges.is_empty() {
+            let shown: Vec<String> = b
+                .bridges
+                .iter()
+                .take(3)
+                .map(|[a, z]| format!("{} → {}", unit(*a), unit(*z)))
+                .collect();
+            s += &format!(
+                "  stepped over {} jump{} of the discretised map where Newton could not follow \
+                 the branch ({}{}; no fold or doubling test changes sign across them)\n",
+                b.bridges.len(),
+                if b.bridges.len() == 1 { "" } else { "s" },
+                shown.join(", "),
+                if b.bridges.len() > 3 { ", …" } else { "" },
+            );
         }
         s += &format!("  ended at {}\n", b.end);
     }

@@ -523,7 +523,8 @@ pub fn continue_branch<T: Real>(
             if settings.steps.below_min(h) {
                 // At the range's edge heading out of it (gap 0 going down, where the corrector
                 // cannot take the predicted value): the range's end.
-                if at_edge_heading_out(settings.range, value_a, node.t[2]) {
+                let reach = 2.0 * settings.steps.min * s_lambda;
+                if at_edge_heading_out(settings.range, value_a, node.t[2], reach) {
                     tell_held!(held.release());
                     return BranchEnd::RangeEnd(value_a);
                 }
@@ -667,10 +668,12 @@ pub fn continue_branch<T: Real>(
     BranchEnd::MaxPoints(value)
 }
 
-/// Whether `value` lies at an end of `range` (within 10⁻⁹ of its width) and `dvalue`, the
-/// tangent's component in the parameter, points out of the range there.
-fn at_edge_heading_out(range: [f64; 2], value: f64, dvalue: f64) -> bool {
-    let eps = 1e-9 * (range[1] - range[0]).abs();
+/// Whether `value` lies at an end of `range` (within `reach`, twice the smallest step in the
+/// parameter's units, or 10⁻⁹ of the range's width) and `dvalue`, the tangent's component in
+/// the parameter, points out of the range there: the steps that stalled there were the ones
+/// that left it (the parameter's own checks refuse a value beyond Ω/ω 50).
+fn at_edge_heading_out(range: [f64; 2], value: f64, dvalue: f64, reach: f64) -> bool {
+    let eps = (1e-9 * (range[1] - range[0]).abs()).max(reach);
     (dvalue < 0.0 && value <= range[0] + eps) || (dvalue > 0.0 && value >= range[1] - eps)
 }
 
