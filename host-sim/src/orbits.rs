@@ -306,16 +306,12 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     }
     let test = |o: &Orbit<T>| e.kind.multiplier_test(&o.floquet);
     test(&e.orbit)?;
-    let (scale, unit) = match param {
-        Param::OmegaRatio => (1.0, 1.0),
-        Param::GapM => (e.orbit.at.params.amplitude_m, 1e3),
+    let unit = match param {
+        Param::OmegaRatio => 1.0,
+        Param::GapM => 1e3,
     };
     let settings = ShootSettings::for_type::<T>();
-    // The branch's scaled frame, as the continuation has it.
-    let s = e.orbit.at.scales();
-    let scaled = |x: &nalgebra::Vector2<T>, value: f64| {
-        [x[0].to_f64() / s[0], x[1].to_f64() / s[1], value / scale]
-    };
+    let (scale, scaled) = scaled_frame(&e.orbit, param);
     let mut probes: Vec<(f64, Option<f64>)> = Vec::new();
     let mut sides = 0;
     for dir in [-1.0, 1.0] {
@@ -362,6 +358,23 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
         count: changes.len() as u32,
         span: span.map(|v| v * unit),
         step: PROBE_STEP * scale * unit,
+    })
+}
+
+/// The scale of `param` (1 for `Ω/ω`, `A0` for the gap in m) and the map into the branch's
+/// scaled frame as the continuation has it: `(x, value)` to the state over
+/// [`MapPoint::scales`] at `o` and the value over that scale.
+fn scaled_frame<T: Real>(
+    o: &Orbit<T>,
+    param: Param,
+) -> (f64, impl Fn(&nalgebra::Vector2<T>, f64) -> [f64; 3]) {
+    let scale = match param {
+        Param::OmegaRatio => 1.0,
+        Param::GapM => o.at.params.amplitude_m,
+    };
+    let s = o.at.scales();
+    (scale, move |x: &nalgebra::Vector2<T>, value: f64| {
+        [x[0].to_f64() / s[0], x[1].to_f64() / s[1], value / scale]
     })
 }
 
@@ -417,18 +430,11 @@ fn bridge<T: Real>(
 ) -> Option<(Orbit<T>, f64)> {
     let (first, last) = (points.first()?, points.last()?);
     let o = &last.orbit;
-    let scale = match param {
-        Param::OmegaRatio => 1.0,
-        Param::GapM => o.at.params.amplitude_m,
-    };
+    let (scale, scaled) = scaled_frame(o, param);
     let away = |a: &BranchPoint<T>, b: &BranchPoint<T>| {
         ((a.value - b.value).abs() >= PROBE_STEP * scale).then(|| (a.value - b.value).signum())
     };
     let heading = points.iter().find_map(|p| away(p, first))?;
-    let s = o.at.scales();
-    let scaled = |x: &nalgebra::Vector2<T>, value: f64| {
-        [x[0].to_f64() / s[0], x[1].to_f64() / s[1], value / scale]
-    };
     // The heading: from the latest point at least a probe's step behind.
     let (behind, sign) = points
         .iter()
