@@ -410,7 +410,7 @@ impl Walk {
     }
 }
 
-/// Jumps of the discretised map a branch may step over ([`bridge`]).
+/// Jumps of the discretised map a branch of [`branches`] may step over.
 pub const MAX_BRIDGES: usize = 100;
 
 /// Steps over a jump of the discretised map where the continuation of the branch `points`
@@ -493,14 +493,18 @@ pub struct BranchOut {
     /// Why it ended.
     pub end: String,
     /// The jumps of the discretised map stepped over where Newton could not follow the
-    /// branch ([`bridge`]): the last value before each and the first after, in the report's
+    /// branch ([`branches`]): the last value before each and the first after, in the report's
     /// units (`Ω/ω`, or the gap in mm).
     pub bridges: Vec<[f64; 2]>,
 }
 
 /// Continues the branch of `start` as `spec` says: the start's branch in the asked
 /// directions, then (up to `spec.follow_doublings` deep) the doubled branch of every period
-/// doubling found.
+/// doubling found. Where a branch stalls (its step below the minimum) at a jump of the
+/// discretised map while moving the way it set out, it steps over the jump and goes on
+/// (at most [`MAX_BRIDGES`] times): from the orbit Newton's method finds at the first of up
+/// to four values [`PROBE_STEP`] beyond, with as many impacts, a secant within
+/// [`MIN_TURN_COSINE`] of the branch's, and no fold or doubling test changing sign across.
 ///
 /// # Errors
 /// Ctrl-C; a report that cannot be made (not for converged orbits).
