@@ -297,8 +297,9 @@ impl Crossings {
 /// [`Crossings`] of the event `e` on its branch in `param`: each side probed outward from the
 /// event's orbit by Newton's method, a side ending early where Newton fails, the orbit's
 /// impacts change (a grazing) or a probe's secant turns further than a continuation step may
-/// ([`MIN_TURN_COSINE`]: it converged onto another orbit); `None` for the other events, or where no probe converged on
-/// one side. [`Crossings::smeared`] says whether the event is not the one crossing.
+/// ([`MIN_TURN_COSINE`]: it converged onto another orbit); `None` for the other events, or
+/// where no probe converged on one side. [`Crossings::smeared`] says whether the event is not
+/// the one crossing.
 pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     // A fold's branch turns there: probes at fixed parameter values see one side only.
     if !matches!(e.kind, EventKind::PeriodDoubling | EventKind::NeimarkSacker) {
@@ -435,7 +436,7 @@ fn bridge<T: Real>(
         ((a.value - b.value).abs() >= PROBE_STEP * scale).then(|| (a.value - b.value).signum())
     };
     let heading = points.iter().find_map(|p| away(p, first))?;
-    // The heading: from the latest point at least a probe's step behind.
+    // The last secant: from the latest point at least a probe's step behind.
     let (behind, sign) = points
         .iter()
         .rev()
