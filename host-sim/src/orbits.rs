@@ -447,11 +447,6 @@ fn bridge<T: Real>(
     let mut walk = Walk::from(scaled(&behind.orbit.x, behind.value));
     walk.step_to(scaled(&o.x, last.value));
     let shoot_settings = ShootSettings::for_type::<T>();
-    let kinds = [
-        EventKind::Fold,
-        EventKind::PeriodDoubling,
-        EventKind::NeimarkSacker,
-    ];
     (1..=4).find_map(|k| {
         let value = last.value + sign * f64::from(k) * PROBE_STEP * scale;
         if value < settings.range[0] || value > settings.range[1] {
@@ -470,7 +465,7 @@ fn bridge<T: Real>(
             }
         };
         (next.trace.impacts == o.trace.impacts
-            && kinds.into_iter().all(same_side)
+            && EventKind::BY_MULTIPLIERS.into_iter().all(same_side)
             && walk.clone().step_to(scaled(&next.x, value)))
         .then_some((next, heading))
     })

@@ -140,6 +140,13 @@ impl EventKind {
         }
     }
 
+    /// The events told by a test function on the multipliers ([`EventKind::multiplier_test`]).
+    pub const BY_MULTIPLIERS: [EventKind; 3] = [
+        EventKind::Fold,
+        EventKind::PeriodDoubling,
+        EventKind::NeimarkSacker,
+    ];
+
     /// Its test function on an orbit's multipliers `f`, which changes sign at the event along
     /// a branch: `det(M − I)` for a fold, `det(M + I)` for a period doubling, `det M − 1` for
     /// a Neimark–Sacker while the pair is complex; `None` for a Neimark–Sacker with a real
@@ -367,12 +374,7 @@ struct Node<T> {
 
 /// The fold, doubling and Neimark–Sacker tests at `o` (NaN where one has no value).
 fn tests<T: Real>(o: &Orbit<T>) -> [f64; 3] {
-    [
-        EventKind::Fold,
-        EventKind::PeriodDoubling,
-        EventKind::NeimarkSacker,
-    ]
-    .map(|k| k.multiplier_test(&o.floquet).unwrap_or(f64::NAN))
+    EventKind::BY_MULTIPLIERS.map(|k| k.multiplier_test(&o.floquet).unwrap_or(f64::NAN))
 }
 
 fn critical(kind: EventKind, f: &Floquet) -> Multiplier {
