@@ -15,8 +15,8 @@ use shared::integrate::{StepSample, StepSettings};
 use shared::model::{ContactLaw, ContactLawKind, RigId, Suspension};
 use shared::observe::Regime;
 use shared::orbit::{
-    BifEvent, ContinuationSettings, Edge, EventKind, MapPoint, Orbit, Param, ShootSettings,
-    band_edges, continue_branch, iterate, orbit_from, samples, shoot, tangent,
+    BifEvent, ContinuationSettings, Edge, EventKind, MapPoint, Orbit, OrbitError, Param,
+    ShootSettings, band_edges, continue_branch, iterate, orbit_from, samples, shoot, tangent,
 };
 
 /// The map of `rig` with `law` at `gap_mm` and `omega_ratio`, host profile (`N = 64`, `K = 16`).
@@ -828,6 +828,58 @@ fn shooting_converges_along_the_1_1_band() {
         &ShootSettings::for_type::<f64>(),
     );
     assert!(next.is_ok(), "Ω/ω 2.5091: {}", next.unwrap_err());
+}
+
+/// Where the discretised map jumps between the start and the orbit, Newton's damped step finds
+/// no descent and says so (`Stalled`), told apart from running out of iterations
+/// (`NotConverged`): the Hunt–Crossley `1/1` orbit near Ω/ω 1.97 (`select --law
+/// hunt-crossley`'s choice), where the orbit's force moves by up to 0.4 % between orbits 2e-5
+/// of Ω/ω apart (docs/accuracy.md).
+#[test]
+fn newton_without_descent_stalls_and_says_so() {
+    let at = |w: f64| point(RigId::Wires, ContactLawKind::HuntCrossley, 0.0, w);
+    let settings = ShootSettings::for_type::<f64>();
+    let (_, below) = orbit_at::<f64>(&at(1.96940));
+    let (_, above) = orbit_at::<f64>(&at(1.96944));
+    // At 1.96942 there is an orbit: Newton reaches it from the orbit at 1.96944 ...
+    let o = shoot(&at(1.96942), 1, above.x, &settings).expect("from 1.96944");
+    assert!(o.residual <= settings.tolerance);
+    // ... but not from the one at 1.96940, which lies about as near (measured: 1.26e-2 of
+    // the state's scales, against 7.9e-3).
+    let near = |x: &Vector2<f64>| scaled_distance(&at(1.96942), x, &o.x);
+    println!(
+        "distance to the orbit at 1.96942: {:.2e} from 1.96940's, {:.2e} from 1.96944's",
+        near(&below.x),
+        near(&above.x)
+    );
+    assert!(near(&below.x) < 2e-2 && near(&above.x) < 2e-2);
+    match shoot(&at(1.96942), 1, below.x, &settings) {
+        Err(
+            e @ OrbitError::Stalled {
+                iterations,
+                residual,
+            },
+        ) => {
+            println!("{e}");
+            assert!(iterations < settings.max_iterations);
+            assert!(
+                residual > settings.tolerance && residual < 1e-2,
+                "{residual:e}"
+            );
+            assert!(e.to_string().contains("Newton stalled"), "{e}");
+        }
+        other => panic!("Ω/ω 1.96942 from 1.96940's orbit: {other:?}"),
+    }
+    // Out of iterations is told apart: one iteration from the orbit at 1.96944 for 1.9700.
+    let one = ShootSettings {
+        max_iterations: 1,
+        ..settings
+    };
+    let e = shoot(&at(1.9700), 1, above.x, &one).unwrap_err();
+    assert!(
+        matches!(e, OrbitError::NotConverged { iterations: 1, .. }),
+        "{e:?}"
+    );
 }
 
 /// Step sizes that cannot make progress end the branch (`a step below the minimum`) instead of

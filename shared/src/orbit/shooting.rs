@@ -117,6 +117,15 @@ pub enum OrbitError {
         /// Scaled residual.
         residual: f64,
     },
+    /// No step along Newton's direction, down to 1/16 of it, reduced the scaled residual: the
+    /// map jumps or turns sharply between the iterate and the orbit (a kink or jump of the
+    /// discretised map, docs/accuracy.md), or the start is too far from an orbit.
+    Stalled {
+        /// Newton steps taken before.
+        iterations: u32,
+        /// Scaled residual at the iterate.
+        residual: f64,
+    },
     /// `M − I` is singular at the iterate (a fold, or `μ = 1`): no Newton step.
     Singular {
         /// Iterations before.
@@ -145,6 +154,15 @@ impl fmt::Display for OrbitError {
             } => write!(
                 f,
                 "Newton did not converge in {iterations} iterations (scaled residual {residual:.3e})"
+            ),
+            OrbitError::Stalled {
+                iterations,
+                residual,
+            } => write!(
+                f,
+                "Newton stalled after {iterations} step(s): no step along its direction, down to \
+                 1/16 of it, reduced the scaled residual {residual:.3e} (the discretised map jumps \
+                 or kinks here, or the start is far from an orbit)"
             ),
             OrbitError::Singular { iterations } => write!(
                 f,
@@ -188,7 +206,8 @@ pub(crate) fn solve2(a: &[[f64; 2]; 2], b: [f64; 2]) -> Option<[f64; 2]> {
 ///
 /// # Errors
 /// [`OrbitError`]: an invalid point, no convergence within `settings.max_iterations` (with the
-/// residual reached), or a singular `M − I`.
+/// residual reached), a step that reduces the residual nowhere along Newton's direction
+/// ([`OrbitError::Stalled`]), or a singular `M − I`.
 pub fn shoot<T: Real>(
     at: &MapPoint,
     q: u32,
@@ -241,8 +260,8 @@ pub fn shoot<T: Real>(
             step *= 0.5;
         }
         let Some((nx, ni, nm, nr, nn)) = accepted else {
-            return Err(OrbitError::NotConverged {
-                iterations: iteration + 1,
+            return Err(OrbitError::Stalled {
+                iterations: iteration,
                 residual: norm,
             });
         };
