@@ -955,6 +955,58 @@ fn the_gap_branch_starts_at_gap_zero() {
     assert_eq!(gaps, [0.0]);
 }
 
+/// A branch that reaches its range's end lands on the edge: its last step is shortened to
+/// end there and corrected at the edge's value, and that point is the orbit Newton's method
+/// finds at the edge from the point before (in `Ω/ω` up to 2.3, and in the gap down to 0).
+#[test]
+fn a_branch_ends_on_its_range_edge() {
+    for (gap_mm, param, range, direction, edge) in [
+        (0.0, Param::OmegaRatio, [1.0, 2.3], 1.0, 2.3),
+        (1.0, Param::GapM, [0.0, 0.003], -1.0, 0.0),
+    ] {
+        let at = point(RigId::Wires, ContactLawKind::SpringDashpot, gap_mm, 2.0);
+        let (_, start) = orbit_at::<f64>(&at);
+        let settings = ContinuationSettings::new::<f64>(param, range);
+        let mut points = Vec::new();
+        let end = continue_branch(
+            &start,
+            &settings,
+            direction,
+            None,
+            |p| points.push(*p),
+            |_| ControlFlow::Continue(()),
+        );
+        let (last, before) = (&points[points.len() - 1], &points[points.len() - 2]);
+        println!(
+            "{param:?}: {} points, the last two at {} and {}",
+            points.len(),
+            before.value,
+            last.value
+        );
+        assert_eq!(end, shared::orbit::BranchEnd::RangeEnd(last.value));
+        assert!(
+            (last.value - edge).abs() <= 1e-12 * range[1],
+            "{}",
+            last.value
+        );
+        assert!(
+            (before.value - edge).abs() > 1e-6 * range[1],
+            "{}",
+            before.value
+        );
+        let newton = shoot(
+            &at.with(param, last.value),
+            1,
+            before.orbit.x,
+            &ShootSettings::for_type::<f64>(),
+        )
+        .expect("the orbit at the edge");
+        let d = scaled_distance(&newton.at, &newton.x, &last.orbit.x);
+        assert!(d < 1e-8, "{param:?}: {d:e}");
+        assert_eq!(newton.trace.impacts, last.orbit.trace.impacts);
+    }
+}
+
 /// The wire rig's `3/1` branch at 0.0 mm from Ω/ω 0.9 (slow arrivals) turns once: one fold at
 /// 0.94687 (`μ` through +1, where the brute-force sweep up leaves `3/1`), then the unstable
 /// branch ends at a grazing. With the near split bisected to 1/8192 of the step the map

@@ -37,7 +37,8 @@ pub const MIN_TURN_COSINE: f64 = 0.9;
 pub struct ContinuationSettings {
     /// The parameter.
     pub param: Param,
-    /// Its range (gap in m); the branch ends where it leaves it.
+    /// Its range (gap in m); the branch ends on its edge (its last step shortened to land
+    /// there, within twice the smallest step).
     pub range: [f64; 2],
     /// Step sizes in the scaled unknowns; below the smallest the branch ends.
     pub steps: StepSizes,
@@ -187,7 +188,8 @@ pub struct BifEvent<T> {
 /// Why a branch ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BranchEnd {
-    /// It reached the end of the parameter range (the value there).
+    /// It reached the end of the parameter range (its last point's value: on the edge,
+    /// within twice the smallest step).
     RangeEnd(f64),
     /// At a grazing (the value): the orbit's impact count changes beyond it.
     Grazing(f64),
@@ -514,7 +516,9 @@ pub fn continue_branch<T: Real>(
         };
     }
     let mut h = settings.steps.first;
-    let in_range = |v: f64| v >= settings.range[0] && v <= settings.range[1];
+    // (With the rounding of an edge's value scaled and back.)
+    let slack = 1e-12 * (settings.range[1] - settings.range[0]).abs();
+    let in_range = |v: f64| v >= settings.range[0] - slack && v <= settings.range[1] + slack;
     let mut previous: Option<Node<T>> = None;
     // The branch's points before `node`, a few of them (the grazing monitors' base).
     let mut history: heapless::Deque<Node<T>, 8> = heapless::Deque::new();
@@ -522,7 +526,11 @@ pub fn continue_branch<T: Real>(
         let value_a = node.z[2] * s_lambda;
         // A step: predict, correct, check the tangent turned little and the impacts held.
         let next = loop {
-            if settings.steps.below_min(h) {
+            // A step whose prediction would leave the range is shortened to end on its edge
+            // (`edge`, scaled), where it is corrected at that value: a branch reaches the
+            // range's end rather than stopping a step short.
+            let (h_step, edge) = step_to_edge(settings.range, &node, h, s_lambda);
+            if settings.steps.below_min(h_step) {
                 // At the range's edge heading out of it (gap 0 going down, where the corrector
                 // cannot take the predicted value): the range's end.
                 let reach = 2.0 * settings.steps.min * s_lambda;
@@ -548,38 +556,40 @@ pub fn continue_branch<T: Real>(
                 return BranchEnd::StepTooSmall(value_a);
             }
             let zp = [
-                node.z[0] + h * node.t[0],
-                node.z[1] + h * node.t[1],
-                node.z[2] + h * node.t[2],
+                node.z[0] + h_step * node.t[0],
+                node.z[1] + h_step * node.t[1],
+                edge.unwrap_or(node.z[2] + h_step * node.t[2]),
             ];
-            match correct::<T>(&fr, zp, &node.t, settings, fd_step) {
+            let across = if edge.is_some() {
+                [0.0, 0.0, 1.0]
+            } else {
+                node.t
+            };
+            match correct::<T>(&fr, zp, &across, settings, fd_step) {
                 Some((z, e, iters)) => {
                     let Some(mut t) = null_vector(&e.jac) else {
-                        h *= 0.5;
+                        h = h_step * 0.5;
                         continue;
                     };
                     if dot(&t, &node.t) < 0.0 {
                         t = t.map(|v| -v);
                     }
-                    if dot(&t, &node.t) < MIN_TURN_COSINE {
-                        h *= 0.5;
+                    // A corrected point outside the range (the corrector moves across the
+                    // tangent) is retried shorter, as a turn too sharp is.
+                    if dot(&t, &node.t) < MIN_TURN_COSINE || !in_range(z[2] * s_lambda) {
+                        h = h_step * 0.5;
                         continue;
                     }
-                    break (Node { z, t, e }, iters);
+                    break (Node { z, t, e }, iters, h_step);
                 }
-                None => h *= 0.5,
+                None => h = h_step * 0.5,
             }
         };
-        let (b, iters) = next;
+        let (b, iters, h_step) = next;
         let value_b = b.z[2] * s_lambda;
-        // The range's end: the last point inside is reported, the branch ends.
-        if !in_range(value_b) {
-            tell_held!(held.release());
-            return BranchEnd::RangeEnd(value_a);
-        }
         // A grazing: the impact count changed between a and b.
         if b.e.orbit.trace.impacts != node.e.orbit.trace.impacts {
-            let (ev, _) = locate(&fr, &node, h, settings, fd_step, |e, _| {
+            let (ev, _) = locate(&fr, &node, h_step, settings, fd_step, |e, _| {
                 e.orbit.trace.impacts == node.e.orbit.trace.impacts
             });
             let value = ev.z[2] * s_lambda;
@@ -610,7 +620,7 @@ pub fn continue_branch<T: Real>(
         {
             if ta[k].is_finite() && tb[k].is_finite() && (ta[k] > 0.0) != (tb[k] > 0.0) {
                 let side_a = ta[k] > 0.0;
-                let (ev, _) = locate(&fr, &node, h, settings, fd_step, |e, _| {
+                let (ev, _) = locate(&fr, &node, h_step, settings, fd_step, |e, _| {
                     let v = tests(&e.orbit)[k];
                     !v.is_finite() || (v > 0.0) == side_a
                 });
@@ -668,6 +678,24 @@ pub fn continue_branch<T: Real>(
     let value = node.z[2] * s_lambda;
     tell_held!(held.release());
     BranchEnd::MaxPoints(value)
+}
+
+/// The step from `node` along its tangent: `h`, or, where the prediction at `h` would leave
+/// `range` (parameter units; `s_lambda`, the parameter's scale), the shorter step that ends on
+/// the edge it heads for (0 or less where `node` lies on that edge already) with that edge's
+/// scaled value.
+fn step_to_edge<T>(range: [f64; 2], node: &Node<T>, h: f64, s_lambda: f64) -> (f64, Option<f64>) {
+    let dz = node.t[2];
+    let predicted = (node.z[2] + h * dz) * s_lambda;
+    let edge = if dz > 0.0 && predicted > range[1] {
+        range[1]
+    } else if dz < 0.0 && predicted < range[0] {
+        range[0]
+    } else {
+        return (h, None);
+    };
+    let edge = edge / s_lambda;
+    ((edge - node.z[2]) / dz, Some(edge))
 }
 
 /// Whether `value` lies at an end of `range` (within `reach`, twice the smallest step in the
