@@ -15,8 +15,9 @@ use shared::integrate::{StepSample, StepSettings};
 use shared::model::{ContactLaw, ContactLawKind, RigId, Suspension};
 use shared::observe::Regime;
 use shared::orbit::{
-    BifEvent, ContinuationSettings, Edge, EventKind, MapPoint, Orbit, OrbitError, Param,
-    ShootSettings, band_edges, continue_branch, iterate, orbit_from, samples, shoot, tangent,
+    BifEvent, BranchPoint, ContinuationSettings, Edge, EventKind, MapPoint, Orbit, OrbitError,
+    Param, ShootSettings, band_edges, continue_branch, iterate, orbit_from, samples, shoot,
+    tangent,
 };
 
 /// The map of `rig` with `law` at `gap_mm` and `omega_ratio`, host profile (`N = 64`, `K = 16`).
@@ -928,31 +929,34 @@ fn the_gap_branch_starts_at_gap_zero() {
     let (_, start) = orbit_at::<f64>(&at);
     let mut settings = ContinuationSettings::new::<f64>(Param::GapM, [0.0, 0.003]);
     settings.max_points = 6;
-    let mut gaps = Vec::new();
-    continue_branch(
-        &start,
-        &settings,
-        1.0,
-        None,
-        |p| gaps.push(p.value),
-        |_| ControlFlow::Continue(()),
-    );
+    let values = |points: &[BranchPoint<f64>]| points.iter().map(|p| p.value).collect::<Vec<_>>();
+    let gaps = values(&branch_points(&start, &settings, 1.0).0);
     assert!(gaps.len() >= 3, "{gaps:?}");
     assert_eq!(gaps[0], 0.0);
     assert!(gaps[1..].iter().all(|&g| g > 0.0), "{gaps:?}");
-    // Downwards from gap 0 the branch is at the range's end at once, and says so (the
-    // corrector cannot take a negative gap: the steps would shrink below the minimum).
-    let mut gaps = Vec::new();
+    // Downwards from gap 0 the branch is at the range's end at once, and says so (the step to
+    // the range's edge is 0).
+    let (points, end) = branch_points(&start, &settings, -1.0);
+    assert_eq!(end, shared::orbit::BranchEnd::RangeEnd(0.0));
+    assert_eq!(values(&points), [0.0]);
+}
+
+/// The points of the branch through `start` in `direction`, and its end.
+fn branch_points(
+    start: &Orbit<f64>,
+    settings: &ContinuationSettings,
+    direction: f64,
+) -> (Vec<BranchPoint<f64>>, shared::orbit::BranchEnd) {
+    let mut points = Vec::new();
     let end = continue_branch(
-        &start,
-        &settings,
-        -1.0,
+        start,
+        settings,
+        direction,
         None,
-        |p| gaps.push(p.value),
+        |p| points.push(*p),
         |_| ControlFlow::Continue(()),
     );
-    assert_eq!(end, shared::orbit::BranchEnd::RangeEnd(0.0));
-    assert_eq!(gaps, [0.0]);
+    (points, end)
 }
 
 /// A branch that reaches its range's end lands on the edge: its last step is shortened to
@@ -967,15 +971,7 @@ fn a_branch_ends_on_its_range_edge() {
         let at = point(RigId::Wires, ContactLawKind::SpringDashpot, gap_mm, 2.0);
         let (_, start) = orbit_at::<f64>(&at);
         let settings = ContinuationSettings::new::<f64>(param, range);
-        let mut points = Vec::new();
-        let end = continue_branch(
-            &start,
-            &settings,
-            direction,
-            None,
-            |p| points.push(*p),
-            |_| ControlFlow::Continue(()),
-        );
+        let (points, end) = branch_points(&start, &settings, direction);
         let (last, before) = (&points[points.len() - 1], &points[points.len() - 2]);
         println!(
             "{param:?}: {} points, the last two at {} and {}",
