@@ -307,10 +307,6 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     }
     let test = |o: &Orbit<T>| e.kind.multiplier_test(&o.floquet);
     test(&e.orbit)?;
-    let unit = match param {
-        Param::OmegaRatio => 1.0,
-        Param::GapM => 1e3,
-    };
     let settings = ShootSettings::for_type::<T>();
     let (scale, scaled) = scaled_frame(&e.orbit, param);
     let mut probes: Vec<(f64, Option<f64>)> = Vec::new();
@@ -357,8 +353,8 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     };
     Some(Crossings {
         count: changes.len() as u32,
-        span: span.map(|v| v * unit),
-        step: PROBE_STEP * scale * unit,
+        span: span.map(|v| report_value(param, v)),
+        step: report_value(param, PROBE_STEP * scale),
     })
 }
 
@@ -580,10 +576,7 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                 .map(|e| {
                     Ok(EventOut {
                         kind: e.kind.name().to_string(),
-                        value: match spec.param {
-                            Param::OmegaRatio => e.value,
-                            Param::GapM => e.value * 1e3,
-                        },
+                        value: report_value(spec.param, e.value),
                         orbit: report(&e.orbit)?,
                         critical: [e.critical.re, e.critical.im],
                         impacts_beyond: e.impacts_beyond,
@@ -594,10 +587,7 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
             end: end_text(&end, spec.param),
             bridges: bridges
                 .iter()
-                .map(|b| match spec.param {
-                    Param::OmegaRatio => *b,
-                    Param::GapM => b.map(|v| v * 1e3),
-                })
+                .map(|b| b.map(|v| report_value(spec.param, v)))
                 .collect(),
         });
     }
@@ -613,9 +603,19 @@ fn end_text(end: &BranchEnd, param: Param) -> String {
         BranchEnd::MaxPoints(v) => ("the point budget", v),
         BranchEnd::Stopped(v) => ("an event", v),
     };
+    let v = report_value(param, v);
     match param {
         Param::OmegaRatio => format!("{what} at Ω/ω {v:.6}"),
-        Param::GapM => format!("{what} at gap {:.6} mm", v * 1e3),
+        Param::GapM => format!("{what} at gap {v:.6} mm"),
+    }
+}
+
+/// A value of `param` (`Ω/ω`, or the gap in m) in the report's units (`Ω/ω`, or the gap in
+/// mm).
+pub fn report_value(param: Param, v: f64) -> f64 {
+    match param {
+        Param::OmegaRatio => v,
+        Param::GapM => v * 1e3,
     }
 }
 
@@ -781,10 +781,7 @@ pub fn background<T: Real>(
 ) -> Result<Vec<BackgroundRun>> {
     use rayon::prelude::*;
     let mg = at.params.weight_n();
-    let shown = |v: f64| match param {
-        Param::OmegaRatio => v,
-        Param::GapM => v * 1e3,
-    };
+    let shown = |v: f64| report_value(param, v);
     let collect = |run: &mut BackgroundRun, v: f64, s: &WindowSamples| {
         let x = shown(v);
         run.strobes

@@ -236,10 +236,7 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
         direction: a.direction,
         follow_doublings: a.follow_doublings,
     };
-    let shown = |v: f64| match param {
-        Param::OmegaRatio => v,
-        Param::GapM => v * 1e3,
-    };
+    let shown = |v: f64| orbits::report_value(param, v);
     let mut starts = vec![at];
     for &v in &a.also_at {
         let si = match param {
@@ -336,9 +333,10 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
 }
 
 fn param_value_shown(param: Param, v: f64) -> String {
+    let v = orbits::report_value(param, v);
     match param {
         Param::OmegaRatio => format!("Ω/ω {v}"),
-        Param::GapM => format!("gap {} mm", v * 1e3),
+        Param::GapM => format!("gap {v} mm"),
     }
 }
 

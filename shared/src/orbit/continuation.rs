@@ -531,8 +531,8 @@ pub fn continue_branch<T: Real>(
             // range's end rather than stopping a step short.
             let (h_step, edge) = step_to_edge(settings.range, &node, h, s_lambda);
             if settings.steps.below_min(h_step) {
-                // At the range's edge heading out of it (gap 0 going down, where the corrector
-                // cannot take the predicted value): the range's end.
+                // At the range's edge heading out of it (the step to the edge below the
+                // smallest, or gap 0 going down where it is 0): the range's end.
                 let reach = 2.0 * settings.steps.min * s_lambda;
                 if at_edge_heading_out(settings.range, value_a, node.t[2], reach) {
                     tell_held!(held.release());
@@ -700,8 +700,9 @@ fn step_to_edge<T>(range: [f64; 2], node: &Node<T>, h: f64, s_lambda: f64) -> (f
 
 /// Whether `value` lies at an end of `range` (within `reach`, twice the smallest step in the
 /// parameter's units, or 10⁻⁹ of the range's width) and `dvalue`, the tangent's component in
-/// the parameter, points out of the range there: the steps that stalled there were the ones
-/// that left it (the parameter's own checks refuse a value beyond Ω/ω 50).
+/// the parameter, points out of the range there: the step left to the edge
+/// ([`step_to_edge`]) is below the smallest, or the steps that stalled there were the ones
+/// that headed for it.
 fn at_edge_heading_out(range: [f64; 2], value: f64, dvalue: f64, reach: f64) -> bool {
     let eps = (1e-9 * (range[1] - range[0]).abs()).max(reach);
     (dvalue < 0.0 && value <= range[0] + eps) || (dvalue > 0.0 && value >= range[1] - eps)
