@@ -9,8 +9,8 @@
 //! - The wrong law: Hunt–Crossley drops fitted with the spring–dashpot law, 3, 1 and 0.25 mm:
 //!   the lack-of-fit note, and how often the intervals hold the centre of the estimates' spread.
 //!
-//! `cargo run --release -p host-sim --example recovery` (about 3 minutes on 2 cores); the tables
-//! of docs/identification.md.
+//! `cargo run --release -p host-sim --example recovery` (about 15 minutes on 2 cores); the tables
+//! of docs/identification.md. `-- recovery`, `-- coverage` or `-- wrong-law` runs one part.
 
 use host_sim::identify::cost::{DropTest, Weights};
 use host_sim::identify::fit::{Fit, fit_law_joint};
@@ -110,8 +110,16 @@ fn worst(truth: ContactLaw, traces: &[(f64, &Trace)], weights: Weights) -> Strin
         .join(", ")
 }
 
-/// In how many of seeds `seeds` each parameter's 95 % interval holds the truth, and on how
-/// many seeds the lack-of-fit note fires.
+/// One seed's fit in [`coverage`]: per parameter whether its interval holds the truth, whether
+/// the lack-of-fit note fires, and the reduced χ² of the error as fitted.
+struct SeedOutcome {
+    holds: Vec<(&'static str, bool)>,
+    misses: bool,
+    ratio: f64,
+}
+
+/// In how many of seeds `seeds` each parameter's 95 % interval holds the truth, on how many
+/// seeds the lack-of-fit note fires, and the range of the reduced χ² of the error as fitted.
 fn coverage(
     truth: ContactLaw,
     trace: &Trace,
@@ -119,7 +127,7 @@ fn coverage(
     seeds: std::ops::RangeInclusive<u64>,
 ) -> String {
     let n = seeds.clone().count();
-    let hits: Vec<(Vec<(&'static str, bool)>, bool)> = seeds
+    let hits: Vec<SeedOutcome> = seeds
         .into_par_iter()
         .map(|seed| {
             let t = lab(truth, 3.0).measured(trace, seed).expect("impacts");
@@ -135,18 +143,25 @@ fn coverage(
                     (q.name, q.ci95[0] <= v && v <= q.ci95[1])
                 })
                 .collect();
-            (h, u.fit_check.misses)
+            SeedOutcome {
+                holds: h,
+                misses: u.fit_check.misses,
+                ratio: u.fit_check.ratio,
+            }
         })
         .collect();
-    let mut out: Vec<String> = (0..hits[0].0.len())
+    let mut out: Vec<String> = (0..hits[0].holds.len())
         .map(|i| {
-            let k = hits.iter().filter(|h| h.0[i].1).count();
-            format!("`{}` {k}/{n}", hits[0].0[i].0)
+            let k = hits.iter().filter(|h| h.holds[i].1).count();
+            format!("`{}` {k}/{n}", hits[0].holds[i].0)
         })
         .collect();
+    let ratios = hits.iter().map(|h| h.ratio);
     out.push(format!(
-        "lack of fit {}/{n}",
-        hits.iter().filter(|h| h.1).count()
+        "lack of fit {}/{n} (reduced χ² {:.2}–{:.2})",
+        hits.iter().filter(|h| h.misses).count(),
+        ratios.clone().fold(f64::INFINITY, f64::min),
+        ratios.fold(0.0, f64::max)
     ));
     out.join(", ")
 }
@@ -209,11 +224,25 @@ fn wrong_law(release_mm: f64, weights: Weights) -> String {
                 })
                 .count()
         };
+        // The intervals' median half-width, % of the value.
+        let width = |method| {
+            let mut w: Vec<f64> = fits
+                .iter()
+                .map(|f| {
+                    let u = f.uncertainty.as_ref().expect("uncertainty");
+                    u.with_intervals(method).params[i].rel_half_width()
+                })
+                .collect();
+            w.sort_by(f64::total_cmp);
+            100.0 * w[w.len() / 2]
+        };
         s.push_str(&format!(
-            " `{name}` {centre:.4e}, spread {:.2} %: {}/40 (noise only {}/40) |",
+            " `{name}` {centre:.4e}, spread {:.2} %: {}/40 (±{:.2} %) (noise only {}/40, ±{:.2} %) |",
             100.0 * sd / mean,
             holds(IntervalMethod::Scaled),
-            holds(IntervalMethod::Noise)
+            width(IntervalMethod::Scaled),
+            holds(IntervalMethod::Noise),
+            width(IntervalMethod::Noise)
         ));
     }
     s
@@ -223,6 +252,9 @@ fn wrong_law(release_mm: f64, weights: Weights) -> String {
 type Case = (&'static str, ContactLaw, Vec<(&'static str, Weights)>);
 
 fn main() {
+    // `recovery`, `coverage` or `wrong-law` runs that part alone; no argument, all three.
+    let part = std::env::args().nth(1);
+    let runs = |name: &str| part.as_deref().is_none_or(|p| p == name);
     let sd_4e6 = ContactLaw::SpringDashpot {
         stiffness_n_m: 4.0e6,
         damping_n_s_m: 900.0,
@@ -270,10 +302,30 @@ fn main() {
             vec![("peaks", PEAKS), ("profile", PROFILE)],
         ),
     ];
+    if runs("recovery") {
+        recovery(&cases);
+    }
+    if runs("coverage") {
+        coverages();
+    }
+    if runs("wrong-law") {
+        println!(
+            "The wrong law: Hunt–Crossley (Fig. 3.3) drops fitted with the spring–dashpot law"
+        );
+        println!("| release | flagged | reduced χ² | `k_i` | `c_i` |");
+        println!("|---|---|---|---|---|");
+        for release_mm in [3.0, 1.0, 0.25] {
+            println!("{}", wrong_law(release_mm, PROFILE));
+        }
+    }
+}
+
+/// The recovery table: worst relative errors over seeds 1–16.
+fn recovery(cases: &[Case]) {
     println!("Recovery: worst relative error over noise seeds 1–16");
     println!("| law (truth) | error | one height (3 mm) | two heights (0.25 + 3 mm, joint) |");
     println!("|---|---|---|---|");
-    for (name, law, errors) in &cases {
+    for (name, law, errors) in cases {
         let c3 = lab(*law, 3.0).clean().expect("valid drop");
         let c025 = lab(*law, 0.25).clean().expect("valid drop");
         for (i, (error, w)) in errors.iter().enumerate() {
@@ -286,6 +338,10 @@ fn main() {
         }
     }
     println!();
+}
+
+/// The coverage table: seeds 1–40, and Hunt–Crossley's profile over 160.
+fn coverages() {
     println!("Coverage of the 95 % intervals over noise seeds 1–40 (one 3 mm drop)");
     println!("| law (truth) | peaks | profile |");
     println!("|---|---|---|");
@@ -310,10 +366,4 @@ fn main() {
         coverage(hc, &c3, PROFILE, 1..=160)
     );
     println!();
-    println!("The wrong law: Hunt–Crossley (Fig. 3.3) drops fitted with the spring–dashpot law");
-    println!("| release | flagged | reduced χ² | `k_i` | `c_i` |");
-    println!("|---|---|---|---|---|");
-    for release_mm in [3.0, 1.0, 0.25] {
-        println!("{}", wrong_law(release_mm, PROFILE));
-    }
 }

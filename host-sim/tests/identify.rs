@@ -15,7 +15,7 @@
 //!   to about 5 % (the impact speeds span a factor ~12, which separates `k` from `n`): worst of
 //!   seeds 1–16 3.3–5.4 % with the profile, 6.4–7.9 % from the peaks.
 
-use host_sim::identify::cost::{DropTest, FIT_STEPS, Weights, simulate_drop};
+use host_sim::identify::cost::{DropTest, FIT_STEPS, SimImpact, Weights, simulate_drop};
 use host_sim::identify::data::{NOISE_FLOOR, analyse_drop};
 use host_sim::identify::fit::{Fit, fit_law, fit_law_joint};
 use host_sim::identify::free::identify_free;
@@ -598,4 +598,32 @@ fn identify_modules_import_each_other_one_way() {
             }
         }
     }
+}
+
+/// `SimImpact::forces_at` (one walk along the profile, for the preprocessing's windows) gives
+/// `force_at`'s values bit for bit: before, on, between and after the samples, across a repeated
+/// time (a jump) and at the ends; the interpolation itself against hand-worked values; NaN
+/// gives 0.
+#[test]
+fn forces_at_walks_to_the_values_of_force_at() {
+    let s = SimImpact {
+        profile: vec![(0.0, 0.0), (1.0, 2.0), (1.0, 3.0), (2.5, 1.0), (4.0, 0.0)],
+        ..SimImpact::default()
+    };
+    let mut times: Vec<f64> = (-10..=50).map(|k| f64::from(k) * 0.1).collect();
+    times.extend([1.0, 1.0, 2.5, 2.5, 0.0, 4.0, 1.0 + 1e-12]);
+    times.sort_by(f64::total_cmp);
+    let walked: Vec<f64> = s.forces_at(times.iter().copied()).collect();
+    assert_eq!(walked.len(), times.len());
+    for (&t, w) in times.iter().zip(&walked) {
+        assert_eq!(w.to_bits(), s.force_at(t).to_bits(), "t = {t}");
+    }
+    assert_eq!(s.force_at(0.5), 1.0);
+    assert_eq!(s.force_at(1.0), 3.0);
+    assert!((s.force_at(1.75) - 2.0).abs() < 1e-15);
+    assert!((s.force_at(3.25) - 0.5).abs() < 1e-15);
+    assert_eq!(s.force_at(-1.0), 0.0);
+    assert_eq!(s.force_at(4.0), 0.0);
+    assert_eq!(s.force_at(f64::NAN), 0.0);
+    assert_eq!(s.forces_at([f64::NAN].into_iter()).next(), Some(0.0));
 }

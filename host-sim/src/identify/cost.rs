@@ -48,7 +48,6 @@ use shared::model::contact::spring_dashpot_restitution;
 use shared::model::{ContactLaw, ContactLawKind, RigParams, SwitchBands};
 
 use super::data::{DropData, analyse_redraw, peak_estimate};
-use crate::trace::Trace;
 
 /// Which error the fit minimises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -123,20 +122,55 @@ impl SimImpact {
         first.map_or(0.0, |a| above.next_back().unwrap_or(a) - a)
     }
 
-    /// Linear interpolation of the force at `t` (0 outside the episode).
+    /// Linear interpolation of the force at `t` (0 outside the episode, and at a NaN `t`).
     pub fn force_at(&self, t: f64) -> f64 {
         let p = &self.profile;
-        if p.len() < 2 || t <= p[0].0 || t >= p[p.len() - 1].0 {
+        if !within(p, t) {
             return 0.0;
         }
-        let i = p.partition_point(|s| s.0 <= t);
-        let (t0, f0) = p[i - 1];
-        let (t1, f1) = p[i];
-        if t1 <= t0 {
-            return f1;
-        }
-        f0 + (f1 - f0) * (t - t0) / (t1 - t0)
+        interpolate(p, p.partition_point(|s| s.0 <= t), t)
     }
+
+    /// [`Self::force_at`] at each of `times` (non-decreasing), the same values: one walk along
+    /// the profile instead of a search for each time (the preprocessing's alignments and
+    /// profile terms call it over every sample of an impact's window, for every redraw).
+    pub fn forces_at(&self, times: impl Iterator<Item = f64>) -> impl Iterator<Item = f64> {
+        let p = &self.profile;
+        // The first sample after the last time seen (`partition_point`'s answer for it).
+        let mut i = 0;
+        let mut last = f64::NEG_INFINITY;
+        times.map(move |t| {
+            debug_assert!(
+                t >= last || t.is_nan() || last.is_nan(),
+                "times must not decrease: {t} after {last}"
+            );
+            last = t;
+            if !within(p, t) {
+                return 0.0;
+            }
+            while p[i].0 <= t {
+                i += 1;
+            }
+            interpolate(p, i, t)
+        })
+    }
+}
+
+/// Whether `t` lies strictly inside `profile`'s span (false for a NaN `t`).
+#[inline]
+fn within(profile: &[(f64, f64)], t: f64) -> bool {
+    profile.len() >= 2 && t > profile[0].0 && t < profile[profile.len() - 1].0
+}
+
+/// The force at `t` on the segment of `profile` that ends at sample `i` (`t` within it).
+#[inline]
+fn interpolate(profile: &[(f64, f64)], i: usize, t: f64) -> f64 {
+    let (t0, f0) = profile[i - 1];
+    let (t1, f1) = profile[i];
+    if t1 <= t0 {
+        return f1;
+    }
+    f0 + (f1 - f0) * (t - t0) / (t1 - t0)
 }
 
 /// Simulated drop test: its impacts and, if `keep_samples`, every `(t, F)` sample.
@@ -364,10 +398,10 @@ impl CostFunction for Align<'_> {
     fn cost(&self, u: &f64) -> std::result::Result<f64, argmin::core::Error> {
         let d = self.guess + u * self.spacing;
         Ok(self
-            .t
-            .iter()
+            .s
+            .forces_at(self.t.iter().map(|&t| t + d))
             .zip(self.f)
-            .map(|(&t, &f)| (self.s.force_at(t + d) - f).powi(2))
+            .map(|(fs, &f)| (fs - f).powi(2))
             .sum())
     }
 }
@@ -530,7 +564,7 @@ impl<'a> TraceCtx<'a> {
         let (a, b) = m.run;
         let t = &self.data.t_s[a..=b];
         let shift = self.shift_onto(j, s);
-        let clean: Vec<f64> = t.iter().map(|&tk| s.force_at(tk + shift)).collect();
+        let clean: Vec<f64> = s.forces_at(t.iter().map(|&tk| tk + shift)).collect();
         let n = clean.len();
         let mut g = vec![0.0; n];
         let mut sum = 0.0;
@@ -794,23 +828,14 @@ impl Problem<'_> {
                     .first()
                     .ok_or(RedrawFailure::NoSimulatedImpact)?;
                 let shift = tc.shift_onto(0, first);
-                let clean = resample(&sim.samples, tc.data.t_s.iter().map(|t| t + shift));
+                let mut value = resample(&sim.samples, tc.data.t_s.iter().map(|t| t + shift));
                 let mut rng = noise_rng(Stream::Redraw, tc.index, redraw);
-                let value = clean
-                    .iter()
-                    .map(|f| {
-                        f + tc.data.noise_n
-                            * <StandardNormal as Distribution<f64>>::sample(
-                                &StandardNormal,
-                                &mut rng,
-                            )
-                    })
-                    .collect();
-                let trace = Trace {
-                    t_s: tc.data.t_s.clone(),
-                    value,
-                };
-                let d = analyse_redraw(&trace, n).map_err(|_| RedrawFailure::NoImpact)?;
+                for f in &mut value {
+                    *f += tc.data.noise_n
+                        * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, &mut rng);
+                }
+                let d = analyse_redraw(tc.data.t_s.clone(), &value, n)
+                    .map_err(|_| RedrawFailure::NoImpact)?;
                 if d.impacts.len() < n {
                     return Err(RedrawFailure::FewerImpacts);
                 }
@@ -863,11 +888,20 @@ impl Problem<'_> {
                 }));
             }
             if profile {
-                for i in m.window.0..=m.window.1 {
-                    let fsim = s.map_or(0.0, |s| {
-                        s.force_at(tc.data.t_s[i] - m.centroid_s + s.centroid_s)
-                    });
-                    out.push(Term::Profile((fsim - tc.data.force_n[i]) / tc.f_ref));
+                let (a, b) = m.window;
+                let measured = &tc.data.force_n[a..=b];
+                match s {
+                    Some(s) => {
+                        let times = tc.data.t_s[a..=b]
+                            .iter()
+                            .map(|t| t - m.centroid_s + s.centroid_s);
+                        for (fsim, f) in s.forces_at(times).zip(measured) {
+                            out.push(Term::Profile((fsim - f) / tc.f_ref));
+                        }
+                    }
+                    None => {
+                        out.extend(measured.iter().map(|f| Term::Profile((0.0 - f) / tc.f_ref)))
+                    }
                 }
             }
         }

@@ -162,7 +162,7 @@ pub(crate) fn peak_estimate(t: &[f64], f: &[f64], a: usize, b: usize) -> f64 {
 /// No impact stands out of the noise (largest force below 10 σ), or the first is too weak to
 /// time (its peak below twice the threshold).
 pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
-    analyse(trace, max_impacts, true)
+    analyse(trace.t_s.clone(), &trace.value, max_impacts, true)
 }
 
 /// [`analyse_drop`] of a noise redraw of the fit (the bootstrap) that is to show the measured
@@ -171,16 +171,21 @@ pub fn analyse_drop(trace: &Trace, max_impacts: usize) -> Result<DropData> {
 ///
 /// # Errors
 /// No impact stands out of the noise.
-pub(crate) fn analyse_redraw(trace: &Trace, impacts: usize) -> Result<DropData> {
-    analyse(trace, impacts, false)
+pub(crate) fn analyse_redraw(t_s: Vec<f64>, value: &[f64], impacts: usize) -> Result<DropData> {
+    analyse(t_s, value, impacts, false)
 }
 
-/// [`analyse_drop`], leaving out the impacts too weak to time where `cut_weak`.
-fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData> {
-    let mut sorted = trace.value.clone();
-    let offset = median(&mut sorted);
-    let f: Vec<f64> = trace.value.iter().map(|v| v - offset).collect();
-    let mut dev: Vec<f64> = f.iter().map(|v| v.abs()).collect();
+/// [`analyse_drop`] of the samples `value` at times `t_s` (kept in the result), leaving out the
+/// impacts too weak to time where `cut_weak`.
+fn analyse(t_s: Vec<f64>, value: &[f64], max_impacts: usize, cut_weak: bool) -> Result<DropData> {
+    // One scratch buffer for both medians (the bootstrap analyses hundreds of redraws).
+    let mut scratch = value.to_vec();
+    let offset = median(&mut scratch);
+    let f: Vec<f64> = value.iter().map(|v| v - offset).collect();
+    for (d, v) in scratch.iter_mut().zip(&f) {
+        *d = v.abs();
+    }
+    let mut dev = scratch;
     let sample_max = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     // The largest force held over three samples: a glitch of one or two samples far above
     // every impact is not one, and must not set the threshold above them.
@@ -211,7 +216,7 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
         };
         // A largest sample that stands alone: a glitch, or contacts the sampling steps over.
         let alone = spike.map_or(String::new(), |s| {
-            let dt = trace.t_s[1] - trace.t_s[0];
+            let dt = t_s[1] - t_s[0];
             format!(
                 "; the largest sample, {s:.4} N, stands out alone (the largest held over \
                  three samples is the {fmax:.4} N above): a glitch, or contacts shorter than \
@@ -226,7 +231,7 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
              {offset:.4} N, noise {noise:.4} N{inverted}{alone}"
         );
     }
-    let t = &trace.t_s;
+    let t = &t_s;
     let threshold = (5.0 * noise).max(0.03 * fmax);
     // Runs above the threshold.
     let mut runs: Vec<(usize, usize)> = Vec::new();
@@ -295,7 +300,7 @@ fn analyse(trace: &Trace, max_impacts: usize, cut_weak: bool) -> Result<DropData
         ))
     );
     Ok(DropData {
-        t_s: t.clone(),
+        t_s,
         force_n: f,
         offset_n: offset,
         noise_n: noise,
