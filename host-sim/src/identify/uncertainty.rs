@@ -950,12 +950,8 @@ mod tests {
     use crate::identify::synth::LabDrop;
     use shared::model::ContactLaw;
 
-    /// The standard deviation of each search coordinate's step over redraws `range`.
-    fn step_sd(problem: &Problem<'_>, around: &Around, range: std::ops::Range<u64>) -> Vec<f64> {
-        let steps: Vec<DVector<f64>> = range
-            .into_par_iter()
-            .map(|b| redraw(problem, around, b).expect("usable redraw").step)
-            .collect();
+    /// The standard deviation of each search coordinate over `steps`.
+    fn step_sd(steps: &[DVector<f64>]) -> Vec<f64> {
         let n = steps.len() as f64;
         let mean = steps.iter().fold(DVector::zeros(3), |a, s| a + s) / n;
         (0..3)
@@ -996,9 +992,15 @@ mod tests {
             (lambda_s_m / s[2]).ln(),
         ];
         let around = problem.around(&x, &fit.law).unwrap();
-        let used = step_sd(&problem, &around, 0..REDRAWS as u64);
-        let many = step_sd(&problem, &around, 0..2000);
-        let first = step_sd(&problem, &around, 0..100);
+        let steps: Vec<DVector<f64>> = (0..2000)
+            .into_par_iter()
+            .map(|b| redraw(&problem, &around, b).expect("usable redraw").step)
+            .collect();
+        let (used, many, first) = (
+            step_sd(&steps[..REDRAWS]),
+            step_sd(&steps),
+            step_sd(&steps[..100]),
+        );
         println!(
             "standard deviations: {REDRAWS} redraws {used:.5?}, 2000 {many:.5?}, the first 100 {first:.5?}"
         );
