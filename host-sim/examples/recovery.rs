@@ -253,7 +253,12 @@ type Case = (&'static str, ContactLaw, Vec<(&'static str, Weights)>);
 
 fn main() {
     // `recovery`, `coverage` or `wrong-law` runs that part alone; no argument, all three.
+    const PARTS: [&str; 3] = ["recovery", "coverage", "wrong-law"];
     let part = std::env::args().nth(1);
+    if let Some(p) = part.as_deref().filter(|p| !PARTS.contains(p)) {
+        eprintln!("error: unknown part `{p}`: allowed {}", PARTS.join(", "));
+        std::process::exit(2);
+    }
     let runs = |name: &str| part.as_deref().is_none_or(|p| p == name);
     let sd_4e6 = ContactLaw::SpringDashpot {
         stiffness_n_m: 4.0e6,
