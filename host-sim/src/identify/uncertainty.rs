@@ -516,6 +516,19 @@ fn redraw(problem: &Problem<'_>, around: &Around, b: u64) -> Result<Redrawn, Red
     Ok(Redrawn { step, parts, cost })
 }
 
+/// The sample covariance (`n − 1`) of the redraws' Gauss–Newton `steps` (`p` coordinates each).
+fn step_covariance<'a>(
+    steps: impl Iterator<Item = &'a DVector<f64>> + Clone,
+    p: usize,
+) -> DMatrix<f64> {
+    let nu = steps.clone().count() as f64;
+    let mean = steps.clone().fold(DVector::zeros(p), |acc, s| acc + s) / nu;
+    steps.fold(DMatrix::zeros(p, p), |acc, s| {
+        let c = s - &mean;
+        acc + &c * c.transpose()
+    }) / (nu - 1.0)
+}
+
 /// The uncertainty of the fit at search coordinates `x` of `problem` (module docs), its
 /// intervals made by [`IntervalMethod::default`]; `Err` with the reason when it cannot be
 /// estimated (e.g. the law at `x` is invalid, a drop simulation fails, or fewer than half the
@@ -574,12 +587,7 @@ pub(crate) fn estimate(problem: &Problem<'_>, x: &[f64]) -> Result<Uncertainty, 
             redraws.describe()
         ));
     }
-    let nu = used.len() as f64;
-    let mean_x = used.iter().fold(DVector::zeros(p), |acc, d| acc + &d.step) / nu;
-    let cov_x = used.iter().fold(DMatrix::zeros(p, p), |acc, d| {
-        let c = &d.step - &mean_x;
-        acc + &c * c.transpose()
-    }) / (nu - 1.0);
+    let cov_x = step_covariance(used.iter().map(|d| &d.step), p);
     let fit_check = check_fit(problem, &r_meas, &parts_meas, &w_meas, &used);
     let (g, b) = linear_map(problem);
     let mean = &g * DVector::from_column_slice(x) + b;
@@ -950,15 +958,11 @@ mod tests {
     use crate::identify::synth::LabDrop;
     use shared::model::ContactLaw;
 
-    /// The standard deviation of each search coordinate over `steps`.
+    /// The standard deviation of each search coordinate over `steps` (as the bootstrap's
+    /// covariance has it).
     fn step_sd(steps: &[DVector<f64>]) -> Vec<f64> {
-        let n = steps.len() as f64;
-        let mean = steps.iter().fold(DVector::zeros(3), |a, s| a + s) / n;
-        (0..3)
-            .map(|i| {
-                (steps.iter().map(|s| (s[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-            })
-            .collect()
+        let cov = step_covariance(steps.iter(), 3);
+        (0..3).map(|i| cov[(i, i)].sqrt()).collect()
     }
 
     /// The bootstrap's [`REDRAWS`] give the spread that many more give: within 5 % in the
