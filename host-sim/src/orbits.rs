@@ -12,8 +12,8 @@ use shared::Real;
 use shared::observe::Regime;
 use shared::orbit::{
     BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MIN_TURN_COSINE, MapPoint,
-    Multiplier, Orbit, Param, ShootSettings, continue_branch, doubling_start, iterate, orbit_from,
-    relative, shoot, state_of,
+    Multiplier, Orbit, Param, ShootSettings, Stability, continue_branch, doubling_start, iterate,
+    orbit_from, relative, shoot, state_of,
 };
 
 use crate::config::Setup;
@@ -57,8 +57,11 @@ pub struct OrbitReport {
     pub multipliers: [[f64; 2]; 2],
     /// `max |μ|`.
     pub max_abs_multiplier: f64,
-    /// `max |μ| < 1`.
+    /// Asymptotically stable: `max |μ| < 1`, and not a neutral orbit.
     pub stable: bool,
+    /// `stable`, `neutral` (a conservative orbit's pair on the unit circle: no impact on an
+    /// undamped suspension, `shared::orbit::Orbit::stability`) or `unstable`.
+    pub stability: String,
     /// Stability margin `1 − max |μ|`.
     pub margin: f64,
     /// Its largest Lyapunov exponent, per excitation period: `ln max|μ| / q`.
@@ -115,7 +118,7 @@ pub fn report<T: Real>(o: &Orbit<T>) -> Result<OrbitReport> {
     Ok(OrbitReport {
         omega_ratio: o.at.omega_ratio,
         freq_hz: o.at.params.freq_hz_from_ratio(o.at.omega_ratio),
-        gap_mm: o.at.gap_m * 1e3,
+        gap_mm: mm(o.at.gap_m),
         regime: regime_of(o.p(), o.q).to_string(),
         p: o.p(),
         q: o.q,
@@ -123,7 +126,8 @@ pub fn report<T: Real>(o: &Orbit<T>) -> Result<OrbitReport> {
         impact_force_mg: o.impact_force_mg(),
         multipliers: mu_pair(&f.mu),
         max_abs_multiplier: f.max_abs(),
-        stable: f.stable(),
+        stable: o.stability() == Stability::Stable,
+        stability: o.stability().to_string(),
         margin: f.margin(),
         lyapunov_per_period: f.max_abs().ln() / f64::from(o.q),
         residual: o.residual,
@@ -163,7 +167,7 @@ pub fn find<T: Real>(
         anyhow!(
             "no periodic orbit at Ω/ω {}, gap {} mm: {e}",
             at.omega_ratio,
-            at.gap_m * 1e3
+            mm(at.gap_m)
         )
     })
 }
@@ -305,7 +309,7 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     if !matches!(e.kind, EventKind::PeriodDoubling | EventKind::NeimarkSacker) {
         return None;
     }
-    let test = |o: &Orbit<T>| e.kind.multiplier_test(&o.floquet);
+    let test = |o: &Orbit<T>| e.kind.multiplier_test(o);
     test(&e.orbit)?;
     let settings = ShootSettings::for_type::<T>();
     let (scale, scaled) = scaled_frame(&e.orbit, param);
@@ -450,10 +454,7 @@ fn bridge<T: Real>(
         }
         let next = shoot(&o.at.with(param, value), o.q, o.x, &shoot_settings).ok()?;
         let same_side = |kind: EventKind| {
-            match (
-                kind.multiplier_test(&o.floquet),
-                kind.multiplier_test(&next.floquet),
-            ) {
+            match (kind.multiplier_test(o), kind.multiplier_test(&next)) {
                 (Some(a), Some(b)) => (a > 0.0) == (b > 0.0),
                 // Neimark–Sacker's test only while the pair is complex: a pair turning real
                 // crosses neither +1 nor −1 unless the fold's or the doubling's test says so.
@@ -615,8 +616,15 @@ fn end_text(end: &BranchEnd, param: Param) -> String {
 pub fn report_value(param: Param, v: f64) -> f64 {
     match param {
         Param::OmegaRatio => v,
-        Param::GapM => v * 1e3,
+        Param::GapM => mm(v),
     }
+}
+
+/// A gap of `m` metres in mm as a reader takes it: to 13 significant digits, so that the
+/// 0.018 m of `--gap-mm 18` reads 18 and not 18.000000000000004 (the product's rounding).
+pub fn mm(m: f64) -> f64 {
+    let v = m * 1e3;
+    format!("{v:.12e}").parse().unwrap_or(v)
 }
 
 /// The value of `param` in a report (`Ω/ω`, or the gap in mm).
@@ -660,8 +668,10 @@ pub struct BranchRow {
     pub mu2_im: f64,
     /// `max |μ|`.
     pub max_abs_mu: f64,
-    /// `max |μ| < 1`.
+    /// Asymptotically stable: `max |μ| < 1`, and not neutral.
     pub stable: bool,
+    /// `stable`, `neutral` (no impact on an undamped suspension: `|μ| = 1`) or `unstable`.
+    pub stability: String,
     /// Empty for a point; `fold`, `period-doubling`, `neimark-sacker` or `grazing` for a
     /// located bifurcation.
     pub event: String,
@@ -686,6 +696,7 @@ fn row(b: &BranchOut, o: &OrbitReport, event: &str) -> BranchRow {
         mu2_im: o.multipliers[1][1],
         max_abs_mu: o.max_abs_multiplier,
         stable: o.stable,
+        stability: o.stability.clone(),
         event: event.to_string(),
     }
 }
@@ -943,7 +954,7 @@ pub fn boundary_curves<T: Real>(
         let Ok((_, orbit)) = find::<T>(&at, Start::Rest, None) else {
             continue;
         };
-        if !orbit.floquet.stable() {
+        if orbit.stability() != Stability::Stable {
             continue;
         }
         let edges = band_edges(

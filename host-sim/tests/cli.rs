@@ -672,6 +672,33 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
         text.contains("the protocol from u0 = -0.000032 mm, u̇0 = 0.1 mm/s settled on 1/1"),
         "{text}"
     );
+    assert_eq!(o["stability"], "stable");
+    // Without impacts the undamped pendulum's orbit is neutral (det M = 1: the map preserves
+    // area), whatever the rounding of its computed |μ|; damped, the same orbit is stable. The
+    // gap reads as typed (0.018 m back in mm is 18.000000000000004).
+    let at_18 = |extra: &str| -> serde_json::Value {
+        let args = format!("orbit --rig wires --gap-mm 18 --omega-ratio 2.0 --json{extra}");
+        serde_json::from_str(&ok(&line(&args))).unwrap()
+    };
+    let (undamped, damped) = (at_18(""), at_18(" --damping-ratio 0.003"));
+    let (u, d) = (&undamped["orbit"], &damped["orbit"]);
+    assert_eq!(u["regime"], "no impact");
+    assert_eq!(u["gap_mm"], 18.0);
+    assert_eq!(
+        (&u["stability"], &u["stable"]),
+        (&"neutral".into(), &false.into())
+    );
+    assert!((u["max_abs_multiplier"].as_f64().unwrap() - 1.0).abs() < 1e-5);
+    assert_eq!(
+        (&d["stability"], &d["stable"]),
+        (&"stable".into(), &true.into())
+    );
+    let text = ok(&line("orbit --rig wires --gap-mm 18 --omega-ratio 2.0"));
+    assert!(text.contains("gap 18 mm\n"), "{text}");
+    assert!(
+        text.contains(": neutral (no impact on an undamped suspension"),
+        "{text}"
+    );
 }
 
 /// Where Newton cannot follow a branch across a jump of the discretised map, `continue` steps
@@ -824,16 +851,16 @@ fn continue_writes_the_branch_with_located_events_and_rejects_bad_input() {
     assert_eq!(
         rows.next().unwrap(),
         "branch,parent,direction,omega_ratio,freq_hz,gap_mm,u_mm,du_mm_s,regime,\
-         impact_force_mg,mu1_re,mu1_im,mu2_re,mu2_im,max_abs_mu,stable,event"
+         impact_force_mg,mu1_re,mu1_im,mu2_re,mu2_im,max_abs_mu,stable,stability,event"
     );
     let events: Vec<Vec<&str>> = rows
         .map(|r| r.split(',').collect::<Vec<_>>())
-        .filter(|c| !c[16].is_empty())
+        .filter(|c| !c[17].is_empty())
         .collect();
     let find = |kind: &str, regime: &str| {
         events
             .iter()
-            .find(|c| c[16] == kind && c[8] == regime)
+            .find(|c| c[17] == kind && c[8] == regime)
             .unwrap_or_else(|| panic!("no {kind} of {regime} in {events:?}"))
     };
     // The 1/1 band's upper edge: a period doubling at Ω/ω 2.66035 (f32; 2.66036 in f64), the

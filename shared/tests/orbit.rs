@@ -16,8 +16,8 @@ use shared::model::{ContactLaw, ContactLawKind, RigId, Suspension};
 use shared::observe::Regime;
 use shared::orbit::{
     BifEvent, BranchPoint, ContinuationSettings, Edge, EventKind, MapPoint, Orbit, OrbitError,
-    Param, ShootSettings, band_edges, continue_branch, iterate, orbit_from, samples, shoot,
-    tangent,
+    Param, ShootSettings, Stability, band_edges, continue_branch, iterate, orbit_from, samples,
+    shoot, tangent,
 };
 
 /// The map of `rig` with `law` at `gap_mm` and `omega_ratio`, host profile (`N = 64`, `K = 16`).
@@ -939,6 +939,57 @@ fn the_gap_branch_starts_at_gap_zero() {
     let (points, end) = branch_points(&start, &settings, -1.0);
     assert_eq!(end, shared::orbit::BranchEnd::RangeEnd(0.0));
     assert_eq!(values(&points), [0.0]);
+}
+
+/// A non-impacting orbit of the undamped wire rig is conservative: the free flight's map
+/// preserves area (`det M = 1`, Liouville's formula), so its multipliers are a pair on the unit
+/// circle at every point of its branch: neutral, with no Neimark–Sacker (`det M − 1` is zero
+/// but for the integrator's error, whose sign flickers: in f32 the branch through Ω/ω 2.0 at
+/// 18 mm reported eleven between 1.5 and 2.5). With the pendulum damped the same branch has
+/// `det M = exp(−2ζωT) = exp(−4πζ/(Ω/ω))` and is stable.
+#[test]
+fn a_conservative_branch_is_neutral_without_neimark_sacker() {
+    for zeta in [0.0, 0.003] {
+        let mut at = point(RigId::Wires, ContactLawKind::SpringDashpot, 18.0, 2.0);
+        at.params = at.params.with_damping_ratio(zeta);
+        let (regime, start) = orbit_at::<f32>(&at);
+        assert_eq!(regime, Regime::NoImpact);
+        let settings = ContinuationSettings::new::<f32>(Param::OmegaRatio, [1.5, 2.5]);
+        let (mut points, mut events) = (Vec::new(), Vec::new());
+        for direction in [-1.0, 1.0] {
+            continue_branch(
+                &start,
+                &settings,
+                direction,
+                None,
+                |p| points.push(*p),
+                |e| {
+                    events.push((e.kind, e.value));
+                    ControlFlow::Continue(())
+                },
+            );
+        }
+        let mut worst = 0.0f64;
+        for p in &points {
+            let o = &p.orbit;
+            let det = (-4.0 * std::f64::consts::PI * zeta / p.value).exp();
+            worst = worst.max((o.floquet.det - det).abs());
+            assert_eq!(o.conservative(), zeta == 0.0, "Ω/ω {}", p.value);
+            let expected = if zeta == 0.0 {
+                Stability::Neutral
+            } else {
+                Stability::Stable
+            };
+            assert_eq!(o.stability(), expected, "ζ {zeta}, Ω/ω {}", p.value);
+        }
+        println!(
+            "ζ {zeta}: {} points, det M within {worst:.1e} of exp(−4πζ/(Ω/ω)), events {events:?}",
+            points.len()
+        );
+        assert!(points.len() > 10);
+        assert!(worst < 1e-5, "ζ {zeta}: det M off by {worst:e}");
+        assert!(events.is_empty(), "ζ {zeta}: {events:?}");
+    }
 }
 
 /// The points of the branch through `start` in `direction`, and its end.

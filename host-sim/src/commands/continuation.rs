@@ -11,7 +11,9 @@ use shared::orbit::{Orbit, Param};
 
 use super::orbit::PointArgs;
 use crate::figures::orbits::{Dots, branches as branch_figure};
-use crate::orbits::{self, Background, BranchOut, BranchSpec, Crossings, Direction, param_value};
+use crate::orbits::{
+    self, Background, BranchOut, BranchSpec, Crossings, Direction, mm, param_value,
+};
 use crate::output::{Outputs, write_csv};
 
 /// The continuation parameter on the command line.
@@ -52,11 +54,12 @@ pub struct ContinueArgs {
     pub follow_doublings: u32,
     /// CSV: one row per orbit of each branch, then its located bifurcations: branch, parent,
     /// direction, omega_ratio, freq_hz, gap_mm, u_mm, du_mm_s, regime, impact_force_mg,
-    /// mu1_re, mu1_im, mu2_re, mu2_im, max_abs_mu, stable, event (empty for an orbit; fold,
+    /// mu1_re, mu1_im, mu2_re, mu2_im, max_abs_mu, stable, stability (stable, neutral: no
+    /// impact on an undamped suspension, or unstable), event (empty for an orbit; fold,
     /// period-doubling, neimark-sacker or grazing).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
-    /// PNG: the branches (stable solid, unstable dashed, coloured by regime; bifurcations
+    /// PNG: the branches (stable solid, neutral dotted, unstable dashed, coloured by regime; bifurcations
     /// marked) over a brute-force bifurcation diagram of the same range.
     #[arg(long, value_parser = crate::output::png_target)]
     pub plot: Option<PathBuf>,
@@ -307,12 +310,12 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
                 Param::GapM => "the gap".to_string(),
             },
             match param {
-                Param::OmegaRatio => format!(", gap {} mm", at.gap_m * 1e3),
+                Param::OmegaRatio => format!(", gap {} mm", mm(at.gap_m)),
                 Param::GapM => format!(", Ω/ω {}", at.omega_ratio),
             }
         );
         let (x_label, surface) = match param {
-            Param::OmegaRatio => ("Ω/ω".to_string(), Some(at.gap_m * 1e3)),
+            Param::OmegaRatio => ("Ω/ω".to_string(), Some(mm(at.gap_m))),
             Param::GapM => ("gap (mm)".to_string(), None),
         };
         branch_figure(&tmp, &title, param, &x_label, surface, &branches, &dots)?;

@@ -120,7 +120,13 @@ pub fn describe(o: &OrbitReport) -> String {
         mu(o.multipliers[0]),
         mu(o.multipliers[1]),
         o.max_abs_multiplier,
-        if o.stable { "stable" } else { "unstable" },
+        match o.stability.as_str() {
+            "neutral" => {
+                "neutral (no impact on an undamped suspension: the map preserves area, \
+                 |μ| = 1 but for the integrator's error)"
+            }
+            other => other,
+        },
         o.margin
     );
     s += &format!(

@@ -1,5 +1,5 @@
 //! The branch figure of `continue`: branches of periodic orbits over a parameter (stable solid,
-//! unstable dashed, coloured by regime), their located bifurcations marked, over the brute-force
+//! neutral dotted, unstable dashed, coloured by regime), their located bifurcations marked, over the brute-force
 //! bifurcation diagram of the same range (grey dots); Poincaré `u` on top, `F_i/mg` below.
 
 use std::path::Path;
@@ -56,23 +56,23 @@ fn marker(chart: &mut Chart<'_, '_>, kind: &str, at: (f64, f64), color: RGBColor
     Ok(())
 }
 
-/// Draws the runs of `pts` (`(x, y, stable, regime)`) with equal stability and regime: solid
-/// (2 px) where stable, dashed where not.
-fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, bool, Regime)]) -> Result<()> {
+/// Draws the runs of `pts` (`(x, y, stability, regime)`) with equal stability and regime:
+/// solid (2 px) where stable, dotted where neutral, dashed where unstable.
+fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, &str, Regime)]) -> Result<()> {
     let mut start = 0;
     while start + 1 < pts.len() {
-        let (stable, regime) = (pts[start + 1].2, pts[start + 1].3);
+        let (stability, regime) = (pts[start + 1].2, pts[start + 1].3);
         let mut end = start + 1;
-        while end + 1 < pts.len() && pts[end + 1].2 == stable && pts[end + 1].3 == regime {
+        while end + 1 < pts.len() && pts[end + 1].2 == stability && pts[end + 1].3 == regime {
             end += 1;
         }
         let line: Vec<(f64, f64)> = pts[start..=end].iter().map(|p| (p.0, p.1)).collect();
         let c = regime_color(regime);
-        if stable {
-            chart.draw_series(LineSeries::new(line, c.stroke_width(2)))?;
-        } else {
-            chart.draw_series(DashedLineSeries::new(line, 6, 5, c.stroke_width(2)))?;
-        }
+        match stability {
+            "stable" => chart.draw_series(LineSeries::new(line, c.stroke_width(2)))?,
+            "neutral" => chart.draw_series(DashedLineSeries::new(line, 2, 4, c.stroke_width(2)))?,
+            _ => chart.draw_series(DashedLineSeries::new(line, 6, 5, c.stroke_width(2)))?,
+        };
         start = end;
     }
     Ok(())
@@ -168,26 +168,26 @@ pub fn branches(
     for b in branches {
         let q = b.points.first().map_or(0, |p| p.orbit.section.len());
         for k in 0..q {
-            let pts: Vec<(f64, f64, bool, Regime)> = b
+            let pts: Vec<(f64, f64, &str, Regime)> = b
                 .points
                 .iter()
                 .filter_map(|p| {
-                    p.orbit
-                        .section
-                        .get(k)
-                        .map(|s| (value(&p.orbit), s[0], p.orbit.stable, regime_of(&p.orbit)))
+                    p.orbit.section.get(k).map(|s| {
+                        let stability = p.orbit.stability.as_str();
+                        (value(&p.orbit), s[0], stability, regime_of(&p.orbit))
+                    })
                 })
                 .collect();
             draw_runs(&mut ct, &pts)?;
         }
-        let forces: Vec<(f64, f64, bool, Regime)> = b
+        let forces: Vec<(f64, f64, &str, Regime)> = b
             .points
             .iter()
             .map(|p| {
                 (
                     value(&p.orbit),
                     p.orbit.impact_force_mg,
-                    p.orbit.stable,
+                    p.orbit.stability.as_str(),
                     regime_of(&p.orbit),
                 )
             })
@@ -208,6 +208,19 @@ pub fn branches(
     ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
         .label("stable orbit")
         .legend(line_key(BLACK.stroke_width(2)));
+    let neutral = branches
+        .iter()
+        .any(|b| b.points.iter().any(|p| p.orbit.stability == "neutral"));
+    if neutral {
+        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label("neutral orbit (no impact, undamped)")
+            .legend(|(x, y)| {
+                EmptyElement::at((x, y))
+                    + PathElement::new(vec![(0, 0), (2, 0)], BLACK.stroke_width(2))
+                    + PathElement::new(vec![(6, 0), (8, 0)], BLACK.stroke_width(2))
+                    + PathElement::new(vec![(12, 0), (14, 0)], BLACK.stroke_width(2))
+            });
+    }
     ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
         .label("unstable orbit")
         .legend(|(x, y)| {

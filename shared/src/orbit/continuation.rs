@@ -148,15 +148,18 @@ impl EventKind {
         EventKind::NeimarkSacker,
     ];
 
-    /// Its test function on an orbit's multipliers `f`, which changes sign at the event along
-    /// a branch: `det(M − I)` for a fold, `det(M + I)` for a period doubling, `det M − 1` for
-    /// a Neimark–Sacker while the pair is complex; `None` for a Neimark–Sacker with a real
-    /// pair, and for a grazing (told by the orbit's impacts, not its multipliers).
-    pub fn multiplier_test(self, f: &Floquet) -> Option<f64> {
+    /// Its test function on the multipliers of orbit `o`, which changes sign at the event
+    /// along a branch: `det(M − I)` for a fold, `det(M + I)` for a period doubling, `det M − 1`
+    /// for a Neimark–Sacker while the pair is complex; `None` for a Neimark–Sacker with a real
+    /// pair or on a conservative orbit ([`Orbit::conservative`]: `det M = 1` there, the test is
+    /// zero and its computed sign the integrator's error), and for a grazing (told by the
+    /// orbit's impacts, not its multipliers).
+    pub fn multiplier_test<T: Real>(self, o: &Orbit<T>) -> Option<f64> {
+        let f = &o.floquet;
         match self {
             EventKind::Fold => Some(f.fold_test()),
             EventKind::PeriodDoubling => Some(f.doubling_test()),
-            EventKind::NeimarkSacker => f.complex().then(|| f.torus_test()),
+            EventKind::NeimarkSacker => (f.complex() && !o.conservative()).then(|| f.torus_test()),
             EventKind::Grazing => None,
         }
     }
@@ -376,7 +379,7 @@ struct Node<T> {
 
 /// The fold, doubling and Neimark–Sacker tests at `o` (NaN where one has no value).
 fn tests<T: Real>(o: &Orbit<T>) -> [f64; 3] {
-    EventKind::BY_MULTIPLIERS.map(|k| k.multiplier_test(&o.floquet).unwrap_or(f64::NAN))
+    EventKind::BY_MULTIPLIERS.map(|k| k.multiplier_test(o).unwrap_or(f64::NAN))
 }
 
 fn critical(kind: EventKind, f: &Floquet) -> Multiplier {

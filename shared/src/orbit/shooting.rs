@@ -99,9 +99,66 @@ impl<T: Real> Orbit<T> {
         self.trace.impacts
     }
 
+    /// Whether the orbit is conservative: no contact force anywhere along it, on a suspension
+    /// without damping (`ζ = 0`, the thesis' wire rig). Its flow is then the free flight's,
+    /// whose divergence is zero (the damping is its only term in `u̇`), so by Liouville's
+    /// formula `det M = exp(∫ div f dt) = 1`: the map preserves area and the multipliers are a
+    /// pair `μ, 1/μ` or a complex pair on the unit circle, whatever the parameters. The
+    /// computed `det M` differs from 1 only by the integrator's error (RK4's, and f32's
+    /// rounding).
+    pub fn conservative(&self) -> bool {
+        self.at.params.damping_ratio() == 0.0
+            && self.trace.impacts == 0
+            && self.trace.max_force_n == 0.0
+    }
+
+    /// Its stability from its multipliers: [`Stability::Neutral`] for a conservative orbit
+    /// ([`Orbit::conservative`]) with a complex pair (`|μ| = 1` exactly in the model, however
+    /// the computed modulus rounds), else [`Stability::Stable`] where every `|μ| < 1` and
+    /// [`Stability::Unstable`] otherwise.
+    pub fn stability(&self) -> Stability {
+        if self.conservative() && self.floquet.complex() {
+            Stability::Neutral
+        } else if self.floquet.stable() {
+            Stability::Stable
+        } else {
+            Stability::Unstable
+        }
+    }
+
     /// Largest impact force over `m g`.
     pub fn impact_force_mg(&self) -> f64 {
         self.trace.max_force_n / self.at.params.weight_n()
+    }
+}
+
+/// How the motions near a periodic orbit behave, from its multipliers ([`Orbit::stability`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stability {
+    /// Every `|μ| < 1`: nearby motions converge onto the orbit (an attractor).
+    Stable,
+    /// A conservative orbit's complex pair on the unit circle (an elliptic point of an
+    /// area-preserving map): nearby motions neither converge onto it nor leave it; it attracts
+    /// nothing.
+    Neutral,
+    /// Some `|μ| ≥ 1`: nearby motions leave it.
+    Unstable,
+}
+
+impl Stability {
+    /// Its name in reports and CSV: `stable`, `neutral`, `unstable`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stability::Stable => "stable",
+            Stability::Neutral => "neutral",
+            Stability::Unstable => "unstable",
+        }
+    }
+}
+
+impl fmt::Display for Stability {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
     }
 }
 
