@@ -620,11 +620,16 @@ pub fn report_value(param: Param, v: f64) -> f64 {
     }
 }
 
-/// A gap of `m` metres in mm as a reader takes it: to 13 significant digits, so that the
-/// 0.018 m of `--gap-mm 18` reads 18 and not 18.000000000000004 (the product's rounding).
+/// A gap of `m` metres in mm as typed: the shortest decimal whose `× 1e-3` (as `--gap-mm` is
+/// read, `Setup::gap_m`) is `m`, so that the 0.018 m of `--gap-mm 18` reads 18 and not
+/// 18.000000000000004 (the product's rounding); `m × 1e3` where no decimal of up to 17
+/// digits gives `m` back.
 pub fn mm(m: f64) -> f64 {
     let v = m * 1e3;
-    format!("{v:.12e}").parse().unwrap_or(v)
+    (0..17)
+        .filter_map(|digits| format!("{v:.digits$e}").parse::<f64>().ok())
+        .find(|&d| d * 1e-3 == m)
+        .unwrap_or(v)
 }
 
 /// The value of `param` in a report (`Ω/ω`, or the gap in mm).
@@ -1024,7 +1029,28 @@ pub fn boundary_curves<T: Real>(
 
 #[cfg(test)]
 mod tests {
-    use super::{Crossings, Walk};
+    use super::{Crossings, Walk, mm};
+
+    #[test]
+    fn a_gap_reads_as_typed() {
+        // Every gap typed to the micrometre over the wire rig's range reads back as typed,
+        // although 2,591 of these 18,751 round trips `× 1e-3 × 1e3` do not (18 among them).
+        let mut off = 0;
+        for k in 0..=18_750u32 {
+            let typed: f64 = format!("{}.{:03}", k / 1000, k % 1000).parse().unwrap();
+            let m = typed * 1e-3;
+            off += usize::from(m * 1e3 != typed);
+            assert_eq!(mm(m), typed, "{typed}");
+        }
+        assert_eq!(off, 2591);
+        let m = 18.0 * 1e-3;
+        assert_eq!((m * 1e3, mm(m)), (18.000000000000004, 18.0));
+        // A value no short decimal gives (a gap continuation's) is `m × 1e3` in full.
+        for m in [1.0027946603013547e-3, 0.018, 2.0f64.sqrt() * 1e-3] {
+            assert_eq!(mm(m), m * 1e3, "{m}");
+        }
+        assert_eq!(mm(1.0027946603013547e-3), 1.0027946603013547);
+    }
 
     #[test]
     fn probes_that_turn_further_than_a_continuation_step_have_left_the_branch() {

@@ -77,7 +77,7 @@ impl fmt::Display for ParamError {
                 value,
                 min,
                 max,
-            } => out_of_range(f, field, &value, &Bound::min(min), &Bound::max(max)),
+            } => out_of_range(f, field, &Value(value), &Bound::min(min), &Bound::max(max)),
             ParamError::OutOfHalfOpenRange {
                 field,
                 value,
@@ -85,7 +85,8 @@ impl fmt::Display for ParamError {
                 max,
             } => write!(
                 f,
-                "`{field}` = {value} is out of range: allowed {} ≤ {field} < {}",
+                "`{field}` = {} is out of range: allowed {} ≤ {field} < {}",
+                Value(value),
                 Bound::min(min),
                 Bound::max(max)
             ),
@@ -114,6 +115,21 @@ fn out_of_range(
         f,
         "`{field}` = {value} is out of range: allowed {min} ..= {max}"
     )
+}
+
+/// An offending value as typed: in full (the shortest digits that give it back), or in
+/// e-notation where that would run past 16 digits (`1e300`, `1e-300`, not 301 digits).
+struct Value(f64);
+
+impl fmt::Display for Value {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let a = libm::fabs(self.0);
+        if a == 0.0 || (1e-6..1e16).contains(&a) {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
 }
 
 /// A bound of an allowed range as a reader takes it: as it is when 8 significant digits hold
@@ -247,6 +263,29 @@ mod tests {
             };
             let text = e.to_string();
             assert!(text.ends_with(shown), "{text}");
+        }
+        // An offending value as typed, in e-notation only where it would be long.
+        for (value, shown) in [
+            (1e300, "`x` = 1e300 is"),
+            (-2.5e-300, "`x` = -2.5e-300 is"),
+            (1e9, "`x` = 1000000000 is"),
+            (-0.000032, "`x` = -0.000032 is"),
+            (1.5e16, "`x` = 1.5e16 is"),
+        ] {
+            let e = ParamError::OutOfRange {
+                field: "x",
+                value,
+                min: 0.0,
+                max: 1.0,
+            };
+            assert!(e.to_string().starts_with(shown), "{e}");
+            let e = ParamError::OutOfHalfOpenRange {
+                field: "x",
+                value,
+                min: 0.0,
+                max: 1.0,
+            };
+            assert!(e.to_string().starts_with(shown), "{e}");
         }
         // The bounds shown lie in the range.
         let pi = core::f64::consts::PI;
