@@ -941,6 +941,34 @@ fn the_gap_branch_starts_at_gap_zero() {
     assert_eq!(values(&points), [0.0]);
 }
 
+/// Single shooting over 256 periods of the chaotic motion at the 1.0 mm response's Ω/ω 2.33
+/// (largest Lyapunov exponent 0.3706 per period, tests/lyapunov.rs): `M` stretches by about
+/// `e^(0.37 · 256)` ≈ 1e41, beyond f32 and, in f64, so far that `M − I` is singular to
+/// rounding. The error says so, not "a fold".
+#[test]
+fn shooting_a_chaotic_motion_over_many_periods_says_it_is_too_unstable() {
+    let at = point(RigId::Wires, ContactLawKind::SpringDashpot, 1.0, 2.33);
+    let e32 = orbit_from::<f32>(&at, 0.0, 0.0, Some(256), &ShootSettings::for_type::<f32>());
+    let e64 = orbit_from::<f64>(&at, 0.0, 0.0, Some(256), &ShootSettings::for_type::<f64>());
+    for (e, finite) in [(e32.err(), false), (e64.err(), true)] {
+        let Some(OrbitError::Singular { max_multiplier, .. }) = e else {
+            panic!("{e:?}");
+        };
+        println!("max|μ| over 256 periods: {max_multiplier:e}");
+        assert_eq!(max_multiplier.is_finite(), finite);
+        let text = e.unwrap().to_string();
+        assert!(
+            text.contains("too unstable to shoot over that many"),
+            "{text}"
+        );
+        if finite {
+            // Measured: 1.34e40, 0.3609 per period.
+            let per_period = max_multiplier.ln() / 256.0;
+            assert!((per_period - 0.3706).abs() < 0.1 * 0.3706, "{per_period}");
+        }
+    }
+}
+
 /// A non-impacting orbit of the undamped wire rig is conservative: the free flight's map
 /// preserves area (`det M = 1`, Liouville's formula), so its multipliers are a pair on the unit
 /// circle at every point of its branch: neutral, with no Neimark–Sacker (`det M − 1` is zero

@@ -183,10 +183,15 @@ pub enum OrbitError {
         /// Scaled residual at the iterate.
         residual: f64,
     },
-    /// `M − I` is singular at the iterate (a fold, or `μ = 1`): no Newton step.
+    /// `M − I` is singular to working precision at the iterate: no Newton step. Either a
+    /// multiplier is at +1 (a fold), or the motion stretches so much over the `q` periods
+    /// (`max |μ|` far above 1, or not finite) that the columns of `M` are parallel to rounding:
+    /// an orbit too unstable to shoot over that many periods at once.
     Singular {
         /// Iterations before.
         iterations: u32,
+        /// `max |μ|` of the monodromy at the iterate (infinite where `M` is not finite).
+        max_multiplier: f64,
     },
     /// The protocol saw no period to shoot for (and none was given).
     NoPeriod {
@@ -221,7 +226,26 @@ impl fmt::Display for OrbitError {
                  1/16 of it, reduced the scaled residual {residual:.3e} (the discretised map jumps \
                  or kinks here, or the start is far from an orbit)"
             ),
-            OrbitError::Singular { iterations } => write!(
+            OrbitError::Singular {
+                iterations,
+                max_multiplier,
+            } if *max_multiplier >= STRETCHED => {
+                write!(
+                    f,
+                    "M − I is singular to working precision after {iterations} iterations: \
+                     nearby motions separate by "
+                )?;
+                if max_multiplier.is_finite() {
+                    write!(f, "a factor {max_multiplier:.1e}")?;
+                } else {
+                    f.write_str("more than the float type holds")?;
+                }
+                f.write_str(
+                    " over the q periods, an orbit too unstable to shoot over that many at once \
+                     (try a smaller q)",
+                )
+            }
+            OrbitError::Singular { iterations, .. } => write!(
                 f,
                 "M − I is singular after {iterations} iterations (a multiplier at +1: a fold?)"
             ),
@@ -232,6 +256,9 @@ impl fmt::Display for OrbitError {
         }
     }
 }
+
+/// Above this `max |μ|` a singular `M − I` is the motion's stretching, not a fold.
+const STRETCHED: f64 = 1e3;
 
 /// The scaled size `max_i |v_i| / s_i`.
 pub(crate) fn scaled_norm(v: [f64; 2], s: [f64; 2]) -> f64 {
@@ -294,8 +321,14 @@ pub fn shoot<T: Real>(
         }
         let jac = [[m[0][0] - 1.0, m[0][1]], [m[1][0], m[1][1] - 1.0]];
         let Some(dx) = solve2(&jac, [-r[0], -r[1]]) else {
+            let finite = m.iter().flatten().all(|v| v.is_finite());
             return Err(OrbitError::Singular {
                 iterations: iteration,
+                max_multiplier: if finite {
+                    Floquet::of(&m).max_abs()
+                } else {
+                    f64::INFINITY
+                },
             });
         };
         // Halve a step that does not reduce the residual (at most four times).
