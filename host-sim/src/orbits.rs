@@ -60,8 +60,9 @@ pub struct OrbitReport {
     /// Asymptotically stable: `max |μ| < 1`, and not a neutral orbit.
     pub stable: bool,
     /// `stable`, `neutral` (a conservative orbit's pair on the unit circle: no impact on an
-    /// undamped suspension, `shared::orbit::Orbit::stability`) or `unstable`.
-    pub stability: String,
+    /// undamped suspension, [`Orbit::stability`]) or `unstable`.
+    #[serde(serialize_with = "stability_name")]
+    pub stability: Stability,
     /// Stability margin `1 − max |μ|`.
     pub margin: f64,
     /// Its largest Lyapunov exponent, per excitation period: `ln max|μ| / q`.
@@ -127,7 +128,7 @@ pub fn report<T: Real>(o: &Orbit<T>) -> Result<OrbitReport> {
         multipliers: mu_pair(&f.mu),
         max_abs_multiplier: f.max_abs(),
         stable: o.stability() == Stability::Stable,
-        stability: o.stability().to_string(),
+        stability: o.stability(),
         margin: f.margin(),
         lyapunov_per_period: f.max_abs().ln() / f64::from(o.q),
         residual: o.residual,
@@ -620,6 +621,11 @@ pub fn report_value(param: Param, v: f64) -> f64 {
     }
 }
 
+/// A stability as its name (`stable`, `neutral`, `unstable`) in JSON and CSV.
+fn stability_name<S: serde::Serializer>(s: &Stability, to: S) -> Result<S::Ok, S::Error> {
+    to.serialize_str(s.name())
+}
+
 /// A gap of `m` metres in mm as typed: the shortest decimal whose `× 1e-3` (as `--gap-mm` is
 /// read, `Setup::gap_m`) is `m`, so that the 0.018 m of `--gap-mm 18` reads 18 and not
 /// 18.000000000000004 (the product's rounding); `m × 1e3` where no decimal of up to 17
@@ -676,7 +682,8 @@ pub struct BranchRow {
     /// Asymptotically stable: `max |μ| < 1`, and not neutral.
     pub stable: bool,
     /// `stable`, `neutral` (no impact on an undamped suspension: `|μ| = 1`) or `unstable`.
-    pub stability: String,
+    #[serde(serialize_with = "stability_name")]
+    pub stability: Stability,
     /// Empty for a point; `fold`, `period-doubling`, `neimark-sacker` or `grazing` for a
     /// located bifurcation.
     pub event: String,
@@ -701,7 +708,7 @@ fn row(b: &BranchOut, o: &OrbitReport, event: &str) -> BranchRow {
         mu2_im: o.multipliers[1][1],
         max_abs_mu: o.max_abs_multiplier,
         stable: o.stable,
-        stability: o.stability.clone(),
+        stability: o.stability,
         event: event.to_string(),
     }
 }

@@ -1011,7 +1011,8 @@ fn a_conservative_branch_is_neutral_without_neimark_sacker() {
             assert_eq!(o.stability(), expected, "ζ {zeta}, Ω/ω {}", p.value);
         }
         println!(
-            "ζ {zeta}: {} points, det M within {worst:.1e} of exp(−4πζ/(Ω/ω)), events {events:?}",
+            "ζ {zeta}: {} points, det M within {worst:.1e} of exp(−4πζ/(Ω/ω)), events \
+             {events:?}",
             points.len()
         );
         assert!(points.len() > 10);

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use shared::error::check_count;
-use shared::orbit::{MAX_Q, MapPoint, Orbit};
+use shared::orbit::{MAX_Q, MapPoint, Orbit, Stability};
 
 use super::{ExcitationOpts, StartOpts};
 use crate::config::{RigOpts, Setup};
@@ -120,12 +120,12 @@ pub fn describe(o: &OrbitReport) -> String {
         mu(o.multipliers[0]),
         mu(o.multipliers[1]),
         o.max_abs_multiplier,
-        match o.stability.as_str() {
-            "neutral" => {
+        match o.stability {
+            Stability::Neutral => {
                 "neutral (no impact on an undamped suspension: the map preserves area, \
                  |μ| = 1 but for the integrator's error)"
             }
-            other => other,
+            other => other.name(),
         },
         o.margin
     );

@@ -1,13 +1,14 @@
 //! The branch figure of `continue`: branches of periodic orbits over a parameter (stable solid,
-//! neutral dotted, unstable dashed, coloured by regime), their located bifurcations marked, over the brute-force
-//! bifurcation diagram of the same range (grey dots); Poincaré `u` on top, `F_i/mg` below.
+//! neutral dotted, unstable dashed, coloured by regime), their located bifurcations marked,
+//! over the brute-force bifurcation diagram of the same range (grey dots); Poincaré `u` on top,
+//! `F_i/mg` below.
 
 use std::path::Path;
 
 use anyhow::Result;
 use plotters::prelude::*;
 use shared::observe::Regime;
-use shared::orbit::Param;
+use shared::orbit::{Param, Stability};
 
 use super::{Chart, Frame, canvas, line_key, panel, regime_classes, regime_color, series_legend};
 use crate::orbits::{BranchOut, OrbitReport, param_value};
@@ -58,7 +59,7 @@ fn marker(chart: &mut Chart<'_, '_>, kind: &str, at: (f64, f64), color: RGBColor
 
 /// Draws the runs of `pts` (`(x, y, stability, regime)`) with equal stability and regime:
 /// solid (2 px) where stable, dotted where neutral, dashed where unstable.
-fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, &str, Regime)]) -> Result<()> {
+fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, Stability, Regime)]) -> Result<()> {
     let mut start = 0;
     while start + 1 < pts.len() {
         let (stability, regime) = (pts[start + 1].2, pts[start + 1].3);
@@ -69,9 +70,13 @@ fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, &str, Regime)]) -> Res
         let line: Vec<(f64, f64)> = pts[start..=end].iter().map(|p| (p.0, p.1)).collect();
         let c = regime_color(regime);
         match stability {
-            "stable" => chart.draw_series(LineSeries::new(line, c.stroke_width(2)))?,
-            "neutral" => chart.draw_series(DashedLineSeries::new(line, 2, 4, c.stroke_width(2)))?,
-            _ => chart.draw_series(DashedLineSeries::new(line, 6, 5, c.stroke_width(2)))?,
+            Stability::Stable => chart.draw_series(LineSeries::new(line, c.stroke_width(2)))?,
+            Stability::Neutral => {
+                chart.draw_series(DashedLineSeries::new(line, 2, 4, c.stroke_width(2)))?
+            }
+            Stability::Unstable => {
+                chart.draw_series(DashedLineSeries::new(line, 6, 5, c.stroke_width(2)))?
+            }
         };
         start = end;
     }
@@ -168,26 +173,30 @@ pub fn branches(
     for b in branches {
         let q = b.points.first().map_or(0, |p| p.orbit.section.len());
         for k in 0..q {
-            let pts: Vec<(f64, f64, &str, Regime)> = b
+            let pts: Vec<(f64, f64, Stability, Regime)> = b
                 .points
                 .iter()
                 .filter_map(|p| {
                     p.orbit.section.get(k).map(|s| {
-                        let stability = p.orbit.stability.as_str();
-                        (value(&p.orbit), s[0], stability, regime_of(&p.orbit))
+                        (
+                            value(&p.orbit),
+                            s[0],
+                            p.orbit.stability,
+                            regime_of(&p.orbit),
+                        )
                     })
                 })
                 .collect();
             draw_runs(&mut ct, &pts)?;
         }
-        let forces: Vec<(f64, f64, &str, Regime)> = b
+        let forces: Vec<(f64, f64, Stability, Regime)> = b
             .points
             .iter()
             .map(|p| {
                 (
                     value(&p.orbit),
                     p.orbit.impact_force_mg,
-                    p.orbit.stability.as_str(),
+                    p.orbit.stability,
                     regime_of(&p.orbit),
                 )
             })
@@ -208,9 +217,11 @@ pub fn branches(
     ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
         .label("stable orbit")
         .legend(line_key(BLACK.stroke_width(2)));
-    let neutral = branches
-        .iter()
-        .any(|b| b.points.iter().any(|p| p.orbit.stability == "neutral"));
+    let neutral = branches.iter().any(|b| {
+        b.points
+            .iter()
+            .any(|p| p.orbit.stability == Stability::Neutral)
+    });
     if neutral {
         ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
             .label("neutral orbit (no impact, undamped)")

@@ -114,10 +114,11 @@ impl<T: Real> Orbit<T> {
 
     /// Its stability from its multipliers: [`Stability::Neutral`] for a conservative orbit
     /// ([`Orbit::conservative`]) with a complex pair (`|μ| = 1` exactly in the model, however
-    /// the computed modulus rounds), else [`Stability::Stable`] where every `|μ| < 1` and
-    /// [`Stability::Unstable`] otherwise.
+    /// the computed modulus rounds) or a real pair computed inside the unit circle (`μ₁ μ₂ = 1`
+    /// allows that only at a double `±1`), else [`Stability::Stable`] where every `|μ| < 1` and
+    /// [`Stability::Unstable`] otherwise (a conservative orbit's real pair `μ, 1/μ`: a saddle).
     pub fn stability(&self) -> Stability {
-        if self.conservative() && self.floquet.complex() {
+        if self.conservative() && (self.floquet.complex() || self.floquet.stable()) {
             Stability::Neutral
         } else if self.floquet.stable() {
             Stability::Stable
