@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::Result;
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use shared::observe::Regime;
 use shared::orbit::{Param, Stability};
@@ -57,6 +58,26 @@ fn marker(chart: &mut Chart<'_, '_>, kind: &str, at: (f64, f64), color: RGBColor
     Ok(())
 }
 
+/// The strokes and gaps, px, of a neutral branch (dotted) and an unstable one (dashed).
+const DOTS: (i32, i32) = (2, 4);
+const DASHES: (i32, i32) = (6, 5);
+
+/// `line` drawn 2 px wide in `c`, in strokes and gaps of `pattern` px (`DOTS`, `DASHES`).
+fn dashed(
+    line: Vec<(f64, f64)>,
+    (stroke, gap): (i32, i32),
+    c: RGBColor,
+) -> DashedLineSeries<std::vec::IntoIter<(f64, f64)>, i32> {
+    DashedLineSeries::new(line, stroke, gap, c.stroke_width(2))
+}
+
+/// A legend key: 16 px of black 2 px strokes and gaps of `pattern` px.
+fn dash_key(
+    (stroke, gap): (i32, i32),
+) -> impl Fn((i32, i32)) -> DashedPathElement<std::array::IntoIter<(i32, i32), 2>, i32> {
+    move |(x, y)| DashedPathElement::new([(x, y), (x + 16, y)], stroke, gap, BLACK.stroke_width(2))
+}
+
 /// Draws the runs of `pts` (`(x, y, stability, regime)`) with equal stability and regime:
 /// solid (2 px) where stable, dotted where neutral, dashed where unstable.
 fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, Stability, Regime)]) -> Result<()> {
@@ -71,12 +92,8 @@ fn draw_runs(chart: &mut Chart<'_, '_>, pts: &[(f64, f64, Stability, Regime)]) -
         let c = regime_color(regime);
         match stability {
             Stability::Stable => chart.draw_series(LineSeries::new(line, c.stroke_width(2)))?,
-            Stability::Neutral => {
-                chart.draw_series(DashedLineSeries::new(line, 2, 4, c.stroke_width(2)))?
-            }
-            Stability::Unstable => {
-                chart.draw_series(DashedLineSeries::new(line, 6, 5, c.stroke_width(2)))?
-            }
+            Stability::Neutral => chart.draw_series(dashed(line, DOTS, c))?,
+            Stability::Unstable => chart.draw_series(dashed(line, DASHES, c))?,
         };
         start = end;
     }
@@ -225,20 +242,11 @@ pub fn branches(
     if neutral {
         ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
             .label("neutral orbit (no impact, undamped)")
-            .legend(|(x, y)| {
-                EmptyElement::at((x, y))
-                    + PathElement::new(vec![(0, 0), (2, 0)], BLACK.stroke_width(2))
-                    + PathElement::new(vec![(6, 0), (8, 0)], BLACK.stroke_width(2))
-                    + PathElement::new(vec![(12, 0), (14, 0)], BLACK.stroke_width(2))
-            });
+            .legend(dash_key(DOTS));
     }
     ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
         .label("unstable orbit")
-        .legend(|(x, y)| {
-            EmptyElement::at((x, y))
-                + PathElement::new(vec![(0, 0), (5, 0)], BLACK.stroke_width(2))
-                + PathElement::new(vec![(10, 0), (16, 0)], BLACK.stroke_width(2))
-        });
+        .legend(dash_key(DASHES));
     let mut kinds: Vec<&str> = Vec::new();
     for b in branches {
         for e in &b.events {
