@@ -138,9 +138,9 @@ impl<T: Real> Orbit<T> {
 pub enum Stability {
     /// Every `|μ| < 1`: nearby motions converge onto the orbit (an attractor).
     Stable,
-    /// A conservative orbit's complex pair on the unit circle (an elliptic point of an
-    /// area-preserving map): nearby motions neither converge onto it nor leave it; it attracts
-    /// nothing.
+    /// A conservative orbit whose multipliers lie on the unit circle (a complex pair: an
+    /// elliptic point of an area-preserving map; or a double `±1`): nearby motions neither
+    /// converge onto it nor leave it exponentially; it attracts nothing.
     Neutral,
     /// Some `|μ| ≥ 1`: nearby motions leave it.
     Unstable,
