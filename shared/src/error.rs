@@ -272,20 +272,13 @@ mod tests {
             (-0.000032, "`x` = -0.000032 is"),
             (1.5e16, "`x` = 1.5e16 is"),
         ] {
-            let e = ParamError::OutOfRange {
-                field: "x",
-                value,
-                min: 0.0,
-                max: 1.0,
-            };
-            assert!(e.to_string().starts_with(shown), "{e}");
-            let e = ParamError::OutOfHalfOpenRange {
-                field: "x",
-                value,
-                min: 0.0,
-                max: 1.0,
-            };
-            assert!(e.to_string().starts_with(shown), "{e}");
+            for e in [
+                check_range("x", value, 0.0, 1.0),
+                check_half_open("x", value, 0.0, 1.0),
+            ] {
+                let e = e.expect_err("out of range");
+                assert!(e.to_string().starts_with(shown), "{e}");
+            }
         }
         // The bounds shown lie in the range.
         let pi = core::f64::consts::PI;

@@ -469,7 +469,7 @@ fn print_report(r: &SelectReport) {
                     format!("{:+.4} ± {:.4}i", m[0][0], m[0][1].abs())
                 },
                 c.orbit.max_abs_multiplier,
-                c.orbit.stability,
+                c.orbit.stability.name(),
                 c.orbit.margin
             );
         }

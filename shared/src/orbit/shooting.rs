@@ -101,7 +101,8 @@ impl<T: Real> Orbit<T> {
 
     /// Whether the orbit is conservative: no contact force anywhere along it, on a suspension
     /// without damping (`ζ = 0`, the thesis' wire rig). Its flow is then the free flight's,
-    /// whose divergence is zero (the damping is its only term in `u̇`), so by Liouville's
+    /// whose divergence is zero (the damping is the field's only term in the velocity, Eq.
+    /// 3-26 and 3-34 with the project's `−2ζω θ̇`, docs/model.md), so by Liouville's
     /// formula `det M = exp(∫ div f dt) = 1`: the map preserves area and the multipliers are a
     /// pair `μ, 1/μ` or a complex pair on the unit circle, whatever the parameters. The
     /// computed `det M` differs from 1 only by the integrator's error (RK4's, and f32's
@@ -154,12 +155,6 @@ impl Stability {
             Stability::Neutral => "neutral",
             Stability::Unstable => "unstable",
         }
-    }
-}
-
-impl fmt::Display for Stability {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }
 
