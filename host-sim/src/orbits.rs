@@ -116,6 +116,7 @@ fn section_points<T: Real>(o: &Orbit<T>) -> Result<Vec<[f64; 2]>> {
 /// The map cannot be evaluated along it (not for a converged orbit).
 pub fn report<T: Real>(o: &Orbit<T>) -> Result<OrbitReport> {
     let f = &o.floquet;
+    let stability = o.stability();
     Ok(OrbitReport {
         omega_ratio: o.at.omega_ratio,
         freq_hz: o.at.params.freq_hz_from_ratio(o.at.omega_ratio),
@@ -127,8 +128,9 @@ pub fn report<T: Real>(o: &Orbit<T>) -> Result<OrbitReport> {
         impact_force_mg: o.impact_force_mg(),
         multipliers: mu_pair(&f.mu),
         max_abs_multiplier: f.max_abs(),
-        stable: o.stability() == Stability::Stable,
-        stability: o.stability(),
+        // (`stable` kept in the JSON and CSV beside `stability` for readers of the bool.)
+        stable: stability == Stability::Stable,
+        stability,
         margin: f.margin(),
         lyapunov_per_period: f.max_abs().ln() / f64::from(o.q),
         residual: o.residual,
