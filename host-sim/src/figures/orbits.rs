@@ -58,6 +58,9 @@ fn marker(chart: &mut Chart<'_, '_>, kind: &str, at: (f64, f64), color: RGBColor
     Ok(())
 }
 
+/// The width, px, of the white line under every branch.
+const HALO_PX: u32 = 6;
+
 /// The strokes and gaps, px, of a neutral branch (dotted) and an unstable one (dashed).
 const DOTS: (i32, i32) = (2, 4);
 const DASHES: (i32, i32) = (6, 5);
@@ -187,38 +190,53 @@ pub fn branches(
                 .map(|&p| Circle::new(p, 1, c.mix(0.8).filled())),
         )?;
     }
+    // Every branch line over a white halo, all halos first, so that a branch reads over the
+    // brute-force cloud and where it crosses another branch.
+    let mut top_lines = Vec::new();
+    let mut bottom_lines = Vec::new();
     for b in branches {
         let q = b.points.first().map_or(0, |p| p.orbit.section.len());
         for k in 0..q {
-            let pts: Vec<(f64, f64, Stability, Regime)> = b
-                .points
-                .iter()
-                .filter_map(|p| {
-                    p.orbit.section.get(k).map(|s| {
-                        (
-                            value(&p.orbit),
-                            s[0],
-                            p.orbit.stability,
-                            regime_of(&p.orbit),
-                        )
+            top_lines.push(
+                b.points
+                    .iter()
+                    .filter_map(|p| {
+                        p.orbit.section.get(k).map(|s| {
+                            (
+                                value(&p.orbit),
+                                s[0],
+                                p.orbit.stability,
+                                regime_of(&p.orbit),
+                            )
+                        })
                     })
-                })
-                .collect();
-            draw_runs(&mut ct, &pts)?;
+                    .collect::<Vec<_>>(),
+            );
         }
-        let forces: Vec<(f64, f64, Stability, Regime)> = b
-            .points
-            .iter()
-            .map(|p| {
-                (
-                    value(&p.orbit),
-                    p.orbit.impact_force_mg,
-                    p.orbit.stability,
-                    regime_of(&p.orbit),
-                )
-            })
-            .collect();
-        draw_runs(&mut cb, &forces)?;
+        bottom_lines.push(
+            b.points
+                .iter()
+                .map(|p| {
+                    (
+                        value(&p.orbit),
+                        p.orbit.impact_force_mg,
+                        p.orbit.stability,
+                        regime_of(&p.orbit),
+                    )
+                })
+                .collect::<Vec<_>>(),
+        );
+    }
+    for (chart, lines) in [(&mut ct, &top_lines), (&mut cb, &bottom_lines)] {
+        for pts in lines {
+            chart.draw_series(LineSeries::new(
+                pts.iter().map(|p| (p.0, p.1)),
+                WHITE.stroke_width(HALO_PX),
+            ))?;
+        }
+        for pts in lines {
+            draw_runs(chart, pts)?;
+        }
     }
     // Legend: the regimes of the branches, the line styles, the event types present.
     let regimes = regime_classes(
@@ -231,22 +249,26 @@ pub fn branches(
             .label(format!("{name} branch"))
             .legend(line_key(c.stroke_width(3)));
     }
-    ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-        .label("stable orbit")
-        .legend(line_key(BLACK.stroke_width(2)));
-    let neutral = branches.iter().any(|b| {
-        b.points
+    let present = |s: Stability| {
+        branches
             .iter()
-            .any(|p| p.orbit.stability == Stability::Neutral)
-    });
-    if neutral {
+            .any(|b| b.points.iter().any(|p| p.orbit.stability == s))
+    };
+    if present(Stability::Stable) {
+        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label("stable orbit")
+            .legend(line_key(BLACK.stroke_width(2)));
+    }
+    if present(Stability::Neutral) {
         ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
             .label("neutral orbit (no impact, undamped)")
             .legend(dash_key(DOTS));
     }
-    ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-        .label("unstable orbit")
-        .legend(dash_key(DASHES));
+    if present(Stability::Unstable) {
+        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label("unstable orbit")
+            .legend(dash_key(DASHES));
+    }
     let mut kinds: Vec<&str> = Vec::new();
     for b in branches {
         for e in &b.events {
