@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 use shared::Real;
 use shared::analysis::{run_interleaved_native, simulator_at};
 use shared::integrate::PhaseTable;
-use shared::model::{RigParams, Suspension};
+use shared::model::RigParams;
 use shared::observe::{
     Observer, Protocol, ProtocolRun, RecurrenceSettings, RecurrenceWatch, Regime, StroboPoint,
 };
@@ -276,7 +276,8 @@ impl Attractors<'_> {
         let protocol = &setup.settings.protocol;
         let scales = Self::scales(&setup.params, self.omega_ratio);
         let grid_tol = self.catalogue.attractor_tol();
-        let damped = suspension_damped(&setup.params);
+        // Without damping a non-impacting motion is conservative and attracts nothing.
+        let damped = setup.params.damping_ratio() > 0.0;
         in_order(ics.len(), |emit| {
             run_interleaved_native::<T, Watch<'_>, _, _, _>(
                 ics.iter().copied(),
@@ -389,16 +390,6 @@ impl Attractors<'_> {
                 },
             );
         })
-    }
-}
-
-/// Whether the suspension's free flight dissipates energy (a damping ratio above 0): without,
-/// a non-impacting motion is conservative and attracts nothing.
-pub fn suspension_damped(params: &RigParams) -> bool {
-    match params.suspension {
-        Suspension::Beam { damping_ratio, .. } | Suspension::Wires { damping_ratio, .. } => {
-            damping_ratio > 0.0
-        }
     }
 }
 
