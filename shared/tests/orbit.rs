@@ -1106,6 +1106,50 @@ fn the_slow_arrival_3_1_branch_turns_once() {
     assert!(events[1].value < events[0].value, "the branch turned back");
 }
 
+/// With the Hunt–Crossley law (f64) the wire rig's `1/1` branch from Ω/ω 2.0 down meets the
+/// rough stretch of the discretised map below 2.0: its fold test changes sign 86 times, in
+/// pairs (106 of the 2,270 orbits have a multiplier just past +1), and the branch turns back at 1.96988 onto the orbits it came by (still stable: no
+/// multiplier passed +1). Four of those changes were located as folds (1.97021, 1.96988,
+/// 1.97014, 1.97041, `μ` 1.0008–1.0036), each without the change that undid it beside it;
+/// none is a fold, since the test a span past each has its sign from before.
+#[test]
+fn a_fold_test_that_changes_sign_and_back_is_no_fold() {
+    let at = point(RigId::Wires, ContactLawKind::HuntCrossley, 0.0, 2.0);
+    let (_, start) = orbit_at::<f64>(&at);
+    assert_eq!((start.p(), start.q), (1, 1));
+    let settings = ContinuationSettings::new::<f64>(Param::OmegaRatio, [1.0, 3.0]);
+    let mut events = Vec::new();
+    let (mut lowest, mut unstable, mut points) = (f64::INFINITY, 0, 0);
+    let end = continue_branch(
+        &start,
+        &settings,
+        -1.0,
+        None,
+        |p| {
+            lowest = lowest.min(p.value);
+            unstable += usize::from(!p.orbit.floquet.stable());
+            points += 1;
+        },
+        |e| {
+            events.push(*e);
+            ControlFlow::Continue(())
+        },
+    );
+    let kinds: Vec<_> = events.iter().map(|e| (e.kind, e.value)).collect();
+    println!(
+        "HC 1/1 from 2.0 down: {kinds:?}, lowest {lowest}, {unstable} of {points} unstable, \
+         ends at {end}"
+    );
+    assert!(events.is_empty(), "{kinds:?}");
+    // The branch went down to the turn and back, stable (to the kinks' pokes past +1).
+    assert!((lowest - 1.96988).abs() < 1e-4, "{lowest}");
+    assert!(unstable * 10 < points, "{unstable} of {points}");
+    assert!(
+        matches!(end, shared::orbit::BranchEnd::StepTooSmall(v) if (1.9699..1.9712).contains(&v)),
+        "{end}"
+    );
+}
+
 /// The branch through `start` continued towards increasing values: its events, how many of its
 /// points are unstable, and how it ended.
 fn branch_up<T: Real>(

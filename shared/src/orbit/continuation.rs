@@ -413,11 +413,14 @@ fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
     }
 }
 
-/// A located fold (`E`, at the parameter's value) held back until the branch has moved
+/// A located fold (`E`, at the parameter's value, with the sign the fold test last held for
+/// the span before it) held back until the branch has moved
 /// [`ContinuationSettings::kink_span`] away from it (in the parameter), or meets another event
-/// first.
+/// first; told then only if the test's sign is no longer that one (at a fold the critical
+/// multiplier passes +1 for good; the test changing sign and back within the span, whichever
+/// of the two changes was located as a fold, is a kink of the discretised map).
 struct HeldFold<E> {
-    held: Option<(f64, E)>,
+    held: Option<(f64, bool, E)>,
     span: f64,
 }
 
@@ -427,32 +430,39 @@ impl<E> HeldFold<E> {
         Self { held: None, span }
     }
 
-    /// A new fold at `value`: the one held before, to report now (it is told before the new
-    /// one), or nothing; two folds within the span are a zig-zag over a kink, and both are
-    /// dropped.
-    fn fold(&mut self, value: f64, ev: E) -> Option<E> {
+    /// A new fold at `value`, the fold test positive where it last held its sign for the span
+    /// before it if `before`: the one held before, to report now (it is told before the new
+    /// one, if that sign is not the one before the held one), or nothing; two folds within the
+    /// span are a zig-zag over a kink, and both are dropped.
+    fn fold(&mut self, value: f64, before: bool, ev: E) -> Option<E> {
         match self.held.take() {
-            Some((v, _)) if libm::fabs(v - value) < self.span => None,
+            Some((v, _, _)) if libm::fabs(v - value) < self.span => None,
             held => {
-                self.held = Some((value, ev));
-                held.map(|(_, e)| e)
+                self.held = Some((value, before, ev));
+                Self::told(held, before)
             }
         }
     }
 
-    /// The held fold if the branch, now at `value`, has moved the span away from it, to report
-    /// now (else it stays held).
-    fn release_past(&mut self, value: f64) -> Option<E> {
+    /// The held fold if the branch, now at `value` with the fold test positive if `now`, has
+    /// moved the span away from it, to report now if the test kept its new sign (else it
+    /// stays held).
+    fn release_past(&mut self, value: f64, now: bool) -> Option<E> {
         let past = self
             .held
             .as_ref()
-            .is_some_and(|(v, _)| libm::fabs(v - value) >= self.span);
-        if past { self.release() } else { None }
+            .is_some_and(|(v, _, _)| libm::fabs(v - value) >= self.span);
+        if past { self.release(now) } else { None }
     }
 
-    /// The held fold, to report now (another event comes first, or the branch ends).
-    fn release(&mut self) -> Option<E> {
-        self.held.take().map(|(_, e)| e)
+    /// The held fold, to report now if the fold test, positive if `now` at the branch's last
+    /// point, kept its new sign (another event comes first, or the branch ends).
+    fn release(&mut self, now: bool) -> Option<E> {
+        Self::told(self.held.take(), now)
+    }
+
+    fn told(held: Option<(f64, bool, E)>, now: bool) -> Option<E> {
+        held.and_then(|(_, before, e)| (before != now).then_some(e))
     }
 }
 
@@ -462,8 +472,9 @@ impl<E> HeldFold<E> {
 /// to `on_point` (the start first), every located bifurcation to `on_event` (in the order met;
 /// [`ControlFlow::Break`] ends the branch there: [`BranchEnd::Stopped`]). A fold is told once
 /// the branch has moved [`ContinuationSettings::kink_span`] past it, or before the next event
-/// or the branch's end; two folds within that span, and a fold within it of where the branch
-/// stalls, are kinks of the discretised map and are not told.
+/// or the branch's end, if the fold test has kept its new sign; two folds within that span, a
+/// fold within it of where the branch stalls, and a change of the test's sign undone by the
+/// next one, are kinks of the discretised map and are not told.
 pub fn continue_branch<T: Real>(
     start: &Orbit<T>,
     settings: &ContinuationSettings,
@@ -508,6 +519,11 @@ pub fn continue_branch<T: Real>(
         orbit: first,
     });
     let mut held = HeldFold::new(settings.kink_span * s_lambda);
+    let fold_positive = |n: &Node<T>| n.e.orbit.floquet.fold_test() > 0.0;
+    // The fold test's sign where it last held for a span of the parameter (`settled`), and
+    // where it last changed (a located fold or not).
+    let mut settled = fold_positive(&node);
+    let mut last_change: Option<f64> = None;
     // Tells the held fold (if `release` gives it) and ends the branch if the caller stops there.
     macro_rules! tell_held {
         ($release:expr) => {
@@ -538,12 +554,12 @@ pub fn continue_branch<T: Real>(
                 // smallest, or gap 0 going down where it is 0): the range's end.
                 let reach = 2.0 * settings.steps.min * s_lambda;
                 if at_edge_heading_out(settings.range, value_a, node.t[2], reach) {
-                    tell_held!(held.release());
+                    tell_held!(held.release(fold_positive(&node)));
                     return BranchEnd::RangeEnd(value_a);
                 }
                 // A fold within the span of where the branch stalls is the kink that stalls
                 // it: not told.
-                tell_held!(held.release_past(value_a));
+                tell_held!(held.release_past(value_a, fold_positive(&node)));
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -596,7 +612,7 @@ pub fn continue_branch<T: Real>(
                 e.orbit.trace.impacts == node.e.orbit.trace.impacts
             });
             let value = ev.z[2] * s_lambda;
-            tell_held!(held.release());
+            tell_held!(held.release(fold_positive(&node)));
             let _ = on_event(&BifEvent {
                 kind: EventKind::Grazing,
                 value,
@@ -651,15 +667,20 @@ pub fn continue_branch<T: Real>(
         });
         for ev in found {
             if ev.kind == EventKind::Fold {
-                tell_held!(held.fold(ev.value, ev));
+                tell_held!(held.fold(ev.value, settled, ev));
             } else {
-                tell_held!(held.release());
+                tell_held!(held.release(tb[0] > 0.0));
                 if on_event(&ev).is_break() {
                     return BranchEnd::Stopped(ev.value);
                 }
             }
         }
-        tell_held!(held.release_past(value_b));
+        tell_held!(held.release_past(value_b, tb[0] > 0.0));
+        if ta[0].is_finite() && (ta[0] > 0.0) != (tb[0] > 0.0) {
+            last_change = Some(value_b);
+        } else if last_change.is_none_or(|c| libm::fabs(value_b - c) >= held.span) {
+            settled = tb[0] > 0.0;
+        }
         on_point(&BranchPoint {
             value: value_b,
             orbit: b.e.orbit,
@@ -679,7 +700,7 @@ pub fn continue_branch<T: Real>(
         };
     }
     let value = node.z[2] * s_lambda;
-    tell_held!(held.release());
+    tell_held!(held.release(fold_positive(&node)));
     BranchEnd::MaxPoints(value)
 }
 
@@ -856,26 +877,45 @@ mod tests {
     #[test]
     fn a_held_fold_is_told_once_the_branch_is_a_span_past_it() {
         let mut held = HeldFold::new(1e-5);
-        assert_eq!(held.fold(2.0, 'a'), None);
+        assert_eq!(held.fold(2.0, true, 'a'), None);
         // Still within the span: held.
-        assert_eq!(held.release_past(2.0 + 0.5e-5), None);
-        assert_eq!(held.release_past(2.0 - 0.9e-5), None);
+        assert_eq!(held.release_past(2.0 + 0.5e-5, false), None);
+        assert_eq!(held.release_past(2.0 - 0.9e-5, false), None);
         // A span past it, either way: told once.
-        assert_eq!(held.release_past(2.0 + 1.5e-5), Some('a'));
-        assert_eq!(held.release_past(2.1), None);
-        assert_eq!(held.release(), None);
+        assert_eq!(held.release_past(2.0 + 1.5e-5, false), Some('a'));
+        assert_eq!(held.release_past(2.1, false), None);
+        assert_eq!(held.release(true), None);
+    }
+
+    #[test]
+    fn a_fold_whose_test_changed_sign_back_is_not_told() {
+        let mut held = HeldFold::new(1e-5);
+        // The test positive before the fold and positive again a span past it.
+        assert_eq!(held.fold(2.0, true, 'a'), None);
+        assert_eq!(held.release_past(2.0 + 1.5e-5, true), None);
+        assert_eq!(held.release(false), None, "dropped, not held");
+        // Released by another event or the branch's end: the same rule.
+        assert_eq!(held.fold(2.0, false, 'b'), None);
+        assert_eq!(held.release(false), None);
+        assert_eq!(held.fold(2.0, false, 'c'), None);
+        assert_eq!(held.release(true), Some('c'));
+        // A next fold far away whose test before it has the sign the held one had before it:
+        // the held one's change was undone between them.
+        assert_eq!(held.fold(2.0, true, 'd'), None);
+        assert_eq!(held.fold(2.1, true, 'e'), None);
+        assert_eq!(held.fold(2.2, false, 'f'), Some('e'));
     }
 
     #[test]
     fn two_folds_within_the_span_are_a_zig_zag_and_neither_is_told() {
         let mut held = HeldFold::new(1e-5);
-        assert_eq!(held.fold(2.0, 'a'), None);
-        assert_eq!(held.fold(2.0 + 0.3e-5, 'b'), None);
-        assert_eq!(held.release(), None);
-        assert_eq!(held.release_past(3.0), None);
+        assert_eq!(held.fold(2.0, true, 'a'), None);
+        assert_eq!(held.fold(2.0 + 0.3e-5, false, 'b'), None);
+        assert_eq!(held.release(true), None);
+        assert_eq!(held.release_past(3.0, true), None);
         // Two folds farther apart: the first is told when the second comes, the second held.
-        assert_eq!(held.fold(2.0, 'c'), None);
-        assert_eq!(held.fold(2.0 + 2e-5, 'd'), Some('c'));
-        assert_eq!(held.release(), Some('d'));
+        assert_eq!(held.fold(2.0, true, 'c'), None);
+        assert_eq!(held.fold(2.0 + 2e-5, false, 'd'), Some('c'));
+        assert_eq!(held.release(true), Some('d'));
     }
 }
