@@ -998,6 +998,25 @@ mod tests {
         ));
     }
 
+    /// The results of `points` on `L` lanes, and how full the lanes were. A function of its
+    /// own, kept out of its caller: the drivers of both widths in one frame overflow a test
+    /// thread's 2 MiB stack in the release profile.
+    #[inline(never)]
+    fn interleaved<T: Real, const L: usize>(
+        p: &RigParams,
+        s: &SimSettings,
+        points: &[(f64, f64)],
+    ) -> (
+        std::vec::Vec<Option<Result<PointResult, ParamError>>>,
+        LaneStats,
+    ) {
+        let mut got = std::vec![None; points.len()];
+        let stats = evaluate_interleaved::<T, L, _, _>(p, s, points.iter().copied(), |i, r| {
+            got[i] = Some(r.map(|(result, _)| result))
+        });
+        (got, stats)
+    }
+
     /// The lockstep free-flight lanes (`integrate::lanes`) take over most whole steps here; every
     /// result, including the RK4 step count, must be bit for bit the one-at-a-time protocol's,
     /// for both suspensions and both float types.
@@ -1008,18 +1027,8 @@ mod tests {
             .iter()
             .flat_map(|&g| ratios.iter().map(move |&r| (g, r)))
             .collect();
-        let mut got = std::vec![None; points.len()];
-        let stats = evaluate_interleaved::<T, DEFAULT_LANES, _, _>(
-            &p,
-            &s,
-            points.iter().copied(),
-            |i, r| got[i] = Some(r.map(|(result, _)| result)),
-        );
-        let mut wide = std::vec![None; points.len()];
-        let wide_stats =
-            evaluate_interleaved::<T, WIDE_LANES, _, _>(&p, &s, points.iter().copied(), |i, r| {
-                wide[i] = Some(r.map(|(result, _)| result))
-            });
+        let (got, stats) = interleaved::<T, DEFAULT_LANES>(&p, &s, &points);
+        let (wide, wide_stats) = interleaved::<T, WIDE_LANES>(&p, &s, &points);
         assert_eq!(
             wide, got,
             "{rig:?}: {WIDE_LANES} lanes against {DEFAULT_LANES}"
