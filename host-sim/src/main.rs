@@ -9,5 +9,6 @@ fn main() -> ExitCode {
     // SAFETY: the first statement of `main`, before any other thread exists; the default
     // disposition installs no handler.
     let _ = unsafe { signal(Signal::SIGPIPE, SigHandler::SigDfl) };
+    host_sim::runner::init_pool();
     host_sim::cli::main()
 }

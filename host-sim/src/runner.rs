@@ -23,6 +23,22 @@ use crate::config::Setup;
 /// so that finished runs' places are refilled, not left to drain.
 pub const BATCH: usize = 128;
 
+/// The stack of a thread that runs protocol runs interleaved, bytes. A core's driver keeps its
+/// runs on the stack, four per lane ([`shared::analysis::run_interleaved`]): in the release
+/// build with 8 lanes, `basins --precision f64` and `peterka --precision f64 --lyapunov` need
+/// 512–640 KiB (measured by running them with `RUST_MIN_STACK` set lower), and 16 lanes
+/// (AVX-512) keep twice the runs, against the 2 MiB a thread gets by default. Only the pages
+/// a thread touches are committed.
+pub const WORKER_STACK_BYTES: usize = 8 << 20;
+
+/// Gives the rayon pool's threads [`WORKER_STACK_BYTES`] of stack (`host-sim`'s `main`, before
+/// the pool's first use; a pool built already is left as it is).
+pub fn init_pool() {
+    let _ = rayon::ThreadPoolBuilder::new()
+        .stack_size(WORKER_STACK_BYTES)
+        .build_global();
+}
+
 /// `run` over consecutive batches of `items` on every core of the rayon pool; each batch's
 /// result in item order.
 ///

@@ -16,11 +16,11 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::{Condvar, Mutex, PoisonError};
 use std::time::Duration;
 
-use anyhow::{Result, anyhow};
+use anyhow::{Context, Result, anyhow};
 
 use super::CHUNK;
 use crate::interrupt;
-use crate::runner::progress;
+use crate::runner::{WORKER_STACK_BYTES, progress};
 
 /// Points the cores may take beyond the first one not yet written: the rows held in memory at
 /// most (as many as a chunk of [`super::run_chunked`]).
@@ -143,11 +143,13 @@ pub fn run_streamed<R: Send>(
     let written = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
     let (tx, rx) = mpsc::channel::<Vec<(usize, usize, Result<R>)>>();
+    let mut spawn_error = None;
     let outcome = std::thread::scope(|scope| {
         for _ in 0..cores {
             let tx = tx.clone();
             let (queue, moved, written, stop) = (&queue, &moved, &written, &stop);
-            scope.spawn(move || {
+            let core = std::thread::Builder::new().stack_size(WORKER_STACK_BYTES);
+            let spawned = core.spawn_scoped(scope, move || {
                 // Each point's place in the sequence, while it is in flight here; points
                 // taken from the queue and not yet given to `compute`.
                 let places: RefCell<HashMap<usize, usize>> = RefCell::default();
@@ -197,6 +199,10 @@ pub fn run_streamed<R: Send>(
                     let _ = moved.wait_timeout(q, POLL);
                 }
             });
+            // (The cores started take every point; with none, the writer says so.)
+            if let Err(e) = spawned {
+                spawn_error.get_or_insert(e);
+            }
         }
         drop(tx);
         let outcome = write_in_order(&rx, len, &mut sink, &bar, &written, &moved);
@@ -210,7 +216,10 @@ pub fn run_streamed<R: Send>(
         Ok(()) => bar.finish_and_clear(),
         Err(_) => bar.abandon(),
     }
-    outcome
+    match spawn_error {
+        Some(e) => outcome.with_context(|| format!("starting a worker thread: {e}")),
+        None => outcome,
+    }
 }
 
 /// The writer of [`run_streamed`]: the rows received on `rx` to `sink` in their order, all
