@@ -1108,10 +1108,11 @@ fn the_slow_arrival_3_1_branch_turns_once() {
 
 /// With the Hunt–Crossley law (f64) the wire rig's `1/1` branch from Ω/ω 2.0 down meets the
 /// rough stretch of the discretised map below 2.0: its fold test changes sign 86 times, in
-/// pairs (106 of the 2,270 orbits have a multiplier just past +1), and the branch turns back at 1.96988 onto the orbits it came by (still stable: no
-/// multiplier passed +1). Four of those changes were located as folds (1.97021, 1.96988,
-/// 1.97014, 1.97041, `μ` 1.0008–1.0036), each without the change that undid it beside it;
-/// none is a fold, since the test a span past each has its sign from before.
+/// pairs (106 of the 2,270 orbits have a multiplier just past +1), and the branch turns back at
+/// 1.96988 onto the orbits it came by, stable but for those pokes. Four of the changes are
+/// located as folds on their own (1.97021, 1.96988, 1.97014, 1.97041, `μ` 1.0008–1.0036), the
+/// change that undoes each located away from +1; none is told, since a span past each the test
+/// is back on its sign from before.
 #[test]
 fn a_fold_test_that_changes_sign_and_back_is_no_fold() {
     let at = point(RigId::Wires, ContactLawKind::HuntCrossley, 0.0, 2.0);

@@ -461,6 +461,7 @@ impl<E> HeldFold<E> {
         Self::told(self.held.take(), now)
     }
 
+    /// `held`'s fold if the test's sign `now` is not the one before it.
     fn told(held: Option<(f64, bool, E)>, now: bool) -> Option<E> {
         held.and_then(|(_, before, e)| (before != now).then_some(e))
     }
@@ -473,8 +474,8 @@ impl<E> HeldFold<E> {
 /// [`ControlFlow::Break`] ends the branch there: [`BranchEnd::Stopped`]). A fold is told once
 /// the branch has moved [`ContinuationSettings::kink_span`] past it, or before the next event
 /// or the branch's end, if the fold test has kept its new sign; two folds within that span, a
-/// fold within it of where the branch stalls, and a change of the test's sign undone by the
-/// next one, are kinks of the discretised map and are not told.
+/// fold within it of where the branch stalls, and a change of the test's sign that is undone
+/// before the branch has moved the span, are kinks of the discretised map and are not told.
 pub fn continue_branch<T: Real>(
     start: &Orbit<T>,
     settings: &ContinuationSettings,
@@ -669,17 +670,17 @@ pub fn continue_branch<T: Real>(
             if ev.kind == EventKind::Fold {
                 tell_held!(held.fold(ev.value, settled, ev));
             } else {
-                tell_held!(held.release(tb[0] > 0.0));
+                tell_held!(held.release(fold_positive(&b)));
                 if on_event(&ev).is_break() {
                     return BranchEnd::Stopped(ev.value);
                 }
             }
         }
-        tell_held!(held.release_past(value_b, tb[0] > 0.0));
+        tell_held!(held.release_past(value_b, fold_positive(&b)));
         if ta[0].is_finite() && (ta[0] > 0.0) != (tb[0] > 0.0) {
             last_change = Some(value_b);
         } else if last_change.is_none_or(|c| libm::fabs(value_b - c) >= held.span) {
-            settled = tb[0] > 0.0;
+            settled = fold_positive(&b);
         }
         on_point(&BranchPoint {
             value: value_b,
