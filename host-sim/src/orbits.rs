@@ -492,6 +492,37 @@ pub struct BranchOut {
     /// branch ([`branches`]): the last value before each and the first after, in the report's
     /// units (`Ω/ω`, or the gap in mm).
     pub bridges: Vec<[f64; 2]>,
+    /// Where the branch turned back without a fold ([`turned_back`]), in the report's units:
+    /// its farthest value the way it set out, beyond where it ended.
+    pub turned_back: Option<f64>,
+}
+
+/// The farthest value of a branch's `points` the way it set out (its first move of more than
+/// the span), where that lies more than `settings.kink_span` (scaled) beyond its last point
+/// and no fold of `events` lies within the span of it: the branch turned back there without
+/// a multiplier through +1 (a kink of the discretised map) and ended on the way back.
+fn turned_back<T: Real>(
+    points: &[BranchPoint<T>],
+    events: &[BifEvent<T>],
+    param: Param,
+    settings: &ContinuationSettings,
+) -> Option<f64> {
+    let (first, last) = (points.first()?, points.last()?);
+    let (scale, _) = scaled_frame(&first.orbit, param);
+    let span = settings.kink_span * scale;
+    let heading = points
+        .iter()
+        .find(|p| (p.value - first.value).abs() > span)
+        .map(|p| (p.value - first.value).signum())?;
+    let farthest = points
+        .iter()
+        .map(|p| p.value * heading)
+        .fold(f64::NEG_INFINITY, f64::max)
+        * heading;
+    let folded = events
+        .iter()
+        .any(|e| e.kind == EventKind::Fold && (e.value - farthest).abs() <= span);
+    ((farthest - last.value) * heading > span && !folded).then_some(farthest)
 }
 
 /// Continues the branch of `start` as `spec` says: the start's branch in the asked
@@ -593,6 +624,8 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                 .iter()
                 .map(|b| b.map(|v| report_value(spec.param, v)))
                 .collect(),
+            turned_back: turned_back(&points, &events, spec.param, &settings)
+                .map(|v| report_value(spec.param, v)),
         });
     }
     Ok(out)

@@ -185,6 +185,13 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 if b.bridges.len() > 3 { ", …" } else { "" },
             );
         }
+        if let Some(v) = b.turned_back {
+            s += &format!(
+                "  turned back at {} without a fold (no multiplier through +1 there: a kink of \
+                 the discretised map)\n",
+                unit(v)
+            );
+        }
         s += &format!("  ended at {}\n", b.end);
     }
     s
