@@ -703,19 +703,18 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
 
 /// A branch that turns back without a fold says so: with Hunt–Crossley in f64 the wire rig's
 /// `1/1` branch from Ω/ω 2.0 down turns at 1.96988 where its fold test keeps its sign (a kink
-/// of the discretised map; no fold is told) and stalls on the way back at 1.97081; the beam's
-/// branch that turns at its fold (1.500572) names no such turn.
+/// of the discretised map; no fold is told) and stalls on the way back at 1.97081; branches that
+/// turn at a fold (the beam's at 1.500572, the wire rig's `3/1` at 0.946869, located 9e-5
+/// beyond the branch's farthest point) name no such turn.
 #[test]
 fn continue_says_where_a_branch_turned_back_without_a_fold() {
     let branch = |args: &str| -> serde_json::Value {
-        let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
-            "continue {args} --precision f64 --json"
-        ))))
-        .unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&ok(&line(&format!("continue {args} --json")))).unwrap();
         v[0].clone()
     };
     let hc = "--rig wires --law hunt-crossley --gap-mm 0 --omega-ratio 2.0 --range 1.9:2.1 \
-              --direction down";
+              --direction down --precision f64";
     let b = branch(hc);
     let turned = b["turned_back"].as_f64().unwrap();
     assert!((turned - 1.96988).abs() < 1e-4, "{turned}");
@@ -725,30 +724,35 @@ fn continue_says_where_a_branch_turned_back_without_a_fold() {
         end.starts_with("a step below the minimum at Ω/ω 1.9708"),
         "{end}"
     );
-    let text = ok(&line(&format!("continue {hc} --precision f64")));
+    let text = ok(&line(&format!("continue {hc}")));
     assert!(
         text.contains("turned back at Ω/ω 1.9698") && text.contains("without a fold"),
         "{text}"
     );
-    let beam =
-        branch("--rig beam-170 --gap-mm 3.0 --omega-ratio 1.35 --range 1.0:2.0 --direction up");
-    let folds: Vec<f64> = beam["events"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["kind"] == "fold")
-        .map(|e| e["value"].as_f64().unwrap())
-        .collect();
-    assert!(
-        folds.len() == 1 && (folds[0] - 1.500572).abs() < 1e-4,
-        "{folds:?}"
-    );
-    assert_eq!(
-        beam["turned_back"],
-        serde_json::Value::Null,
-        "{}",
-        beam["turned_back"]
-    );
+    for (args, fold) in [
+        (
+            "--rig beam-170 --gap-mm 3.0 --omega-ratio 1.35 --range 1.0:2.0 --precision f64",
+            1.500572,
+        ),
+        (
+            "--rig wires --gap-mm 0 --omega-ratio 0.9 --range 0.6:1.4",
+            0.946869,
+        ),
+    ] {
+        let b = branch(&format!("{args} --direction up"));
+        let folds: Vec<f64> = b["events"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["kind"] == "fold")
+            .map(|e| e["value"].as_f64().unwrap())
+            .collect();
+        assert!(
+            folds.len() == 1 && (folds[0] - fold).abs() < 1e-4,
+            "{folds:?}"
+        );
+        assert_eq!(b["turned_back"], serde_json::Value::Null, "{args}");
+    }
 }
 
 /// Where Newton cannot follow a branch across a jump of the discretised map, `continue` steps
