@@ -701,6 +701,24 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
     );
 }
 
+/// The branches `continue {args} --json` prints.
+fn continue_branches(args: &str) -> Vec<serde_json::Value> {
+    let v: serde_json::Value =
+        serde_json::from_str(&ok(&line(&format!("continue {args} --json")))).unwrap();
+    v.as_array().unwrap().clone()
+}
+
+/// The values of the events of `kind` located on `branch` (one of [`continue_branches`]).
+fn event_values(branch: &serde_json::Value, kind: &str) -> Vec<f64> {
+    branch["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["kind"] == kind)
+        .map(|e| e["value"].as_f64().unwrap())
+        .collect()
+}
+
 /// A branch that turns back without a fold says so: with Hunt–Crossley in f64 the wire rig's
 /// `1/1` branch from Ω/ω 2.0 down turns at 1.96988 where its fold test keeps its sign (a kink
 /// of the discretised map; no fold is told) and stalls on the way back at 1.97081; branches that
@@ -708,11 +726,7 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
 /// beyond the branch's farthest point) name no such turn.
 #[test]
 fn continue_says_where_a_branch_turned_back_without_a_fold() {
-    let branch = |args: &str| -> serde_json::Value {
-        let v: serde_json::Value =
-            serde_json::from_str(&ok(&line(&format!("continue {args} --json")))).unwrap();
-        v[0].clone()
-    };
+    let branch = |args: &str| continue_branches(args).swap_remove(0);
     let hc = "--rig wires --law hunt-crossley --gap-mm 0 --omega-ratio 2.0 --range 1.9:2.1 \
               --direction down --precision f64";
     let b = branch(hc);
@@ -740,13 +754,7 @@ fn continue_says_where_a_branch_turned_back_without_a_fold() {
         ),
     ] {
         let b = branch(&format!("{args} --direction up"));
-        let folds: Vec<f64> = b["events"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|e| e["kind"] == "fold")
-            .map(|e| e["value"].as_f64().unwrap())
-            .collect();
+        let folds = event_values(&b, "fold");
         assert!(
             folds.len() == 1 && (folds[0] - fold).abs() < 1e-4,
             "{folds:?}"
@@ -762,12 +770,8 @@ fn continue_says_where_a_branch_turned_back_without_a_fold() {
 /// locates at 2.63604; the smooth spring–dashpot branch steps over nothing.
 #[test]
 fn continue_steps_over_a_jump_of_the_discretised_map() {
-    let branch = |args: &str| -> serde_json::Value {
-        let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
-            "continue --rig wires --gap-mm 0 {args} --direction up --json"
-        ))))
-        .unwrap();
-        v[0].clone()
+    let branch = |args: &str| {
+        continue_branches(&format!("--rig wires --gap-mm 0 {args} --direction up")).swap_remove(0)
     };
     let args = "--law lankarani-nikravesh --precision f64 --omega-ratio 1.99 --range 1.9:2.8";
     let b = branch(args);
@@ -778,13 +782,7 @@ fn continue_steps_over_a_jump_of_the_discretised_map() {
         (from - 1.99552).abs() < 1e-4 && (to - from - 5e-4).abs() < 1e-9,
         "{from} {to}"
     );
-    let pd: Vec<f64> = b["events"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["kind"] == "period-doubling")
-        .map(|e| e["value"].as_f64().unwrap())
-        .collect();
+    let pd = event_values(&b, "period-doubling");
     assert_eq!(pd.len(), 1, "{pd:?}");
     assert!((pd[0] - 2.63604).abs() < 1e-3, "{pd:?}");
     let text = ok(&line(&format!(
@@ -821,12 +819,7 @@ fn continue_steps_over_a_jump_of_the_discretised_map() {
 #[test]
 fn continue_says_where_a_doubling_is_smeared_by_kinks_of_the_map() {
     let doublings = |args: &str| -> Vec<serde_json::Value> {
-        let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
-            "continue --rig wires --gap-mm 0 {args} --json"
-        ))))
-        .unwrap();
-        v.as_array()
-            .unwrap()
+        continue_branches(&format!("--rig wires --gap-mm 0 {args}"))
             .iter()
             .flat_map(|b| b["events"].as_array().unwrap().clone())
             .filter(|e| e["kind"] == "period-doubling")
