@@ -492,8 +492,9 @@ pub struct BranchOut {
     /// branch ([`branches`]): the last value before each and the first after, in the report's
     /// units (`Ω/ω`, or the gap in mm).
     pub bridges: Vec<[f64; 2]>,
-    /// Where the branch turned back without a fold ([`turned_back`]), in the report's units:
-    /// its farthest value the way it set out, beyond where it ended.
+    /// Where the branch, with no fold told, turned back in the parameter (a kink of the
+    /// discretised map), in the report's units: its farthest value the way it set out, more
+    /// than `kink_span` beyond where it ended; `None` otherwise.
     pub turned_back: Option<f64>,
 }
 
