@@ -435,9 +435,7 @@ fn bridge<T: Real>(
     let (first, last) = (points.first()?, points.last()?);
     let o = &last.orbit;
     let (scale, scaled) = scaled_frame(o, param);
-    let away = |a: &BranchPoint<T>, b: &BranchPoint<T>| {
-        ((a.value - b.value).abs() >= PROBE_STEP * scale).then(|| (a.value - b.value).signum())
-    };
+    let away = |a: &BranchPoint<T>, b: &BranchPoint<T>| moved(a, b, PROBE_STEP * scale);
     let heading = points.iter().find_map(|p| away(p, first))?;
     // The last secant: from the latest point at least a probe's step behind.
     let (behind, sign) = points
@@ -498,7 +496,13 @@ pub struct BranchOut {
     pub turned_back: Option<f64>,
 }
 
-/// The farthest value of a branch's `points` the way it set out (its first move of more than
+/// The way from branch point `b` to `a` in the parameter (+1 or −1), if they lie at least
+/// `min` apart.
+fn moved<T: Real>(a: &BranchPoint<T>, b: &BranchPoint<T>, min: f64) -> Option<f64> {
+    ((a.value - b.value).abs() >= min).then(|| (a.value - b.value).signum())
+}
+
+/// The farthest value of a branch's `points` the way it set out (its first move of at least
 /// the span), where that lies more than `settings.kink_span` (scaled) beyond its last point
 /// and no fold of `events` was told: the branch turned back there without a multiplier
 /// through +1 (a kink of the discretised map) and ended on the way back. (A told fold is
@@ -516,10 +520,7 @@ fn turned_back<T: Real>(
     let (first, last) = (points.first()?, points.last()?);
     let (scale, _) = scaled_frame(&first.orbit, param);
     let span = settings.kink_span * scale;
-    let heading = points
-        .iter()
-        .find(|p| (p.value - first.value).abs() > span)
-        .map(|p| (p.value - first.value).signum())?;
+    let heading = points.iter().find_map(|p| moved(p, first, span))?;
     let farthest = points
         .iter()
         .map(|p| p.value * heading)
