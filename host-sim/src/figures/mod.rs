@@ -14,6 +14,7 @@ use std::path::Path;
 use std::sync::Once;
 
 use anyhow::Result;
+use plotters::coord::CoordTranslate;
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
@@ -184,6 +185,118 @@ pub(crate) fn series_legend<'a, 'b: 'a, CT: plotters::coord::CoordTranslate>(
     Ok(())
 }
 
+/// The corners a legend may take ([`legend_cover`]), in the order taken when they cover as much.
+pub(crate) const LEGEND_CORNERS: [SeriesLabelPosition; 4] = [
+    SeriesLabelPosition::UpperLeft,
+    SeriesLabelPosition::UpperRight,
+    SeriesLabelPosition::LowerLeft,
+    SeriesLabelPosition::LowerRight,
+];
+
+/// The size `(w, h)`, px, of the legend [`series_legend`] draws for `labels` at `font_size` px:
+/// plotters' layout, the text block with a 30 px key column and 10 px margins.
+///
+/// # Errors
+/// Font errors.
+pub(crate) fn legend_size(labels: &[String], font_size: u32) -> Result<(i32, i32)> {
+    ensure_font();
+    let style: TextStyle = (SANS, font_size).into();
+    let mut text = MultiLineText::<(i32, i32), &str>::new((0, 0), style);
+    for label in labels {
+        text.push_line(label.as_str());
+    }
+    let (w, h) = text
+        .estimate_dimension()
+        .map_err(|e| anyhow::anyhow!("legend text: {e:?}"))?;
+    Ok((w + 30 + 20, h + 20))
+}
+
+/// How much of a panel's data a legend of a given size would cover at each of
+/// [`LEGEND_CORNERS`] (where plotters puts it: 5 px from the plotting area's edges): the points
+/// of its lines, taken every 4 px along each segment, and its dots and markers, that fall within
+/// 6 px of the legend's box (a line's width, a marker's size).
+pub(crate) struct LegendCover {
+    coord: Cartesian2d<RangedCoordf64, RangedCoordf64>,
+    /// The boxes' upper left corners, px.
+    boxes: [(i32, i32); 4],
+    size: (i32, i32),
+    counts: [usize; 4],
+}
+
+impl LegendCover {
+    const STEP_PX: f64 = 4.0;
+    const PAD_PX: i32 = 6;
+
+    /// Nothing covered yet, for a legend of `size` px ([`legend_size`]) on `chart`.
+    pub(crate) fn new(chart: &Chart<'_, '_>, size: (i32, i32)) -> LegendCover {
+        let (xs, ys) = chart.plotting_area().get_pixel_range();
+        let (left, right) = (xs.start + 5, xs.end - size.0 - 5);
+        let (top, bottom) = (ys.start + 5, ys.end - size.1 - 5);
+        LegendCover {
+            coord: chart.as_coord_spec().clone(),
+            boxes: [(left, top), (right, top), (left, bottom), (right, bottom)],
+            size,
+            counts: [0; 4],
+        }
+    }
+
+    fn pixel(&self, p: (f64, f64)) -> (f64, f64) {
+        let (x, y) = self.coord.translate(&p);
+        (f64::from(x), f64::from(y))
+    }
+
+    fn count(&mut self, (px, py): (f64, f64)) {
+        let (w, h) = self.size;
+        for (c, &(bx, by)) in self.counts.iter_mut().zip(&self.boxes) {
+            let inside_x =
+                px >= f64::from(bx - Self::PAD_PX) && px <= f64::from(bx + w + Self::PAD_PX);
+            let inside_y =
+                py >= f64::from(by - Self::PAD_PX) && py <= f64::from(by + h + Self::PAD_PX);
+            *c += usize::from(inside_x && inside_y);
+        }
+    }
+
+    /// Adds the line through `points` (data coordinates; points not finite skipped).
+    pub(crate) fn line(&mut self, points: impl IntoIterator<Item = (f64, f64)>) {
+        let mut last: Option<(f64, f64)> = None;
+        for p in points
+            .into_iter()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+        {
+            let b = self.pixel(p);
+            match last {
+                None => self.count(b),
+                Some(a) => {
+                    let pieces = ((b.0 - a.0).hypot(b.1 - a.1) / Self::STEP_PX).ceil();
+                    // (Capped: a segment far outside the panel is not walked pixel by pixel.)
+                    let pieces = pieces.clamp(1.0, 4096.0) as u32;
+                    for i in 1..=pieces {
+                        let t = f64::from(i) / f64::from(pieces);
+                        self.count((a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1)));
+                    }
+                }
+            }
+            last = Some(b);
+        }
+    }
+
+    /// Adds dots or markers at `points` (data coordinates).
+    pub(crate) fn dots(&mut self, points: impl IntoIterator<Item = (f64, f64)>) {
+        for p in points
+            .into_iter()
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+        {
+            let b = self.pixel(p);
+            self.count(b);
+        }
+    }
+
+    /// The points covered at each of [`LEGEND_CORNERS`].
+    pub(crate) fn counts(&self) -> [usize; 4] {
+        self.counts
+    }
+}
+
 /// Colours of the named regimes, in legend order: `1/1` red and `1/2` green (the thesis' Peterka
 /// colours), then the other regimes the maps of this rig show; every other periodic regime is
 /// [`OTHER_PERIODIC`]. The one palette of every figure.
@@ -250,4 +363,32 @@ pub fn regime_classes(regimes: impl Iterator<Item = Regime>) -> Vec<(String, RGB
     }
     seen.sort_by_key(|(k, _, _)| *k);
     seen.into_iter().map(|(_, n, c)| (n, c)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A legend of 100 × 60 px on a 400 × 300 px plotting area over `[0, 1]²`: its boxes span
+    /// x 5–105 px (data 0.0125–0.2625) or 295–395 px (0.7375–0.9875), y 5–65 px from the top
+    /// (data 0.783–0.983) or 235–295 px (0.017–0.217), and cover what lies within 6 px of them.
+    #[test]
+    fn a_legend_covers_the_dots_and_the_segments_that_cross_its_box() {
+        let mut buf = vec![0u8; 400 * 300 * 3];
+        let area = BitMapBackend::with_buffer(&mut buf, (400, 300)).into_drawing_area();
+        let chart = ChartBuilder::on(&area)
+            .build_cartesian_2d(0.0..1.0, 0.0..1.0)
+            .unwrap();
+        let mut cover = LegendCover::new(&chart, (100, 60));
+        // One dot in the upper left box, one just outside it (13 px below), one in no box.
+        cover.dots([(0.1, 0.9), (0.1, 0.74), (0.5, 0.5), (f64::NAN, 0.9)]);
+        assert_eq!(cover.counts(), [1, 0, 0, 0]);
+        // Both ends outside every box; its middle (0.8, 0.2) crosses the lower right one.
+        cover.line([(0.6, 0.0), (1.0, 0.4)]);
+        let [ul, ur, ll, lr] = cover.counts();
+        assert_eq!((ul, ur, ll), (1, 0, 0));
+        // The segment, 200 px long, in 50 pieces of 4 px: 57 px of it (t 0.31–0.59) lie within
+        // 6 px of the box, the ends of 14 pieces.
+        assert!((13..=15).contains(&lr), "{lr}");
+    }
 }

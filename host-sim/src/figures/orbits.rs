@@ -11,7 +11,10 @@ use plotters::prelude::*;
 use shared::observe::Regime;
 use shared::orbit::{Param, Stability};
 
-use super::{Chart, Frame, canvas, line_key, panel, regime_classes, regime_color, series_legend};
+use super::{
+    Chart, Frame, LEGEND_CORNERS, LegendCover, canvas, legend_size, line_key, panel,
+    regime_classes, regime_color, series_legend,
+};
 use crate::orbits::{BranchOut, OrbitReport, param_value};
 
 const TOP: Frame = Frame::new(10, 40, 70, 15).desc_font(17);
@@ -57,6 +60,21 @@ fn marker(chart: &mut Chart<'_, '_>, kind: &str, at: (f64, f64), color: RGBColor
     };
     Ok(())
 }
+
+/// A legend entry's key.
+enum Key {
+    /// A line in this style.
+    Line(ShapeStyle),
+    /// A dot of this colour (a brute-force sweep).
+    Dot(RGBColor),
+    /// Black strokes and gaps of this pattern ([`DOTS`], [`DASHES`]).
+    Dash((i32, i32)),
+    /// The marker of this event type, in this colour.
+    Marker(String, RGBColor),
+}
+
+/// The legend's font size, px.
+const LEGEND_PX: u32 = 14;
 
 /// The width, px, of the white line under every branch.
 const HALO_PX: u32 = 6;
@@ -170,10 +188,9 @@ pub fn branches(
         0.0..(fmax * 1.06).max(1.0),
         (x_label, "impact peak F_i/mg"),
     )?;
-    if let Some(s) = surface_mm {
-        ct.draw_series(LineSeries::new([(x0, s), (x1, s)], BLACK.mix(0.4)))?
-            .label(format!("impact surface u = gap = {s} mm"))
-            .legend(line_key(BLACK.mix(0.4)));
+    let surface = surface_mm.map(|s| [(x0, s), (x1, s)]);
+    if let Some(line) = surface {
+        ct.draw_series(LineSeries::new(line, BLACK.mix(0.4)))?;
     }
     for d in background {
         let c = d.color;
@@ -181,9 +198,7 @@ pub fn branches(
             d.strobes
                 .iter()
                 .map(|&p| Circle::new(p, 1, c.mix(0.8).filled())),
-        )?
-        .label(d.label.clone())
-        .legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled()));
+        )?;
         cb.draw_series(
             d.impacts
                 .iter()
@@ -238,37 +253,6 @@ pub fn branches(
             draw_runs(chart, pts)?;
         }
     }
-    // Legend: the regimes of the branches, the line styles, the event types present.
-    let regimes = regime_classes(
-        branches
-            .iter()
-            .flat_map(|b| b.points.iter().map(|p| regime_of(&p.orbit))),
-    );
-    for (name, c) in regimes {
-        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label(format!("{name} branch"))
-            .legend(line_key(c.stroke_width(3)));
-    }
-    let present = |s: Stability| {
-        branches
-            .iter()
-            .any(|b| b.points.iter().any(|p| p.orbit.stability == s))
-    };
-    if present(Stability::Stable) {
-        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label("stable orbit")
-            .legend(line_key(BLACK.stroke_width(2)));
-    }
-    if present(Stability::Neutral) {
-        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label("neutral orbit (no impact, undamped)")
-            .legend(dash_key(DOTS));
-    }
-    if present(Stability::Unstable) {
-        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label("unstable orbit")
-            .legend(dash_key(DASHES));
-    }
     let mut kinds: Vec<&str> = Vec::new();
     for b in branches {
         for e in &b.events {
@@ -283,14 +267,93 @@ pub fn branches(
             marker(&mut cb, &e.kind, (x, e.orbit.impact_force_mg), c)?;
         }
     }
+    // Legend: the surface, the brute-force sweeps, the regimes of the branches, the line
+    // styles and the event types present.
+    let mut legend: Vec<(String, Key)> = Vec::new();
+    if let Some(s) = surface_mm {
+        legend.push((
+            format!("impact surface u = gap = {s} mm"),
+            Key::Line(BLACK.mix(0.4).into()),
+        ));
+    }
+    for d in background {
+        legend.push((d.label.clone(), Key::Dot(d.color)));
+    }
+    let regimes = regime_classes(
+        branches
+            .iter()
+            .flat_map(|b| b.points.iter().map(|p| regime_of(&p.orbit))),
+    );
+    for (name, c) in regimes {
+        legend.push((format!("{name} branch"), Key::Line(c.stroke_width(3))));
+    }
+    let present = |s: Stability| {
+        branches
+            .iter()
+            .any(|b| b.points.iter().any(|p| p.orbit.stability == s))
+    };
+    for (stability, label, key) in [
+        (
+            Stability::Stable,
+            "stable orbit",
+            Key::Line(BLACK.stroke_width(2)),
+        ),
+        (
+            Stability::Neutral,
+            "neutral orbit (no impact, undamped)",
+            Key::Dash(DOTS),
+        ),
+        (Stability::Unstable, "unstable orbit", Key::Dash(DASHES)),
+    ] {
+        if present(stability) {
+            legend.push((label.to_string(), key));
+        }
+    }
     for kind in kinds {
         let (label, c) = event_mark(kind);
-        let k = kind.to_string();
-        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label(label)
-            .legend(move |(x, y)| marker_px(&k, (x + 8, y), c));
+        legend.push((label.to_string(), Key::Marker(kind.to_string(), c)));
     }
-    series_legend(&mut ct, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    // In the corner of either panel where it covers the least of the data (the top panel's
+    // upper left where that covers nothing).
+    let labels: Vec<String> = legend.iter().map(|(l, _)| l.clone()).collect();
+    let size = legend_size(&labels, LEGEND_PX)?;
+    let mut top_cover = LegendCover::new(&ct, size);
+    let mut bottom_cover = LegendCover::new(&cb, size);
+    if let Some(line) = surface {
+        top_cover.line(line);
+    }
+    for d in background {
+        top_cover.dots(d.strobes.iter().copied());
+        bottom_cover.dots(d.impacts.iter().copied());
+    }
+    for pts in &top_lines {
+        top_cover.line(pts.iter().map(|p| (p.0, p.1)));
+    }
+    for pts in &bottom_lines {
+        bottom_cover.line(pts.iter().map(|p| (p.0, p.1)));
+    }
+    for e in branches.iter().flat_map(|b| &b.events) {
+        top_cover.dots(e.orbit.section.iter().map(|s| (e.value, s[0])));
+        bottom_cover.dots([(e.value, e.orbit.impact_force_mg)]);
+    }
+    let covers = [top_cover.counts(), bottom_cover.counts()];
+    let (panel_at, corner) = (0..2)
+        .flat_map(|p| (0..LEGEND_CORNERS.len()).map(move |c| (p, c)))
+        .min_by_key(|&(p, c)| covers[p][c])
+        .unwrap_or((0, 0));
+    let chart = if panel_at == 0 { &mut ct } else { &mut cb };
+    for (label, key) in legend {
+        let entry = chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(label);
+        match key {
+            Key::Line(style) => entry.legend(line_key(style)),
+            Key::Dot(c) => entry.legend(move |(x, y)| Circle::new((x + 8, y), 3, c.filled())),
+            Key::Dash(pattern) => entry.legend(dash_key(pattern)),
+            Key::Marker(kind, c) => entry.legend(move |(x, y)| marker_px(&kind, (x + 8, y), c)),
+        };
+    }
+    series_legend(chart, Some(LEGEND_CORNERS[corner].clone()), LEGEND_PX)?;
     root.present()?;
     Ok(())
 }
