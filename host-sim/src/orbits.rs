@@ -190,7 +190,7 @@ pub fn slope_check<T: Real>(o: &Orbit<T>) -> Result<(f64, Option<String>)> {
     let mismatch = o.slope_mismatch(1e-4)?;
     let warning = (mismatch > SLOPE_MISMATCH_WARN).then(|| {
         format!(
-            "! warning: at this orbit the map's slope differs from its monodromy by {mismatch:.2} \
+            "! warning: at this orbit the map's slope differs from its monodromy by {mismatch:.3} \
              (over ±1e-4 of the state's scales; {SLOPE_MISMATCH_WARN} at most where they agree): \
              the map is not smooth that close to the orbit (within that of a grazing, an impact \
              appears or vanishes), so its Floquet multipliers, stability, exponent and the \

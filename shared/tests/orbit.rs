@@ -758,12 +758,15 @@ fn beam_fold_and_grazing_bound_the_hysteresis() {
 // is none: Newton stalls (Ω/ω 2.5091) and the iterates cycle across the jump.
 
 /// The guard against a monodromy that is not the map's slope (`Orbit::slope_mismatch`, which
-/// `host-sim orbit` and `continue` report above 0.05): small at the main job's `1/1` orbit and
-/// at the wire rig's `3/1` orbit at 0.0 mm, Ω/ω 0.9 (slow arrivals, where a split bisected to
-/// 1/8192 of the step made the map jump by more than it slopes), and large for a monodromy
-/// that is not the map's (the 3/1 orbit's, negated).
+/// `host-sim orbit` and `continue` report above 0.05): small at the main job's `1/1` orbit, at
+/// the wire rig's `3/1` orbit at 0.0 mm, Ω/ω 0.9 (slow arrivals, where a split bisected to
+/// 1/8192 of the step made the map jump by more than it slopes) and at the f32 orbits of the
+/// 170 mm beam rig at 3.0 mm, Ω/ω 1.45, and of Hunt–Crossley at the main job's point (whose
+/// secants in f32 measured 5.1e-2 from f32's own rounding: a warning at a smooth orbit), and
+/// large for a monodromy that is not the map's (the 3/1 orbit's, negated).
 #[test]
 fn slope_mismatch_flags_a_monodromy_that_is_not_the_maps_slope() {
+    let mismatch = |o: &Orbit<f32>| o.slope_mismatch(1e-4).unwrap();
     let (_, main_job) = orbit_at::<f64>(&point(
         RigId::Wires,
         ContactLawKind::SpringDashpot,
@@ -776,22 +779,34 @@ fn slope_mismatch_flags_a_monodromy_that_is_not_the_maps_slope() {
         0.0,
         0.9,
     ));
-    let (a, b) = (
-        main_job.slope_mismatch(1e-4).unwrap(),
-        slow.slope_mismatch(1e-4).unwrap(),
-    );
+    let (_, beam) = orbit_at::<f32>(&point(
+        RigId::Beam170,
+        ContactLawKind::SpringDashpot,
+        3.0,
+        1.45,
+    ));
+    let (_, hunt_crossley) =
+        orbit_at::<f32>(&point(RigId::Wires, ContactLawKind::HuntCrossley, 0.0, 2.0));
+    let a = main_job.slope_mismatch(1e-4).unwrap();
+    let (b, d, e) = (mismatch(&slow), mismatch(&beam), mismatch(&hunt_crossley));
     let mut wrong = slow;
     for row in &mut wrong.monodromy {
         for m in row {
             *m = -*m;
         }
     }
-    let c = wrong.slope_mismatch(1e-4).unwrap();
-    println!("slope mismatch: 1/1 at Ω/ω 2.0 {a:.2e}; 3/1 at 0.9 {b:.2e}; negated {c:.2}");
-    // Measured: 3.0e-10, 1.9e-3 (f32 rounding in the secant) and 0.83.
+    let c = mismatch(&wrong);
+    println!(
+        "slope mismatch: 1/1 at Ω/ω 2.0 {a:.2e}; 3/1 at 0.9 {b:.2e}; negated {c:.2}; \
+         beam-170 f32 {d:.2e}; Hunt–Crossley f32 {e:.2e}"
+    );
+    // Measured: 3.0e-10, 2.4e-7, 0.83, 4.9e-6 and 6.8e-4 (Hunt–Crossley's kinks of the
+    // discretised map: 3.3e-4 in f64).
     assert!(a < 1e-6, "{a}");
-    assert!(b < 0.01, "{b}");
+    assert!(b < 1e-5, "{b}");
     assert!(c > 0.5, "{c}");
+    assert!(d < 1e-4, "{d}");
+    assert!(e < 5e-3, "{e}");
 }
 
 #[test]
