@@ -244,7 +244,8 @@ pub struct EventOut {
     pub critical: [f64; 2],
     /// Impacts per period `q` beyond it (grazing).
     pub impacts_beyond: u32,
-    /// Its test function along the branch round it (period doubling and Neimark–Sacker;
+    /// Its test function along the branch round it (period doubling and Neimark–Sacker
+    /// probed, a fold's changes of sign met by the continuation where there were several;
     /// [`crossings`]).
     pub crossings: Option<Crossings>,
 }
@@ -255,13 +256,16 @@ pub const PROBE_STEP: f64 = 5e-4;
 /// Probes of [`crossings`] on each side of the event.
 pub const PROBE_POINTS: u32 = 20;
 
-/// How a located period doubling or Neimark–Sacker bifurcation stands on its branch: its test
-/// function (`det(M + I)`, or `det M − 1` while the pair is complex) at [`PROBE_POINTS`] orbits
-/// each side, [`PROBE_STEP`] apart. On a smooth branch it changes sign once, at the event. On
-/// the discretised map the monodromy also moves in small jumps as the parameter moves the
-/// contact's sub-steps; where those are as large as the multiplier's own motion, the test
-/// changes sign several times, and the bifurcation lies somewhere in the span of those
-/// crossings rather than at the one located (docs/accuracy.md).
+/// How a located bifurcation stands on its branch: for a period doubling or Neimark–Sacker
+/// bifurcation its test function (`det(M + I)`, or `det M − 1` while the pair is complex) at
+/// [`PROBE_POINTS`] orbits each side, [`PROBE_STEP`] apart; for a fold the changes of sign of
+/// `det(M − I)` the continuation met on its way round it ([`BifEvent::changes`]; a fold's
+/// branch turns, so probes at fixed parameter values would see one side only). On a smooth
+/// branch the test changes sign once, at the event. On the discretised map the monodromy also
+/// moves in small jumps as the parameter moves the contact's sub-steps; where those are as
+/// large as the multiplier's own motion, the test changes sign several times, and the
+/// bifurcation lies somewhere in the span of those crossings rather than at the one located
+/// (docs/accuracy.md; a fold is told where the branch turned farthest).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Crossings {
     /// Changes of sign among the probes (1 on a smooth branch; 0 where the located point is a
@@ -270,8 +274,9 @@ pub struct Crossings {
     /// The probes that enclose the first and the last change (with no change, the outermost
     /// probes), in the report's units (`Ω/ω`, or the gap in mm).
     pub span: [f64; 2],
-    /// The probes' spacing, in the report's units.
-    pub step: f64,
+    /// The probes' spacing, in the report's units (`None` for a fold's changes, met along the
+    /// branch by the continuation's own steps).
+    pub step: Option<f64>,
 }
 
 impl Crossings {
@@ -283,20 +288,25 @@ impl Crossings {
 
     /// What the probes show, for a report (`what`: `Ω/ω` or `gap`, with `mm` for the gap).
     pub fn describe(&self, what: &str, mm: &str) -> String {
-        if self.count == 0 {
-            format!(
-                "its test function keeps its sign at every probe between {what} {:.4} and \
-                 {:.4}{mm} (every {:.4}{mm}): the located point is a kink of the discretised map \
-                 where it touches zero, not a crossing",
-                self.span[0], self.span[1], self.step
-            )
-        } else {
-            format!(
-                "its test function changes sign {} times between {what} {:.4} and {:.4}{mm} \
-                 (probed every {:.4}{mm}): kinks of the discretised map, the bifurcation lies in \
-                 that span, not at one point",
-                self.count, self.span[0], self.span[1], self.step
-            )
+        let [lo, hi] = self.span;
+        match self.step {
+            Some(step) if self.count == 0 => format!(
+                "its test function keeps its sign at every probe between {what} {lo:.4} and \
+                 {hi:.4}{mm} (every {step:.4}{mm}): the located point is a kink of the \
+                 discretised map where it touches zero, not a crossing"
+            ),
+            Some(step) => format!(
+                "its test function changes sign {} times between {what} {lo:.4} and {hi:.4}{mm} \
+                 (probed every {step:.4}{mm}): kinks of the discretised map, the bifurcation lies \
+                 in that span, not at one point",
+                self.count
+            ),
+            None => format!(
+                "its test function changes sign at {} located folds between {what} {lo:.4} and \
+                 {hi:.4}{mm} along the branch, which zig-zags there over kinks of the \
+                 discretised map: told as one fold, where the branch turns farthest",
+                self.count
+            ),
         }
     }
 }
@@ -308,7 +318,15 @@ impl Crossings {
 /// where no probe converged on one side. [`Crossings::smeared`] says whether the event is not
 /// the one crossing.
 pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
-    // A fold's branch turns there: probes at fixed parameter values see one side only.
+    // A fold's branch turns there: probes at fixed parameter values see one side only; the
+    // continuation's own changes of sign say it where there were several.
+    if e.kind == EventKind::Fold {
+        return e.changes.filter(|c| c.count > 1).map(|c| Crossings {
+            count: c.count,
+            span: c.span.map(|v| report_value(param, v)),
+            step: None,
+        });
+    }
     if !matches!(e.kind, EventKind::PeriodDoubling | EventKind::NeimarkSacker) {
         return None;
     }
@@ -361,7 +379,7 @@ pub fn crossings<T: Real>(e: &BifEvent<T>, param: Param) -> Option<Crossings> {
     Some(Crossings {
         count: changes.len() as u32,
         span: span.map(|v| report_value(param, v)),
-        step: report_value(param, PROBE_STEP * scale),
+        step: Some(report_value(param, PROBE_STEP * scale)),
     })
 }
 
@@ -1123,7 +1141,7 @@ mod tests {
         let c = |count| Crossings {
             count,
             span: [2.6355, 2.6425],
-            step: 5e-4,
+            step: Some(5e-4),
         };
         assert!(!c(1).smeared());
         assert!(c(0).smeared() && c(5).smeared());
@@ -1136,6 +1154,11 @@ mod tests {
         assert!(
             none.contains("keeps its sign") && none.contains("2.6425 mm"),
             "{none}"
+        );
+        let fold = Crossings { step: None, ..c(7) }.describe("Ω/ω", "");
+        assert!(
+            fold.contains("changes sign at 7 located folds between Ω/ω 2.6355 and 2.6425 along"),
+            "{fold}"
         );
     }
 }

@@ -768,6 +768,44 @@ fn continue_says_where_a_branch_turned_back_without_a_fold() {
     }
 }
 
+/// A fold over kinks of the discretised map is told once, where the branch turns farthest,
+/// with the changes of its test it stands for: the 170 mm beam rig's `1/1` branch at 3.0 mm
+/// with Lankarani–Nikravesh (f32) zig-zags round its fold at Ω/ω 1.72998 and its fold test
+/// changes sign at 13 located folds over 1.72905–1.72998 (each told as a fold before); the
+/// same branch with the spring–dashpot law turns cleanly at 1.500573 (no `crossings`).
+#[test]
+fn continue_tells_a_fold_over_kinks_once_with_its_changes() {
+    let args = "--rig beam-170 --gap-mm 3.0 --omega-ratio 1.35 --range 1.0:2.0 --direction up";
+    let ln = format!("{args} --law lankarani-nikravesh");
+    let b = continue_branches(&ln).swap_remove(0);
+    let folds: Vec<_> = b["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["kind"] == "fold")
+        .collect();
+    assert_eq!(folds.len(), 1, "{}", b["events"]);
+    let (value, c) = (folds[0]["value"].as_f64().unwrap(), &folds[0]["crossings"]);
+    assert!((value - 1.72998).abs() < 1e-4, "{value}");
+    assert!(c["count"].as_u64().unwrap() > 1, "{c}");
+    assert_eq!(c["span"][1].as_f64(), Some(value), "{c}");
+    assert!(c["span"][0].as_f64().unwrap() < value - 5e-4, "{c}");
+    assert_eq!(c["step"], serde_json::Value::Null, "{c}");
+    let text = ok(&line(&format!("continue {ln}")));
+    assert!(
+        text.contains("located folds between Ω/ω 1.729") && text.contains("turns farthest"),
+        "{text}"
+    );
+    let b = continue_branches(args).swap_remove(0);
+    let fold = b["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["kind"] == "fold")
+        .unwrap_or_else(|| panic!("{}", b["events"]));
+    assert_eq!(fold["crossings"], serde_json::Value::Null, "{fold}");
+}
+
 /// Where Newton cannot follow a branch across a jump of the discretised map, `continue` steps
 /// over it and goes on: the wire rig's `1/1` branch with Lankarani–Nikravesh in f64 from Ω/ω
 /// 1.99 stalls at 1.99552 (the orbit's state and force jump there as the contact's sub-steps

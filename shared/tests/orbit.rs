@@ -16,8 +16,8 @@ use shared::model::{ContactLaw, ContactLawKind, RigId, Suspension};
 use shared::observe::Regime;
 use shared::orbit::{
     BifEvent, BranchPoint, ContinuationSettings, Edge, EventKind, MapPoint, Orbit, OrbitError,
-    Param, ShootSettings, Stability, band_edges, continue_branch, iterate, orbit_from, samples,
-    shoot, tangent,
+    Param, ShootSettings, SignChanges, Stability, band_edges, continue_branch, iterate, orbit_from,
+    samples, shoot, tangent,
 };
 
 /// The map of `rig` with `law` at `gap_mm` and `omega_ratio`, host profile (`N = 64`, `K = 16`).
@@ -1119,6 +1119,64 @@ fn the_slow_arrival_3_1_branch_turns_once() {
     assert!((events[0].critical.re - 1.0).abs() < 0.01);
     assert_eq!(events[1].kind, EventKind::Grazing);
     assert!(events[1].value < events[0].value, "the branch turned back");
+}
+
+/// The 170 mm beam rig's `1/1` branch at 3.0 mm from Ω/ω 1.35 up, with the Lankarani–Nikravesh
+/// and Hunt–Crossley laws: near its fold the discretised map's kinks make the branch zig-zag
+/// (its multipliers jumping between a complex pair, two real ones and one past +1 from one
+/// orbit to the next), and the fold test changes sign at every turn. One fold is told, where
+/// the branch turns farthest, with the changes it stands for; f32 and f64 put it at the same
+/// place. (Each change told as a fold, these branches reported 8 and 14 folds with
+/// Lankarani–Nikravesh in f32 and f64 and 38 with Hunt–Crossley in f32.)
+#[test]
+fn a_fold_over_kinks_is_told_once_where_the_branch_turns_farthest() {
+    // (The fold's value, its multiplier, its changes; the branch's farthest value.)
+    fn fold_of<T: Real>(law: ContactLawKind) -> (f64, f64, SignChanges, f64) {
+        let at = point(RigId::Beam170, law, 3.0, 1.35);
+        let (_, start) = orbit_at::<T>(&at);
+        let settings = ContinuationSettings::new::<T>(Param::OmegaRatio, [1.0, 2.0]);
+        let mut events = Vec::new();
+        let mut farthest = f64::NEG_INFINITY;
+        continue_branch(
+            &start,
+            &settings,
+            1.0,
+            None,
+            |p| farthest = farthest.max(p.value),
+            |e| {
+                events.push(*e);
+                ControlFlow::Continue(())
+            },
+        );
+        let folds: Vec<_> = events
+            .iter()
+            .filter(|e| e.kind == EventKind::Fold)
+            .collect();
+        let kinds: Vec<_> = events.iter().map(|e| (e.kind, e.value)).collect();
+        assert_eq!(folds.len(), 1, "{law:?}: {kinds:?}");
+        let changes = folds[0].changes.expect("a fold carries its changes");
+        (folds[0].value, folds[0].critical.re, changes, farthest)
+    }
+    let ln32 = fold_of::<f32>(ContactLawKind::LankaraniNikravesh);
+    let ln64 = fold_of::<f64>(ContactLawKind::LankaraniNikravesh);
+    let hc32 = fold_of::<f32>(ContactLawKind::HuntCrossley);
+    for (name, (value, mu, changes, farthest)) in
+        [("LN f32", ln32), ("LN f64", ln64), ("HC f32", hc32)]
+    {
+        println!(
+            "{name}: fold at {value} (μ {mu:+.6}), branch farthest {farthest}, {} changes over \
+             {:?}",
+            changes.count, changes.span
+        );
+        assert!((value - farthest).abs() < 1e-5, "{name}");
+        assert!((mu - 1.0).abs() < 0.05, "{name}");
+        assert!(changes.count > 1, "{name}: {changes:?}");
+        assert_eq!(changes.span[1], value, "{name}");
+    }
+    // Measured: 1.7299771 (f32), 1.7300003 (f64); Hunt–Crossley 1.8278841.
+    assert!((ln32.0 - ln64.0).abs() < 1e-4);
+    assert!((ln64.0 - 1.7300).abs() < 1e-4);
+    assert!((hc32.0 - 1.82788).abs() < 1e-4);
 }
 
 /// With the Hunt–Crossley law (f64) the wire rig's `1/1` branch from Ω/ω 2.0 down meets the

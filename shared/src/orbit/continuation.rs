@@ -51,18 +51,23 @@ pub struct ContinuationSettings {
     /// Where Newton stalls, a grazing monitor within this much of 0 (in units of the cart's
     /// motion) says the branch ends at a grazing (1e-4; f32: 1e-2).
     pub grazing_near: f64,
-    /// The width of a kink of the discretised map, in the scaled parameter (1e-5): two folds
-    /// closer than this are the branch zig-zagging over a kink (where a sub-step boundary
-    /// meets an impact or a switching band), and neither is reported; nor is a fold within
-    /// this of where the branch stalls.
+    /// The width of a kink of the discretised map, in the scaled parameter (1e-5): the fold
+    /// test's sign counts as settled once it has held over this much of the branch, and a
+    /// fold within this of where the branch stalls is the kink that stalls it, not reported.
     pub kink_span: f64,
+    /// How far, in the scaled parameter, the branch must move from the farthest of a cluster
+    /// of located folds before the cluster is told (0.01): where kinks of the discretised map
+    /// make the fold test change sign back and forth near a fold (the branch zig-zagging by up
+    /// to 6e-3 of `Ω/ω` over 4.6e-3 with Hunt–Crossley on the 170 mm beam rig), the cluster is
+    /// one fold, at its farthest value, if the test's sign ends changed, and none otherwise.
+    pub fold_retreat: f64,
 }
 
 impl ContinuationSettings {
     /// The defaults for `param` over `range` in the float type `T`: steps 0.02 (1e-6 ..= 0.05)
     /// in the scaled unknowns, events located to 1e-7 in the parameter (f64; f32: 1e-5, its
     /// own resolution), Newton as [`ShootSettings::for_type`], grazing monitors near 0 within
-    /// 1e-4 (f32: 1e-2), kinks 1e-5 wide.
+    /// 1e-4 (f32: 1e-2), kinks 1e-5 wide, fold clusters told 0.01 past their farthest fold.
     pub fn new<T: Real>(param: Param, range: [f64; 2]) -> Self {
         let f64_like = T::EPSILON < 1e-10;
         ContinuationSettings {
@@ -74,6 +79,7 @@ impl ContinuationSettings {
             newton: ShootSettings::for_type::<T>(),
             grazing_near: if f64_like { 1e-4 } else { 1e-2 },
             kink_span: 1e-5,
+            fold_retreat: 1e-2,
         }
     }
 }
@@ -186,6 +192,21 @@ pub struct BifEvent<T> {
     pub critical: Multiplier,
     /// For a grazing: the impacts per `q` periods beyond it.
     pub impacts_beyond: u32,
+    /// For a fold: the changes of sign of the fold test located as folds that it stands for
+    /// along the branch (one where the branch turns cleanly; several where kinks of the
+    /// discretised map make the test change sign back and forth round the fold), with the span
+    /// of their values.
+    pub changes: Option<SignChanges>,
+}
+
+/// The changes of sign of a test function along a branch that one event stands for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SignChanges {
+    /// How many were located as events (changes located far from the critical value,
+    /// [`CRITICAL_TOL`], are not counted).
+    pub count: u32,
+    /// The smallest and largest parameter values at which the test changed sign (gap in m).
+    pub span: [f64; 2],
 }
 
 /// Why a branch ended.
@@ -413,57 +434,108 @@ fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
     }
 }
 
-/// A located fold (`E`, at the parameter's value, with the sign the fold test last held for
-/// the span before it) held back until the branch has moved
-/// [`ContinuationSettings::kink_span`] away from it (in the parameter), or meets another event
-/// first; told then only if the test's sign is no longer that one (at a fold the critical
-/// multiplier passes +1 for good; the test changing sign and back within the span, whichever
-/// of the two changes was located as a fold, is a kink of the discretised map).
+/// The located folds met since the fold test last held its sign for a span of the parameter,
+/// held back as one cluster until the branch has moved
+/// [`ContinuationSettings::fold_retreat`] from the farthest of them (in the parameter, the way
+/// the branch was moving when it met the first), or meets another event first, or ends; told
+/// then, as its farthest fold, only if the test's sign is no longer the one before the cluster
+/// (at a fold the critical multiplier passes +1 for good; a test changing sign and back,
+/// however often and whichever changes were located as folds, is kinks of the discretised
+/// map). A fold farther than that from the held cluster's farthest starts a new one.
 struct HeldFold<E> {
-    held: Option<(f64, bool, E)>,
+    held: Option<Cluster<E>>,
+    /// [`ContinuationSettings::kink_span`], scaled.
     span: f64,
+    /// [`ContinuationSettings::fold_retreat`], scaled.
+    retreat: f64,
+}
+
+/// A cluster of located folds.
+struct Cluster<E> {
+    /// The fold test positive before the first.
+    before: bool,
+    /// The sign of the branch's motion in the parameter at the first.
+    dir: f64,
+    /// The farthest fold the way `dir` says, and its value.
+    far: (f64, E),
+    /// The latest fold's value.
+    last: f64,
+    changes: SignChanges,
 }
 
 impl<E> HeldFold<E> {
-    /// Nothing held; folds within `span` of each other are a zig-zag.
-    fn new(span: f64) -> Self {
-        Self { held: None, span }
-    }
-
-    /// A new fold at `value`, the fold test positive where it last held its sign for the span
-    /// before it if `before`: the one held before, to report now (it is told before the new
-    /// one, if that sign is not the one before the held one), or nothing; two folds within the
-    /// span are a zig-zag over a kink, and both are dropped.
-    fn fold(&mut self, value: f64, before: bool, ev: E) -> Option<E> {
-        match self.held.take() {
-            Some((v, _, _)) if libm::fabs(v - value) < self.span => None,
-            held => {
-                self.held = Some((value, before, ev));
-                Self::told(held, before)
-            }
+    /// Nothing held.
+    fn new(span: f64, retreat: f64) -> Self {
+        Self {
+            held: None,
+            span,
+            retreat,
         }
     }
 
-    /// The held fold if the branch, now at `value` with the fold test positive if `now`, has
-    /// moved the span away from it, to report now if the test kept its new sign (else it
-    /// stays held).
-    fn release_past(&mut self, value: f64, now: bool) -> Option<E> {
+    /// A new fold at `value`, met with the branch moving the way the sign of `dir` says, the
+    /// fold test positive where it last held its sign for the span before it if `before`: it
+    /// joins the held cluster if within the retreat of its farthest fold; else the held one
+    /// (to report now if its sign before is not `before`) gives way to a new cluster.
+    fn fold(&mut self, value: f64, before: bool, dir: f64, ev: E) -> Option<(E, SignChanges)> {
+        if let Some(c) = &mut self.held
+            && libm::fabs(value - c.far.0) < self.retreat
+        {
+            c.changes.count += 1;
+            c.changes.span = [c.changes.span[0].min(value), c.changes.span[1].max(value)];
+            c.last = value;
+            if (value - c.far.0) * c.dir > 0.0 {
+                c.far = (value, ev);
+            }
+            return None;
+        }
+        let told = Self::told(self.held.take(), before);
+        self.held = Some(Cluster {
+            before,
+            dir,
+            far: (value, ev),
+            last: value,
+            changes: SignChanges {
+                count: 1,
+                span: [value, value],
+            },
+        });
+        told
+    }
+
+    /// The held cluster if the branch, now at `value` with the fold test positive if `now`,
+    /// has moved the retreat away from its farthest fold, to report now if the test kept its
+    /// new sign (else it is dropped).
+    fn release_past(&mut self, value: f64, now: bool) -> Option<(E, SignChanges)> {
         let past = self
             .held
             .as_ref()
-            .is_some_and(|(v, _, _)| libm::fabs(v - value) >= self.span);
+            .is_some_and(|c| libm::fabs(value - c.far.0) >= self.retreat);
         if past { self.release(now) } else { None }
     }
 
-    /// The held fold, to report now if the fold test, positive if `now` at the branch's last
-    /// point, kept its new sign (another event comes first, or the branch ends).
-    fn release(&mut self, now: bool) -> Option<E> {
+    /// Where the branch stalls at `value`: a cluster whose latest fold lies within the kink
+    /// span is the kink that stalls it (dropped); another is released.
+    fn release_at_stall(&mut self, value: f64, now: bool) -> Option<(E, SignChanges)> {
+        if self
+            .held
+            .as_ref()
+            .is_some_and(|c| libm::fabs(value - c.last) < self.span)
+        {
+            self.held = None;
+        }
+        self.release(now)
+    }
+
+    /// The held cluster, to report now if the fold test, positive if `now` at the branch's
+    /// last point, kept its new sign (another event comes first, or the branch ends).
+    fn release(&mut self, now: bool) -> Option<(E, SignChanges)> {
         Self::told(self.held.take(), now)
     }
 
-    /// `held`'s fold if the test's sign `now` is not the one before it.
-    fn told(held: Option<(f64, bool, E)>, now: bool) -> Option<E> {
-        held.and_then(|(_, before, e)| (before != now).then_some(e))
+    /// `held`'s farthest fold if the test's sign `now` is not the one before it.
+    fn told(held: Option<Cluster<E>>, now: bool) -> Option<(E, SignChanges)> {
+        held.and_then(|c| (c.before != now).then_some((c.far.1, c.changes)))
     }
 }
 
@@ -471,11 +543,14 @@ impl<E> HeldFold<E> {
 /// increasing values if `direction > 0` (else decreasing), or along `initial_tangent` if given
 /// (in the scaled unknowns `(x₀/s₀, x₁/s₁, λ/s_λ)`: branch switching). Every accepted point goes
 /// to `on_point` (the start first), every located bifurcation to `on_event` (in the order met;
-/// [`ControlFlow::Break`] ends the branch there: [`BranchEnd::Stopped`]). A fold is told once
-/// the branch has moved [`ContinuationSettings::kink_span`] past it, or before the next event
-/// or the branch's end, if the fold test has kept its new sign; two folds within that span, a
-/// fold within it of where the branch stalls, and a change of the test's sign that is undone
-/// before the branch has moved the span, are kinks of the discretised map and are not told.
+/// [`ControlFlow::Break`] ends the branch there: [`BranchEnd::Stopped`]). Folds are told as
+/// clusters: the located folds within [`ContinuationSettings::fold_retreat`] of the farthest
+/// of them, told as that one (with the count and span of the cluster's sign changes in
+/// [`BifEvent::changes`]) once the branch has moved that far from it, or before the next event
+/// or the branch's end, if the fold test's sign is no longer the one it held for
+/// [`ContinuationSettings::kink_span`] before the cluster; a cluster whose latest fold lies
+/// within the kink span of where the branch stalls is the kink that stalls it. Changes of the
+/// test's sign that are undone are kinks of the discretised map and are not told.
 pub fn continue_branch<T: Real>(
     start: &Orbit<T>,
     settings: &ContinuationSettings,
@@ -519,19 +594,24 @@ pub fn continue_branch<T: Real>(
         value: value0,
         orbit: first,
     });
-    let mut held = HeldFold::new(settings.kink_span * s_lambda);
+    let mut held: HeldFold<BifEvent<T>> = HeldFold::new(
+        settings.kink_span * s_lambda,
+        settings.fold_retreat * s_lambda,
+    );
     let fold_positive = |n: &Node<T>| n.e.orbit.floquet.fold_test() > 0.0;
     // The fold test's sign where it last held for a span of the parameter (`settled`), and
     // where it last changed (a located fold or not).
     let mut settled = fold_positive(&node);
     let mut last_change: Option<f64> = None;
-    // Tells the held fold (if `release` gives it) and ends the branch if the caller stops there.
+    // Tells the held cluster's fold (if `release` gives it) and ends the branch if the caller
+    // stops there.
     macro_rules! tell_held {
         ($release:expr) => {
-            if let Some(ev) = $release
-                && on_event(&ev).is_break()
-            {
-                return BranchEnd::Stopped(ev.value);
+            if let Some((mut ev, changes)) = $release {
+                ev.changes = Some(changes);
+                if on_event(&ev).is_break() {
+                    return BranchEnd::Stopped(ev.value);
+                }
             }
         };
     }
@@ -560,7 +640,7 @@ pub fn continue_branch<T: Real>(
                 }
                 // A fold within the span of where the branch stalls is the kink that stalls
                 // it: not told.
-                tell_held!(held.release_past(value_a, fold_positive(&node)));
+                tell_held!(held.release_at_stall(value_a, fold_positive(&node)));
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -570,6 +650,7 @@ pub fn continue_branch<T: Real>(
                         orbit: node.e.orbit,
                         critical: critical(EventKind::Grazing, &node.e.orbit.floquet),
                         impacts_beyond: beyond,
+                        changes: None,
                     });
                     return BranchEnd::Grazing(value);
                 }
@@ -620,6 +701,7 @@ pub fn continue_branch<T: Real>(
                 orbit: ev.e.orbit,
                 critical: critical(EventKind::Grazing, &ev.e.orbit.floquet),
                 impacts_beyond: b.e.orbit.trace.impacts,
+                changes: None,
             });
             return BranchEnd::Grazing(value);
         }
@@ -657,6 +739,7 @@ pub fn continue_branch<T: Real>(
                     orbit: ev.e.orbit,
                     critical: mu,
                     impacts_beyond: ev.e.orbit.trace.impacts,
+                    changes: None,
                 });
             }
         }
@@ -668,7 +751,7 @@ pub fn continue_branch<T: Real>(
         });
         for ev in found {
             if ev.kind == EventKind::Fold {
-                tell_held!(held.fold(ev.value, settled, ev));
+                tell_held!(held.fold(ev.value, settled, node.t[2], ev));
             } else {
                 tell_held!(held.release(fold_positive(&b)));
                 if on_event(&ev).is_break() {
@@ -873,50 +956,93 @@ pub fn doubling_start<T: Real>(event: &BifEvent<T>) -> Option<(Orbit<T>, [f64; 3
 
 #[cfg(test)]
 mod tests {
-    use super::HeldFold;
+    use super::{HeldFold, SignChanges};
+
+    fn changes(count: u32, span: [f64; 2]) -> SignChanges {
+        SignChanges { count, span }
+    }
 
     #[test]
-    fn a_held_fold_is_told_once_the_branch_is_a_span_past_it() {
-        let mut held = HeldFold::new(1e-5);
-        assert_eq!(held.fold(2.0, true, 'a'), None);
-        // Still within the span: held.
-        assert_eq!(held.release_past(2.0 + 0.5e-5, false), None);
-        assert_eq!(held.release_past(2.0 - 0.9e-5, false), None);
-        // A span past it, either way: told once.
-        assert_eq!(held.release_past(2.0 + 1.5e-5, false), Some('a'));
+    fn a_held_fold_is_told_once_the_branch_is_the_retreat_past_it() {
+        let mut held = HeldFold::new(1e-5, 1e-2);
+        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
+        // Still within the retreat: held.
+        assert_eq!(held.release_past(2.0 + 0.5e-2, false), None);
+        assert_eq!(held.release_past(2.0 - 0.9e-2, false), None);
+        // The retreat past it, either way: told once.
+        let told = held.release_past(2.0 - 1.5e-2, false);
+        assert_eq!(told, Some(('a', changes(1, [2.0, 2.0]))));
         assert_eq!(held.release_past(2.1, false), None);
         assert_eq!(held.release(true), None);
     }
 
     #[test]
     fn a_fold_whose_test_changed_sign_back_is_not_told() {
-        let mut held = HeldFold::new(1e-5);
-        // The test positive before the fold and positive again a span past it.
-        assert_eq!(held.fold(2.0, true, 'a'), None);
-        assert_eq!(held.release_past(2.0 + 1.5e-5, true), None);
+        let mut held = HeldFold::new(1e-5, 1e-2);
+        // The test positive before the fold and positive again past it.
+        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
+        assert_eq!(held.release_past(2.0 - 1.5e-2, true), None);
         assert_eq!(held.release(false), None, "dropped, not held");
         // Released by another event or the branch's end: the same rule.
-        assert_eq!(held.fold(2.0, false, 'b'), None);
+        assert_eq!(held.fold(2.0, false, 1.0, 'b'), None);
         assert_eq!(held.release(false), None);
-        assert_eq!(held.fold(2.0, false, 'c'), None);
-        assert_eq!(held.release(true), Some('c'));
-        // A next fold far away whose test before it has the sign the held one had before it:
-        // the held one's change was undone between them.
-        assert_eq!(held.fold(2.0, true, 'd'), None);
-        assert_eq!(held.fold(2.1, true, 'e'), None);
-        assert_eq!(held.fold(2.2, false, 'f'), Some('e'));
+        assert_eq!(held.fold(2.0, false, 1.0, 'c'), None);
+        assert_eq!(held.release(true), Some(('c', changes(1, [2.0, 2.0]))));
+        // A next fold farther than the retreat whose test before it has the sign the held one
+        // had before it: the held one's change was undone between them.
+        assert_eq!(held.fold(2.0, true, 1.0, 'd'), None);
+        assert_eq!(held.fold(2.1, true, 1.0, 'e'), None);
+        let told = held.fold(2.2, false, 1.0, 'f');
+        assert_eq!(told, Some(('e', changes(1, [2.1, 2.1]))));
+    }
+
+    /// The branch zig-zags over kinks on its way up to a fold at 1.8279 and on its way back
+    /// (the fold test changing sign at each turn): one fold, the farthest, with every change.
+    #[test]
+    fn a_cluster_of_folds_is_one_fold_at_its_farthest() {
+        let mut held = HeldFold::new(1e-5, 1e-2);
+        let turns = [
+            1.8233, 1.82349, 1.82361, 1.82359, 1.8279, 1.8277, 1.8275, 1.8264,
+        ];
+        for (k, v) in turns.into_iter().enumerate() {
+            // (The test negative before the cluster.)
+            assert_eq!(held.fold(v, false, 1.0, k), None);
+        }
+        // Back 0.01 from 1.8279 with the test positive (an odd count of changes): told.
+        assert_eq!(held.release_past(1.8200, true), None);
+        let told = held.release_past(1.8178, true);
+        assert_eq!(told, Some((4, changes(8, [1.8233, 1.8279]))));
+        // The same going down: the farthest is the smallest value.
+        for (k, v) in [1.5, 1.4995, 1.4998].into_iter().enumerate() {
+            assert_eq!(held.fold(v, true, -1.0, k), None);
+        }
+        assert_eq!(held.release(false), Some((1, changes(3, [1.4995, 1.5]))));
     }
 
     #[test]
-    fn two_folds_within_the_span_are_a_zig_zag_and_neither_is_told() {
-        let mut held = HeldFold::new(1e-5);
-        assert_eq!(held.fold(2.0, true, 'a'), None);
-        assert_eq!(held.fold(2.0 + 0.3e-5, false, 'b'), None);
+    fn two_folds_that_undo_each_other_are_a_zig_zag_and_neither_is_told() {
+        let mut held = HeldFold::new(1e-5, 1e-2);
+        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
+        assert_eq!(held.fold(2.0 + 0.3e-5, true, 1.0, 'b'), None);
         assert_eq!(held.release(true), None);
         assert_eq!(held.release_past(3.0, true), None);
-        // Two folds farther apart: the first is told when the second comes, the second held.
-        assert_eq!(held.fold(2.0, true, 'c'), None);
-        assert_eq!(held.fold(2.0 + 2e-5, false, 'd'), Some('c'));
-        assert_eq!(held.release(true), Some('d'));
+        // Two folds farther apart than the retreat: the first is told when the second comes,
+        // the second held.
+        assert_eq!(held.fold(2.0, true, 1.0, 'c'), None);
+        let told = held.fold(2.0 + 2e-2, false, -1.0, 'd');
+        assert_eq!(told, Some(('c', changes(1, [2.0, 2.0]))));
+        assert_eq!(held.release(true), Some(('d', changes(1, [2.02, 2.02]))));
+    }
+
+    #[test]
+    fn a_fold_within_the_kink_span_of_a_stall_is_not_told() {
+        let mut held = HeldFold::new(1e-5, 1e-2);
+        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
+        assert_eq!(held.release_at_stall(2.0 - 0.5e-5, false), None);
+        assert_eq!(held.fold(2.0, true, 1.0, 'b'), None);
+        assert_eq!(
+            held.release_at_stall(2.0 - 5e-5, false),
+            Some(('b', changes(1, [2.0, 2.0])))
+        );
     }
 }

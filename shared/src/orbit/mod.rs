@@ -16,8 +16,8 @@ pub mod shooting;
 pub mod start;
 
 pub use continuation::{
-    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MIN_TURN_COSINE, StepSizes,
-    continue_branch, doubling_start,
+    BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MIN_TURN_COSINE,
+    SignChanges, StepSizes, continue_branch, doubling_start,
 };
 pub use curve::{CurveEnd, CurvePoint, CurveSettings, continue_curve};
 pub use edges::{Edge, band_edges};
