@@ -248,6 +248,9 @@ pub struct EventOut {
     /// probed, a fold's changes of sign met by the continuation where there were several;
     /// [`crossings`]).
     pub crossings: Option<Crossings>,
+    /// A period doubling across a jump of the discretised map ([`BifEvent::at_jump`]): its
+    /// multiplier passes −1 by the jump, `critical` is the one located on the near side.
+    pub at_jump: bool,
 }
 
 /// Spacing of the probes of [`crossings`], in the scaled parameter (`Ω/ω`, or gap/A0).
@@ -638,6 +641,7 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                         critical: [e.critical.re, e.critical.im],
                         impacts_beyond: e.impacts_beyond,
                         crossings: crossings(e, spec.param),
+                        at_jump: e.at_jump,
                     })
                 })
                 .collect::<Result<_>>()?,

@@ -120,6 +120,11 @@ pub struct EdgeReport {
     /// span; absent where it changes sign once.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub smeared: Option<Crossings>,
+    /// A period doubling across a jump of the discretised map
+    /// ([`shared::orbit::BifEvent::at_jump`]: the multiplier passes −1 by the jump,
+    /// `multiplier` is the one located on the near side); absent otherwise.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub at_jump: bool,
 }
 
 /// The strongest non-`1/1` periodic point.
@@ -208,6 +213,7 @@ fn edge_report<T: Real>(
             )),
             stalled_at: Some(located),
             smeared: None,
+            at_jump: false,
         };
     }
     let value = located;
@@ -246,6 +252,7 @@ fn edge_report<T: Real>(
         disagreement,
         stalled_at: None,
         smeared,
+        at_jump: matches!(edge, Edge::Event(e) if e.at_jump),
     }
 }
 

@@ -84,6 +84,51 @@ fn select_says_when_the_branch_could_not_be_followed() {
     );
 }
 
+/// A period doubling across a jump of the discretised map bounds the band: with
+/// Lankarani–Nikravesh at 1.0 mm the `1/1` orbit's multiplier passes −1 by a jump near Ω/ω 2.195
+/// (the test's change located where `μ` is −0.60 ± 0.38i). `continue` tells it, flagged
+/// `at_jump`, and `select` takes it as the upper edge (before: no event, the edge a grazing at
+/// 3.0137 on the unstable branch, 59 % of margin); the edge in the main job's JSON has no
+/// `at_jump` key.
+#[test]
+fn a_doubling_across_a_jump_is_told_and_bounds_the_band() {
+    let ln = "--rig wires --law lankarani-nikravesh --gap-mm 1.0";
+    let b = continue_branches(&format!(
+        "{ln} --omega-ratio 2.0 --range 1:2.3 --direction up"
+    ))
+    .swap_remove(0);
+    let events = b["events"].as_array().unwrap();
+    assert_eq!(events.len(), 1, "{}", b["events"]);
+    let e = &events[0];
+    let value = e["value"].as_f64().unwrap();
+    assert!(
+        e["kind"] == "period-doubling" && e["at_jump"] == true && (2.1925..2.2044).contains(&value),
+        "{e}"
+    );
+    let text = ok(&line(&format!(
+        "continue {ln} --omega-ratio 2.0 --range 1:2.3 --direction up"
+    )));
+    assert!(
+        text.contains("across a jump of the discretised map"),
+        "{text}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&ok(&line(&format!("select {ln} --no-basin-check --json")))).unwrap();
+    let upper = &v["band_check"]["upper"];
+    let at = upper["omega_ratio"].as_f64().unwrap();
+    assert!(
+        upper["kind"] == "period-doubling"
+            && upper["at_jump"] == true
+            && (2.1925..2.2044).contains(&at),
+        "{upper}"
+    );
+    let main: serde_json::Value =
+        serde_json::from_str(&ok(&line("select --no-basin-check --json"))).unwrap();
+    for side in ["lower", "upper"] {
+        assert!(main["band_check"][side].get("at_jump").is_none(), "{side}");
+    }
+}
+
 /// `VIBRO_ISA` narrows the lane kernels' vector instructions and changes no bit of a Peterka
 /// grid whose runs go through every kind of lane (free flight, contact, switching events, near
 /// searches); a value naming no variant this CPU runs is refused by name, before any output.

@@ -16,8 +16,8 @@ use shared::model::{ContactLaw, ContactLawKind, RigId, Suspension};
 use shared::observe::Regime;
 use shared::orbit::{
     BifEvent, BranchPoint, ContinuationSettings, Edge, EventKind, MapPoint, Orbit, OrbitError,
-    Param, ShootSettings, SignChanges, Stability, band_edges, continue_branch, iterate, orbit_from,
-    samples, shoot, tangent,
+    Param, ShootSettings, SignChanges, Stability, band_edges, continue_branch, doubling_start,
+    iterate, orbit_from, samples, shoot, tangent,
 };
 
 /// The map of `rig` with `law` at `gap_mm` and `omega_ratio`, host profile (`N = 64`, `K = 16`).
@@ -1177,6 +1177,50 @@ fn a_fold_over_kinks_is_told_once_where_the_branch_turns_farthest() {
     assert!((ln32.0 - ln64.0).abs() < 1e-4);
     assert!((ln64.0 - 1.7300).abs() < 1e-4);
     assert!((hc32.0 - 1.82788).abs() < 1e-4);
+}
+
+/// With Lankarani–Nikravesh the wire rig's `1/1` branch at 1.0 mm from Ω/ω 2.0 up loses its
+/// stability near Ω/ω 2.1946 (its multiplier from −0.87 at 2.1925 to −1.46 at 2.2044 along the
+/// branch), but the multiplier passes −1 by jumps of the discretised map (shot every 2e-5 of
+/// Ω/ω: −0.9994 to −1.0141 at 2.19461, and between 2.1951 and 2.1956 Newton lands on orbits
+/// with a complex pair near −0.60 ± 0.38i), and the doubling test's change is located at a jump
+/// (μ there −0.60 ± 0.38i, far from −1). It is told as a period doubling across a jump, since
+/// the test keeps its new sign; the branch was reported with no event before. No doubled branch
+/// starts there.
+#[test]
+fn a_doubling_across_a_jump_of_the_map_is_told() {
+    fn doubling<T: Real>() -> BifEvent<T> {
+        let at = point(RigId::Wires, ContactLawKind::LankaraniNikravesh, 1.0, 2.0);
+        let (_, start) = orbit_at::<T>(&at);
+        let settings = ContinuationSettings::new::<T>(Param::OmegaRatio, [1.0, 2.3]);
+        let (events, _, _) = branch_up(&start, &settings);
+        let kinds: Vec<_> = events
+            .iter()
+            .map(|e| (e.kind, e.value, e.at_jump))
+            .collect();
+        println!("{}: {kinds:?}", core::any::type_name::<T>());
+        assert_eq!(events.len(), 1, "{kinds:?}");
+        events[0]
+    }
+    for (value, critical, at_jump, start) in [
+        {
+            let e = doubling::<f32>();
+            (e.value, e.critical, e.at_jump, doubling_start(&e).is_some())
+        },
+        {
+            let e = doubling::<f64>();
+            (e.value, e.critical, e.at_jump, doubling_start(&e).is_some())
+        },
+    ] {
+        // Measured: 2.19559 (f32) and 2.19545 (f64), μ −0.600 ± 0.377i.
+        assert!((2.1925..2.2044).contains(&value), "{value}");
+        assert!(at_jump);
+        assert!(
+            libm::hypot(critical.re + 1.0, critical.im) > 0.05,
+            "{critical:?}"
+        );
+        assert!(!start, "no doubled branch from a doubling across a jump");
+    }
 }
 
 /// With the Hunt–Crossley law (f64) the wire rig's `1/1` branch from Ω/ω 2.0 down meets the

@@ -161,6 +161,11 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 crit,
                 beyond
             );
+            if e.at_jump {
+                s += "    across a jump of the discretised map: the doubling test changes sign where \
+                      the monodromy jumps and keeps its new sign (the multiplier passes −1 by the \
+                      jump; not followed by --follow-doublings)\n";
+            }
             if let Some(c) = e.crossings.filter(Crossings::smeared) {
                 let (what, mm) = match param {
                     Param::OmegaRatio => ("Ω/ω", ""),

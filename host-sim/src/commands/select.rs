@@ -440,8 +440,12 @@ fn print_report(r: &SelectReport) {
                         } else {
                             format!(", |μ| = {:.4}", m[0].hypot(m[1]))
                         })
-                        .unwrap_or_default()
-                )
+                        .unwrap_or_default(),
+                ) + if e.at_jump {
+                    ", across a jump of the discretised map: μ passes −1 by the jump"
+                } else {
+                    ""
+                }
             };
             println!(
                 "  z = 1/1 band {:.3} – {:.3} Hz, located on the orbit's branch:",

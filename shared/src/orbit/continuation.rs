@@ -195,8 +195,15 @@ pub struct BifEvent<T> {
     /// For a fold: the changes of sign of the fold test located as folds that it stands for
     /// along the branch (one where the branch turns cleanly; several where kinks of the
     /// discretised map make the test change sign back and forth round the fold), with the span
-    /// of their values.
+    /// of their values; for a period doubling across a jump ([`BifEvent::at_jump`]), the
+    /// test's changes at jumps it stands for.
     pub changes: Option<SignChanges>,
+    /// A period doubling across a jump of the discretised map: the doubling test changed sign
+    /// where the monodromy jumps (the located multiplier, [`BifEvent::critical`], is not within
+    /// [`CRITICAL_TOL`] of −1) and kept its new sign for
+    /// [`ContinuationSettings::fold_retreat`]: the multiplier passes −1 by a jump, not
+    /// smoothly. No branch is switched onto there ([`doubling_start`]).
+    pub at_jump: bool,
 }
 
 /// The changes of sign of a test function along a branch that one event stands for.
@@ -599,6 +606,12 @@ pub fn continue_branch<T: Real>(
         settings.fold_retreat * s_lambda,
     );
     let fold_positive = |n: &Node<T>| n.e.orbit.floquet.fold_test() > 0.0;
+    // Period doublings across jumps of the monodromy, held as folds are.
+    let mut held_doubling: HeldFold<BifEvent<T>> = HeldFold::new(
+        settings.kink_span * s_lambda,
+        settings.fold_retreat * s_lambda,
+    );
+    let doubling_positive = |n: &Node<T>| n.e.orbit.floquet.doubling_test() > 0.0;
     // The fold test's sign where it last held for a span of the parameter (`settled`), and
     // where it last changed (a located fold or not).
     let mut settled = fold_positive(&node);
@@ -636,11 +649,13 @@ pub fn continue_branch<T: Real>(
                 let reach = 2.0 * settings.steps.min * s_lambda;
                 if at_edge_heading_out(settings.range, value_a, node.t[2], reach) {
                     tell_held!(held.release(fold_positive(&node)));
+                    tell_held!(held_doubling.release(doubling_positive(&node)));
                     return BranchEnd::RangeEnd(value_a);
                 }
                 // A fold within the span of where the branch stalls is the kink that stalls
                 // it: not told.
                 tell_held!(held.release_at_stall(value_a, fold_positive(&node)));
+                tell_held!(held_doubling.release_at_stall(value_a, doubling_positive(&node)));
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -651,6 +666,7 @@ pub fn continue_branch<T: Real>(
                         critical: critical(EventKind::Grazing, &node.e.orbit.floquet),
                         impacts_beyond: beyond,
                         changes: None,
+                        at_jump: false,
                     });
                     return BranchEnd::Grazing(value);
                 }
@@ -695,6 +711,7 @@ pub fn continue_branch<T: Real>(
             });
             let value = ev.z[2] * s_lambda;
             tell_held!(held.release(fold_positive(&node)));
+            tell_held!(held_doubling.release(doubling_positive(&node)));
             let _ = on_event(&BifEvent {
                 kind: EventKind::Grazing,
                 value,
@@ -702,6 +719,7 @@ pub fn continue_branch<T: Real>(
                 critical: critical(EventKind::Grazing, &ev.e.orbit.floquet),
                 impacts_beyond: b.e.orbit.trace.impacts,
                 changes: None,
+                at_jump: false,
             });
             return BranchEnd::Grazing(value);
         }
@@ -727,20 +745,30 @@ pub fn continue_branch<T: Real>(
                     !v.is_finite() || (v > 0.0) == side_a
                 });
                 let mu = critical(kind, &ev.e.orbit.floquet);
-                // A test function can also change sign by a jump of the monodromy (a kink of
-                // the discretised map): the located multiplier is then far from its critical
-                // value, and that is no bifurcation.
-                if critical_distance(kind, mu) > CRITICAL_TOL {
-                    continue;
-                }
-                let _ = found.push(BifEvent {
+                let event = BifEvent {
                     kind,
                     value: ev.z[2] * s_lambda,
                     orbit: ev.e.orbit,
                     critical: mu,
                     impacts_beyond: ev.e.orbit.trace.impacts,
                     changes: None,
-                });
+                    at_jump: false,
+                };
+                // A test function can also change sign by a jump of the monodromy (a kink of
+                // the discretised map): the located multiplier is then far from its critical
+                // value, and that is no bifurcation, unless the doubling test keeps its new
+                // sign (held as folds are: the multiplier went past −1 by the jump).
+                if critical_distance(kind, mu) > CRITICAL_TOL {
+                    if kind == EventKind::PeriodDoubling {
+                        let at_jump = BifEvent {
+                            at_jump: true,
+                            ..event
+                        };
+                        tell_held!(held_doubling.fold(event.value, side_a, node.t[2], at_jump));
+                    }
+                    continue;
+                }
+                let _ = found.push(event);
             }
         }
         // In the order met along the step.
@@ -754,12 +782,14 @@ pub fn continue_branch<T: Real>(
                 tell_held!(held.fold(ev.value, settled, node.t[2], ev));
             } else {
                 tell_held!(held.release(fold_positive(&b)));
+                tell_held!(held_doubling.release(doubling_positive(&b)));
                 if on_event(&ev).is_break() {
                     return BranchEnd::Stopped(ev.value);
                 }
             }
         }
         tell_held!(held.release_past(value_b, fold_positive(&b)));
+        tell_held!(held_doubling.release_past(value_b, doubling_positive(&b)));
         if ta[0].is_finite() && (ta[0] > 0.0) != (tb[0] > 0.0) {
             last_change = Some(value_b);
         } else if last_change.is_none_or(|c| libm::fabs(value_b - c) >= held.span) {
@@ -785,6 +815,7 @@ pub fn continue_branch<T: Real>(
     }
     let value = node.z[2] * s_lambda;
     tell_held!(held.release(fold_positive(&node)));
+    tell_held!(held_doubling.release(doubling_positive(&node)));
     BranchEnd::MaxPoints(value)
 }
 
@@ -925,10 +956,14 @@ fn locate<T: Real>(
 /// tangent of the doubled branch there, the critical eigenvector at fixed parameter (in the
 /// scaled unknowns of [`continue_branch`]: `(v₀/s₀, v₁/s₁, 0)`, `s` the cart's scales). The
 /// doubled branch is the other half of `P^{2q}`'s pitchfork (Kuznetsov 2004, §10.3); pass both
-/// to [`continue_branch`]. `None` if `event` is not a period doubling, `2q` exceeds
+/// to [`continue_branch`]. `None` if `event` is not a period doubling, is one across a jump
+/// ([`BifEvent::at_jump`]: no multiplier at −1 to take the eigenvector of), `2q` exceeds
 /// [`super::map::MAX_Q`] or the map cannot be evaluated.
 pub fn doubling_start<T: Real>(event: &BifEvent<T>) -> Option<(Orbit<T>, [f64; 3])> {
-    if event.kind != EventKind::PeriodDoubling || 2 * event.orbit.q > super::map::MAX_Q {
+    if event.kind != EventKind::PeriodDoubling
+        || event.at_jump
+        || 2 * event.orbit.q > super::map::MAX_Q
+    {
         return None;
     }
     let o = &event.orbit;
