@@ -441,15 +441,16 @@ fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
     }
 }
 
-/// The located folds met since the fold test last held its sign for a span of the parameter,
-/// held back as one cluster until the branch has moved
-/// [`ContinuationSettings::fold_retreat`] from the farthest of them (in the parameter, the way
-/// the branch was moving when it met the first), or meets another event first, or ends; told
-/// then, as its farthest fold, only if the test's sign is no longer the one before the cluster
-/// (at a fold the critical multiplier passes +1 for good; a test changing sign and back,
-/// however often and whichever changes were located as folds, is kinks of the discretised
-/// map). A fold farther than that from the held cluster's farthest starts a new one.
-struct HeldFold<E> {
+/// The located folds met since the fold test last held its sign for a span of the parameter
+/// (or the doubling test's changes at jumps of the monodromy, [`BifEvent::at_jump`]), held back
+/// as one cluster until the branch has moved [`ContinuationSettings::fold_retreat`] from the
+/// farthest of them (in the parameter, the way the branch was moving when it met the first),
+/// or meets another event first, or ends; told then, as its farthest, only if the test's sign
+/// is no longer the one before the cluster (at a fold the critical multiplier passes +1 for
+/// good; a test changing sign and back, however often and whichever changes were located, is
+/// kinks of the discretised map). One farther than that from the held cluster's farthest
+/// starts a new cluster.
+struct HeldCluster<E> {
     held: Option<Cluster<E>>,
     /// [`ContinuationSettings::kink_span`], scaled.
     span: f64,
@@ -457,9 +458,9 @@ struct HeldFold<E> {
     retreat: f64,
 }
 
-/// A cluster of located folds.
+/// A cluster of located changes of a test's sign (folds, or doublings at jumps).
 struct Cluster<E> {
-    /// The fold test positive before the first.
+    /// The test positive before the first.
     before: bool,
     /// The sign of the branch's motion in the parameter at the first.
     dir: f64,
@@ -470,7 +471,7 @@ struct Cluster<E> {
     changes: SignChanges,
 }
 
-impl<E> HeldFold<E> {
+impl<E> HeldCluster<E> {
     /// Nothing held.
     fn new(span: f64, retreat: f64) -> Self {
         Self {
@@ -480,11 +481,12 @@ impl<E> HeldFold<E> {
         }
     }
 
-    /// A new fold at `value`, met with the branch moving the way the sign of `dir` says, the
-    /// fold test positive where it last held its sign for the span before it if `before`: it
-    /// joins the held cluster if within the retreat of its farthest fold; else the held one
-    /// (to report now if its sign before is not `before`) gives way to a new cluster.
-    fn fold(&mut self, value: f64, before: bool, dir: f64, ev: E) -> Option<(E, SignChanges)> {
+    /// A new located change (a fold) at `value`, met with the branch moving the way the sign
+    /// of `dir` says, the test positive before it if `before` (for folds: where it last held its
+    /// sign for the span): it joins the held cluster if within the retreat of its farthest;
+    /// else the held one (to report now if its sign before is not `before`) gives way to a new
+    /// cluster.
+    fn add(&mut self, value: f64, before: bool, dir: f64, ev: E) -> Option<(E, SignChanges)> {
         if let Some(c) = &mut self.held
             && libm::fabs(value - c.far.0) < self.retreat
         {
@@ -601,13 +603,13 @@ pub fn continue_branch<T: Real>(
         value: value0,
         orbit: first,
     });
-    let mut held: HeldFold<BifEvent<T>> = HeldFold::new(
+    let mut held: HeldCluster<BifEvent<T>> = HeldCluster::new(
         settings.kink_span * s_lambda,
         settings.fold_retreat * s_lambda,
     );
     let fold_positive = |n: &Node<T>| n.e.orbit.floquet.fold_test() > 0.0;
     // Period doublings across jumps of the monodromy, held as folds are.
-    let mut held_doubling: HeldFold<BifEvent<T>> = HeldFold::new(
+    let mut held_doubling: HeldCluster<BifEvent<T>> = HeldCluster::new(
         settings.kink_span * s_lambda,
         settings.fold_retreat * s_lambda,
     );
@@ -626,6 +628,18 @@ pub fn continue_branch<T: Real>(
                     return BranchEnd::Stopped(ev.value);
                 }
             }
+        };
+    }
+    // Tells what both holders let go at the branch's point `$n`: everything (another event,
+    // the branch's end), or by `$method` (`release_past`, `release_at_stall`) at `$value`.
+    macro_rules! release_held {
+        ($n:expr) => {
+            tell_held!(held.release(fold_positive($n)));
+            tell_held!(held_doubling.release(doubling_positive($n)));
+        };
+        ($method:ident, $value:expr, $n:expr) => {
+            tell_held!(held.$method($value, fold_positive($n)));
+            tell_held!(held_doubling.$method($value, doubling_positive($n)));
         };
     }
     let mut h = settings.steps.first;
@@ -648,14 +662,12 @@ pub fn continue_branch<T: Real>(
                 // smallest, or gap 0 going down where it is 0): the range's end.
                 let reach = 2.0 * settings.steps.min * s_lambda;
                 if at_edge_heading_out(settings.range, value_a, node.t[2], reach) {
-                    tell_held!(held.release(fold_positive(&node)));
-                    tell_held!(held_doubling.release(doubling_positive(&node)));
+                    release_held!(&node);
                     return BranchEnd::RangeEnd(value_a);
                 }
                 // A fold within the span of where the branch stalls is the kink that stalls
                 // it: not told.
-                tell_held!(held.release_at_stall(value_a, fold_positive(&node)));
-                tell_held!(held_doubling.release_at_stall(value_a, doubling_positive(&node)));
+                release_held!(release_at_stall, value_a, &node);
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
@@ -710,8 +722,7 @@ pub fn continue_branch<T: Real>(
                 e.orbit.trace.impacts == node.e.orbit.trace.impacts
             });
             let value = ev.z[2] * s_lambda;
-            tell_held!(held.release(fold_positive(&node)));
-            tell_held!(held_doubling.release(doubling_positive(&node)));
+            release_held!(&node);
             let _ = on_event(&BifEvent {
                 kind: EventKind::Grazing,
                 value,
@@ -764,7 +775,7 @@ pub fn continue_branch<T: Real>(
                             at_jump: true,
                             ..event
                         };
-                        tell_held!(held_doubling.fold(event.value, side_a, node.t[2], at_jump));
+                        tell_held!(held_doubling.add(event.value, side_a, node.t[2], at_jump));
                     }
                     continue;
                 }
@@ -779,17 +790,15 @@ pub fn continue_branch<T: Real>(
         });
         for ev in found {
             if ev.kind == EventKind::Fold {
-                tell_held!(held.fold(ev.value, settled, node.t[2], ev));
+                tell_held!(held.add(ev.value, settled, node.t[2], ev));
             } else {
-                tell_held!(held.release(fold_positive(&b)));
-                tell_held!(held_doubling.release(doubling_positive(&b)));
+                release_held!(&b);
                 if on_event(&ev).is_break() {
                     return BranchEnd::Stopped(ev.value);
                 }
             }
         }
-        tell_held!(held.release_past(value_b, fold_positive(&b)));
-        tell_held!(held_doubling.release_past(value_b, doubling_positive(&b)));
+        release_held!(release_past, value_b, &b);
         if ta[0].is_finite() && (ta[0] > 0.0) != (tb[0] > 0.0) {
             last_change = Some(value_b);
         } else if last_change.is_none_or(|c| libm::fabs(value_b - c) >= held.span) {
@@ -814,8 +823,7 @@ pub fn continue_branch<T: Real>(
         };
     }
     let value = node.z[2] * s_lambda;
-    tell_held!(held.release(fold_positive(&node)));
-    tell_held!(held_doubling.release(doubling_positive(&node)));
+    release_held!(&node);
     BranchEnd::MaxPoints(value)
 }
 
@@ -991,7 +999,7 @@ pub fn doubling_start<T: Real>(event: &BifEvent<T>) -> Option<(Orbit<T>, [f64; 3
 
 #[cfg(test)]
 mod tests {
-    use super::{HeldFold, SignChanges};
+    use super::{HeldCluster, SignChanges};
 
     fn changes(count: u32, span: [f64; 2]) -> SignChanges {
         SignChanges { count, span }
@@ -999,8 +1007,8 @@ mod tests {
 
     #[test]
     fn a_held_fold_is_told_once_the_branch_is_the_retreat_past_it() {
-        let mut held = HeldFold::new(1e-5, 1e-2);
-        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
+        let mut held = HeldCluster::new(1e-5, 1e-2);
+        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
         // Still within the retreat: held.
         assert_eq!(held.release_past(2.0 + 0.5e-2, false), None);
         assert_eq!(held.release_past(2.0 - 0.9e-2, false), None);
@@ -1013,21 +1021,21 @@ mod tests {
 
     #[test]
     fn a_fold_whose_test_changed_sign_back_is_not_told() {
-        let mut held = HeldFold::new(1e-5, 1e-2);
+        let mut held = HeldCluster::new(1e-5, 1e-2);
         // The test positive before the fold and positive again past it.
-        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
+        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
         assert_eq!(held.release_past(2.0 - 1.5e-2, true), None);
         assert_eq!(held.release(false), None, "dropped, not held");
         // Released by another event or the branch's end: the same rule.
-        assert_eq!(held.fold(2.0, false, 1.0, 'b'), None);
+        assert_eq!(held.add(2.0, false, 1.0, 'b'), None);
         assert_eq!(held.release(false), None);
-        assert_eq!(held.fold(2.0, false, 1.0, 'c'), None);
+        assert_eq!(held.add(2.0, false, 1.0, 'c'), None);
         assert_eq!(held.release(true), Some(('c', changes(1, [2.0, 2.0]))));
         // A next fold farther than the retreat whose test before it has the sign the held one
         // had before it: the held one's change was undone between them.
-        assert_eq!(held.fold(2.0, true, 1.0, 'd'), None);
-        assert_eq!(held.fold(2.1, true, 1.0, 'e'), None);
-        let told = held.fold(2.2, false, 1.0, 'f');
+        assert_eq!(held.add(2.0, true, 1.0, 'd'), None);
+        assert_eq!(held.add(2.1, true, 1.0, 'e'), None);
+        let told = held.add(2.2, false, 1.0, 'f');
         assert_eq!(told, Some(('e', changes(1, [2.1, 2.1]))));
     }
 
@@ -1035,13 +1043,13 @@ mod tests {
     /// (the fold test changing sign at each turn): one fold, the farthest, with every change.
     #[test]
     fn a_cluster_of_folds_is_one_fold_at_its_farthest() {
-        let mut held = HeldFold::new(1e-5, 1e-2);
+        let mut held = HeldCluster::new(1e-5, 1e-2);
         let turns = [
             1.8233, 1.82349, 1.82361, 1.82359, 1.8279, 1.8277, 1.8275, 1.8264,
         ];
         for (k, v) in turns.into_iter().enumerate() {
             // (The test negative before the cluster.)
-            assert_eq!(held.fold(v, false, 1.0, k), None);
+            assert_eq!(held.add(v, false, 1.0, k), None);
         }
         // Back 0.01 from 1.8279 with the test positive (an odd count of changes): told.
         assert_eq!(held.release_past(1.8200, true), None);
@@ -1049,32 +1057,32 @@ mod tests {
         assert_eq!(told, Some((4, changes(8, [1.8233, 1.8279]))));
         // The same going down: the farthest is the smallest value.
         for (k, v) in [1.5, 1.4995, 1.4998].into_iter().enumerate() {
-            assert_eq!(held.fold(v, true, -1.0, k), None);
+            assert_eq!(held.add(v, true, -1.0, k), None);
         }
         assert_eq!(held.release(false), Some((1, changes(3, [1.4995, 1.5]))));
     }
 
     #[test]
     fn two_folds_that_undo_each_other_are_a_zig_zag_and_neither_is_told() {
-        let mut held = HeldFold::new(1e-5, 1e-2);
-        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
-        assert_eq!(held.fold(2.0 + 0.3e-5, true, 1.0, 'b'), None);
+        let mut held = HeldCluster::new(1e-5, 1e-2);
+        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
+        assert_eq!(held.add(2.0 + 0.3e-5, true, 1.0, 'b'), None);
         assert_eq!(held.release(true), None);
         assert_eq!(held.release_past(3.0, true), None);
         // Two folds farther apart than the retreat: the first is told when the second comes,
         // the second held.
-        assert_eq!(held.fold(2.0, true, 1.0, 'c'), None);
-        let told = held.fold(2.0 + 2e-2, false, -1.0, 'd');
+        assert_eq!(held.add(2.0, true, 1.0, 'c'), None);
+        let told = held.add(2.0 + 2e-2, false, -1.0, 'd');
         assert_eq!(told, Some(('c', changes(1, [2.0, 2.0]))));
         assert_eq!(held.release(true), Some(('d', changes(1, [2.02, 2.02]))));
     }
 
     #[test]
     fn a_fold_within_the_kink_span_of_a_stall_is_not_told() {
-        let mut held = HeldFold::new(1e-5, 1e-2);
-        assert_eq!(held.fold(2.0, true, 1.0, 'a'), None);
+        let mut held = HeldCluster::new(1e-5, 1e-2);
+        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
         assert_eq!(held.release_at_stall(2.0 - 0.5e-5, false), None);
-        assert_eq!(held.fold(2.0, true, 1.0, 'b'), None);
+        assert_eq!(held.add(2.0, true, 1.0, 'b'), None);
         assert_eq!(
             held.release_at_stall(2.0 - 5e-5, false),
             Some(('b', changes(1, [2.0, 2.0])))
