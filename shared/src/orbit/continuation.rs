@@ -444,8 +444,8 @@ fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
 /// The located folds met since the fold test last held its sign for a span of the parameter
 /// (or the doubling test's changes at jumps of the monodromy, [`BifEvent::at_jump`]), held back
 /// as one cluster until the branch has moved [`ContinuationSettings::fold_retreat`] from the
-/// farthest of them (in the parameter, the way the branch was moving when it met the first),
-/// or meets another event first, or ends; told then, as its farthest, only if the test's sign
+/// farthest of them (in the parameter, the way the branch has come: from its start, or from
+/// the last cluster told, to the first of them), or meets another event first, or ends; told then, as its farthest, only if the test's sign
 /// is no longer the one before the cluster (at a fold the critical multiplier passes +1 for
 /// good; a test changing sign and back, however often and whichever changes were located, is
 /// kinks of the discretised map). One farther than that from the held cluster's farthest
@@ -456,13 +456,15 @@ struct HeldCluster<E> {
     span: f64,
     /// [`ContinuationSettings::fold_retreat`], scaled.
     retreat: f64,
+    /// Where the branch has come from: its start, or the last cluster told.
+    from: f64,
 }
 
 /// A cluster of located changes of a test's sign (folds, or doublings at jumps).
 struct Cluster<E> {
     /// The test positive before the first.
     before: bool,
-    /// The sign of the branch's motion in the parameter at the first.
+    /// The way the branch has come to the first (+1: increasing parameter, −1: decreasing).
     dir: f64,
     /// The farthest fold the way `dir` says, and its value.
     far: (f64, E),
@@ -472,21 +474,21 @@ struct Cluster<E> {
 }
 
 impl<E> HeldCluster<E> {
-    /// Nothing held.
-    fn new(span: f64, retreat: f64) -> Self {
+    /// Nothing held, on a branch from `from`.
+    fn new(span: f64, retreat: f64, from: f64) -> Self {
         Self {
             held: None,
             span,
             retreat,
+            from,
         }
     }
 
-    /// A new located change (a fold) at `value`, met with the branch moving the way the sign
-    /// of `dir` says, the test positive before it if `before` (for folds: where it last held its
-    /// sign for the span): it joins the held cluster if within the retreat of its farthest;
-    /// else the held one (to report now if its sign before is not `before`) gives way to a new
-    /// cluster.
-    fn add(&mut self, value: f64, before: bool, dir: f64, ev: E) -> Option<(E, SignChanges)> {
+    /// A new located change (a fold) at `value`, the test positive before it if `before` (for
+    /// folds: where it last held its sign for the span): it joins the held cluster if within
+    /// the retreat of its farthest; else the held one (to report now if its sign before is not
+    /// `before`) gives way to a new cluster.
+    fn add(&mut self, value: f64, before: bool, ev: E) -> Option<(E, SignChanges)> {
         if let Some(c) = &mut self.held
             && libm::fabs(value - c.far.0) < self.retreat
         {
@@ -498,7 +500,8 @@ impl<E> HeldCluster<E> {
             }
             return None;
         }
-        let told = Self::told(self.held.take(), before);
+        let told = self.told(before);
+        let dir = if value >= self.from { 1.0 } else { -1.0 };
         self.held = Some(Cluster {
             before,
             dir,
@@ -539,12 +542,18 @@ impl<E> HeldCluster<E> {
     /// The held cluster, to report now if the fold test, positive if `now` at the branch's
     /// last point, kept its new sign (another event comes first, or the branch ends).
     fn release(&mut self, now: bool) -> Option<(E, SignChanges)> {
-        Self::told(self.held.take(), now)
+        self.told(now)
     }
 
-    /// `held`'s farthest fold if the test's sign `now` is not the one before it.
-    fn told(held: Option<Cluster<E>>, now: bool) -> Option<(E, SignChanges)> {
-        held.and_then(|c| (c.before != now).then_some((c.far.1, c.changes)))
+    /// The held cluster taken, its farthest to report if the test's sign `now` is not the one
+    /// before it (the branch has come from there since).
+    fn told(&mut self, now: bool) -> Option<(E, SignChanges)> {
+        let c = self.held.take()?;
+        if c.before == now {
+            return None;
+        }
+        self.from = c.far.0;
+        Some((c.far.1, c.changes))
     }
 }
 
@@ -606,12 +615,14 @@ pub fn continue_branch<T: Real>(
     let mut held: HeldCluster<BifEvent<T>> = HeldCluster::new(
         settings.kink_span * s_lambda,
         settings.fold_retreat * s_lambda,
+        value0,
     );
     let fold_positive = |n: &Node<T>| n.e.orbit.floquet.fold_test() > 0.0;
     // Period doublings across jumps of the monodromy, held as folds are.
     let mut held_doubling: HeldCluster<BifEvent<T>> = HeldCluster::new(
         settings.kink_span * s_lambda,
         settings.fold_retreat * s_lambda,
+        value0,
     );
     let doubling_positive = |n: &Node<T>| n.e.orbit.floquet.doubling_test() > 0.0;
     // The fold test's sign where it last held for a span of the parameter (`settled`), and
@@ -775,7 +786,7 @@ pub fn continue_branch<T: Real>(
                             at_jump: true,
                             ..event
                         };
-                        tell_held!(held_doubling.add(event.value, side_a, node.t[2], at_jump));
+                        tell_held!(held_doubling.add(event.value, side_a, at_jump));
                     }
                     continue;
                 }
@@ -790,7 +801,7 @@ pub fn continue_branch<T: Real>(
         });
         for ev in found {
             if ev.kind == EventKind::Fold {
-                tell_held!(held.add(ev.value, settled, node.t[2], ev));
+                tell_held!(held.add(ev.value, settled, ev));
             } else {
                 release_held!(&b);
                 if on_event(&ev).is_break() {
@@ -1007,8 +1018,8 @@ mod tests {
 
     #[test]
     fn a_held_fold_is_told_once_the_branch_is_the_retreat_past_it() {
-        let mut held = HeldCluster::new(1e-5, 1e-2);
-        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
+        let mut held = HeldCluster::new(1e-5, 1e-2, 1.0);
+        assert_eq!(held.add(2.0, true, 'a'), None);
         // Still within the retreat: held.
         assert_eq!(held.release_past(2.0 + 0.5e-2, false), None);
         assert_eq!(held.release_past(2.0 - 0.9e-2, false), None);
@@ -1021,21 +1032,21 @@ mod tests {
 
     #[test]
     fn a_fold_whose_test_changed_sign_back_is_not_told() {
-        let mut held = HeldCluster::new(1e-5, 1e-2);
+        let mut held = HeldCluster::new(1e-5, 1e-2, 1.0);
         // The test positive before the fold and positive again past it.
-        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
+        assert_eq!(held.add(2.0, true, 'a'), None);
         assert_eq!(held.release_past(2.0 - 1.5e-2, true), None);
         assert_eq!(held.release(false), None, "dropped, not held");
         // Released by another event or the branch's end: the same rule.
-        assert_eq!(held.add(2.0, false, 1.0, 'b'), None);
+        assert_eq!(held.add(2.0, false, 'b'), None);
         assert_eq!(held.release(false), None);
-        assert_eq!(held.add(2.0, false, 1.0, 'c'), None);
+        assert_eq!(held.add(2.0, false, 'c'), None);
         assert_eq!(held.release(true), Some(('c', changes(1, [2.0, 2.0]))));
         // A next fold farther than the retreat whose test before it has the sign the held one
         // had before it: the held one's change was undone between them.
-        assert_eq!(held.add(2.0, true, 1.0, 'd'), None);
-        assert_eq!(held.add(2.1, true, 1.0, 'e'), None);
-        let told = held.add(2.2, false, 1.0, 'f');
+        assert_eq!(held.add(2.0, true, 'd'), None);
+        assert_eq!(held.add(2.1, true, 'e'), None);
+        let told = held.add(2.2, false, 'f');
         assert_eq!(told, Some(('e', changes(1, [2.1, 2.1]))));
     }
 
@@ -1043,13 +1054,13 @@ mod tests {
     /// (the fold test changing sign at each turn): one fold, the farthest, with every change.
     #[test]
     fn a_cluster_of_folds_is_one_fold_at_its_farthest() {
-        let mut held = HeldCluster::new(1e-5, 1e-2);
+        let mut held = HeldCluster::new(1e-5, 1e-2, 1.0);
         let turns = [
             1.8233, 1.82349, 1.82361, 1.82359, 1.8279, 1.8277, 1.8275, 1.8264,
         ];
         for (k, v) in turns.into_iter().enumerate() {
             // (The test negative before the cluster.)
-            assert_eq!(held.add(v, false, 1.0, k), None);
+            assert_eq!(held.add(v, false, k), None);
         }
         // Back 0.01 from 1.8279 with the test positive (an odd count of changes): told.
         assert_eq!(held.release_past(1.8200, true), None);
@@ -1057,32 +1068,39 @@ mod tests {
         assert_eq!(told, Some((4, changes(8, [1.8233, 1.8279]))));
         // The same going down: the farthest is the smallest value.
         for (k, v) in [1.5, 1.4995, 1.4998].into_iter().enumerate() {
-            assert_eq!(held.add(v, true, -1.0, k), None);
+            assert_eq!(held.add(v, true, k), None);
         }
         assert_eq!(held.release(false), Some((1, changes(3, [1.4995, 1.5]))));
+        // The farthest the way the branch has come (from its start at 1.0 up), whichever way it
+        // moved at the first change: Lankarani–Nikravesh at 2.4 mm, the upper edge.
+        let mut held = HeldCluster::new(1e-5, 1e-2, 1.0);
+        for (k, v) in [1.79686, 1.79000, 1.79776, 1.79300].into_iter().enumerate() {
+            assert_eq!(held.add(v, false, k), None);
+        }
+        assert_eq!(held.release(true), Some((2, changes(4, [1.79, 1.79776]))));
     }
 
     #[test]
     fn two_folds_that_undo_each_other_are_a_zig_zag_and_neither_is_told() {
-        let mut held = HeldCluster::new(1e-5, 1e-2);
-        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
-        assert_eq!(held.add(2.0 + 0.3e-5, true, 1.0, 'b'), None);
+        let mut held = HeldCluster::new(1e-5, 1e-2, 1.0);
+        assert_eq!(held.add(2.0, true, 'a'), None);
+        assert_eq!(held.add(2.0 + 0.3e-5, true, 'b'), None);
         assert_eq!(held.release(true), None);
         assert_eq!(held.release_past(3.0, true), None);
         // Two folds farther apart than the retreat: the first is told when the second comes,
         // the second held.
-        assert_eq!(held.add(2.0, true, 1.0, 'c'), None);
-        let told = held.add(2.0 + 2e-2, false, -1.0, 'd');
+        assert_eq!(held.add(2.0, true, 'c'), None);
+        let told = held.add(2.0 + 2e-2, false, 'd');
         assert_eq!(told, Some(('c', changes(1, [2.0, 2.0]))));
         assert_eq!(held.release(true), Some(('d', changes(1, [2.02, 2.02]))));
     }
 
     #[test]
     fn a_fold_within_the_kink_span_of_a_stall_is_not_told() {
-        let mut held = HeldCluster::new(1e-5, 1e-2);
-        assert_eq!(held.add(2.0, true, 1.0, 'a'), None);
+        let mut held = HeldCluster::new(1e-5, 1e-2, 1.0);
+        assert_eq!(held.add(2.0, true, 'a'), None);
         assert_eq!(held.release_at_stall(2.0 - 0.5e-5, false), None);
-        assert_eq!(held.add(2.0, true, 1.0, 'b'), None);
+        assert_eq!(held.add(2.0, true, 'b'), None);
         assert_eq!(
             held.release_at_stall(2.0 - 5e-5, false),
             Some(('b', changes(1, [2.0, 2.0])))
