@@ -758,13 +758,20 @@ fn continue_branches(args: &str) -> Vec<serde_json::Value> {
     v.as_array().unwrap().clone()
 }
 
-/// The values of the events of `kind` located on `branch` (one of [`continue_branches`]).
-fn event_values(branch: &serde_json::Value, kind: &str) -> Vec<f64> {
+/// The events of `kind` located on `branch` (one of [`continue_branches`]).
+fn events_of<'b>(branch: &'b serde_json::Value, kind: &str) -> Vec<&'b serde_json::Value> {
     branch["events"]
         .as_array()
         .unwrap()
         .iter()
         .filter(|e| e["kind"] == kind)
+        .collect()
+}
+
+/// The values of the events of `kind` located on `branch` (one of [`continue_branches`]).
+fn event_values(branch: &serde_json::Value, kind: &str) -> Vec<f64> {
+    events_of(branch, kind)
+        .iter()
         .map(|e| e["value"].as_f64().unwrap())
         .collect()
 }
@@ -823,12 +830,7 @@ fn continue_tells_a_fold_over_kinks_once_with_its_changes() {
     let args = "--rig beam-170 --gap-mm 3.0 --omega-ratio 1.35 --range 1.0:2.0 --direction up";
     let ln = format!("{args} --law lankarani-nikravesh");
     let b = continue_branches(&ln).swap_remove(0);
-    let folds: Vec<_> = b["events"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["kind"] == "fold")
-        .collect();
+    let folds = events_of(&b, "fold");
     assert_eq!(folds.len(), 1, "{}", b["events"]);
     let (value, c) = (folds[0]["value"].as_f64().unwrap(), &folds[0]["crossings"]);
     assert!((value - 1.72998).abs() < 1e-4, "{value}");
@@ -842,13 +844,14 @@ fn continue_tells_a_fold_over_kinks_once_with_its_changes() {
         "{text}"
     );
     let b = continue_branches(args).swap_remove(0);
-    let fold = b["events"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["kind"] == "fold")
-        .unwrap_or_else(|| panic!("{}", b["events"]));
-    assert_eq!(fold["crossings"], serde_json::Value::Null, "{fold}");
+    let folds = events_of(&b, "fold");
+    assert_eq!(folds.len(), 1, "{}", b["events"]);
+    assert_eq!(
+        folds[0]["crossings"],
+        serde_json::Value::Null,
+        "{}",
+        folds[0]
+    );
 }
 
 /// Where Newton cannot follow a branch across a jump of the discretised map, `continue` steps
