@@ -24,6 +24,30 @@ use shared::observe::{AttractorCatalogue, Regime};
 /// the default attractor tolerance for `1 − μ > 2e-4`.
 pub const ATTRACTOR_STEADY_TOL: f64 = 1e-6;
 
+/// Most transient periods [`transient_periods`] gives (a start that never recurs runs them all).
+pub const MAX_TRANSIENT_PERIODS: u32 = 10_000;
+
+/// The transient limit of an attractor run whose longest is not given: at least `protocol`
+/// (the protocol's `max_transient_periods`), and as many periods as the suspension's free
+/// oscillation takes to shrink by `steady_tol` at the run's largest Ω/ω
+/// ([`shared::model::RigParams::free_decay_periods`]: a start must forget itself to found
+/// an attractor), rounded up, at most [`MAX_TRANSIENT_PERIODS`]. Undamped: `protocol`.
+///
+/// The beam rig (ζ = 0.004) at Ω/ω 1.6 with the default 1e-6: 880 periods, where the
+/// protocol's 200 leave every start without an attractor.
+pub fn transient_periods(
+    params: &shared::model::RigParams,
+    protocol: u32,
+    omega_ratio_max: f64,
+    steady_tol: f64,
+) -> u32 {
+    let decay = params
+        .free_decay_periods(omega_ratio_max, steady_tol)
+        .unwrap_or(0.0);
+    // `as` saturates; the cap keeps the run bounded for a damping near zero.
+    (decay.ceil() as u32).clamp(protocol, MAX_TRANSIENT_PERIODS.max(protocol))
+}
+
 /// Default tolerance for "same attractor" (scaled): two periodic sets of one regime whose
 /// canonical points lie this close are one attractor.
 pub const ATTRACTOR_TOL: f64 = 0.01;

@@ -105,6 +105,23 @@ fn damped_free_pendulum_follows_the_small_angle_envelope() {
     }
     // Measured: peak times within 6.1e-6, peaks within 2.6e-6 (relative).
     println!("ζ {zeta}: peak times within {worst_t:.1e}, peaks within {worst_x:.1e} (relative)");
+
+    // `free_decay_periods` read against the simulated decay: the periods (of an excitation at
+    // Ω/ω 1.3, none applied here) in which the envelope shrinks from the first peak to the
+    // last, times the period, are the time between those peaks.
+    let (first, last) = (peaks[0], peaks[peaks.len() - 1]);
+    let ratio = 1.3;
+    let periods = p.free_decay_periods(ratio, last.1 / first.1).unwrap();
+    let elapsed = periods * 2.0 * std::f64::consts::PI / (ratio * w);
+    assert!(
+        (elapsed - (last.0 - first.0)).abs() < 5e-5 * (last.0 - first.0),
+        "{elapsed} s against the peaks' {} s",
+        last.0 - first.0
+    );
+    // Undamped, nothing decays; a factor that is not a shrinking has no answer.
+    assert_eq!(RigId::Wires.preset().free_decay_periods(ratio, 0.5), None);
+    assert_eq!(p.free_decay_periods(ratio, 1.5), None);
+    assert_eq!(p.free_decay_periods(f64::NAN, 0.5), None);
 }
 
 #[test]

@@ -74,7 +74,7 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         OMEGA_RATIO_RANGE.1,
     )
     .context("--omega-ratio")?;
-    let (attractor_tol, recurrence) = a.attractors.apply(&mut setup)?;
+    let (attractor_tol, recurrence) = a.attractors.apply(&mut setup, a.omega_ratio)?;
     let grid = BasinsGrid {
         gap_mm: a.gap_mm,
         omega_ratio: a.omega_ratio,

@@ -126,7 +126,8 @@ pub fn run(a: &FractionsArgs) -> Result<()> {
     for &(g, _) in &points {
         setup.gap_m("--gap-mm", g)?;
     }
-    let (attractor_tol, recurrence) = a.attractors.apply(&mut setup)?;
+    let ratio_max = points.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    let (attractor_tol, recurrence) = a.attractors.apply(&mut setup, ratio_max)?;
     if !(1..=MAX_SAMPLES).contains(&a.samples) {
         bail!(
             "--samples {}: out of range: allowed 1 ..= {MAX_SAMPLES}",

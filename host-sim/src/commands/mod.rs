@@ -10,7 +10,9 @@ use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 use shared::observe::RecurrenceSettings;
 
-use crate::attractors::{ATTRACTOR_STEADY_TOL, ATTRACTOR_TOL};
+use crate::attractors::{
+    ATTRACTOR_STEADY_TOL, ATTRACTOR_TOL, MAX_TRANSIENT_PERIODS, transient_periods,
+};
 use crate::config::{Setup, parse_sweep};
 use crate::figures::{
     self,
@@ -186,9 +188,11 @@ pub struct AttractorOpts {
     /// Periods in a row on a catalogued attractor that assign a trajectory to it (1 ..= 10000).
     #[arg(long, default_value_t = RecurrenceSettings::default().confirm)]
     pub confirm: u32,
-    /// Longest transient, periods (1 ..= 1000000; the protocol's max_transient_periods: a
-    /// trajectory that has not recurred by then and whose window does not repeat counts as
-    /// never recurrent).
+    /// Longest transient, periods (1 ..= 1000000): a trajectory that has not recurred by then
+    /// and whose window does not repeat counts as never recurrent. Default: the protocol's
+    /// max_transient_periods (200), or, on a damped suspension, the periods its free
+    /// oscillation takes to shrink by --steady-tol at the run's largest Ω/ω if more (at most
+    /// 10000; the beam rig at Ω/ω 1.6: 880).
     #[arg(long)]
     pub max_periods: Option<u32>,
     /// Steady-state tolerance that ends a transient, scaled (1e-9 ..= 1; the other commands'
@@ -201,12 +205,18 @@ pub struct AttractorOpts {
 }
 
 impl AttractorOpts {
-    /// Checks the options, applies --max-periods to `setup`, and returns the attractor
+    /// Checks the options, applies --max-periods (or the default for a run whose largest Ω/ω
+    /// is `omega_ratio_max`, [`crate::attractors::transient_periods`], said on stderr where it
+    /// exceeds the protocol's) and --steady-tol to `setup`, and returns the attractor
     /// tolerance and the recurrence settings.
     ///
     /// # Errors
     /// A value out of range, naming the flag and the range.
-    pub fn apply(&self, setup: &mut Setup) -> Result<(f64, RecurrenceSettings)> {
+    pub fn apply(
+        &self,
+        setup: &mut Setup,
+        omega_ratio_max: f64,
+    ) -> Result<(f64, RecurrenceSettings)> {
         check_range("attractor_tol", self.attractor_tol, 1e-6, 1.0).context("--attractor-tol")?;
         let rec = RecurrenceSettings {
             tol: self.recurrence_tol,
@@ -228,6 +238,35 @@ impl AttractorOpts {
         }
         setup.settings.protocol.steady_tol = self.steady_tol;
         setup.settings.protocol.validate().context("--steady-tol")?;
+        if self.max_periods.is_none() {
+            let protocol = &mut setup.settings.protocol;
+            let n = transient_periods(
+                &setup.params,
+                protocol.max_transient_periods,
+                omega_ratio_max,
+                self.steady_tol,
+            );
+            if n > protocol.max_transient_periods {
+                let cap = if n == MAX_TRANSIENT_PERIODS {
+                    " (the default's cap)"
+                } else {
+                    ""
+                };
+                eprintln!(
+                    "transient up to {n} periods{cap}: the suspension's free oscillation \
+                     (ζ = {}) shrinks by --steady-tol {:e} in {} periods at Ω/ω \
+                     {omega_ratio_max} (--max-periods to set it)",
+                    setup.params.damping_ratio(),
+                    self.steady_tol,
+                    setup
+                        .params
+                        .free_decay_periods(omega_ratio_max, self.steady_tol)
+                        .unwrap_or(f64::INFINITY)
+                        .ceil()
+                );
+                protocol.max_transient_periods = n;
+            }
+        }
         Ok((self.attractor_tol, rec))
     }
 }

@@ -333,6 +333,29 @@ impl RigParams {
     pub fn ratio_from_freq_hz(&self, freq_hz: f64) -> f64 {
         freq_hz / self.natural_freq_hz()
     }
+
+    /// Excitation periods `2π/Ω` (at `omega_ratio` Ω/ω) the suspension's free oscillation takes
+    /// to shrink by the factor `by` (`0 < by < 1`): `ln(1/by) / (σ 2π/Ω)` with the envelope
+    /// `e^{−σ t}` of the linearised free oscillation `ü + 2ζω u̇ + ω² u = 0` (Eq. 3-26 at small
+    /// angles with the project's pendulum damping, Eq. 3-34 without its cubic term), `σ = ζω`
+    /// when underdamped and `ω (ζ − sqrt(ζ² − 1))`, the slower mode, when not: how long a start
+    /// takes to forget itself while it does not touch the surface.
+    ///
+    /// `None` without damping (`ζ = 0`: the free oscillation never decays) or for `by` or
+    /// `omega_ratio` outside their ranges (`0 < by < 1`, `omega_ratio > 0`, finite).
+    pub fn free_decay_periods(&self, omega_ratio: f64, by: f64) -> Option<f64> {
+        let zeta = self.damping_ratio();
+        if !(zeta > 0.0 && by > 0.0 && by < 1.0 && omega_ratio > 0.0 && omega_ratio.is_finite()) {
+            return None;
+        }
+        // Per unit of ω t; the period is 2π/Ω = (2π/ω) / omega_ratio.
+        let rate = if zeta <= 1.0 {
+            zeta
+        } else {
+            zeta - libm::sqrt(zeta * zeta - 1.0)
+        };
+        Some(libm::log(1.0 / by) * omega_ratio / (2.0 * core::f64::consts::PI * rate))
+    }
 }
 
 #[cfg(test)]
