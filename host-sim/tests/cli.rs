@@ -550,6 +550,46 @@ fn config_file_overrides_parameters() {
     assert_ne!(base, over);
 }
 
+/// The run's log is one timeline: commands, state changes and faults in the order of rig
+/// time (the sensor-open scenario: a fault at 15 s between two starts, docs/virtual-rig.md).
+#[test]
+fn hil_logs_commands_states_and_faults_in_the_order_of_rig_time() {
+    let scenario = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../docs/scenarios/sensor-open.toml"
+    );
+    let stdout = ok(&line(&format!(
+        "hil --rig wires --gap-mm 0 --seconds 30 --scenario {scenario}"
+    )));
+    let log: Vec<(f64, &str)> = stdout
+        .lines()
+        .filter_map(|l| {
+            let (t, rest) = l.strip_prefix('[')?.split_once(" s] ")?;
+            Some((t.trim().parse().unwrap(), rest))
+        })
+        .collect();
+    let events: Vec<&str> = log.iter().map(|e| e.1).collect();
+    assert_eq!(
+        events,
+        [
+            "state idle",
+            "> start",
+            "state ramp",
+            "state track",
+            "state fault",
+            "FAULT sensor-open",
+            "> clear",
+            "state idle",
+            "> start",
+            "state ramp",
+            "state track"
+        ],
+        "{stdout}"
+    );
+    assert!(log.windows(2).all(|w| w[0].0 <= w[1].0), "{stdout}");
+    assert_eq!((log[1].0, log[5].0 > 15.0, log[6].0), (1.0, true, 25.0));
+}
+
 #[test]
 fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
     let dir = tempfile::tempdir().unwrap();

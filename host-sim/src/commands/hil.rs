@@ -137,14 +137,26 @@ pub fn run(a: &HilArgs) -> Result<()> {
             p.target_hz, p.band_hz[0], p.band_hz[1], p.impact_force_mg, p.impact_force_n
         );
     }
-    for c in &r.console {
-        println!("[{:8.3} s] > {}\n             {}", c.t_s, c.line, c.reply);
-    }
-    for (t, s) in &r.states {
-        println!("[{t:8.3} s] state {}", s.token());
-    }
-    for (t, f) in &r.faults {
-        println!("[{t:8.3} s] FAULT {}", f.token());
+    // One timeline: the commands with their replies, the state changes and the faults in the
+    // order of rig time (a sort that keeps that order among records at one time).
+    let mut log: Vec<(f64, String)> = r
+        .console
+        .iter()
+        .map(|c| (c.t_s, format!("> {}\n             {}", c.line, c.reply)))
+        .chain(
+            r.states
+                .iter()
+                .map(|(t, s)| (*t, format!("state {}", s.token()))),
+        )
+        .chain(
+            r.faults
+                .iter()
+                .map(|(t, f)| (*t, format!("FAULT {}", f.token()))),
+        )
+        .collect();
+    log.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (t, line) in &log {
+        println!("[{t:8.3} s] {line}");
     }
     println!("final: {}", r.status);
     write_outputs(a, &r, actual, force_limit, csv.as_deref(), png.as_deref())?;
