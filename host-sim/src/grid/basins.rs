@@ -277,7 +277,7 @@ impl Attractors<'_> {
         let scales = Self::scales(&setup.params, self.omega_ratio);
         let grid_tol = self.catalogue.attractor_tol();
         // Without damping a non-impacting motion is conservative and attracts nothing.
-        let damped = setup.params.damping_ratio() > 0.0;
+        let conservative = setup.params.free_flight_conservative();
         in_order(ics.len(), |emit| {
             run_interleaved_native::<T, Watch<'_>, _, _, _>(
                 ics.iter().copied(),
@@ -321,7 +321,7 @@ impl Attractors<'_> {
                                 None => None,
                             };
                             let set = known.or_else(|| {
-                                if !damped && !r.regime.impacts() {
+                                if conservative && !r.regime.impacts() {
                                     row.recurrence = Recurrence::Neutral;
                                     return None;
                                 }

@@ -244,6 +244,16 @@ impl RigParams {
         }
     }
 
+    /// Whether the hammer's free flight conserves area on the stroboscopic map: no damping in
+    /// the suspension (`ζ = 0`, the thesis' wire rig), so that the field's divergence, its
+    /// damping term alone (Eq. 3-26 and 3-34 with the project's `−2ζω θ̇`, docs/model.md), is
+    /// zero and by Liouville's formula `det M = exp(∫ div f dt) = 1` along any motion that
+    /// never touches the surface. Such a motion attracts nothing: its multipliers are a pair
+    /// `μ, 1/μ` or a complex pair on the unit circle.
+    pub fn free_flight_conservative(&self) -> bool {
+        self.damping_ratio() == 0.0
+    }
+
     /// These parameters with the suspension's damping ratio set to `zeta` (unchecked:
     /// [`RigParams::validate`] checks it).
     pub fn with_damping_ratio(&self, zeta: f64) -> RigParams {

@@ -103,15 +103,12 @@ impl<T: Real> Orbit<T> {
     }
 
     /// Whether the orbit is conservative: no contact force anywhere along it, on a suspension
-    /// without damping (`ζ = 0`, the thesis' wire rig). Its flow is then the free flight's,
-    /// whose divergence is zero (the damping is the field's only term in the velocity, Eq.
-    /// 3-26 and 3-34 with the project's `−2ζω θ̇`, docs/model.md), so by Liouville's
-    /// formula `det M = exp(∫ div f dt) = 1`: the map preserves area and the multipliers are a
-    /// pair `μ, 1/μ` or a complex pair on the unit circle, whatever the parameters. The
-    /// computed `det M` differs from 1 only by the integrator's error (RK4's, and f32's
-    /// rounding).
+    /// whose free flight conserves area ([`crate::model::RigParams::free_flight_conservative`]):
+    /// the multipliers are then a pair `μ, 1/μ` or a complex pair on the unit circle, whatever
+    /// the parameters. The computed `det M` differs from 1 only by the integrator's error
+    /// (RK4's, and f32's rounding).
     pub fn conservative(&self) -> bool {
-        self.at.params.damping_ratio() == 0.0
+        self.at.params.free_flight_conservative()
             && self.trace.impacts == 0
             && self.trace.max_force_n == 0.0
     }
