@@ -21,8 +21,8 @@ use crate::orbits::CurveOut;
 use crate::shard::{open_csv, title_prefix};
 
 use super::{
-    Chart, Frame, SANS, canvas, level_line, panel, regime_class, regime_classes, regime_color,
-    series_legend,
+    Chart, Frame, LEGEND_CORNERS, LegendCover, SANS, canvas, least_covered, legend_size,
+    level_line, line_key, panel, regime_class, regime_classes, regime_color, series_legend,
 };
 
 /// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
@@ -701,6 +701,9 @@ pub fn branch_color(branch: &str) -> RGBColor {
     }
 }
 
+/// Font size of the bifurcation diagram's legend, px.
+const BIF_LEGEND_PX: u32 = 14;
+
 /// Axis spans of a bifurcation diagram.
 #[derive(Debug, Clone, Copy)]
 pub struct BifRanges {
@@ -735,24 +738,9 @@ pub fn bifurcation(
     let (x0, x1) = pad(ranges.x);
     let (u0, u1) = pad((ranges.u.0.min(gap_mm), ranges.u.1.max(gap_mm)));
     let mut ct = panel(&top, BIF_TOP, x0..x1, u0..u1, ("Ω/ω", "Poincaré u (mm)"))?;
-    level_line(
-        &mut ct,
-        (x0, x1),
-        gap_mm,
-        BLACK.mix(0.4),
-        format!("impact surface u = gap = {gap_mm} mm"),
-    )?;
-    for b in branches {
-        let c = branch_color(b);
-        let name = match *b {
-            "up" => "continuation, Ω increasing",
-            "down" => "continuation, Ω decreasing",
-            _ => "from rest at each Ω",
-        };
-        ct.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-            .label(name)
-            .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
-    }
+    let surface = format!("impact surface u = gap = {gap_mm} mm");
+    let surface_style = BLACK.mix(0.4);
+    level_line(&mut ct, (x0, x1), gap_mm, surface_style, surface.clone())?;
     let mut cb = panel(
         &bottom,
         BIF_BOTTOM,
@@ -760,19 +748,56 @@ pub fn bifurcation(
         0.0..(ranges.force_max * 1.06).max(1.0),
         ("Ω/ω", "impact peak F_i/mg"),
     )?;
+    let names: Vec<(&str, &str)> = branches
+        .iter()
+        .map(|&b| {
+            let name = match b {
+                "up" => "continuation, Ω increasing",
+                "down" => "continuation, Ω decreasing",
+                _ => "from rest at each Ω",
+            };
+            (b, name)
+        })
+        .collect();
+    // The legend in the corner of either panel where it covers the fewest dots (the top
+    // panel's upper left where that covers none).
+    let labels: Vec<String> = std::iter::once(surface)
+        .chain(names.iter().map(|n| n.1.to_string()))
+        .collect();
+    let size = legend_size(&labels, BIF_LEGEND_PX)?;
+    let mut covers = [LegendCover::new(&ct, size), LegendCover::new(&cb, size)];
+    covers[0].line([(x0, gap_mm), (x1, gap_mm)]);
     feed(&mut |branch: &str, dot: BifDot| {
         let c = branch_color(branch).mix(0.75).filled();
         match dot {
             BifDot::Strobe(x, u) => {
                 ct.draw_series([Circle::new((x, u), 1, c)])?;
+                covers[0].dots([(x, u)]);
             }
             BifDot::Impact(x, f) => {
                 cb.draw_series([Circle::new((x, f), 1, c)])?;
+                covers[1].dots([(x, f)]);
             }
         }
         Ok(())
     })?;
-    series_legend(&mut ct, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    let (panel_at, corner) = least_covered(&covers);
+    let chart = if panel_at == 0 { &mut ct } else { &mut cb };
+    if panel_at == 1 {
+        // The surface's key goes with the legend; its line stays in the top panel.
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(&labels[0])
+            .legend(line_key(surface_style));
+    }
+    for (b, name) in names {
+        let c = branch_color(b);
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label(name)
+            .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
+    }
+    series_legend(chart, Some(LEGEND_CORNERS[corner].clone()), BIF_LEGEND_PX)?;
     root.present()?;
     Ok(())
 }

@@ -185,7 +185,7 @@ pub(crate) fn series_legend<'a, 'b: 'a, CT: plotters::coord::CoordTranslate>(
     Ok(())
 }
 
-/// The corners a legend may take ([`legend_cover`]), in the order taken when they cover as much.
+/// The corners a legend may take ([`least_covered`]), in the order taken when they cover as much.
 pub(crate) const LEGEND_CORNERS: [SeriesLabelPosition; 4] = [
     SeriesLabelPosition::UpperLeft,
     SeriesLabelPosition::UpperRight,
@@ -292,9 +292,20 @@ impl LegendCover {
     }
 
     /// The points covered at each of [`LEGEND_CORNERS`].
+    #[cfg(test)]
     pub(crate) fn counts(&self) -> [usize; 4] {
         self.counts
     }
+}
+
+/// Where a legend covers the least of its figure's data: `(panel, corner)`, the index of the
+/// panel's cover in `covers` and of the corner in [`LEGEND_CORNERS`]; on a tie the first panel,
+/// then the first corner (the upper left).
+pub(crate) fn least_covered(covers: &[LegendCover]) -> (usize, usize) {
+    (0..covers.len())
+        .flat_map(|p| (0..LEGEND_CORNERS.len()).map(move |c| (p, c)))
+        .min_by_key(|&(p, c)| covers[p].counts[c])
+        .unwrap_or((0, 0))
 }
 
 /// Colours of the named regimes, in legend order: `1/1` red and `1/2` green (the thesis' Peterka
@@ -390,5 +401,15 @@ mod tests {
         // The segment, 200 px long, in 50 pieces of 4 px: 57 px of it (t 0.31–0.59) lie within
         // 6 px of the box, the ends of 14 pieces.
         assert!((13..=15).contains(&lr), "{lr}");
+
+        // Two panels: the first panel's upper left on a tie, else the fewest covered anywhere.
+        let empty = || LegendCover::new(&chart, (100, 60));
+        assert_eq!(least_covered(&[empty(), empty()]), (0, 0));
+        // `cover` is covered at its upper left and lower right only: its upper right wins.
+        assert_eq!(least_covered(&[cover, empty()]), (0, 1));
+        let (mut first, mut second) = (empty(), empty());
+        first.dots([(0.1, 0.9), (0.9, 0.9), (0.1, 0.1), (0.9, 0.1)]);
+        second.dots([(0.1, 0.9)]);
+        assert_eq!(least_covered(&[first, second]), (1, 1));
     }
 }

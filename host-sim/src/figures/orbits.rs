@@ -12,7 +12,7 @@ use shared::observe::Regime;
 use shared::orbit::{Param, Stability};
 
 use super::{
-    Chart, Frame, LEGEND_CORNERS, LegendCover, canvas, legend_size, line_key, panel,
+    Chart, Frame, LEGEND_CORNERS, LegendCover, canvas, least_covered, legend_size, line_key, panel,
     regime_classes, regime_color, series_legend,
 };
 use crate::orbits::{BranchOut, OrbitReport, param_value};
@@ -336,11 +336,7 @@ pub fn branches(
         top_cover.dots(e.orbit.section.iter().map(|s| (e.value, s[0])));
         bottom_cover.dots([(e.value, e.orbit.impact_force_mg)]);
     }
-    let covers = [top_cover.counts(), bottom_cover.counts()];
-    let (panel_at, corner) = (0..2)
-        .flat_map(|p| (0..LEGEND_CORNERS.len()).map(move |c| (p, c)))
-        .min_by_key(|&(p, c)| covers[p][c])
-        .unwrap_or((0, 0));
+    let (panel_at, corner) = least_covered(&[top_cover, bottom_cover]);
     let chart = if panel_at == 0 { &mut ct } else { &mut cb };
     for (label, key) in legend {
         let entry = chart

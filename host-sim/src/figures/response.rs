@@ -15,9 +15,14 @@ use shared::observe::PointResult;
 use crate::config::Setup;
 
 use super::{
-    Chart, Frame, SANS, canvas, level_line, line_key, panel, regime_classes, series_legend,
-    swatch_key,
+    Chart, Frame, LEGEND_CORNERS, LegendCover, SANS, canvas, least_covered, legend_size,
+    level_line, line_key, panel, regime_classes, series_legend, swatch_key,
 };
+
+/// Font size of the response figure's legend, px.
+const RESPONSE_LEGEND_PX: u32 = 14;
+/// The legend's entries of a [`Highlight`]'s band and window.
+const HIGHLIGHT_LABELS: [&str; 2] = ["z = 1/1 band", "±margin window"];
 
 /// The time-series figure's three stacked panels.
 const STACKED: Frame = Frame::new(10, 35, 60, 14);
@@ -114,8 +119,8 @@ pub fn response(
         let red = RGBColor(215, 25, 28);
         let blue = RGBColor(43, 131, 186);
         for (x, color, fill, key, label) in [
-            (h.band, red, 0.08, 0.2, "z = 1/1 band"),
-            (h.window, blue, 0.15, 0.3, "±margin window"),
+            (h.band, red, 0.08, 0.2, HIGHLIGHT_LABELS[0]),
+            (h.window, blue, 0.15, 0.3, HIGHLIGHT_LABELS[1]),
         ] {
             chart
                 .draw_series([Rectangle::new(
@@ -130,26 +135,51 @@ pub fn response(
         pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg)),
         RGBColor(120, 120, 120).stroke_width(1),
     ))?;
-    for (name, c) in regime_classes(pts.iter().map(|p| p.regime)) {
+    let classes = regime_classes(pts.iter().map(|p| p.regime));
+    for (name, c) in &classes {
+        let c = *c;
         chart
             .draw_series(
                 pts.iter()
-                    .filter(|p| super::regime_class(p.regime).1 == name)
+                    .filter(|p| super::regime_class(p.regime).1 == *name)
                     .map(|p| Circle::new((p.omega_ratio, p.impact_force_mg), 3, c.filled())),
             )?
             .label(name)
             .legend(move |(x, y)| Circle::new((x + 7, y), 4, c.filled()));
     }
-    if let Some(h) = highlight {
-        chart
-            .draw_series([Cross::new(h.chosen, 9, BLACK.stroke_width(3))])?
-            .label(format!(
+    let chosen = highlight.map(|h| {
+        (
+            h.chosen,
+            format!(
                 "chosen: Ω/ω = {:.2}, F_i/mg = {:.1}",
                 h.chosen.0, h.chosen.1
-            ))
+            ),
+        )
+    });
+    if let Some((at, label)) = &chosen {
+        chart
+            .draw_series([Cross::new(*at, 9, BLACK.stroke_width(3))])?
+            .label(label)
             .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
     }
-    series_legend(&mut chart, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    // The legend in the corner where it covers the fewest points of the response (the upper
+    // left where that covers none).
+    let labels: Vec<String> = highlight
+        .iter()
+        .flat_map(|_| HIGHLIGHT_LABELS.map(String::from))
+        .chain(classes.into_iter().map(|c| c.0))
+        .chain(chosen.iter().map(|c| c.1.clone()))
+        .collect();
+    let mut cover = LegendCover::new(&chart, legend_size(&labels, RESPONSE_LEGEND_PX)?);
+    let xy = || pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg));
+    cover.line(xy());
+    cover.dots(xy().chain(chosen.iter().map(|c| c.0)));
+    let (_, corner) = least_covered(&[cover]);
+    series_legend(
+        &mut chart,
+        Some(LEGEND_CORNERS[corner].clone()),
+        RESPONSE_LEGEND_PX,
+    )?;
     root.present()?;
     Ok(())
 }
