@@ -298,6 +298,23 @@ impl LegendCover {
     }
 }
 
+/// The corner of one panel's `chart` ([`LEGEND_CORNERS`]) where the legend of `labels` at
+/// `font_size` px covers the least of the data `fill` adds to its cover (the upper left on a
+/// tie).
+///
+/// # Errors
+/// Font errors.
+pub(crate) fn legend_corner(
+    chart: &Chart<'_, '_>,
+    labels: &[String],
+    font_size: u32,
+    fill: impl FnOnce(&mut LegendCover),
+) -> Result<SeriesLabelPosition> {
+    let mut cover = LegendCover::new(chart, legend_size(labels, font_size)?);
+    fill(&mut cover);
+    Ok(LEGEND_CORNERS[least_covered(&[cover]).1].clone())
+}
+
 /// Where a legend covers the least of its figure's data: `(panel, corner)`, the index of the
 /// panel's cover in `covers` and of the corner in [`LEGEND_CORNERS`]; on a tie the first panel,
 /// then the first corner (the upper left).

@@ -15,12 +15,14 @@ use shared::observe::PointResult;
 use crate::config::Setup;
 
 use super::{
-    Chart, Frame, LEGEND_CORNERS, LegendCover, SANS, canvas, least_covered, legend_size,
-    level_line, line_key, panel, regime_classes, series_legend, swatch_key,
+    Chart, Frame, SANS, canvas, legend_corner, level_line, line_key, panel, regime_classes,
+    series_legend, swatch_key,
 };
 
 /// Font size of the response figure's legend, px.
-const RESPONSE_LEGEND_PX: u32 = 14;
+const LEGEND_PX: u32 = 14;
+/// Font size of the time series' legends, px.
+const STACKED_LEGEND_PX: u32 = 13;
 /// The legend's entries of a [`Highlight`]'s band and window.
 const HIGHLIGHT_LABELS: [&str; 2] = ["z = 1/1 band", "±margin window"];
 
@@ -170,16 +172,12 @@ pub fn response(
         .chain(classes.into_iter().map(|c| c.0))
         .chain(chosen.iter().map(|c| c.1.clone()))
         .collect();
-    let mut cover = LegendCover::new(&chart, legend_size(&labels, RESPONSE_LEGEND_PX)?);
     let xy = || pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg));
-    cover.line(xy());
-    cover.dots(xy().chain(chosen.iter().map(|c| c.0)));
-    let (_, corner) = least_covered(&[cover]);
-    series_legend(
-        &mut chart,
-        Some(LEGEND_CORNERS[corner].clone()),
-        RESPONSE_LEGEND_PX,
-    )?;
+    let corner = legend_corner(&chart, &labels, LEGEND_PX, |cover| {
+        cover.line(xy());
+        cover.dots(xy().chain(chosen.iter().map(|c| c.0)));
+    })?;
+    series_legend(&mut chart, Some(corner), LEGEND_PX)?;
     root.present()?;
     Ok(())
 }
@@ -331,23 +329,27 @@ pub fn time_series(
         ylo..yhi,
         ("t (s)", "displacement (mm)"),
     )?;
-    c.draw_series(LineSeries::new(ts.iter().map(|p| (p.t_s, p.u_mm)), BLUE))?
-        .label("u (relative to cart)")
-        .legend(line_key(BLUE));
-    c.draw_series(LineSeries::new(
-        ts.iter().map(|p| (p.t_s, p.x_mm)),
-        RGBColor(220, 120, 0),
-    ))?
-    .label("x (absolute)")
-    .legend(line_key(RGBColor(220, 120, 0)));
-    level_line(
-        &mut c,
-        (t0, t1),
-        gap_mm,
-        BLACK.mix(0.5),
+    let labels = [
+        "u (relative to cart)",
+        "x (absolute)",
         "impact surface (u = gap)",
-    )?;
-    series_legend(&mut c, None, 13)?;
+    ];
+    let u = || ts.iter().map(|p| (p.t_s, p.u_mm));
+    let x = || ts.iter().map(|p| (p.t_s, p.x_mm));
+    c.draw_series(LineSeries::new(u(), BLUE))?
+        .label(labels[0])
+        .legend(line_key(BLUE));
+    c.draw_series(LineSeries::new(x(), RGBColor(220, 120, 0)))?
+        .label(labels[1])
+        .legend(line_key(RGBColor(220, 120, 0)));
+    level_line(&mut c, (t0, t1), gap_mm, BLACK.mix(0.5), labels[2])?;
+    // Each legend where it covers the least of its panel's curves.
+    let corner = legend_corner(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
+        cover.line(u());
+        cover.line(x());
+        cover.line([(t0, gap_mm), (t1, gap_mm)]);
+    })?;
+    series_legend(&mut c, Some(corner), STACKED_LEGEND_PX)?;
 
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;
     let mut c = panel(
@@ -368,20 +370,23 @@ pub fn time_series(
         vlo..vhi,
         ("u (mm)", "u̇ (mm/s)"),
     )?;
-    c.draw_series(LineSeries::new(
-        ts.iter().map(|p| (p.u_mm, p.du_mm_s)),
-        BLUE.mix(0.6),
-    ))?
-    .label("phase plane")
-    .legend(line_key(BLUE));
+    let labels = ["phase plane", "Poincaré section (t = kT)"];
+    let phase = || ts.iter().map(|p| (p.u_mm, p.du_mm_s));
+    c.draw_series(LineSeries::new(phase(), BLUE.mix(0.6)))?
+        .label(labels[0])
+        .legend(line_key(BLUE));
     c.draw_series(
         strobes
             .iter()
             .map(|&(u, v)| Circle::new((u, v), 4, RED.filled())),
     )?
-    .label("Poincaré section (t = kT)")
+    .label(labels[1])
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    series_legend(&mut c, None, 13)?;
+    let corner = legend_corner(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
+        cover.line(phase());
+        cover.dots(strobes.iter().copied());
+    })?;
+    series_legend(&mut c, Some(corner), STACKED_LEGEND_PX)?;
     root.present()?;
     Ok(())
 }
