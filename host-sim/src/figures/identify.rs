@@ -7,7 +7,9 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
-use super::{Chart, Frame, SANS, canvas, labelled_line, line_key, panel, series_legend};
+use super::{
+    Chart, Frame, SANS, canvas, labelled_line, legend_place, line_key, panel, series_legend,
+};
 use crate::comparison::{ResponseOverlay, TsOverlay};
 use crate::identify::cost::SimDrop;
 use crate::identify::data::DropData;
@@ -15,6 +17,10 @@ use crate::identify::fit::Fit;
 
 /// The time-series comparison's panels.
 const TRACE: Frame = Frame::new(12, 40, 60, 14);
+/// Font size of the drop figure's legends, px.
+const LEGEND_PX: u32 = 14;
+/// Font size of the time-series comparison's legends, px.
+const TRACE_LEGEND_PX: u32 = 13;
 
 /// Colour of a contact law's curves.
 pub fn law_color(name: &str) -> RGBColor {
@@ -97,26 +103,37 @@ fn drop_panel(
         env.push((t[chunk[0]], lo));
         env.push((t[chunk[0]], hi));
     }
-    c.draw_series(LineSeries::new(env, RGBColor(90, 90, 90)))?
-        .label("measured (offset removed)")
+    let mut labels = vec!["measured (offset removed)".to_string()];
+    c.draw_series(LineSeries::new(env.iter().copied(), RGBColor(90, 90, 90)))?
+        .label(&labels[0])
         .legend(line_key(RGBColor(90, 90, 90)));
+    let mut simulated: Vec<Vec<(f64, f64)>> = Vec::new();
     for (name, fit) in fits {
         let Some(s0) = fit.impacts.first() else {
             continue;
         };
         let shift = m0 - s0.centroid_s;
         let col = law_color(name);
-        c.draw_series(LineSeries::new(
-            fit.samples
-                .iter()
-                .map(|&(ts, fs)| (ts + shift, fs))
-                .filter(|p| p.0 >= t0 && p.0 <= t1),
-            col.stroke_width(1),
-        ))?
-        .label(format!("simulated, {name}"))
-        .legend(line_key(col.stroke_width(2)));
+        let line: Vec<(f64, f64)> = fit
+            .samples
+            .iter()
+            .map(|&(ts, fs)| (ts + shift, fs))
+            .filter(|p| p.0 >= t0 && p.0 <= t1)
+            .collect();
+        labels.push(format!("simulated, {name}"));
+        c.draw_series(LineSeries::new(line.iter().copied(), col.stroke_width(1)))?
+            .label(&labels[labels.len() - 1])
+            .legend(line_key(col.stroke_width(2)));
+        simulated.push(line);
     }
-    series_legend(&mut c, Some(SeriesLabelPosition::UpperRight), 14)?;
+    // The legend where it covers the least of the traces (between the impacts, as a rule).
+    let place = legend_place(&c, &labels, LEGEND_PX, |cover| {
+        cover.line(env);
+        for line in simulated {
+            cover.line(line);
+        }
+    })?;
+    series_legend(&mut c, Some(place), LEGEND_PX)?;
 
     let shown: Vec<_> = data.impacts.iter().take(4).collect();
     let panels = bottom.split_evenly((1, shown.len().max(1)));
@@ -265,42 +282,45 @@ pub fn time_series_compare(path: &Path, title: &str, summary: &str, o: &TsOverla
         xlo..xhi,
         ("t (s)", "absolute displacement x (mm)"),
     )?;
-    labelled_line(
-        &mut c,
-        o.measured.iter().map(|p| (p.0, p.1)),
-        BLACK,
-        "measured",
-    )?;
-    labelled_line(
-        &mut c,
-        o.sim.iter().map(|p| (p.0, p.1)),
-        BLUE.stroke_width(2),
-        "simulated",
-    )?;
-    series_legend(&mut c, None, 13)?;
+    let labels = ["measured", "simulated"];
+    let measured = || o.measured.iter().map(|p| (p.0, p.1));
+    let sim = || o.sim.iter().map(|p| (p.0, p.1));
+    labelled_line(&mut c, measured(), BLACK, labels[0])?;
+    labelled_line(&mut c, sim(), BLUE.stroke_width(2), labels[1])?;
+    // Each legend where it covers the least of its panel's curves.
+    let place = legend_place(&c, &labels.map(String::from), TRACE_LEGEND_PX, |cover| {
+        cover.line(measured());
+        cover.line(sim());
+    })?;
+    series_legend(&mut c, Some(place), TRACE_LEGEND_PX)?;
     let (vlo, vhi) = span(&mut o.measured.iter().chain(&o.sim).map(|p| p.2));
     let mut c = panel(&bottom, TRACE, xlo..xhi, vlo..vhi, ("x (mm)", "ẋ (mm/s)"))?;
-    labelled_line(
-        &mut c,
-        o.measured.iter().map(|p| (p.1, p.2)),
-        BLACK.mix(0.5),
+    let labels = [
         "measured phase plane",
-    )?;
-    c.draw_series(LineSeries::new(
-        o.sim.iter().map(|p| (p.1, p.2)),
-        BLUE.mix(0.7),
-    ))?
-    .label("simulated phase plane")
-    .legend(line_key(BLUE));
-    measured_crosses(&mut c, &o.strobe_measured, "measured Poincaré (t = kT)")?;
+        "simulated phase plane",
+        "measured Poincaré (t = kT)",
+        "simulated Poincaré (t = kT)",
+    ];
+    let measured = || o.measured.iter().map(|p| (p.1, p.2));
+    let sim = || o.sim.iter().map(|p| (p.1, p.2));
+    labelled_line(&mut c, measured(), BLACK.mix(0.5), labels[0])?;
+    c.draw_series(LineSeries::new(sim(), BLUE.mix(0.7)))?
+        .label(labels[1])
+        .legend(line_key(BLUE));
+    measured_crosses(&mut c, &o.strobe_measured, labels[2])?;
     c.draw_series(
         o.strobe_sim
             .iter()
             .map(|&p| Circle::new(p, 4, RED.filled())),
     )?
-    .label("simulated Poincaré (t = kT)")
+    .label(labels[3])
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    series_legend(&mut c, None, 13)?;
+    let place = legend_place(&c, &labels.map(String::from), TRACE_LEGEND_PX, |cover| {
+        cover.line(measured());
+        cover.line(sim());
+        cover.dots(o.strobe_measured.iter().chain(&o.strobe_sim).copied());
+    })?;
+    series_legend(&mut c, Some(place), TRACE_LEGEND_PX)?;
     root.present()?;
     Ok(())
 }

@@ -21,8 +21,8 @@ use crate::orbits::CurveOut;
 use crate::shard::{open_csv, title_prefix};
 
 use super::{
-    Chart, Frame, LEGEND_CORNERS, LegendCover, SANS, canvas, least_covered, legend_size,
-    level_line, line_key, panel, regime_class, regime_classes, regime_color, series_legend,
+    Chart, Frame, LEGEND_PLACES, LegendCover, SANS, canvas, least_covered, legend_size, level_line,
+    line_key, panel, regime_class, regime_classes, regime_color, series_legend,
 };
 
 /// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
@@ -759,7 +759,7 @@ pub fn bifurcation(
             (b, name)
         })
         .collect();
-    // The legend in the corner of either panel where it covers the fewest dots (the top
+    // The legend where it covers the fewest dots, in either panel (the top
     // panel's upper left where that covers none).
     let labels: Vec<String> = std::iter::once(surface)
         .chain(names.iter().map(|n| n.1.to_string()))
@@ -781,7 +781,7 @@ pub fn bifurcation(
         }
         Ok(())
     })?;
-    let (panel_at, corner) = least_covered(&covers);
+    let (panel_at, place) = least_covered(&covers);
     let chart = if panel_at == 0 { &mut ct } else { &mut cb };
     if panel_at == 1 {
         // The surface's key goes with the legend; its line stays in the top panel.
@@ -797,7 +797,7 @@ pub fn bifurcation(
             .label(name)
             .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
     }
-    series_legend(chart, Some(LEGEND_CORNERS[corner].clone()), BIF_LEGEND_PX)?;
+    series_legend(chart, Some(LEGEND_PLACES[place].clone()), BIF_LEGEND_PX)?;
     root.present()?;
     Ok(())
 }

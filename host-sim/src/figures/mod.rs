@@ -185,12 +185,17 @@ pub(crate) fn series_legend<'a, 'b: 'a, CT: plotters::coord::CoordTranslate>(
     Ok(())
 }
 
-/// The corners a legend may take ([`least_covered`]), in the order taken when they cover as much.
-pub(crate) const LEGEND_CORNERS: [SeriesLabelPosition; 4] = [
+/// The places a legend may take ([`least_covered`]): the corners, then the middles of the
+/// edges, in the order taken when they cover as much.
+pub(crate) const LEGEND_PLACES: [SeriesLabelPosition; 8] = [
     SeriesLabelPosition::UpperLeft,
     SeriesLabelPosition::UpperRight,
     SeriesLabelPosition::LowerLeft,
     SeriesLabelPosition::LowerRight,
+    SeriesLabelPosition::UpperMiddle,
+    SeriesLabelPosition::LowerMiddle,
+    SeriesLabelPosition::MiddleLeft,
+    SeriesLabelPosition::MiddleRight,
 ];
 
 /// The size `(w, h)`, px, of the legend [`series_legend`] draws for `labels` at `font_size` px:
@@ -212,15 +217,16 @@ pub(crate) fn legend_size(labels: &[String], font_size: u32) -> Result<(i32, i32
 }
 
 /// How much of a panel's data a legend of a given size would cover at each of
-/// [`LEGEND_CORNERS`] (where plotters puts it: 5 px from the plotting area's edges): the points
+/// [`LEGEND_PLACES`] (where plotters puts it: 5 px from the plotting area's edges, or centred
+/// along one): the points
 /// of its lines, taken every 4 px along each segment, and its dots and markers, that fall within
 /// 6 px of the legend's box (a line's width, a marker's size).
 pub(crate) struct LegendCover {
     coord: Cartesian2d<RangedCoordf64, RangedCoordf64>,
     /// The boxes' upper left corners, px.
-    boxes: [(i32, i32); 4],
+    boxes: [(i32, i32); 8],
     size: (i32, i32),
-    counts: [usize; 4],
+    counts: [usize; 8],
 }
 
 impl LegendCover {
@@ -232,11 +238,23 @@ impl LegendCover {
         let (xs, ys) = chart.plotting_area().get_pixel_range();
         let (left, right) = (xs.start + 5, xs.end - size.0 - 5);
         let (top, bottom) = (ys.start + 5, ys.end - size.1 - 5);
+        // Plotters centres in integer pixels.
+        let centre = xs.start + (xs.end - xs.start - size.0) / 2;
+        let middle = ys.start + (ys.end - ys.start - size.1) / 2;
         LegendCover {
             coord: chart.as_coord_spec().clone(),
-            boxes: [(left, top), (right, top), (left, bottom), (right, bottom)],
+            boxes: [
+                (left, top),
+                (right, top),
+                (left, bottom),
+                (right, bottom),
+                (centre, top),
+                (centre, bottom),
+                (left, middle),
+                (right, middle),
+            ],
             size,
-            counts: [0; 4],
+            counts: [0; 8],
         }
     }
 
@@ -291,20 +309,20 @@ impl LegendCover {
         }
     }
 
-    /// The points covered at each of [`LEGEND_CORNERS`].
+    /// The points covered at each of [`LEGEND_PLACES`].
     #[cfg(test)]
-    pub(crate) fn counts(&self) -> [usize; 4] {
+    pub(crate) fn counts(&self) -> [usize; 8] {
         self.counts
     }
 }
 
-/// The corner of one panel's `chart` ([`LEGEND_CORNERS`]) where the legend of `labels` at
+/// The place on one panel's `chart` ([`LEGEND_PLACES`]) where the legend of `labels` at
 /// `font_size` px covers the least of the data `fill` adds to its cover (the upper left on a
 /// tie).
 ///
 /// # Errors
 /// Font errors.
-pub(crate) fn legend_corner(
+pub(crate) fn legend_place(
     chart: &Chart<'_, '_>,
     labels: &[String],
     font_size: u32,
@@ -312,15 +330,15 @@ pub(crate) fn legend_corner(
 ) -> Result<SeriesLabelPosition> {
     let mut cover = LegendCover::new(chart, legend_size(labels, font_size)?);
     fill(&mut cover);
-    Ok(LEGEND_CORNERS[least_covered(&[cover]).1].clone())
+    Ok(LEGEND_PLACES[least_covered(&[cover]).1].clone())
 }
 
-/// Where a legend covers the least of its figure's data: `(panel, corner)`, the index of the
-/// panel's cover in `covers` and of the corner in [`LEGEND_CORNERS`]; on a tie the first panel,
-/// then the first corner (the upper left).
+/// Where a legend covers the least of its figure's data: `(panel, place)`, the index of the
+/// panel's cover in `covers` and of the place in [`LEGEND_PLACES`]; on a tie the first panel,
+/// then the first place (the upper left).
 pub(crate) fn least_covered(covers: &[LegendCover]) -> (usize, usize) {
     (0..covers.len())
-        .flat_map(|p| (0..LEGEND_CORNERS.len()).map(move |c| (p, c)))
+        .flat_map(|p| (0..LEGEND_PLACES.len()).map(move |c| (p, c)))
         .min_by_key(|&(p, c)| covers[p].counts[c])
         .unwrap_or((0, 0))
 }
@@ -398,8 +416,9 @@ mod tests {
     use super::*;
 
     /// A legend of 100 × 60 px on a 400 × 300 px plotting area over `[0, 1]²`: its boxes span
-    /// x 5–105 px (data 0.0125–0.2625) or 295–395 px (0.7375–0.9875), y 5–65 px from the top
-    /// (data 0.783–0.983) or 235–295 px (0.017–0.217), and cover what lies within 6 px of them.
+    /// x 5–105 px (data 0.0125–0.2625), 150–250 px (0.375–0.625) or 295–395 px (0.7375–0.9875),
+    /// y 5–65 px from the top (data 0.783–0.983), 120–180 px (0.4–0.6) or 235–295 px
+    /// (0.017–0.217), and cover what lies within 6 px of them.
     #[test]
     fn a_legend_covers_the_dots_and_the_segments_that_cross_its_box() {
         let mut buf = vec![0u8; 400 * 300 * 3];
@@ -410,11 +429,14 @@ mod tests {
         let mut cover = LegendCover::new(&chart, (100, 60));
         // One dot in the upper left box, one just outside it (13 px below), one in no box.
         cover.dots([(0.1, 0.9), (0.1, 0.74), (0.5, 0.5), (f64::NAN, 0.9)]);
-        assert_eq!(cover.counts(), [1, 0, 0, 0]);
-        // Both ends outside every box; its middle (0.8, 0.2) crosses the lower right one.
+        assert_eq!(cover.counts(), [1, 0, 0, 0, 0, 0, 0, 0]);
+        // Its middle (0.8, 0.2) crosses the lower right box; its ends lie within 6 px of the
+        // lower middle one (x 150–250, y 235–295 px) and the middle right one (x 295–395,
+        // y 120–180 px).
         cover.line([(0.6, 0.0), (1.0, 0.4)]);
-        let [ul, ur, ll, lr] = cover.counts();
-        assert_eq!((ul, ur, ll), (1, 0, 0));
+        let [ul, ur, ll, lr, um, lm, ml, mr] = cover.counts();
+        assert_eq!((ul, ur, ll, um, ml), (1, 0, 0, 0, 0));
+        assert!(lm >= 1 && mr >= 1, "{lm} {mr}");
         // The segment, 200 px long, in 50 pieces of 4 px: 57 px of it (t 0.31–0.59) lie within
         // 6 px of the box, the ends of 14 pieces.
         assert!((13..=15).contains(&lr), "{lr}");
@@ -422,11 +444,17 @@ mod tests {
         // Two panels: the first panel's upper left on a tie, else the fewest covered anywhere.
         let empty = || LegendCover::new(&chart, (100, 60));
         assert_eq!(least_covered(&[empty(), empty()]), (0, 0));
-        // `cover` is covered at its upper left and lower right only: its upper right wins.
+        // `cover` is covered at its upper left, not its upper right: that wins.
         assert_eq!(least_covered(&[cover, empty()]), (0, 1));
+        // Every place of the first panel covered, the second's upper left: its upper right.
         let (mut first, mut second) = (empty(), empty());
         first.dots([(0.1, 0.9), (0.9, 0.9), (0.1, 0.1), (0.9, 0.1)]);
+        first.dots([(0.5, 0.9), (0.5, 0.1), (0.1, 0.5), (0.9, 0.5)]);
         second.dots([(0.1, 0.9)]);
         assert_eq!(least_covered(&[first, second]), (1, 1));
+        // The corners covered, the edges' middles free: the upper middle.
+        let mut corners = empty();
+        corners.dots([(0.1, 0.9), (0.9, 0.9), (0.1, 0.1), (0.9, 0.1)]);
+        assert_eq!(least_covered(&[corners]), (0, 4));
     }
 }

@@ -12,7 +12,7 @@ use shared::observe::Regime;
 use shared::orbit::{Param, Stability};
 
 use super::{
-    Chart, Frame, LEGEND_CORNERS, LegendCover, canvas, least_covered, legend_size, line_key, panel,
+    Chart, Frame, LEGEND_PLACES, LegendCover, canvas, least_covered, legend_size, line_key, panel,
     regime_classes, regime_color, series_legend,
 };
 use crate::orbits::{BranchOut, OrbitReport, param_value};
@@ -313,7 +313,7 @@ pub fn branches(
         let (label, c) = event_mark(kind);
         legend.push((label.to_string(), Key::Marker(kind.to_string(), c)));
     }
-    // In the corner of either panel where it covers the least of the data (the top panel's
+    // Where it covers the least of the data, in either panel (the top panel's
     // upper left where that covers nothing).
     let labels: Vec<String> = legend.iter().map(|(l, _)| l.clone()).collect();
     let size = legend_size(&labels, LEGEND_PX)?;
@@ -336,7 +336,7 @@ pub fn branches(
         top_cover.dots(e.orbit.section.iter().map(|s| (e.value, s[0])));
         bottom_cover.dots([(e.value, e.orbit.impact_force_mg)]);
     }
-    let (panel_at, corner) = least_covered(&[top_cover, bottom_cover]);
+    let (panel_at, place) = least_covered(&[top_cover, bottom_cover]);
     let chart = if panel_at == 0 { &mut ct } else { &mut cb };
     for (label, key) in legend {
         let entry = chart
@@ -349,7 +349,7 @@ pub fn branches(
             Key::Marker(kind, c) => entry.legend(move |(x, y)| marker_px(&kind, (x + 8, y), c)),
         };
     }
-    series_legend(chart, Some(LEGEND_CORNERS[corner].clone()), LEGEND_PX)?;
+    series_legend(chart, Some(LEGEND_PLACES[place].clone()), LEGEND_PX)?;
     root.present()?;
     Ok(())
 }

@@ -15,7 +15,7 @@ use shared::observe::PointResult;
 use crate::config::Setup;
 
 use super::{
-    Chart, Frame, SANS, canvas, legend_corner, level_line, line_key, panel, regime_classes,
+    Chart, Frame, SANS, canvas, legend_place, level_line, line_key, panel, regime_classes,
     series_legend, swatch_key,
 };
 
@@ -164,7 +164,7 @@ pub fn response(
             .label(label)
             .legend(|(x, y)| Cross::new((x + 7, y), 5, BLACK.stroke_width(2)));
     }
-    // The legend in the corner where it covers the fewest points of the response (the upper
+    // The legend where it covers the fewest points of the response (the upper
     // left where that covers none).
     let labels: Vec<String> = highlight
         .iter()
@@ -173,11 +173,11 @@ pub fn response(
         .chain(chosen.iter().map(|c| c.1.clone()))
         .collect();
     let xy = || pts.iter().map(|p| (p.omega_ratio, p.impact_force_mg));
-    let corner = legend_corner(&chart, &labels, LEGEND_PX, |cover| {
+    let place = legend_place(&chart, &labels, LEGEND_PX, |cover| {
         cover.line(xy());
         cover.dots(xy().chain(chosen.iter().map(|c| c.0)));
     })?;
-    series_legend(&mut chart, Some(corner), LEGEND_PX)?;
+    series_legend(&mut chart, Some(place), LEGEND_PX)?;
     root.present()?;
     Ok(())
 }
@@ -344,12 +344,12 @@ pub fn time_series(
         .legend(line_key(RGBColor(220, 120, 0)));
     level_line(&mut c, (t0, t1), gap_mm, BLACK.mix(0.5), labels[2])?;
     // Each legend where it covers the least of its panel's curves.
-    let corner = legend_corner(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
+    let place = legend_place(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
         cover.line(u());
         cover.line(x());
         cover.line([(t0, gap_mm), (t1, gap_mm)]);
     })?;
-    series_legend(&mut c, Some(corner), STACKED_LEGEND_PX)?;
+    series_legend(&mut c, Some(place), STACKED_LEGEND_PX)?;
 
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;
     let mut c = panel(
@@ -382,11 +382,11 @@ pub fn time_series(
     )?
     .label(labels[1])
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    let corner = legend_corner(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
+    let place = legend_place(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
         cover.line(phase());
         cover.dots(strobes.iter().copied());
     })?;
-    series_legend(&mut c, Some(corner), STACKED_LEGEND_PX)?;
+    series_legend(&mut c, Some(place), STACKED_LEGEND_PX)?;
     root.present()?;
     Ok(())
 }
