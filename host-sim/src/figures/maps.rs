@@ -759,8 +759,8 @@ pub fn bifurcation(
             (b, name)
         })
         .collect();
-    // The legend where it covers the fewest dots, in either panel (the top
-    // panel's upper left where that covers none).
+    // The legend where it covers the fewest dots, in either panel (the top panel's upper left
+    // where that covers none).
     let labels: Vec<String> = std::iter::once(surface)
         .chain(names.iter().map(|n| n.1.to_string()))
         .collect();

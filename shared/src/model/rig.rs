@@ -379,6 +379,39 @@ mod tests {
         assert!((f - 1.8203).abs() < 1e-3, "{f}");
     }
 
+    /// The decay rate behind `free_decay_periods` against the slower eigenvalue of the linear
+    /// oscillator's companion matrix `[[0, 1], [−1, −2ζ]]` (time in units of 1/ω), computed by
+    /// nalgebra: under-, critically and overdamped (the beam accepts ζ up to 2).
+    #[test]
+    fn free_decay_follows_the_slower_eigenvalue_of_the_linear_oscillator() {
+        let beam = RigId::Beam170.preset();
+        let (ratio, by) = (1.6, 1e-6);
+        for zeta in [0.004, 0.3, 0.999, 1.0, 1.25, 2.0] {
+            let m = nalgebra::Matrix2::new(0.0, 1.0, -1.0, -2.0 * zeta);
+            let slowest = m
+                .complex_eigenvalues()
+                .iter()
+                .map(|l| -l.re)
+                .fold(f64::INFINITY, f64::min);
+            let periods = beam
+                .with_damping_ratio(zeta)
+                .free_decay_periods(ratio, by)
+                .unwrap();
+            // Periods of 2π/Ω = 2π/(ratio ω): the envelope e^{−σ ω t} shrinks by `by` over them.
+            let shrink = (-slowest * periods * 2.0 * core::f64::consts::PI / ratio).exp();
+            assert!(
+                (shrink / by - 1.0).abs() < 1e-6,
+                "ζ {zeta}: {shrink} against {by}"
+            );
+        }
+        assert_eq!(
+            beam.with_damping_ratio(0.0).free_decay_periods(ratio, by),
+            None
+        );
+        assert_eq!(beam.free_decay_periods(0.0, by), None);
+        assert_eq!(beam.free_decay_periods(ratio, 0.0), None);
+    }
+
     #[test]
     fn beam_damping_matches_table_3_3_coefficients() {
         // Table 3.3 lists c = 0.06 / 0.08 / 0.09 N s/m: 2 ζ m ω = 0.067 / 0.079 / 0.097 to two decimals.
