@@ -421,7 +421,8 @@ pub fn compute_parts(
 pub const BASIN_SAMPLES: u32 = 1000;
 
 /// Default transient limit of the basin check, excitation periods: the beam rigs' lightly
-/// damped non-impacting orbits take up to about a thousand periods to settle.
+/// damped non-impacting orbits take up to about a thousand periods to settle (a lighter damping
+/// raises it: [`crate::attractors::transient_periods`]).
 pub const BASIN_MAX_PERIODS: u32 = 2000;
 
 /// Default basin-fraction threshold below which the chosen point is flagged.

@@ -271,6 +271,32 @@ fn select_states_the_start_up_basin_and_flags_a_small_one() {
     assert!(!json.contains("basin_check"));
 }
 
+/// The basin check's transient without `--basin-max-periods`: 2000 periods (the main job, the
+/// beam rig with Table 3.3's ζ = 0.004 at its answer Ω/ω 1.38: 759 would do), or as long as a
+/// lighter damping's free oscillation takes to shrink by 1e-6 at the chosen Ω/ω: ζ = 0.001,
+/// `ln(1e6) · 1.38 / (2π · 0.001)` = 3034.4 → 3035 periods, within which the one start that
+/// 2000 periods left without an attractor reaches the non-impacting orbit.
+#[test]
+fn the_basin_checks_transient_outlasts_a_light_dampings_free_oscillation() {
+    let basin = |extra: &str| {
+        let json = ok(&line(&format!(
+            "select --rig beam-170 --gap-mm 3.0 --no-orbit-check --json {extra}"
+        )));
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(v["omega_ratio"], 1.38, "{v}");
+        v["basin_check"].clone()
+    };
+    assert_eq!(basin("")["max_transient_periods"], 2000);
+    let b = basin("--damping-ratio 0.001");
+    assert_eq!(b["max_transient_periods"], 3035, "{b}");
+    assert_eq!(b["competitor"]["regime"], "no impact", "{b}");
+    assert_eq!(b["fraction"], 0.999, "{b}");
+    // The old limit leaves that start without an attractor.
+    let b = basin("--damping-ratio 0.001 --basin-max-periods 2000");
+    assert!(b["competitor"].is_null(), "{b}");
+    assert_eq!(b["fraction"], 0.999, "{b}");
+}
+
 #[test]
 fn a_run_without_recurrence_says_so_with_the_counts() {
     // The undamped wire rig far from the surface: the motions never impact and never settle

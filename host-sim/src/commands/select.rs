@@ -60,9 +60,10 @@ pub struct SelectArgs {
     pub basin_threshold: f64,
     /// Transient limit of the basin check, excitation periods (1 ..= 1000000): a start that has
     /// not settled on an attractor by then counts as none (lightly damped non-impacting motions
-    /// settle slowly).
-    #[arg(long, default_value_t = BASIN_MAX_PERIODS)]
-    pub basin_max_periods: u32,
+    /// settle slowly). Default: 2000, or, on a damped suspension, the periods its free
+    /// oscillation takes to shrink by 1e-6 at the chosen Ω/ω if more (at most 10000).
+    #[arg(long)]
+    pub basin_max_periods: Option<u32>,
     /// CSV of the nominal-gap response (columns as `response`).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
@@ -125,12 +126,13 @@ pub fn run(a: &SelectArgs) -> Result<()> {
             "--basin-threshold {}: out of range: allowed 0 ..= 1",
             a.basin_threshold
         );
-        anyhow::ensure!(
-            (1..=1_000_000).contains(&a.basin_max_periods),
-            "--basin-max-periods {}: out of range: allowed 1 ..= 1000000 (a start must have \
-             periods to reach an attractor)",
-            a.basin_max_periods
-        );
+        if let Some(n) = a.basin_max_periods {
+            anyhow::ensure!(
+                (1..=1_000_000).contains(&n),
+                "--basin-max-periods {n}: out of range: allowed 1 ..= 1000000 (a start must \
+                 have periods to reach an attractor)"
+            );
+        }
     }
     let table = if a.uncertainty {
         let t = setup.uncertainty.clone().ok_or_else(|| {
@@ -197,7 +199,14 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     }
     if !a.no_basin_check {
         let mut basin_setup = setup.clone();
-        let n = a.basin_max_periods;
+        let n = a.basin_max_periods.unwrap_or_else(|| {
+            crate::attractors::transient_periods(
+                &setup.params,
+                BASIN_MAX_PERIODS,
+                rep.omega_ratio,
+                crate::attractors::ATTRACTOR_STEADY_TOL,
+            )
+        });
         basin_setup.settings.protocol.max_transient_periods = n;
         basin_setup.settings.protocol.steady_tol = crate::attractors::ATTRACTOR_STEADY_TOL;
         basin_setup
