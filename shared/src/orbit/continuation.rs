@@ -445,11 +445,11 @@ fn critical_distance(kind: EventKind, mu: Multiplier) -> f64 {
 /// (or the doubling test's changes at jumps of the monodromy, [`BifEvent::at_jump`]), held back
 /// as one cluster until the branch has moved [`ContinuationSettings::fold_retreat`] from the
 /// farthest of them (in the parameter, the way the branch has come: from its start, or from
-/// the last cluster told, to the first of them), or meets another event first, or ends; told then, as its farthest, only if the test's sign
-/// is no longer the one before the cluster (at a fold the critical multiplier passes +1 for
-/// good; a test changing sign and back, however often and whichever changes were located, is
-/// kinks of the discretised map). One farther than that from the held cluster's farthest
-/// starts a new cluster.
+/// the last cluster told, to the first of them), or meets another event first, or ends; told
+/// then, as its farthest, only if the test's sign is no longer the one before the cluster (at
+/// a fold the critical multiplier passes +1 for good; a test changing sign and back, however
+/// often and whichever changes were located, is kinks of the discretised map). One farther
+/// than that from the held cluster's farthest starts a new cluster.
 struct HeldCluster<E> {
     held: Option<Cluster<E>>,
     /// [`ContinuationSettings::kink_span`], scaled.
@@ -484,8 +484,8 @@ impl<E> HeldCluster<E> {
         }
     }
 
-    /// A new located change (a fold) at `value`, the test positive before it if `before` (for
-    /// folds: where it last held its sign for the span): it joins the held cluster if within
+    /// A new located change (a fold, or a doubling at a jump) at `value`, the test positive
+    /// before it if `before` (for folds: where it last held its sign for the span): it joins the held cluster if within
     /// the retreat of its farthest; else the held one (to report now if its sign before is not
     /// `before`) gives way to a new cluster.
     fn add(&mut self, value: f64, before: bool, ev: E) -> Option<(E, SignChanges)> {
