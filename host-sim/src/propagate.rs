@@ -185,10 +185,10 @@ pub fn propagate(
             let mut s = setup.clone();
             s.params.contact = *law;
             // A draw without a robust 1/1 point still counts by its nominal response.
-            let r = compute_parts(&s, gap_mm, "").and_then(|(rep, resp)| match rep {
-                Ok(rep) => Ok((Some(rep), resp)),
+            let r = compute_parts(&s, gap_mm, "").and_then(|(rep, mut resp)| match rep {
+                Ok(rep) => Ok((Some(rep), resp.swap_remove(0))),
                 Err(SelectionError::NoOneToOneBand | SelectionError::NoRobustPoint { .. }) => {
-                    Ok((None, resp))
+                    Ok((None, resp.swap_remove(0)))
                 }
                 Err(e) => Err(anyhow::anyhow!("{e}")),
             });

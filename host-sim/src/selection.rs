@@ -3,9 +3,12 @@
 
 use anyhow::{Result, anyhow};
 use serde::Serialize;
-use shared::analysis::{ResponseSample, Selection, SelectionError, perturbed_gaps, select};
+use shared::analysis::{
+    ResponseSample, Selection, SelectionError, perturbed_gaps, robustness_window, select,
+};
 use shared::model::ContactLaw;
 use shared::model::rig::IMPACT_SPEEDS_M_S;
+use shared::observe::{PointResult, Protocol, Regime};
 
 use shared::Real;
 use shared::orbit::{BranchEnd, ContinuationSettings, Edge, Orbit, Param, band_edges};
@@ -299,11 +302,164 @@ pub fn lack_of_fit_warning(setup: &Setup, config: &str) -> Option<String> {
     ))
 }
 
-/// What in the parameters can leave the rig without a robust `1/1` point: the contact law's
-/// effective restitution at the rigs' impact speeds ([`IMPACT_SPEEDS_M_S`], one simulated
-/// impact each) against the rig's identified law (Table 3.1), and what a nearly elastic
-/// contact does.
-pub fn no_one_to_one_diagnosis(setup: &Setup) -> String {
+/// Why the responses of [`compute_parts`] (`responses[0]` at `gap_mm`, then the perturbed
+/// gaps of [`perturbed_gaps`]) hold no robust `1/1` point, as measured, one reason a line:
+/// - the `1/1` bands: none in the sweep (with its most common regimes); or the widest band's
+///   half-width about its centre where no `1/1` point's margin window ([`robustness_window`])
+///   lies inside its band; or the points such windows ask that a perturbed gap leaves in
+///   another regime;
+/// - a transient too short: where it is shorter than the canonical protocol's
+///   ([`Protocol::default`]) and at least half the sweep's points ended it unsettled while
+///   impacting (the window then labels a motion that may still be settling);
+/// - the contact law: its effective restitution at the rigs' impact speeds
+///   ([`IMPACT_SPEEDS_M_S`], one simulated impact each) against the rig's identified law
+///   (Table 3.1), where it differs from that law's or is nearly elastic.
+pub fn no_robust_point_diagnosis(
+    setup: &Setup,
+    gap_mm: f64,
+    responses: &[Vec<PointResult>],
+) -> Vec<String> {
+    let mut why = Vec::new();
+    let Some(nominal) = responses.first() else {
+        return why;
+    };
+    let sweep = setup.selection.omega_ratio;
+    let one_one = |r: &PointResult| r.regime == Regime::ONE_ONE;
+    // The 1/1 bands as index ranges, the widest (relative to its centre) first.
+    let mut bands: Vec<(usize, usize)> = Vec::new();
+    for (j, r) in nominal.iter().enumerate() {
+        match bands.last_mut() {
+            Some((_, hi)) if one_one(r) && *hi + 1 == j => *hi = j,
+            _ if one_one(r) => bands.push((j, j)),
+            _ => {}
+        }
+    }
+    let half_width_pct = |&(a, b): &(usize, usize)| {
+        let (lo, hi) = (sweep.value(a), sweep.value(b));
+        (hi - lo) / (hi + lo) * 100.0
+    };
+    let widest = bands
+        .iter()
+        .copied()
+        .max_by(|x, y| half_width_pct(x).total_cmp(&half_width_pct(y)));
+    let margin = setup.selection.freq_margin_pct;
+    match widest {
+        None => {
+            let mut counts: Vec<(String, usize)> = Vec::new();
+            for r in nominal {
+                let name = r.regime.to_string();
+                match counts.iter_mut().find(|(n, _)| *n == name) {
+                    Some((_, c)) => *c += 1,
+                    None => counts.push((name, 1)),
+                }
+            }
+            counts.sort_by_key(|c| core::cmp::Reverse(c.1));
+            let common: Vec<String> = counts
+                .iter()
+                .take(4)
+                .map(|(n, c)| format!("{n} at {c}"))
+                .collect();
+            why.push(format!(
+                "the sweep Ω/ω {}–{} (step {}) at {gap_mm} mm holds no 1/1 point; its {} points: \
+                 {}{}",
+                sweep.lo,
+                sweep.value(sweep.len().saturating_sub(1)),
+                sweep.step,
+                nominal.len(),
+                common.join(", "),
+                if counts.len() > 4 { ", …" } else { "" }
+            ));
+        }
+        Some(band @ (a, b)) => {
+            let (lo, hi) = (sweep.value(a), sweep.value(b));
+            let head = format!(
+                "the widest 1/1 band at {gap_mm} mm, Ω/ω {lo:.3}–{hi:.3} ({} point{}), spans \
+                 ±{:.1} % about its centre",
+                b - a + 1,
+                if a == b { "" } else { "s" },
+                half_width_pct(&band)
+            );
+            // The points whose margin window lies in their band: robust at the nominal gap.
+            let spec = &setup.selection;
+            let windows: Vec<(usize, usize)> = bands
+                .iter()
+                .flat_map(|&(a, b)| {
+                    (a..=b).filter_map(move |i| {
+                        robustness_window(spec, i).filter(|&(l, h)| a <= l && h <= b)
+                    })
+                })
+                .collect();
+            if windows.is_empty() {
+                why.push(format!(
+                    "{head}: no 1/1 point has its ±{margin} % window (the frequency margin, \
+                     widened to the sweep's points, step {}, and within its range) inside its \
+                     band{}",
+                    sweep.step,
+                    if half_width_pct(&band) >= margin {
+                        ": a finer or wider --omega-ratio may find one"
+                    } else {
+                        ""
+                    }
+                ));
+            } else {
+                let gaps = perturbed_gaps(gap_mm * 1e-3, spec.gap_margin_mm);
+                let broken: Vec<String> = responses[1..]
+                    .iter()
+                    .zip(&gaps)
+                    .filter_map(|(resp, g)| {
+                        let mut off: Vec<usize> = windows
+                            .iter()
+                            .flat_map(|&(l, h)| l..=h)
+                            .filter(|&j| !one_one(&resp[j]))
+                            .collect();
+                        off.sort_unstable();
+                        off.dedup();
+                        let &first = off.first()?;
+                        Some(format!(
+                            "at {} mm {} of the points asked {} not 1/1 (Ω/ω {:.3}: {})",
+                            g * 1e3,
+                            off.len(),
+                            if off.len() == 1 { "is" } else { "are" },
+                            sweep.value(first),
+                            resp[first].regime
+                        ))
+                    })
+                    .collect();
+                why.push(format!(
+                    "{head}; {} point{} of the bands meet the frequency margin at {gap_mm} mm, \
+                     but the gap margin (±{} mm) breaks {}: {}",
+                    windows.len(),
+                    if windows.len() == 1 { "" } else { "s" },
+                    spec.gap_margin_mm,
+                    if windows.len() == 1 { "it" } else { "each" },
+                    broken.join("; ")
+                ));
+            }
+        }
+    }
+    let transient = setup.settings.protocol.max_transient_periods;
+    let canonical = Protocol::default().max_transient_periods;
+    let unsettled = nominal
+        .iter()
+        .filter(|r| !r.settled && r.regime != Regime::NoImpact)
+        .count();
+    if transient < canonical && 2 * unsettled >= nominal.len() {
+        why.push(format!(
+            "{unsettled} of the {} points ended their transient of {transient} periods (the \
+             canonical protocol's: {canonical}) unsettled while impacting: the window labelled a \
+             motion that may still be settling; a longer transient ([settings.protocol] \
+             max_transient_periods) may label them",
+            nominal.len()
+        ));
+    }
+    why.extend(contact_law_diagnosis(setup));
+    why
+}
+
+/// The contact law's part of [`no_robust_point_diagnosis`]: its effective restitution at the
+/// rigs' impact speeds against Table 3.1's identified law, and what a nearly elastic contact
+/// does; `None` where it rebounds as that law does (to the three decimals said).
+fn contact_law_diagnosis(setup: &Setup) -> Option<String> {
     let m = setup.params.mass_kg;
     let es = |law: &ContactLaw| -> Vec<Option<f64>> {
         IMPACT_SPEEDS_M_S
@@ -322,9 +478,12 @@ pub fn no_one_to_one_diagnosis(setup: &Setup) -> String {
         .map(|v| format!("{:.0}", 1e3 * v))
         .collect();
     let law = setup.params.contact;
-    let own = es(&law);
-    let reference = es(&ContactLaw::identified());
+    let (own, reference) = (es(&law), es(&ContactLaw::identified()));
     let lowest = own.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+    let elastic = lowest >= ELASTIC_RESTITUTION;
+    if !elastic && text(&own) == text(&reference) {
+        return None;
+    }
     let mut s = format!(
         "the {} law rebounds at e = {} at the rig's impact speeds {} mm/s (one simulated \
          impact each; Table 3.1's identified law: {})",
@@ -333,7 +492,7 @@ pub fn no_one_to_one_diagnosis(setup: &Setup) -> String {
         speeds.join(", "),
         text(&reference)
     );
-    if lowest >= ELASTIC_RESTITUTION {
+    if elastic {
         s.push_str(&format!(
             ": a contact this elastic leaves the hammer no steady one-impact-per-period motion \
              near the surface (on the wire rig at 0.0 mm gap a spring–dashpot law with e ≥ \
@@ -347,21 +506,18 @@ pub fn no_one_to_one_diagnosis(setup: &Setup) -> String {
             }
         ));
     }
-    s
+    Some(s)
 }
 
 /// A contact whose restitution is at least this at every impact speed is called nearly
-/// elastic by [`no_one_to_one_diagnosis`].
+/// elastic by [`no_robust_point_diagnosis`].
 pub const ELASTIC_RESTITUTION: f64 = 0.95;
 
 /// Computes the selection (responses at the nominal and perturbed gaps, in parallel).
 ///
 /// # Errors
 /// Bad input, or no robust `1/1` point.
-pub fn compute(
-    setup: &Setup,
-    gap_mm: f64,
-) -> Result<(SelectReport, Vec<shared::observe::PointResult>)> {
+pub fn compute(setup: &Setup, gap_mm: f64) -> Result<(SelectReport, Vec<PointResult>)> {
     compute_with(setup, gap_mm, "select")
 }
 
@@ -373,22 +529,29 @@ pub fn compute_with(
     setup: &Setup,
     gap_mm: f64,
     what: &str,
-) -> Result<(SelectReport, Vec<shared::observe::PointResult>)> {
-    let (selection, nominal) = compute_parts(setup, gap_mm, what)?;
-    let spec = setup.selection;
-    let report = selection.map_err(|e| {
-        anyhow!(
-            "{} rig at {gap_mm} mm gap (±{} % frequency, ±{} mm gap): {e}",
-            setup.rig,
-            spec.freq_margin_pct,
-            spec.gap_margin_mm
-        )
-    })?;
-    Ok((report, nominal))
+) -> Result<(SelectReport, Vec<PointResult>)> {
+    let (selection, mut responses) = compute_parts(setup, gap_mm, what)?;
+    let report = selection.map_err(|e| anyhow!(selection_failure(setup, gap_mm, &e)))?;
+    Ok((report, responses.swap_remove(0)))
 }
 
+/// The message of a selection that failed: the rig, the gap and the margins asked, then `e`.
+pub fn selection_failure(setup: &Setup, gap_mm: f64, e: &SelectionError) -> String {
+    let spec = setup.selection;
+    format!(
+        "{} rig at {gap_mm} mm gap (±{} % frequency, ±{} mm gap): {e}",
+        setup.rig, spec.freq_margin_pct, spec.gap_margin_mm
+    )
+}
+
+/// The frequency responses a selection reads, one per gap: at the nominal gap first, then at
+/// the perturbed gaps of [`perturbed_gaps`].
+pub type GapResponses = Vec<Vec<PointResult>>;
+
 /// The selection's two results apart: the report, or why the responses hold no robust `1/1`
-/// point ([`SelectionError`]); and the nominal-gap response, which exists either way.
+/// point ([`SelectionError`]); and the responses, which exist either way: at the nominal gap
+/// first, then at the perturbed gaps of [`perturbed_gaps`] (lower, upper; the lower one left out
+/// at 0.0 mm).
 ///
 /// # Errors
 /// Bad input or a failed response computation.
@@ -396,16 +559,13 @@ pub fn compute_parts(
     setup: &Setup,
     gap_mm: f64,
     what: &str,
-) -> Result<(
-    Result<SelectReport, SelectionError>,
-    Vec<shared::observe::PointResult>,
-)> {
+) -> Result<(Result<SelectReport, SelectionError>, GapResponses)> {
     let gap_m = setup.gap_m("--gap-mm", gap_mm)?;
     let spec = setup.selection;
     let sweep = spec.omega_ratio;
     let mut gaps = vec![gap_m];
     gaps.extend(perturbed_gaps(gap_m, spec.gap_margin_mm));
-    let mut responses = response::compute(setup, &gaps, &sweep, what)?;
+    let responses = response::compute(setup, &gaps, &sweep, what)?;
     let samples: Vec<Vec<ResponseSample>> = responses
         .iter()
         .map(|r| r.iter().map(ResponseSample::from).collect())
@@ -414,7 +574,7 @@ pub fn compute_parts(
     let gaps_mm = gaps.iter().map(|g| g * 1e3).collect();
     let report = select(&setup.params, &spec, &samples[0], &perturbed)
         .map(|sel| report(setup, gap_mm, gaps_mm, &sel));
-    Ok((report, responses.swap_remove(0)))
+    Ok((report, responses))
 }
 
 /// Default random start-up conditions of the basin check.

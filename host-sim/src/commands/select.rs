@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Result, anyhow};
 use clap::Args;
+use shared::analysis::SelectionError;
 
 use super::omega_sweep;
 use crate::config::{RigOpts, Setup};
@@ -13,7 +14,7 @@ use crate::propagate::{Propagation, propagate};
 use crate::response;
 use crate::selection::{
     BASIN_MAX_PERIODS, BASIN_SAMPLES, BASIN_THRESHOLD, BasinCheck, check_band, check_basin,
-    lack_of_fit_warning, no_one_to_one_diagnosis,
+    compute_parts, lack_of_fit_warning, no_robust_point_diagnosis, selection_failure,
 };
 pub use crate::selection::{OtherBest, SelectReport, compute};
 
@@ -153,17 +154,24 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     };
     let config = a.config_name();
     let warning = lack_of_fit_warning(&setup, &config);
-    let (mut rep, nominal) = compute(&setup, a.gap_mm).map_err(|e| {
-        // Say what in the parameters can cause it, and the identification's verdict.
-        let mut text = format!("{e:#}");
-        if text.contains("z = 1/1 point") {
-            text.push_str(&format!("\n  why: {}", no_one_to_one_diagnosis(&setup)));
+    let (selection, mut responses) = compute_parts(&setup, a.gap_mm, "select")?;
+    let mut rep = selection.map_err(|e| {
+        // Say what the responses show, and the identification's verdict.
+        let mut text = selection_failure(&setup, a.gap_mm, &e);
+        if matches!(
+            e,
+            SelectionError::NoOneToOneBand | SelectionError::NoRobustPoint { .. }
+        ) {
+            for why in no_robust_point_diagnosis(&setup, a.gap_mm, &responses) {
+                text.push_str(&format!("\n  why: {why}"));
+            }
         }
         if let Some(w) = &warning {
             text.push_str(&format!("\n  warning: {w}"));
         }
         anyhow!(text)
     })?;
+    let nominal = responses.swap_remove(0);
     rep.warnings.extend(warning);
     if a.no_orbit_check {
         // The sweep's band and margin, as the report says.

@@ -16,6 +16,7 @@ pub use response::{
     simulator_at,
 };
 pub use selection::{
-    Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, select, select_sequential,
+    Candidate, Selection, SelectionError, SelectionSpec, perturbed_gaps, robustness_window, select,
+    select_sequential,
 };
 pub use sweep::Sweep;

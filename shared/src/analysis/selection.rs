@@ -310,8 +310,9 @@ pub fn select(
 
 /// The sweep indices `j_lo ..= j_hi` whose frequencies cover `±freq_margin_pct` around sweep
 /// point `i` (widened outward to the next grid points), or `None` when that window leaves the
-/// sweep (the point cannot be verified).
-fn robustness_window(spec: &SelectionSpec, i: usize) -> Option<(usize, usize)> {
+/// sweep (the point cannot be verified): the points [`select`] asks to be `1/1` at every gap
+/// checked for `i` to be robust.
+pub fn robustness_window(spec: &SelectionSpec, i: usize) -> Option<(usize, usize)> {
     let sweep = spec.omega_ratio;
     let n = sweep.len();
     let p = spec.freq_margin_pct / 100.0;
