@@ -394,6 +394,7 @@ fn merge<T: serde::Serialize + serde::de::DeserializeOwned>(
     table: &str,
 ) -> Result<T> {
     let mut value = toml::Value::try_from(base).context("internal: serialising defaults")?;
+    let given = over.clone();
     overlay(&mut value, toml::Value::Table(over));
     // The error names the key's whole path: `rig.contact.hertz: missing field `stiffness``,
     // `rig.mass_kg: invalid type …`.
@@ -402,8 +403,52 @@ fn merge<T: serde::Serialize + serde::de::DeserializeOwned>(
             None => table.to_string(),
             Some(_) => format!("{table}.{}", e.path()),
         };
-        anyhow::anyhow!("{at}: {}", e.into_inner().message())
+        let message = e.inner().message();
+        // An enum's table given without its variant (`[rig.contact]` with a law's fields,
+        // `contact = "hertz"`, two laws at once): toml's words for it name no key.
+        let shapeless = message.contains("wanted exactly 1 element")
+            || message.contains("expected struct variant")
+            || message.contains("unit variant");
+        if let Some((at, what, names)) = enum_variants(&at).filter(|_| shapeless) {
+            let mut found = toml::Value::Table(given);
+            for key in at.split('.').skip(1) {
+                found = found
+                    .get(key)
+                    .cloned()
+                    .unwrap_or(toml::Value::Table(toml::Table::new()));
+            }
+            let found = match &found {
+                toml::Value::Table(t) => t.keys().cloned().collect::<Vec<_>>().join(", "),
+                other => other.to_string(),
+            };
+            return anyhow::anyhow!(
+                "{at}: name one {what} as a table of its own, `[{at}.NAME]` with its fields, \
+                 NAME one of {} (found: {found})",
+                names.join(", ")
+            );
+        }
+        anyhow::anyhow!("{at}: {message}")
     })
+}
+
+/// The config's enum table at the path `at` or one of its variants' tables: its path, what it
+/// names and its variants, for the message of one given without its variant ([`merge`]).
+fn enum_variants(at: &str) -> Option<(&'static str, &'static str, Vec<&'static str>)> {
+    let under = |path: &str| match at.strip_prefix(path) {
+        Some("") => true,
+        Some(rest) => rest
+            .strip_prefix('.')
+            .is_some_and(|variant| !variant.contains('.')),
+        None => false,
+    };
+    if under("rig.contact") {
+        let names = ContactLawKind::ALL.iter().map(|k| k.name()).collect();
+        Some(("rig.contact", "contact law", names))
+    } else if under("rig.suspension") {
+        Some(("rig.suspension", "suspension", vec!["wires", "beam"]))
+    } else {
+        None
+    }
 }
 
 fn overlay(base: &mut toml::Value, over: toml::Value) {

@@ -566,6 +566,43 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
             (&cfg, &config, "[rig]\nmass_kg = -0.3\n", "mass_kg"),
             (&cfg, &config, "[rig]\nmas_kg = 0.3\n", "mas_kg"),
             (&cfg, &config, "[rig\nmass_kg = 0.3\n", "malformed"),
+            // An enum's table without its variant: the variants named, and what was found.
+            (
+                &cfg,
+                &config,
+                "[rig.contact]\nstiffness_n_m = 5e6\n",
+                "rig.contact: name one contact law as a table of its own, `[rig.contact.NAME]` \
+                 with its fields, NAME one of hertz, spring-dashpot, hunt-crossley, \
+                 lankarani-nikravesh (found: stiffness_n_m)",
+            ),
+            (
+                &cfg,
+                &config,
+                "[rig]\ncontact = \"hertz\"\n",
+                "(found: \"hertz\")",
+            ),
+            (
+                &cfg,
+                &config,
+                "[rig.contact.hertz]\nstiffness = 1e8\nexponent = 1.5\n\
+                 [rig.contact.hunt-crossley]\nstiffness = 1e8\n",
+                "(found: hertz, hunt-crossley)",
+            ),
+            (
+                &cfg,
+                &config,
+                "[rig.suspension]\nlength_m = 0.1\n",
+                "rig.suspension: name one suspension as a table of its own, \
+                 `[rig.suspension.NAME]` with its fields, NAME one of wires, beam (found: \
+                 length_m)",
+            ),
+            // A field's own error keeps its words.
+            (
+                &cfg,
+                &config,
+                "[rig.contact.spring-dashpot]\nstiffness_n_m = \"x\"\n",
+                "rig.contact.spring-dashpot.stiffness_n_m: invalid type: string \"x\"",
+            ),
             (
                 &input,
                 &points,
