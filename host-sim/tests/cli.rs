@@ -610,7 +610,25 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
                 "line 3",
             ),
             (&input, &points, "gap_mm,omega_ratio\n-0.5,2.0\n", "gap_mm"),
-            (&input, &points, "gap,ratio\n0,2.0\n", "gap_mm"),
+            (
+                &input,
+                &points,
+                "gap,ratio\n0,2.0\n",
+                "the header `gap,ratio` lacks the columns gap_mm, omega_ratio",
+            ),
+            (
+                &input,
+                &points,
+                "gap_mm;omega_ratio\n0;2.0\n",
+                "the header `gap_mm;omega_ratio` lacks the columns gap_mm, omega_ratio (a \
+                 comma-separated file",
+            ),
+            (
+                &input,
+                &points,
+                "omega_ratio,gap\n2.0,0\n",
+                "the header `omega_ratio,gap` lacks the column gap_mm (",
+            ),
         ],
         &[&out],
     );

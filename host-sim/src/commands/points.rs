@@ -77,6 +77,26 @@ pub struct OutRow {
 pub fn read_points(setup: &Setup, path: &PathBuf) -> Result<Vec<(f64, f64)>> {
     let mut rdr = csv::Reader::from_path(path)
         .with_context(|| format!("cannot read --input {}", path.display()))?;
+    // A header without the columns (another separator, other names) is told as such, not as
+    // a missing field on the first row.
+    let header = rdr
+        .headers()
+        .with_context(|| format!("cannot read --input {}", path.display()))?
+        .clone();
+    let missing: Vec<&str> = ["gap_mm", "omega_ratio"]
+        .into_iter()
+        .filter(|c| !header.iter().any(|h| h == *c))
+        .collect();
+    if !header.is_empty() && !missing.is_empty() {
+        bail!(
+            "{}: the header `{}` lacks the column{} {} (a comma-separated file with the header \
+             `gap_mm,omega_ratio`)",
+            path.display(),
+            header.iter().collect::<Vec<_>>().join(","),
+            if missing.len() == 1 { "" } else { "s" },
+            missing.join(", ")
+        );
+    }
     let mut out = Vec::new();
     for (i, rec) in rdr.deserialize::<InRow>().enumerate() {
         let line = i + 2;
