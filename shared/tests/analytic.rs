@@ -203,9 +203,8 @@ fn hunt_crossley_and_lankarani_nikravesh_match_an_f64_reference() {
 /// rests on or creeps along the surface) keep the physics: at 0.0 mm on the wire rig, in the
 /// chattering/resting `3/1` regime (Ω/ω 0.6) and in the `1/1` band (Ω/ω 2.0), the f32
 /// production run gives the regime and `F_i/mg` (to 1 %) of f64 with 4× finer steps, sub-steps
-/// and bands, at a cost in RK4 steps per period that only the long sub-steps reach (5,326 and
-/// 128 per period at the previous version, with sub-steps of `h_c` everywhere; 5,189 at Ω/ω 0.6
-/// with today's other changes but resting sub-steps of `h_c`).
+/// and bands, at a cost in RK4 steps per period that only the long sub-steps reach (below 1,000
+/// and 100; resting sub-steps of `h_c` take about 5,200 per period at Ω/ω 0.6).
 #[test]
 fn long_substeps_keep_resting_and_impacting_results() {
     use shared::analysis::{SimSettings, evaluate_point};
