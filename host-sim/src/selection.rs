@@ -319,13 +319,25 @@ pub fn no_robust_point_diagnosis(
     gap_mm: f64,
     responses: &[Vec<PointResult>],
 ) -> Vec<String> {
-    let mut why = Vec::new();
     let Some(nominal) = responses.first() else {
-        return why;
+        return Vec::new();
     };
-    let sweep = setup.selection.omega_ratio;
+    [
+        Some(band_diagnosis(setup, gap_mm, responses)),
+        transient_diagnosis(setup, nominal),
+        contact_law_diagnosis(setup),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// The `1/1` bands' part of [`no_robust_point_diagnosis`] (`responses` not empty).
+fn band_diagnosis(setup: &Setup, gap_mm: f64, responses: &[Vec<PointResult>]) -> String {
+    let nominal = &responses[0];
+    let (sweep, spec) = (setup.selection.omega_ratio, &setup.selection);
     let one_one = |r: &PointResult| r.regime == Regime::ONE_ONE;
-    // The 1/1 bands as index ranges, the widest (relative to its centre) first.
+    // The 1/1 bands as index ranges, in the sweep's order.
     let mut bands: Vec<(usize, usize)> = Vec::new();
     for (j, r) in nominal.iter().enumerate() {
         match bands.last_mut() {
@@ -342,118 +354,115 @@ pub fn no_robust_point_diagnosis(
         .iter()
         .copied()
         .max_by(|x, y| half_width_pct(x).total_cmp(&half_width_pct(y)));
-    let margin = setup.selection.freq_margin_pct;
-    match widest {
-        None => {
-            let mut counts: Vec<(String, usize)> = Vec::new();
-            for r in nominal {
-                let name = r.regime.to_string();
-                match counts.iter_mut().find(|(n, _)| *n == name) {
-                    Some((_, c)) => *c += 1,
-                    None => counts.push((name, 1)),
-                }
+    let Some(band @ (a, b)) = widest else {
+        let mut counts: Vec<(String, usize)> = Vec::new();
+        for r in nominal {
+            let name = r.regime.to_string();
+            match counts.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, c)) => *c += 1,
+                None => counts.push((name, 1)),
             }
-            counts.sort_by_key(|c| core::cmp::Reverse(c.1));
-            let common: Vec<String> = counts
-                .iter()
-                .take(4)
-                .map(|(n, c)| format!("{n} at {c}"))
-                .collect();
-            why.push(format!(
-                "the sweep Ω/ω {}–{} (step {}) at {gap_mm} mm holds no 1/1 point; its {} points: \
-                 {}{}",
-                sweep.lo,
-                sweep.value(sweep.len().saturating_sub(1)),
-                sweep.step,
-                nominal.len(),
-                common.join(", "),
-                if counts.len() > 4 { ", …" } else { "" }
-            ));
         }
-        Some(band @ (a, b)) => {
-            let (lo, hi) = (sweep.value(a), sweep.value(b));
-            let head = format!(
-                "the widest 1/1 band at {gap_mm} mm, Ω/ω {lo:.3}–{hi:.3} ({} point{}), spans \
-                 ±{:.1} % about its centre",
-                b - a + 1,
-                if a == b { "" } else { "s" },
-                half_width_pct(&band)
-            );
-            // The points whose margin window lies in their band: robust at the nominal gap.
-            let spec = &setup.selection;
-            let windows: Vec<(usize, usize)> = bands
-                .iter()
-                .flat_map(|&(a, b)| {
-                    (a..=b).filter_map(move |i| {
-                        robustness_window(spec, i).filter(|&(l, h)| a <= l && h <= b)
-                    })
-                })
-                .collect();
-            if windows.is_empty() {
-                why.push(format!(
-                    "{head}: no 1/1 point has its ±{margin} % window (the frequency margin, \
-                     widened to the sweep's points, step {}, and within its range) inside its \
-                     band{}",
-                    sweep.step,
-                    if half_width_pct(&band) >= margin {
-                        ": a finer or wider --omega-ratio may find one"
-                    } else {
-                        ""
-                    }
-                ));
+        counts.sort_by_key(|c| core::cmp::Reverse(c.1));
+        let common: Vec<String> = counts
+            .iter()
+            .take(4)
+            .map(|(n, c)| format!("{n} at {c}"))
+            .collect();
+        return format!(
+            "the sweep Ω/ω {}–{} (step {}) at {gap_mm} mm holds no 1/1 point; its {} points: \
+             {}{}",
+            sweep.lo,
+            sweep.value(sweep.len().saturating_sub(1)),
+            sweep.step,
+            nominal.len(),
+            common.join(", "),
+            if counts.len() > 4 { ", …" } else { "" }
+        );
+    };
+    let head = format!(
+        "the widest 1/1 band at {gap_mm} mm, Ω/ω {:.3}–{:.3} ({} point{}), spans ±{:.1} % \
+         about its centre",
+        sweep.value(a),
+        sweep.value(b),
+        b - a + 1,
+        if a == b { "" } else { "s" },
+        half_width_pct(&band)
+    );
+    // The margin windows that lie in their band: the points robust at the nominal gap.
+    let windows: Vec<(usize, usize)> = bands
+        .iter()
+        .flat_map(|&(a, b)| {
+            (a..=b)
+                .filter_map(move |i| robustness_window(spec, i).filter(|&(l, h)| a <= l && h <= b))
+        })
+        .collect();
+    let margin = spec.freq_margin_pct;
+    if windows.is_empty() {
+        return format!(
+            "{head}: no 1/1 point has its ±{margin} % window (the frequency margin, widened to \
+             the sweep's points, step {}, and within its range) inside its band{}",
+            sweep.step,
+            if half_width_pct(&band) >= margin {
+                ": a finer or wider --omega-ratio may find one"
             } else {
-                let gaps = perturbed_gaps(gap_mm * 1e-3, spec.gap_margin_mm);
-                let broken: Vec<String> = responses[1..]
-                    .iter()
-                    .zip(&gaps)
-                    .filter_map(|(resp, g)| {
-                        let mut off: Vec<usize> = windows
-                            .iter()
-                            .flat_map(|&(l, h)| l..=h)
-                            .filter(|&j| !one_one(&resp[j]))
-                            .collect();
-                        off.sort_unstable();
-                        off.dedup();
-                        let &first = off.first()?;
-                        Some(format!(
-                            "at {} mm {} of the points asked {} not 1/1 (Ω/ω {:.3}: {})",
-                            g * 1e3,
-                            off.len(),
-                            if off.len() == 1 { "is" } else { "are" },
-                            sweep.value(first),
-                            resp[first].regime
-                        ))
-                    })
-                    .collect();
-                why.push(format!(
-                    "{head}; {} point{} of the bands meet the frequency margin at {gap_mm} mm, \
-                     but the gap margin (±{} mm) breaks {}: {}",
-                    windows.len(),
-                    if windows.len() == 1 { "" } else { "s" },
-                    spec.gap_margin_mm,
-                    if windows.len() == 1 { "it" } else { "each" },
-                    broken.join("; ")
-                ));
+                ""
             }
-        }
+        );
     }
+    // Each of them has a point that a perturbed gap leaves in another regime.
+    let gaps = perturbed_gaps(gap_mm * 1e-3, spec.gap_margin_mm);
+    let broken: Vec<String> = responses[1..]
+        .iter()
+        .zip(&gaps)
+        .filter_map(|(resp, g)| {
+            let mut off: Vec<usize> = windows
+                .iter()
+                .flat_map(|&(l, h)| l..=h)
+                .filter(|&j| !one_one(&resp[j]))
+                .collect();
+            off.sort_unstable();
+            off.dedup();
+            let &first = off.first()?;
+            Some(format!(
+                "at {} mm {} of the points asked {} not 1/1 (Ω/ω {:.3}: {})",
+                g * 1e3,
+                off.len(),
+                if off.len() == 1 { "is" } else { "are" },
+                sweep.value(first),
+                resp[first].regime
+            ))
+        })
+        .collect();
+    format!(
+        "{head}; {} point{} of the bands meet the frequency margin at {gap_mm} mm, but the gap \
+         margin (±{} mm) breaks {}: {}",
+        windows.len(),
+        if windows.len() == 1 { "" } else { "s" },
+        spec.gap_margin_mm,
+        if windows.len() == 1 { "it" } else { "each" },
+        broken.join("; ")
+    )
+}
+
+/// The transient's part of [`no_robust_point_diagnosis`]: said where it is shorter than the
+/// canonical protocol's and at least half of `nominal` ended it unsettled while impacting.
+fn transient_diagnosis(setup: &Setup, nominal: &[PointResult]) -> Option<String> {
     let transient = setup.settings.protocol.max_transient_periods;
     let canonical = Protocol::default().max_transient_periods;
     let unsettled = nominal
         .iter()
         .filter(|r| !r.settled && r.regime != Regime::NoImpact)
         .count();
-    if transient < canonical && 2 * unsettled >= nominal.len() {
-        why.push(format!(
+    (transient < canonical && 2 * unsettled >= nominal.len()).then(|| {
+        format!(
             "{unsettled} of the {} points ended their transient of {transient} periods (the \
              canonical protocol's: {canonical}) unsettled while impacting: the window labelled a \
              motion that may still be settling; a longer transient ([settings.protocol] \
              max_transient_periods) may label them",
             nominal.len()
-        ));
-    }
-    why.extend(contact_law_diagnosis(setup));
-    why
+        )
+    })
 }
 
 /// The contact law's part of [`no_robust_point_diagnosis`]: its effective restitution at the
