@@ -254,8 +254,8 @@ fn narrowed(cpu: Isa, var: Option<&std::ffi::OsStr>) -> Result<Isa, IsaVarError>
 }
 
 /// The vector instructions the host's lane kernels run: `"avx512"`, `"avx2"` or `"portable"`
-/// (the widest the CPU runs, or the narrower one [`ISA_VAR`] names; always `"portable"` on
-/// the MCU).
+/// (the widest the CPU runs, or the narrower one the environment variable `VIBRO_ISA` names,
+/// `ISA_VAR` with the `std` feature; always `"portable"` on the MCU).
 pub fn kernel_isa() -> &'static str {
     Isa::detect().name()
 }
