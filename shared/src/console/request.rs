@@ -76,6 +76,12 @@ impl Arg {
         Arg::LinkTimeoutS,
     ];
 
+    /// Whether it takes a whole number (`capture get`'s segment); the other numbers are
+    /// decimal.
+    pub fn whole(self) -> bool {
+        self == Arg::Segment
+    }
+
     /// Its name in messages.
     pub fn name(self) -> &'static str {
         match self {
@@ -133,7 +139,9 @@ const ON_OFF: &str = "stream and echo take on or off";
 const UNKNOWN_CAPTURE: &str = "capture takes arm [level_N] [seconds], stop or get <k>";
 const BAD_TAG: &str = "a tag is # and 1 to 9 digits, then a space";
 const MISSING: &str = "missing argument: ";
-const NOT_A_NUMBER: &str = " must be a number";
+const NOT_A_NUMBER: &str =
+    " must be a plain decimal number such as 0.25 (no exponent, at most 9 digits)";
+const NOT_A_WHOLE_NUMBER: &str = " must be a whole number";
 const OUT_OF_RANGE: (&str, &str) = (" out of range: allowed ", " ..= ");
 
 impl fmt::Display for ParseError {
@@ -148,7 +156,14 @@ impl fmt::Display for ParseError {
             ParseError::OnOff => f.write_str(ON_OFF),
             ParseError::UnknownCapture => f.write_str(UNKNOWN_CAPTURE),
             ParseError::BadTag => f.write_str(BAD_TAG),
-            ParseError::BadNumber(a) => write!(f, "{}{NOT_A_NUMBER}", a.name()),
+            ParseError::BadNumber(a) => {
+                let rule = if a.whole() {
+                    NOT_A_WHOLE_NUMBER
+                } else {
+                    NOT_A_NUMBER
+                };
+                write!(f, "{}{rule}", a.name())
+            }
             ParseError::OutOfRange { field, min, max } => write!(
                 f,
                 "{}{}{}{}{}",
@@ -183,8 +198,14 @@ impl FromStr for ParseError {
         if let Some(name) = s.strip_prefix(MISSING) {
             return arg_named(name).map(ParseError::MissingArgument);
         }
-        if let Some(name) = s.strip_suffix(NOT_A_NUMBER) {
-            return arg_named(name).map(ParseError::BadNumber);
+        for (rule, whole) in [(NOT_A_NUMBER, false), (NOT_A_WHOLE_NUMBER, true)] {
+            if let Some(name) = s.strip_suffix(rule) {
+                return arg_named(name)
+                    .ok()
+                    .filter(|a| a.whole() == whole)
+                    .map(ParseError::BadNumber)
+                    .ok_or(());
+            }
         }
         let (name, range) = s.split_once(OUT_OF_RANGE.0).ok_or(())?;
         let (min, max) = range.split_once(OUT_OF_RANGE.1).ok_or(())?;
@@ -449,6 +470,17 @@ mod tests {
         );
         assert_eq!(parse("gap nan"), Err(ParseError::BadNumber(Arg::GapMm)));
         assert_eq!(parse("gap inf"), Err(ParseError::BadNumber(Arg::GapMm)));
+        // A number the console's decimal reader does not take says what it takes.
+        let e = parse("gap 1e-3").unwrap_err();
+        assert_eq!(e, ParseError::BadNumber(Arg::GapMm));
+        assert_eq!(
+            e.to_string(),
+            "gap (mm) must be a plain decimal number such as 0.25 (no exponent, at most 9 digits)"
+        );
+        assert_eq!(
+            parse("capture get 1.5").unwrap_err().to_string(),
+            "segment must be a whole number"
+        );
         assert_eq!(parse("freq 3 4"), Err(ParseError::UnexpectedArgument));
         assert_eq!(parse("start now"), Err(ParseError::UnexpectedArgument));
         assert_eq!(parse("rig beam-200"), Err(ParseError::UnknownRig));
@@ -510,5 +542,16 @@ mod tests {
             Ok(ParseError::TooLong)
         );
         assert!("gap (mm) must be a numbr".parse::<ParseError>().is_err());
+        // Each rule reads back only for the arguments it is said of.
+        assert!(
+            "gap (mm) must be a whole number"
+                .parse::<ParseError>()
+                .is_err()
+        );
+        assert!(
+            "segment must be a plain decimal number such as 0.25 (no exponent, at most 9 digits)"
+                .parse::<ParseError>()
+                .is_err()
+        );
     }
 }
