@@ -291,6 +291,46 @@ pub fn check_band(setup: &Setup, rep: &mut SelectReport) -> Result<()> {
     Ok(())
 }
 
+/// Warnings for the band's sides where the sweep's edge stands (no edge located on the orbit's
+/// branch, or no orbit check): where the sweep's next point beyond its last `1/1` point ended
+/// its transient unsettled while impacting, a longer transient may carry the band further (a
+/// weakly dissipating law settles slowly: docs/accuracy.md). `nominal` is the response at the
+/// nominal gap over the selection's sweep.
+pub fn unsettled_beyond_edges(
+    setup: &Setup,
+    rep: &SelectReport,
+    nominal: &[PointResult],
+) -> Vec<String> {
+    let sweep = setup.selection.omega_ratio;
+    let stands = |side: usize| {
+        rep.band_check.as_ref().is_none_or(|c| {
+            let e = if side == 0 { &c.lower } else { &c.upper };
+            e.stalled_at.is_some()
+        })
+    };
+    let transient = setup.settings.protocol.max_transient_periods;
+    [(0, "lower", -1i64), (1, "upper", 1)]
+        .into_iter()
+        .filter(|&(side, ..)| stands(side))
+        .filter_map(|(side, name, outward)| {
+            let edge = rep.band_omega_ratio[side];
+            let i = ((edge - sweep.lo) / sweep.step).round() as i64;
+            let j = usize::try_from(i + outward).ok()?;
+            let r = nominal.get(j)?;
+            (!r.settled && r.regime != Regime::NoImpact).then(|| {
+                format!(
+                    "band edge: the sweep's point beyond its {name} 1/1 point {edge:.4}, Ω/ω \
+                     {:.4}, ended its transient of {transient} periods unsettled ({}): a longer \
+                     transient ([settings.protocol] max_transient_periods) may carry the band \
+                     further",
+                    sweep.value(j),
+                    r.regime
+                )
+            })
+        })
+        .collect()
+}
+
 /// The warning for a config whose `[uncertainty]` table carries a lack-of-fit verdict
 /// (`identify contact` found that the law does not fit its drop tests); `None` otherwise.
 pub fn lack_of_fit_warning(setup: &Setup, config: &str) -> Option<String> {

@@ -82,6 +82,49 @@ fn select_says_when_the_branch_could_not_be_followed() {
         warnings.contains("no edge is located on this side"),
         "{warnings}"
     );
+    // Where the sweep's edge stands, the point beyond it is said to be unsettled if it is: the
+    // response there (the same sweep's points, computed alone) ended its transient unsettled,
+    // in the regime the warning names.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("r.csv");
+    for (side, step) in [("lower", -0.01), ("upper", 0.01)] {
+        let edge = check[side]["sweep_omega_ratio"].as_f64().unwrap();
+        let beyond = edge + step;
+        ok(&line(&format!(
+            "response --law hunt-crossley --gap-mm 0 --omega-ratio {beyond:.2}:{beyond:.2}:0.01 \
+             --no-lyapunov --out {}",
+            csv.display()
+        )));
+        let text = fs::read_to_string(&csv).unwrap();
+        let row: Vec<&str> = text.lines().nth(1).unwrap().split(',').collect();
+        assert_eq!(row[6], "false", "{text}");
+        let needle = format!(
+            "the sweep's point beyond its {side} 1/1 point {edge:.4}, Ω/ω {beyond:.4}, ended its \
+             transient of 200 periods unsettled ({})",
+            row[3]
+        );
+        assert!(warnings.contains(&needle), "{warnings} lacks {needle}");
+    }
+}
+
+/// Without the orbit check the sweep's edges stand, and the main job's upper one is followed
+/// by a point still alternating after 200 periods (Ω/ω 2.66, read as `2/2`; the located period
+/// doubling is at 2.66035, beyond it): the warning says so. With the check, no warning.
+#[test]
+fn select_warns_of_an_unsettled_point_beyond_a_sweep_edge() {
+    let out = ok(&line("select --no-basin-check --no-orbit-check --json"));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let warnings = v["warnings"].to_string();
+    assert!(
+        warnings.contains(
+            "the sweep's point beyond its upper 1/1 point 2.6500, Ω/ω 2.6600, ended its \
+             transient of 200 periods unsettled (2/2)"
+        ),
+        "{warnings}"
+    );
+    assert!(!warnings.contains("lower 1/1 point"), "{warnings}");
+    let checked = ok(&line("select --no-basin-check --json"));
+    assert!(!checked.contains("warnings"), "{checked}");
 }
 
 /// Runs `host-sim args`, asserts it fails and returns its stderr.

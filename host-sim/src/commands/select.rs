@@ -15,6 +15,7 @@ use crate::response;
 use crate::selection::{
     BASIN_MAX_PERIODS, BASIN_SAMPLES, BASIN_THRESHOLD, BasinCheck, check_band, check_basin,
     compute_parts, lack_of_fit_warning, no_robust_point_diagnosis, selection_failure,
+    unsettled_beyond_edges,
 };
 pub use crate::selection::{OtherBest, SelectReport, compute};
 
@@ -205,6 +206,8 @@ pub fn run(a: &SelectArgs) -> Result<()> {
             ));
         }
     }
+    let beyond = unsettled_beyond_edges(&setup, &rep, &nominal);
+    rep.warnings.extend(beyond);
     if !a.no_basin_check {
         let mut basin_setup = setup.clone();
         let n = a.basin_max_periods.unwrap_or_else(|| {
