@@ -140,7 +140,7 @@ const UNKNOWN_CAPTURE: &str = "capture takes arm [level_N] [seconds], stop or ge
 const BAD_TAG: &str = "a tag is # and 1 to 9 digits, then a space";
 const MISSING: &str = "missing argument: ";
 const NOT_A_NUMBER: &str =
-    " must be a plain decimal number such as 0.25 (no exponent, at most 9 digits)";
+    " must be a plain decimal number such as 0.25 (no exponent, at most 9 significant digits)";
 const NOT_A_WHOLE_NUMBER: &str = " must be a whole number";
 const OUT_OF_RANGE: (&str, &str) = (" out of range: allowed ", " ..= ");
 
@@ -475,7 +475,7 @@ mod tests {
         assert_eq!(e, ParseError::BadNumber(Arg::GapMm));
         assert_eq!(
             e.to_string(),
-            "gap (mm) must be a plain decimal number such as 0.25 (no exponent, at most 9 digits)"
+            "gap (mm) must be a plain decimal number such as 0.25 (no exponent, at most 9 significant digits)"
         );
         assert_eq!(
             parse("capture get 1.5").unwrap_err().to_string(),
@@ -549,7 +549,7 @@ mod tests {
                 .is_err()
         );
         assert!(
-            "segment must be a plain decimal number such as 0.25 (no exponent, at most 9 digits)"
+            "segment must be a plain decimal number such as 0.25 (no exponent, at most 9 significant digits)"
                 .parse::<ParseError>()
                 .is_err()
         );
