@@ -291,6 +291,13 @@ pub fn check_band(setup: &Setup, rep: &mut SelectReport) -> Result<()> {
     Ok(())
 }
 
+/// Whether the protocol ended `r`'s transient on its length limit while the hammer still
+/// impacts: its window may label a motion that is still settling (a motion without impacts on
+/// an undamped suspension never settles, whatever the transient).
+fn unsettled_impacting(r: &PointResult) -> bool {
+    !r.settled && r.regime != Regime::NoImpact
+}
+
 /// Warnings for the band's sides where the sweep's edge stands (no edge located on the orbit's
 /// branch, or no orbit check): where the sweep's next point beyond its last `1/1` point ended
 /// its transient unsettled while impacting, a longer transient may carry the band further (a
@@ -317,7 +324,7 @@ pub fn unsettled_beyond_edges(
             let i = ((edge - sweep.lo) / sweep.step).round() as i64;
             let j = usize::try_from(i + outward).ok()?;
             let r = nominal.get(j)?;
-            (!r.settled && r.regime != Regime::NoImpact).then(|| {
+            unsettled_impacting(r).then(|| {
                 format!(
                     "band edge: the sweep's point beyond its {name} 1/1 point {edge:.4}, Ω/ω \
                      {:.4}, ended its transient of {transient} periods unsettled ({}): a longer \
@@ -490,10 +497,7 @@ fn band_diagnosis(setup: &Setup, gap_mm: f64, responses: &[Vec<PointResult>]) ->
 fn transient_diagnosis(setup: &Setup, nominal: &[PointResult]) -> Option<String> {
     let transient = setup.settings.protocol.max_transient_periods;
     let canonical = Protocol::default().max_transient_periods;
-    let unsettled = nominal
-        .iter()
-        .filter(|r| !r.settled && r.regime != Regime::NoImpact)
-        .count();
+    let unsettled = nominal.iter().filter(|r| unsettled_impacting(r)).count();
     (transient < canonical && 2 * unsettled >= nominal.len()).then(|| {
         format!(
             "{unsettled} of the {} points ended their transient of {transient} periods (the \

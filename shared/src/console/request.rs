@@ -475,7 +475,8 @@ mod tests {
         assert_eq!(e, ParseError::BadNumber(Arg::GapMm));
         assert_eq!(
             e.to_string(),
-            "gap (mm) must be a plain decimal number such as 0.25 (no exponent, at most 9 significant digits)"
+            "gap (mm) must be a plain decimal number such as 0.25 (no exponent, at most 9 \
+             significant digits)"
         );
         assert_eq!(
             parse("capture get 1.5").unwrap_err().to_string(),
@@ -549,7 +550,8 @@ mod tests {
                 .is_err()
         );
         assert!(
-            "segment must be a plain decimal number such as 0.25 (no exponent, at most 9 significant digits)"
+            "segment must be a plain decimal number such as 0.25 (no exponent, at most 9 \
+             significant digits)"
                 .parse::<ParseError>()
                 .is_err()
         );

@@ -485,9 +485,9 @@ impl<E> HeldCluster<E> {
     }
 
     /// A new located change (a fold, or a doubling at a jump) at `value`, the test positive
-    /// before it if `before` (for folds: where it last held its sign for the span): it joins the held cluster if within
-    /// the retreat of its farthest; else the held one (to report now if its sign before is not
-    /// `before`) gives way to a new cluster.
+    /// before it if `before` (for folds: where it last held its sign for the span): it joins
+    /// the held cluster if within the retreat of its farthest; else the held one (to report now
+    /// if its sign before is not `before`) gives way to a new cluster.
     fn add(&mut self, value: f64, before: bool, ev: E) -> Option<(E, SignChanges)> {
         if let Some(c) = &mut self.held
             && libm::fabs(value - c.far.0) < self.retreat
