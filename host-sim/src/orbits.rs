@@ -12,8 +12,8 @@ use shared::Real;
 use shared::observe::Regime;
 use shared::orbit::{
     BifEvent, BranchEnd, BranchPoint, ContinuationSettings, EventKind, MIN_TURN_COSINE, MapPoint,
-    Multiplier, Orbit, Param, ShootSettings, Stability, continue_branch, doubling_start, iterate,
-    orbit_from, relative, shoot, state_of,
+    Multiplier, Orbit, OrbitError, Param, ShootSettings, Stability, continue_branch,
+    doubling_start, iterate, orbit_from, relative, shoot, state_of,
 };
 
 use crate::config::Setup;
@@ -167,8 +167,15 @@ pub fn find<T: Real>(
         }
     };
     orbit_from::<T>(at, u, du, q, &ShootSettings::for_type::<T>()).map_err(|e| {
+        // The commands that call this take the period as `--q`.
+        let hint = if matches!(e, OrbitError::NoPeriod { .. }) {
+            " (`--q Q`: Newton's method then seeks an orbit of Q periods from where the \
+             protocol stopped)"
+        } else {
+            ""
+        };
         anyhow!(
-            "no periodic orbit at Ω/ω {}, gap {} mm: {e}",
+            "no periodic orbit at Ω/ω {}, gap {} mm: {e}{hint}",
             at.omega_ratio,
             mm(at.gap_m)
         )

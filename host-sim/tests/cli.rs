@@ -340,11 +340,20 @@ fn response_writes_csv_and_png() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("fr.csv");
     let png = dir.path().join("fr.png");
-    ok(&line(&format!(
-        "response --rig beam-150 --gap-mm 1 --omega-ratio 1.0:2.0:0.25 --out {} --plot {}",
-        csv.display(),
-        png.display()
-    )));
+    let out = host_sim()
+        .args(line(&format!(
+            "response --rig beam-150 --gap-mm 1 --omega-ratio 1.0:2.0:0.25 --out {} --plot {}",
+            csv.display(),
+            png.display()
+        )))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    // What it wrote, as the grid commands say it.
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!("response: 5 points → {}\n", csv.display())
+    );
     let text = fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -1002,6 +1011,31 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
     assert!(
         text.contains(": neutral (no impact on an undamped suspension"),
         "{text}"
+    );
+}
+
+/// In the wire rig's chaotic band (1.0 mm, Ω/ω 2.6: the response's exponent +0.35 per period)
+/// the protocol settles on no period: `orbit` says how to ask for one, and asked for two
+/// periods finds the unstable `2/2` orbit embedded in the chaos.
+#[test]
+fn orbit_in_chaos_asks_for_the_period_and_finds_an_unstable_orbit_with_it() {
+    let at = "orbit --rig wires --gap-mm 1.0 --omega-ratio 2.6";
+    rejected(
+        &line(at),
+        &["settled on no period (regime irregular)", "`--q Q`"],
+        &[],
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&ok(&line(&format!("{at} --q 2 --json")))).unwrap();
+    let o = &v["orbit"];
+    assert_eq!((&o["regime"], &o["stable"]), (&"2/2".into(), &false.into()));
+    // Unstable by a flip (μ < −1), its exponent ln max|μ| / 2 positive like the attractor's.
+    let mu = o["multipliers"][0][0].as_f64().unwrap();
+    assert!(mu < -1.5, "{mu}");
+    let lyap = o["lyapunov_per_period"].as_f64().unwrap();
+    assert!(
+        (lyap - mu.abs().ln() / 2.0).abs() < 1e-9 && lyap > 0.2,
+        "{lyap}"
     );
 }
 

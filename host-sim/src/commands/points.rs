@@ -190,6 +190,6 @@ pub fn run(a: &PointsArgs) -> Result<()> {
             }
         });
     write_whole(&a.out, |tmp| write_csv(tmp, rows))?;
-    eprintln!("{} points → {}", pts.len(), a.out.display());
+    eprintln!("points: {} points → {}", pts.len(), a.out.display());
     Ok(())
 }

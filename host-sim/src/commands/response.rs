@@ -79,7 +79,9 @@ pub fn run(a: &ResponseArgs) -> Result<()> {
         None,
     )?;
     outputs.commit()?;
-    if a.out.is_none() {
+    if let Some(out) = &a.out {
+        eprintln!("response: {} points → {}", rows.len(), out.display());
+    } else {
         let mut w = csv::Writer::from_writer(std::io::stdout());
         for r in &rows {
             w.serialize(r)?;
