@@ -74,21 +74,24 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         OMEGA_RATIO_RANGE.1,
     )
     .context("--omega-ratio")?;
+    let u0_mm = CountSweep::parse("--u0-mm", &a.u0_mm, -MAX_U0_MM, MAX_U0_MM)?;
+    let v0_mm_s = CountSweep::parse("--v0-mm-s", &a.v0_mm_s, -MAX_V0_MM_S, MAX_V0_MM_S)?;
+    super::check_start_off_surface(
+        &format!("--u0-mm {}: END = {} mm", a.u0_mm, u0_mm.end),
+        u0_mm.end,
+        a.gap_mm,
+    )?;
+    // After the input's checks: it says the transient it sets.
     let (attractor_tol, recurrence) = a.attractors.apply(&mut setup, a.omega_ratio)?;
     let grid = BasinsGrid {
         gap_mm: a.gap_mm,
         omega_ratio: a.omega_ratio,
-        u0_mm: CountSweep::parse("--u0-mm", &a.u0_mm, -MAX_U0_MM, MAX_U0_MM)?,
-        v0_mm_s: CountSweep::parse("--v0-mm-s", &a.v0_mm_s, -MAX_V0_MM_S, MAX_V0_MM_S)?,
+        u0_mm,
+        v0_mm_s,
         attractor_tol,
         recurrence,
         color_by: a.color_by,
     };
-    super::check_start_off_surface(
-        &format!("--u0-mm {}: END = {} mm", a.u0_mm, grid.u0_mm.end),
-        grid.u0_mm.end,
-        grid.gap_mm,
-    )?;
     let mut dest = a.output.destination(None, None)?;
     dest.figures.attractors = a.attractors_out.as_deref();
     let catalogue = Catalogue::new(

@@ -127,7 +127,6 @@ pub fn run(a: &FractionsArgs) -> Result<()> {
         setup.gap_m("--gap-mm", g)?;
     }
     let ratio_max = points.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
-    let (attractor_tol, recurrence) = a.attractors.apply(&mut setup, ratio_max)?;
     if !(1..=MAX_SAMPLES).contains(&a.samples) {
         bail!(
             "--samples {}: out of range: allowed 1 ..= {MAX_SAMPLES}",
@@ -164,6 +163,8 @@ pub fn run(a: &FractionsArgs) -> Result<()> {
         }
         check_width(w, a.samples)?;
     }
+    // After the input's checks: it says the transient it sets.
+    let (attractor_tol, recurrence) = a.attractors.apply(&mut setup, ratio_max)?;
     let grid = FractionsGrid {
         points,
         parameter,

@@ -77,6 +77,8 @@ pub fn rejected<S: AsRef<OsStr> + Debug>(args: &[S], needles: &[&str], outputs: 
     let out = host_sim().args(args).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{args:?} succeeded");
+    // Refused before it says anything else (no progress, no note on what it would run).
+    assert!(stderr.starts_with("error: "), "{args:?}: stderr `{stderr}`");
     for n in needles {
         assert!(
             stderr.contains(n),
