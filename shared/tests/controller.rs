@@ -191,9 +191,17 @@ fn assert_fault_ramps_down_and_latches(rig: &mut Rig, fault: Fault, within_s: f3
         rig.c.execute(Command::Start),
         Err(CommandError::FaultLatched)
     );
+    // The fault keeps the last measurement before it; clearing it drops that measurement.
+    let measured = rig.c.status();
     rig.c.execute(Command::Clear).unwrap();
     assert_eq!(rig.c.state(), State::Idle);
     assert_eq!(rig.c.fault(), None);
+    let s = rig.c.status();
+    assert_eq!(
+        (s.regime, s.peak, s.force_vs_model_pct),
+        (None, None, None),
+        "before the clear: {measured:?}"
+    );
 }
 
 fn tracking_rig() -> Rig {

@@ -435,7 +435,8 @@ impl Controller {
             Command::Clear => {
                 if let Mode::Fault(_) = self.mode {
                     self.detector.reset();
-                    self.monitor.disarm();
+                    // What was measured before the fault is no longer current.
+                    self.reset_measurement();
                     let next = if self.generator.amplitude_mm() > 0.0 {
                         Mode::Stopping
                     } else {
