@@ -47,7 +47,8 @@ pub struct HilArgs {
     pub speed: f64,
     /// CSV log, one row per drive cycle: t_s, state, freq_hz, amp_cmd_mm, cart_amp_mm,
     /// measured_impacts, measured_peak_n, true_impacts, true_peak_n, measured_regime, fault,
-    /// lost_cycles, force_vs_model_pct.
+    /// lost_cycles, force_vs_model_pct (true_: the plant's contacts with a peak of 1 mN or
+    /// more).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
     /// PNG: frequency, force and state against time.

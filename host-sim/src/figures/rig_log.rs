@@ -35,8 +35,9 @@ pub fn draw(
     let t1 = rows.last().map_or(1.0, |r| r.t_s).max(t0 + 1e-3);
 
     // Frequency.
-    // The drive idles at the window's lowest frequency: show the frequency while driving.
-    let driving = |r: &&CycleRow| r.state != "idle";
+    // The drive idles at the window's lowest frequency, and a fault or a stop ends at zero
+    // amplitude at the last one: show the frequency while the shaker is driven.
+    let driving = |r: &&CycleRow| r.state != "idle" && r.amp_cmd_mm > 0.0;
     let fvals =
         rows.iter()
             .filter(driving)

@@ -36,6 +36,11 @@ pub struct HilSetup {
     pub scenario: Scenario,
 }
 
+/// The least peak force of a contact episode of the plant counted as an impact, N: lighter
+/// ones are the hammer resting on the surface as its motion dies out (at 0.0 mm gap, peaks
+/// falling to 1e-300 N); 1 mN is an eightieth of the sensor chain's least step (0.081 N).
+pub const TRUE_IMPACT_MIN_N: f64 = 1e-3;
+
 /// One excitation cycle of the drive, as logged.
 #[derive(Debug, Clone, Serialize)]
 pub struct CycleRow {
@@ -53,7 +58,8 @@ pub struct CycleRow {
     pub measured_impacts: u32,
     /// Their largest peak, N (empty without impacts).
     pub measured_peak_n: Option<f64>,
-    /// Contact episodes of the plant in the cycle.
+    /// Impacts of the plant in the cycle: its contact episodes whose peak reaches
+    /// [`TRUE_IMPACT_MIN_N`].
     pub true_impacts: u32,
     /// Their largest true peak, N.
     pub true_peak_n: Option<f64>,
@@ -402,7 +408,8 @@ impl Session {
         }
 
         self.cart_max = self.cart_max.max(self.plant.cart_m().abs());
-        for imp in self.plant.take_impacts() {
+        let impacts = self.plant.take_impacts();
+        for imp in impacts.iter().filter(|i| i.peak_n >= TRUE_IMPACT_MIN_N) {
             self.true_n += 1;
             self.true_peak = Some(
                 self.true_peak
