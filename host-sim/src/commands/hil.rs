@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
+use shared::control::Target;
 use shared::model::RigId;
 
 use std::io::Write as _;
@@ -180,7 +181,8 @@ fn write_outputs(
             "virtual rig: {} (configured gap {:.2} mm, real {:.2} mm)",
             a.rig, a.gap_mm, actual
         );
-        rig_log::draw(path, &title, &r.rows, r.prediction.as_ref(), force_limit)?;
+        let model = r.prediction.as_ref().map(Target::from);
+        rig_log::draw(path, &title, &r.rows, model.as_ref(), force_limit)?;
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
 use shared::console::Token;
-use shared::control::Command;
+use shared::control::{Command, ModelStatus};
 
 use crate::figures::response::{ResponsePoint, response};
 use crate::figures::rig_log;
@@ -230,6 +230,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
             let mut outputs = Outputs::new();
             let csv = outputs.reserve(&l.out)?;
             let png = l.plot.as_ref().map(|p| outputs.reserve(p)).transpose()?;
+            // The model's target and band, for the figure (as the status says them now).
+            let model = match port.status()?.model {
+                ModelStatus::Ready(t) => Some(t),
+                ModelStatus::Pending | ModelStatus::Failed => None,
+            };
             let log = record(&mut port, l.seconds, quiet)?;
             println!(
                 "{} cycles over {:.1} s of rig time; {} telemetry/event lines received, {} lost, {} duplicated, {} that did not read",
@@ -257,7 +262,7 @@ pub fn run(a: &RigArgs) -> Result<()> {
                     p,
                     &title,
                     &figure_rows(&log),
-                    None,
+                    model.as_ref(),
                     f64::from(id.force_limit_n),
                 )?;
             }

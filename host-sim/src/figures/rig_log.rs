@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::Result;
 use plotters::prelude::*;
-use shared::control::Prediction;
+use shared::control::Target;
 
 use super::{Frame, SANS, canvas, level_line, line_key, panel, series_legend};
 use crate::virtual_rig::CycleRow;
@@ -16,8 +16,9 @@ const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"
 /// The stacked panels (wide y labels: the state names).
 const PANEL: Frame = Frame::new(10, 35, 80, 14);
 
-/// Three panels over time: frequency (with the model's target and band), per-cycle peak
-/// forces (measured by the controller, true from the plant, the force limit), and the state.
+/// Three panels over time: frequency (with the model's target and band where `model` is
+/// given), per-cycle peak forces (measured by the controller, true from the plant where the
+/// rows have it, the force limit), and the state.
 ///
 /// # Errors
 /// Drawing or file errors.
@@ -25,7 +26,7 @@ pub fn draw(
     path: &Path,
     title: &str,
     rows: &[CycleRow],
-    prediction: Option<&Prediction>,
+    model: Option<&Target>,
     force_limit_n: f64,
 ) -> Result<()> {
     let root = canvas(path, (1000, 1000), Some((title, 22)))?;
@@ -38,17 +39,17 @@ pub fn draw(
     // The drive idles at the window's lowest frequency, and a fault or a stop ends at zero
     // amplitude at the last one: show the frequency while the shaker is driven.
     let driving = |r: &&CycleRow| r.state != "idle" && r.amp_cmd_mm > 0.0;
-    let fvals =
-        rows.iter()
-            .filter(driving)
-            .map(|r| r.freq_hz)
-            .chain(prediction.into_iter().flat_map(|p| {
-                [
-                    f64::from(p.target_hz),
-                    f64::from(p.band_hz[0]),
-                    f64::from(p.band_hz[1]),
-                ]
-            }));
+    let fvals = rows
+        .iter()
+        .filter(driving)
+        .map(|r| r.freq_hz)
+        .chain(model.into_iter().flat_map(|p| {
+            [
+                f64::from(p.target_hz),
+                f64::from(p.band_hz[0]),
+                f64::from(p.band_hz[1]),
+            ]
+        }));
     let (flo, fhi) = fvals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
         (a.min(v), b.max(v))
     });
@@ -72,7 +73,7 @@ pub fn draw(
     )?
     .label("drive frequency (per cycle)")
     .legend(|(x, y)| Circle::new((x + 8, y), 2, BLUE.filled()));
-    if let Some(p) = prediction {
+    if let Some(p) = model {
         let grey = BLACK.mix(0.5);
         let target = f64::from(p.target_hz);
         c.draw_series(LineSeries::new(
