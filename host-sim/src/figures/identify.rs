@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
 use super::{
-    Chart, Frame, SANS, canvas, labelled_line, legend_place, line_key, panel, series_legend,
+    Chart, Frame, SANS, canvas, labelled_line, legend_place, line_key, panel, series_legend, tick,
 };
 use crate::comparison::{ResponseOverlay, TsOverlay};
 use crate::identify::cost::SimDrop;
@@ -138,9 +138,24 @@ fn drop_panel(
     let shown: Vec<_> = data.impacts.iter().take(4).collect();
     let panels = bottom.split_evenly((1, shown.len().max(1)));
     for (j, (imp, area)) in shown.iter().zip(panels.iter()).enumerate() {
-        let (a, b) = imp.window;
-        let lo_ms = (t[a] - imp.centroid_s) * 1e3;
-        let hi_ms = (t[b] - imp.centroid_s) * 1e3;
+        // The impact's window, widened to hold every fit's simulated pulse whole (a weak
+        // impact's window ends where its tail sinks into the noise), with the samples there.
+        let (mut lo_ms, mut hi_ms) = (
+            (t[imp.window.0] - imp.centroid_s) * 1e3,
+            (t[imp.window.1] - imp.centroid_s) * 1e3,
+        );
+        for s in fits.iter().filter_map(|(_, fit)| fit.impacts.get(j)) {
+            if let (Some(first), Some(last)) = (s.profile.first(), s.profile.last()) {
+                let pad = 0.1 * (last.0 - first.0) * 1e3;
+                lo_ms = lo_ms.min((first.0 - s.centroid_s) * 1e3 - pad);
+                hi_ms = hi_ms.max((last.0 - s.centroid_s) * 1e3 + pad);
+            }
+        }
+        let a = t.partition_point(|&ti| (ti - imp.centroid_s) * 1e3 < lo_ms);
+        let b = t
+            .partition_point(|&ti| (ti - imp.centroid_s) * 1e3 <= hi_ms)
+            .saturating_sub(1)
+            .max(a);
         let ymax = fits
             .iter()
             .filter_map(|(_, fit)| fit.impacts.get(j).map(|s| s.peak_n))
@@ -156,6 +171,8 @@ fn drop_panel(
         c.configure_mesh()
             .x_desc("t − t_impact (ms)")
             .y_desc(if j == 0 { "F_i (N)" } else { "" })
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
             .label_style((SANS, 13))
             .x_labels(5)
             .draw()?;

@@ -22,7 +22,7 @@ use crate::shard::{open_csv, title_prefix};
 
 use super::{
     Chart, Frame, LEGEND_PLACES, LegendCover, SANS, canvas, least_covered, legend_size, level_line,
-    line_key, panel, regime_class, regime_classes, regime_color, series_legend,
+    line_key, panel, regime_class, regime_classes, regime_color, series_legend, tick,
 };
 
 /// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
@@ -125,6 +125,8 @@ fn map_chart<'a, 'b>(
         .disable_mesh()
         .x_desc(x.label.as_str())
         .y_desc(y.label.as_str())
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
         .label_style((SANS, 15))
         .axis_desc_style((SANS, 17))
         .draw()?;
@@ -615,6 +617,8 @@ pub fn fractions_stack(
         .disable_mesh()
         .x_desc(x_label)
         .y_desc("basin fraction")
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
         .label_style((SANS, 15))
         .axis_desc_style((SANS, 17))
         .draw()?;

@@ -108,12 +108,27 @@ pub(crate) fn panel<'a, 'b>(
     let mut mesh = chart.configure_mesh();
     mesh.x_desc(desc.0)
         .y_desc(desc.1)
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
         .label_style((SANS, frame.font));
     if let Some(px) = frame.desc_font {
         mesh.axis_desc_style((SANS, px));
     }
     mesh.draw()?;
     Ok(chart)
+}
+
+/// An axis' tick label: plotters' own (the shortest decimal within 1e-5, at least one
+/// decimal), but a tick that lands within that of zero (`-1e-17` from `lo + k·step`) reads
+/// `0.0`, not `-0.0`.
+pub(crate) fn tick(v: &f64) -> String {
+    let v = if v.abs() < 1e-5 { 0.0 } else { *v };
+    plotters::data::float::FloatPrettyPrinter {
+        allow_scientific: false,
+        min_decimal: 1,
+        max_decimal: 5,
+    }
+    .print(v)
 }
 
 /// A legend key: a 14 × 10 px swatch in `style`.

@@ -16,7 +16,7 @@ use crate::config::Setup;
 
 use super::{
     Chart, Frame, SANS, canvas, legend_place, level_line, line_key, panel, regime_classes,
-    series_legend, swatch_key,
+    series_legend, swatch_key, tick,
 };
 
 /// Font size of the response figure's legend, px.
@@ -51,6 +51,8 @@ fn force_chart<'a, 'b>(
         .configure_mesh()
         .x_desc("Ω/ω")
         .y_desc("max impact force F_i/mg")
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
         .label_style((SANS, 15))
         .draw()?;
     Ok(chart)

@@ -7,7 +7,7 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::control::Target;
 
-use super::{Frame, SANS, canvas, level_line, line_key, panel, series_legend};
+use super::{Frame, SANS, canvas, level_line, line_key, panel, series_legend, tick};
 use crate::virtual_rig::CycleRow;
 
 /// Controller states in plotting order (y levels of the state panel).
@@ -133,6 +133,7 @@ pub fn draw(
         .build_cartesian_2d(t0..t1, -0.5..5.5)?;
     c.configure_mesh()
         .x_desc("t (s)")
+        .x_label_formatter(&tick)
         .y_desc("controller state")
         .y_labels(6)
         .y_label_formatter(&|y: &f64| {
