@@ -430,6 +430,20 @@ pub fn regime_classes(regimes: impl Iterator<Item = Regime>) -> Vec<(String, RGB
 mod tests {
     use super::*;
 
+    /// The ticks of `-0.6..0.6` in steps of 0.2 as plotters places them (`lo + k·step`, so the
+    /// middle one is 1.1e-16, and `-0.2 + 0.2` gives -2.8e-17 in other ranges): plotters'
+    /// labels but for the sign of zero.
+    #[test]
+    fn a_tick_at_zero_reads_without_a_sign() {
+        let ticks: Vec<String> = (0..7).map(|k| tick(&(-0.6 + 0.2 * f64::from(k)))).collect();
+        assert_eq!(ticks, ["-0.6", "-0.4", "-0.2", "0.0", "0.2", "0.4", "0.6"]);
+        assert_eq!(tick(&-2.8e-17), "0.0");
+        assert_eq!(
+            (tick(&-0.00002), tick(&1234.5)),
+            ("-0.00002".into(), "1234.5".into())
+        );
+    }
+
     /// A legend of 100 × 60 px on a 400 × 300 px plotting area over `[0, 1]²`: its boxes span
     /// x 5–105 px (data 0.0125–0.2625), 150–250 px (0.375–0.625) or 295–395 px (0.7375–0.9875),
     /// y 5–65 px from the top (data 0.783–0.983), 120–180 px (0.4–0.6) or 235–295 px
