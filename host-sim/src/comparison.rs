@@ -36,6 +36,42 @@ pub struct TsOverlay {
     pub strobe_sim: Vec<(f64, f64)>,
 }
 
+/// The record's shortest repeat at the excitation period `T`: over `q = 1..=4` (those the
+/// record spans twice), the smallest RMS of `x(t + qT) − x(t)` (mm; `x` linear between the
+/// samples), with that `q`; `None` for a record shorter than `2T`. A steady periodic motion
+/// (`p/q`, `q ≤ 4`) repeats to the noise; a transient, chaos, or a record taken at another
+/// frequency than `T`'s does not.
+pub fn repeat_rms(t: &[f64], x: &[f64], period: f64) -> Option<(u32, f64)> {
+    let duration = t.last()? - t.first()?;
+    let at = |s: f64| -> f64 {
+        let i = t.partition_point(|&ti| ti <= s).clamp(1, t.len() - 1);
+        let (ta, tb) = (t[i - 1], t[i]);
+        if tb > ta {
+            x[i - 1] + (x[i] - x[i - 1]) * (s - ta) / (tb - ta)
+        } else {
+            x[i]
+        }
+    };
+    (1..=4u32)
+        .filter(|&q| 2.0 * f64::from(q) * period <= duration)
+        .map(|q| {
+            let shift = f64::from(q) * period;
+            let (n, ss) = t
+                .iter()
+                .zip(x)
+                .take_while(|(ti, _)| **ti + shift <= t[t.len() - 1])
+                .fold((0usize, 0.0), |(n, ss), (&ti, &xi)| {
+                    (n + 1, ss + (at(ti + shift) - xi).powi(2))
+                });
+            (q, (ss / n.max(1) as f64).sqrt())
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Above this share of the record's peak-to-peak, [`repeat_rms`] says the record is not a
+/// steady periodic motion at the given frequency (`compare` warns).
+pub const REPEAT_WARN: f64 = 0.05;
+
 /// One measured point of a frequency response.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measured {
@@ -179,7 +215,8 @@ pub fn response(setup: &Setup, gap_m: f64, meas: &[Measured]) -> Result<(Respons
 /// The simulated steady state at gap `gap_m` (m) and `freq_hz` (after `transient_periods`
 /// from rest) against a measured absolute displacement `trace` (m): the simulation shifted by
 /// the phase `τ ∈ [0, T)` (256 trials) that minimises the RMS displacement difference; the
-/// overlay (mm, mm/s; measured velocity by central differences) and the error summary.
+/// overlay (mm, mm/s; measured velocity by central differences), the error summary, and a
+/// warning where the record does not repeat with the excitation ([`repeat_rms`]).
 ///
 /// # Errors
 /// A record longer than 100000 periods, or an invalid simulation.
@@ -189,7 +226,7 @@ pub fn time_series(
     freq_hz: f64,
     transient_periods: u32,
     trace: &Trace,
-) -> Result<(TsOverlay, String)> {
+) -> Result<(TsOverlay, String, Option<String>)> {
     let fn_hz = setup.params.natural_freq_hz();
     let t0 = trace.t_s[0];
     let t_meas: Vec<f64> = trace.t_s.iter().map(|t| t - t0).collect();
@@ -286,6 +323,18 @@ pub fn time_series(
             (r.x_mm, v)
         })
         .collect();
+    let warning = repeat_rms(&t_meas, &x_meas, period)
+        .filter(|&(_, r)| r > REPEAT_WARN * (xhi - xlo))
+        .map(|(q, r)| {
+            format!(
+                "the record does not repeat with the excitation period T: the RMS of \
+                 x(t + qT) − x(t) is {r:.3} mm at the best q of 1–4 (q = {q}), {:.0} % of its \
+                 peak-to-peak: a transient, a motion that is not periodic (chaos), or a record at \
+                 another frequency than {freq_hz} Hz; the comparison assumes a steady periodic \
+                 motion",
+                100.0 * r / (xhi - xlo).max(1e-12)
+            )
+        });
     let summary = format!(
         "{} samples over {:.3} s at {:.3} Hz (Ω/ω = {:.3}): displacement RMS difference {:.4} mm \
          ({:.1} % of the measured peak-to-peak {:.3} mm), phase shift {:.1}°",
@@ -313,5 +362,5 @@ pub fn time_series(
         strobe_measured: strobe_meas,
         strobe_sim,
     };
-    Ok((overlay, summary))
+    Ok((overlay, summary, warning))
 }

@@ -450,6 +450,73 @@ fn identify_free_gives_the_beam_suspension() {
     );
 }
 
+/// A simulated steady state compared as a record with the simulation it came from: the
+/// phase found (the record starts a quarter period after a `t = kT`), no difference, no
+/// warning. The same run's first ten periods from rest, a transient, are said not to repeat.
+#[test]
+fn compare_a_time_series_with_itself_and_a_transient_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    ok(&line(&format!(
+        "simulate --rig wires --gap-mm 0 --omega-ratio 2.01 --periods 211 --out {}",
+        p("sim.csv")
+    )));
+    let text = fs::read_to_string(p("sim.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    // Columns t_s, u_mm, du_mm_s, x_mm, …, poincare (8th).
+    let strobes: Vec<f64> = rows
+        .iter()
+        .filter(|r| r[7] == "true")
+        .map(|r| r[0].parse().unwrap())
+        .collect();
+    let period = strobes[1] - strobes[0];
+    let record = |name: &str, from_s: f64, to_s: f64| {
+        let mut csv = String::from("t_s,x_mm\n");
+        for r in &rows {
+            let t: f64 = r[0].parse().unwrap();
+            if (from_s..=to_s).contains(&t) {
+                csv.push_str(&format!("{t},{}\n", r[3]));
+            }
+        }
+        fs::write(p(name), csv).unwrap();
+    };
+    let start = strobes[200] + 0.25 * period;
+    record("steady.csv", start, start + 10.0 * period);
+    record("transient.csv", 0.0, 10.0 * period);
+    let compare = |exp: &str| {
+        common::host_sim()
+            .args(line(&format!(
+                "compare --rig wires --gap-mm 0 --freq-hz {} --experiment {} --out {}",
+                1.0 / period,
+                p(exp),
+                p("cmp.png")
+            )))
+            .output()
+            .unwrap()
+    };
+    let out = compare("steady.csv");
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success() && stderr.is_empty(), "{stderr}");
+    assert!(
+        stdout.contains("displacement RMS difference 0.00") && stdout.contains("phase shift 90."),
+        "{stdout}"
+    );
+    let out = compare("transient.csv");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success());
+    assert!(
+        stderr.contains("! warning: the record does not repeat with the excitation period T"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn compare_a_response_with_itself_has_no_error() {
     let dir = tempfile::tempdir().unwrap();

@@ -106,8 +106,11 @@ pub fn run(a: &CompareArgs) -> Result<()> {
         let format = a.time.format(&a.disp_col, a.disp_unit.to_si());
         let trace = trace_from_table(&table, &format, "displacement")
             .with_context(|| format!("trace {}", a.experiment.display()))?;
-        let (overlay, summary) =
+        let (overlay, summary, warning) =
             comparison::time_series(&setup, gap_m, freq_hz, a.transient_periods, &trace)?;
+        if let Some(w) = warning {
+            eprintln!("! warning: {w}");
+        }
         let title = format!(
             "{} rig, gap {:.2} mm, {:.3} Hz, {} law: measured vs simulated",
             setup.rig,
