@@ -191,9 +191,9 @@ pub fn response(setup: &Setup, gap_m: f64, meas: &[Measured]) -> Result<(Respons
         .filter(|(s, m)| (s.regime != Regime::NoImpact) == (m.force_mg > 0.0))
         .count();
     let summary = format!(
-        "{} points: F_i/mg simulated − measured: bias {:+.2}, RMS {:.2}, largest {:+.2} at Ω/ω = {:.3}; \
+        "{}: F_i/mg simulated − measured: bias {:+.2}, RMS {:.2}, largest {:+.2} at Ω/ω = {:.3}; \
          impact/no-impact agrees at {}/{}",
-        meas.len(),
+        crate::output::points(meas.len() as u64),
         bias,
         rms,
         dmax,

@@ -86,6 +86,15 @@ impl Outputs {
     }
 }
 
+/// `n` points, as the commands say what they wrote: `1 point`, `451 points`.
+pub fn points(n: u64) -> String {
+    if n == 1 {
+        "1 point".into()
+    } else {
+        format!("{n} points")
+    }
+}
+
 /// Writes one file whole or not at all: `write` fills a temporary file beside `target`
 /// (given its path), which then replaces `target`.
 ///

@@ -354,6 +354,18 @@ fn response_writes_csv_and_png() {
         String::from_utf8_lossy(&out.stderr),
         format!("response: 5 points → {}\n", csv.display())
     );
+    let one = dir.path().join("one.csv");
+    let out = host_sim()
+        .args(line(&format!(
+            "response --rig beam-150 --gap-mm 1 --omega-ratio 1.5:1.5:0.25 --out {}",
+            one.display()
+        )))
+        .output()
+        .unwrap();
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        format!("response: 1 point → {}\n", one.display())
+    );
     let text = fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(

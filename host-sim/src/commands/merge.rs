@@ -91,9 +91,9 @@ pub fn run(a: &MergeArgs) -> Result<()> {
     }
     outputs.commit()?;
     eprintln!(
-        "merged {n_files} shards: {}, {} points → {}",
+        "merged {n_files} shards: {}, {} → {}",
         meta.kind,
-        meta.points,
+        crate::output::points(meta.points),
         a.out.display()
     );
     Ok(())

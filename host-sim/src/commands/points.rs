@@ -190,6 +190,7 @@ pub fn run(a: &PointsArgs) -> Result<()> {
             }
         });
     write_whole(&a.out, |tmp| write_csv(tmp, rows))?;
-    eprintln!("points: {} points → {}", pts.len(), a.out.display());
+    let n = crate::output::points(pts.len() as u64);
+    eprintln!("points: {n} → {}", a.out.display());
     Ok(())
 }

@@ -80,7 +80,8 @@ pub fn run(a: &ResponseArgs) -> Result<()> {
     )?;
     outputs.commit()?;
     if let Some(out) = &a.out {
-        eprintln!("response: {} points → {}", rows.len(), out.display());
+        let n = crate::output::points(rows.len() as u64);
+        eprintln!("response: {n} → {}", out.display());
     } else {
         let mut w = csv::Writer::from_writer(std::io::stdout());
         for r in &rows {
