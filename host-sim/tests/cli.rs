@@ -57,6 +57,27 @@ fn select_json_reports_the_operating_point() {
     assert!(mu > 0.0 && mu < 1.0 && check["orbit"]["stable"] == true);
 }
 
+/// A gap off zero is checked at itself and ±0.1 mm: the report lists the gaps in order, the
+/// JSON with the nominal first.
+#[test]
+fn select_lists_the_gaps_it_checked() {
+    let args = "select --rig wires --gap-mm 0.05 --no-orbit-check --no-basin-check";
+    let text = ok(&line(args));
+    assert!(
+        text.contains("gap checked at [0.0, 0.05, 0.15] mm (±0.1 mm)"),
+        "{text}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!("{args} --json")))).unwrap();
+    let gaps: Vec<f64> = v["gaps_checked_mm"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| g.as_f64().unwrap())
+        .collect();
+    assert_eq!(gaps.len(), 3);
+    assert!((gaps[0] - 0.05).abs() < 1e-12 && gaps[1] == 0.0 && (gaps[2] - 0.15).abs() < 1e-12);
+}
+
 /// Where the continuation cannot follow the chosen orbit's branch (the Hunt–Crossley law on the
 /// wire rig: Newton stalls a step away), no edge is claimed: the side is `stalled`, the sweep's
 /// edge stands there, the margin is the sweep's, and a warning says why.

@@ -502,6 +502,13 @@ fn print_report(r: &SelectReport) {
             r.band_hz[0], r.band_hz[1], r.band_omega_ratio[0], r.band_omega_ratio[1]
         ),
     }
+    // The gaps in order (the report holds the nominal first).
+    let mut gaps: Vec<f64> = r
+        .gaps_checked_mm
+        .iter()
+        .map(|g| (g * 1e3).round() / 1e3)
+        .collect();
+    gaps.sort_by(f64::total_cmp);
     println!(
         "  margins: {:.1} % to the nearer band edge{} (required ±{} %); gap checked at {:?} mm (±{} mm)",
         r.margin_freq_pct,
@@ -510,10 +517,7 @@ fn print_report(r: &SelectReport) {
             None => String::new(),
         },
         r.required_margin_freq_pct,
-        r.gaps_checked_mm
-            .iter()
-            .map(|g| (g * 1e3).round() / 1e3)
-            .collect::<Vec<_>>(),
+        gaps,
         r.margin_gap_mm
     );
     println!(
