@@ -838,6 +838,21 @@ fn identify_free_gives_the_wire_pendulum_its_damping_ratio() {
         )))
     };
     assert_ne!(run(&format!("--config {}", p("wires.toml"))), run(""));
+    // Told it is the 170 mm beam's decay (4.50 Hz), it notes that 1.82 Hz is the wire rig's.
+    let beam = common::host_sim()
+        .args(line(&format!(
+            "identify free --rig beam-170 --trace {} --mass-kg 0.298 --unit mm",
+            p("decay.csv")
+        )))
+        .output()
+        .unwrap();
+    assert!(beam.status.success());
+    let note = String::from_utf8_lossy(&beam.stderr);
+    assert!(
+        note.contains("! note: ω/2π = 1.8202 Hz lies 60 % below the beam-170 preset's 4.50 Hz")
+            && note.contains("wires 1.82, beam-170 4.50"),
+        "{note}"
+    );
     // The same record with its times in ms under `t_s` (and without its `# sample_rate_hz`
     // line, which would say so first): a 75 km pendulum, said as a unit question.
     let in_ms = p("decay_ms.csv");

@@ -3,7 +3,7 @@
 use anyhow::{Context, Result};
 use serde::Serialize;
 use shared::error::check_range;
-use shared::model::Suspension;
+use shared::model::{RigId, Suspension};
 
 use super::FreeArgs;
 use crate::config::config_text;
@@ -60,6 +60,9 @@ pub(super) fn run(a: &FreeArgs) -> Result<()> {
         damping_n_s_m: decay.damping_n_s_m(a.mass_kg),
         pendulum_length_m: decay.pendulum_length_m(params.gravity_m_s2),
     };
+    if let Some(note) = other_rig_note(a.rig, decay.natural_freq_hz) {
+        eprintln!("! note: {note}");
+    }
     let mut outputs = Outputs::new();
     if let Some(p) = &a.out {
         let tmp = outputs.reserve(p)?;
@@ -139,4 +142,28 @@ pub(super) fn run(a: &FreeArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Beyond this relative difference from the `--rig` preset's natural frequency, the decay may
+/// be another rig's: a real rig differs from the thesis' by a few per cent.
+const OTHER_RIG_REL: f64 = 0.2;
+
+/// A note where the identified natural frequency `freq_hz` lies more than [`OTHER_RIG_REL`]
+/// from the `rig` preset's, with every preset's to choose from.
+fn other_rig_note(rig: RigId, freq_hz: f64) -> Option<String> {
+    let preset = rig.preset().natural_freq_hz();
+    let rel = freq_hz / preset - 1.0;
+    (rel.abs() > OTHER_RIG_REL).then(|| {
+        let presets: Vec<String> = RigId::ALL
+            .iter()
+            .map(|r| format!("{r} {:.2}", r.preset().natural_freq_hz()))
+            .collect();
+        format!(
+            "ω/2π = {freq_hz:.4} Hz lies {:.0} % {} the {rig} preset's {preset:.2} Hz: if the \
+             decay is another rig's, give its --rig (the presets' ω/2π: {} Hz)",
+            100.0 * rel.abs(),
+            if rel < 0.0 { "below" } else { "above" },
+            presets.join(", ")
+        )
+    })
 }
