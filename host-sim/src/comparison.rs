@@ -43,15 +43,7 @@ pub struct TsOverlay {
 /// frequency than `T`'s does not.
 pub fn repeat_rms(t: &[f64], x: &[f64], period: f64) -> Option<(u32, f64)> {
     let duration = t.last()? - t.first()?;
-    let at = |s: f64| -> f64 {
-        let i = t.partition_point(|&ti| ti <= s).clamp(1, t.len() - 1);
-        let (ta, tb) = (t[i - 1], t[i]);
-        if tb > ta {
-            x[i - 1] + (x[i] - x[i - 1]) * (s - ta) / (tb - ta)
-        } else {
-            x[i]
-        }
-    };
+    let at = |s: f64| linear_at(t, x, s);
     (1..=4u32)
         .filter(|&q| 2.0 * f64::from(q) * period <= duration)
         .map(|q| {
@@ -66,6 +58,18 @@ pub fn repeat_rms(t: &[f64], x: &[f64], period: f64) -> Option<(u32, f64)> {
             (q, (ss / n.max(1) as f64).sqrt())
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// `x` at `s`, linear between the samples `(t[i], x[i])` (`t` non-decreasing, at least two;
+/// the end segments extended beyond the ends).
+fn linear_at(t: &[f64], x: &[f64], s: f64) -> f64 {
+    let i = t.partition_point(|&ti| ti <= s).clamp(1, t.len() - 1);
+    let (ta, tb) = (t[i - 1], t[i]);
+    if tb > ta {
+        x[i - 1] + (x[i] - x[i - 1]) * (s - ta) / (tb - ta)
+    } else {
+        x[i]
+    }
 }
 
 /// Above this share of the record's peak-to-peak, [`repeat_rms`] says the record is not a
@@ -262,16 +266,8 @@ pub fn time_series(
             (t, r.x_mm, v)
         })
         .collect();
-    let interp = |t: f64| -> f64 {
-        let i = sim.partition_point(|s| s.0 <= t).clamp(1, sim.len() - 1);
-        let (ta, xa, _) = sim[i - 1];
-        let (tb, xb, _) = sim[i];
-        if tb > ta {
-            xa + (xb - xa) * (t - ta) / (tb - ta)
-        } else {
-            xb
-        }
-    };
+    let (sim_t, sim_x): (Vec<f64>, Vec<f64>) = sim.iter().map(|s| (s.0, s.1)).unzip();
+    let interp = |t: f64| linear_at(&sim_t, &sim_x, t);
     // The phase shift τ: measured t ↔ simulated t + τ.
     let mut best = (0.0, f64::INFINITY);
     for k in 0..256 {
