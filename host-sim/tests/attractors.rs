@@ -458,8 +458,11 @@ fn bad_attractor_input_is_rejected_with_the_field_named_and_nothing_written() {
             &["--width", "cannot be met", "--samples ≥"],
         ),
         (fr("--width 1.5"), &["--width", "(0, 1)"]),
-        (fr("--confirm 0"), &["--confirm", "confirm"]),
-        (fr("--recurrence-tol NaN"), &["--recurrence-tol"]),
+        (fr("--confirm 0"), &["error: --confirm: `confirm`"]),
+        (
+            fr("--recurrence-tol NaN"),
+            &["error: --recurrence-tol: `tol`"],
+        ),
         (fr("--match-tol 0"), &["--match-tol", "allowed"]),
         (
             fr("--damping-ratio 1.0"),

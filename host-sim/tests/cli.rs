@@ -604,6 +604,24 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
         &["--gap-mm", "wires rig's range", "0 ..= 18.75"],
         &[&out],
     );
+    // Each sensor flag named alone, in both records.
+    for (args, flag) in [
+        ("--sample-rate-hz 0", "--sample-rate-hz:"),
+        ("--noise-pct -1", "--noise-pct:"),
+        ("--offset-n inf", "--offset-n:"),
+        (
+            "--record displacement --sample-rate-hz 0.5",
+            "--sample-rate-hz:",
+        ),
+        ("--record displacement --noise-pct 101", "--noise-pct:"),
+    ] {
+        let stderr_starts = format!("error: {flag} `");
+        rejected(
+            &line(&format!("drop {args} --out {o}")),
+            &[stderr_starts.as_str()],
+            &[&out],
+        );
+    }
     let far = dir.path().join("far.csv");
     std::fs::write(&far, "gap_mm,omega_ratio\n1,1.0\n30,1.0\n").unwrap();
     rejected(

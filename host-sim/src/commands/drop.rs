@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use shared::analysis::drop::DropSpec;
-use shared::error::check_range;
+use shared::error::{ParamError, check_range};
 
 use crate::config::RigOpts;
 use crate::config::Setup;
@@ -60,6 +60,18 @@ pub struct DropArgs {
     pub out: PathBuf,
 }
 
+/// `e` with the command-line flag of the field it names (`sample_rate_hz` → `--sample-rate-hz`),
+/// where it names one.
+fn named_flag(e: anyhow::Error) -> anyhow::Error {
+    match e.downcast_ref::<ParamError>().map(ParamError::field) {
+        Some(field) => {
+            let flag = format!("--{}", field.replace('_', "-"));
+            e.context(flag)
+        }
+        None => e,
+    }
+}
+
 /// Runs `drop`.
 ///
 /// # Errors
@@ -85,8 +97,9 @@ pub fn run(a: &DropArgs) -> Result<()> {
         seed: a.seed,
     };
     let trace = match a.record {
-        Recorded::Force => synthetic_drop(&setup.params, &spec, &TRUTH_STEPS, &sensor)
-            .context("--sample-rate-hz, --noise-pct, --offset-n")?,
+        Recorded::Force => {
+            synthetic_drop(&setup.params, &spec, &TRUTH_STEPS, &sensor).map_err(named_flag)?
+        }
         Recorded::Displacement => {
             anyhow::ensure!(
                 a.offset_n == 0.0,
@@ -99,9 +112,9 @@ pub fn run(a: &DropArgs) -> Result<()> {
                 a.sample_rate_hz,
                 Recorded::Displacement,
             )
-            .context("--sample-rate-hz")?;
+            .map_err(named_flag)?;
             let mut t =
-                record_displacement(&clean, a.noise_pct, 0.0, a.seed).context("--noise-pct")?;
+                record_displacement(&clean, a.noise_pct, 0.0, a.seed).map_err(named_flag)?;
             for u in &mut t.value {
                 *u *= 1e3;
             }

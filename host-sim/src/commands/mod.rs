@@ -222,7 +222,14 @@ impl AttractorOpts {
             tol: self.recurrence_tol,
             confirm: self.confirm,
         };
-        rec.validate().context("--recurrence-tol / --confirm")?;
+        rec.validate().map_err(|e| {
+            let flag = if e.field() == "tol" {
+                "--recurrence-tol"
+            } else {
+                "--confirm"
+            };
+            anyhow::Error::from(e).context(flag)
+        })?;
         if let Some(n) = self.max_periods {
             anyhow::ensure!(
                 (1..=1_000_000).contains(&n),
