@@ -197,7 +197,7 @@ pub fn response(setup: &Setup, gap_m: f64, meas: &[Measured]) -> Result<(Respons
     let summary = format!(
         "{}: F_i/mg simulated − measured: bias {:+.2}, RMS {:.2}, largest {:+.2} at Ω/ω = {:.3}; \
          impact/no-impact agrees at {}/{}",
-        crate::output::points(meas.len() as u64),
+        crate::output::count(meas.len() as u64, "point"),
         bias,
         rms,
         dmax,

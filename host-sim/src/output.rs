@@ -86,12 +86,13 @@ impl Outputs {
     }
 }
 
-/// `n` points, as the commands say what they wrote: `1 point`, `451 points`.
-pub fn points(n: u64) -> String {
+/// `n` of `noun` as the commands say it: `count(1, "point")` is `1 point`, `count(451,
+/// "point")` `451 points` (nouns whose plural adds an `s`).
+pub fn count(n: u64, noun: &str) -> String {
     if n == 1 {
-        "1 point".into()
+        format!("1 {noun}")
     } else {
-        format!("{n} points")
+        format!("{n} {noun}s")
     }
 }
 

@@ -247,7 +247,11 @@ impl Meta {
                 s.len(usize::try_from(self.points).unwrap_or(usize::MAX)),
                 self.points
             ),
-            None => format!("{}: {}", self.kind, crate::output::points(self.points)),
+            None => format!(
+                "{}: {}",
+                self.kind,
+                crate::output::count(self.points, "point")
+            ),
         }
     }
 

@@ -398,6 +398,25 @@ fn identify_contact_says_when_the_sampling_steps_over_the_contacts() {
         ],
         &[],
     );
+    // Without noise at 3 kHz (1.7 samples a contact): pulses that stand out of the noise, none
+    // of them three samples long.
+    let clean = dir.path().join("clean.csv");
+    ok(&line(&format!(
+        "drop --sample-rate-hz 3000 --out {}",
+        clean.display()
+    )));
+    rejected(
+        &line(&format!(
+            "identify contact --trace {} --mass-kg 0.298 --law spring-dashpot",
+            clean.display()
+        )),
+        &[
+            "no impact found in the trace: 4 pulses above the detection threshold",
+            "each for 2 samples at most, fewer than the 3 that time an impact (3000 Hz)",
+            "record faster",
+        ],
+        &[],
+    );
 }
 
 #[test]

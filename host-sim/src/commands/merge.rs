@@ -93,7 +93,7 @@ pub fn run(a: &MergeArgs) -> Result<()> {
     eprintln!(
         "merged {n_files} shards: {}, {} → {}",
         meta.kind,
-        crate::output::points(meta.points),
+        crate::output::count(meta.points, "point"),
         a.out.display()
     );
     Ok(())

@@ -190,7 +190,7 @@ pub fn run(a: &PointsArgs) -> Result<()> {
             }
         });
     write_whole(&a.out, |tmp| write_csv(tmp, rows))?;
-    let n = crate::output::points(pts.len() as u64);
+    let n = crate::output::count(pts.len() as u64, "point");
     eprintln!("points: {n} → {}", a.out.display());
     Ok(())
 }

@@ -80,7 +80,7 @@ pub fn run(a: &ResponseArgs) -> Result<()> {
     )?;
     outputs.commit()?;
     if let Some(out) = &a.out {
-        let n = crate::output::points(rows.len() as u64);
+        let n = crate::output::count(rows.len() as u64, "point");
         eprintln!("response: {n} → {}", out.display());
     } else {
         let mut w = csv::Writer::from_writer(std::io::stdout());

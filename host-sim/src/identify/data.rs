@@ -261,6 +261,12 @@ fn analyse(t_s: Vec<f64>, value: &[f64], max_impacts: usize, cut_weak: bool) -> 
         }
         merged.push(r);
     }
+    // An impact spans three samples at least; shorter runs cannot be timed.
+    let short = merged
+        .iter()
+        .map(|&(a, b)| b - a + 1)
+        .filter(|&len| len < 3);
+    let (short_runs, longest_short) = (short.clone().count(), short.max().unwrap_or(0));
     merged.retain(|&(a, b)| b >= a + 2);
     let n = f.len();
     let mut impacts = Vec::new();
@@ -292,13 +298,23 @@ fn analyse(t_s: Vec<f64>, value: &[f64], max_impacts: usize, cut_weak: bool) -> 
             run: (a, b),
         });
     }
-    ensure!(
-        !impacts.is_empty(),
-        "no impact found in the trace{}",
-        too_weak.map_or(String::new(), |(p, thr)| format!(
-            ": the first, peak {p:.4} N, is below twice the detection threshold {thr:.4} N"
-        ))
-    );
+    if impacts.is_empty() {
+        let why = match too_weak {
+            Some((p, thr)) => format!(
+                ": the first, peak {p:.4} N, is below twice the detection threshold {thr:.4} N"
+            ),
+            None if short_runs > 0 => format!(
+                ": {} above the detection threshold {threshold:.4} N, each for {} at \
+                 most, fewer than the 3 that time an impact ({:.0} Hz): contacts shorter than \
+                 the sampling can follow — record faster (`rig capture` records at 100 kHz)",
+                crate::output::count(short_runs as u64, "pulse"),
+                crate::output::count(longest_short as u64, "sample"),
+                1.0 / (t[1] - t[0])
+            ),
+            None => String::new(),
+        };
+        anyhow::bail!("no impact found in the trace{why}");
+    }
     Ok(DropData {
         t_s,
         force_n: f,

@@ -483,7 +483,7 @@ fn print_contact(
             .map(|i| format!("{:.2}", i.peak_n))
             .collect();
         println!(
-            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N{}; {} impacts, peaks {} N{}{}",
+            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N{}; {}, {} {} N{}{}",
             l.path.display(),
             data.t_s.len(),
             segments,
@@ -500,7 +500,8 @@ fn print_contact(
             } else {
                 String::new()
             },
-            data.impacts.len(),
+            crate::output::count(data.impacts.len() as u64, "impact"),
+            if peaks.len() == 1 { "peak" } else { "peaks" },
             peaks.join(", "),
             data.too_weak.map_or(String::new(), |(p, thr)| format!(
                 " (the next, {p:.2} N, is below twice the detection threshold {thr:.2} N: too \
