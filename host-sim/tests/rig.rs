@@ -473,6 +473,12 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
             "start",
         ),
         (
+            "two-lines.toml",
+            "[[commands]]\nat_s = 0.1\nline = \"status\\nstart\"\n",
+            "`commands.line` = \"status\\nstart\" holds a line break",
+            "> ",
+        ),
+        (
             "refused.toml",
             "[[commands]]\nat_s = 0.1\nline = \"freq 50\"\n[[commands]]\nat_s = 0.3\nline = \"start\"\n",
             "the rig refused `freq 50`",
@@ -490,6 +496,40 @@ fn rig_run_plays_a_scenarios_commands_and_refuses_its_faults() {
     assert!(success, "{stderr}");
     assert!(stdout.contains("> gap 0.5\n             ok"), "{stdout}");
     assert!(stdout.contains("gap_mm=0.50"), "{stdout}");
+    use std::io::Write as _;
+    // `send` with a line the rig would read as two requests (`status`, then `start` unasked):
+    // refused before any line is sent; the console refuses it and goes on.
+    let out = Command::new(bin())
+        .args(["rig", "--port"])
+        .arg(&server.pty)
+        .args(["send", "stop", "status\rstart"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && out.stdout.is_empty(), "{stderr}");
+    assert!(
+        stderr.contains("`status\\rstart` holds a line break"),
+        "{stderr}"
+    );
+    let mut console = Command::new(bin())
+        .args(["rig", "--port"])
+        .arg(&server.pty)
+        .arg("console")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    console
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(b"status\rstart\nstatus\n")
+        .unwrap();
+    let out = console.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    assert!(stdout.contains("holds a line break"), "{stdout}");
+    assert!(stdout.contains("state=idle"), "{stdout}");
     server.stop();
 }
 

@@ -180,6 +180,12 @@ pub fn run(a: &RigArgs) -> Result<()> {
             );
         }
         RigCommand::Sweep(s) => outputs(&s.out, s.plot.as_deref())?,
+        RigCommand::Send(s) => {
+            // Every line is one request, or none is sent.
+            for line in &s.lines {
+                crate::rig_link::request_line(line)?;
+            }
+        }
         RigCommand::Capture(c) => {
             distinct_files(&port, &[("--out", c.out.as_path())])?;
             ensure!(
@@ -476,6 +482,11 @@ fn console(port: &mut RigPort, telemetry: bool) -> Result<()> {
             Ok(Some(line)) => {
                 let line = line.trim().to_string();
                 if line.is_empty() {
+                    continue;
+                }
+                // A line the rig would split is refused here; the console goes on.
+                if let Err(e) = crate::rig_link::request_line(&line) {
+                    println!("error: {e}");
                     continue;
                 }
                 println!("{}", port.send_line(&line)?);

@@ -34,7 +34,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail, ensure};
 use shared::capture::{CaptureCommand, CaptureStatus, SegmentView};
 use shared::console::serve::split_tag;
 use shared::console::{Answer, AnswerError, DiagInfo, IdInfo, Request, WireError};
@@ -451,9 +451,10 @@ impl RigPort {
     /// says.
     ///
     /// # Errors
-    /// No reply within the timeout, a reply to another line, the link closed, Ctrl-C.
+    /// A line break in `line` ([`request_line`], nothing sent), no reply within the timeout, a
+    /// reply to another line, the link closed, Ctrl-C.
     pub fn send_line(&mut self, line: &str) -> Result<String> {
-        let line = untagged(line);
+        let line = request_line(line)?;
         let reply = self.exchange(line, false)?;
         self.operator_set(line, &reply);
         Ok(reply)
@@ -485,7 +486,10 @@ impl RigPort {
     /// # Errors
     /// As [`RigPort::send_line`], for the first line whose reply fails.
     pub fn send_lines(&mut self, lines: &[&str]) -> Result<Vec<String>> {
-        let lines: Vec<&str> = lines.iter().map(|l| untagged(l)).collect();
+        let lines = lines
+            .iter()
+            .map(|l| request_line(l))
+            .collect::<Result<Vec<&str>>>()?;
         let tags: Vec<u32> = lines.iter().map(|_| self.take_tag()).collect();
         let text: String = lines
             .iter()
@@ -915,6 +919,20 @@ fn read_lines(
 
 /// `line` without a tag the operator typed (`#5 status`): the port tags every line it sends
 /// with its own, by which it matches the reply. A malformed tag is left for the rig to refuse.
+/// `line` without its tag, if it is one request: with a line break (`\n`, `\r`) in it the rig
+/// would read two requests and answer one of them unasked.
+///
+/// # Errors
+/// A line break in `line`.
+pub fn request_line(line: &str) -> Result<&str> {
+    ensure!(
+        !line.contains(['\n', '\r']),
+        "`{}` holds a line break: the rig would read it as two requests; give one request a line",
+        line.escape_debug()
+    );
+    Ok(untagged(line))
+}
+
 fn untagged(line: &str) -> &str {
     match split_tag(line) {
         Ok((Some(_), rest)) => rest.trim_start(),

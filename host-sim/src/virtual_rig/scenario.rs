@@ -24,7 +24,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, bail, ensure};
 use serde::{Deserialize, Serialize};
 use shared::control::ControllerConfig;
 
@@ -223,6 +223,12 @@ impl Scenario {
         self.controller.validate().context("[controller]")?;
         for c in &self.commands {
             finite_in("commands.at_s", c.at_s, 0.0, 1e6)?;
+            ensure!(
+                !c.line.contains(['\n', '\r']),
+                "`commands.line` = \"{}\" holds a line break: one console line a [[commands]] \
+                 entry (the rig would read two requests)",
+                c.line.escape_debug()
+            );
         }
         for d in &self.drops {
             finite_in("drops.at_s", d.at_s, 0.0, 1e6)?;
