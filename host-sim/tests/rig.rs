@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 
 mod common;
-use common::{line, ok, spawn_first_line, write_file};
+use common::{line, ok, rejected, spawn_first_line, write_file};
 use std::time::{Duration, Instant};
 
 use host_sim::config::Setup;
@@ -441,6 +441,54 @@ fn killing_the_rig_mid_log_is_a_clear_error_with_no_csv_left() {
         .filter_map(Result::ok)
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+/// Arguments wrong in themselves are refused before the port is opened (a port that does not
+/// exist is never named), each naming its flag.
+#[test]
+fn bad_arguments_are_refused_before_the_port_is_opened() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.csv");
+    let o = out.display();
+    for (args, says) in [
+        (
+            format!("sweep --freq-hz 3:4:0.5 --dwell-cycles 0 --out {o}"),
+            "--dwell-cycles = 0 is out of range: allowed 1 ..= 10000",
+        ),
+        (
+            format!("sweep --freq-hz 3:4:0.5 --settle-cycles 20000 --out {o}"),
+            "--settle-cycles = 20000 is out of range: allowed 0 ..= 10000",
+        ),
+        (
+            format!("sweep --freq-hz 4:3:0.5 --out {o}"),
+            "--freq-hz `4:3:0.5`",
+        ),
+        (format!("log --seconds 0 --out {o}"), "--seconds = 0"),
+        (
+            format!("capture --level-n 0 --out {o}"),
+            "--level-n = 0 is out of range",
+        ),
+    ] {
+        let mut argv = vec![
+            "rig".to_string(),
+            "--port".into(),
+            "/nonexistent/tty".into(),
+        ];
+        argv.extend(args.split_whitespace().map(String::from));
+        rejected(&argv, &[says], &[&out]);
+    }
+    rejected(
+        &[
+            "rig",
+            "--port",
+            "/nonexistent/tty",
+            "send",
+            "stop",
+            "status\nstart",
+        ],
+        &["`status\\nstart` holds a line break"],
+        &[],
+    );
 }
 
 #[test]

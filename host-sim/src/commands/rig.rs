@@ -179,7 +179,10 @@ pub fn run(a: &RigArgs) -> Result<()> {
                 l.seconds
             );
         }
-        RigCommand::Sweep(s) => outputs(&s.out, s.plot.as_deref())?,
+        RigCommand::Sweep(s) => {
+            outputs(&s.out, s.plot.as_deref())?;
+            crate::rig_link::sweep::check_cycles(s.dwell_cycles, s.settle_cycles)?;
+        }
         RigCommand::Send(s) => {
             // Every line is one request, or none is sent.
             for line in &s.lines {

@@ -99,6 +99,23 @@ pub fn parse_range(s: &str) -> Result<Vec<f64>> {
         .collect())
 }
 
+/// Checks the counts of cycles a sweep dwells (`1 ..= 10000`) and skips (`0 ..= 10000`) at each
+/// frequency.
+///
+/// # Errors
+/// The flag out of range, named.
+pub fn check_cycles(dwell_cycles: u32, settle_cycles: u32) -> Result<()> {
+    ensure!(
+        (1..=10_000).contains(&dwell_cycles),
+        "--dwell-cycles = {dwell_cycles} is out of range: allowed 1 ..= 10000"
+    );
+    ensure!(
+        settle_cycles <= 10_000,
+        "--settle-cycles = {settle_cycles} is out of range: allowed 0 ..= 10000"
+    );
+    Ok(())
+}
+
 /// Checks what can be checked before the rig moves: the frequencies inside the rig's safe
 /// window, the dwell and settle counts, and the rig idle.
 ///
@@ -106,10 +123,7 @@ pub fn parse_range(s: &str) -> Result<Vec<f64>> {
 /// Each named.
 pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
     ensure!(!spec.freqs_hz.is_empty(), "no frequency to sweep");
-    ensure!(
-        (1..=10_000).contains(&spec.dwell_cycles) && spec.settle_cycles <= 10_000,
-        "--dwell-cycles must be in 1 ..= 10000 and --settle-cycles ≤ 10000"
-    );
+    check_cycles(spec.dwell_cycles, spec.settle_cycles)?;
     let [lo, hi] = port.id().freq_window_hz.map(f64::from);
     for &f in &spec.freqs_hz {
         ensure!(
