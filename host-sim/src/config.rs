@@ -271,6 +271,23 @@ impl UncertaintyTable {
                 "[uncertainty] `covariance` has a negative variance"
             );
         }
+        // A covariance is positive semi-definite (up to the text's rounding); draws from
+        // another matrix would be drawn from no distribution. (An `inf` variance is left to
+        // `check_bounded`.)
+        if self.covariance.iter().flatten().all(|v| v.is_finite()) {
+            let ev = nalgebra::DMatrix::from_fn(p, p, |i, j| self.covariance[i][j])
+                .symmetric_eigenvalues();
+            let largest = ev.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            anyhow::ensure!(
+                ev.iter().all(|&v| v >= -1e-9 * largest),
+                "[uncertainty] `covariance` is not positive semi-definite (eigenvalues {}): \
+                 not a covariance matrix",
+                ev.iter()
+                    .map(|v| format!("{v:.4e}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
         Ok(())
     }
 

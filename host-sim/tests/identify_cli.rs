@@ -698,17 +698,23 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
         &["--draws", "8 ..= 100000"],
         &[],
     );
-    let unbounded: String = cfg
-        .lines()
-        .map(|l| {
-            if l.starts_with("covariance = ") {
-                "covariance = [[inf, 0.0], [0.0, 1e-4]]\n".to_string()
-            } else {
-                format!("{l}\n")
-            }
-        })
-        .collect();
-    fs::write(p("unbounded.toml"), unbounded).unwrap();
+    // The fit's file with another covariance.
+    let with_covariance = |cov: &str| -> String {
+        cfg.lines()
+            .map(|l| {
+                if l.starts_with("covariance = ") {
+                    format!("covariance = {cov}\n")
+                } else {
+                    format!("{l}\n")
+                }
+            })
+            .collect()
+    };
+    fs::write(
+        p("unbounded.toml"),
+        with_covariance("[[inf, 0.0], [0.0, 1e-4]]"),
+    )
+    .unwrap();
     rejected(
         &line(&format!(
             "select --config {} --uncertainty --plot {}",
@@ -716,6 +722,21 @@ fn identify_contact_gives_intervals_and_select_propagates_them() {
             p("u.png")
         )),
         &["ln_stiffness_n_m", "did not fix"],
+        &[Path::new(&p("u.png"))],
+    );
+    // Symmetric, variances positive, but not a covariance (eigenvalues 3 and -1): no draws.
+    fs::write(
+        p("indefinite.toml"),
+        with_covariance("[[1.0, 2.0], [2.0, 1.0]]"),
+    )
+    .unwrap();
+    rejected(
+        &line(&format!(
+            "select --config {} --uncertainty --plot {}",
+            p("indefinite.toml"),
+            p("u.png")
+        )),
+        &["not positive semi-definite (eigenvalues 3.0000e0, -1.0000e0)"],
         &[Path::new(&p("u.png"))],
     );
 }
