@@ -97,11 +97,11 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
     }
     outputs.commit()?;
     println!(
-        "{} periods at Ω/ω = {:.4} ({:.4} Hz): {} impacts, max F_i/mg = {:.3}, {} samples{}",
-        a.periods,
+        "{} at Ω/ω = {:.4} ({:.4} Hz): {}, max F_i/mg = {:.3}, {} samples{}",
+        crate::output::count(u64::from(a.periods), "period"),
         ratio,
         ratio * fn_hz,
-        summary.impacts,
+        crate::output::count(u64::from(summary.impacts), "impact"),
         summary.max_force_mg,
         rows.len(),
         match summary.lyapunov {
