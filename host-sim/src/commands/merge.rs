@@ -91,7 +91,8 @@ pub fn run(a: &MergeArgs) -> Result<()> {
     }
     outputs.commit()?;
     eprintln!(
-        "merged {n_files} shards: {}, {} → {}",
+        "merged {}: {}, {} → {}",
+        crate::output::count(n_files as u64, "shard"),
         meta.kind,
         crate::output::count(meta.points, "point"),
         a.out.display()

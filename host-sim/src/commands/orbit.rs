@@ -165,7 +165,7 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&j)?);
     } else {
         println!(
-            "{} rig, {}: the protocol from {} settled on {} ({} periods)",
+            "{} rig, {}: the protocol from {} settled on {} ({})",
             setup.rig,
             setup.precision.name(),
             match start {
@@ -177,7 +177,7 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
                 ),
             },
             protocol.regime,
-            protocol.transient_periods
+            crate::output::count(u64::from(protocol.transient_periods), "period")
         );
         if let Some(q) = a.point.q.filter(|&q| q != report.q) {
             println!(

@@ -146,8 +146,9 @@ pub fn write_trace(
     writeln!(w, "# host-sim rig capture: {id_line}")?;
     writeln!(
         w,
-        "# {} segments of {} samples around impacts (trigger {level_n} N); time since arming",
-        trace.segments, trace.segment_len
+        "# {} of {} samples around impacts (trigger {level_n} N); time since arming",
+        crate::output::count(trace.segments as u64, "segment"),
+        trace.segment_len
     )?;
     writeln!(w, "t_s,force_n")?;
     for (t, f) in trace.t_s.iter().zip(&trace.force_n) {
