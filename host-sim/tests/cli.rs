@@ -903,6 +903,12 @@ fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
         &["--seconds"],
         &outs,
     );
+    // --speed paces the served console; without it the run would ignore it.
+    rejected(
+        &line(&format!("hil --speed 10 --out {}", c)),
+        &["--serve-pty"],
+        &outs,
+    );
     let bad = dir.path().join("bad.toml");
     let args = format!("hil --scenario {} --out {c}", bad.display());
     rejected_files(

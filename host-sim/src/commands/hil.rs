@@ -44,7 +44,7 @@ pub struct HilArgs {
     pub serve_pty: bool,
     /// With --serve-pty: rig time runs this many times faster than the wall clock (1: real
     /// time; 0 < X ≤ 1000; `max`: as fast as the machine allows).
-    #[arg(long, default_value = "1", value_parser = parse_speed)]
+    #[arg(long, default_value = "1", value_parser = parse_speed, requires = "serve_pty")]
     pub speed: f64,
     /// CSV log, one row per drive cycle: t_s, state, freq_hz, amp_cmd_mm, cart_amp_mm,
     /// measured_impacts, measured_peak_n, true_impacts, true_peak_n, measured_regime, fault,
