@@ -917,22 +917,22 @@ fn read_lines(
     }
 }
 
-/// `line` without a tag the operator typed (`#5 status`): the port tags every line it sends
-/// with its own, by which it matches the reply. A malformed tag is left for the rig to refuse.
-/// `line` without its tag, if it is one request: with a line break (`\n`, `\r`) in it the rig
-/// would read two requests and answer one of them unasked.
+/// `line` without a tag the operator typed, if it is one request: with a line break (`\n`, `\r`)
+/// in it the rig would read two requests and answer one of them unasked.
 ///
 /// # Errors
 /// A line break in `line`.
 pub fn request_line(line: &str) -> Result<&str> {
     ensure!(
-        !line.contains(['\n', '\r']),
+        !line.bytes().any(shared::console::is_line_end),
         "`{}` holds a line break: the rig would read it as two requests; give one request a line",
         line.escape_debug()
     );
     Ok(untagged(line))
 }
 
+/// `line` without a tag the operator typed (`#5 status`): the port tags every line it sends
+/// with its own, by which it matches the reply. A malformed tag is left for the rig to refuse.
 fn untagged(line: &str) -> &str {
     match split_tag(line) {
         Ok((Some(_), rest)) => rest.trim_start(),

@@ -224,7 +224,7 @@ impl Scenario {
         for c in &self.commands {
             finite_in("commands.at_s", c.at_s, 0.0, 1e6)?;
             ensure!(
-                !c.line.contains(['\n', '\r']),
+                !c.line.bytes().any(shared::console::is_line_end),
                 "`commands.line` = \"{}\" holds a line break: one console line a [[commands]] \
                  entry (the rig would read two requests)",
                 c.line.escape_debug()

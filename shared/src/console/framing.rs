@@ -42,6 +42,12 @@ pub enum Line<'a> {
     Lost,
 }
 
+/// Whether `byte` ends a line (`\n` or `\r`): a text that holds one is two lines to the rig.
+#[inline]
+pub const fn is_line_end(byte: u8) -> bool {
+    byte == b'\n' || byte == b'\r'
+}
+
 /// Backspace (`BS`, as Ctrl-H and some terminals send it).
 pub const BACKSPACE: u8 = 0x08;
 /// Delete (`DEL`, what most terminal programs send for the Backspace key).
@@ -62,7 +68,7 @@ impl LineBuffer {
             }
             return None;
         }
-        if byte == b'\n' || byte == b'\r' {
+        if is_line_end(byte) {
             if core::mem::take(&mut self.error) {
                 self.overflow = false;
                 self.buf.clear();

@@ -32,7 +32,7 @@ pub mod token;
 
 pub use decimal::{Decimal, parse_decimal};
 pub use fields::WireError;
-pub use framing::{Line, LineBuffer, MAX_LINE, RxError};
+pub use framing::{Line, LineBuffer, MAX_LINE, RxError, is_line_end};
 pub use link::{Link, LinkStats, PendingLine};
 pub use reply::{Answer, AnswerError, Board, BoardInfo, CaptureError, DiagInfo, IdInfo, Version};
 pub use request::{Arg, HELP, ParseError, Request, parse};
