@@ -283,8 +283,11 @@ impl LabTable {
         if let Ok(n) = spec.parse::<usize>() {
             ensure!(
                 (1..=self.width).contains(&n),
-                "{what} column {n} does not exist: the file has {} columns",
-                self.width
+                "{what} column {n} does not exist: the file has {}{}; give it by name or number",
+                crate::output::count(self.width as u64, "column"),
+                self.header
+                    .as_ref()
+                    .map_or(String::new(), |h| format!(" ({})", h.join(", ")))
             );
             return Ok(n - 1);
         }

@@ -178,7 +178,12 @@ fn identify_contact_rejects_bad_input() {
     .unwrap();
     let out = dir.path().join("fit.toml");
     let o = out.to_string_lossy().into_owned();
-    let cases: [(&str, &str, &[&str]); 7] = [
+    let cases: [(&str, &str, &[&str]); 8] = [
+        (
+            "good.csv",
+            "--mass-kg 0.3 --law all --force-col 3",
+            &["force column 3 does not exist: the file has 2 columns (t_s, force_n)"],
+        ),
         (
             "good.csv",
             "--mass-kg -0.3 --law all",
