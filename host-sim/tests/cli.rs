@@ -883,32 +883,16 @@ fn hil_writes_its_log_and_figure_and_rejects_bad_input() {
     fs::remove_file(&png).unwrap();
 
     let outs = [csv.as_path(), png.as_path()];
-    rejected(
-        &line(&format!("hil --gap-mm -1 --out {} --plot {}", c, p)),
-        &["--gap-mm"],
-        &outs,
-    );
-    rejected(
-        &line(&format!("hil --gap-mm NaN --out {}", c)),
-        &["--gap-mm"],
-        &outs,
-    );
-    rejected(
-        &line(&format!("hil --actual-gap-mm 11 --out {}", c)),
-        &["--actual-gap-mm"],
-        &outs,
-    );
-    rejected(
-        &line(&format!("hil --seconds 0 --out {}", c)),
-        &["--seconds"],
-        &outs,
-    );
-    // --speed paces the served console; without it the run would ignore it.
-    rejected(
-        &line(&format!("hil --speed 10 --out {}", c)),
-        &["--serve-pty"],
-        &outs,
-    );
+    for (args, flag) in [
+        (format!("--gap-mm -1 --out {c} --plot {p}"), "--gap-mm"),
+        (format!("--gap-mm NaN --out {c}"), "--gap-mm"),
+        (format!("--actual-gap-mm 11 --out {c}"), "--actual-gap-mm"),
+        (format!("--seconds 0 --out {c}"), "--seconds"),
+        // --speed paces the served console; without it the run would ignore it.
+        (format!("--speed 10 --out {c}"), "--serve-pty"),
+    ] {
+        rejected(&line(&format!("hil {args}")), &[flag], &outs);
+    }
     let bad = dir.path().join("bad.toml");
     let args = format!("hil --scenario {} --out {c}", bad.display());
     rejected_files(
