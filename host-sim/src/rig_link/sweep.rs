@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{Result, bail, ensure};
+use anyhow::{Result, anyhow, bail, ensure};
 use serde::Serialize;
 use shared::console::Token;
 use shared::control::meter::{METER_CYCLES, RegimeMeter};
@@ -124,11 +124,17 @@ pub fn check_cycles(dwell_cycles: u32, settle_cycles: u32) -> Result<()> {
 pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
     ensure!(!spec.freqs_hz.is_empty(), "no frequency to sweep");
     check_cycles(spec.dwell_cycles, spec.settle_cycles)?;
+    // Refused before anything that moves the rig was sent: the drive is left as it was found
+    // (a run of the operator's is not stopped); the guard stays for failures of the link.
+    let refused = |port: &mut RigPort, why: anyhow::Error| {
+        port.release_drive();
+        Err(why)
+    };
     let [lo, hi] = port.id().freq_window_hz.map(f64::from);
-    for &f in &spec.freqs_hz {
-        ensure!(
-            (lo..=hi).contains(&f),
-            "--freq-hz: {f} Hz is outside the rig's safe window {lo} ..= {hi} Hz"
+    if let Some(f) = spec.freqs_hz.iter().find(|f| !(lo..=hi).contains(*f)) {
+        return refused(
+            port,
+            anyhow!("--freq-hz: {f} Hz is outside the rig's safe window {lo} ..= {hi} Hz"),
         );
     }
     let mut status = port.status()?;
@@ -145,18 +151,27 @@ pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
     }
     match status.state {
         State::Idle => Ok(()),
-        State::Fault => bail!(
-            "the rig is in fault ({}): `rig send clear` first",
-            status.fault.map_or("?", Token::token)
+        State::Fault => refused(
+            port,
+            anyhow!(
+                "the rig is in fault ({}): `rig send clear` first",
+                status.fault.map_or("?", Token::token)
+            ),
         ),
-        State::Stopping => bail!(
-            "the drive is still stopping ({:.3} mm) after waiting for idle: try again when the \
-             rig is idle",
-            status.amplitude_mm
+        State::Stopping => refused(
+            port,
+            anyhow!(
+                "the drive is still stopping ({:.3} mm) after waiting for idle: try again when \
+                 the rig is idle",
+                status.amplitude_mm
+            ),
         ),
-        s => bail!(
-            "the drive is running (`{}`): `rig send stop` first",
-            s.token()
+        s => refused(
+            port,
+            anyhow!(
+                "the drive is running (`{}`): `rig send stop` first",
+                s.token()
+            ),
         ),
     }
 }
