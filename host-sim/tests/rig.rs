@@ -408,11 +408,11 @@ fn a_fault_during_a_sweep_leaves_a_marked_partial_file_and_the_drive_at_zero() {
     assert!(after.iter().all(|&a| a < 0.01), "{after:?}");
 }
 
-/// A sweep refused because the rig is already driven, or for a frequency outside its window,
-/// leaves that run as it was: the guard stops the drive for failures of the link or of the
-/// sweep itself, not for a refusal before anything was sent.
+/// A sweep or a capture refused because the rig is already driven, or a sweep for a frequency
+/// outside its window, leaves that run as it was: the guard stops the drive for failures of the
+/// link or of the command itself, not for a refusal before anything was sent.
 #[test]
-fn a_sweep_refused_on_a_running_rig_leaves_its_drive_running() {
+fn a_sweep_or_capture_refused_on_a_running_rig_leaves_its_drive_running() {
     let dir = tempfile::tempdir().unwrap();
     let server = Server::start("20", "");
     let mut port = server.port();
@@ -420,14 +420,15 @@ fn a_sweep_refused_on_a_running_rig_leaves_its_drive_running() {
     port.command(RigCommand::Start).unwrap();
     drop(port);
     let out = dir.path().join("fr.csv");
-    for (freqs, says) in [
-        ("3:3.5:0.5", "the drive is running"),
-        ("0.5:3.5:0.5", "0.5 Hz is outside the rig's safe window"),
+    for (args, says) in [
+        ("sweep --freq-hz 3:3.5:0.5", "the drive is running"),
+        (
+            "sweep --freq-hz 0.5:3.5:0.5",
+            "0.5 Hz is outside the rig's safe window",
+        ),
+        ("capture", "capture needs the drive idle"),
     ] {
-        let run = rig_cmd(
-            &server.pty,
-            &format!("sweep --freq-hz {freqs} --out {}", out.display()),
-        );
+        let run = rig_cmd(&server.pty, &format!("{args} --out {}", out.display()));
         let stderr = String::from_utf8_lossy(&run.stderr);
         assert!(!run.status.success() && stderr.contains(says), "{stderr}");
         assert!(!stderr.contains("stopping the drive"), "{stderr}");

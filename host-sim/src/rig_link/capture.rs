@@ -30,7 +30,8 @@ pub fn wall_limit(seconds: f64, stall: Duration) -> Duration {
 }
 
 /// Arms a capture (trigger `level_n`, `seconds` of rig time), waits until the rig reports it
-/// done, and reads every segment. `on_progress` sees the segment count as it grows.
+/// done, and reads every segment. Refused with the drive not idle, it leaves the drive as it
+/// was (the port's guard released). `on_progress` sees the segment count as it grows.
 ///
 /// Bounds: the capture's sample count must advance (at most `stall` without), stop by the
 /// capture's own end (its `seconds` at the capture rate), and the whole within [`wall_limit`];
@@ -47,11 +48,15 @@ pub fn capture(
     mut on_progress: impl FnMut(usize),
 ) -> Result<CaptureTrace> {
     let status = port.status()?;
-    ensure!(
-        status.state == State::Idle,
-        "capture needs the drive idle: the rig is in `{}` (`rig send stop`, or `clear` after a fault)",
-        status.state.token()
-    );
+    if status.state != State::Idle {
+        // Refused before anything was sent: a run of the operator's is left as it was.
+        port.release_drive();
+        bail!(
+            "capture needs the drive idle: the rig is in `{}` (`rig send stop`, or `clear` after \
+             a fault)",
+            status.state.token()
+        );
+    }
     let armed = port.capture_status(CaptureCommand::Arm {
         level_n: level_n as f32,
         seconds: seconds as f32,

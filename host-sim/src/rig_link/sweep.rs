@@ -117,7 +117,8 @@ pub fn check_cycles(dwell_cycles: u32, settle_cycles: u32) -> Result<()> {
 }
 
 /// Checks what can be checked before the rig moves: the frequencies inside the rig's safe
-/// window, the dwell and settle counts, and the rig idle.
+/// window, the dwell and settle counts, and the rig idle. A refusal leaves the drive as it was
+/// (the port's guard released); a failure of the link leaves the guard armed.
 ///
 /// # Errors
 /// Each named.
