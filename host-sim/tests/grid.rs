@@ -375,7 +375,7 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
         format!("peterka --gap-mm 0:1:0.1 --freq-hz 2:3:0.1 --out {o} --shard {shard}")
     };
     // (command line, what stderr names)
-    let cases: [(String, &[&str]); 15] = [
+    let cases: [(String, &[&str]); 16] = [
         (peterka("NaN:1:0.1", "2:3:0.1"), &["--gap-mm", "finite"]),
         (
             peterka("-0.5:1:0.1", "2:3:0.1"),
@@ -399,6 +399,10 @@ fn bad_grid_input_is_rejected_with_the_flag_named_and_nothing_written() {
             &["--u0-mm", "COUNT = 0", "allowed 1 ..= 4096"],
         ),
         (basins("0", "-1:0:3", "-1:1:0"), &["--v0-mm-s", "COUNT = 0"]),
+        (
+            basins("0", "0:0:3", "-1:1:3"),
+            &["--u0-mm 0:0:3", "COUNT times the same point"],
+        ),
         (basins("-1", "-1:0:3", "-1:1:3"), &["--gap-mm", "gap_mm"]),
         (basins("NaN", "-1:0:3", "-1:1:3"), &["--gap-mm", "finite"]),
         (basins("0", "-1:1:3", "-1:1:3"), &["--u0-mm", "u0 ≤ gap"]),

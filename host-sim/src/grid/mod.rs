@@ -424,7 +424,8 @@ impl CountSweep {
     ///
     /// # Errors
     /// Not three fields, non-numbers, NaN, values outside `[min, max]`, `START > END`,
-    /// `COUNT` outside `1 ..= 4096`, or `COUNT = 1` with `START ≠ END`.
+    /// `COUNT` outside `1 ..= 4096`, `COUNT = 1` with `START ≠ END`, or `COUNT > 1` with
+    /// `START = END`.
     pub fn parse(flag: &str, text: &str, min: f64, max: f64) -> Result<Self> {
         let parts: Vec<&str> = text.split(':').collect();
         if parts.len() != 3 {
@@ -457,6 +458,12 @@ impl CountSweep {
         }
         if count == 1 && start != end {
             bail!("{flag} {text}: with COUNT = 1, START must equal END");
+        }
+        if count > 1 && start == end {
+            bail!(
+                "{flag} {text}: START = END gives one value, COUNT times the same point: give \
+                 COUNT = 1, or START < END"
+            );
         }
         Ok(CountSweep { start, end, count })
     }
@@ -508,7 +515,7 @@ mod tests {
             0.5
         );
         for bad in [
-            "-1:1:0", "-1:1", "1:-1:3", "-1:1:x", "NaN:1:3", "-30:1:3", "0:1:1", "0:1:2.5",
+            "-1:1:0", "-1:1", "1:-1:3", "-1:1:x", "NaN:1:3", "-30:1:3", "0:1:1", "0:1:2.5", "0:0:3",
         ] {
             assert!(
                 CountSweep::parse("--u0-mm", bad, -20.0, 20.0).is_err(),
