@@ -1,13 +1,15 @@
 //! The big grids on a real SLURM: the job-array and merge scripts of `docs/cluster/` submitted
 //! to the one-node cluster of `docs/cluster/local-slurm.sh` (which `.ci/run` starts):
-//! - a reduced Peterka map (3,171 points, 4 array tasks, the merge held by `afterok`), a basin
-//!   (1,600 initial conditions, 4 tasks) and basin fractions (4 × 200 starts, 4 tasks): the
-//!   merged CSV, catalogue and figures are byte for byte those of a single-process run;
+//! - a reduced Peterka map with its `1/1` region's boundaries (3,171 points, 4 array tasks, the
+//!   merge held by `afterok`), a basin (1,600 initial conditions, 4 tasks), basin fractions
+//!   (4 × 200 starts, 4 tasks) and a bifurcation diagram (51 frequencies, 4 tasks): the merged
+//!   CSV, boundaries, catalogue and figures are byte for byte those of a single-process run;
 //! - one task of a larger map killed with `scancel` while it computes: the merge never starts,
 //!   no partial shard is left, and rerunning that array index, then the merge, completes the map
 //!   (again byte-identical).
 //!
 //! Skipped with a note where no SLURM node is up, except under CI (`CI` set), where it fails.
+//! `submit.sh`'s refusals (before anything is submitted) are tested everywhere.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -133,11 +135,16 @@ fn single(kind: &str, grid: &[&str], dir: &Path) {
         .arg("--out")
         .arg(dir.join(format!("{kind}.csv")));
     match kind {
-        "peterka" => cmd
-            .arg("--plot")
-            .arg(dir.join("peterka.png"))
-            .arg("--force-plot")
-            .arg(dir.join("peterka-f11.png")),
+        "peterka" => {
+            if grid.contains(&"--boundaries") {
+                cmd.arg("--boundaries-out")
+                    .arg(dir.join("peterka-boundaries.csv"));
+            }
+            cmd.arg("--plot")
+                .arg(dir.join("peterka.png"))
+                .arg("--force-plot")
+                .arg(dir.join("peterka-f11.png"))
+        }
         "basins" => cmd
             .arg("--plot")
             .arg(dir.join("basins.png"))
@@ -148,13 +155,20 @@ fn single(kind: &str, grid: &[&str], dir: &Path) {
     run(&mut cmd);
 }
 
-fn assert_same_files(kind: &str, a: &Path, b: &Path) {
-    let names: &[&str] = match kind {
-        "peterka" => &["peterka.csv", "peterka.png", "peterka-f11.png"],
-        "basins" => &["basins.csv", "basins.png", "basins-attractors.csv"],
-        _ => &["fractions.csv", "fractions.png"],
-    };
-    for name in names {
+/// Every file of `kind`'s run with `grid` (the scripts' names) is the same in `a` and `b`.
+fn assert_same_files(kind: &str, grid: &[&str], a: &Path, b: &Path) {
+    let mut names = vec![format!("{kind}.csv"), format!("{kind}.png")];
+    match kind {
+        "peterka" => {
+            names.push("peterka-f11.png".into());
+            if grid.contains(&"--boundaries") {
+                names.push("peterka-boundaries.csv".into());
+            }
+        }
+        "basins" => names.push("basins-attractors.csv".into()),
+        _ => {}
+    }
+    for name in &names {
         let (x, y) = (std::fs::read(a.join(name)), std::fs::read(b.join(name)));
         assert!(
             x.as_ref().ok() == y.as_ref().ok() && x.is_ok(),
@@ -163,13 +177,23 @@ fn assert_same_files(kind: &str, a: &Path, b: &Path) {
     }
 }
 
-const PETERKA: &[&str] = &[
+/// A Peterka map with the curves bounding its `1/1` region.
+const PETERKA_BOUNDARIES: &[&str] = &[
     "--rig",
     "wires",
     "--gap-mm",
     "0:1.0:0.05",
     "--freq-hz",
     "1:4:0.02",
+    "--boundaries",
+];
+const BIFURCATION: &[&str] = &[
+    "--rig",
+    "wires",
+    "--gap-mm",
+    "0",
+    "--omega-ratio",
+    "0.5:3:0.05",
 ];
 const BASINS: &[&str] = &[
     "--rig",
@@ -201,11 +225,13 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
     let started = Instant::now();
     let dir = tempfile::tempdir().unwrap();
     let fractions = [BEAM_HYSTERESIS_FRACTIONS, &["--samples", "200"]].concat();
-    // 1. A Peterka map and a basin: array + merge against one process.
+    // 1. A Peterka map with its 1/1 region's boundaries, a basin, basin fractions and a
+    // bifurcation diagram: array + merge against one process.
     for (kind, grid) in [
-        ("peterka", PETERKA),
+        ("peterka", PETERKA_BOUNDARIES),
         ("basins", BASINS),
         ("fractions", &fractions),
+        ("bifurcation", BIFURCATION),
     ] {
         let one = dir.path().join(format!("{kind}-single"));
         std::fs::create_dir_all(&one).unwrap();
@@ -214,7 +240,7 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
         let (array, merge) = submit(kind, 4, &run_dir, grid);
         wait_completed(&array, &run_dir);
         wait_completed(&merge, &run_dir);
-        assert_same_files(kind, &one, &run_dir);
+        assert_same_files(kind, grid, &one, &run_dir);
     }
 
     // 2. A task cancelled while it computes.
@@ -292,9 +318,63 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
     let one = dir.path().join("long-single");
     std::fs::create_dir_all(&one).unwrap();
     single("peterka", PETERKA_LONG, &one);
-    assert_same_files("peterka", &one, &run_dir);
+    assert_same_files("peterka", PETERKA_LONG, &one, &run_dir);
     eprintln!(
         "SLURM test: {:.1} s (two arrays and merges, a cancelled task, its rerun)",
         started.elapsed().as_secs_f64()
     );
+}
+
+/// `submit.sh` refuses, before it creates the run's folder or submits anything, a grid option
+/// that would make every task fail once it starts (an output the scripts name, `--shard`, a
+/// bifurcation's `--continuation`) and a kind it has no merge for; no SLURM is needed.
+#[test]
+fn submit_refuses_options_every_task_would_fail_on_before_submitting() {
+    let dir = tempfile::tempdir().unwrap();
+    let run_dir = dir.path().join("run");
+    let cases: &[(&str, &[&str], &str)] = &[
+        (
+            "peterka",
+            &["--rig", "wires", "--out", "x.csv"],
+            "--out: the scripts write",
+        ),
+        ("peterka", &["--plot=p.png"], "--plot: the scripts write"),
+        (
+            "peterka",
+            &["--boundaries-out", "b.csv"],
+            "--boundaries-out: the scripts",
+        ),
+        (
+            "basins",
+            &["--attractors-out", "a.csv"],
+            "--attractors-out: the scripts",
+        ),
+        ("fractions", &["--shard", "0/2"], "--shard: the scripts"),
+        (
+            "bifurcation",
+            &["--gap-mm", "0", "--continuation", "up"],
+            "--continuation: a continuation is sequential",
+        ),
+        (
+            "response",
+            &["--gap-mm", "0"],
+            "KIND must be peterka, basins, fractions or bifurcation",
+        ),
+    ];
+    for (kind, grid, needle) in cases {
+        let out = Command::new(scripts().join("submit.sh"))
+            .env("HOST_SIM", host_sim())
+            .args([kind, "4"])
+            .arg(&run_dir)
+            .args(*grid)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{kind} {grid:?}: {err}");
+        assert!(err.contains(needle), "{kind} {grid:?}: {err}");
+        assert!(
+            !run_dir.exists(),
+            "{kind} {grid:?}: the run's folder was made"
+        );
+    }
 }
