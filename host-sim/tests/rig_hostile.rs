@@ -504,23 +504,25 @@ fn sequences_and_clocks_that_go_back_are_errors() {
     );
 }
 
-/// A two-point sweep, one cycle to settle and one to dwell, into `fr.csv`.
+/// A three-point sweep, one cycle to settle and one to dwell, into `fr.csv`.
 const SHORT_SWEEP: &str =
     "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 1 --out fr.csv";
 
+/// A sweep that ends before its first point says so and writes no file (a partial file of no
+/// points would hold not even a header).
 #[test]
-fn a_sweep_whose_rig_never_dwells_ends_with_a_partial_file() {
+fn a_sweep_whose_rig_never_dwells_ends_before_its_first_point_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let port = fake_rig(Misbehaviour::NeverDwells);
     let stderr = rig_fails(&port, dir.path(), SHORT_SWEEP, Duration::from_secs(60));
     assert!(stderr.contains("did not dwell"), "{stderr}");
     assert!(stderr.contains("last seen: state=ramp"), "{stderr}");
-    assert!(!dir.path().join("fr.csv").exists());
-    let partial = std::fs::read_to_string(dir.path().join("fr.partial.csv")).unwrap();
     assert!(
-        partial.starts_with("# partial sweep: ended by"),
-        "{partial}"
+        stderr.contains("0 of 3 points; no point was measured: nothing written"),
+        "{stderr}"
     );
+    assert!(!dir.path().join("fr.csv").exists());
+    assert!(!dir.path().join("fr.partial.csv").exists());
     assert!(leftovers(dir.path()).is_empty());
 }
 

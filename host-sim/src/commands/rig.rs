@@ -336,8 +336,13 @@ pub fn run(a: &RigArgs) -> Result<()> {
                         "partial sweep: ended by {cause} at {at_hz} Hz; {} of {n} points",
                         points.len()
                     );
-                    write_sweep(&partial, None, &points, &port, Some(&note))?;
-                    let written = format!("the points so far are in {}", partial.display());
+                    // A file of no points would be a record of nothing (not even a header).
+                    let written = if points.is_empty() {
+                        "no point was measured: nothing written".to_string()
+                    } else {
+                        write_sweep(&partial, None, &points, &port, Some(&note))?;
+                        format!("the points so far are in {}", partial.display())
+                    };
                     return Err(match error {
                         // An interruption keeps its kind (exit status 130).
                         Some(e) if e.is::<crate::interrupt::Interrupted>() => e.context(written),
