@@ -487,6 +487,22 @@ fn points_evaluates_a_batch() {
     // Without --lyapunov the exponent's columns are empty.
     assert!(lines[1..].iter().all(|l| l.ends_with(",,,,")), "{text}");
 
+    // A spreadsheet's export: a comment, `;` and spaces round the cells, the columns in
+    // another order: the same points, the same rows.
+    fs::write(
+        &input,
+        "# operating points\nnote ; omega_ratio ; gap_mm\na ; 2.0 ; 0\nb ; 1.5 ; 1.0\nc ; 0.6 ; 2.4\n",
+    )
+    .unwrap();
+    host_sim()
+        .args(["points", "--rig", "wires", "--input"])
+        .arg(&input)
+        .arg("--out")
+        .arg(&output)
+        .assert()
+        .success();
+    assert_eq!(fs::read_to_string(&output).unwrap(), text);
+
     // With it: the 1.0 mm response's point Ω/ω 2.33, `irregular` by the protocol's window,
     // is chaotic (exponent positive beyond three uncertainties); the 1/1 orbit keeps its label
     // with a negative exponent (its multipliers').
@@ -716,15 +732,26 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
             (
                 &input,
                 &points,
+                "gap_mm,omega_ratio\n0,2.0\n0,2.0,1\n",
+                "line 3: 3 cells, more than the first line's 2",
+            ),
+            (
+                &input,
+                &points,
+                "0,2.0\n",
+                "no header line: the file needs a header `gap_mm,omega_ratio`",
+            ),
+            (
+                &input,
+                &points,
                 "gap,ratio\n0,2.0\n",
                 "the header `gap,ratio` lacks the columns gap_mm, omega_ratio",
             ),
             (
                 &input,
                 &points,
-                "gap_mm;omega_ratio\n0;2.0\n",
-                "the header `gap_mm;omega_ratio` lacks the columns gap_mm, omega_ratio (a \
-                 comma-separated file",
+                "gap_mm omega_ratio\n0 2,0\n",
+                "line 2, column `omega_ratio` (Ω/ω): `2,0` is not a number",
             ),
             (
                 &input,

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use shared::analysis::response::OMEGA_RATIO_RANGE;
 use shared::error::check_range;
 use shared::observe::PointResult;
@@ -23,7 +23,8 @@ pub struct PointsArgs {
     /// Rig and numerics.
     #[command(flatten)]
     pub rig: RigOpts,
-    /// Input CSV with header columns `gap_mm` and `omega_ratio` (other columns are ignored).
+    /// Input table with a header naming the columns `gap_mm` and `omega_ratio` (other columns
+    /// ignored): cells separated by `,`, `;`, a tab or spaces; `#` and `%` lines are comments.
     #[arg(long)]
     pub input: PathBuf,
     /// Output CSV: gap_mm, omega_ratio, freq_hz, regime, impacts, impact_force_mg,
@@ -37,12 +38,6 @@ pub struct PointsArgs {
     /// (`window_regime` then gives the protocol window's label).
     #[arg(long)]
     pub lyapunov: bool,
-}
-
-#[derive(Debug, Deserialize)]
-struct InRow {
-    gap_mm: f64,
-    omega_ratio: f64,
 }
 
 /// One output row.
@@ -70,59 +65,66 @@ pub struct OutRow {
     pub extra_periods: Option<u32>,
 }
 
-/// Reads and validates the input points (gaps within `setup`'s rig range).
+/// Reads and validates the input points (gaps within `setup`'s rig range): a lab file as
+/// [`crate::trace::LabTable`] reads it (`,`, `;`, tab or spaces between the cells, `#`/`%`
+/// comment lines, spaces round the cells), with a header naming `gap_mm` and `omega_ratio`
+/// (other columns are ignored).
 ///
 /// # Errors
-/// Unreadable file, missing columns, unparsable or out-of-range values (row number named).
+/// Unreadable file, missing columns, unparsable or out-of-range values (line named).
 pub fn read_points(setup: &Setup, path: &PathBuf) -> Result<Vec<(f64, f64)>> {
-    let mut rdr = csv::Reader::from_path(path)
+    let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read --input {}", path.display()))?;
+    let table = crate::trace::LabTable::parse(&text)
+        .with_context(|| format!("--input {}", path.display()))?;
+    let need = "a header `gap_mm,omega_ratio` and at least one row";
+    let Some(header) = &table.header else {
+        bail!(
+            "--input {}: no header line: the file needs {need}",
+            path.display()
+        );
+    };
     // A header without the columns (another separator, other names) is told as such, not as
     // a missing field on the first row.
-    let header = rdr
-        .headers()
-        .with_context(|| format!("cannot read --input {}", path.display()))?
-        .clone();
     let missing: Vec<&str> = ["gap_mm", "omega_ratio"]
         .into_iter()
-        .filter(|c| !header.iter().any(|h| h == *c))
+        .filter(|c| table.find(c).is_none())
         .collect();
-    if !header.is_empty() && !missing.is_empty() {
+    if !missing.is_empty() {
         bail!(
-            "{}: the header `{}` lacks the column{} {} (a comma-separated file with the header \
-             `gap_mm,omega_ratio`)",
+            "--input {}: the header `{}` lacks the column{} {} (a header `gap_mm,omega_ratio`, \
+             the cells separated by `,`, `;`, a tab or spaces)",
             path.display(),
-            header.iter().collect::<Vec<_>>().join(","),
+            header.join(","),
             if missing.len() == 1 { "" } else { "s" },
             missing.join(", ")
         );
     }
-    let mut out = Vec::new();
-    for (i, rec) in rdr.deserialize::<InRow>().enumerate() {
-        let line = i + 2;
-        let r = rec.with_context(|| {
-            format!(
-                "{} line {line}: expected numeric columns gap_mm, omega_ratio",
-                path.display()
-            )
-        })?;
-        setup
-            .gap_m("gap_mm", r.gap_mm)
-            .with_context(|| format!("{} line {line}", path.display()))?;
+    let (gap_col, ratio_col) = (
+        table.column("gap_mm", "gap")?,
+        table.column("omega_ratio", "Ω/ω")?,
+    );
+    let mut out = Vec::with_capacity(table.rows().len());
+    for row in table.rows() {
+        let at = || format!("--input {}: line {}", path.display(), row.line);
+        let gap_mm = row
+            .number(gap_col, "gap, mm")
+            .with_context(|| format!("--input {}", path.display()))?;
+        let omega_ratio = row
+            .number(ratio_col, "Ω/ω")
+            .with_context(|| format!("--input {}", path.display()))?;
+        setup.gap_m("gap_mm", gap_mm).with_context(at)?;
         check_range(
             "omega_ratio",
-            r.omega_ratio,
+            omega_ratio,
             OMEGA_RATIO_RANGE.0,
             OMEGA_RATIO_RANGE.1,
         )
-        .with_context(|| format!("{} line {line}", path.display()))?;
-        out.push((r.gap_mm, r.omega_ratio));
+        .with_context(at)?;
+        out.push((gap_mm, omega_ratio));
     }
     if out.is_empty() {
-        bail!(
-            "{}: no points (need a header `gap_mm,omega_ratio` and at least one row)",
-            path.display()
-        );
+        bail!("--input {}: no points (need {need})", path.display());
     }
     Ok(out)
 }
