@@ -121,8 +121,9 @@ impl MotionUnit {
 pub struct TraceFormat {
     /// Time column: a header name or a 1-based column number.
     pub time_col: String,
-    /// Value column: a header name or a 1-based column number.
-    pub value_col: String,
+    /// Value column: a header name or a 1-based column number; `None`: column 2, or the only
+    /// column of a file of one.
+    pub value_col: Option<String>,
     /// Unit of the time column → s.
     pub time_to_s: f64,
     /// Unit of the value column → SI.
@@ -387,7 +388,10 @@ pub fn trace_from_table(table: &LabTable, format: &TraceFormat, what: &str) -> R
         shared::error::check_range("sample_rate_hz", r, 1e-3, 1e9).context("--sample-rate-hz")?;
     }
     let meta_rate = table.comments.iter().rev().find_map(|l| metadata_rate(l));
-    let value_col = table.column(&format.value_col, what)?;
+    let value_col = match &format.value_col {
+        Some(spec) => table.column(spec, what)?,
+        None => usize::from(table.width >= 2),
+    };
     let rate_col = table.find("sample_rate_hz");
     let time_col = if format.sample_rate_hz.is_some() {
         None
@@ -513,7 +517,7 @@ mod tests {
     fn fmt(time: &str, value: &str, rate: Option<f64>) -> TraceFormat {
         TraceFormat {
             time_col: time.into(),
-            value_col: value.into(),
+            value_col: Some(value.into()),
             time_to_s: 1.0,
             value_to_si: 1.0,
             sample_rate_hz: rate,

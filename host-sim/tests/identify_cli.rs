@@ -876,6 +876,23 @@ fn identify_free_gives_the_wire_pendulum_its_damping_ratio() {
         .as_float()
         .unwrap();
     assert_eq!(z, zeta);
+    // The same record as one column, its rate given: the same identification (the signal is
+    // the file's only column).
+    let one = p("decay_one.csv");
+    fs::write(
+        &one,
+        text.lines()
+            .filter(|l| !l.starts_with('#'))
+            .filter_map(|l| l.split_once(',').map(|(_, x)| format!("{x}\n")))
+            .collect::<String>(),
+    )
+    .unwrap();
+    let alone: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
+        "identify free --rig wires --trace {one} --sample-rate-hz 1000 --mass-kg 0.298 --unit mm \
+         --json"
+    ))))
+    .unwrap();
+    assert_eq!(alone["damping_ratio"], v["damping_ratio"], "{alone}");
     // The other commands take it: the damped pendulum runs differently from the preset.
     let run = |extra: &str| {
         ok(&line(&format!(

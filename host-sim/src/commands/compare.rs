@@ -103,7 +103,7 @@ pub fn run(a: &CompareArgs) -> Result<()> {
         .context("--freq-hz")?;
         check_count("transient_periods", a.transient_periods, 1, 10_000)
             .context("--transient-periods")?;
-        let format = a.time.format(&a.disp_col, a.disp_unit.to_si());
+        let format = a.time.format(Some(&a.disp_col), a.disp_unit.to_si());
         let trace = trace_from_table(&table, &format, "displacement")
             .with_context(|| format!("trace {}", a.experiment.display()))?;
         let (overlay, summary, warning) =

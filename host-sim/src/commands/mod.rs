@@ -308,12 +308,12 @@ pub struct TimeOpts {
 }
 
 impl TimeOpts {
-    /// How to read a trace whose values are in column `value_col` (name or 1-based number),
-    /// `value_to_si` converting them to SI.
-    pub fn format(&self, value_col: &str, value_to_si: f64) -> TraceFormat {
+    /// How to read a trace whose values are in column `value_col` (name or 1-based number;
+    /// `None`: [`TraceFormat::value_col`]'s default), `value_to_si` converting them to SI.
+    pub fn format(&self, value_col: Option<&str>, value_to_si: f64) -> TraceFormat {
         TraceFormat {
             time_col: self.time_col.clone(),
-            value_col: value_col.to_string(),
+            value_col: value_col.map(str::to_string),
             time_to_s: self.time_unit.to_s(),
             value_to_si,
             sample_rate_hz: self.sample_rate_hz,

@@ -179,7 +179,7 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
     for (path, &release_mm) in a.trace.iter().zip(&releases) {
         let trace = read_trace(
             path,
-            &a.time.format(&a.force_col, a.force_unit.to_n()),
+            &a.time.format(Some(&a.force_col), a.force_unit.to_n()),
             "force",
         )?;
         let data = analyse_drop(&trace, a.max_impacts as usize)

@@ -31,7 +31,7 @@ pub(super) fn run(a: &FreeArgs) -> Result<()> {
     check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
     let trace = read_trace(
         &a.trace,
-        &a.time.format(&a.value_col, a.unit.to_si()),
+        &a.time.format(a.value_col.as_deref(), a.unit.to_si()),
         if a.unit.is_acceleration() {
             "acceleration"
         } else {

@@ -131,9 +131,10 @@ pub struct FreeArgs {
     /// Time column, unit or sample rate.
     #[command(flatten)]
     pub time: TimeOpts,
-    /// Signal column: header name or 1-based number.
-    #[arg(long, default_value = "2")]
-    pub value_col: String,
+    /// Signal column: header name or 1-based number [default: 2, or the only column of a
+    /// one-column file read with --sample-rate-hz or a stated rate].
+    #[arg(long)]
+    pub value_col: Option<String>,
     /// Unit of the signal column: a displacement (m, mm, um) or an acceleration (m/s2, g).
     #[arg(long, value_enum, default_value = "mm")]
     pub unit: MotionUnit,
