@@ -226,6 +226,76 @@ fn identify_contact_rejects_bad_input() {
 /// the options say (the misfit cannot be told from the noise: every noise redraw of a force
 /// in kN is below the impact threshold), a release from which the hammer cannot reach the
 /// surface, an output that is the input.
+/// A release height (or mass, or force unit) the record contradicts: its first impact's
+/// impulse `J = m v (1 + e)` bounds the arrival speed to `[J/2m, J/m]` whatever the law, and
+/// the model released from `--release-mm` arrives outside it. Said with both, and with the
+/// releases that would agree; the right release says nothing.
+#[test]
+fn identify_contact_says_when_the_first_impulse_contradicts_the_release() {
+    let dir = tempfile::tempdir().unwrap();
+    // Noise-free: the first contact's impulse integrates exactly from the file.
+    let drop = recorded(dir.path(), "drop.csv", "--rig wires --release-mm 3");
+    let samples: Vec<(f64, f64)> = fs::read_to_string(&drop)
+        .unwrap()
+        .lines()
+        .filter_map(|l| {
+            let (t, f) = l.split_once(',')?;
+            Some((t.parse().ok()?, f.parse().ok()?))
+        })
+        .collect();
+    let start = samples.iter().position(|s| s.1 > 0.0).unwrap() - 1;
+    let end = start
+        + 1
+        + samples[start + 1..]
+            .iter()
+            .position(|s| s.1 <= 0.0)
+            .unwrap();
+    let impulse: f64 = samples[start..=end]
+        .windows(2)
+        .map(|w| 0.5 * (w[1].0 - w[0].0) * (w[0].1 + w[1].1))
+        .sum();
+    let m = 0.298;
+    let fit = |release: &str| {
+        let out = common::host_sim()
+            .args(line(&format!(
+                "identify contact --rig wires --trace {} --mass-kg {m} --law spring-dashpot \
+                 --release-mm {release}",
+                drop.display()
+            )))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    assert!(!fit("3").contains("! note"), "{}", fit("3"));
+    let note = fit("6");
+    // The pendulum (l = 75 mm) released 6 mm from the surface at gap 0 arrives at
+    // √(g/l) × 6 mm = 68.6 mm/s (small angles), beyond J/m.
+    let v_model = (9.80665_f64 / 0.075).sqrt() * 6.0;
+    let said = format!(
+        "the first impact's impulse, {impulse:.4e} N s, is an arrival at {:.1}–{:.1} mm/s",
+        1e3 * impulse / (2.0 * m),
+        1e3 * impulse / m
+    );
+    assert!(note.contains(&said), "{said}\n{note}");
+    let at = note.split("the model arrives at ").nth(1).unwrap();
+    let v: f64 = at.split(' ').next().unwrap().parse().unwrap();
+    assert!(
+        (v / v_model - 1.0).abs() < 0.01,
+        "{v} against {v_model}: {note}"
+    );
+    // The releases that agree hold the true 3 mm.
+    let range = at.split("as if from about ").nth(1).unwrap();
+    let (lo, hi) = range.split_once(" mm").unwrap().0.split_once('–').unwrap();
+    let (lo, hi): (f64, f64) = (lo.parse().unwrap(), hi.parse().unwrap());
+    assert!(lo < 3.0 && 3.0 < hi, "{note}");
+    assert!(
+        note.contains("check --release-mm, --mass-kg and --force-unit"),
+        "{note}"
+    );
+    assert!(fit("1.5").contains("! note"));
+}
+
 #[test]
 fn identify_contact_refuses_what_it_cannot_check() {
     let dir = tempfile::tempdir().unwrap();
@@ -249,6 +319,8 @@ fn identify_contact_refuses_what_it_cannot_check() {
             "cannot be checked against the sensor noise",
             "not written",
             "--force-unit",
+            // 1000 times the impulse: an arrival of metres per second.
+            "is an arrival at 22669.5–45339.0 mm/s",
         ],
         &[&out],
     );

@@ -29,6 +29,19 @@ use super::least_squares;
 use crate::trace::Trace;
 
 impl DropData {
+    /// The impulse `∫ F dt` of impact `i` over its window (trapezoids), N s; `None` if there is
+    /// no such impact.
+    pub fn impulse_n_s(&self, i: usize) -> Option<f64> {
+        let (first, last) = self.impacts.get(i)?.window;
+        let (t, f) = (&self.t_s[first..=last], &self.force_n[first..=last]);
+        Some(
+            t.windows(2)
+                .zip(f.windows(2))
+                .map(|(t, f)| 0.5 * (t[1] - t[0]) * (f[0] + f[1]))
+                .sum(),
+        )
+    }
+
     /// Samples per contact: the first impact's width at half maximum over the sampling step.
     pub fn samples_per_contact(&self) -> f64 {
         let dt = self

@@ -11,7 +11,7 @@ use shared::model::{ContactLaw, ContactLawKind, Suspension};
 
 use super::{ContactArgs, LawChoice, describe_law, pair_releases};
 use crate::config::{Setup, config_text};
-use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, Weights};
+use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, SimDrop, Weights};
 use crate::identify::data::{DropData, NOISE_FLOOR, analyse_drop};
 use crate::identify::fit::{Fit, best_by_aicc, by_aicc, fit_laws};
 use crate::identify::uncertainty::{
@@ -328,22 +328,75 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         crate::figures::identify::drop_fit(&tmp, &title, &panels, &curves)?;
     }
     outputs.commit()?;
+    let release_notes: Vec<String> = loaded
+        .iter()
+        .zip(&best_fit.traces)
+        .filter_map(|(l, t)| release_check(l, &t.sim, a.mass_kg, a.gap_mm))
+        .collect();
     print_contact(a, &run, &loaded, &fits, best)?;
     if let Some(why) = unchecked {
         bail!(
             "the {best} fit cannot be checked against the sensor noise ({why}){}: the data may \
              not be what the options say; check the force and time units (--force-unit, \
-             --time-unit), one --release-mm per trace, and the rig (--rig, --config)",
+             --time-unit), one --release-mm per trace, and the rig (--rig, --config){}",
             match &a.out {
                 Some(p) => format!(
                     "; its parameters are printed above but not written to {}",
                     p.display()
                 ),
                 None => String::new(),
-            }
+            },
+            release_notes
+                .iter()
+                .map(|n| format!("\n{n}"))
+                .collect::<String>()
         );
     }
+    for note in &release_notes {
+        eprintln!("! note: {note}");
+    }
     Ok(())
+}
+
+/// How far the arrival speed implied by a trace's first impulse may lie from the model's before
+/// [`release_check`] says so (the impulse's trapezoids on a few samples per contact, the
+/// suspension's own impulse during the contact, damping).
+const IMPULSE_SPEED_MARGIN: f64 = 1.2;
+
+/// Whether the first impact's impulse `J = m v (1 + e)` (any law: `0 ≤ e ≤ 1`, so an arrival
+/// speed `v` within `[J/2m, J/m]`) agrees with the arrival speed of the model released from
+/// `--release-mm` (the fitted simulation's, as `fit` gives it for this trace): a note naming
+/// the releases that would, and the options to check, where it does not by more than
+/// [`IMPULSE_SPEED_MARGIN`]. A wrong release, mass or force unit leaves the law to absorb the
+/// difference, and the fit then says only that it does not fit.
+fn release_check(l: &LoadedTrace, sim: &SimDrop, mass_kg: f64, gap_mm: f64) -> Option<String> {
+    let j = l.data.impulse_n_s(0)?;
+    let v = sim.impacts.first()?.approach_speed_m_s;
+    let (lo, hi) = (j / (2.0 * mass_kg), j / mass_kg);
+    if !(j > 0.0 && v > 0.0) || (lo / IMPULSE_SPEED_MARGIN..=hi * IMPULSE_SPEED_MARGIN).contains(&v)
+    {
+        return None;
+    }
+    // The release that gives speed `w`: released `A` from rest (`A = release − gap`), the
+    // hammer reaches the surface `gap` past rest at `ω √(A² − gap²)`, nearly (the model's own
+    // speed scaled; the pendulum's arcs and damping aside).
+    let amp = l.release_mm - gap_mm;
+    let release_at = |w: f64| {
+        gap_mm + (gap_mm * gap_mm + (amp * amp - gap_mm * gap_mm) * (w / v).powi(2)).sqrt()
+    };
+    Some(format!(
+        "{}: the first impact's impulse, {j:.4e} N s, is an arrival at {:.1}–{:.1} mm/s for \
+         m = {mass_kg} kg (J = m v (1 + e), e from 1 to 0, whatever the law); released {} mm \
+         from the surface at gap {gap_mm} mm the model arrives at {:.1} mm/s, as if from about \
+         {:.2}–{:.2} mm: check --release-mm, --mass-kg and --force-unit",
+        l.path.display(),
+        1e3 * lo,
+        1e3 * hi,
+        l.release_mm,
+        1e3 * v,
+        release_at(lo),
+        release_at(hi),
+    ))
 }
 
 /// How the error was chosen, and the suspension fitted with.
