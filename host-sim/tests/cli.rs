@@ -460,19 +460,24 @@ fn points_evaluates_a_batch() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("pts.csv");
     let output = dir.path().join("res.csv");
-    fs::write(
-        &input,
+    // `points --rig wires [extra] --input pts.csv` with `rows` as the input: the output's text.
+    let points = |rows: &str, extra: &[&str]| {
+        fs::write(&input, rows).unwrap();
+        host_sim()
+            .args(["points", "--rig", "wires"])
+            .args(extra)
+            .arg("--input")
+            .arg(&input)
+            .arg("--out")
+            .arg(&output)
+            .assert()
+            .success();
+        fs::read_to_string(&output).unwrap()
+    };
+    let text = points(
         "gap_mm,omega_ratio,note\n0,2.0,a\n1.0,1.5,b\n2.4,0.6,c\n",
-    )
-    .unwrap();
-    host_sim()
-        .args(["points", "--rig", "wires", "--input"])
-        .arg(&input)
-        .arg("--out")
-        .arg(&output)
-        .assert()
-        .success();
-    let text = fs::read_to_string(&output).unwrap();
+        &[],
+    );
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(
         lines[0],
@@ -489,31 +494,16 @@ fn points_evaluates_a_batch() {
 
     // A spreadsheet's export: a comment, `;` and spaces round the cells, the columns in
     // another order: the same points, the same rows.
-    fs::write(
-        &input,
+    let export = points(
         "# operating points\nnote ; omega_ratio ; gap_mm\na ; 2.0 ; 0\nb ; 1.5 ; 1.0\nc ; 0.6 ; 2.4\n",
-    )
-    .unwrap();
-    host_sim()
-        .args(["points", "--rig", "wires", "--input"])
-        .arg(&input)
-        .arg("--out")
-        .arg(&output)
-        .assert()
-        .success();
-    assert_eq!(fs::read_to_string(&output).unwrap(), text);
+        &[],
+    );
+    assert_eq!(export, text);
 
     // With it: the 1.0 mm response's point Ω/ω 2.33, `irregular` by the protocol's window,
     // is chaotic (exponent positive beyond three uncertainties); the 1/1 orbit keeps its label
     // with a negative exponent (its multipliers').
-    fs::write(&input, "gap_mm,omega_ratio\n0,2.0\n1.0,2.33\n").unwrap();
-    host_sim()
-        .args(["points", "--rig", "wires", "--lyapunov", "--input"])
-        .arg(&input)
-        .arg("--out")
-        .arg(&output)
-        .assert()
-        .success();
+    points("gap_mm,omega_ratio\n0,2.0\n1.0,2.33\n", &["--lyapunov"]);
     let mut rdr = csv::Reader::from_path(&output).unwrap();
     let rows: Vec<csv::StringRecord> = rdr.records().map(|r| r.unwrap()).collect();
     assert_eq!(rows.len(), 2);
