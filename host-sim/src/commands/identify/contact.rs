@@ -365,10 +365,11 @@ const IMPULSE_SPEED_MARGIN: f64 = 1.2;
 
 /// Whether the first impact's impulse `J = m v (1 + e)` (any law: `0 ≤ e ≤ 1`, so an arrival
 /// speed `v` within `[J/2m, J/m]`) agrees with the arrival speed of the model released from
-/// `--release-mm` (the fitted simulation's, as `fit` gives it for this trace): a note naming
-/// the releases that would, and the options to check, where it does not by more than
-/// [`IMPULSE_SPEED_MARGIN`]. A wrong release, mass or force unit leaves the law to absorb the
-/// difference, and the fit then says only that it does not fit.
+/// `--release-mm` (`sim`, the fitted simulation of this trace; its free flight to the first
+/// contact does not depend on the law): a note naming the releases that would, and the options
+/// to check, where it does not by more than [`IMPULSE_SPEED_MARGIN`]. A wrong release, mass or
+/// force unit leaves the law to absorb the difference, and the fit then says only that it does
+/// not fit.
 fn release_check(l: &LoadedTrace, sim: &SimDrop, mass_kg: f64, gap_mm: f64) -> Option<String> {
     let j = l.data.impulse_n_s(0)?;
     let v = sim.impacts.first()?.approach_speed_m_s;
