@@ -490,3 +490,31 @@ fn bad_attractor_input_is_rejected_with_the_field_named_and_nothing_written() {
         &[],
     );
 }
+
+/// The basin fractions of one operating point are drawn as a bar a fifth of the axis wide, not
+/// a block filling the plot (which read as fractions over the whole axis): the attractor's
+/// colour covers about a fifth of the plot, against two thirds of the image before.
+#[test]
+fn one_points_fractions_are_a_bar_not_the_whole_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("one.png");
+    ok(&line(&format!(
+        "fractions --rig wires --gap-mm 0 --omega-ratio 2.0 --u0-mm -3:0 --v0-mm-s -50:50 \
+         --samples 40 --out {} --plot {}",
+        s(&dir.path().join("one.csv")),
+        s(&png)
+    )));
+    let img = image::open(&png).unwrap().to_rgb8();
+    // The first attractor's colour (`ATTRACTOR_PALETTE[0]`), the only attractor here.
+    let blue = img.pixels().filter(|p| p.0 == [31, 119, 180]).count();
+    let share = blue as f64 / (img.width() * img.height()) as f64;
+    assert!((0.05..0.2).contains(&share), "{share}");
+    // Centred on Ω/ω 2.0: the bar's columns are the plot's middle fifth.
+    let cols: Vec<u32> = (0..img.width())
+        .filter(|&x| img.get_pixel(x, img.height() / 2).0 == [31, 119, 180])
+        .collect();
+    let (first, last) = (cols[0], cols[cols.len() - 1]);
+    assert_eq!(cols.len() as u32, last - first + 1, "one bar");
+    let mid = 0.5 * (first + last) as f64 / img.width() as f64;
+    assert!((0.35..0.5).contains(&mid), "{mid}");
+}

@@ -584,7 +584,8 @@ pub fn basins_map(
 }
 
 /// Basin fractions against a parameter, stacked (one band per attractor, kept along the
-/// parameter), each operating point a column of width `step`.
+/// parameter), each operating point a column of width `step` (one point alone: a bar a fifth
+/// of its axis wide).
 ///
 /// # Errors
 /// Drawing or file errors.
@@ -607,6 +608,13 @@ pub fn fractions_stack(
     };
     let lo = xs.iter().copied().fold(f64::INFINITY, f64::min) - 0.5 * step;
     let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max) + 0.5 * step;
+    // One operating point: a bar a fifth of the axis wide, not a block filling it (which read
+    // as fractions over the whole axis).
+    let half = if xs.len() == 1 {
+        0.1 * step
+    } else {
+        0.5 * step
+    };
     let mut chart = ChartBuilder::on(&left)
         .margin(10)
         .x_label_area_size(50)
@@ -645,7 +653,7 @@ pub fn fractions_stack(
         for (id, a) in bands {
             let top = base + a.fraction;
             chart.draw_series([Rectangle::new(
-                [(p.value - 0.5 * step, base), (p.value + 0.5 * step, top)],
+                [(p.value - half, base), (p.value + half, top)],
                 colors[*id].filled(),
             )])?;
             // The 95 % interval of this band's fraction, drawn on its top edge.

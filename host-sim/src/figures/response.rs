@@ -116,7 +116,14 @@ pub fn response(
 ) -> Result<()> {
     let root = canvas(path, (1000, 620), None)?;
     let x0 = pts.first().map_or(0.0, |p| p.omega_ratio);
-    let x1 = pts.last().map_or(1.0, |p| p.omega_ratio).max(x0 + 1e-6);
+    let x1 = pts.last().map_or(1.0, |p| p.omega_ratio);
+    // One frequency: centred on an axis 10 % of it wide (a span of none has no ticks).
+    let (x0, x1) = if x1 - x0 > 1e-9 {
+        (x0, x1)
+    } else {
+        let pad = 0.05 * x0.abs().max(0.1);
+        (x0 - pad, x0 + pad)
+    };
     let ymax = pts.iter().map(|p| p.impact_force_mg).fold(1.0, f64::max) * 1.08;
     let mut chart = force_chart(&root, title, 22, x0..x1, ymax)?;
     if let Some(h) = highlight {
