@@ -488,8 +488,8 @@ fn bad_arguments_are_refused_before_the_port_is_opened() {
     let o = out.display();
     for (args, says) in [
         (
-            format!("sweep --freq-hz 3:4:0.5 --dwell-cycles 0 --out {o}"),
-            "--dwell-cycles = 0 is out of range: allowed 1 ..= 10000",
+            format!("sweep --freq-hz 3:4:0.5 --dwell-cycles 1 --out {o}"),
+            "--dwell-cycles = 1 is out of range: allowed 2 ..= 10000 (a regime is read from two",
         ),
         (
             format!("sweep --freq-hz 3:4:0.5 --settle-cycles 20000 --out {o}"),

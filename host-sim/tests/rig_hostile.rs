@@ -504,9 +504,9 @@ fn sequences_and_clocks_that_go_back_are_errors() {
     );
 }
 
-/// A three-point sweep, one cycle to settle and one to dwell, into `fr.csv`.
+/// A three-point sweep, one cycle to settle and two to dwell, into `fr.csv`.
 const SHORT_SWEEP: &str =
-    "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 1 --out fr.csv";
+    "sweep --freq-hz 3:3.2:0.1 --settle-cycles 1 --dwell-cycles 2 --out fr.csv";
 
 /// A sweep that ends before its first point says so and writes no file (a partial file of no
 /// points would hold not even a header).

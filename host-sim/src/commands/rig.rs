@@ -127,7 +127,7 @@ pub struct SweepArgs {
     /// Frequencies START:END:STEP, Hz (inside the rig's safe window, `id`'s freq_window_hz).
     #[arg(long, value_name = "A:B:STEP")]
     pub freq_hz: String,
-    /// Cycles recorded per frequency (1 ..= 10000).
+    /// Cycles recorded per frequency (2 ..= 10000: the regime is read from two at least).
     #[arg(long, default_value_t = 16)]
     pub dwell_cycles: u32,
     /// Cycles skipped after each frequency change (the transient).

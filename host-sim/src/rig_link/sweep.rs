@@ -99,15 +99,16 @@ pub fn parse_range(s: &str) -> Result<Vec<f64>> {
         .collect())
 }
 
-/// Checks the counts of cycles a sweep dwells (`1 ..= 10000`) and skips (`0 ..= 10000`) at each
-/// frequency.
+/// Checks the counts of cycles a sweep dwells (`2 ..= 10000`: the regime meter reads two cycles
+/// at least) and skips (`0 ..= 10000`) at each frequency.
 ///
 /// # Errors
 /// The flag out of range, named.
 pub fn check_cycles(dwell_cycles: u32, settle_cycles: u32) -> Result<()> {
     ensure!(
-        (1..=10_000).contains(&dwell_cycles),
-        "--dwell-cycles = {dwell_cycles} is out of range: allowed 1 ..= 10000"
+        (2..=10_000).contains(&dwell_cycles),
+        "--dwell-cycles = {dwell_cycles} is out of range: allowed 2 ..= 10000 (a regime is \
+         read from two cycles at least)"
     );
     ensure!(
         settle_cycles <= 10_000,
