@@ -183,6 +183,19 @@ impl std::fmt::Display for Kind {
     }
 }
 
+impl Kind {
+    /// `n` of the grid's points in words: Peterka points, initial conditions (basins, and
+    /// fractions' points × samples) or frequencies (bifurcation).
+    pub fn counted(self, n: u64) -> String {
+        let (one, many) = match self {
+            Kind::Peterka => ("point", "points"),
+            Kind::Basins | Kind::Fractions => ("initial condition", "initial conditions"),
+            Kind::Bifurcation => ("frequency", "frequencies"),
+        };
+        format!("{n} {}", if n == 1 { one } else { many })
+    }
+}
+
 /// Everything that must agree between shards of one grid (and the shard itself).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -240,18 +253,14 @@ impl Meta {
     pub fn describe(&self) -> String {
         match self.shard {
             Some(s) => format!(
-                "{} shard {}/{}: {} of {} points",
+                "{} shard {}/{}: {} of {}",
                 self.kind,
                 s.index,
                 s.count,
                 s.len(usize::try_from(self.points).unwrap_or(usize::MAX)),
-                self.points
+                self.kind.counted(self.points)
             ),
-            None => format!(
-                "{}: {}",
-                self.kind,
-                crate::output::count(self.points, "point")
-            ),
+            None => format!("{}: {}", self.kind, self.kind.counted(self.points)),
         }
     }
 
@@ -612,6 +621,16 @@ pub fn title_prefix(meta: &Meta) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_kind_counts_its_points_in_its_words() {
+        assert_eq!(Kind::Peterka.counted(1), "1 point");
+        assert_eq!(Kind::Peterka.counted(15), "15 points");
+        assert_eq!(Kind::Basins.counted(20), "20 initial conditions");
+        assert_eq!(Kind::Fractions.counted(1), "1 initial condition");
+        assert_eq!(Kind::Bifurcation.counted(51), "51 frequencies");
+        assert_eq!(Kind::Bifurcation.counted(1), "1 frequency");
+    }
 
     #[test]
     fn shards_parse_and_partition() {

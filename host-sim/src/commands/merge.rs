@@ -94,7 +94,7 @@ pub fn run(a: &MergeArgs) -> Result<()> {
         "merged {}: {}, {} → {}",
         crate::output::count(n_files as u64, "shard"),
         meta.kind,
-        crate::output::count(meta.points, "point"),
+        meta.kind.counted(meta.points),
         a.out.display()
     );
     Ok(())
