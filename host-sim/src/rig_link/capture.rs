@@ -49,13 +49,11 @@ pub fn capture(
 ) -> Result<CaptureTrace> {
     let status = port.status()?;
     if status.state != State::Idle {
-        // Refused before anything was sent: a run of the operator's is left as it was.
-        port.release_drive();
-        bail!(
+        return Err(port.refuse(anyhow::anyhow!(
             "capture needs the drive idle: the rig is in `{}` (`rig send stop`, or `clear` after \
              a fault)",
             status.state.token()
-        );
+        )));
     }
     let armed = port.capture_status(CaptureCommand::Arm {
         level_n: level_n as f32,

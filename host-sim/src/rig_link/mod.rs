@@ -703,6 +703,14 @@ impl RigPort {
         self.guard = false;
     }
 
+    /// A refusal made before anything that moves the rig was sent: the guard released, so that
+    /// a run of the operator's is left as it was found (a failure of the link keeps the guard
+    /// armed). Returns `why`, to be returned as the error.
+    pub fn refuse(&mut self, why: anyhow::Error) -> anyhow::Error {
+        self.release_drive();
+        why
+    }
+
     /// Stops the drive (the guard's action): sends `stop` (again, up to [`STOP_ATTEMPTS`]
     /// times, while its reply does not come or does not read), waits for the status after it,
     /// ends a capture being armed, and says on stderr what happened. Whether the rig accepted

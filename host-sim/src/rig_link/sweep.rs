@@ -126,18 +126,11 @@ pub fn check_cycles(dwell_cycles: u32, settle_cycles: u32) -> Result<()> {
 pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
     ensure!(!spec.freqs_hz.is_empty(), "no frequency to sweep");
     check_cycles(spec.dwell_cycles, spec.settle_cycles)?;
-    // Refused before anything that moves the rig was sent: the drive is left as it was found
-    // (a run of the operator's is not stopped); the guard stays for failures of the link.
-    let refused = |port: &mut RigPort, why: anyhow::Error| {
-        port.release_drive();
-        Err(why)
-    };
     let [lo, hi] = port.id().freq_window_hz.map(f64::from);
     if let Some(f) = spec.freqs_hz.iter().find(|f| !(lo..=hi).contains(*f)) {
-        return refused(
-            port,
-            anyhow!("--freq-hz: {f} Hz is outside the rig's safe window {lo} ..= {hi} Hz"),
-        );
+        return Err(port.refuse(anyhow!(
+            "--freq-hz: {f} Hz is outside the rig's safe window {lo} ..= {hi} Hz"
+        )));
     }
     let mut status = port.status()?;
     if status.state == State::Stopping {
@@ -153,28 +146,19 @@ pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
     }
     match status.state {
         State::Idle => Ok(()),
-        State::Fault => refused(
-            port,
-            anyhow!(
-                "the rig is in fault ({}): `rig send clear` first",
-                status.fault.map_or("?", Token::token)
-            ),
-        ),
-        State::Stopping => refused(
-            port,
-            anyhow!(
-                "the drive is still stopping ({:.3} mm) after waiting for idle: try again when \
-                 the rig is idle",
-                status.amplitude_mm
-            ),
-        ),
-        s => refused(
-            port,
-            anyhow!(
-                "the drive is running (`{}`): `rig send stop` first",
-                s.token()
-            ),
-        ),
+        State::Fault => Err(port.refuse(anyhow!(
+            "the rig is in fault ({}): `rig send clear` first",
+            status.fault.map_or("?", Token::token)
+        ))),
+        State::Stopping => Err(port.refuse(anyhow!(
+            "the drive is still stopping ({:.3} mm) after waiting for idle: try again when the \
+             rig is idle",
+            status.amplitude_mm
+        ))),
+        s => Err(port.refuse(anyhow!(
+            "the drive is running (`{}`): `rig send stop` first",
+            s.token()
+        ))),
     }
 }
 
