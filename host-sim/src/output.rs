@@ -159,18 +159,21 @@ pub fn out_target(text: &str) -> Result<PathBuf, String> {
     Ok(path)
 }
 
-/// The command line's parser of a figure (`--plot` and the like): a name ending in `.png` (the
-/// format every figure is drawn in) in a folder that takes a file ([`out_target`]).
+/// The command line's parser of a figure (`--plot` and the like): a name ending in `.png` or
+/// `.svg` (any case; the format the figure is drawn in, `figures::Backend::for_path`) in a
+/// folder that takes a file ([`out_target`]).
 ///
 /// # Errors
 /// Another extension, or as [`out_target`].
-pub fn png_target(text: &str) -> Result<PathBuf, String> {
+pub fn figure_target(text: &str) -> Result<PathBuf, String> {
     let path = PathBuf::from(text);
     if !path
         .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("svg"))
     {
-        return Err("figures are drawn as PNG: give a file name ending in .png".into());
+        return Err(
+            "figures are drawn as PNG or SVG: give a file name ending in .png or .svg".into(),
+        );
     }
     out_target(text)
 }

@@ -564,11 +564,11 @@ fn bad_input_is_rejected_with_the_field_named_and_nothing_written() {
         &[&out],
     );
     rejected(&["select", "--rig", "beam-171"], &["unknown rig"], &[]);
-    // Checked when the command line is read, before any work: a figure not named .png, an
-    // output in a missing folder (the CSV is not written either).
+    // Checked when the command line is read, before any work: a figure not named .png or .svg,
+    // an output in a missing folder (the CSV is not written either).
     let missing = dir.path().join("no-such-folder").join("p.png");
     for (plot, says) in [
-        (dir.path().join("fr.svg"), "ending in .png"),
+        (dir.path().join("fr.pdf"), "ending in .png or .svg"),
         (missing.clone(), "no-such-folder"),
     ] {
         rejected(
@@ -1466,4 +1466,131 @@ fn damping_ratio_is_set_by_option_or_config_and_checked() {
         run(&format!("--config {} --damping-ratio 0", cfg.display())),
         undamped
     );
+}
+
+/// The elements `<tag …/>` of an SVG document, each as its attributes `(name, value)`.
+fn svg_elements<'a>(svg: &'a str, tag: &str) -> Vec<Vec<(&'a str, &'a str)>> {
+    svg.split(&format!("<{tag} "))
+        .skip(1)
+        .map(|rest| {
+            let body = &rest[..rest.find('>').unwrap()];
+            body.split('"')
+                .collect::<Vec<_>>()
+                .chunks_exact(2)
+                .map(|kv| (kv[0].trim().trim_end_matches('='), kv[1]))
+                .collect()
+        })
+        .collect()
+}
+
+/// The value of attribute `name` of an element of [`svg_elements`].
+fn attr<'a>(el: &[(&str, &'a str)], name: &str) -> &'a str {
+    el.iter().find(|(k, _)| *k == name).unwrap().1
+}
+
+/// A figure named `.svg` is an SVG document of the figure its `.png` name draws: the response's
+/// points as circles (one per CSV row, in its regime's colour, the largest force topmost), the
+/// regimes' legend as text; a map's raster as one embedded PNG image whose pixels are the PNG
+/// figure's over the same rectangle (not an element per pixel), its legend as text.
+#[test]
+fn a_figure_named_svg_is_a_vector_document_of_the_same_figure() {
+    use base64::Engine;
+    use host_sim::figures::{regime_class, regime_color};
+    use shared::observe::Regime;
+
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name).display().to_string();
+    ok(&line(&format!(
+        "response --rig wires --gap-mm 1.0 --omega-ratio 0.5:5.0:0.05 --out {} --plot {}",
+        p("r.csv"),
+        p("r.svg")
+    )));
+    let svg = fs::read_to_string(p("r.svg")).unwrap();
+    assert!(
+        svg.starts_with("<svg width=\"1000\" height=\"620\""),
+        "{}",
+        &svg[..80]
+    );
+    assert!(svg.trim_end().ends_with("</svg>"));
+    let mut csv = csv::Reader::from_path(p("r.csv")).unwrap();
+    let rows: Vec<(Regime, f64)> = csv
+        .deserialize::<std::collections::HashMap<String, String>>()
+        .map(|r| {
+            let r = r.unwrap();
+            (
+                r["regime"].parse().unwrap(),
+                r["impact_force_mg"].parse().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(rows.len(), 91);
+    let hex = |r: Regime| {
+        let c = regime_color(r);
+        format!("#{:02X}{:02X}{:02X}", c.0, c.1, c.2)
+    };
+    let dots: Vec<_> = svg_elements(&svg, "circle")
+        .into_iter()
+        .filter(|c| attr(c, "r") == "3")
+        .collect();
+    let mut fills: Vec<&str> = dots.iter().map(|c| attr(c, "fill")).collect();
+    let mut expected: Vec<String> = rows.iter().map(|&(r, _)| hex(r)).collect();
+    fills.sort_unstable();
+    expected.sort_unstable();
+    assert_eq!(fills, expected);
+    let top = dots
+        .iter()
+        .min_by_key(|c| attr(c, "cy").parse::<i32>().unwrap())
+        .unwrap();
+    let strongest = rows.iter().max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+    assert_eq!(attr(top, "fill"), hex(strongest.0));
+    for (r, _) in &rows {
+        let name = regime_class(*r).1;
+        assert!(
+            svg.contains(&format!("\n{name}\n</text>")),
+            "legend: {name}"
+        );
+    }
+
+    // A map: one embedded PNG, the PNG figure's pixels.
+    let grid = "peterka --rig wires --gap-mm 0:3.42:0.38 --freq-hz 1:7.11:0.1";
+    for plot in ["p.png", "p.svg"] {
+        ok(&line(&format!(
+            "{grid} --out {} --plot {}",
+            p("p.csv"),
+            p(plot)
+        )));
+    }
+    let svg = fs::read_to_string(p("p.svg")).unwrap();
+    let images = svg_elements(&svg, "image");
+    assert_eq!(images.len(), 1);
+    assert!(svg.len() < 200_000, "{} bytes", svg.len());
+    let im = &images[0];
+    let data = attr(im, "href")
+        .strip_prefix("data:image/png;base64,")
+        .unwrap();
+    let bytes = base64::engine::general_purpose::STANDARD
+        .decode(data)
+        .unwrap();
+    let raster = image::load_from_memory(&bytes).unwrap().to_rgb8();
+    let at = |k| attr(im, k).parse::<u32>().unwrap();
+    let (x, y, w, h) = (at("x"), at("y"), at("width"), at("height"));
+    assert_eq!((raster.width(), raster.height()), (w, h));
+    let png = image::open(p("p.png")).unwrap().to_rgb8();
+    let differ = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .filter(|&(i, j)| raster.get_pixel(i, j) != png.get_pixel(x + i, y + j))
+        .count();
+    assert_eq!(differ, 0, "of {w} × {h}");
+    let regimes: Vec<Regime> = csv::Reader::from_path(p("p.csv"))
+        .unwrap()
+        .deserialize::<std::collections::HashMap<String, String>>()
+        .map(|r| r.unwrap()["regime"].parse().unwrap())
+        .collect();
+    for r in regimes {
+        let name = regime_class(r).1;
+        assert!(
+            svg.contains(&format!("\n{name}\n</text>")),
+            "legend: {name}"
+        );
+    }
 }

@@ -54,8 +54,8 @@ pub struct CompareArgs {
     /// Time series: periods simulated from rest before the comparison window (1..=10000).
     #[arg(long, default_value_t = 200)]
     pub transient_periods: u32,
-    /// PNG with the overlay.
-    #[arg(value_parser = crate::output::png_target, long, value_name = "FILE.png")]
+    /// PNG or SVG with the overlay.
+    #[arg(value_parser = crate::output::figure_target, long, value_name = "FILE.png|svg")]
     pub out: PathBuf,
 }
 

@@ -59,9 +59,9 @@ pub struct ContinueArgs {
     /// period-doubling, neimark-sacker or grazing).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
-    /// PNG: the branches (stable solid, neutral dotted, unstable dashed, coloured by regime;
-    /// bifurcations marked) over a brute-force bifurcation diagram of the same range.
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG: the branches (stable solid, neutral dotted, unstable dashed, coloured by
+    /// regime; bifurcations marked) over a brute-force bifurcation diagram of the same range.
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
     /// The brute-force diagram behind the figure.
     #[arg(long, value_enum, default_value = "sweeps")]

@@ -52,8 +52,8 @@ pub struct HilArgs {
     /// more).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
-    /// PNG: frequency, force and state against time.
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG: frequency, force and state against time.
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
 }
 

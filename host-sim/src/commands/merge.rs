@@ -28,11 +28,11 @@ pub struct MergeArgs {
     /// Merged CSV (the columns of the one-run command).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
-    /// PNG: the command's figure (Peterka regime map, basins map or bifurcation diagram).
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG: the command's figure (Peterka regime map, basins map or bifurcation diagram).
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
     /// PNG (peterka only): the z = 1/1 region coloured by F_i/mg.
-    #[arg(long, value_parser = crate::output::png_target)]
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub force_plot: Option<PathBuf>,
     /// CSV (peterka shards run with --boundaries): the curves bounding the z = 1/1 region.
     #[arg(long, value_parser = crate::output::out_target)]

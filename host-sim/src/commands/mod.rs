@@ -142,8 +142,9 @@ pub struct GridOutArgs {
     /// rows, line 1 `# host-sim-shard {metadata}`, for `merge`.
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
-    /// PNG: the command's figure (described in `--help`); not with a shard (`merge` draws it).
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG (by the name): the command's figure (described in `--help`); not with a shard
+    /// (`merge` draws it).
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
     /// Shard of the grid to compute.
     #[command(flatten)]

@@ -38,8 +38,8 @@ pub struct PeterkaArgs {
     /// CSV and regime map.
     #[command(flatten)]
     pub output: GridOutArgs,
-    /// PNG: the z = 1/1 region coloured by F_i/mg, with a colour bar (Fig. 3.26).
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG: the z = 1/1 region coloured by F_i/mg, with a colour bar (Fig. 3.26).
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub force_plot: Option<PathBuf>,
     /// Refine each point's label by its largest Lyapunov exponent (column
     /// lyapunov_per_period): `chaotic` where positive beyond its uncertainty; where negative

@@ -36,8 +36,8 @@ pub struct ResponseArgs {
     /// `q ≤ 64` shows.
     #[arg(long)]
     pub no_lyapunov: bool,
-    /// PNG plot of F_i/mg vs Ω/ω coloured by regime.
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG plot of F_i/mg vs Ω/ω coloured by regime.
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
 }
 

@@ -102,8 +102,8 @@ pub struct LogArgs {
     /// CSV, one row per drive cycle.
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
-    /// PNG: frequency, measured peak force and state against time.
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG: frequency, measured peak force and state against time.
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
 }
 
@@ -137,8 +137,8 @@ pub struct SweepArgs {
     /// ended by a fault writes what it measured to `<name>.partial.csv` instead.
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
-    /// PNG: F_i/mg against Ω/ω (ω of the rig's preset), coloured by regime.
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG: F_i/mg against Ω/ω (ω of the rig's preset), coloured by regime.
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
 }
 

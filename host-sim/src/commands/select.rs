@@ -69,9 +69,9 @@ pub struct SelectArgs {
     /// CSV of the nominal-gap response (columns as `response`).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
-    /// PNG of the nominal-gap response with the band, window and chosen point (with
+    /// PNG or SVG of the nominal-gap response with the band, window and chosen point (with
     /// --uncertainty: the response's 95 % range over the draws, and the robust point).
-    #[arg(long, value_parser = crate::output::png_target)]
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
     /// Propagate the identified contact law's uncertainty (the `[uncertainty]` table of a
     /// `--config` written by `identify contact --out`): the selection for parameter sets drawn

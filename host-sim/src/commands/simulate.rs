@@ -34,8 +34,8 @@ pub struct SimulateArgs {
     /// exponent over the periods so far).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
-    /// PNG: displacement, impact force and phase plane with the Poincaré points.
-    #[arg(long, value_parser = crate::output::png_target)]
+    /// PNG or SVG: displacement, impact force and phase plane with the Poincaré points.
+    #[arg(long, value_parser = crate::output::figure_target)]
     pub plot: Option<PathBuf>,
 }
 

@@ -8,7 +8,8 @@ use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
 use super::{
-    Chart, Frame, SANS, canvas, labelled_line, legend_place, line_key, panel, series_legend, tick,
+    Backend, Chart, Frame, SANS, canvas, labelled_line, legend_place, line_key, panel,
+    series_legend, tick,
 };
 use crate::comparison::{ResponseOverlay, TsOverlay};
 use crate::identify::cost::SimDrop;
@@ -68,7 +69,7 @@ pub fn drop_fit(
 
 /// One drop test and its simulations (see [`drop_fit`]).
 fn drop_panel(
-    area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
+    area: &DrawingArea<Backend<'_>, plotters::coord::Shift>,
     data: &DropData,
     fits: &[(String, &SimDrop)],
 ) -> Result<()> {

@@ -21,27 +21,32 @@ use crate::orbits::CurveOut;
 use crate::shard::{open_csv, title_prefix};
 
 use super::{
-    Chart, Frame, LEGEND_PLACES, LegendCover, SANS, canvas, least_covered, legend_size, level_line,
-    line_key, panel, regime_class, regime_classes, regime_color, series_legend, tick,
+    Backend, Chart, Frame, LEGEND_PLACES, LegendCover, SANS, canvas, least_covered, legend_size,
+    level_line, line_key, panel, regime_class, regime_classes, regime_color, series_legend, tick,
 };
 
-/// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`.
+/// Paints `raster` onto `area` (its full pixel extent, `y` up), colour by `color`, as one
+/// bitmap (in an SVG, one embedded PNG image rather than an element per pixel).
 fn blit<T: Copy>(
     raster: &Raster<T>,
-    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    area: &DrawingArea<Backend<'_>, Shift>,
     color: impl Fn(T) -> RGBColor,
 ) -> Result<()> {
     let (pw, ph) = area.dim_in_pixel();
-    let (pw, ph) = (pw as usize, ph as usize);
+    let (w, h) = (pw as usize, ph as usize);
     let (rx, ry) = raster.raster_size();
-    for py in 0..ph {
-        let cy = ((ph - 1 - py) * ry / ph).min(ry - 1);
-        for px in 0..pw {
-            let cx = (px * rx / pw).min(rx - 1);
-            let c = color(raster.raster_cell(cx, cy));
-            area.draw_pixel((px as i32, py as i32), &c)?;
+    let mut rgb = Vec::with_capacity(3 * w * h);
+    for py in 0..h {
+        let cy = ((h - 1 - py) * ry / h).min(ry - 1);
+        for px in 0..w {
+            let cx = (px * rx / w).min(rx - 1);
+            let RGBColor(r, g, b) = color(raster.raster_cell(cx, cy));
+            rgb.extend([r, g, b]);
         }
     }
+    let image = BitMapElement::with_owned_buffer((0, 0), (pw, ph), rgb)
+        .ok_or_else(|| anyhow::anyhow!("a map's bitmap of {pw} × {ph} px"))?;
+    area.draw(&image)?;
     Ok(())
 }
 
@@ -100,8 +105,8 @@ fn figure_with_panel<'a>(
     path: &'a Path,
     title: &str,
 ) -> Result<(
-    DrawingArea<BitMapBackend<'a>, Shift>,
-    DrawingArea<BitMapBackend<'a>, Shift>,
+    DrawingArea<Backend<'a>, Shift>,
+    DrawingArea<Backend<'a>, Shift>,
 )> {
     let root = canvas(path, (1280, 860), Some((title, 20)))?;
     let (left, right) = root.split_horizontally(1030);
@@ -109,7 +114,7 @@ fn figure_with_panel<'a>(
 }
 
 fn map_chart<'a, 'b>(
-    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    area: &'a DrawingArea<Backend<'b>, Shift>,
     x: &MapAxis,
     y: &MapAxis,
 ) -> Result<Chart<'a, 'b>> {
@@ -134,7 +139,7 @@ fn map_chart<'a, 'b>(
 }
 
 fn legend_panel(
-    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    area: &DrawingArea<Backend<'_>, Shift>,
     heading: &str,
     entries: &[(String, LegendMark)],
 ) -> Result<()> {
@@ -191,7 +196,7 @@ fn legend_panel(
 /// `text` set to fit `room` pixels across: at `size`, else a smaller size down to 11, else
 /// broken at spaces into lines of that size (a word wider than `room` stands alone).
 fn fit_text(
-    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    area: &DrawingArea<Backend<'_>, Shift>,
     text: &str,
     size: u32,
     room: u32,

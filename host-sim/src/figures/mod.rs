@@ -1,8 +1,9 @@
-//! PNG figures with plotters (bitmap backend, bundled DejaVu Sans: no system font needed):
-//! the common canvas, panels, legend keys and the one regime palette here; the figures of each
-//! kind of result in the submodules. Figures read the computations' results; no computation
-//! imports a figure.
+//! Figures with plotters, as PNG or SVG by the file name ([`backend`]; bundled DejaVu Sans: no
+//! system font needed for a PNG): the common canvas, panels, legend keys and the one regime
+//! palette here; the figures of each kind of result in the submodules. Figures read the
+//! computations' results; no computation imports a figure.
 
+pub mod backend;
 pub mod identify;
 pub mod maps;
 pub mod orbits;
@@ -20,6 +21,8 @@ use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use shared::observe::Regime;
 
+pub use backend::Backend;
+
 const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 /// Family name of the bundled font.
 pub(crate) const SANS: &str = "sans-serif";
@@ -33,12 +36,13 @@ pub(crate) fn ensure_font() {
     });
 }
 
-/// A chart with linear `f64` axes on a bitmap.
+/// A chart with linear `f64` axes on a figure.
 pub(crate) type Chart<'a, 'b> =
-    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+    ChartContext<'a, Backend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
-/// The drawing area of a figure: a white `size` px bitmap written to `path`, with `title` at
-/// `title_px` across the top if given (the area below it is returned).
+/// The drawing area of a figure: a white `size` px canvas written to `path` (SVG if its name
+/// ends in `.svg`, else PNG: [`Backend::for_path`]), with `title` at `title_px` across the top
+/// if given (the area below it is returned).
 ///
 /// # Errors
 /// Drawing errors.
@@ -46,9 +50,9 @@ pub(crate) fn canvas<'a>(
     path: &'a Path,
     size: (u32, u32),
     title: Option<(&str, u32)>,
-) -> Result<DrawingArea<BitMapBackend<'a>, Shift>> {
+) -> Result<DrawingArea<Backend<'a>, Shift>> {
     ensure_font();
-    let root = BitMapBackend::new(path, size).into_drawing_area();
+    let root = Backend::for_path(path, size).into_drawing_area();
     root.fill(&WHITE)?;
     Ok(match title {
         Some((text, px)) => root.titled(text, (SANS, px))?,
@@ -94,7 +98,7 @@ impl Frame {
 /// # Errors
 /// Drawing errors.
 pub(crate) fn panel<'a, 'b>(
-    area: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    area: &'a DrawingArea<Backend<'b>, Shift>,
     frame: Frame,
     x: Range<f64>,
     y: Range<f64>,
@@ -184,7 +188,7 @@ pub(crate) fn level_line(
 /// # Errors
 /// Drawing errors.
 pub(crate) fn series_legend<'a, 'b: 'a, CT: plotters::coord::CoordTranslate>(
-    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
+    chart: &mut ChartContext<'a, Backend<'b>, CT>,
     position: Option<SeriesLabelPosition>,
     font_size: u32,
 ) -> Result<()> {
@@ -451,7 +455,8 @@ mod tests {
     #[test]
     fn a_legend_covers_the_dots_and_the_segments_that_cross_its_box() {
         let mut buf = vec![0u8; 400 * 300 * 3];
-        let area = BitMapBackend::with_buffer(&mut buf, (400, 300)).into_drawing_area();
+        let area =
+            Backend::Bitmap(BitMapBackend::with_buffer(&mut buf, (400, 300))).into_drawing_area();
         let chart = ChartBuilder::on(&area)
             .build_cartesian_2d(0.0..1.0, 0.0..1.0)
             .unwrap();

@@ -12,8 +12,8 @@ use shared::observe::Regime;
 use shared::orbit::{Param, Stability};
 
 use super::{
-    Chart, Frame, LEGEND_PLACES, LegendCover, canvas, least_covered, legend_size, line_key, panel,
-    regime_classes, regime_color, series_legend,
+    Backend, Chart, Frame, LEGEND_PLACES, LegendCover, canvas, least_covered, legend_size,
+    line_key, panel, regime_classes, regime_color, series_legend,
 };
 use crate::orbits::{BranchOut, OrbitReport, param_value};
 
@@ -359,7 +359,7 @@ fn marker_px<'b>(
     kind: &str,
     at: (i32, i32),
     color: RGBColor,
-) -> DynElement<'static, BitMapBackend<'b>, (i32, i32)> {
+) -> DynElement<'static, Backend<'b>, (i32, i32)> {
     let style = ShapeStyle::from(color).stroke_width(2);
     match kind {
         "fold" => TriangleMarker::new(at, 6, style).into_dyn(),

@@ -15,7 +15,7 @@ use shared::observe::PointResult;
 use crate::config::Setup;
 
 use super::{
-    Chart, Frame, SANS, canvas, legend_place, level_line, line_key, panel, regime_classes,
+    Backend, Chart, Frame, SANS, canvas, legend_place, level_line, line_key, panel, regime_classes,
     series_legend, swatch_key, tick,
 };
 
@@ -35,7 +35,7 @@ const STACKED: Frame = Frame::new(10, 35, 60, 14);
 /// # Errors
 /// Drawing errors.
 fn force_chart<'a, 'b>(
-    root: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    root: &'a DrawingArea<Backend<'b>, Shift>,
     title: &str,
     title_px: u32,
     x: Range<f64>,

@@ -109,8 +109,8 @@ pub struct ContactArgs {
     /// other commands.
     #[arg(value_parser = crate::output::out_target, long, value_name = "FILE.toml")]
     pub out: Option<PathBuf>,
-    /// PNG: the measured trace and the fitted simulation(s), whole and impact by impact.
-    #[arg(value_parser = crate::output::png_target, long, value_name = "FILE.png")]
+    /// PNG or SVG: the measured trace and the fitted simulation(s), whole and impact by impact.
+    #[arg(value_parser = crate::output::figure_target, long, value_name = "FILE.png|svg")]
     pub plot: Option<PathBuf>,
     /// Print one JSON object instead of the table.
     #[arg(long)]
