@@ -1500,11 +1500,19 @@ fn a_figure_named_svg_is_a_vector_document_of_the_same_figure() {
 
     let dir = tempfile::tempdir().unwrap();
     let p = |name: &str| dir.path().join(name).display().to_string();
-    ok(&line(&format!(
-        "response --rig wires --gap-mm 1.0 --omega-ratio 0.5:5.0:0.05 --out {} --plot {}",
-        p("r.csv"),
-        p("r.svg")
-    )));
+    // `cmd --out CSV --plot FIGURE` in the folder.
+    let draw = |cmd: &str, csv: &str, figure: &str| {
+        ok(&line(&format!(
+            "{cmd} --out {} --plot {}",
+            p(csv),
+            p(figure)
+        )))
+    };
+    draw(
+        "response --rig wires --gap-mm 1.0 --omega-ratio 0.5:5.0:0.05",
+        "r.csv",
+        "r.svg",
+    );
     let svg = fs::read_to_string(p("r.svg")).unwrap();
     assert!(
         svg.starts_with("<svg width=\"1000\" height=\"620\""),
@@ -1543,22 +1551,22 @@ fn a_figure_named_svg_is_a_vector_document_of_the_same_figure() {
         .unwrap();
     let strongest = rows.iter().max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
     assert_eq!(attr(top, "fill"), hex(strongest.0));
-    for (r, _) in &rows {
-        let name = regime_class(*r).1;
-        assert!(
-            svg.contains(&format!("\n{name}\n</text>")),
-            "legend: {name}"
-        );
-    }
+    // Every regime of the CSV has its legend entry, a text element of its own.
+    let legend_names = |svg: &str, regimes: &mut dyn Iterator<Item = Regime>| {
+        for r in regimes {
+            let name = regime_class(r).1;
+            assert!(
+                svg.contains(&format!("\n{name}\n</text>")),
+                "legend: {name}"
+            );
+        }
+    };
+    legend_names(&svg, &mut rows.iter().map(|r| r.0));
 
     // A map: one embedded PNG, the PNG figure's pixels.
     let grid = "peterka --rig wires --gap-mm 0:3.42:0.38 --freq-hz 1:7.11:0.1";
-    for plot in ["p.png", "p.svg"] {
-        ok(&line(&format!(
-            "{grid} --out {} --plot {}",
-            p("p.csv"),
-            p(plot)
-        )));
+    for figure in ["p.png", "p.svg"] {
+        draw(grid, "p.csv", figure);
     }
     let svg = fs::read_to_string(p("p.svg")).unwrap();
     let images = svg_elements(&svg, "image");
@@ -1581,16 +1589,9 @@ fn a_figure_named_svg_is_a_vector_document_of_the_same_figure() {
         .filter(|&(i, j)| raster.get_pixel(i, j) != png.get_pixel(x + i, y + j))
         .count();
     assert_eq!(differ, 0, "of {w} × {h}");
-    let regimes: Vec<Regime> = csv::Reader::from_path(p("p.csv"))
+    let mut regimes = csv::Reader::from_path(p("p.csv"))
         .unwrap()
-        .deserialize::<std::collections::HashMap<String, String>>()
-        .map(|r| r.unwrap()["regime"].parse().unwrap())
-        .collect();
-    for r in regimes {
-        let name = regime_class(r).1;
-        assert!(
-            svg.contains(&format!("\n{name}\n</text>")),
-            "legend: {name}"
-        );
-    }
+        .into_deserialize::<std::collections::HashMap<String, String>>()
+        .map(|r| r.unwrap()["regime"].parse::<Regime>().unwrap());
+    legend_names(&svg, &mut regimes);
 }
