@@ -1097,6 +1097,60 @@ fn orbit_in_chaos_asks_for_the_period_and_finds_an_unstable_orbit_with_it() {
     );
 }
 
+/// `orbit --out --plot` writes the orbit over its q periods as `simulate` writes a run, from
+/// its first Poincaré point: the wire rig's stable `2/2` at Ω/ω 2.8 (f64) closes after two
+/// periods, passes through its second Poincaré point after one, and has its two impacts, the
+/// larger the report's peak.
+#[test]
+fn orbit_writes_its_time_series_over_its_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv_path, png) = (dir.path().join("o.csv"), dir.path().join("o.png"));
+    let v: serde_json::Value = serde_json::from_str(&ok(&line(&format!(
+        "orbit --rig wires --gap-mm 0 --omega-ratio 2.8 --q 2 --precision f64 --json \
+         --out {} --plot {}",
+        csv_path.display(),
+        png.display()
+    ))))
+    .unwrap();
+    let o = &v["orbit"];
+    assert_eq!(o["regime"], "2/2");
+    let num = |x: &serde_json::Value| x.as_f64().unwrap();
+    let period_s = 1.0 / num(&o["freq_hz"]);
+    let rows: Vec<std::collections::HashMap<String, String>> = csv::Reader::from_path(&csv_path)
+        .unwrap()
+        .deserialize()
+        .map(Result::unwrap)
+        .collect();
+    let f =
+        |r: &std::collections::HashMap<String, String>, k: &str| -> f64 { r[k].parse().unwrap() };
+    let section: Vec<_> = rows.iter().filter(|r| r["poincare"] == "true").collect();
+    assert_eq!(section.len(), 3);
+    for (k, r) in section.iter().enumerate() {
+        assert!((f(r, "t_s") - k as f64 * period_s).abs() < 1e-9);
+        let point = &o["section"][k % 2];
+        assert!((f(r, "u_mm") - num(&point[0])).abs() < 1e-5, "u at {k}T");
+        assert!((f(r, "du_mm_s") - num(&point[1])).abs() < 1e-4, "u̇ at {k}T");
+    }
+    assert!((f(section[0], "u_mm") - f(section[1], "u_mm")).abs() > 1.0);
+    assert!((f(&rows[rows.len() - 1], "t_s") - 2.0 * period_s).abs() < 1e-9);
+    // The impacts: contact episodes, and the largest peak.
+    let contacts = rows
+        .windows(2)
+        .filter(|w| w[0]["region"] != "contact" && w[1]["region"] == "contact")
+        .count();
+    assert_eq!(contacts, 2);
+    let peak = rows
+        .iter()
+        .map(|r| f(r, "impact_force_mg"))
+        .fold(0.0, f64::max);
+    assert!(
+        (peak - num(&o["impact_force_mg"])).abs() < 1e-3 * peak,
+        "{peak}"
+    );
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (1000, 1100));
+}
+
 /// The branches `continue {args} --json` prints.
 fn continue_branches(args: &str) -> Vec<serde_json::Value> {
     let v: serde_json::Value =

@@ -1,14 +1,18 @@
 //! `host-sim orbit`: the periodic orbit at one operating point, with its Floquet multipliers
 //! (the computation: [`crate::orbits`]).
 
+use std::path::PathBuf;
+
 use anyhow::{Context, Result};
 use clap::Args;
 use shared::error::check_count;
 use shared::orbit::{MAX_Q, MapPoint, Orbit, Stability};
 
+use super::simulate::write_series;
 use super::{ExcitationOpts, StartOpts};
 use crate::config::{RigOpts, Setup};
 use crate::orbits::{self, OrbitReport, Start};
+use crate::series::{self, SeriesSpec};
 
 /// Where an orbit is sought: the rig, the point, the start and the period.
 #[derive(Debug, Args)]
@@ -63,6 +67,15 @@ pub struct OrbitArgs {
     /// Print one JSON object instead of the report.
     #[arg(long)]
     pub json: bool,
+    /// CSV of the orbit over its q periods from its first Poincaré point, `simulate`'s
+    /// columns: t_s, u_mm, du_mm_s, x_mm, impact_force_n, impact_force_mg, region, poincare,
+    /// lyapunov_per_period.
+    #[arg(long, value_parser = crate::output::out_target)]
+    pub out: Option<PathBuf>,
+    /// PNG or SVG: the orbit over its q periods (displacement, impact force, phase plane with
+    /// its Poincaré points), its multipliers in the title.
+    #[arg(long, value_parser = crate::output::figure_target)]
+    pub plot: Option<PathBuf>,
 }
 
 /// The orbit found and what the protocol saw, for JSON.
@@ -145,6 +158,9 @@ pub fn describe(o: &OrbitReport) -> String {
 /// # Errors
 /// Bad input, or no orbit at the point (the reason, with the point).
 pub fn run(a: &OrbitArgs) -> Result<()> {
+    a.point
+        .rig
+        .check_outputs(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())])?;
     let (setup, at, start) = a.point.resolve()?;
     let (protocol, (report, slope_mismatch)) = crate::with_precision!(setup.precision, T => {
         let (r, o): (_, Orbit<T>) = orbits::find::<T>(&at, start, a.point.q)?;
@@ -187,7 +203,48 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
         }
         println!("{}", describe(&report));
     }
+    if a.out.is_some() || a.plot.is_some() {
+        write_orbit(&setup, &report, a)?;
+    }
     Ok(())
+}
+
+/// The orbit's time series over its `q` periods, simulated from its first Poincaré point (the
+/// section at `Ωt = 0`), written as `simulate` writes one (`--out`, `--plot`).
+///
+/// # Errors
+/// File or drawing errors.
+fn write_orbit(setup: &Setup, report: &OrbitReport, a: &OrbitArgs) -> Result<()> {
+    let [u_mm, du_mm_s] = report.section[0];
+    // The point as `simulate` reads it from the same flags.
+    let gap_m = setup.gap_m("--gap-mm", a.point.gap_mm)?;
+    let ratio = a.point.excitation.ratio(setup)?;
+    let (rows, _) = series::simulate(
+        setup,
+        &SeriesSpec {
+            gap_m,
+            omega_exc: ratio * setup.params.omega_n(),
+            periods: report.q,
+            u0_m: u_mm * 1e-3,
+            v0_m_s: du_mm_s * 1e-3,
+        },
+    )?;
+    let title = format!(
+        "{} rig, gap {:.2} mm, Ω/ω = {:.4}: orbit {}, {}, max |μ| = {:.4}",
+        setup.rig,
+        report.gap_mm,
+        report.omega_ratio,
+        report.regime,
+        report.stability.name(),
+        report.max_abs_multiplier
+    );
+    write_series(
+        &rows,
+        a.out.as_deref(),
+        a.plot.as_deref(),
+        &title,
+        report.gap_mm,
+    )
 }
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
 //! `host-sim simulate`: the time series of one operating point.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
@@ -10,7 +10,7 @@ use super::{ExcitationOpts, StartOpts};
 use crate::config::{RigOpts, Setup};
 use crate::figures::response::{TsPoint, time_series};
 use crate::output::{Outputs, write_csv};
-use crate::series::{self, SeriesSpec};
+use crate::series::{self, SeriesSpec, TsRow};
 
 /// Arguments of `simulate`.
 #[derive(Debug, Args)]
@@ -39,6 +39,46 @@ pub struct SimulateArgs {
     pub plot: Option<PathBuf>,
 }
 
+/// Writes a time series' rows as CSV to `out` and its figure (displacement, impact force and
+/// phase plane with the Poincaré points, titled `title`, the surface at `gap_mm`) to `plot`,
+/// either if given, both or neither.
+///
+/// # Errors
+/// File or drawing errors (nothing is written then).
+pub(crate) fn write_series(
+    rows: &[TsRow],
+    out: Option<&Path>,
+    plot: Option<&Path>,
+    title: &str,
+    gap_mm: f64,
+) -> Result<()> {
+    let mut outputs = Outputs::new();
+    if let Some(p) = out {
+        let tmp = outputs.reserve(p)?;
+        write_csv(&tmp, rows)?;
+    }
+    if let Some(p) = plot {
+        let tmp = outputs.reserve(p)?;
+        let ts: Vec<TsPoint> = rows
+            .iter()
+            .map(|r| TsPoint {
+                t_s: r.t_s,
+                u_mm: r.u_mm,
+                du_mm_s: r.du_mm_s,
+                x_mm: r.x_mm,
+                force_mg: r.impact_force_mg,
+            })
+            .collect();
+        let strobes: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| r.poincare)
+            .map(|r| (r.u_mm, r.du_mm_s))
+            .collect();
+        time_series(&tmp, title, &ts, &strobes, gap_mm)?;
+    }
+    outputs.commit()
+}
+
 /// Runs `simulate`.
 ///
 /// # Errors
@@ -63,39 +103,15 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
             v0_m_s,
         },
     )?;
-    let mut outputs = Outputs::new();
-    if let Some(p) = &a.out {
-        let tmp = outputs.reserve(p)?;
-        write_csv(&tmp, &rows)?;
-    }
-    if let Some(p) = &a.plot {
-        let tmp = outputs.reserve(p)?;
-        let ts: Vec<TsPoint> = rows
-            .iter()
-            .map(|r| TsPoint {
-                t_s: r.t_s,
-                u_mm: r.u_mm,
-                du_mm_s: r.du_mm_s,
-                x_mm: r.x_mm,
-                force_mg: r.impact_force_mg,
-            })
-            .collect();
-        let strobes: Vec<(f64, f64)> = rows
-            .iter()
-            .filter(|r| r.poincare)
-            .map(|r| (r.u_mm, r.du_mm_s))
-            .collect();
-        let title = format!(
-            "{} rig, gap {:.2} mm, Ω/ω = {:.3} ({:.3} Hz), {} periods",
-            setup.rig,
-            a.gap_mm,
-            ratio,
-            ratio * fn_hz,
-            a.periods
-        );
-        time_series(&tmp, &title, &ts, &strobes, a.gap_mm)?;
-    }
-    outputs.commit()?;
+    let title = format!(
+        "{} rig, gap {:.2} mm, Ω/ω = {:.3} ({:.3} Hz), {} periods",
+        setup.rig,
+        a.gap_mm,
+        ratio,
+        ratio * fn_hz,
+        a.periods
+    );
+    write_series(&rows, a.out.as_deref(), a.plot.as_deref(), &title, a.gap_mm)?;
     println!(
         "{} at Ω/ω = {:.4} ({:.4} Hz): {}, max F_i/mg = {:.3}, {} samples{}",
         crate::output::count(u64::from(a.periods), "period"),
