@@ -43,3 +43,5 @@ $h continue --rig beam-170 --gap-mm 3.0 --omega-ratio 1.35 --also-at 1.7 --preci
     --range 1.0:2.0 --out /tmp/continue-beam.csv --plot "$f/continue-beam-170-gap3.0.png"
 $h simulate --rig wires --gap-mm 0 --omega-ratio 2.01 --periods 6 \
     --out /tmp/simulate-wires.csv --plot "$f/simulate-wires-gap0-2.01.png"
+$h orbit --rig wires --gap-mm 1.0 --omega-ratio 2.6 --q 2 \
+    --out /tmp/orbit-wires.csv --plot "$f/orbit-wires-gap1.0-2.6-q2.png"
