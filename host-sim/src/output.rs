@@ -89,11 +89,13 @@ impl Outputs {
 /// `n` of `noun` as the commands say it: `count(1, "point")` is `1 point`, `count(451,
 /// "point")` `451 points` (nouns whose plural adds an `s`).
 pub fn count(n: u64, noun: &str) -> String {
-    if n == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{n} {noun}s")
-    }
+    count_as(n, noun, &format!("{noun}s"))
+}
+
+/// `n` of a noun given in the singular `one` and the plural `many`: `count_as(1, "frequency",
+/// "frequencies")` is `1 frequency`, with 51 `51 frequencies`.
+pub fn count_as(n: u64, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
 }
 
 /// Writes one file whole or not at all: `write` fills a temporary file beside `target`

@@ -187,12 +187,11 @@ impl Kind {
     /// `n` of the grid's points in words: Peterka points, initial conditions (basins, and
     /// fractions' points × samples) or frequencies (bifurcation).
     pub fn counted(self, n: u64) -> String {
-        let (one, many) = match self {
-            Kind::Peterka => ("point", "points"),
-            Kind::Basins | Kind::Fractions => ("initial condition", "initial conditions"),
-            Kind::Bifurcation => ("frequency", "frequencies"),
-        };
-        format!("{n} {}", if n == 1 { one } else { many })
+        match self {
+            Kind::Peterka => crate::output::count(n, "point"),
+            Kind::Basins | Kind::Fractions => crate::output::count(n, "initial condition"),
+            Kind::Bifurcation => crate::output::count_as(n, "frequency", "frequencies"),
+        }
     }
 }
 

@@ -25,6 +25,8 @@ pub enum Backend<'a> {
 pub struct SvgFile<'a> {
     backend: SVGBackend<'a>,
     path: &'a Path,
+    /// Whether a bitmap was embedded (then the file's data URLs are mended when written).
+    embedded: bool,
 }
 
 /// How plotters' SVG backend opens an embedded PNG (a media type that is not one), and the
@@ -32,15 +34,16 @@ pub struct SvgFile<'a> {
 const PNG_DATA: (&str, &str) = ("href=\"data:png;base64,", "href=\"data:image/png;base64,");
 
 impl SvgFile<'_> {
-    /// Writes the document, every embedded bitmap marked as the PNG image it is.
+    /// Writes the document, every embedded bitmap marked as the PNG image it is (plotters-svg
+    /// writes the file itself, so its data URLs are mended in the file, once, where it has any).
     fn present(&mut self) -> Result<(), DrawingErrorKind<BackendError>> {
         lift(self.backend.present())?;
+        if !std::mem::take(&mut self.embedded) {
+            return Ok(());
+        }
         let io = |e| DrawingErrorKind::DrawingError(BackendError(Box::new(e)));
         let text = std::fs::read_to_string(self.path).map_err(io)?;
-        if text.contains(PNG_DATA.0) {
-            std::fs::write(self.path, text.replace(PNG_DATA.0, PNG_DATA.1)).map_err(io)?;
-        }
-        Ok(())
+        std::fs::write(self.path, text.replace(PNG_DATA.0, PNG_DATA.1)).map_err(io)
     }
 }
 
@@ -51,6 +54,7 @@ impl<'a> Backend<'a> {
             Backend::Svg(SvgFile {
                 backend: SVGBackend::new(path, size),
                 path,
+                embedded: false,
             })
         } else {
             Backend::Bitmap(BitMapBackend::new(path, size))
@@ -204,6 +208,9 @@ impl DrawingBackend for Backend<'_> {
         size: (u32, u32),
         src: &[u8],
     ) -> Result<(), DrawingErrorKind<BackendError>> {
+        if let Backend::Svg(f) = self {
+            f.embedded = true;
+        }
         each!(self, b => b.blit_bitmap(pos, size, src))
     }
 }
