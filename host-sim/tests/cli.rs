@@ -407,7 +407,7 @@ fn response_writes_csv_and_png() {
 fn simulate_writes_time_series_with_poincare_rows() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("ts.csv");
-    ok(&line(&format!(
+    let said = ok(&line(&format!(
         "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 10 --out {}",
         csv.display()
     )));
@@ -453,6 +453,25 @@ fn simulate_writes_time_series_with_poincare_rows() {
             .filter(|r| &r[7] != "true")
             .all(|r| r[8].is_empty())
     );
+    // The summary's exponent is the last running estimate; its sign is called undecided
+    // exactly where the uncertainty is not below its size (over 3 periods, not over 10).
+    let exponent = |said: &str| -> (f64, f64, bool) {
+        let tail = said.split("largest Lyapunov exponent ").nth(1).unwrap();
+        let mut words = tail.split_whitespace();
+        let l = words.next().unwrap().parse().unwrap();
+        assert_eq!(words.next(), Some("±"));
+        let u = words.next().unwrap().parse().unwrap();
+        (l, u, tail.contains("its sign undecided over this run"))
+    };
+    let (l, u, undecided) = exponent(&said);
+    let last: f64 = strobes.last().unwrap()[8].parse().unwrap();
+    assert!((l - last).abs() < 1e-4, "{said}");
+    assert!(u < l.abs() && !undecided, "{said}");
+    let said = ok(&line(
+        "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 3",
+    ));
+    let (l, u, undecided) = exponent(&said);
+    assert!(u >= l.abs() && undecided, "{said}");
 }
 
 #[test]
@@ -1616,6 +1635,14 @@ fn a_figure_named_svg_is_a_vector_document_of_the_same_figure() {
         }
     };
     legend_names(&svg, &mut rows.iter().map(|r| r.0));
+    // Its text names the font its layout is measured with, then the viewer's sans-serif.
+    let texts = svg.matches("<text ").count();
+    assert!(texts > rows.len().min(5), "{texts} text elements");
+    assert_eq!(
+        svg.matches("font-family=\"DejaVu Sans, sans-serif\"")
+            .count(),
+        texts
+    );
 
     // A map: one embedded PNG, the PNG figure's pixels.
     let grid = "peterka --rig wires --gap-mm 0:3.42:0.38 --freq-hz 1:7.11:0.1";

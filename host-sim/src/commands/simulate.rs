@@ -121,7 +121,14 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
         summary.max_force_mg,
         rows.len(),
         match summary.lyapunov {
-            Some((l, u)) => format!(", largest Lyapunov exponent {l:.4} ± {u:.4} per period"),
+            Some((l, u)) => format!(
+                ", largest Lyapunov exponent {l:.4} ± {u:.4} per period{}",
+                if u.is_finite() && u < l.abs() {
+                    ""
+                } else {
+                    " (its sign undecided over this run: more --periods narrow it)"
+                }
+            ),
             None => String::new(),
         }
     );

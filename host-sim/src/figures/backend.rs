@@ -1,17 +1,23 @@
 //! The backend a figure is drawn on: a PNG bitmap or an SVG document, chosen by the file
 //! name's extension ([`Backend::for_path`]). Every drawing call goes to the chosen backend's
 //! own implementation, so a PNG is the bitmap backend's, pixel for pixel, and an SVG keeps
-//! lines, marks and text as vector elements (text in the viewer's sans-serif font, laid out
-//! with the bundled DejaVu Sans' metrics).
+//! lines, marks and text as vector elements (text in DejaVu Sans where the viewer has it, the
+//! font its layout is measured with, else in the viewer's sans-serif: [`SVG_FONT_FAMILY`]).
 
 use std::error::Error;
 use std::fmt;
 use std::path::Path;
 
 use plotters::backend::{BitMapBackend, SVGBackend};
+use plotters_backend::text_anchor::Pos;
 use plotters_backend::{
     BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingBackend, DrawingErrorKind,
+    FontFamily, FontStyle, FontTransform,
 };
+
+/// The font an SVG's text names: the bundled font the figures' layout is measured with (legend
+/// widths, label fitting), then the viewer's sans-serif where it lacks that one.
+pub const SVG_FONT_FAMILY: &str = "DejaVu Sans, sans-serif";
 
 /// A figure's backend: PNG or SVG.
 pub enum Backend<'a> {
@@ -191,7 +197,10 @@ impl DrawingBackend for Backend<'_> {
         style: &S,
         pos: BackendCoord,
     ) -> Result<(), DrawingErrorKind<BackendError>> {
-        each!(self, b => b.draw_text(text, style, pos))
+        match self {
+            Backend::Bitmap(b) => lift(b.draw_text(text, style, pos)),
+            Backend::Svg(f) => lift(f.backend.draw_text(text, &Typeface(style), pos)),
+        }
     }
 
     fn estimate_text_size<S: BackendTextStyle>(
@@ -212,5 +221,50 @@ impl DrawingBackend for Backend<'_> {
             f.embedded = true;
         }
         each!(self, b => b.blit_bitmap(pos, size, src))
+    }
+}
+
+/// A text style as the SVG document names its font ([`SVG_FONT_FAMILY`]); everything else, the
+/// layout included, is the style's own.
+struct Typeface<'s, S>(&'s S);
+
+impl<S: BackendTextStyle> BackendTextStyle for Typeface<'_, S> {
+    type FontError = S::FontError;
+
+    fn color(&self) -> BackendColor {
+        self.0.color()
+    }
+
+    fn size(&self) -> f64 {
+        self.0.size()
+    }
+
+    fn transform(&self) -> FontTransform {
+        self.0.transform()
+    }
+
+    fn style(&self) -> FontStyle {
+        self.0.style()
+    }
+
+    fn anchor(&self) -> Pos {
+        self.0.anchor()
+    }
+
+    fn family(&self) -> FontFamily<'_> {
+        FontFamily::Name(SVG_FONT_FAMILY)
+    }
+
+    fn layout_box(&self, text: &str) -> Result<((i32, i32), (i32, i32)), Self::FontError> {
+        self.0.layout_box(text)
+    }
+
+    fn draw<E, F: FnMut(i32, i32, BackendColor) -> Result<(), E>>(
+        &self,
+        text: &str,
+        pos: BackendCoord,
+        draw: F,
+    ) -> Result<Result<(), E>, Self::FontError> {
+        self.0.draw(text, pos, draw)
     }
 }
