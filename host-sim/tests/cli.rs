@@ -1054,6 +1054,20 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
         );
         assert!((a - b).abs() < 1e-9 * b.abs(), "{a} vs {b}");
     }
+    // Just before the doubling the protocol's window still alternates; the orbit its fixed
+    // point of P² is lies within its error of the 1/1 orbit, and is reported as that.
+    let text = ok(&line(
+        "orbit --rig wires --gap-mm 0 --omega-ratio 2.66 --precision f64",
+    ));
+    assert!(text.contains("settled on 2/2"), "{text}");
+    assert!(
+        text.contains("the fixed point of P^2 found is this orbit of minimal period 1"),
+        "{text}"
+    );
+    assert!(
+        text.contains("orbit 1/1 at") && text.contains("μ1 = -0.99799"),
+        "{text}"
+    );
     // The report names a given start as typed (not its round trip through metres).
     let text = ok(&line(
         "orbit --rig wires --gap-mm 0 --omega-ratio 2.0 --u0-mm -3.2e-05 --v0-mm-s 0.1",

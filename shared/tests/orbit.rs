@@ -203,6 +203,60 @@ fn the_2_2_orbit_lies_beyond_the_doubling() {
     assert!(mu[0].im == 0.0 && mu[0].re < -1.0, "1/1 multipliers {mu:?}");
 }
 
+/// Just before the doubling (Ω/ω 2.66, the wire rig's 1/1 at 0.0 mm with μ = −0.998) the
+/// protocol's window still alternates (`2/2`) and shooting at `q = 2` converges to the 1/1
+/// orbit only as closely as `1/(1 − μ²)` allows, far above the tolerance: it is reported at
+/// its minimal period all the same, the multiplier P's own (not its square, a "fold"); so in
+/// f32 at Ω/ω 2.6 asked at q = 2 and 3 (μ = −0.656). Just past the doubling (2.661) the 2/2
+/// orbit, 0.2 mm across, stays 2/2.
+#[test]
+fn an_orbit_near_a_doubling_is_reported_at_its_minimal_period() {
+    let settings = ShootSettings::for_type::<f64>();
+    let at = point(RigId::Wires, ContactLawKind::SpringDashpot, 0.0, 2.66);
+    let (regime, o) = orbit_at::<f64>(&at);
+    assert_eq!(regime, Regime::Periodic { p: 2, q: 2 });
+    let one = shoot(&at, 1, o.x, &settings).unwrap();
+    println!(
+        "Ω/ω 2.66: reported q {} μ {:?}; P's own μ {:?}",
+        o.q, o.floquet.mu, one.floquet.mu
+    );
+    assert_eq!((o.q, o.p()), (1, 1));
+    assert_eq!(o.floquet.mu, one.floquet.mu);
+    let mu = o.floquet.mu[0];
+    assert!(mu.im == 0.0 && (-1.0..-0.99).contains(&mu.re), "{mu:?}");
+    // The q = 2 orbit from the same start, left unreduced, is P's orbit twice: its points
+    // within its error of each other, far outside the tolerance.
+    let (_, x) = shared::orbit::settle::<f64>(&at, 0.0, 0.0).unwrap();
+    let two = shoot(&at, 2, x, &settings).unwrap();
+    let apart = scaled_distance(&at, &iterate(&at, 1, two.x).unwrap().x, &two.x);
+    println!(
+        "q = 2 orbit's points {apart:.2e} apart (scaled), μ {:?}",
+        two.floquet.mu
+    );
+    assert!(apart > settings.tolerance && apart < 1e-6, "{apart:e}");
+    let back = shared::orbit::minimal_period(&at, two, &settings);
+    assert_eq!(back.q, 1);
+    assert!(scaled_distance(&at, &back.x, &one.x) < 1e-10);
+
+    let f32_settings = ShootSettings::for_type::<f32>();
+    let at = point(RigId::Wires, ContactLawKind::SpringDashpot, 0.0, 2.6);
+    for q in [2, 3] {
+        let (_, o) = orbit_from::<f32>(&at, 0.0, 0.0, Some(q), &f32_settings).unwrap();
+        assert_eq!((o.q, o.p()), (1, 1), "f32, asked q = {q}");
+        assert!(
+            (o.floquet.max_abs() - 0.6557).abs() < 1e-3,
+            "{:?}",
+            o.floquet.mu
+        );
+    }
+
+    let at = point(RigId::Wires, ContactLawKind::SpringDashpot, 0.0, 2.661);
+    let (_, o) = orbit_at::<f64>(&at);
+    assert_eq!((o.q, o.p()), (2, 2));
+    let across = scaled_distance(&at, &iterate(&at, 1, o.x).unwrap().x, &o.x);
+    assert!(across > 0.1, "{across}");
+}
+
 #[test]
 fn resting_orbit_forgets_its_state() {
     // Wire rig, 0.0 mm, Ω/ω 0.6: three impacts, then the hammer rests on the surface for a

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use shared::error::check_count;
+use shared::observe::Regime;
 use shared::orbit::{MAX_Q, MapPoint, Orbit, Stability};
 
 use super::simulate::write_series;
@@ -198,6 +199,14 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
         if let Some(q) = a.point.q.filter(|&q| q != report.q) {
             println!(
                 "  (asked q = {q}: the fixed point of P^{q} found is this orbit of minimal period {})",
+                report.q
+            );
+        } else if let (None, Regime::Periodic { q, .. }) = (a.point.q, protocol.regime)
+            && u32::from(q) != report.q
+        {
+            println!(
+                "  (the protocol's window repeats every {q} periods, but the fixed point of P^{q} \
+                 found is this orbit of minimal period {}: the window had not converged onto it)",
                 report.q
             );
         }
