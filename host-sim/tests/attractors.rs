@@ -491,6 +491,65 @@ fn bad_attractor_input_is_rejected_with_the_field_named_and_nothing_written() {
     );
 }
 
+/// The fractions figure draws each band's 95 % interval whole, over the bands: at the beam
+/// rig's hysteresis (3.0 mm, Ω/ω 1.5: no impact, A, below `1/1`, B) the bar on the lower band's
+/// top edge reaches into the band above it and into its own as far as the CSV's interval says
+/// (it was drawn with its band, so the band above covered its upper half), the bands in the
+/// no-impact grey and the `1/1` red of every figure.
+#[test]
+fn fractions_draw_each_interval_whole_over_the_bands() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, png) = (dir.path().join("fr.csv"), dir.path().join("fr.png"));
+    ok(&line(&format!(
+        "fractions --rig beam-170 --gap-mm 3.0 --omega-ratio 1.5 --u0-mm -6:3 \
+         --v0-mm-s -300:300 --samples 200 --max-periods 1500 --out {} --plot {}",
+        s(&csv),
+        s(&png)
+    )));
+    let rows = read(&csv);
+    let regimes: Vec<(&str, &str)> = rows
+        .iter()
+        .map(|r| (r.attractor.as_str(), r.regime.as_str()))
+        .collect();
+    assert_eq!(regimes, [("A", "no impact"), ("B", "1/1")]);
+    let low = &rows[0];
+    let img = image::open(&png).unwrap().to_rgb8();
+    let (red, grey, black) = ([215, 25, 28], [190, 190, 190], [0, 0, 0]);
+    let banded = |x: u32, y: u32| [red, grey].contains(&img.get_pixel(x, y).0);
+    // The bar: the column with the most black pixels among the bands' (beside it, clear of
+    // its white edge, the bands).
+    let bar = |x: u32| -> Vec<u32> {
+        (0..img.height())
+            .filter(|&y| banded(x + 6, y) && img.get_pixel(x, y).0 == black)
+            .collect()
+    };
+    let x = (0..img.width() - 6).max_by_key(|&x| bar(x).len()).unwrap();
+    let run = bar(x);
+    let (top, bottom) = (run[0], run[run.len() - 1]);
+    assert_eq!(run.len() as u32, bottom - top + 1, "one bar");
+    // Where the grey band meets the red one above it.
+    let edge = (1..img.height())
+        .find(|&y| img.get_pixel(x + 6, y - 1).0 == red && img.get_pixel(x + 6, y).0 == grey)
+        .unwrap();
+    let (above, below) = (f64::from(edge - top), f64::from(bottom - edge));
+    let want = (low.ci95_hi - low.fraction) / (low.fraction - low.ci95_lo);
+    println!("bar {top}..{bottom}, edge {edge}: {above} px above, {below} below; CSV {low:?}");
+    assert!(above > 10.0 && below > 10.0);
+    assert!(
+        (above / below - want).abs() < 0.15,
+        "{} vs {want}",
+        above / below
+    );
+    // Its length is the interval's share of the bands' height.
+    let height = (0..img.height()).filter(|&y| banded(x + 6, y)).count() as f64;
+    let len = (above + below) / height;
+    assert!(
+        (len - (low.ci95_hi - low.ci95_lo)).abs() < 0.01,
+        "{len} vs {}",
+        low.ci95_hi - low.ci95_lo
+    );
+}
+
 /// The basin fractions of one operating point are drawn as a bar a fifth of the axis wide, not
 /// a block filling the plot (which read as fractions over the whole axis): the attractor's
 /// colour covers about a fifth of the plot, against two thirds of the image before.
@@ -505,13 +564,14 @@ fn one_points_fractions_are_a_bar_not_the_whole_plot() {
         s(&png)
     )));
     let img = image::open(&png).unwrap().to_rgb8();
-    // The first attractor's colour (`ATTRACTOR_PALETTE[0]`), the only attractor here.
-    let blue = img.pixels().filter(|p| p.0 == [31, 119, 180]).count();
-    let share = blue as f64 / (img.width() * img.height()) as f64;
+    // The only attractor here, the 1/1 orbit: in the 1/1 regime's red, as every figure has it.
+    let red = [215, 25, 28];
+    let bar = img.pixels().filter(|p| p.0 == red).count();
+    let share = bar as f64 / (img.width() * img.height()) as f64;
     assert!((0.05..0.2).contains(&share), "{share}");
     // Centred on Ω/ω 2.0: the bar's columns are the plot's middle fifth.
     let cols: Vec<u32> = (0..img.width())
-        .filter(|&x| img.get_pixel(x, img.height() / 2).0 == [31, 119, 180])
+        .filter(|&x| img.get_pixel(x, img.height() / 2).0 == red)
         .collect();
     let (first, last) = (cols[0], cols[cols.len() - 1]);
     assert_eq!(cols.len() as u32, last - first + 1, "one bar");

@@ -342,7 +342,7 @@ pub fn write_response(
     }
     if let Some(p) = plot_path {
         let tmp = outputs.reserve(p)?;
-        figures::response::response(&tmp, title, points, highlight)?;
+        figures::response::response(&tmp, title, points, highlight, figures::response::MAX_FORCE)?;
     }
     Ok(())
 }

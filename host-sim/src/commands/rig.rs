@@ -10,7 +10,7 @@ use clap::{Args, Subcommand};
 use shared::console::Token;
 use shared::control::{Command, ModelStatus};
 
-use crate::figures::response::{ResponsePoint, response};
+use crate::figures::response::{MEAN_PEAK_FORCE, ResponsePoint, response};
 use crate::figures::rig_log;
 use crate::output::{Outputs, distinct_files, given, write_csv};
 use crate::rig_link::capture::{capture, write_trace};
@@ -401,7 +401,7 @@ fn write_sweep(
             id.gap_mm,
             params.natural_freq_hz()
         );
-        response(p, &title, &pts, None)?;
+        response(p, &title, &pts, None, MEAN_PEAK_FORCE)?;
     }
     outputs.commit()
 }

@@ -104,12 +104,12 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
         },
     )?;
     let title = format!(
-        "{} rig, gap {:.2} mm, Ω/ω = {:.3} ({:.3} Hz), {} periods",
+        "{} rig, gap {:.2} mm, Ω/ω = {:.3} ({:.3} Hz), {}",
         setup.rig,
         a.gap_mm,
         ratio,
         ratio * fn_hz,
-        a.periods
+        crate::output::count(u64::from(a.periods), "period")
     );
     write_series(&rows, a.out.as_deref(), a.plot.as_deref(), &title, a.gap_mm)?;
     println!(

@@ -385,48 +385,80 @@ pub fn force_map(
     Ok(())
 }
 
-/// Tableau-10: colours of several impacting attractors, by their sorted id.
-pub const ATTRACTOR_PALETTE: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-    RGBColor(127, 127, 127),
-];
+/// Colours of attractors (`(regime, recurrent)` in id order): each its regime's colour
+/// ([`regime_color`], the same in every figure), the second, third, … attractor of the same
+/// regime class ([`regime_class`]) in a lighter, darker, … shade of it ([`shade`]);
+/// [`NO_ATTRACTOR`] for a set that never recurred.
+pub fn attractor_palette(attractors: impl Iterator<Item = (Regime, bool)>) -> Vec<RGBColor> {
+    let mut seen: Vec<usize> = Vec::new();
+    attractors
+        .map(|(regime, recurrent)| {
+            if !recurrent {
+                return NO_ATTRACTOR;
+            }
+            let class = regime_class(regime).0;
+            let k = seen.iter().filter(|&&c| c == class).count();
+            seen.push(class);
+            shade(regime_color(regime), k)
+        })
+        .collect()
+}
+
+/// The `k`-th shade of `c`: `c` itself, then alternately mixed with white and with black,
+/// 40 % then 65 % (beyond, dark grey).
+pub fn shade(c: RGBColor, k: usize) -> RGBColor {
+    let mix = |to: u8, t: f64| {
+        let m = |v: u8| (f64::from(v) + (f64::from(to) - f64::from(v)) * t).round() as u8;
+        RGBColor(m(c.0), m(c.1), m(c.2))
+    };
+    match k {
+        0 => c,
+        1 => mix(255, 0.4),
+        2 => mix(0, 0.4),
+        3 => mix(255, 0.65),
+        4 => mix(0, 0.65),
+        _ => OTHERS,
+    }
+}
+
+/// Attractors beyond those a legend names, or beyond a regime's shades.
+const OTHERS: RGBColor = RGBColor(80, 80, 80);
 
 /// Cells whose trajectory reached no attractor (never recurred, or conservative).
 pub const NO_ATTRACTOR: RGBColor = RGBColor(238, 226, 200);
 
 /// Colours of the attractors (indexed like `attractors`) in the view `color_by`, and the
-/// legend's entries. By attractor: [`ATTRACTOR_PALETTE`] in id order (beyond ten, dark grey);
+/// legend's entries. By attractor: [`attractor_palette`] (its regime's colour, a shade of it for
+/// a further attractor of the same regime);
 /// by regime: the regime's colour; by impact: impacting black, not impacting white (the
 /// legend is then [`basins_map`]'s). Cells without an attractor are [`NO_ATTRACTOR`].
 pub fn attractor_colors(
     attractors: &[Attractor],
     color_by: ColorBy,
 ) -> (Vec<RGBColor>, Vec<(String, LegendMark)>) {
-    let mut k = 0;
-    let colors: Vec<RGBColor> = attractors
-        .iter()
-        .map(|a| match (a.recurrent, color_by) {
-            (false, _) => NO_ATTRACTOR,
-            (true, ColorBy::Attractor) => {
-                k += 1;
-                ATTRACTOR_PALETTE
-                    .get(k - 1)
-                    .copied()
-                    .unwrap_or(RGBColor(80, 80, 80))
-            }
-            (true, ColorBy::Regime) => regime_color(a.regime),
-            (true, ColorBy::Impact) if a.regime.impacts() => BLACK,
-            (true, ColorBy::Impact) => WHITE,
-        })
-        .collect();
+    let colors: Vec<RGBColor> = match color_by {
+        // Beyond the legend's twelve, one "other attractors" grey.
+        ColorBy::Attractor => attractor_palette(attractors.iter().map(|a| (a.regime, a.recurrent)))
+            .into_iter()
+            .enumerate()
+            .map(|(i, c)| {
+                if i >= 12 && c != NO_ATTRACTOR {
+                    OTHERS
+                } else {
+                    c
+                }
+            })
+            .collect(),
+        _ => attractors
+            .iter()
+            .map(|a| match (a.recurrent, color_by) {
+                (false, _) => NO_ATTRACTOR,
+                (true, ColorBy::Impact) if a.regime.impacts() => BLACK,
+                (true, ColorBy::Impact) => WHITE,
+                (true, _) => regime_color(a.regime),
+            })
+            .collect(),
+    };
     let total: u64 = attractors.iter().map(|a| a.cells).sum();
     let share = |n: u64| percent(n, total);
     let mut entries: Vec<(String, LegendMark)> = Vec::new();
@@ -465,7 +497,7 @@ pub fn attractor_colors(
             if others > 0 {
                 entries.push((
                     format!("other attractors ({})", share(others)),
-                    LegendMark::Swatch(RGBColor(80, 80, 80)),
+                    LegendMark::Swatch(OTHERS),
                 ));
             }
         }
@@ -620,58 +652,73 @@ pub fn fractions_stack(
     } else {
         0.5 * step
     };
+    let colors = attractor_palette(summary.ids.iter().map(|(_, r, recurrent)| (*r, *recurrent)));
+    // Each band (one per attractor, stacked in id order), and its fraction's 95 % interval on
+    // its top edge; the top band's (whose top is 1) on its bottom edge, where it is not the
+    // band below's already (two bands: the same interval, Wilson's being symmetric).
+    let mut rects: Vec<([(f64, f64); 2], RGBColor)> = Vec::new();
+    let mut bars: Vec<[(f64, f64); 2]> = Vec::new();
+    for p in &summary.points {
+        let mut base = 0.0;
+        let mut bands: Vec<&(usize, crate::grid::basins::Attractor)> =
+            p.attractors.iter().collect();
+        bands.sort_by_key(|(id, _)| *id);
+        let n = bands.len();
+        for (i, (id, a)) in bands.into_iter().enumerate() {
+            let top = base + a.fraction;
+            rects.push(([(p.value - half, base), (p.value + half, top)], colors[*id]));
+            let (l, h) = a.ci95;
+            // Three bands or more: their bars side by side across the column.
+            let x = if n > 2 {
+                p.value + (i as f64 - 0.5 * (n - 1) as f64) * 0.5 * half / (n - 1) as f64
+            } else {
+                p.value
+            };
+            let bar = if i + 1 == n && i > 0 {
+                [(x, base - (h - a.fraction)), (x, base + (a.fraction - l))]
+            } else {
+                [(x, top - (a.fraction - l)), (x, top + (h - a.fraction))]
+            };
+            let same = |b: &[(f64, f64); 2]| {
+                (b[0].1 - bar[0].1).abs() < 1e-9 && (b[1].1 - bar[1].1).abs() < 1e-9
+            };
+            if !(i > 0 && bars.last().is_some_and(same)) {
+                bars.push(bar);
+            }
+            base = top;
+        }
+    }
+    // An interval reaching above 1: the axis goes as far, its ticks to 1 only.
+    let y_top = bars.iter().map(|b| b[1].1).fold(1.0, f64::max).min(1.25);
     let mut chart = ChartBuilder::on(&left)
         .margin(10)
         .x_label_area_size(50)
         .y_label_area_size(70)
-        .build_cartesian_2d(lo..hi, 0.0..1.0)?;
+        .build_cartesian_2d(lo..hi, 0.0..y_top)?;
     chart
         .configure_mesh()
         .disable_mesh()
         .x_desc(x_label)
         .y_desc("basin fraction")
         .x_label_formatter(&tick)
-        .y_label_formatter(&tick)
+        .y_label_formatter(&|v: &f64| {
+            if *v > 1.0 + 1e-9 {
+                String::new()
+            } else {
+                tick(v)
+            }
+        })
         .label_style((SANS, 15))
         .axis_desc_style((SANS, 17))
         .draw()?;
-    let mut k = 0;
-    let colors: Vec<RGBColor> = summary
-        .ids
-        .iter()
-        .map(|(_, _, recurrent)| {
-            if !recurrent {
-                return NO_ATTRACTOR;
-            }
-            k += 1;
-            ATTRACTOR_PALETTE
-                .get(k - 1)
-                .copied()
-                .unwrap_or(RGBColor(80, 80, 80))
-        })
-        .collect();
-    for p in &summary.points {
-        let mut base = 0.0;
-        let mut bands: Vec<&(usize, crate::grid::basins::Attractor)> =
-            p.attractors.iter().collect();
-        bands.sort_by_key(|(id, _)| *id);
-        for (id, a) in bands {
-            let top = base + a.fraction;
-            chart.draw_series([Rectangle::new(
-                [(p.value - half, base), (p.value + half, top)],
-                colors[*id].filled(),
-            )])?;
-            // The 95 % interval of this band's fraction, drawn on its top edge.
-            let (l, h) = a.ci95;
-            chart.draw_series([PathElement::new(
-                [
-                    (p.value, top - (a.fraction - l)),
-                    (p.value, top + (h - a.fraction)),
-                ],
-                BLACK.stroke_width(1),
-            )])?;
-            base = top;
-        }
+    chart.draw_series(rects.iter().map(|(r, c)| Rectangle::new(*r, c.filled())))?;
+    // The intervals over every band (drawn with its band, the next covered its upper half),
+    // white-edged to show on any colour.
+    for (width, color) in [(4, WHITE), (2, BLACK)] {
+        chart.draw_series(
+            bars.iter()
+                .map(|b| PathElement::new(b.to_vec(), color.stroke_width(width))),
+        )?;
     }
     let mut entries: Vec<(String, LegendMark)> = Vec::new();
     for (i, ((name, regime, recurrent), c)) in summary.ids.iter().zip(&colors).enumerate() {

@@ -29,8 +29,13 @@ const HIGHLIGHT_LABELS: [&str; 2] = ["z = 1/1 band", "±margin window"];
 /// The time-series figure's three stacked panels.
 const STACKED: Frame = Frame::new(10, 35, 60, 14);
 
-/// The response figures' chart on `root`: `F_i/mg` from 0 to `ymax` over `Ω/ω` in `x`, the
-/// title at `title_px`, axes labelled.
+/// What a simulated response's force axis shows: the observation window's largest peak.
+pub const MAX_FORCE: &str = "max impact force F_i/mg";
+/// What a measured sweep's force axis shows (`rig sweep`): the dwell's mean peak.
+pub const MEAN_PEAK_FORCE: &str = "impact force F_i/mg (mean peak over the dwell)";
+
+/// The response figures' chart on `root`: `F_i/mg` (`y_label`) from 0 to `ymax` over `Ω/ω` in
+/// `x`, the title at `title_px`, axes labelled.
 ///
 /// # Errors
 /// Drawing errors.
@@ -40,6 +45,7 @@ fn force_chart<'a, 'b>(
     title_px: u32,
     x: Range<f64>,
     ymax: f64,
+    y_label: &str,
 ) -> Result<Chart<'a, 'b>> {
     let mut chart = ChartBuilder::on(root)
         .caption(title, (SANS, title_px))
@@ -50,7 +56,7 @@ fn force_chart<'a, 'b>(
     chart
         .configure_mesh()
         .x_desc("Ω/ω")
-        .y_desc("max impact force F_i/mg")
+        .y_desc(y_label)
         .x_label_formatter(&tick)
         .y_label_formatter(&tick)
         .label_style((SANS, 15))
@@ -104,7 +110,8 @@ pub struct Highlight {
     pub window: [f64; 2],
 }
 
-/// Max `F_i/mg` vs `Ω/ω`, dots coloured by regime (thesis Figs. 3.12–3.14).
+/// `F_i/mg` vs `Ω/ω`, dots coloured by regime (thesis Figs. 3.12–3.14), the force axis labelled
+/// `y_label` ([`MAX_FORCE`] for a simulation, [`MEAN_PEAK_FORCE`] for a measured sweep).
 ///
 /// # Errors
 /// Drawing or file errors.
@@ -113,6 +120,7 @@ pub fn response(
     title: &str,
     pts: &[ResponsePoint],
     highlight: Option<Highlight>,
+    y_label: &str,
 ) -> Result<()> {
     let root = canvas(path, (1000, 620), None)?;
     let x0 = pts.first().map_or(0.0, |p| p.omega_ratio);
@@ -125,7 +133,7 @@ pub fn response(
         (x0 - pad, x0 + pad)
     };
     let ymax = pts.iter().map(|p| p.impact_force_mg).fold(1.0, f64::max) * 1.08;
-    let mut chart = force_chart(&root, title, 22, x0..x1, ymax)?;
+    let mut chart = force_chart(&root, title, 22, x0..x1, ymax, y_label)?;
     if let Some(h) = highlight {
         let red = RGBColor(215, 25, 28);
         let blue = RGBColor(43, 131, 186);
@@ -221,7 +229,7 @@ pub fn response_band(
         .chain(nominal.iter().map(|p| p.impact_force_mg))
         .fold(1.0, f64::max)
         * 1.15;
-    let mut chart = force_chart(&root, title, 20, x0..x1, ymax)?;
+    let mut chart = force_chart(&root, title, 20, x0..x1, ymax, MAX_FORCE)?;
     let blue = RGBColor(43, 131, 186);
     let area: Vec<(f64, f64)> = band
         .iter()
