@@ -1690,3 +1690,59 @@ fn a_figure_named_svg_is_a_vector_document_of_the_same_figure() {
         .map(|r| r.unwrap()["regime"].parse::<Regime>().unwrap());
     legend_names(&svg, &mut regimes);
 }
+
+/// Far from the surface the 170 mm beam is a damped linear oscillator: its largest exponent
+/// is the free oscillation's decay, `−2πζ/(Ω/ω)` per excitation period (ζ = 0.004). At Ω/ω
+/// 0.05 the default 64 steps per period are 3.2 per natural period, and RK4's numerical damping
+/// makes it −17.7: the command warns, naming where the steps run short and how to resolve it;
+/// with 512 steps per period (its advice) no warning, and the exponent is the model's.
+#[test]
+fn too_few_steps_per_natural_period_are_warned_and_more_resolve_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &str| -> (String, Vec<(f64, f64)>) {
+        let out = dir.path().join("low.csv");
+        let o = host_sim()
+            .args(line(&format!(
+                "response --rig beam-170 --gap-mm 50 --omega-ratio 0.05:0.25:0.2 --out {} {extra}",
+                out.display()
+            )))
+            .output()
+            .unwrap();
+        assert!(o.status.success());
+        let mut rdr = csv::Reader::from_path(&out).unwrap();
+        let h = rdr.headers().unwrap().clone();
+        let col = |name: &str| h.iter().position(|c| c == name).unwrap();
+        let (r, l) = (col("omega_ratio"), col("lyapunov_per_period"));
+        let rows = rdr
+            .records()
+            .map(|x| {
+                let x = x.unwrap();
+                (x[r].parse().unwrap(), x[l].parse().unwrap())
+            })
+            .collect();
+        (String::from_utf8_lossy(&o.stderr).into_owned(), rows)
+    };
+    let model = |ratio: f64| -2.0 * std::f64::consts::PI * 0.004 / ratio;
+    let (warned, coarse) = run("");
+    assert!(
+        warned
+            .contains("! warning: at Ω/ω 0.050 the suspension's natural period has 3.2 RK4 steps")
+            && warned.contains("below Ω/ω 0.250 are approximate"),
+        "{warned}"
+    );
+    assert!(coarse[0].1 < 10.0 * model(0.05), "{coarse:?}");
+    let config = write_file(
+        dir.path(),
+        "fine.toml",
+        "[settings.steps]\nsteps_per_period = 512\n",
+    );
+    let (quiet, fine) = run(&format!("--config {}", config.display()));
+    assert!(!quiet.contains("warning"), "{quiet}");
+    for (ratio, l) in fine {
+        assert!(
+            (l / model(ratio) - 1.0).abs() < 5e-3,
+            "Ω/ω {ratio}: {l} vs {}",
+            model(ratio)
+        );
+    }
+}

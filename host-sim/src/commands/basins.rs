@@ -74,6 +74,7 @@ pub fn run(a: &BasinsArgs) -> Result<()> {
         OMEGA_RATIO_RANGE.1,
     )
     .context("--omega-ratio")?;
+    super::warn_coarse_steps(&setup, a.omega_ratio);
     let u0_mm = CountSweep::parse("--u0-mm", &a.u0_mm, -MAX_U0_MM, MAX_U0_MM)?;
     let v0_mm_s = CountSweep::parse("--v0-mm-s", &a.v0_mm_s, -MAX_V0_MM_S, MAX_V0_MM_S)?;
     super::check_start_off_surface(

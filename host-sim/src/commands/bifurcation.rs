@@ -45,6 +45,7 @@ pub fn run(a: &BifurcationArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
+    super::warn_coarse_steps(&setup, sweep.lo);
     let dest = a.output.destination(None, None)?;
     if a.continuation.is_some() && dest.shard.is_some() {
         bail!(

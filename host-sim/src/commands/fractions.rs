@@ -110,6 +110,7 @@ pub fn run(a: &FractionsArgs) -> Result<()> {
         OMEGA_RATIO_RANGE.0,
         OMEGA_RATIO_RANGE.1,
     )?;
+    super::warn_coarse_steps(&setup, ratios.iter().copied().fold(f64::INFINITY, f64::min));
     let (parameter, points): (Parameter, Vec<(f64, f64)>) = match (gaps.len(), ratios.len()) {
         (1, _) => (
             Parameter::OmegaRatio,

@@ -87,6 +87,13 @@ fn parse_axes(a: &PeterkaArgs, setup: &Setup) -> Result<PeterkaGrid> {
         },
         _ => bail!("give exactly one of --freq-hz and --omega-ratio"),
     };
+    super::warn_coarse_steps(
+        setup,
+        match freq.unit {
+            AxisUnit::OmegaRatio => freq.sweep.lo,
+            _ => freq.sweep.lo / fn_hz,
+        },
+    );
     let grid = PeterkaGrid {
         gap,
         freq,

@@ -143,6 +143,10 @@ pub fn run(a: &PointsArgs) -> Result<()> {
     )?;
     let setup = Setup::from_opts(&a.rig)?;
     let pts = read_points(&setup, &a.input)?;
+    super::warn_coarse_steps(
+        &setup,
+        pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min),
+    );
     let ops: Vec<OperatingPoint> = pts
         .iter()
         .map(|&(g, r)| OperatingPoint {

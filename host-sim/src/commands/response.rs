@@ -51,6 +51,7 @@ pub fn run(a: &ResponseArgs) -> Result<()> {
     let setup = Setup::from_opts(&a.rig)?;
     let gap_m = setup.gap_m("--gap-mm", a.gap_mm)?;
     let sweep = omega_sweep(&a.omega_ratio)?;
+    super::warn_coarse_steps(&setup, sweep.lo);
     let (results, labels) = if a.no_lyapunov {
         (
             response::compute(&setup, &[gap_m], &sweep, "response")?.remove(0),

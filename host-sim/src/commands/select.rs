@@ -106,6 +106,7 @@ pub fn run(a: &SelectArgs) -> Result<()> {
     if let Some(s) = &a.omega_ratio {
         setup.selection.omega_ratio = omega_sweep(s)?;
     }
+    super::warn_coarse_steps(&setup, setup.selection.omega_ratio.lo);
     if let Some(p) = a.freq_margin_pct {
         setup.selection.freq_margin_pct = p;
     }
