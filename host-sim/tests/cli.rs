@@ -103,6 +103,14 @@ fn select_says_when_the_branch_could_not_be_followed() {
         warnings.contains("no edge is located on this side"),
         "{warnings}"
     );
+    // The report claims no located edge, nor a margin to one.
+    let text = ok(&line("select --law hunt-crossley --no-basin-check"));
+    assert!(
+        text.contains("no edge located (the orbit's branch was not followed):")
+            && text.contains("to the nearer band edge (the sweep's: no edge located)")
+            && !text.contains("located on the orbit's branch"),
+        "{text}"
+    );
     // Where the sweep's edge stands, the point beyond it is said to be unsettled if it is: the
     // response there (the same sweep's points, computed alone) ended its transient unsettled,
     // in the regime the warning names.

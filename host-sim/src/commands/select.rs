@@ -469,8 +469,14 @@ fn print_report(r: &SelectReport) {
                 }
             };
             println!(
-                "  z = 1/1 band {:.3} – {:.3} Hz, located on the orbit's branch:",
-                c.lower.freq_hz, c.upper.freq_hz
+                "  z = 1/1 band {:.3} – {:.3} Hz, {}:",
+                c.lower.freq_hz,
+                c.upper.freq_hz,
+                match located_edges(c) {
+                    2 => "located on the orbit's branch",
+                    1 => "one edge located on the orbit's branch",
+                    _ => "no edge located (the orbit's branch was not followed)",
+                }
             );
             println!("    lower edge: {}", edge(&c.lower));
             println!("    upper edge: {}", edge(&c.upper));
@@ -514,7 +520,14 @@ fn print_report(r: &SelectReport) {
         "  margins: {:.1} % to the nearer band edge{} (required ±{} %); gap checked at {:?} mm (±{} mm)",
         r.margin_freq_pct,
         match &r.band_check {
-            Some(c) => format!(" located ({:.1} % to the sweep's)", c.sweep_margin_freq_pct),
+            Some(c) if located_edges(c) == 2 => {
+                format!(" located ({:.1} % to the sweep's)", c.sweep_margin_freq_pct)
+            }
+            Some(c) if located_edges(c) == 1 => format!(
+                " (one edge located, the other the sweep's; {:.1} % to the sweep's)",
+                c.sweep_margin_freq_pct
+            ),
+            Some(_) => " (the sweep's: no edge located)".to_string(),
             None => String::new(),
         },
         r.required_margin_freq_pct,
@@ -531,4 +544,13 @@ fn print_report(r: &SelectReport) {
             o.regime, o.freq_hz, o.omega_ratio, o.impact_force_mg
         );
     }
+}
+
+/// How many of the band's two edges were located on the orbit's branch (the others are the
+/// sweep's: the branch was not followed there).
+fn located_edges(c: &crate::selection::BandCheck) -> usize {
+    [&c.lower, &c.upper]
+        .iter()
+        .filter(|e| e.kind != "stalled")
+        .count()
 }
