@@ -231,7 +231,10 @@ fn edge_report<T: Real>(
                  alternates slowly, and the protocol's window reads it as 2/2 or runs out"
             }
             "grazing" => "near a grazing the orbit's new impact is shallow and slow to settle",
-            "fold" => "near a fold the orbit's multiplier nears +1: its transient is slow",
+            "fold" => {
+                "near a fold the orbit's basin shrinks (a coexisting attractor takes the run \
+                 from rest) and its multiplier nears +1 (its transient is slow)"
+            }
             "open" => {
                 "the branch goes on beyond the sweep's edge: the protocol from rest \
                  settles on another attractor there (coexistence)"
