@@ -712,8 +712,8 @@ pub fn fractions_stack(
         .axis_desc_style((SANS, 17))
         .draw()?;
     chart.draw_series(rects.iter().map(|(r, c)| Rectangle::new(*r, c.filled())))?;
-    // The intervals over every band (drawn with its band, the next covered its upper half),
-    // white-edged to show on any colour.
+    // The intervals after every band, so that no band covers one, white-edged to show on any
+    // colour.
     for (width, color) in [(4, WHITE), (2, BLACK)] {
         chart.draw_series(
             bars.iter()
