@@ -245,7 +245,9 @@ pub struct EventOut {
     pub kind: String,
     /// The parameter's value there (`Ω/ω`, or the gap in mm).
     pub value: f64,
-    /// The orbit there (for a grazing: the last orbit of the branch's `p`).
+    /// The orbit there (for a grazing: the last orbit of the branch's `p`; where the branch
+    /// stalled before the grazing, the last orbit it reached, from which `value` is
+    /// extrapolated).
     pub orbit: OrbitReport,
     /// The critical multiplier `(re, im)`.
     pub critical: [f64; 2],

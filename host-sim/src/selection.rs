@@ -2,7 +2,7 @@
 //! nominal and perturbed gaps in parallel, then `shared::analysis::select`, as a report.
 
 use anyhow::{Result, anyhow};
-use serde::Serialize;
+use serde::{Serialize, Serializer};
 use shared::analysis::{
     ResponseSample, Selection, SelectionError, perturbed_gaps, robustness_window, select,
 };
@@ -11,7 +11,7 @@ use shared::model::rig::IMPACT_SPEEDS_M_S;
 use shared::observe::{PointResult, Protocol, Regime};
 
 use shared::Real;
-use shared::orbit::{BranchEnd, ContinuationSettings, Edge, Orbit, Param, band_edges};
+use shared::orbit::{BranchEnd, ContinuationSettings, Edge, EventKind, Orbit, Param, band_edges};
 
 use crate::config::Setup;
 use crate::orbits::{self, Crossings, OrbitReport, Start};
@@ -94,13 +94,47 @@ pub struct BandCheck {
     pub sweep_step: f64,
 }
 
+/// What bounds the band on one side ([`EdgeReport::kind`]), written by its name
+/// ([`EdgeKind::name`]) in the report and its JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeKind {
+    /// A bifurcation or a grazing located on the orbit's branch.
+    Event(EventKind),
+    /// None within the sweep's range: the edge is the range's end.
+    Open,
+    /// The continuation could not follow the branch: no edge located on this side, which keeps
+    /// the sweep's edge.
+    Stalled,
+}
+
+impl EdgeKind {
+    /// `grazing`, `period-doubling`, `fold`, `neimark-sacker`, `open` or `stalled`.
+    pub fn name(self) -> &'static str {
+        match self {
+            EdgeKind::Event(k) => k.name(),
+            EdgeKind::Open => "open",
+            EdgeKind::Stalled => "stalled",
+        }
+    }
+}
+
+impl std::fmt::Display for EdgeKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl Serialize for EdgeKind {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
 /// One located edge of the band.
 #[derive(Debug, Clone, Serialize)]
 pub struct EdgeReport {
-    /// `grazing`, `period-doubling`, `fold`, `neimark-sacker`, `open` (none within the
-    /// sweep's range: the edge is the range's end) or `stalled` (the continuation could not
-    /// follow the branch: no edge located on this side, which keeps the sweep's edge).
-    pub kind: String,
+    /// What bounds the band here.
+    pub kind: EdgeKind,
     /// Where, `Ω/ω` (`stalled`: the sweep's last `1/1` point on that side).
     pub omega_ratio: f64,
     /// Where, Hz.
@@ -192,15 +226,15 @@ fn edge_report<T: Real>(
     };
     let (kind, multiplier) = match edge {
         Edge::Event(e) => (
-            e.kind.name().to_string(),
+            EdgeKind::Event(e.kind),
             Some([e.critical.re, e.critical.im]),
         ),
-        Edge::Open(BranchEnd::RangeEnd(_)) => ("open".to_string(), None),
-        Edge::Open(BranchEnd::Grazing(_)) => ("grazing".to_string(), None),
+        Edge::Open(BranchEnd::RangeEnd(_)) => (EdgeKind::Open, None),
+        Edge::Open(BranchEnd::Grazing(_)) => (EdgeKind::Event(EventKind::Grazing), None),
         // Newton could not follow the branch (or the budget ran out): not an edge.
-        Edge::Open(_) => ("stalled".to_string(), None),
+        Edge::Open(_) => (EdgeKind::Stalled, None),
     };
-    if kind == "stalled" {
+    if kind == EdgeKind::Stalled {
         // No edge on this side: the sweep's stands, and the report says why.
         return EdgeReport {
             kind,
@@ -225,17 +259,19 @@ fn edge_report<T: Real>(
     let beyond = (value - sweep_edge) * outward;
     let agrees = (beyond - 0.5 * step).abs() <= step;
     let disagreement = (!agrees).then(|| {
-        let why = match kind.as_str() {
-            "period-doubling" => {
+        let why = match kind {
+            EdgeKind::Event(EventKind::PeriodDoubling) => {
                 "near a period doubling the orbit's multiplier nears −1: its transient \
                  alternates slowly, and the protocol's window reads it as 2/2 or runs out"
             }
-            "grazing" => "near a grazing the orbit's new impact is shallow and slow to settle",
-            "fold" => {
+            EdgeKind::Event(EventKind::Grazing) => {
+                "near a grazing the orbit's new impact is shallow and slow to settle"
+            }
+            EdgeKind::Event(EventKind::Fold) => {
                 "near a fold the orbit's basin shrinks (a coexisting attractor takes the run \
                  from rest) and its multiplier nears +1 (its transient is slow)"
             }
-            "open" => {
+            EdgeKind::Open => {
                 "the branch goes on beyond the sweep's edge: the protocol from rest \
                  settles on another attractor there (coexistence)"
             }

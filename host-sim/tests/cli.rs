@@ -1295,6 +1295,78 @@ fn continue_tells_a_fold_over_kinks_once_with_its_changes() {
     );
 }
 
+/// The report's branch line gives the span of a branch that turned (its ends alone hide it),
+/// and a grazing extrapolated where Newton stalled names the last orbit it comes from: the
+/// 170 mm beam's `1/1` branch at 3.0 mm (f32) from Ω/ω 1.35 up turns at its fold (1.50057) and
+/// stalls at 1.198 before the grazing it extrapolates at 1.1965; down, it runs straight to the
+/// range's end (no span said). The wire rig's `2/2` at 1.0 mm from 2.6 meets its grazing within
+/// a step, located there by bisection with its own orbit (no extrapolation said).
+#[test]
+fn continue_reports_a_branch_span_and_an_extrapolated_grazing() {
+    let args = "--rig beam-170 --gap-mm 3.0 --omega-ratio 1.35 --range 1.0:2.0";
+    let branches = continue_branches(args);
+    let ratios = |b: &serde_json::Value| -> Vec<f64> {
+        b["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["orbit"]["omega_ratio"].as_f64().unwrap())
+            .collect()
+    };
+    let (up, down) = (ratios(&branches[0]), ratios(&branches[1]));
+    let (lo, hi) = up
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    let fold = event_values(&branches[0], "fold");
+    assert!(
+        fold.len() == 1 && (hi - fold[0]).abs() < 1e-3,
+        "{fold:?} {hi}"
+    );
+    let last = *up.last().unwrap();
+    assert_eq!(lo, last);
+    let graze = events_of(&branches[0], "grazing");
+    assert_eq!(graze.len(), 1, "{}", branches[0]["events"]);
+    let at = graze[0]["value"].as_f64().unwrap();
+    assert_eq!(graze[0]["orbit"]["omega_ratio"].as_f64(), Some(last));
+    assert!(at < last && last - at < 0.01, "{at} {last}");
+    let text = ok(&line(&format!("continue {args}")));
+    assert!(
+        text.contains(&format!(
+            "{} orbits from Ω/ω 1.35000000 to Ω/ω {last:.8}, over Ω/ω {lo:.8} – Ω/ω {hi:.8}\n",
+            up.len()
+        )),
+        "{text}"
+    );
+    let said = text
+        .lines()
+        .find(|l| l.contains(&format!("grazing at Ω/ω {at:.8}")))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(
+        said.ends_with(&format!(
+            "beyond (extrapolated from the branch's last orbit, at Ω/ω {last:.8}, whose \
+             multiplier this is)"
+        )),
+        "{said}"
+    );
+    assert!(
+        text.contains(&format!(
+            "{} orbits from Ω/ω 1.35000000 to Ω/ω {:.8}\n",
+            down.len(),
+            down.last().unwrap()
+        )),
+        "{text}"
+    );
+    let text = ok(&line(
+        "continue --rig wires --gap-mm 1.0 --omega-ratio 2.6 --q 2 --range 2.4:2.8",
+    ));
+    assert!(
+        text.contains("grazing at Ω/ω 2.5781") && !text.contains("extrapolated"),
+        "{text}"
+    );
+}
+
 /// Where Newton cannot follow a branch across a jump of the discretised map, `continue` steps
 /// over it and goes on: the wire rig's `1/1` branch with Lankarani–Nikravesh in f64 from Ω/ω
 /// 1.99 stalls at 1.99552 (the orbit's state and force jump there as the contact's sub-steps

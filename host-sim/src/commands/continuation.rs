@@ -107,8 +107,20 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
             (Some(f), Some(l)) => (f, l),
             _ => continue,
         };
+        let (from, to) = (
+            param_value(param, &first.orbit),
+            param_value(param, &last.orbit),
+        );
+        // Where the branch turned (a fold, a kink), its span is wider than its ends'.
+        let (lo, hi) = b
+            .points
+            .iter()
+            .fold((from.min(to), from.max(to)), |(lo, hi), p| {
+                let v = param_value(param, &p.orbit);
+                (lo.min(v), hi.max(v))
+            });
         s += &format!(
-            "branch {} ({}{}), period {}: {} orbits from {} to {}\n",
+            "branch {} ({}{}), period {}: {} orbits from {} to {}{}\n",
             b.id,
             b.direction,
             b.parent
@@ -116,8 +128,13 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 .unwrap_or_default(),
             b.q,
             b.points.len(),
-            unit(param_value(param, &first.orbit)),
-            unit(param_value(param, &last.orbit)),
+            unit(from),
+            unit(to),
+            if lo < from.min(to) || hi > from.max(to) {
+                format!(", over {} – {}", unit(lo), unit(hi))
+            } else {
+                String::new()
+            }
         );
         for e in &b.events {
             let crit = if e.critical[1] == 0.0 {
@@ -137,8 +154,20 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                     format!("{} periods", b.q)
                 };
                 let n = e.impacts_beyond;
+                // Where Newton stalled before it, the grazing is extrapolated from the last
+                // orbit reached, whose multiplier the line gives.
+                let reached = param_value(param, &e.orbit);
+                let extrapolated = if unit(reached) == unit(e.value) {
+                    String::new()
+                } else {
+                    format!(
+                        " (extrapolated from the branch's last orbit, at {}, whose multiplier \
+                         this is)",
+                        unit(reached)
+                    )
+                };
                 format!(
-                    ", {n} impact{} per {per} beyond",
+                    ", {n} impact{} per {per} beyond{extrapolated}",
                     if n == 1 { "" } else { "s" }
                 )
             } else {

@@ -13,8 +13,8 @@ use crate::output::Outputs;
 use crate::propagate::{Propagation, propagate};
 use crate::response;
 use crate::selection::{
-    BASIN_MAX_PERIODS, BASIN_SAMPLES, BASIN_THRESHOLD, BasinCheck, check_band, check_basin,
-    compute_parts, lack_of_fit_warning, no_robust_point_diagnosis, selection_failure,
+    BASIN_MAX_PERIODS, BASIN_SAMPLES, BASIN_THRESHOLD, BasinCheck, EdgeKind, check_band,
+    check_basin, compute_parts, lack_of_fit_warning, no_robust_point_diagnosis, selection_failure,
     unsettled_beyond_edges,
 };
 pub use crate::selection::{OtherBest, SelectReport, compute};
@@ -448,10 +448,12 @@ fn print_report(r: &SelectReport) {
             let edge = |e: &crate::selection::EdgeReport| {
                 format!(
                     "{} at {:.4} Hz (Ω/ω {:.5}{})",
-                    match e.kind.as_str() {
-                        "open" => "no bifurcation before the sweep's end",
-                        "stalled" => "no edge located (the branch was not followed); the sweep's",
-                        k => k,
+                    match e.kind {
+                        EdgeKind::Open => "no bifurcation before the sweep's end",
+                        EdgeKind::Stalled => {
+                            "no edge located (the branch was not followed); the sweep's"
+                        }
+                        k => k.name(),
                     },
                     e.freq_hz,
                     e.omega_ratio,
@@ -551,6 +553,6 @@ fn print_report(r: &SelectReport) {
 fn located_edges(c: &crate::selection::BandCheck) -> usize {
     [&c.lower, &c.upper]
         .iter()
-        .filter(|e| e.kind != "stalled")
+        .filter(|e| e.kind != EdgeKind::Stalled)
         .count()
 }

@@ -424,6 +424,9 @@ pub fn shade(c: RGBColor, k: usize) -> RGBColor {
 /// Attractors beyond those a legend names, or beyond a regime's shades.
 const OTHERS: RGBColor = RGBColor(80, 80, 80);
 
+/// How many attractors the legend names one by one; the others share [`OTHERS`].
+const LEGEND_ATTRACTORS: usize = 12;
+
 /// Cells whose trajectory reached no attractor (never recurred, or conservative).
 pub const NO_ATTRACTOR: RGBColor = RGBColor(238, 226, 200);
 
@@ -437,12 +440,12 @@ pub fn attractor_colors(
     color_by: ColorBy,
 ) -> (Vec<RGBColor>, Vec<(String, LegendMark)>) {
     let colors: Vec<RGBColor> = match color_by {
-        // Beyond the legend's twelve, one "other attractors" grey.
+        // Beyond the legend's named ones, one "other attractors" grey.
         ColorBy::Attractor => attractor_palette(attractors.iter().map(|a| (a.regime, a.recurrent)))
             .into_iter()
             .enumerate()
             .map(|(i, c)| {
-                if i >= 12 && c != NO_ATTRACTOR {
+                if i >= LEGEND_ATTRACTORS && c != NO_ATTRACTOR {
                     OTHERS
                 } else {
                     c
@@ -469,7 +472,7 @@ pub fn attractor_colors(
                 if !a.recurrent {
                     continue;
                 }
-                if i >= 12 {
+                if i >= LEGEND_ATTRACTORS {
                     others += a.cells;
                     continue;
                 }

@@ -185,7 +185,8 @@ pub struct BifEvent<T> {
     /// The parameter's value there (gap in m).
     pub value: f64,
     /// The orbit at it (for a grazing: the last orbit of the branch's `p`, within
-    /// `locate_tol` of the grazing).
+    /// `locate_tol` of the grazing where it is bracketed; where Newton stalled before it, the
+    /// last orbit reached, from whose grazing monitors `value` is extrapolated).
     pub orbit: Orbit<T>,
     /// The critical multiplier (nearest +1 for a fold, −1 for a doubling, the pair's upper
     /// member for a torus); for a grazing the larger one.
