@@ -16,7 +16,7 @@ use shared::orbit::{MapPoint, Param, ShootSettings, iterate, orbit_from};
 
 mod common;
 
-use common::{Outputs, host_sim, line, ok, rejected};
+use common::{Outputs, line, ok, rejected, said};
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -303,17 +303,12 @@ fn a_run_without_recurrence_says_so_with_the_counts() {
     // (neutral beats): no attractor, said with the count.
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("n.csv");
-    let o = host_sim()
-        .args(line(&format!(
-            "fractions --rig wires --gap-mm 10 --omega-ratio 0.5 --u0-mm -1:0 --v0-mm-s -5:5 \
-             --samples 50 --out {}",
-            s(&out)
-        )))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
+    let (_, err) = said(&line(&format!(
+        "fractions --rig wires --gap-mm 10 --omega-ratio 0.5 --u0-mm -1:0 --v0-mm-s -5:5 \
+         --samples 50 --out {}",
+        s(&out)
+    )));
     println!("{err}");
-    assert!(o.status.success(), "{err}");
     assert!(
         err.contains("no attractor: 50 initial conditions of 50"),
         "{err}"
@@ -346,16 +341,11 @@ fn a_damped_suspensions_transient_lasts_until_its_free_oscillation_has_decayed()
     let dir = tempfile::tempdir().unwrap();
     let run = |extra: &str| {
         let out = dir.path().join("f.csv");
-        let o = host_sim()
-            .args(line(&format!(
-                "fractions --rig beam-170 --gap-mm 3.0 --omega-ratio 1.55:1.6:0.05 \
-                 --samples 100 --out {} {extra}",
-                s(&out)
-            )))
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&o.stderr).to_string();
-        assert!(o.status.success(), "{err}");
+        let (_, err) = said(&line(&format!(
+            "fractions --rig beam-170 --gap-mm 3.0 --omega-ratio 1.55:1.6:0.05 \
+             --samples 100 --out {} {extra}",
+            s(&out)
+        )));
         (read(&out), err)
     };
     let (rows, err) = run("");
@@ -396,17 +386,12 @@ fn the_impact_view_counts_each_runs_window_and_the_forced_response_island_never_
     assert!(amp.abs() + (du * du + (dv / omega_n).powi(2)).sqrt() < gap - 0.2);
     let run = |u0: String, v0: String, name: &str| {
         let out = dir.path().join(format!("{name}.csv"));
-        let o = host_sim()
-            .args(line(&format!(
-                "basins --rig wires --gap-mm {gap} --omega-ratio {r} --u0-mm {u0} \
-                 --v0-mm-s {v0} --color-by impact --out {} --plot {}",
-                s(&out),
-                s(&dir.path().join(format!("{name}.png")))
-            )))
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&o.stderr).into_owned();
-        assert!(o.status.success(), "{err}");
+        let (_, err) = said(&line(&format!(
+            "basins --rig wires --gap-mm {gap} --omega-ratio {r} --u0-mm {u0} \
+             --v0-mm-s {v0} --color-by impact --out {} --plot {}",
+            s(&out),
+            s(&dir.path().join(format!("{name}.png")))
+        )));
         let mut rdr = csv::Reader::from_path(&out).unwrap();
         let rows: Vec<csv::StringRecord> = rdr.records().map(Result::unwrap).collect();
         (rows, err)

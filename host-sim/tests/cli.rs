@@ -5,7 +5,7 @@ use std::fs;
 
 mod common;
 
-use common::{host_sim, line, ok, rejected, rejected_files, spawn_first_line, write_file};
+use common::{host_sim, line, ok, rejected, rejected_files, said, spawn_first_line, write_file};
 
 #[test]
 fn select_json_reports_the_operating_point() {
@@ -369,32 +369,19 @@ fn response_writes_csv_and_png() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("fr.csv");
     let png = dir.path().join("fr.png");
-    let out = host_sim()
-        .args(line(&format!(
-            "response --rig beam-150 --gap-mm 1 --omega-ratio 1.0:2.0:0.25 --out {} --plot {}",
-            csv.display(),
-            png.display()
-        )))
-        .output()
-        .unwrap();
-    assert!(out.status.success());
+    let (_, err) = said(&line(&format!(
+        "response --rig beam-150 --gap-mm 1 --omega-ratio 1.0:2.0:0.25 --out {} --plot {}",
+        csv.display(),
+        png.display()
+    )));
     // What it wrote, as the grid commands say it.
-    assert_eq!(
-        String::from_utf8_lossy(&out.stderr),
-        format!("response: 5 points → {}\n", csv.display())
-    );
+    assert_eq!(err, format!("response: 5 points → {}\n", csv.display()));
     let one = dir.path().join("one.csv");
-    let out = host_sim()
-        .args(line(&format!(
-            "response --rig beam-150 --gap-mm 1 --omega-ratio 1.5:1.5:0.25 --out {}",
-            one.display()
-        )))
-        .output()
-        .unwrap();
-    assert_eq!(
-        String::from_utf8_lossy(&out.stderr),
-        format!("response: 1 point → {}\n", one.display())
-    );
+    let (_, err) = said(&line(&format!(
+        "response --rig beam-150 --gap-mm 1 --omega-ratio 1.5:1.5:0.25 --out {}",
+        one.display()
+    )));
+    assert_eq!(err, format!("response: 1 point → {}\n", one.display()));
     let text = fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -990,14 +977,7 @@ fn a_reader_that_stops_early_ends_the_command_quietly() {
 /// `--json` carries the mismatch as `slope_mismatch`.
 #[test]
 fn orbit_warns_where_the_map_is_not_smooth() {
-    let run = |args: &str| {
-        let out = host_sim()
-            .args(line(&format!("orbit {args}")))
-            .output()
-            .unwrap();
-        assert!(out.status.success());
-        String::from_utf8_lossy(&out.stderr).into_owned()
-    };
+    let run = |args: &str| said(&line(&format!("orbit {args}"))).1;
     let warned = run("--rig wires --gap-mm 0 --omega-ratio 1.15172");
     let by: f64 = warned
         .split("differs from its monodromy by ")
@@ -1781,14 +1761,10 @@ fn too_few_steps_per_natural_period_are_warned_and_more_resolve_them() {
     let dir = tempfile::tempdir().unwrap();
     let run = |extra: &str| -> (String, Vec<(f64, f64)>) {
         let out = dir.path().join("low.csv");
-        let o = host_sim()
-            .args(line(&format!(
-                "response --rig beam-170 --gap-mm 50 --omega-ratio 0.05:0.25:0.2 --out {} {extra}",
-                out.display()
-            )))
-            .output()
-            .unwrap();
-        assert!(o.status.success());
+        let (_, err) = said(&line(&format!(
+            "response --rig beam-170 --gap-mm 50 --omega-ratio 0.05:0.25:0.2 --out {} {extra}",
+            out.display()
+        )));
         let mut rdr = csv::Reader::from_path(&out).unwrap();
         let h = rdr.headers().unwrap().clone();
         let col = |name: &str| h.iter().position(|c| c == name).unwrap();
@@ -1800,7 +1776,7 @@ fn too_few_steps_per_natural_period_are_warned_and_more_resolve_them() {
                 (x[r].parse().unwrap(), x[l].parse().unwrap())
             })
             .collect();
-        (String::from_utf8_lossy(&o.stderr).into_owned(), rows)
+        (err, rows)
     };
     let model = |ratio: f64| -2.0 * std::f64::consts::PI * 0.004 / ratio;
     let (warned, coarse) = run("");

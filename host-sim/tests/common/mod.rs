@@ -45,13 +45,15 @@ pub fn line(s: &str) -> Vec<String> {
 
 /// Runs `host-sim args`, asserts it succeeds and returns its stdout.
 pub fn ok<S: AsRef<OsStr> + Debug>(args: &[S]) -> String {
+    said(args).0
+}
+
+/// Runs `host-sim args`, asserts it succeeds and returns its stdout and its stderr.
+pub fn said<S: AsRef<OsStr> + Debug>(args: &[S]) -> (String, String) {
     let out = host_sim().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{args:?}: {err}");
+    (String::from_utf8_lossy(&out.stdout).into_owned(), err)
 }
 
 /// Writes `text` to the file `name` in `dir` and returns its path.
