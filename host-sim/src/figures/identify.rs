@@ -8,8 +8,8 @@ use plotters::prelude::*;
 use shared::model::ContactLawKind;
 
 use super::{
-    Backend, Chart, Frame, SANS, canvas, labelled_line, legend_place, line_key, panel,
-    series_legend, tick,
+    Backend, Chart, Frame, LegendCover, SANS, canvas, labelled_line, legend_place, line_key, panel,
+    room_for_legend, series_legend, tick,
 };
 use crate::comparison::{ResponseOverlay, TsOverlay};
 use crate::identify::cost::SimDrop;
@@ -224,20 +224,25 @@ pub fn response_compare(
         .chain(o.measured.iter().map(|p| p.1))
         .fold(1.0, f64::max)
         * 1.08;
-    let mut c = panel(
-        &body,
-        Frame::new(12, 45, 60, 15),
-        x0..x1,
-        0.0..ymax,
-        ("Ω/ω", "max impact force F_i/mg"),
-    )?;
-    c.draw_series(LineSeries::new(
-        o.sim.iter().map(|p| (p.0, p.1)),
-        RGBColor(150, 150, 150),
-    ))?
-    .label("simulated")
-    .legend(line_key(RGBColor(150, 150, 150)));
-    for (name, col) in super::regime_classes(o.sim.iter().map(|p| p.2)) {
+    let classes = super::regime_classes(o.sim.iter().map(|p| p.2));
+    let labels: Vec<String> = std::iter::once("simulated".to_string())
+        .chain(classes.iter().map(|(name, _)| format!("simulated, {name}")))
+        .chain(["measured".to_string()])
+        .collect();
+    let sim = || o.sim.iter().map(|p| (p.0, p.1));
+    let data = |cover: &mut LegendCover| {
+        cover.line(sim());
+        cover.dots(sim().chain(o.measured.iter().copied()));
+    };
+    let frame = Frame::new(12, 45, 60, 15);
+    // The legend where it covers the least of the data, with room above the data if it
+    // would cover some everywhere.
+    let y = room_for_legend(&body, frame, x0..x1, 0.0..ymax, (&labels, 14), data)?;
+    let mut c = panel(&body, frame, x0..x1, y, ("Ω/ω", "max impact force F_i/mg"))?;
+    c.draw_series(LineSeries::new(sim(), RGBColor(150, 150, 150)))?
+        .label(&labels[0])
+        .legend(line_key(RGBColor(150, 150, 150)));
+    for (name, col) in classes {
         c.draw_series(
             o.sim
                 .iter()
@@ -248,7 +253,8 @@ pub fn response_compare(
         .legend(move |(x, y)| Circle::new((x + 7, y), 4, col.filled()));
     }
     measured_crosses(&mut c, &o.measured, "measured")?;
-    series_legend(&mut c, Some(SeriesLabelPosition::UpperLeft), 14)?;
+    let place = legend_place(&c, &labels, 14, data)?;
+    series_legend(&mut c, Some(place), 14)?;
     root.present()?;
     Ok(())
 }

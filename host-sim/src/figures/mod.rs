@@ -352,6 +352,45 @@ pub(crate) fn legend_place(
     Ok(LEGEND_PLACES[least_covered(&[cover]).1].clone())
 }
 
+/// The `y` range of a [`panel`] in `frame` on `area` over `x` that leaves the legend of `labels`
+/// at `font_size` px a place clear of the data `fill` adds to its cover ([`legend_place`]):
+/// `y` itself where one of [`LEGEND_PLACES`] covers none, else `y` raised at its top by the
+/// legend's height and margins, so that the upper places are clear (a long time series fills
+/// the panel edge to edge).
+///
+/// # Errors
+/// Font or layout errors.
+pub(crate) fn room_for_legend(
+    area: &DrawingArea<Backend<'_>, Shift>,
+    frame: Frame,
+    x: Range<f64>,
+    y: Range<f64>,
+    (labels, font_size): (&[String], u32),
+    fill: impl FnOnce(&mut LegendCover),
+) -> Result<Range<f64>> {
+    // The panel's layout without drawing it (the mesh is drawn by `panel`).
+    let probe = ChartBuilder::on(area)
+        .margin(frame.margin)
+        .x_label_area_size(frame.x_area)
+        .y_label_area_size(frame.y_area)
+        .build_cartesian_2d(x, y.clone())?;
+    let size = legend_size(labels, font_size)?;
+    let mut cover = LegendCover::new(&probe, size);
+    fill(&mut cover);
+    if cover.counts.contains(&0) {
+        return Ok(y);
+    }
+    let (_, ys) = probe.plotting_area().get_pixel_range();
+    let height = f64::from(ys.end - ys.start);
+    // The legend's box 5 px below the top, and the cover's padding below it.
+    let needed = f64::from(size.1 + 5 + LegendCover::PAD_PX);
+    if needed >= 0.5 * height {
+        return Ok(y);
+    }
+    let span = y.end - y.start;
+    Ok(y.start..y.start + span * height / (height - needed))
+}
+
 /// Where a legend covers the least of its figure's data: `(panel, place)`, the index of the
 /// panel's cover in `covers` and of the place in [`LEGEND_PLACES`]; on a tie the first panel,
 /// then the first place (the upper left).
@@ -490,5 +529,64 @@ mod tests {
         let mut corners = empty();
         corners.dots([(0.1, 0.9), (0.9, 0.9), (0.1, 0.1), (0.9, 0.1)]);
         assert_eq!(least_covered(&[corners]), (0, 4));
+    }
+
+    /// A curve that fills its panel edge to edge (a sine over 40 turns between −1 and 1 on a
+    /// 400 × 300 px panel) leaves the legend no clear place: the panel's top is raised by the
+    /// legend's height and margins, and then its upper places are clear; a curve that leaves
+    /// a place clear keeps its range.
+    #[test]
+    fn a_full_panel_is_raised_to_leave_its_legend_room() {
+        let mut buf = vec![0u8; 400 * 300 * 3];
+        let area =
+            Backend::Bitmap(BitMapBackend::with_buffer(&mut buf, (400, 300))).into_drawing_area();
+        let frame = Frame::new(0, 0, 0, 14);
+        let labels = [
+            "u (relative to cart)".to_string(),
+            "x (absolute)".to_string(),
+        ];
+        let sine = |lo: f64, hi: f64| {
+            move |cover: &mut LegendCover| {
+                cover.line((0..=4000).map(|k| {
+                    let t = f64::from(k) / 4000.0;
+                    let s = (80.0 * std::f64::consts::PI * t).sin();
+                    (t, lo + (hi - lo) * 0.5 * (1.0 + s))
+                }))
+            }
+        };
+        let y = -1.05..1.05;
+        let raised = room_for_legend(
+            &area,
+            frame,
+            0.0..1.0,
+            y.clone(),
+            (&labels, 14),
+            sine(-1.0, 1.0),
+        )
+        .unwrap();
+        let (_, h) = legend_size(&labels, 14).unwrap();
+        let needed = f64::from(h + 11);
+        assert_eq!(raised.start, y.start);
+        let expect = -1.05 + 2.1 * 300.0 / (300.0 - needed);
+        assert!((raised.end - expect).abs() < 1e-12, "{raised:?} {expect}");
+        let chart = ChartBuilder::on(&area)
+            .build_cartesian_2d(0.0..1.0, raised)
+            .unwrap();
+        let mut cover = LegendCover::new(&chart, legend_size(&labels, 14).unwrap());
+        sine(-1.0, 1.0)(&mut cover);
+        let c = cover.counts();
+        assert_eq!((c[0], c[1], c[4]), (0, 0, 0), "{c:?}");
+        assert!(c[2] > 0 && c[3] > 0, "{c:?}");
+        // In the lower half only: the upper places are clear already.
+        let kept = room_for_legend(
+            &area,
+            frame,
+            0.0..1.0,
+            y.clone(),
+            (&labels, 14),
+            sine(-1.0, 0.0),
+        )
+        .unwrap();
+        assert_eq!(kept, y);
     }
 }

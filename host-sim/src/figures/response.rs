@@ -15,8 +15,8 @@ use shared::observe::PointResult;
 use crate::config::Setup;
 
 use super::{
-    Backend, Chart, Frame, SANS, canvas, legend_place, level_line, line_key, panel, regime_classes,
-    series_legend, swatch_key, tick,
+    Backend, Chart, Frame, LegendCover, SANS, canvas, legend_place, level_line, line_key, panel,
+    regime_classes, room_for_legend, series_legend, swatch_key, tick,
 };
 
 /// Font size of the response figure's legend, px.
@@ -339,33 +339,44 @@ pub fn time_series(
     let t1 = t1.max(t0 + 1e-9);
 
     let (ylo, yhi) = span(ts.iter().flat_map(|p| [p.u_mm, p.x_mm]).chain([gap_mm]));
-    let mut c = panel(
-        &panels[0],
-        STACKED,
-        t0..t1,
-        ylo..yhi,
-        ("t (s)", "displacement (mm)"),
-    )?;
     let labels = [
         "u (relative to cart)",
         "x (absolute)",
         "impact surface (u = gap)",
-    ];
+    ]
+    .map(String::from);
     let u = || ts.iter().map(|p| (p.t_s, p.u_mm));
     let x = || ts.iter().map(|p| (p.t_s, p.x_mm));
-    c.draw_series(LineSeries::new(u(), BLUE))?
-        .label(labels[0])
-        .legend(line_key(BLUE));
-    c.draw_series(LineSeries::new(x(), RGBColor(220, 120, 0)))?
-        .label(labels[1])
-        .legend(line_key(RGBColor(220, 120, 0)));
-    level_line(&mut c, (t0, t1), gap_mm, BLACK.mix(0.5), labels[2])?;
-    // Each legend where it covers the least of its panel's curves.
-    let place = legend_place(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
+    let curves = |cover: &mut LegendCover| {
         cover.line(u());
         cover.line(x());
         cover.line([(t0, gap_mm), (t1, gap_mm)]);
-    })?;
+    };
+    // Where the curves fill the panel, room above them for the legend.
+    let y = room_for_legend(
+        &panels[0],
+        STACKED,
+        t0..t1,
+        ylo..yhi,
+        (&labels, STACKED_LEGEND_PX),
+        curves,
+    )?;
+    let mut c = panel(
+        &panels[0],
+        STACKED,
+        t0..t1,
+        y,
+        ("t (s)", "displacement (mm)"),
+    )?;
+    c.draw_series(LineSeries::new(u(), BLUE))?
+        .label(&labels[0])
+        .legend(line_key(BLUE));
+    c.draw_series(LineSeries::new(x(), RGBColor(220, 120, 0)))?
+        .label(&labels[1])
+        .legend(line_key(RGBColor(220, 120, 0)));
+    level_line(&mut c, (t0, t1), gap_mm, BLACK.mix(0.5), &labels[2])?;
+    // Each legend where it covers the least of its panel's curves.
+    let place = legend_place(&c, &labels, STACKED_LEGEND_PX, curves)?;
     series_legend(&mut c, Some(place), STACKED_LEGEND_PX)?;
 
     let fmax = ts.iter().map(|p| p.force_mg).fold(1.0, f64::max) * 1.08;
@@ -380,29 +391,32 @@ pub fn time_series(
 
     let (ulo, uhi) = span(ts.iter().map(|p| p.u_mm));
     let (vlo, vhi) = span(ts.iter().map(|p| p.du_mm_s));
-    let mut c = panel(
+    let labels = ["phase plane", "Poincaré section (t = kT)"].map(String::from);
+    let phase = || ts.iter().map(|p| (p.u_mm, p.du_mm_s));
+    let cloud = |cover: &mut LegendCover| {
+        cover.line(phase());
+        cover.dots(strobes.iter().copied());
+    };
+    let v = room_for_legend(
         &panels[2],
         STACKED,
         ulo..uhi,
         vlo..vhi,
-        ("u (mm)", "u̇ (mm/s)"),
+        (&labels, STACKED_LEGEND_PX),
+        cloud,
     )?;
-    let labels = ["phase plane", "Poincaré section (t = kT)"];
-    let phase = || ts.iter().map(|p| (p.u_mm, p.du_mm_s));
+    let mut c = panel(&panels[2], STACKED, ulo..uhi, v, ("u (mm)", "u̇ (mm/s)"))?;
     c.draw_series(LineSeries::new(phase(), BLUE.mix(0.6)))?
-        .label(labels[0])
+        .label(&labels[0])
         .legend(line_key(BLUE));
     c.draw_series(
         strobes
             .iter()
             .map(|&(u, v)| Circle::new((u, v), 4, RED.filled())),
     )?
-    .label(labels[1])
+    .label(&labels[1])
     .legend(|(x, y)| Circle::new((x + 7, y), 4, RED.filled()));
-    let place = legend_place(&c, &labels.map(String::from), STACKED_LEGEND_PX, |cover| {
-        cover.line(phase());
-        cover.dots(strobes.iter().copied());
-    })?;
+    let place = legend_place(&c, &labels, STACKED_LEGEND_PX, cloud)?;
     series_legend(&mut c, Some(place), STACKED_LEGEND_PX)?;
     root.present()?;
     Ok(())
