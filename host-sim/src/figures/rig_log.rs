@@ -7,7 +7,10 @@ use anyhow::Result;
 use plotters::prelude::*;
 use shared::control::Target;
 
-use super::{Frame, SANS, canvas, level_line, line_key, panel, series_legend, tick};
+use super::{
+    Frame, LegendCover, SANS, canvas, legend_place, level_line, line_key, panel, room_for_legend,
+    series_legend, tick,
+};
 use crate::virtual_rig::CycleRow;
 
 /// Controller states in plotting order (y levels of the state panel).
@@ -59,11 +62,26 @@ pub fn draw(
     } else {
         (0.0, 10.0)
     };
+    // Each legend where it covers the least of its panel's data, with room above the data
+    // where it would cover some everywhere.
+    let mut labels = vec!["drive frequency (per cycle)".to_string()];
+    if model.is_some() {
+        labels.extend(["model target", "model 1/1 band edges"].map(String::from));
+    }
+    let freq = |cover: &mut LegendCover| {
+        cover.dots(rows.iter().filter(driving).map(|r| (r.t_s, r.freq_hz)));
+        if let Some(p) = model {
+            for v in [p.target_hz, p.band_hz[0], p.band_hz[1]] {
+                cover.line([(t0, f64::from(v)), (t1, f64::from(v))]);
+            }
+        }
+    };
+    let y = room_for_legend(&panels[0], PANEL, t0..t1, flo..fhi, (&labels, 13), freq)?;
     let mut c = panel(
         &panels[0],
         PANEL,
         t0..t1,
-        flo..fhi,
+        y,
         ("t (s)", "drive frequency (Hz)"),
     )?;
     c.draw_series(
@@ -71,7 +89,7 @@ pub fn draw(
             .filter(driving)
             .map(|r| Circle::new((r.t_s, r.freq_hz), 2, BLUE.filled())),
     )?
-    .label("drive frequency (per cycle)")
+    .label(&labels[0])
     .legend(|(x, y)| Circle::new((x + 8, y), 2, BLUE.filled()));
     if let Some(p) = model {
         let grey = BLACK.mix(0.5);
@@ -90,7 +108,8 @@ pub fn draw(
             .label("model 1/1 band edges")
             .legend(line_key(grey));
     }
-    series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
+    let place = legend_place(&c, &labels, 13, freq)?;
+    series_legend(&mut c, Some(place), 13)?;
 
     // Forces.
     let fmax = rows
@@ -99,15 +118,32 @@ pub fn draw(
         .flatten()
         .fold(force_limit_n, f64::max)
         * 1.08;
+    let has_true = rows.iter().any(|r| r.true_peak_n.is_some());
+    let labels: Vec<String> = has_true
+        .then_some("true (plant)")
+        .into_iter()
+        .chain(["measured (controller)", "force limit"])
+        .map(String::from)
+        .collect();
+    let forces = |cover: &mut LegendCover| {
+        cover.dots(rows.iter().flat_map(|r| {
+            [r.true_peak_n, r.measured_peak_n]
+                .into_iter()
+                .flatten()
+                .map(|f| (r.t_s, f))
+        }));
+        cover.line([(t0, force_limit_n), (t1, force_limit_n)]);
+    };
+    let y = room_for_legend(&panels[1], PANEL, t0..t1, 0.0..fmax, (&labels, 13), forces)?;
     let mut c = panel(
         &panels[1],
         PANEL,
         t0..t1,
-        0.0..fmax,
+        y,
         ("t (s)", "peak impact force per cycle (N)"),
     )?;
     let orange = RGBColor(230, 120, 0);
-    if rows.iter().any(|r| r.true_peak_n.is_some()) {
+    if has_true {
         c.draw_series(rows.iter().filter_map(|r| {
             r.true_peak_n
                 .map(|f| Circle::new((r.t_s, f), 3, orange.filled()))
@@ -122,7 +158,8 @@ pub fn draw(
     .label("measured (controller)")
     .legend(|(x, y)| Cross::new((x + 8, y), 4, BLUE));
     level_line(&mut c, (t0, t1), force_limit_n, RED.mix(0.6), "force limit")?;
-    series_legend(&mut c, Some(SeriesLabelPosition::LowerRight), 13)?;
+    let place = legend_place(&c, &labels, 13, forces)?;
+    series_legend(&mut c, Some(place), 13)?;
 
     // State.
     let level = |s: &str| STATES.iter().position(|x| *x == s).unwrap_or(0) as f64;
