@@ -1026,7 +1026,7 @@ impl GridFigures for Basins {
                 lo: grid.v0_mm_s.start,
                 step: grid.v0_mm_s.spacing(),
                 n: nv,
-                label: "initial velocity u̇0 (mm/s)".into(),
+                label: "initial velocity du/dt (mm/s)".into(),
             };
             let title = format!(
                 "{} — basins of attraction, gap {} mm, Ω/ω = {} ({:.3} Hz)",

@@ -405,7 +405,7 @@ pub fn time_series(
         (&labels, STACKED_LEGEND_PX),
         cloud,
     )?;
-    let mut c = panel(&panels[2], STACKED, ulo..uhi, v, ("u (mm)", "u̇ (mm/s)"))?;
+    let mut c = panel(&panels[2], STACKED, ulo..uhi, v, ("u (mm)", "du/dt (mm/s)"))?;
     c.draw_series(LineSeries::new(phase(), BLUE.mix(0.6)))?
         .label(&labels[0])
         .legend(line_key(BLUE));
