@@ -101,15 +101,11 @@ impl Drop for Server {
 
 /// Polls `status` until `what` holds (at most `wall` of wall time).
 fn wait_for(port: &mut RigPort, what: impl Fn(&Status) -> bool, wall: Duration) -> Status {
-    let end = Instant::now() + wall;
-    loop {
-        let s = port.status().unwrap();
-        if what(&s) {
-            return s;
-        }
-        assert!(Instant::now() < end, "never came: {s}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let (s, came) = port
+        .wait_status(what, wall, Duration::from_millis(20))
+        .unwrap();
+    assert!(came, "never came: {s}");
+    s
 }
 
 fn model_ready(s: &Status) -> bool {

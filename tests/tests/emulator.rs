@@ -149,15 +149,11 @@ impl Drop for Qemu {
 
 /// Polls `status` until `what` holds.
 fn wait_status(port: &mut RigPort, what: impl Fn(&Status) -> bool) -> Status {
-    let end = Instant::now() + Duration::from_secs(60);
-    loop {
-        let s = port.status().unwrap();
-        if what(&s) {
-            return s;
-        }
-        assert!(Instant::now() < end, "never came: {s}");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    let (s, came) = port
+        .wait_status(what, Duration::from_secs(60), Duration::from_millis(10))
+        .unwrap();
+    assert!(came, "never came: {s}");
+    s
 }
 
 /// The next event record that `what` picks (other records are counted in `seq`).

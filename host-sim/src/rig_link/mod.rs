@@ -585,6 +585,31 @@ impl RigPort {
         }
     }
 
+    /// Reads the status every `every` until `what` holds or `wall` of wall time has passed:
+    /// the last status read and whether `what` held of it (`false`: the time ran out).
+    ///
+    /// # Errors
+    /// As [`RigPort::status`], or an interruption (Ctrl-C) between two reads.
+    pub fn wait_status(
+        &mut self,
+        what: impl Fn(&Status) -> bool,
+        wall: Duration,
+        every: Duration,
+    ) -> Result<(Status, bool)> {
+        let end = Instant::now() + wall;
+        loop {
+            let s = self.status()?;
+            if what(&s) {
+                return Ok((s, true));
+            }
+            if Instant::now() >= end {
+                return Ok((s, false));
+            }
+            crate::interrupt::check()?;
+            std::thread::sleep(every);
+        }
+    }
+
     /// The rig's diagnostics.
     ///
     /// # Errors

@@ -137,12 +137,11 @@ pub fn check(port: &mut RigPort, spec: &SweepSpec) -> Result<()> {
         // A drive ramping down (the last sweep's end): wait for idle, at most twice the ramp
         // at the rig's `ramp_mm_per_s` and 5 s more.
         let ramp_s = f64::from(status.amplitude_mm) / f64::from(port.id().ramp_mm_per_s.max(0.01));
-        let deadline = std::time::Instant::now() + Duration::from_secs_f64(2.0 * ramp_s + 5.0);
-        while status.state == State::Stopping && std::time::Instant::now() < deadline {
-            crate::interrupt::check()?;
-            std::thread::sleep(Duration::from_millis(100));
-            status = port.status()?;
-        }
+        (status, _) = port.wait_status(
+            |s| s.state != State::Stopping,
+            Duration::from_secs_f64(2.0 * ramp_s + 5.0),
+            Duration::from_millis(100),
+        )?;
     }
     match status.state {
         State::Idle => Ok(()),
