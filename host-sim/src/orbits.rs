@@ -246,8 +246,8 @@ pub struct EventOut {
     /// The parameter's value there (`Ω/ω`, or the gap in mm).
     pub value: f64,
     /// The orbit there (for a grazing: the last orbit of the branch's `p`; where the branch
-    /// stalled before the grazing, the last orbit it reached, from which `value` is
-    /// extrapolated).
+    /// stalled before the grazing, the last orbit it reached, from which `value` may be
+    /// extrapolated: `extrapolated`).
     pub orbit: OrbitReport,
     /// The critical multiplier `(re, im)`.
     pub critical: [f64; 2],
@@ -260,6 +260,9 @@ pub struct EventOut {
     /// A period doubling across a jump of the discretised map ([`BifEvent::at_jump`]): its
     /// multiplier passes −1 by the jump, `critical` is the one located on the near side.
     pub at_jump: bool,
+    /// A grazing extrapolated past the branch's last orbit ([`BifEvent::extrapolated`]):
+    /// `orbit` and `critical` are that orbit's, at another value than `value`.
+    pub extrapolated: bool,
 }
 
 /// Spacing of the probes of [`crossings`], in the scaled parameter (`Ω/ω`, or gap/A0).
@@ -651,6 +654,7 @@ pub fn branches<T: Real>(start: &Orbit<T>, spec: &BranchSpec) -> Result<Vec<Bran
                         impacts_beyond: e.impacts_beyond,
                         crossings: crossings(e, spec.param),
                         at_jump: e.at_jump,
+                        extrapolated: e.extrapolated,
                     })
                 })
                 .collect::<Result<_>>()?,

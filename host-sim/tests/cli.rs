@@ -1310,6 +1310,7 @@ fn continue_reports_a_branch_span_and_an_extrapolated_grazing() {
     assert_eq!(graze.len(), 1, "{}", branches[0]["events"]);
     let at = graze[0]["value"].as_f64().unwrap();
     assert_eq!(graze[0]["orbit"]["omega_ratio"].as_f64(), Some(last));
+    assert_eq!(graze[0]["extrapolated"], true);
     assert!(at < last && last - at < 0.01, "{at} {last}");
     let text = ok(&line(&format!("continue {args}")));
     assert!(
@@ -1338,12 +1339,20 @@ fn continue_reports_a_branch_span_and_an_extrapolated_grazing() {
         )),
         "{text}"
     );
-    let text = ok(&line(
-        "continue --rig wires --gap-mm 1.0 --omega-ratio 2.6 --q 2 --range 2.4:2.8",
-    ));
+    let wires = "--rig wires --gap-mm 1.0 --omega-ratio 2.6 --q 2 --range 2.4:2.8";
+    let text = ok(&line(&format!("continue {wires}")));
     assert!(
         text.contains("grazing at Ω/ω 2.5781") && !text.contains("extrapolated"),
         "{text}"
+    );
+    let bracketed = continue_branches(wires)
+        .iter()
+        .flat_map(|b| events_of(b, "grazing"))
+        .map(|e| e["extrapolated"].clone())
+        .collect::<Vec<_>>();
+    assert!(
+        !bracketed.is_empty() && bracketed.iter().all(|x| x == false),
+        "{bracketed:?}"
     );
 }
 

@@ -156,15 +156,14 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 let n = e.impacts_beyond;
                 // Where Newton stalled before it, the grazing is extrapolated from the last
                 // orbit reached, whose multiplier the line gives.
-                let reached = param_value(param, &e.orbit);
-                let extrapolated = if unit(reached) == unit(e.value) {
-                    String::new()
-                } else {
+                let extrapolated = if e.extrapolated {
                     format!(
                         " (extrapolated from the branch's last orbit, at {}, whose multiplier \
                          this is)",
-                        unit(reached)
+                        unit(param_value(param, &e.orbit))
                     )
+                } else {
+                    String::new()
                 };
                 format!(
                     ", {n} impact{} per {per} beyond{extrapolated}",

@@ -186,7 +186,8 @@ pub struct BifEvent<T> {
     pub value: f64,
     /// The orbit at it (for a grazing: the last orbit of the branch's `p`, within
     /// `locate_tol` of the grazing where it is bracketed; where Newton stalled before it, the
-    /// last orbit reached, from whose grazing monitors `value` is extrapolated).
+    /// last orbit reached, from whose grazing monitors `value` may be extrapolated:
+    /// [`BifEvent::extrapolated`]).
     pub orbit: Orbit<T>,
     /// The critical multiplier (nearest +1 for a fold, −1 for a doubling, the pair's upper
     /// member for a torus); for a grazing the larger one.
@@ -205,6 +206,10 @@ pub struct BifEvent<T> {
     /// [`ContinuationSettings::fold_retreat`]: the multiplier passes −1 by a jump, not
     /// smoothly. No branch is switched onto there ([`doubling_start`]).
     pub at_jump: bool,
+    /// A grazing extrapolated past the branch's last orbit (Newton stalled before it):
+    /// `value` is the zero of the grazing monitors extrapolated from the last orbits, and
+    /// [`BifEvent::orbit`] and [`BifEvent::critical`] are the last orbit's, at another value.
+    pub extrapolated: bool,
 }
 
 /// The changes of sign of a test function along a branch that one event stands for.
@@ -682,7 +687,9 @@ pub fn continue_branch<T: Real>(
                 release_held!(release_at_stall, value_a, &node);
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
-                if let Some((value, beyond)) = grazing_end(&fr, settings, &node, history.front()) {
+                if let Some((value, beyond, extrapolated)) =
+                    grazing_end(&fr, settings, &node, history.front())
+                {
                     let _ = on_event(&BifEvent {
                         kind: EventKind::Grazing,
                         value,
@@ -691,6 +698,7 @@ pub fn continue_branch<T: Real>(
                         impacts_beyond: beyond,
                         changes: None,
                         at_jump: false,
+                        extrapolated,
                     });
                     return BranchEnd::Grazing(value);
                 }
@@ -743,6 +751,7 @@ pub fn continue_branch<T: Real>(
                 impacts_beyond: b.e.orbit.trace.impacts,
                 changes: None,
                 at_jump: false,
+                extrapolated: false,
             });
             return BranchEnd::Grazing(value);
         }
@@ -776,6 +785,7 @@ pub fn continue_branch<T: Real>(
                     impacts_beyond: ev.e.orbit.trace.impacts,
                     changes: None,
                     at_jump: false,
+                    extrapolated: false,
                 };
                 // A test function can also change sign by a jump of the monodromy (a kink of
                 // the discretised map): the located multiplier is then far from its critical
@@ -874,13 +884,14 @@ fn at_edge_heading_out(range: [f64; 2], value: f64, dvalue: f64, reach: f64) -> 
 /// nearer 0 must lie within `settings.grazing_near` of it (the arrival's within 9× that: `v`
 /// within `3 √near` of `A0 Ω`); the grazing is its zero extrapolated linearly from `base` (up
 /// to eight points back: the stalled steps are short) through the last point if that lies ahead
-/// within four times their distance, else the last value.
+/// within four times their distance (then said extrapolated: the third value), else the last
+/// value.
 fn grazing_end<T: Real>(
     fr: &Frame,
     s: &ContinuationSettings,
     last: &Node<T>,
     base: Option<&Node<T>>,
-) -> Option<(f64, u32)> {
+) -> Option<(f64, u32, bool)> {
     let a0 = fr.at.params.amplitude_m;
     let v0 = a0 * fr.at.omega_ratio * fr.at.params.omega_n();
     // (monitor value, an impact appears)
@@ -916,16 +927,20 @@ fn grazing_end<T: Real>(
     };
     let v1 = last.z[2] * fr.s_lambda;
     let Some(b) = base else {
-        return Some((v1, beyond));
+        return Some((v1, beyond, false));
     };
     let (g0, same) = monitor(b);
     let v0b = b.z[2] * fr.s_lambda;
     if same != appears || g1 == g0 {
-        return Some((v1, beyond));
+        return Some((v1, beyond, false));
     }
     let zero = v1 - g1 * (v1 - v0b) / (g1 - g0);
     let ahead = (zero - v1) * (v1 - v0b) >= 0.0 && (zero - v1).abs() <= 4.0 * (v1 - v0b).abs();
-    Some((if zero.is_finite() && ahead { zero } else { v1 }, beyond))
+    Some(if zero.is_finite() && ahead {
+        (zero, beyond, zero != v1)
+    } else {
+        (v1, beyond, false)
+    })
 }
 
 /// Bisects the step from `a` (where `same(a)` holds) to the step `h` (where it does not) until
