@@ -4,12 +4,15 @@
 //! Data flows one way, and the modules follow it:
 //! rig parameters → [`model`] (contact law + suspension + switch model) → [`integrate`]
 //! (fixed-step RK4) → [`observe`] (impacts, Poincaré section, regime, canonical protocol) →
-//! [`analysis`] (frequency response, operating-frequency selection) → [`control`] (the rig
-//! controller, without text: drive, impact detection, measured regime, tracking, faults) →
-//! [`console`] (the console protocol: requests, replies and records as text, both directions,
-//! and the service that answers lines). Beside the loop: [`capture`] (the drop-test force
-//! capture) and [`health`] (the sampling health check behind the watchdog); the hardware is
-//! reached through [`hal`]. Every dependency points down this list.
+//! [`analysis`] (frequency response, operating-frequency selection) → [`orbit`] (periodic
+//! orbits by shooting, Floquet multipliers, continuation and located bifurcations, Lyapunov
+//! exponents) and [`control`] (the rig controller, without text: drive, impact detection,
+//! measured regime, tracking, faults) → [`console`] (the console protocol: requests, replies
+//! and records as text, both directions, and the service that answers lines). Beside the loop:
+//! [`capture`] (the drop-test force capture) and [`health`] (the sampling health check behind
+//! the watchdog); the hardware is reached through [`hal`]. Under every layer: [`real`] (f32 or
+//! f64), [`dual`] (derivatives through the same code) and [`error`]. Every dependency points
+//! down this list.
 //!
 //! Physics: docs/model.md; equation numbers are the thesis'.
 #![cfg_attr(not(test), no_std)]
