@@ -586,7 +586,9 @@ impl RigPort {
     }
 
     /// Reads the status every `every` until `what` holds or `wall` of wall time has passed:
-    /// the last status read and whether `what` held of it (`false`: the time ran out).
+    /// the last status read and whether `what` held of it (`false`: the time ran out). Each
+    /// read is bounded by the link's reply timeout, so the wait ends within `wall` and one
+    /// timeout.
     ///
     /// # Errors
     /// As [`RigPort::status`], or an interruption (Ctrl-C) between two reads.
