@@ -162,6 +162,11 @@ pub struct EdgeReport {
     /// `multiplier` is the one located on the near side); absent otherwise.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub at_jump: bool,
+    /// A grazing extrapolated past the branch's last orbit
+    /// ([`shared::orbit::BifEvent::extrapolated`]): that orbit's `Ω/ω`, whose `multiplier`
+    /// this is; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub multiplier_at: Option<f64>,
 }
 
 /// The strongest non-`1/1` periodic point.
@@ -251,6 +256,7 @@ fn edge_report<T: Real>(
             stalled_at: Some(located),
             smeared: None,
             at_jump: false,
+            multiplier_at: None,
         };
     }
     let value = located;
@@ -295,6 +301,10 @@ fn edge_report<T: Real>(
         stalled_at: None,
         smeared,
         at_jump: matches!(edge, Edge::Event(e) if e.at_jump),
+        multiplier_at: match edge {
+            Edge::Event(e) if e.extrapolated => Some(e.orbit.at.omega_ratio),
+            _ => None,
+        },
     }
 }
 

@@ -52,6 +52,15 @@ fn select_json_reports_the_operating_point() {
     // last 1/1 point and the next: 1.5 steps of 0.02 × 1.82 Hz from the last 1/1 point).
     assert!((elo - lo).abs() < 0.03 * 1.82 && (ehi - hi).abs() < 0.03 * 1.82);
     assert!(check["lower"]["agrees"] == true && check["upper"]["agrees"] == true);
+    // The grazing is extrapolated past the branch's last orbit (Newton stalls before it, inside
+    // the band), whose multiplier the edge gives and names; the doubling is located by
+    // bisection, its multiplier its own.
+    let (graze, at) = (
+        check["lower"]["omega_ratio"].as_f64().unwrap(),
+        check["lower"]["multiplier_at"].as_f64().unwrap(),
+    );
+    assert!(at > graze && at - graze < 0.01, "{graze} {at}");
+    assert!(check["upper"].get("multiplier_at").is_none());
     // The orbit is stable, its multipliers inside the unit circle.
     let mu = check["orbit"]["max_abs_multiplier"].as_f64().unwrap();
     assert!(mu > 0.0 && mu < 1.0 && check["orbit"]["stable"] == true);

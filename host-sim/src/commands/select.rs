@@ -463,7 +463,10 @@ fn print_report(r: &SelectReport) {
                         } else {
                             format!(", |μ| = {:.4}", m[0].hypot(m[1]))
                         })
-                        .unwrap_or_default(),
+                        .unwrap_or_default()
+                        + &e.multiplier_at
+                            .map(|at| format!(" of the branch's last orbit, at Ω/ω {at:.5}"))
+                            .unwrap_or_default(),
                 ) + if e.at_jump {
                     ", across a jump of the discretised map: μ passes −1 by the jump"
                 } else {
