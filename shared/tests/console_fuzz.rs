@@ -5,7 +5,8 @@
 //! - every line gets exactly one reply, in order, and every reply is one text line that fits
 //!   the reply size and never looks like an asynchronous line (`!`);
 //! - a line hit by a receive error is answered `error: line lost` and changes nothing, and an
-//!   over-long line is answered `error: line too long …` and changes nothing.
+//!   over-long line, or one holding a control byte, is answered `error: line too long or not
+//!   text` and changes nothing (the line-editing rules written out independently here).
 //!
 //! Seeded (ChaCha8): the same inputs on every machine. CI also runs it as a release build.
 
@@ -53,6 +54,75 @@ enum Sent {
     Corrupted,
     /// A line longer than MAX_LINE.
     TooLong,
+    /// A line holding a control byte (other than the editing ones).
+    Control,
+    /// Nothing to answer (nothing kept, no error, no control byte).
+    Empty,
+}
+
+/// What the rig makes of a line's `bytes` (its end not included) with a receive error flagged
+/// before byte `error_at` (or after the last at `bytes.len()`), by the console's line-editing
+/// rules written out independently: escape sequences swallowed (`ESC [` … a final byte in
+/// 0x40–0x7e, `ESC O x`, `ESC x`); Backspace and Delete remove a UTF-8 character unless a
+/// control byte spoiled the line; other control bytes spoil it; the byte that would make it
+/// longer than MAX_LINE refuses it at once (a receive error after that is not reported again).
+fn received(bytes: &[u8], error_at: Option<usize>) -> Sent {
+    let mut kept: Vec<u8> = Vec::new();
+    let mut control = false;
+    // 0: none, 1: after ESC, 2: in `ESC [`, 3: after `ESC O`.
+    let mut escape = 0;
+    for (i, &b) in bytes.iter().enumerate() {
+        match escape {
+            1 => {
+                escape = match b {
+                    b'[' => 2,
+                    b'O' => 3,
+                    _ => 0,
+                };
+                continue;
+            }
+            2 => {
+                if (0x40..=0x7e).contains(&b) {
+                    escape = 0;
+                }
+                continue;
+            }
+            3 => {
+                escape = 0;
+                continue;
+            }
+            _ => {}
+        }
+        match b {
+            0x1b => escape = 1,
+            0x08 | 0x7f if !control => {
+                while let Some(x) = kept.pop() {
+                    if x & 0xc0 != 0x80 {
+                        break;
+                    }
+                }
+            }
+            0x08 | 0x7f => {}
+            0x00..=0x08 | 0x0a..=0x1f => control = true,
+            _ if kept.len() == MAX_LINE => {
+                return if error_at.is_some_and(|e| e <= i) {
+                    Sent::Corrupted
+                } else {
+                    Sent::TooLong
+                };
+            }
+            _ => kept.push(b),
+        }
+    }
+    if error_at.is_some() {
+        Sent::Corrupted
+    } else if control {
+        Sent::Control
+    } else if kept.is_empty() {
+        Sent::Empty
+    } else {
+        Sent::Clean
+    }
 }
 
 fn command_line(rng: &mut ChaCha8Rng) -> Vec<u8> {
@@ -128,7 +198,7 @@ fn a_million_console_inputs() {
     let mut reply = ReplyText::new();
     let mut sent: Vec<Sent> = Vec::new();
     let mut tx: Vec<u8> = Vec::new();
-    let (mut replies, mut lost, mut too_long) = (0usize, 0usize, 0usize);
+    let (mut replies, mut lost, mut too_long, mut control) = (0usize, 0usize, 0usize, 0usize);
     for input in 0..INPUTS {
         // Now and then a model result arrives, so that `start` can run.
         if input % 1000 == 0
@@ -160,26 +230,9 @@ fn a_million_console_inputs() {
         if error_at == Some(bytes.len()) {
             link.on_rx_error(RxError::Framing);
         }
-        // The line as received: backspace and delete remove the last byte unless the line has
-        // already overflowed.
-        let (mut len, mut overflow) = (0usize, false);
-        for &b in &bytes {
-            match b {
-                0x08 | 0x7f if !overflow => len = len.saturating_sub(1),
-                0x08 | 0x7f => {}
-                _ if len == MAX_LINE => overflow = true,
-                _ => len += 1,
-            }
-        }
-        let kind = if error_at.is_some() {
-            Sent::Corrupted
-        } else if overflow {
-            Sent::TooLong
-        } else {
-            Sent::Clean
-        };
+        let kind = received(&bytes, error_at);
         // An empty clean line gets no reply (blank lines are skipped).
-        if !(kind == Sent::Clean && len == 0) {
+        if kind != Sent::Empty {
             sent.push(kind);
         }
         link.on_rx_byte(if rng.random_bool(0.5) { b'\n' } else { b'\r' });
@@ -213,8 +266,15 @@ fn a_million_console_inputs() {
                     assert_eq!(controller.status(), before);
                     too_long += 1;
                 }
+                Some(Sent::Control) => {
+                    assert_eq!(reply.as_str(), "error: line too long or not text");
+                    assert_eq!(controller.status(), before);
+                    control += 1;
+                }
                 Some(Sent::Clean) => {}
-                None => panic!("a reply without a line at input {input}: {reply}"),
+                Some(Sent::Empty) | None => {
+                    panic!("a reply without a line at input {input}: {reply}")
+                }
             }
             link.push_reply(&reply);
             replies += 1;
@@ -244,7 +304,10 @@ fn a_million_console_inputs() {
     check_lines(&mut tx);
     assert_eq!(replies, sent.len(), "one reply per line");
     // The generator's mix reached every kind.
-    assert!(lost > 10_000 && too_long > 100_000, "{lost} {too_long}");
+    assert!(
+        lost > 10_000 && too_long > 100_000 && control > 10_000,
+        "{lost} {too_long} {control}"
+    );
 }
 
 /// Every complete transmitted line is a reply: text, `\r\n`-terminated, not `!`.

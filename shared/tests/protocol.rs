@@ -3,10 +3,12 @@
 //! decimals each field is written with), and what the parsers refuse at the edge.
 
 use proptest::prelude::*;
+use shared::capture::Capture;
 use shared::capture::{CAPTURE_RATE_HZ, CaptureCommand};
 use shared::capture::{CaptureState, CaptureStatus, SEGMENT_LEN, SEGMENTS, SegmentView};
 use shared::console::link::LinkStats;
 use shared::console::serve::Response;
+use shared::console::{self, BoardInfo, Direct, Line, Link};
 use shared::console::{
     Answer, AnswerError, Arg, Board, CaptureError, DiagInfo, IdInfo, ParseError, Request, Version,
     WireError, parse,
@@ -15,6 +17,7 @@ use shared::control::{
     AsyncKind, AsyncRecord, Command, CommandError, CycleTelemetry, Event, Fault, ModelStatus,
     PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
 };
+use shared::control::{Controller, ControllerConfig};
 use shared::model::RigId;
 use shared::observe::Regime;
 
@@ -346,6 +349,35 @@ fn request() -> impl Strategy<Value = Request> {
     ]
 }
 
+/// The kind of answer a request gets, as docs/operator.md's console table gives it.
+fn kind_wanted(r: &Request) -> String {
+    match r {
+        Request::Control(Command::Status) => "status".into(),
+        Request::Control(_) | Request::Echo(_) => "ok".into(),
+        Request::Id => "id".into(),
+        Request::Diag => "diag".into(),
+        Request::Help => "help".into(),
+        Request::Capture(CaptureCommand::Get(k)) => format!("segment {k}"),
+        Request::Capture(_) => "capture".into(),
+    }
+}
+
+/// The kind of an answer (not an error), by its text's first word.
+fn kind_of_answer(a: &Answer) -> String {
+    match a {
+        Answer::Reply(Reply::Status(_)) => "status".into(),
+        Answer::Segment(s) => format!("segment {}", s.k),
+        a => {
+            let text = a.to_string();
+            let word = text.split([' ', ':']).next().unwrap_or("");
+            match word {
+                "commands" => "help".into(),
+                w => w.into(),
+            }
+        }
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(3000))]
 
@@ -368,6 +400,45 @@ proptest! {
     fn every_request_reads_back(r in request()) {
         let text = r.to_string();
         prop_assert_eq!(parse(&text), Ok(r), "{}", text);
+    }
+
+    /// No reply is the text of a request, and no request reads as a reply: an echo of a request
+    /// can never be taken for its answer (the desktop skips a line equal to its request).
+    #[test]
+    fn replies_and_requests_never_read_as_each_other(a in answer(), r in request()) {
+        let reply = a.to_string();
+        prop_assert!(parse(&reply).is_err(), "the reply `{}` reads as a request", reply);
+        let line = r.to_string();
+        prop_assert!(line.parse::<Answer>().is_err(), "the request `{}` reads as a reply", line);
+    }
+
+    /// What the rig's own service answers every request is of the request's kind
+    /// (`Answer::answers`), and the same answer to a request of another kind is not (unless it
+    /// is an error, which any request may get).
+    #[test]
+    fn the_service_answers_every_request_with_its_kind(r in request(), other in request()) {
+        let mut controller = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
+        let mut capture = Capture::new();
+        let mut link = Link::new();
+        let mut rig = Direct {
+            controller: &mut controller,
+            capture: &mut capture,
+            board: BoardInfo {
+                firmware: Version::of("0.0.0"),
+                board: Board::Virtual,
+                uptime_ms: 0,
+                stack_hwm_bytes: 0,
+                stack_size_bytes: 0,
+                sample_gap_max_us: 0,
+            },
+            link: &mut link,
+        };
+        let line = r.to_string();
+        let a = console::answer(&mut rig, Line::Text(&line)).answer;
+        prop_assert!(a.answers(&r), "`{}` answered `{}`", line, a);
+        if !matches!(a, Answer::Error(_)) {
+            prop_assert_eq!(a.answers(&other), kind_of_answer(&a) == kind_wanted(&other), "`{}` for `{}`", a, other);
+        }
     }
 
     /// Any text is a reply, an error, or refused; never a panic.

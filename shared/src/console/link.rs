@@ -11,11 +11,14 @@
 //!   `error: line lost` and counted;
 //! - asynchronous lines (telemetry, events) are queued only while that leaves [`REPLY_ROOM`]
 //!   free, so they can never hold a reply back; when they do not fit they are dropped and
-//!   counted (their sequence numbers show the gap on the desktop).
+//!   counted (their sequence numbers show the gap on the desktop);
+//! - replies never hold telemetry back either: the service takes a line only while the room
+//!   for its reply and for one asynchronous line after it is free ([`SERVE_ROOM`]), so a flood
+//!   of lines that each get a reply still leaves every telemetry line its place.
 
 use heapless::{Deque, String};
 
-use super::framing::{BACKSPACE, DELETE, Line, LineBuffer, MAX_LINE, RxError};
+use super::framing::{Line, LineBuffer, MAX_LINE, RxError, is_line_end};
 
 /// Transmit queue, bytes.
 pub const TX_CAPACITY: usize = 2048;
@@ -23,6 +26,14 @@ pub const TX_CAPACITY: usize = 2048;
 pub const MAX_REPLY: usize = 640;
 /// Free transmit space a reply needs (the reply and `\r\n`).
 pub const REPLY_ROOM: usize = MAX_REPLY + 2;
+/// Longest asynchronous line, bytes, without the line ending (a telemetry line is about 150).
+pub const MAX_ASYNC: usize = 192;
+/// Free transmit space an asynchronous line needs at most (the line and `\r\n`).
+pub const ASYNC_ROOM: usize = MAX_ASYNC + 2;
+/// Free transmit space the service needs to take a line: its reply's, and after it what one
+/// asynchronous line needs to be queued (its own room and the reply room it must leave).
+pub const SERVE_ROOM: usize = REPLY_ROOM + ASYNC_ROOM + REPLY_ROOM;
+const _: () = assert!(SERVE_ROOM < TX_CAPACITY);
 /// Complete lines waiting for the service.
 pub const PENDING_LINES: usize = 4;
 
@@ -81,43 +92,43 @@ impl Link {
     }
 
     /// A received byte; `true` at a line's end (`\n` or `\r`, an empty line too: what
-    /// keeps the controller's link-loss watchdog fed).
+    /// keeps the controller's link-loss watchdog fed). With the echo on, what the line buffer
+    /// says a terminal should show of it is queued ([`LineBuffer::echo`]).
     pub fn on_rx_byte(&mut self, byte: u8) -> bool {
-        let end = byte == b'\n' || byte == b'\r';
-        if self.echo {
-            self.echo_byte(byte);
-        }
+        let end = is_line_end(byte);
         let pending = match self.rx.push(byte) {
-            None => return end,
+            None => None,
             Some(Line::Text(s)) => {
                 let mut owned = String::new();
                 // `s` is at most MAX_LINE bytes: it fits.
                 let _ = owned.push_str(s);
-                PendingLine::Text(owned)
+                Some(PendingLine::Text(owned))
             }
-            Some(Line::Bad) => PendingLine::Bad,
-            Some(Line::Lost) => PendingLine::Lost,
+            Some(Line::Bad) => Some(PendingLine::Bad),
+            Some(Line::Lost) => Some(PendingLine::Lost),
         };
-        if self.overflowed > 0 || self.pending.is_full() {
-            self.overflowed = self.overflowed.saturating_add(1);
-        } else {
-            let _ = self.pending.push_back(pending);
+        if self.echo {
+            self.echo_last();
+        }
+        if let Some(pending) = pending {
+            if self.overflowed > 0 || self.pending.is_full() {
+                self.overflowed = self.overflowed.saturating_add(1);
+            } else {
+                let _ = self.pending.push_back(pending);
+            }
         }
         end
     }
 
-    /// Echoes a received byte for a terminal program: printable text as it is, a line's end as
-    /// `\r\n`, a backspace that removed a character as `BS SPACE BS`. Only while that leaves
-    /// room for a reply (an echo is never worth a reply).
-    fn echo_byte(&mut self, byte: u8) {
-        let echo: &[u8] = match byte {
-            b'\n' | b'\r' => b"\r\n",
-            BACKSPACE | DELETE if !self.rx.is_empty() => b"\x08 \x08",
-            0x20..=0x7e => core::slice::from_ref(&byte),
-            _ => return,
-        };
-        if self.tx_free() >= echo.len() + REPLY_ROOM {
-            self.push_bytes(echo);
+    /// Queues the echo of the byte just received, only while that leaves room for a reply (an
+    /// echo is never worth a reply).
+    fn echo_last(&mut self) {
+        let mut echo = [0u8; 3];
+        let shown = self.rx.echo();
+        let n = shown.len().min(echo.len());
+        echo[..n].copy_from_slice(&shown[..n]);
+        if n > 0 && self.tx_free() >= n + REPLY_ROOM {
+            self.push_bytes(&echo[..n]);
         }
     }
 
@@ -139,7 +150,7 @@ impl Link {
 
     /// Whether a line waits and the transmit queue has room for its reply.
     pub fn ready(&self) -> bool {
-        self.has_line() && self.tx_free() >= REPLY_ROOM
+        self.has_line() && self.tx_free() >= SERVE_ROOM
     }
 
     /// Whether a line waits for the service.
@@ -149,7 +160,7 @@ impl Link {
 
     /// The next line for the service, if one waits and its reply will fit.
     pub fn next_line(&mut self) -> Option<PendingLine> {
-        if self.tx_free() < REPLY_ROOM {
+        if self.tx_free() < SERVE_ROOM {
             return None;
         }
         let line = match self.pending.pop_front() {
@@ -279,9 +290,14 @@ mod tests {
         assert_eq!(queued, (TX_CAPACITY - REPLY_ROOM) / 102);
         assert!(link.stats().async_dropped > 0);
         assert!(link.tx_free() >= REPLY_ROOM);
-        // A line still gets its reply room.
+        // A line waits until the UART has made room for its reply and one telemetry line after
+        // it (a reply never holds telemetry back), and is then served before any new telemetry.
         feed(&mut link, b"status\n");
-        assert!(link.ready());
+        assert!(!link.ready());
+        while !link.ready() {
+            link.pop_tx().unwrap();
+        }
+        assert_eq!(link.tx_free(), SERVE_ROOM);
         let l = link.next_line().unwrap();
         assert_eq!(l, PendingLine::Text(String::try_from("status").unwrap()));
         link.push_reply(&"y".repeat(MAX_REPLY));
@@ -289,14 +305,47 @@ mod tests {
         feed(&mut link, b"id\n");
         assert!(!link.ready() && link.has_line());
         assert_eq!(link.next_line(), None);
-        // The UART drains it; the line is served once a reply's room is free again.
+        // The UART drains it; the line is served once that room is free again.
         let mut drained = 0;
         while !link.ready() {
             link.pop_tx().unwrap();
             drained += 1;
         }
-        assert_eq!(link.tx_free(), REPLY_ROOM);
+        assert_eq!(link.tx_free(), SERVE_ROOM);
         assert!(drained > 0);
+    }
+
+    #[test]
+    fn a_flood_of_lines_leaves_every_telemetry_line_its_place() {
+        // A line every byte time, each answered at length, while a telemetry line of the
+        // longest kind comes every 400 byte times (half the line's rate; the rig's telemetry
+        // takes at most 40 %): the UART drains one byte per step. Every telemetry line is
+        // queued, none dropped, and the replies take the rest of the line.
+        let mut link = Link::new();
+        let telemetry = "t".repeat(MAX_ASYNC);
+        let (mut queued, mut replies) = (0, 0);
+        for step in 0..200_000 {
+            feed(&mut link, b"x\n");
+            while let Some(_line) = link.next_line() {
+                link.push_reply("error: unknown command (try `help`)");
+                replies += 1;
+            }
+            if step % 400 == 0 {
+                assert!(
+                    link.push_async(&telemetry),
+                    "telemetry dropped at step {step}"
+                );
+                queued += 1;
+            }
+            link.pop_tx();
+        }
+        assert_eq!((queued, link.stats().async_dropped), (500, 0));
+        // The replies' share: what the telemetry left of 200,000 byte times, 37 bytes each.
+        let left = 200_000 - 500 * (MAX_ASYNC + 2);
+        assert!(
+            replies * 37 > left * 9 / 10 && replies * 37 <= left + TX_CAPACITY,
+            "{replies}"
+        );
     }
 
     #[test]
@@ -323,8 +372,9 @@ mod tests {
         link.set_echo(true);
         feed(&mut link, b"statx\x7fus\r");
         assert_eq!(drain(&mut link), "statx\x08 \x08us\r\n");
-        // A backspace with nothing to erase, and control bytes, are not echoed.
-        feed(&mut link, b"\x7f\x1b\x07");
+        // A backspace with nothing to erase, and an escape sequence, are not echoed; nor is a
+        // program's tagged line (so a client never reads its request's echo for the reply).
+        feed(&mut link, b"\x7f\x1b[A#9 status\n");
         assert_eq!(drain(&mut link), "");
         let l = link.next_line();
         assert_eq!(l, Some(PendingLine::Text(String::try_from("ab").unwrap())));
@@ -332,6 +382,11 @@ mod tests {
         assert_eq!(
             l,
             Some(PendingLine::Text(String::try_from("status").unwrap()))
+        );
+        let l = link.next_line();
+        assert_eq!(
+            l,
+            Some(PendingLine::Text(String::try_from("#9 status").unwrap()))
         );
         // The echo never takes a reply's room.
         while link.push_async(&"z".repeat(100)) {}

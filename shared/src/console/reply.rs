@@ -18,14 +18,14 @@ use super::decimal::Decimal;
 use super::displays_as;
 use super::fields::{Fields, WireError, decimal, range};
 use super::link::LinkStats;
-use super::request::{HELP, MAX_FREQ_HZ, ParseError};
+use super::request::{HELP, MAX_FREQ_HZ, ParseError, Request};
 use super::token::{Token, read_fault, read_regime, write_fault, write_regime};
 use crate::capture::{
-    CAPTURE_RATE_HZ, CaptureStatus, PRE_TRIGGER, SEGMENT_LEN, SEGMENTS, SegmentView,
+    CAPTURE_RATE_HZ, CaptureCommand, CaptureStatus, PRE_TRIGGER, SEGMENT_LEN, SEGMENTS, SegmentView,
 };
 use crate::control::{
-    CommandError, Fault, MAX_FORCE_VS_MODEL_PCT, MAX_GAP_MM, ModelStatus, PeakForce, Reply,
-    SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
+    Command, CommandError, Fault, MAX_FORCE_VS_MODEL_PCT, MAX_GAP_MM, ModelStatus, PeakForce,
+    Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
 };
 use crate::hal::ADC_MAX;
 use crate::model::RigId;
@@ -738,6 +738,41 @@ pub enum Answer {
 }
 
 const ERROR: &str = "error: ";
+
+impl Answer {
+    /// Whether this answer is of the kind `request` gets: `ok` for a command (the status line
+    /// for `status`), `id …` for `id`, `diag …` for `diag`, the help line for `help`, the
+    /// capture's state line for `capture`, `capture arm` and `capture stop`, segment `k` for
+    /// `capture get k`; or an `error: …`, which any request may get. A reply of another kind
+    /// answers another line: the desktop reports it, never prints it as this one's.
+    pub fn answers(&self, request: &Request) -> bool {
+        let own = match request {
+            Request::Control(Command::Status) => matches!(self, Answer::Reply(Reply::Status(_))),
+            Request::Control(
+                Command::Stream(_)
+                | Command::Rig(_)
+                | Command::Gap(_)
+                | Command::LinkTimeout(_)
+                | Command::Tune
+                | Command::Start
+                | Command::Stop
+                | Command::Freq(_)
+                | Command::Clear,
+            )
+            | Request::Echo(_) => matches!(self, Answer::Reply(Reply::Ok)),
+            Request::Id => matches!(self, Answer::Id(_)),
+            Request::Diag => matches!(self, Answer::Diag(_)),
+            Request::Help => matches!(self, Answer::Help),
+            Request::Capture(CaptureCommand::Get(k)) => {
+                matches!(self, Answer::Segment(s) if s.k == *k)
+            }
+            Request::Capture(
+                CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. },
+            ) => matches!(self, Answer::Capture(_)),
+        };
+        own || matches!(self, Answer::Error(_))
+    }
+}
 
 impl fmt::Display for Answer {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

@@ -234,7 +234,7 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
 /// A reply line being formatted ([`MAX_REPLY`] bytes).
 pub type ReplyText = heapless::String<MAX_REPLY>;
 /// An asynchronous line being formatted.
-pub type AsyncText = heapless::String<192>;
+pub type AsyncText = heapless::String<{ super::link::MAX_ASYNC }>;
 
 /// Formats `response` into `out` (cleared first); a reply that does not fit is replaced by an
 /// error line (no reply is that long: tested).
