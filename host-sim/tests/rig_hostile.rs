@@ -57,6 +57,20 @@ enum Misbehaviour {
     /// Never dwells (as `NeverDwells`), and every `stop` is lost on the way (`error: line
     /// lost`, untagged, as a damaged line gets).
     LosesStop,
+    /// Echoes every line it receives, tagged ones too (a console left with `echo on` by a
+    /// firmware that echoed everything), before its reply.
+    Echoes,
+    /// Never dwells; an untagged garbage line before each reply to `stop` and `status`; after
+    /// a `stop` its status says `stopping` at 0.5 mm.
+    NoisyStop,
+    /// Never dwells; acknowledges `stop`, yet its status still says `dwell` at 0.89 mm.
+    AcksStopButDrives,
+    /// A status with `freq_hz=NaN amp_mm=inf`.
+    NanStatus,
+    /// `ok` in answer to `status`.
+    OkToStatus,
+    /// Nothing: answers and streams like a rig.
+    Behaves,
 }
 
 /// The fake rig's state.
@@ -69,6 +83,8 @@ struct Fake {
     lines: usize,
     /// Every line received (tags stripped).
     log: Vec<String>,
+    /// A `stop` came.
+    stopped: bool,
 }
 
 fn id_info(bad: Misbehaviour) -> IdInfo {
@@ -138,11 +154,24 @@ impl Fake {
                 stack_size_bytes: 0,
                 link_timeout_ms: 0,
             }),
-            "status" => {
-                if self.bad == DropsStatus {
-                    return None;
+            "status" => match self.bad {
+                DropsStatus => return None,
+                OkToStatus => Answer::Reply(Reply::Ok),
+                NoisyStop if self.stopped => {
+                    let mut s = status(State::Stopping);
+                    s.amplitude_mm = 0.5;
+                    Answer::Reply(Reply::Status(s))
                 }
-                Answer::Reply(Reply::Status(status(State::Idle)))
+                AcksStopButDrives if self.stopped => {
+                    let mut s = status(State::Dwell);
+                    (s.amplitude_mm, s.freq_hz) = (0.89, 3.0);
+                    Answer::Reply(Reply::Status(s))
+                }
+                _ => Answer::Reply(Reply::Status(status(State::Idle))),
+            },
+            "stop" => {
+                self.stopped = true;
+                Answer::Reply(Reply::Ok)
             }
             "stream" => {
                 self.streaming = line.ends_with("on");
@@ -167,6 +196,14 @@ impl Fake {
         if self.bad == CaptureTooManySegments && word == "capture" && !line.contains("arm") {
             text = text.replace(" segments=0 ", " segments=100000 ");
         }
+        if self.bad == NanStatus && word == "status" {
+            text = text.replacen("freq_hz=1.0000", "freq_hz=NaN", 1).replacen(
+                "amp_mm=0.000",
+                "amp_mm=inf",
+                1,
+            );
+            assert!(text.contains("NaN") && text.contains("inf"), "{text}");
+        }
         Some(text)
     }
 
@@ -182,7 +219,10 @@ impl Fake {
             self.streaming = false;
             return vec![b'x'; 20 << 20];
         }
-        let state = if matches!(self.bad, NeverDwells | LosesStop) {
+        let state = if matches!(
+            self.bad,
+            NeverDwells | LosesStop | NoisyStop | AcksStopButDrives
+        ) {
             State::Ramp
         } else {
             State::Dwell
@@ -252,6 +292,7 @@ fn fake_rig_logged(bad: Misbehaviour) -> (PathBuf, Arc<Mutex<Fake>>) {
         capture_samples: 0,
         lines: 0,
         log: Vec::new(),
+        stopped: false,
     }));
     let state = Arc::clone(&fake);
     std::thread::spawn(move || {
@@ -314,6 +355,14 @@ fn fake_rig_logged(bad: Misbehaviour) -> (PathBuf, Arc<Mutex<Fake>>) {
                         send(&mut master, tagged.as_bytes());
                     }
                     (LosesStop, "stop") => send(&mut master, b"error: line lost\r\n"),
+                    (Echoes, _) => {
+                        send(&mut master, format!("{line}\r\n").as_bytes());
+                        send(&mut master, tagged.as_bytes());
+                    }
+                    (NoisyStop, "stop" | "status") => {
+                        send(&mut master, b"%% line noise: 0x55aa\r\n");
+                        send(&mut master, tagged.as_bytes());
+                    }
                     (LongGarbageThenOk, "status") => {
                         let mut v = vec![b'g'; 70 << 10];
                         v.extend_from_slice(b"ok\r\n");
@@ -518,7 +567,7 @@ fn a_sweep_whose_rig_never_dwells_ends_before_its_first_point_and_writes_nothing
     assert!(stderr.contains("did not dwell"), "{stderr}");
     assert!(stderr.contains("last seen: state=ramp"), "{stderr}");
     assert!(
-        stderr.contains("0 of 3 points; no point was measured: nothing written"),
+        stderr.contains("0 of 3 points; the rig is idle, drive at 0.000 mm; no point was measured: nothing written"),
         "{stderr}"
     );
     assert!(!dir.path().join("fr.csv").exists());
@@ -580,4 +629,122 @@ fn the_operators_settings_are_left_as_set() {
         let final_setting = log.iter().rfind(|l| l.starts_with(kind)).unwrap();
         assert_eq!(final_setting, last, "{log:?}");
     }
+}
+
+/// A console whose echo repeats every line, tagged ones too: the echo of a request is never
+/// taken for its reply; the client connects and its commands get through.
+#[test]
+fn an_echo_is_never_taken_for_a_reply() {
+    let port = fake_rig(Misbehaviour::Echoes);
+    for (args, first) in [
+        (["send", "status"], "state=idle "),
+        (["send", "stop"], "ok"),
+    ] {
+        let out = Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
+            .arg("rig")
+            .arg("--port")
+            .arg(&port)
+            .args(["--timeout-s", "2"])
+            .args(args)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.starts_with(first), "{args:?}: {stdout}");
+    }
+}
+
+/// The drive guard's `stop` through garbage (an untagged line before each of its replies): one
+/// `stop` suffices and the guard says the state the status reported. A rig that acknowledges
+/// `stop` while its status still says it drives is not believed: `stop` goes three times and
+/// the guard says what the status said.
+#[test]
+fn the_guards_stop_gets_through_noise_and_is_judged_by_the_status() {
+    let dir = tempfile::tempdir().unwrap();
+    let (port, fake) = fake_rig_logged(Misbehaviour::NoisyStop);
+    let stderr = rig_fails(&port, dir.path(), SHORT_SWEEP, Duration::from_secs(60));
+    assert!(
+        stderr.contains(
+            "stopping the drive: `stop` answered `ok`; the rig is stopping, its drive ramping \
+             down from 0.500 mm"
+        ),
+        "{stderr}"
+    );
+    std::thread::sleep(Duration::from_millis(200));
+    let log = fake.lock().unwrap().log.clone();
+    assert_eq!(log.iter().filter(|l| *l == "stop").count(), 1, "{log:?}");
+
+    let (port, fake) = fake_rig_logged(Misbehaviour::AcksStopButDrives);
+    let stderr = rig_fails(&port, dir.path(), SHORT_SWEEP, Duration::from_secs(60));
+    assert!(stderr.contains("`stop` failed 3 times"), "{stderr}");
+    assert!(
+        stderr.contains("yet the status says dwell at 0.890 mm, 3.0000 Hz"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("the drive may still run"), "{stderr}");
+    std::thread::sleep(Duration::from_millis(200));
+    let log = fake.lock().unwrap().log.clone();
+    assert_eq!(log.iter().filter(|l| *l == "stop").count(), 3, "{log:?}");
+}
+
+/// `rig send` prints a reply only once it has been read and found of its line's kind: a
+/// status with NaN and infinity, or `ok` in answer to `status`, is an error naming the field or
+/// the kind, with nothing printed; `--raw` prints what came.
+#[test]
+fn send_checks_what_it_prints() {
+    let dir = tempfile::tempdir().unwrap();
+    for (bad, says) in [
+        (Misbehaviour::NanStatus, "freq_hz"),
+        (
+            Misbehaviour::OkToStatus,
+            "the reply to `status` is of another kind: `ok`",
+        ),
+    ] {
+        let port = fake_rig(bad);
+        let out = Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
+            .current_dir(dir.path())
+            .arg("rig")
+            .arg("--port")
+            .arg(&port)
+            .args(["send", "status"])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{bad:?}: exit 0");
+        assert!(out.stdout.is_empty(), "{bad:?}: printed {:?}", out.stdout);
+        assert!(stderr.contains(says), "{bad:?}: {stderr}");
+        assert!(stderr.contains("`--raw` prints it unchecked"), "{stderr}");
+    }
+    let port = fake_rig(Misbehaviour::NanStatus);
+    let out = Command::new(assert_cmd::cargo::cargo_bin("host-sim"))
+        .arg("rig")
+        .arg("--port")
+        .arg(&port)
+        .args(["send", "--raw", "status"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("freq_hz=NaN amp_mm=inf"));
+}
+
+/// A wait reads what has arrived before it names a silence: telemetry the rig sent while no wait
+/// ran is handed out by a zero wait (what `rig console --telemetry` polls with, and what a wait
+/// resumed past its deadline finds).
+#[test]
+fn a_zero_wait_reads_what_has_arrived() {
+    use host_sim::rig_link::{LinkOptions, RigPort};
+    let path = fake_rig(Misbehaviour::Behaves);
+    let mut port = RigPort::open(&path, LinkOptions::with_timeout(Duration::from_secs(2))).unwrap();
+    port.command(shared::control::Command::Stream(true))
+        .unwrap();
+    // The fake streams a line every 20 ms: a few have arrived by now.
+    std::thread::sleep(Duration::from_millis(300));
+    let first = port.next_record(Duration::ZERO).unwrap();
+    assert!(first.is_some(), "a zero wait missed what had arrived");
+    let second = port.next_record(Duration::ZERO).unwrap().unwrap();
+    assert_eq!(second.seq, first.unwrap().seq + 1);
 }

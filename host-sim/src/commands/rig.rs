@@ -7,19 +7,19 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
-use shared::console::Token;
+use shared::console::{Answer, Token};
 use shared::control::{Command, ModelStatus};
 
 use crate::figures::response::{MEAN_PEAK_FORCE, ResponsePoint, response};
 use crate::figures::rig_log;
-use crate::output::{Outputs, distinct_files, given, write_csv};
+use crate::output::{Outputs, distinct_files, given, write_csv, write_whole};
 use crate::rig_link::capture::{capture, write_trace};
 use crate::rig_link::log::{Log, record};
 use crate::rig_link::sweep::{SweepEnd, check};
 use crate::rig_link::sweep::{
     SweepOutcome, SweepPoint, SweepSpec, parse_range, partial_path, sweep,
 };
-use crate::rig_link::{DEFAULT_LINK_TIMEOUT_S, LinkOptions, RigPort};
+use crate::rig_link::{DEFAULT_LINK_TIMEOUT_S, LinkOptions, RigPort, check_reply};
 use crate::virtual_rig::CycleRow;
 use crate::virtual_rig::scenario::Scenario;
 
@@ -74,6 +74,10 @@ pub struct SendArgs {
     /// Console lines, sent in order (quote lines with spaces: "gap 0.5").
     #[arg(required = true, value_name = "LINE")]
     pub lines: Vec<String>,
+    /// Print each reply as it came, unchecked (otherwise a reply that does not read, or is of
+    /// another kind than its line gets, is an error naming the field).
+    #[arg(long)]
+    pub raw: bool,
 }
 
 /// `rig console`.
@@ -149,6 +153,19 @@ pub struct SweepArgs {
 /// # Errors
 /// Bad arguments, a link failure, a refused command, a sweep ended early, an interruption.
 pub fn run(a: &RigArgs) -> Result<()> {
+    check_link(a)?;
+    match &a.what {
+        RigCommand::Send(s) => send(a, s),
+        RigCommand::Console(c) => console(a, c),
+        RigCommand::Run(r) => run_commands(a, r),
+        RigCommand::Log(l) => log(a, l),
+        RigCommand::Capture(c) => capture_drop(a, c),
+        RigCommand::Sweep(s) => measure_sweep(a, s),
+    }
+}
+
+/// The link's flags, checked before anything else.
+fn check_link(a: &RigArgs) -> Result<()> {
     ensure!(
         a.timeout_s.is_finite() && (0.1..=60.0).contains(&a.timeout_s),
         "--timeout-s = {} is out of range: allowed 0.1 ..= 60",
@@ -165,53 +182,11 @@ pub fn run(a: &RigArgs) -> Result<()> {
         "--link-timeout-s = {} is out of range: allowed 0 (off) or 1 ..= 3600",
         a.link_timeout_s
     );
-    // Check the subcommand's own arguments before touching the rig.
-    let port = [("--port", a.port.as_path())];
-    let outputs = |out: &Path, plot: Option<&Path>| {
-        distinct_files(&port, &given(&[("--out", Some(out)), ("--plot", plot)]))
-    };
-    match &a.what {
-        RigCommand::Log(l) => {
-            outputs(&l.out, l.plot.as_deref())?;
-            ensure!(
-                l.seconds.is_finite() && l.seconds > 0.0 && l.seconds <= 86_400.0,
-                "--seconds = {} is out of range: allowed (0, 86400]",
-                l.seconds
-            );
-        }
-        RigCommand::Sweep(s) => {
-            outputs(&s.out, s.plot.as_deref())?;
-            crate::rig_link::sweep::check_cycles(s.dwell_cycles, s.settle_cycles)?;
-        }
-        RigCommand::Send(s) => {
-            // Every line is one request, or none is sent.
-            for line in &s.lines {
-                crate::rig_link::request_line(line)?;
-            }
-        }
-        RigCommand::Capture(c) => {
-            distinct_files(&port, &[("--out", c.out.as_path())])?;
-            ensure!(
-                c.level_n.is_finite() && (0.1..=100.0).contains(&c.level_n),
-                "--level-n = {} is out of range: allowed 0.1 ..= 100",
-                c.level_n
-            );
-            ensure!(
-                c.seconds.is_finite() && (0.01..=60.0).contains(&c.seconds),
-                "--seconds = {} is out of range: allowed 0.01 ..= 60",
-                c.seconds
-            );
-        }
-        _ => {}
-    }
-    let scenario = match &a.what {
-        RigCommand::Run(r) => Some(scenario_commands(&r.scenario)?),
-        _ => None,
-    };
-    let freqs = match &a.what {
-        RigCommand::Sweep(s) => Some(parse_range(&s.freq_hz)?),
-        _ => None,
-    };
+    Ok(())
+}
+
+/// The port, connected, with its drive guard armed.
+fn connect(a: &RigArgs) -> Result<RigPort> {
     let opts = LinkOptions {
         baud: a.baud,
         timeout: Duration::from_secs_f64(a.timeout_s),
@@ -219,142 +194,224 @@ pub fn run(a: &RigArgs) -> Result<()> {
     };
     let mut port = RigPort::open(&a.port, opts)?;
     port.guard_drive();
-    let quiet = Duration::from_secs_f64((5.0f64).max(3.0 * a.timeout_s));
-    match &a.what {
-        RigCommand::Send(s) => {
-            for line in &s.lines {
-                let reply = port.send_line(line)?;
-                println!("{reply}");
-                if reply.starts_with("error:") {
-                    // A refusal is the rig's answer, not a failure of the link: the drive
-                    // stays as the lines left it.
-                    port.release_drive();
-                    bail!("the rig refused `{line}`");
-                }
-            }
-        }
-        RigCommand::Console(c) => console(&mut port, c.telemetry)?,
-        RigCommand::Run(_) => run_scenario(&mut port, scenario.unwrap_or_default())?,
-        RigCommand::Log(l) => {
-            let mut outputs = Outputs::new();
-            let csv = outputs.reserve(&l.out)?;
-            let png = l.plot.as_ref().map(|p| outputs.reserve(p)).transpose()?;
-            // The model's target and band, for the figure (as the status says them now).
-            let model = match port.status()?.model {
-                ModelStatus::Ready(t) => Some(t),
-                ModelStatus::Pending | ModelStatus::Failed => None,
-            };
-            let log = record(&mut port, l.seconds, quiet)?;
-            println!(
-                "{} cycles over {:.1} s of rig time; {} telemetry/event lines received, {} lost, {} duplicated, {} that did not read",
-                log.rows.len(),
-                log.rows.last().map_or(0.0, |r| r.t_s) - log.rows.first().map_or(0.0, |r| r.t_s),
-                log.seq.received,
-                log.seq.lost,
-                log.seq.duplicates,
-                port.garbled()
-            );
-            for e in &log.events {
-                println!("{}", e.text);
-            }
-            write_csv(&csv, &log.rows)?;
-            if let Some(p) = &png {
-                let id = port.id();
-                let title = format!(
-                    "rig log: {} ({} board, firmware {}), gap {:.2} mm",
-                    id.rig,
-                    id.board.token(),
-                    id.firmware,
-                    id.gap_mm
-                );
-                rig_log::draw(
-                    p,
-                    &title,
-                    &figure_rows(&log),
-                    model.as_ref(),
-                    f64::from(id.force_limit_n),
-                )?;
-            }
-            outputs.commit()?;
-        }
-        RigCommand::Capture(c) => {
-            let mut outputs = Outputs::new();
-            let tmp = outputs.reserve(&c.out)?;
-            let mut last = usize::MAX;
-            let trace = capture(&mut port, c.level_n, c.seconds, quiet, |n| {
-                if n != last {
-                    eprintln!("capture: {n} segments");
-                    last = n;
-                }
-            })?;
-            write_trace(&tmp, &trace, port.id_line(), c.level_n)?;
-            outputs.commit()?;
-            println!(
-                "wrote {}: {} segments, {} samples at {} Hz",
-                c.out.display(),
-                trace.segments,
-                trace.t_s.len(),
-                port.id().capture_rate_hz
-            );
-        }
-        RigCommand::Sweep(s) => {
-            let spec = SweepSpec {
-                freqs_hz: freqs.unwrap_or_default(),
-                dwell_cycles: s.dwell_cycles,
-                settle_cycles: s.settle_cycles,
-                quiet,
-            };
-            check(&mut port, &spec)?;
-            let n = spec.freqs_hz.len();
-            let outcome = sweep(&mut port, &spec, |p| {
-                println!(
-                    "{:8.4} Hz  F_i/mg {:7.2}  regime {:>9}  ({} of {} cycles impacted)",
-                    p.freq_hz, p.impact_force_mg, p.regime, p.impact_cycles, p.cycles
-                );
-            });
-            match outcome {
-                SweepOutcome::Complete(points) => {
-                    write_sweep(&s.out, s.plot.as_deref(), &points, &port, None)?;
-                }
-                SweepOutcome::Ended { points, at_hz, why } => {
-                    let partial = partial_path(&s.out);
-                    let (cause, error) = match why {
-                        SweepEnd::Fault(f) => {
-                            // The rig ramps its drive to zero itself.
-                            port.release_drive();
-                            (
-                                format!(
-                                    "the fault `{}` (the rig ramps the drive to zero)",
-                                    f.token()
-                                ),
-                                None,
-                            )
-                        }
-                        SweepEnd::Failed(e) => (format!("{e:#}"), Some(e)),
-                    };
-                    let note = format!(
-                        "partial sweep: ended by {cause} at {at_hz} Hz; {} of {n} points",
-                        points.len()
-                    );
-                    // A file of no points would be a record of nothing (not even a header).
-                    let written = if points.is_empty() {
-                        "no point was measured: nothing written".to_string()
-                    } else {
-                        write_sweep(&partial, None, &points, &port, Some(&note))?;
-                        format!("the points so far are in {}", partial.display())
-                    };
-                    return Err(match error {
-                        // An interruption keeps its kind (exit status 130).
-                        Some(e) if e.is::<crate::interrupt::Interrupted>() => e.context(written),
-                        // The guard stops the drive on the way out and says how that went.
-                        _ => anyhow::anyhow!("{note}; {written}"),
-                    });
-                }
-            }
+    Ok(port)
+}
+
+/// The longest wait for the next telemetry line.
+fn quiet(a: &RigArgs) -> Duration {
+    Duration::from_secs_f64((5.0f64).max(3.0 * a.timeout_s))
+}
+
+/// Output files that must differ from the port and from each other.
+fn check_outputs(a: &RigArgs, out: &Path, plot: Option<&Path>) -> Result<()> {
+    distinct_files(
+        &[("--port", a.port.as_path())],
+        &given(&[("--out", Some(out)), ("--plot", plot)]),
+    )
+}
+
+/// `rig send`: every reply checked ([`RigPort::send_checked`]) before it is printed, unless
+/// `--raw`.
+fn send(a: &RigArgs, s: &SendArgs) -> Result<()> {
+    // Every line is one request, or none is sent.
+    for line in &s.lines {
+        crate::rig_link::request_line(line)?;
+    }
+    let mut port = connect(a)?;
+    for line in &s.lines {
+        let refused = if s.raw {
+            let reply = port.send_line(line)?;
+            println!("{reply}");
+            reply.starts_with("error:")
+        } else {
+            let (reply, answer) = port
+                .send_checked(line)
+                .context("the reply is not printed (`--raw` prints it unchecked)")?;
+            println!("{reply}");
+            matches!(answer, Answer::Error(_))
+        };
+        if refused {
+            // A refusal is the rig's answer, not a failure of the link: the drive stays as
+            // the lines left it.
+            port.release_drive();
+            bail!("the rig refused `{line}`");
         }
     }
     port.release_drive();
     Ok(())
+}
+
+/// `rig run`: the scenario's commands at their rig times.
+fn run_commands(a: &RigArgs, r: &RunArgs) -> Result<()> {
+    let commands = scenario_commands(&r.scenario)?;
+    let mut port = connect(a)?;
+    run_scenario(&mut port, commands)?;
+    port.release_drive();
+    Ok(())
+}
+
+/// `rig log`: records, then writes its files (created only then: a run killed while it
+/// records leaves none).
+fn log(a: &RigArgs, l: &LogArgs) -> Result<()> {
+    check_outputs(a, &l.out, l.plot.as_deref())?;
+    ensure!(
+        l.seconds.is_finite() && l.seconds > 0.0 && l.seconds <= 86_400.0,
+        "--seconds = {} is out of range: allowed (0, 86400]",
+        l.seconds
+    );
+    let mut port = connect(a)?;
+    // The model's target and band, for the figure (as the status says them now).
+    let model = match port.status()?.model {
+        ModelStatus::Ready(t) => Some(t),
+        ModelStatus::Pending | ModelStatus::Failed => None,
+    };
+    eprintln!(
+        "recording {} s of rig time (the files are written at the end; Ctrl-C ends it \
+         without them)",
+        l.seconds
+    );
+    let log = record(&mut port, l.seconds, quiet(a))?;
+    println!(
+        "{} cycles over {:.1} s of rig time; {} telemetry/event lines received, {} lost, {} duplicated, {} that did not read",
+        log.rows.len(),
+        log.rows.last().map_or(0.0, |r| r.t_s) - log.rows.first().map_or(0.0, |r| r.t_s),
+        log.seq.received,
+        log.seq.lost,
+        log.seq.duplicates,
+        port.garbled()
+    );
+    for e in &log.events {
+        println!("{}", e.text);
+    }
+    let mut outputs = Outputs::new();
+    let csv = outputs.reserve(&l.out)?;
+    let png = l.plot.as_ref().map(|p| outputs.reserve(p)).transpose()?;
+    write_csv(&csv, &log.rows)?;
+    if let Some(p) = &png {
+        let id = port.id();
+        let title = format!(
+            "rig log: {} ({} board, firmware {}), gap {:.2} mm",
+            id.rig,
+            id.board.token(),
+            id.firmware,
+            id.gap_mm
+        );
+        rig_log::draw(
+            p,
+            &title,
+            &figure_rows(&log),
+            model.as_ref(),
+            f64::from(id.force_limit_n),
+        )?;
+    }
+    outputs.commit()?;
+    port.release_drive();
+    Ok(())
+}
+
+/// `rig capture`: a drop test's force trace, written once recorded.
+fn capture_drop(a: &RigArgs, c: &CaptureArgs) -> Result<()> {
+    distinct_files(
+        &[("--port", a.port.as_path())],
+        &[("--out", c.out.as_path())],
+    )?;
+    ensure!(
+        c.level_n.is_finite() && (0.1..=100.0).contains(&c.level_n),
+        "--level-n = {} is out of range: allowed 0.1 ..= 100",
+        c.level_n
+    );
+    ensure!(
+        c.seconds.is_finite() && (0.01..=60.0).contains(&c.seconds),
+        "--seconds = {} is out of range: allowed 0.01 ..= 60",
+        c.seconds
+    );
+    let mut port = connect(a)?;
+    let mut last = usize::MAX;
+    let trace = capture(&mut port, c.level_n, c.seconds, quiet(a), |n| {
+        if n != last {
+            eprintln!("capture: {n} segments");
+            last = n;
+        }
+    })?;
+    write_whole(&c.out, |tmp| {
+        write_trace(tmp, &trace, port.id_line(), c.level_n)
+    })?;
+    println!(
+        "wrote {}: {} segments, {} samples at {} Hz",
+        c.out.display(),
+        trace.segments,
+        trace.t_s.len(),
+        port.id().capture_rate_hz
+    );
+    port.release_drive();
+    Ok(())
+}
+
+/// `rig sweep`: the measured frequency response; a sweep that ends early writes what it
+/// measured to the partial file, with the cause and the state the rig reported.
+fn measure_sweep(a: &RigArgs, s: &SweepArgs) -> Result<()> {
+    check_outputs(a, &s.out, s.plot.as_deref())?;
+    crate::rig_link::sweep::check_cycles(s.dwell_cycles, s.settle_cycles)?;
+    let spec = SweepSpec {
+        freqs_hz: parse_range(&s.freq_hz)?,
+        dwell_cycles: s.dwell_cycles,
+        settle_cycles: s.settle_cycles,
+        quiet: quiet(a),
+    };
+    let mut port = connect(a)?;
+    check(&mut port, &spec)?;
+    let n = spec.freqs_hz.len();
+    let outcome = sweep(&mut port, &spec, |p| {
+        println!(
+            "{:8.4} Hz  F_i/mg {:7.2}  regime {:>9}  ({} of {} cycles impacted)",
+            p.freq_hz, p.impact_force_mg, p.regime, p.impact_cycles, p.cycles
+        );
+    });
+    let (points, at_hz, why) = match outcome {
+        SweepOutcome::Complete(points) => {
+            write_sweep(&s.out, s.plot.as_deref(), &points, &port, None)?;
+            port.release_drive();
+            return Ok(());
+        }
+        SweepOutcome::Ended { points, at_hz, why } => (points, at_hz, why),
+    };
+    let partial = partial_path(&s.out);
+    let (cause, error, drive) = match why {
+        SweepEnd::Fault(f) => {
+            // The rig ramps its drive to zero itself.
+            port.release_drive();
+            (
+                format!("the fault `{}`", f.token()),
+                None,
+                "the rig ramps its drive to zero itself".to_string(),
+            )
+        }
+        // The guard's stop now, so that the file says what the rig reported.
+        SweepEnd::Failed(e) => (
+            format!("{e:#}"),
+            Some(e),
+            match port.stop_now() {
+                Ok(state) => state,
+                Err(why) => why,
+            },
+        ),
+    };
+    let note = format!(
+        "partial sweep: ended by {cause} at {at_hz} Hz; {} of {n} points; {drive}",
+        points.len()
+    );
+    // A file of no points would be a record of nothing (not even a header).
+    let written = if points.is_empty() {
+        "no point was measured: nothing written".to_string()
+    } else {
+        write_sweep(&partial, None, &points, &port, Some(&note))?;
+        format!("the points so far are in {}", partial.display())
+    };
+    Err(match error {
+        // An interruption keeps its kind (exit status 130).
+        Some(e) if e.is::<crate::interrupt::Interrupted>() => e.context(written),
+        _ => anyhow::anyhow!("{note}; {written}"),
+    })
 }
 
 fn write_sweep(
@@ -450,17 +507,26 @@ fn run_scenario(port: &mut RigPort, commands: Vec<(f64, String)>) -> Result<()> 
             std::thread::sleep(Duration::from_secs_f64(((at - t) / 4.0).clamp(0.002, 0.05)));
         }
         let t = port.uptime_s()? - t0;
-        let reply = port.send_line(&line)?;
+        let (reply, answer) = port.send_checked(&line)?;
         println!("[{t:8.3} s] > {line}\n             {reply}");
         ensure!(
-            !reply.starts_with("error:"),
+            !matches!(answer, Answer::Error(_)),
             "the rig refused `{line}` at {t:.3} s: the scenario ends there"
         );
     }
     Ok(())
 }
 
-fn console(port: &mut RigPort, telemetry: bool) -> Result<()> {
+/// `rig console`: lines from stdin, each reply checked before it is printed (a reply that
+/// fails the check is said on stderr and the console goes on).
+fn console(a: &RigArgs, c: &ConsoleArgs) -> Result<()> {
+    let mut port = connect(a)?;
+    console_lines(&mut port, c.telemetry)?;
+    port.release_drive();
+    Ok(())
+}
+
+fn console_lines(port: &mut RigPort, telemetry: bool) -> Result<()> {
     let (tx, rx) = std::sync::mpsc::channel::<Option<String>>();
     std::thread::spawn(move || {
         let stdin = std::io::stdin();
@@ -497,7 +563,13 @@ fn console(port: &mut RigPort, telemetry: bool) -> Result<()> {
                     println!("error: {e}");
                     continue;
                 }
-                println!("{}", port.send_line(&line)?);
+                // The link failing ends the console; a reply that fails its check is said
+                // instead of printed, and the operator goes on.
+                let reply = port.send_line(&line)?;
+                match check_reply(&line, &reply) {
+                    Ok(_) => println!("{reply}"),
+                    Err(e) => eprintln!("error: {e:#}"),
+                }
             }
             Ok(None) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}

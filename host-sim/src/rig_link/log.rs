@@ -93,12 +93,7 @@ pub fn record(port: &mut RigPort, seconds: f64, quiet: Duration) -> Result<Log> 
                 limit.as_secs_f64()
             );
         }
-        let Some(rec) = port.next_record(quiet)? else {
-            bail!(
-                "no telemetry for {:.1} s after `stream on` (the rig stopped sending)",
-                quiet.as_secs_f64()
-            );
-        };
+        let rec = port.expect_record(quiet, "after `stream on`")?;
         if progress.elapsed() > quiet {
             bail!(
                 "no new telemetry for {:.1} s (only duplicates, or a clock that does not advance)",

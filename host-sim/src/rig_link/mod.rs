@@ -14,10 +14,20 @@
 //!   caller derives from what it waits for), and every wait ends early on Ctrl-C, SIGTERM or
 //!   SIGHUP ([`crate::interrupt`]).
 //! - **The drive is never left on by a failure.** [`RigPort::guard_drive`] arms a guard: when
-//!   the port is dropped while armed (an error, an interruption, a panic), it sends `stop`, waits
-//!   for the reply (bounded) and prints the outcome. On top, the rig's own link-loss watchdog
-//!   (`link-timeout`, armed at connection, fed by keep-alive empty lines) stops the drive if this
-//!   program dies without a word.
+//!   the port is dropped while armed (an error, an interruption, a panic), it sends `stop` and
+//!   reads the status after it, through noise and echoes, until the status shows the drive
+//!   stopping (bounded), and prints the state the rig reported. A command that set manual
+//!   frequencies ([`RigPort::retune_on_close`]) hands the next `start` back to the model's
+//!   target (`tune`) on the way out. On top, the rig's own link-loss watchdog (`link-timeout`,
+//!   armed at connection, fed by keep-alive empty lines) stops the drive if this program dies
+//!   without a word.
+//! - **A known console state at connection**, whatever a terminal session left: a line end
+//!   first (ending a half-typed line), then `id` until a reply comes. The rig never echoes a
+//!   tagged line, and an echo of a request is never taken for its reply (no reply is the text
+//!   of a request), so a console left with `echo on` does not matter.
+//! - **Causes as they happened**: a wait reads what has arrived before it names a silence, and
+//!   time this program spent stopped (SIGSTOP and SIGCONT, a suspended laptop) does not count
+//!   against its bound: after it resumes, the rig's own lines say what it did meanwhile.
 //! - **Values checked at the edge**: replies and records are parsed by `shared::console`, which
 //!   refuses non-finite and out-of-range numbers; a line that does not read is reported on stderr
 //!   (escaped, at most [`SHOWN_GARBLED`] of them shown, all counted) and skipped.
@@ -30,7 +40,7 @@ use std::io::{ErrorKind, Read, Write};
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, TryRecvError, channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -38,7 +48,7 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use shared::capture::{CaptureCommand, CaptureStatus, SegmentView};
 use shared::console::serve::split_tag;
 use shared::console::{Answer, AnswerError, DiagInfo, IdInfo, Request, WireError};
-use shared::control::{AsyncRecord, Command, Reply, Status};
+use shared::control::{AsyncRecord, Command, Reply, State, Status};
 
 use crate::interrupt;
 
@@ -53,6 +63,18 @@ const MAX_PENDING_BYTES: usize = 1 << 16;
 pub const STOP_ATTEMPTS: u32 = 3;
 /// Granularity of every wait (how soon Ctrl-C is seen).
 const POLL: Duration = Duration::from_millis(50);
+/// A pause between two looks of a waiting loop (which looks every [`POLL`]) longer than this is
+/// this program having been stopped (SIGSTOP, a suspended laptop): not time spent waiting.
+const FROZEN: Duration = Duration::from_secs(1);
+
+/// A wait's end: an instant, moved on by the time this program was found stopped since it was
+/// set ([`FROZEN`]), which the wait did not spend listening.
+#[derive(Debug, Clone, Copy)]
+struct Deadline {
+    at: Instant,
+    /// [`RigPort`]'s stopped time when the deadline was set.
+    frozen: Duration,
+}
 
 /// What the reader thread hands over.
 enum Incoming {
@@ -171,6 +193,12 @@ pub struct RigPort {
     leave_link_timeout_s: f32,
     /// Whether the operator turned telemetry on (`rig send stream on`): then it stays on.
     leave_streaming: bool,
+    /// Send `tune` when the port closes ([`RigPort::retune_on_close`]).
+    retune: bool,
+    /// [`RigPort::stop_now`] could not stop the drive: the watchdog stays armed at the close.
+    stop_failed: bool,
+    /// Time this program was found stopped while waiting, in all ([`Deadline`]).
+    frozen: Duration,
 }
 
 impl RigPort {
@@ -222,6 +250,9 @@ impl RigPort {
             closed: None,
             leave_link_timeout_s: 0.0,
             leave_streaming: false,
+            retune: false,
+            stop_failed: false,
+            frozen: Duration::ZERO,
         };
         rig.sync()?;
         if opts.link_timeout_s > 0.0 {
@@ -234,6 +265,9 @@ impl RigPort {
     /// until a reply to one of them comes, then one `diag`, whose reply comes after any late
     /// replies to the other `id`s: from then on every reply answers its own line.
     fn sync(&mut self) -> Result<()> {
+        // A line end first: a line an operator's terminal session left half typed ends here
+        // (the rig refuses it, untagged), instead of spoiling the first `id`.
+        self.write("")?;
         let deadline = Instant::now() + self.opts.timeout;
         let first = self.next_tag;
         let mut next_send = Instant::now();
@@ -246,7 +280,13 @@ impl RigPort {
                 self.write(&format!("#{tag} id"))?;
                 next_send = Instant::now() + Duration::from_secs(1);
             }
-            match self.recv(deadline.min(next_send), true)? {
+            let wait = Deadline {
+                at: deadline.min(next_send),
+                frozen: self.frozen,
+            };
+            match self.recv(wait, true)? {
+                // The echo of an `id` (a rig that echoes tagged lines), not its reply.
+                Some(Incoming::Reply { tag: Some(_), text }) if text == "id" => {}
                 Some(Incoming::Reply { tag: Some(t), text })
                     if (first..self.next_tag).contains(&t) =>
                 {
@@ -282,10 +322,10 @@ impl RigPort {
         }
         let tag = self.take_tag();
         self.write(&format!("#{tag} diag"))?;
-        let deadline = Instant::now() + self.opts.timeout;
+        let deadline = self.deadline(self.opts.timeout);
         loop {
             match self.recv(deadline, true)? {
-                Some(Incoming::Reply { tag: Some(t), text }) if t == tag => {
+                Some(Incoming::Reply { tag: Some(t), text }) if t == tag && text != "diag" => {
                     // The watchdog as the operator left it, to leave it so again.
                     if let Ok(Answer::Diag(d)) = text.parse::<Answer>() {
                         self.leave_link_timeout_s = d.link_timeout_ms as f32 / 1e3;
@@ -350,19 +390,44 @@ impl RigPort {
         Ok(())
     }
 
-    /// The next incoming item before `deadline` (`None` at the deadline), keeping the link
-    /// alive; ends early on an interruption unless `ignore_interrupt`.
-    fn recv(&mut self, deadline: Instant, ignore_interrupt: bool) -> Result<Option<Incoming>> {
+    /// A wait's end `after` from now (see [`Deadline`]).
+    fn deadline(&self, after: Duration) -> Deadline {
+        Deadline {
+            at: Instant::now() + after,
+            frozen: self.frozen,
+        }
+    }
+
+    /// The next incoming item before `deadline` (`None` after it), keeping the link alive;
+    /// ends early on an interruption unless `ignore_interrupt`. What had already arrived when
+    /// the deadline passes is still read (a zero wait reads what is queued). Time this program
+    /// was found stopped while waiting ([`FROZEN`]) moves every pending deadline on by as much:
+    /// after SIGSTOP and SIGCONT the lines the rig kept sending wait in the port, and they, not
+    /// a silence, say what happened.
+    fn recv(&mut self, deadline: Deadline, ignore_interrupt: bool) -> Result<Option<Incoming>> {
+        let mut last = Instant::now();
         loop {
             if !ignore_interrupt {
                 interrupt::check()?;
             }
             self.keep_alive()?;
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                return Ok(None);
+            let now = Instant::now();
+            let away = now.saturating_duration_since(last);
+            if away > FROZEN {
+                self.frozen += away;
             }
-            match self.incoming.recv_timeout(left.min(POLL)) {
+            last = now;
+            let end = deadline.at + self.frozen.saturating_sub(deadline.frozen);
+            let got = if now >= end {
+                match self.incoming.try_recv() {
+                    Ok(i) => Ok(i),
+                    Err(TryRecvError::Empty) => return Ok(None),
+                    Err(TryRecvError::Disconnected) => Err(RecvTimeoutError::Disconnected),
+                }
+            } else {
+                self.incoming.recv_timeout((end - now).min(POLL))
+            };
+            match got {
                 Ok(Incoming::Closed(why)) => {
                     self.closed = Some(why.clone());
                     return Ok(Some(Incoming::Closed(why)));
@@ -392,7 +457,7 @@ impl RigPort {
     fn exchange(&mut self, line: &str, lenient: bool) -> Result<String> {
         let sent = self.take_tag();
         self.write(&format!("#{sent} {line}"))?;
-        let deadline = Instant::now() + self.opts.timeout;
+        let deadline = self.deadline(self.opts.timeout);
         let result = self.await_reply(sent, line, deadline, lenient);
         if result.is_err() {
             // Its reply may still come: it must not be taken for another line's.
@@ -408,7 +473,7 @@ impl RigPort {
         &mut self,
         sent: u32,
         line: &str,
-        deadline: Instant,
+        deadline: Deadline,
         lenient: bool,
     ) -> Result<String> {
         loop {
@@ -416,6 +481,9 @@ impl RigPort {
                 Some(Incoming::Reply { tag: Some(t), .. })
                     if t != sent && (lenient || self.abandoned.contains(&t)) => {}
                 Some(Incoming::Record(r)) => self.records.push_back(r),
+                // The echo of the request (a rig that echoes tagged lines): no reply is ever
+                // the text of a request (`shared`'s protocol tests).
+                Some(Incoming::Reply { tag: Some(t), text }) if t == sent && text == line => {}
                 Some(Incoming::Reply { tag: Some(t), text }) if t == sent => return Ok(text),
                 Some(Incoming::Reply { tag: None, text })
                     if matches!(
@@ -428,6 +496,8 @@ impl RigPort {
                         text.trim_start_matches("error: ")
                     )
                 }
+                // The drive guard's last words get through noise: only their own reply counts.
+                Some(Incoming::Reply { tag: None, .. }) if lenient => {}
                 Some(Incoming::Reply { tag, text }) => bail!(
                     "link error: `{}` arrived while `#{sent} {line}` waited for its reply (the rig and this client disagree on the conversation)",
                     escaped(&match tag {
@@ -458,6 +528,40 @@ impl RigPort {
         let reply = self.exchange(line, false)?;
         self.operator_set(line, &reply);
         Ok(reply)
+    }
+
+    /// Sends a console line as the operator typed it ([`RigPort::send_line`]) and checks its
+    /// reply as every other command's ([`check_reply`]). `rig send` and `rig run` print only
+    /// replies that passed.
+    ///
+    /// # Errors
+    /// As [`RigPort::send_line`] and [`check_reply`].
+    pub fn send_checked(&mut self, line: &str) -> Result<(String, Answer)> {
+        let reply = self.send_line(line)?;
+        let answer = check_reply(line, &reply)?;
+        Ok((reply, answer))
+    }
+
+    /// The next asynchronous record within `quiet`, or an error that says which silence it
+    /// was: nothing came, or only lines that did not read (each shown or counted as it came).
+    /// `during` ends the message (`at 3.4 Hz`, `after \`stream on\``).
+    ///
+    /// # Errors
+    /// No record within `quiet`; as [`RigPort::next_record`].
+    pub fn expect_record(&mut self, quiet: Duration, during: &str) -> Result<AsyncRecord> {
+        let garbled = self.garbled();
+        if let Some(r) = self.next_record(quiet)? {
+            return Ok(r);
+        }
+        let q = quiet.as_secs_f64();
+        match self.garbled() - garbled {
+            0 => bail!("no telemetry for {q:.1} s {during}: nothing came from the rig"),
+            n => bail!(
+                "no telemetry that reads for {q:.1} s {during}: {n} {} came that did not read \
+                 (see the warnings above)",
+                if n == 1 { "line" } else { "lines" }
+            ),
+        }
     }
 
     /// Takes note of a setting the operator made with a line of their own (`link-timeout`,
@@ -499,7 +603,7 @@ impl RigPort {
         self.write(text.trim_end_matches('\n'))?;
         let mut out = Vec::new();
         for (line, &tag) in lines.iter().zip(&tags) {
-            let deadline = Instant::now() + self.opts.timeout;
+            let deadline = self.deadline(self.opts.timeout);
             let reply = self.await_reply(tag, line, deadline, false)?;
             self.operator_set(line, &reply);
             out.push(reply);
@@ -524,7 +628,7 @@ impl RigPort {
         self.writer
             .write_all(&line)
             .and_then(|()| self.writer.flush())?;
-        let deadline = Instant::now() + self.opts.timeout;
+        let deadline = self.deadline(self.opts.timeout);
         loop {
             match self.recv(deadline, false)? {
                 Some(Incoming::Record(r)) => self.records.push_back(r),
@@ -655,7 +759,7 @@ impl RigPort {
         if let Some(r) = self.records.pop_front() {
             return Ok(Some(r));
         }
-        let deadline = Instant::now() + wait;
+        let deadline = self.deadline(wait);
         loop {
             return match self.recv(deadline, false)? {
                 None => Ok(None),
@@ -738,54 +842,147 @@ impl RigPort {
         why
     }
 
-    /// Stops the drive (the guard's action): sends `stop` (again, up to [`STOP_ATTEMPTS`]
-    /// times, while its reply does not come or does not read), waits for the status after it,
-    /// ends a capture being armed, and says on stderr what happened. Whether the rig accepted
-    /// `stop`.
-    fn stop_drive(&mut self) -> bool {
-        let mut accepted = None;
-        let mut last_error = String::new();
+    /// Stops the drive (the guard's action) and says on stderr what the rig reported: sends
+    /// `stop` and reads the status after it, and judges by the state the status gives (idle,
+    /// stopping, or a fault, which ramps the drive down itself), not by the first line that
+    /// comes: noise, echoes and replies to other lines are skipped, a `stop` the rig could not
+    /// read or did not answer is sent again, and so is one the rig acknowledged while its status
+    /// still says it drives, up to [`STOP_ATTEMPTS`] times in all (each read bounded by the reply
+    /// timeout). Ends a capture being armed. Whether the rig reported its drive stopping.
+    fn stop_drive(&mut self) -> std::result::Result<String, String> {
+        let mut last = String::new();
         for _ in 0..STOP_ATTEMPTS {
             match self.exchange("stop", true) {
-                Ok(reply) if matches!(reply.parse::<Answer>(), Ok(Answer::Reply(_))) => {
-                    accepted = Some(reply);
-                    break;
+                Ok(reply) if matches!(reply.parse::<Answer>(), Ok(Answer::Reply(Reply::Ok))) => {}
+                Ok(reply) => {
+                    last = format!("answered `{}`", escaped(&reply));
+                    continue;
                 }
-                Ok(reply) => last_error = format!("answered `{}`", escaped(&reply)),
-                Err(e) => last_error = format!("{e:#}"),
+                Err(e) => {
+                    last = format!("{e:#}");
+                    continue;
+                }
+            }
+            // The state the rig reports now, read again if noise spoils a reading.
+            let mut status = None;
+            for _ in 0..STOP_ATTEMPTS {
+                match self.exchange("status", true).map(|t| t.parse::<Status>()) {
+                    Ok(Ok(s)) => {
+                        status = Some(s);
+                        break;
+                    }
+                    Ok(Err(e)) => {
+                        last = format!("`stop` answered `ok`; the status did not read: {e}")
+                    }
+                    Err(e) => last = format!("`stop` answered `ok`; no status: {e:#}"),
+                }
+            }
+            let Some(s) = status else { continue };
+            match stopping(&s) {
+                Some(state) => {
+                    // A capture being armed ends too (its segments stay readable).
+                    let _ = self.exchange("capture stop", true);
+                    return Ok(state);
+                }
+                None => {
+                    last = format!(
+                        "`stop` answered `ok`, yet the status says {} at {:.3} mm, {:.4} Hz",
+                        shared::console::Token::token(s.state),
+                        s.amplitude_mm,
+                        s.freq_hz
+                    );
+                }
             }
         }
-        let Some(reply) = accepted else {
-            eprintln!(
-                "stopping the drive: `stop` failed {STOP_ATTEMPTS} times (last: {last_error}); \
-                 the drive may still run: the rig's link-loss watchdog (left armed) stops it \
-                 {:.0} s after the last line, or stop it at the rig",
-                self.opts.link_timeout_s
-            );
-            return false;
-        };
-        let state = self
-            .exchange("status", true)
-            .ok()
-            .and_then(|s| s.parse::<Status>().ok())
-            .map_or("the status did not read".to_string(), |s| {
-                format!(
-                    "the rig is {} at {:.3} mm, ramping to 0",
-                    shared::console::Token::token(s.state),
-                    s.amplitude_mm
-                )
-            });
-        eprintln!("stopping the drive: `stop` answered `{reply}`; {state}");
-        // A capture being armed ends too (its segments stay readable).
-        let _ = self.exchange("capture stop", true);
-        true
+        Err(format!(
+            "`stop` failed {STOP_ATTEMPTS} times (last: {last}); the drive may still run: the \
+             rig's link-loss watchdog (left armed) stops it {:.0} s after the last line, or stop \
+             it at the rig",
+            self.opts.link_timeout_s
+        ))
+    }
+
+    /// The drive guard's action now rather than when the port closes: stops the drive as
+    /// [`RigPort::stop_drive`] does, prints the outcome (`stopping the drive: …`) and disarms
+    /// the guard. Returns the outcome: the state the rig reported, or why the stop failed (the
+    /// rig's link-loss watchdog is then left armed when the port closes).
+    pub fn stop_now(&mut self) -> std::result::Result<String, String> {
+        let outcome = self.stop_drive();
+        self.guard = false;
+        self.stop_failed = outcome.is_err();
+        say_stopped(&outcome);
+        outcome
+    }
+
+    /// From now on, closing the port sends `tune` (after the guard's `stop`), handing the next
+    /// `start` back to the model's target: for a command that sets manual frequencies (a
+    /// sweep), whatever ends it. [`RigPort::tuned`] says it was done.
+    pub fn retune_on_close(&mut self) {
+        self.retune = true;
+    }
+
+    /// The model's target is back (`tune` answered): closing the port need not send it.
+    pub fn tuned(&mut self) {
+        self.retune = false;
+    }
+}
+
+/// The guard's line on stderr.
+fn say_stopped(outcome: &std::result::Result<String, String>) {
+    match outcome {
+        Ok(state) => eprintln!("stopping the drive: `stop` answered `ok`; {state}"),
+        Err(why) => eprintln!("stopping the drive: {why}"),
+    }
+}
+
+/// What the guard says of a status after `stop`, if it shows the drive stopping: idle, ramping
+/// down, or in a fault (which ramps the drive to zero itself). `None`: it still drives.
+fn stopping(s: &Status) -> Option<String> {
+    match s.state {
+        State::Idle => Some(format!(
+            "the rig is idle, drive at {:.3} mm",
+            s.amplitude_mm
+        )),
+        State::Stopping => Some(format!(
+            "the rig is stopping, its drive ramping down from {:.3} mm",
+            s.amplitude_mm
+        )),
+        State::Fault if s.amplitude_mm == 0.0 => Some(format!(
+            "the rig is in fault `{}`, its drive at 0.000 mm",
+            s.fault.map_or("?", shared::console::Token::token),
+        )),
+        State::Fault => Some(format!(
+            "the rig is in fault `{}`, its drive ramping down from {:.3} mm",
+            s.fault.map_or("?", shared::console::Token::token),
+            s.amplitude_mm
+        )),
+        State::Ramp | State::Dwell | State::Track => None,
     }
 }
 
 impl Drop for RigPort {
     fn drop(&mut self) {
         if self.closed.is_none() {
-            let stopped = !self.guard || self.stop_drive();
+            let stopped = !self.stop_failed
+                && (!self.guard || {
+                    let outcome = self.stop_drive();
+                    say_stopped(&outcome);
+                    outcome.is_ok()
+                });
+            if self.retune && stopped {
+                match self.exchange("tune", true) {
+                    Ok(r) if matches!(r.parse::<Answer>(), Ok(Answer::Reply(Reply::Ok))) => {}
+                    Ok(r) => eprintln!(
+                        "warning: `tune` answered `{}`: the next `start` may run at the last \
+                         manual frequency; `rig send tune` hands it back to the model's target",
+                        escaped(&r)
+                    ),
+                    Err(e) => eprintln!(
+                        "warning: `tune` failed ({e:#}): the next `start` may run at the last \
+                         manual frequency; `rig send tune` hands it back to the model's target"
+                    ),
+                }
+            }
             // Leave the rig as the operator had it: telemetry off unless they turned it on, the
             // watchdog as it was at the connection or as they set it, but armed whatever it
             // was while a drive this port started may still run.
@@ -836,6 +1033,33 @@ fn read_answer(line: &str, text: &str) -> Result<Answer> {
             escaped(text)
         )
     })
+}
+
+/// Checks the reply `reply` to the operator's `line`: it reads (`shared::console`'s parser
+/// refuses non-finite and out-of-range values, naming the field) and is of the kind the line
+/// gets ([`Answer::answers`]).
+///
+/// # Errors
+/// A reply that does not read; a reply of another kind; a reply other than an error to a line
+/// this client does not read as a request (a firmware of another version).
+pub fn check_reply(line: &str, reply: &str) -> Result<Answer> {
+    let sent = untagged(line.trim());
+    let answer = read_answer(sent, reply)?;
+    match shared::console::parse(sent) {
+        Ok(request) => ensure!(
+            answer.answers(&request),
+            "the reply to `{sent}` is of another kind: `{}` (the rig and this client disagree on \
+             the conversation)",
+            escaped(reply)
+        ),
+        Err(e) => ensure!(
+            matches!(answer, Answer::Error(_)),
+            "the rig answered `{}` to `{sent}`, which this client does not read as a request \
+             ({e}): is the firmware of another version (`id`)?",
+            escaped(reply)
+        ),
+    }
+    Ok(answer)
 }
 
 /// `text` escaped (control characters and non-ASCII shown as escapes) and cut at

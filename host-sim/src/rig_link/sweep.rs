@@ -2,7 +2,9 @@
 //! on the rig: the drive dwells at each frequency (`freq`, inside the rig's safe window), and
 //! after the transient the mean peak impact force (`F_i/mg`) and the measured regime of the
 //! dwell's cycles are recorded. A fault ends the sweep (the rig ramps its drive to zero itself);
-//! so does a failure or an interruption (the port's drive guard stops the drive).
+//! so does a failure or an interruption (the port's drive guard stops the drive). However it
+//! ends, the rig is left as the sweep found it: the drive stopped, and the model's target, not
+//! the sweep's last frequency, for the next `start` (`tune`).
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -13,7 +15,7 @@ use shared::console::Token;
 use shared::control::meter::{METER_CYCLES, RegimeMeter};
 use shared::control::{AsyncKind, Command, CycleTelemetry, Event, Fault, State};
 
-use super::RigPort;
+use super::{Refused, RigPort};
 
 /// What to sweep.
 #[derive(Debug, Clone)]
@@ -201,12 +203,23 @@ fn run(
     let amplitude_mm = id.rig.preset().amplitude_m * 1e3;
     port.drain_records();
     port.command(Command::Stream(true))?;
+    // The sweep's frequencies are manual: whatever ends it, closing the port hands the next
+    // `start` back to the model's target.
+    port.retune_on_close();
     let mut previous: Option<f64> = None;
     for &f in &spec.freqs_hz {
         *at_hz = f;
-        port.command(Command::Freq(f as f32))?;
-        if previous.is_none() {
-            port.command(Command::Start)?;
+        let mut sent = port.command(Command::Freq(f as f32));
+        if previous.is_none() && sent.is_ok() {
+            sent = port.command(Command::Start);
+        }
+        if let Err(e) = sent {
+            // Refused for a fault the telemetry has not shown yet (it tripped while this
+            // program was not listening): the fault ends the sweep, as the rig's status says.
+            return match latched_fault(port, &e)? {
+                Some(fault) => Ok(Some(fault)),
+                None => Err(e),
+            };
         }
         let approach = match previous {
             None => amplitude_mm / f64::from(id.ramp_mm_per_s),
@@ -228,11 +241,28 @@ fn run(
         previous = Some(f);
     }
     port.command(Command::Stop)?;
-    // The sweep's frequencies were manual: `tune` hands the next `start` back to the model's
-    // target (the model is computed again).
+    // `tune` hands the next `start` back to the model's target (computed again).
     port.command(Command::Tune)?;
+    port.tuned();
     port.command(Command::Stream(false))?;
     Ok(None)
+}
+
+/// The fault latched on the rig, if `e` is a refusal for one (`fault latched`, or a `start`
+/// that tripped one).
+fn latched_fault(port: &mut RigPort, e: &anyhow::Error) -> Result<Option<Fault>> {
+    use shared::console::AnswerError;
+    use shared::control::CommandError;
+    let for_fault = e.downcast_ref::<Refused>().is_some_and(|r| {
+        matches!(
+            r.error,
+            AnswerError::Command(CommandError::FaultLatched | CommandError::Tripped(_))
+        )
+    });
+    if !for_fault {
+        return Ok(None);
+    }
+    Ok(port.status()?.fault)
 }
 
 /// Where a sweep that ended early writes what it measured: `fr.csv` → `fr.partial.csv`.
@@ -261,19 +291,8 @@ fn dwell(
     let mut first: Option<u64> = None;
     let mut last_seen = String::from("no telemetry yet");
     loop {
-        let Some(rec) = port.next_record(spec.quiet)? else {
-            bail!(
-                "no telemetry for {:.1} s at {f} Hz (the rig stopped sending)",
-                spec.quiet.as_secs_f64()
-            );
-        };
-        let since = (rec.sample.saturating_sub(*first.get_or_insert(rec.sample))) as f64 / rate;
-        if since > deadline_s {
-            bail!(
-                "the rig did not dwell {} cycles at {f} Hz within {deadline_s:.1} s of its time (last seen: {last_seen})",
-                spec.settle_cycles + spec.dwell_cycles
-            );
-        }
+        let rec = port.expect_record(spec.quiet, &format!("at {f} Hz"))?;
+        // A fault first: it ends the dwell whenever it came.
         let c = match rec.kind {
             AsyncKind::Cycle(c) => c,
             AsyncKind::Event(Event::Fault(fault)) => return Ok(Err(fault)),
@@ -281,6 +300,13 @@ fn dwell(
         };
         if let Some(fault) = c.fault {
             return Ok(Err(fault));
+        }
+        let since = (rec.sample.saturating_sub(*first.get_or_insert(rec.sample))) as f64 / rate;
+        if since > deadline_s {
+            bail!(
+                "the rig did not dwell {} cycles at {f} Hz within {deadline_s:.1} s of its time (last seen: {last_seen})",
+                spec.settle_cycles + spec.dwell_cycles
+            );
         }
         last_seen = format!("state={} freq_hz={:.4}", c.state.token(), c.freq_hz);
         let there = (f64::from(c.freq_hz) - f).abs() < 5e-4 && c.state == State::Dwell;

@@ -3,8 +3,10 @@
 //! `host-sim rig --port /dev/pts/N` (or any serial terminal) talks to it as to the board over
 //! USB-serial. Bytes in and out are the firmware's: the same `shared::console::Link` and console service.
 //!
-//! The serial line is modelled at 115200 8N1 (11,520 bytes per second of rig time, both ways);
-//! bytes the client does not take (a full pty buffer) are lost as on a real wire. Rig time runs
+//! The serial line is modelled at 115200 8N1 (11,520 bytes per second of rig time, both ways):
+//! what the client writes is taken from the pty at the line rate (a faster writer waits, as for
+//! a wire), so a flood costs the rig neither memory nor time; bytes the client does not take (a
+//! full pty buffer) are lost as on a real wire. Rig time runs
 //! `speed` times faster than the wall clock (1: real time), or as fast as the machine allows.
 
 use std::fs::File;
@@ -64,24 +66,31 @@ impl Pty {
         &self.path
     }
 
-    /// Takes what the client sent since the last call into the receive FIFO (what does not
-    /// fit is dropped and counted there).
+    /// Takes up to `max` bytes of what the client sent into the receive FIFO (what does not
+    /// fit is dropped and counted there); the rest waits in the pty, as bytes wait for a wire
+    /// at the line rate. Returns the bytes taken.
     ///
     /// # Errors
     /// A read error other than "nothing there".
-    pub fn read_into(&mut self, fifo: &mut RxFifo) -> Result<()> {
-        let mut chunk = [0u8; 4096];
-        loop {
-            match self.master.read(&mut chunk) {
-                Ok(0) => return Ok(()),
-                Ok(n) => fifo.push(&chunk[..n]),
-                Err(e) if e.kind() == ErrorKind::WouldBlock => return Ok(()),
+    pub fn read_into(&mut self, fifo: &mut RxFifo, max: usize) -> Result<usize> {
+        let mut chunk = [0u8; 256];
+        let mut taken = 0;
+        while taken < max {
+            let want = (max - taken).min(chunk.len());
+            match self.master.read(&mut chunk[..want]) {
+                Ok(0) => break,
+                Ok(n) => {
+                    fifo.push(&chunk[..n]);
+                    taken += n;
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => break,
                 Err(e) if e.kind() == ErrorKind::Interrupted => {}
                 // EIO: no client has the slave open.
-                Err(e) if e.raw_os_error() == Some(nix::libc::EIO) => return Ok(()),
+                Err(e) if e.raw_os_error() == Some(nix::libc::EIO) => break,
                 Err(e) => return Err(e).context("reading the pty"),
             }
         }
+        Ok(taken)
     }
 
     /// Writes what the pty takes; returns the bytes it did not take (lost, as on a wire).
@@ -188,7 +197,7 @@ pub fn serve(
     let end = opts.seconds.map(|s| (s * fs).round() as u64);
     let mut rx = RxFifo::default();
     let mut tx: Vec<u8> = Vec::new();
-    let (mut rx_credit, mut tx_credit) = (0.0f64, 0.0f64);
+    let (mut rx_credit, mut tx_credit, mut wire_credit) = (0.0f64, 0.0f64, 0.0f64);
     let mut reply = ReplyText::new();
     let mut line = AsyncText::new();
     let mut stats = ServeStats::default();
@@ -203,7 +212,10 @@ pub fn serve(
             if crate::interrupt::requested() {
                 break;
             }
-            pty.read_into(&mut rx)?;
+            // The wire carries at most the line rate: a client that writes faster is held
+            // back in the pty (a flood never holds the loop, so telemetry keeps its pace).
+            wire_credit = (wire_credit + UART_BYTES_PER_S * 1e-3).min(UART_BYTES_PER_S * 2e-3);
+            wire_credit -= pty.read_into(&mut rx, wire_credit as usize)? as f64;
             if !tx.is_empty() {
                 stats.tx_lost_bytes += pty.write_lossy(&tx);
                 tx.clear();
