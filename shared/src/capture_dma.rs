@@ -133,12 +133,19 @@ impl BlockTracker {
     /// Serves the stream (its transfer-complete or error interrupt, or a periodic check): the
     /// newest complete block into `out` when there is one, the samples lost before it, and a
     /// re-arm when the stream stopped or stalled.
+    ///
+    /// Not running, it hands nothing over but still clears the stream's flags (a block that
+    /// completed as the capture stopped, an error): its interrupt would otherwise come again
+    /// at once, for ever.
     pub fn service(&mut self, hw: &mut impl CaptureStream, out: &mut [u16; BLOCK_LEN]) -> Service {
-        if !self.running {
-            return Service::default();
-        }
         hw.clear_complete();
         let s = hw.state();
+        if !self.running {
+            if s.error {
+                hw.rearm();
+            }
+            return Service::default();
+        }
         let est = self.estimate(s.now_us);
         let written = resolve(s, est);
         let stalled = written.abs_diff(est) > STALL_TOLERANCE;

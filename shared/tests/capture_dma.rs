@@ -407,7 +407,18 @@ fn a_new_capture_gets_no_sample_of_the_one_before() {
         rig.run_for(stop_after * TIM3_PERIOD);
         task.stop(&mut rig);
         rig.run_for(1_000 * TIM3_PERIOD);
+        // A block that completed as the capture stopped, or an error, raises the stream's
+        // interrupt: served while stopped, it hands nothing over but clears the flags (a flag
+        // left set would raise the interrupt again at once, for ever).
+        rig.tcif = true;
+        if stop_after == 20 {
+            rig.transfer_error();
+        }
         assert!(!task.serve(&mut rig).block);
+        assert!(
+            !rig.tcif && !rig.teif,
+            "a flag left set after a stopped service"
+        );
         // The next capture: its first block holds only its own samples (`Task::serve` checks).
         let mut task = Task::start(&mut rig, 123);
         complete(&mut rig);
