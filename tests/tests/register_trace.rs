@@ -793,6 +793,42 @@ fn a_full_capture_block_reaches_the_store() {
 }
 
 #[test]
+fn a_stopped_capture_clears_its_streams_flags() {
+    let Some(t) = trace() else { return };
+    // After `capture stop`, the next block's interrupt stops TIM3; a block that completed as
+    // it stopped raises the interrupt once more, which must clear TCIF2 (DMA_LIFCR bit 21,
+    // §10.5.3): a flag left set raises it again at once, for ever (the trace gives up after
+    // 2,000 deliveries).
+    let ph = t.phase("capture-stopped");
+    assert!(
+        replies(ph)[0].starts_with("capture state=done"),
+        "{:?}",
+        replies(ph)
+    );
+    let dma = irqs(ph)
+        .into_iter()
+        .filter(|&n| n == IRQ_DMA2_STREAM2)
+        .count();
+    assert_eq!(dma, 2, "the capture's interrupts: once per block");
+    let stopped = first(
+        ph,
+        "TIM3 stopped",
+        |e| matches!(e, Ev::W(a, v) if *a == TIM3 + TIM_CR1 && !bit(*v, 0)),
+    );
+    let second = ph
+        .iter()
+        .rposition(|e| matches!(e, Ev::M(k, _) if k == "irq"))
+        .unwrap();
+    assert!(stopped < second);
+    assert!(
+        writes(&ph[second..], DMA2_LIFCR)
+            .iter()
+            .any(|v| bit(*v, 21)),
+        "TCIF2 not cleared"
+    );
+}
+
+#[test]
 fn a_capture_dma_transfer_error_re_arms_the_stream_and_counts_the_lost_samples() {
     let Some(t) = trace() else { return };
     // The stream stopped (TEIF2, EN = 0, §10.3.18) 1.65 ms after the capture started, with one
