@@ -7,11 +7,13 @@
 //! here from the manual's field layouts and limits, not taken from the firmware's constants.
 //!
 //! Needs the image (`cargo fw-build`) and python3 with unicorn and pyelftools (`pip install
-//! unicorn pyelftools`; `.ci/run` installs them). Without them the tests print a `skipped:` line
-//! and pass, except under CI (`CI` set), where they fail. `REGISTER_TRACE_ELF=path` runs them on
+//! unicorn pyelftools`; `.ci/run` installs them). Without them the tests pass after one
+//! `SKIPPED register_trace: …` line on stderr (shown without `--nocapture`), except under CI
+//! (`CI` set), where they fail. `REGISTER_TRACE_ELF=path` runs them on
 //! another image (e.g. an older build, to see what they catch).
 
 use std::collections::BTreeMap;
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::Command;
 use std::sync::OnceLock;
@@ -220,7 +222,9 @@ fn trace() -> Option<&'static Trace> {
                     elf.exists()
                 );
                 assert!(std::env::var_os("CI").is_none(), "{why}");
-                eprintln!("skipped: {why}");
+                // Straight to stderr, past the test harness's capture: a skip is seen without
+                // --nocapture (once, for all the tests of this file).
+                let _ = writeln!(std::io::stderr(), "SKIPPED register_trace: {why}");
                 return None;
             }
             let script =
