@@ -291,14 +291,15 @@ mod app {
                         format_answer(&response, &mut reply);
                     }
                 }
-                send(&mut cx.shared.console, reply.as_bytes());
-                // A capture armed by this line: its sampling starts afresh (a running capture's
-                // conversions are left alone); a model request: start the model task.
+                // A capture armed by this line: its sampling starts afresh, before anything else
+                // can hand the new capture a block (a running capture's conversions are left
+                // alone); a model request: start the model task.
                 cx.shared.capture.lock(|c| {
                     if c.store.active() && c.store.arm_count() != arms {
                         c.input.restart();
                     }
                 });
+                send(&mut cx.shared.console, reply.as_bytes());
                 if cx.shared.controller.lock(|c| c.model_request_open()) {
                     model::spawn().ok();
                 }
