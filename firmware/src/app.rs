@@ -4,12 +4,19 @@
 //!
 //! | task      | trigger                                         | priority | does                                            |
 //! |-----------|-------------------------------------------------|----------|-------------------------------------------------|
-//! | `sample`  | ADC end of conversion (TIM2 TRGO starts it, 10 kHz) | 3    | ADC1 → `Controller::on_sample` → DAC1           |
+//! | `sample`  | ADC end of conversion (TIM2 TRGO starts it, 10 kHz) | 4    | ADC1 → `Controller::on_sample` → DAC1           |
 //! | `console` | USART2 (byte received, transmit register empty) | 3        | bytes ↔ the link's queues                       |
+//! | `capture` | DMA2 stream 2 (half of the capture buffer full, or a transfer error) | 3 | capture-rate samples → the segment store |
 //! | `serve`   | woken by `console`, `sample`, `report`          | 2        | one reply per line; telemetry and event lines   |
-//! | `capture` | DMA2 stream 2 (half of the capture buffer full) | 2        | capture-rate samples → the segment store        |
-//! | `report`  | every second on the SysTick monotonic           | 2        | health check and watchdog; the defmt status log |
+//! | `report`  | every second on the SysTick monotonic           | 2        | health check and watchdog; the capture's stall check; the defmt status log |
+//! | `start_sampling` | once, when interrupts come on after `init` | 2     | starts TIM2, ADC1's trigger                     |
 //! | `model`   | start-up, `rig`, `gap`, `tune`                  | 1        | `shared::control::predict` (the selection)      |
+//!
+//! The sampling task preempts everything, so nothing but a short lock delays a sample. The
+//! capture task preempts the console service and the report, which format lines for longer
+//! than a capture block lasts (0.64 ms); a block it serves late anyway is counted lost
+//! (`shared::capture_dma`). The sampling starts only once interrupts are on: the first
+//! conversion's end is served, instead of overrunning while `init` still runs.
 //!
 //! Nothing is formatted or sent under a lock that the sampling task needs for long: the console
 //! service copies what it needs out of the controller, formats outside every lock, and queues
@@ -71,6 +78,7 @@ mod app {
         dac: board::DacDrive,
         clock: board::MicrosClock,
         watchdog: board::Watchdog,
+        trigger: board::SamplingTrigger,
         wake_from_sample: SignalWriter<'static, ()>,
         wake_from_console: SignalWriter<'static, ()>,
         wake_from_report: SignalWriter<'static, ()>,
@@ -94,13 +102,12 @@ mod app {
 
     #[init(local = [
         capture_store: Capture = Capture::new(),
-        capture_bufs: [[u16; CAPTURE_BLOCK]; 3] = [[0; CAPTURE_BLOCK]; 3],
+        capture_bufs: [[u16; CAPTURE_BLOCK]; 2] = [[0; CAPTURE_BLOCK]; 2],
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         rig_firmware::stack::paint();
         let mut core = cx.core;
-        let [a, b, c] = cx.local.capture_bufs;
-        let parts = board::init(cx.device, &mut core.NVIC, [a, b, c]);
+        let parts = board::init(cx.device, &mut core.NVIC, cx.local.capture_bufs);
         Mono::start(core.SYST, SYSCLK_HZ);
         let controller = match Controller::new(ControllerConfig::default(), RIG, GAP_MM) {
             Ok(c) => c,
@@ -117,6 +124,7 @@ mod app {
             GAP_MM,
             shared::control::SAMPLE_RATE_HZ
         );
+        start_sampling::spawn().ok();
         model::spawn().ok();
         serve::spawn().ok();
         report::spawn().ok();
@@ -137,12 +145,20 @@ mod app {
                 dac: parts.dac,
                 clock: parts.clock,
                 watchdog: parts.watchdog,
+                trigger: parts.trigger,
                 wake_from_sample: writer.clone(),
                 wake_from_console: writer.clone(),
                 wake_from_report: writer,
                 wake: reader,
             },
         )
+    }
+
+    /// Starts ADC1's trigger once interrupts are on (they come on when `init` returns): the
+    /// first end of conversion then runs the sampling task at once.
+    #[task(priority = 2, local = [trigger])]
+    async fn start_sampling(cx: start_sampling::Context) {
+        cx.local.trigger.start();
     }
 
     #[idle]
@@ -156,7 +172,7 @@ mod app {
     /// end-of-conversion interrupt (the conversion itself is started by TIM2's trigger output).
     #[task(
         binds = ADC,
-        priority = 3,
+        priority = 4,
         shared = [controller],
         local = [adc, dac, clock, wake_from_sample, last_us: u64 = 0]
     )]
@@ -249,6 +265,7 @@ mod app {
                 let Some(pending) = cx.shared.console.lock(|c| c.link.next_line()) else {
                     break;
                 };
+                let arms = cx.shared.capture.lock(|c| c.store.arm_count());
                 // The board's test hooks see the line without its tag; their reply gets it back.
                 let hooked = match pending.as_line() {
                     shared::console::Line::Text(t) => split_tag(t)
@@ -274,13 +291,15 @@ mod app {
                         format_answer(&response, &mut reply);
                     }
                 }
-                send(&mut cx.shared.console, reply.as_bytes());
-                // A capture armed: start its sampling; a model request: start the model task.
+                // A capture armed by this line: its sampling starts afresh, before anything else
+                // can hand the new capture a block (a running capture's conversions are left
+                // alone); a model request: start the model task.
                 cx.shared.capture.lock(|c| {
-                    if c.store.active() {
-                        c.input.start();
+                    if c.store.active() && c.store.arm_count() != arms {
+                        c.input.restart();
                     }
                 });
+                send(&mut cx.shared.console, reply.as_bytes());
                 if cx.shared.controller.lock(|c| c.model_request_open()) {
                     model::spawn().ok();
                 }
@@ -309,25 +328,33 @@ mod app {
         }
     }
 
-    /// The capture: a block of capture-rate samples into the segment store; its sampling stops
-    /// when the capture ends.
-    #[task(binds = DMA2_STREAM2, priority = 2, shared = [capture])]
+    /// The capture: a block of capture-rate samples into the segment store (after the samples
+    /// lost before it, if any); its sampling stops when the capture ends.
+    #[task(binds = DMA2_STREAM2, priority = 3, shared = [capture])]
     fn capture(mut cx: capture::Context) {
-        cx.shared.capture.lock(|c| {
-            let store = &mut *c.store;
-            c.input.take_block(|block| store.push_block(block));
-            if !c.store.active() {
-                c.input.stop();
-            }
+        cx.shared.capture.lock(serve_capture);
+    }
+
+    /// Serves the capture's input into its store.
+    fn serve_capture(c: &mut CaptureRes) {
+        let store = &mut *c.store;
+        c.input.take_block(|lost, block| {
+            store.skip(lost);
+            store.push_block(block);
         });
+        if !c.store.active() {
+            c.input.stop();
+        }
     }
 
     /// Once a second: the health check on the monotonic (samples taken against time elapsed)
-    /// feeds the watchdog only while sampling keeps ≥ 90 % of its rate; events and the status
-    /// line to the defmt log.
-    #[task(priority = 2, shared = [controller], local = [watchdog, wake_from_report])]
+    /// feeds the watchdog only while sampling keeps ≥ 90 % of its rate; a recording capture's
+    /// input is served (a stalled stream raises no interrupt); events, lost capture samples and
+    /// the status line to the defmt log.
+    #[task(priority = 2, shared = [controller, capture], local = [watchdog, wake_from_report])]
     async fn report(mut cx: report::Context) {
         let mut health = HealthCheck::new();
+        let mut lost_logged = 0;
         let mut next = Mono::now();
         loop {
             next += 1000.millis();
@@ -355,6 +382,24 @@ mod app {
                 }
             }
             cx.local.watchdog.check(now_ms);
+            // A capture whose stream raises no interrupt (stalled) is served here: its loss is
+            // counted and the stream re-armed, so the capture still ends at its time.
+            let (armed, lost) = cx.shared.capture.lock(|c| {
+                if c.store.active() {
+                    serve_capture(c);
+                }
+                (c.store.arm_count(), c.store.lost_samples())
+            });
+            if lost != lost_logged {
+                if lost > 0 {
+                    defmt::warn!(
+                        "capture {=u32}: {=u32} samples lost (blocks served late)",
+                        armed,
+                        lost
+                    );
+                }
+                lost_logged = lost;
+            }
             log_status(&status);
             if model_needed {
                 model::spawn().ok();

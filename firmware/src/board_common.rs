@@ -9,9 +9,11 @@ use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Rcc;
 use stm32f4xx_hal::serial::{self, Serial};
 
+use crate::config::CONSOLE_BAUD;
+
 /// What the app gets from the board this image is built for, over that board's types (each
 /// board names its own: `board::Parts`).
-pub struct BoardParts<Adc, Dac, Clock, Serial, Capture, Dog> {
+pub struct BoardParts<Adc, Dac, Clock, Serial, Capture, Dog, Trigger> {
     /// ADC1 on PA1.
     pub adc: Adc,
     /// DAC1 on PA4.
@@ -24,11 +26,13 @@ pub struct BoardParts<Adc, Dac, Clock, Serial, Capture, Dog> {
     pub capture: Capture,
     /// The watchdog.
     pub watchdog: Dog,
+    /// ADC1's trigger (TIM2), started once interrupts are on.
+    pub trigger: Trigger,
 }
 
-/// USART2 on PA2/PA3, 115200 8N1, receive interrupt on.
+/// USART2 on PA2/PA3 (AF7), [`CONSOLE_BAUD`] 8N1, receive interrupt on.
 pub fn console_usart(usart2: pac::USART2, pins: (PA2, PA3), rcc: &mut Rcc) -> Serial<pac::USART2> {
-    let config = serial::Config::default().baudrate(115_200.bps());
+    let config = serial::Config::default().baudrate(CONSOLE_BAUD.bps());
     let mut usart = match Serial::new(usart2, pins, config, rcc) {
         Ok(s) => s,
         Err(_) => defmt::panic!("USART2 configuration rejected"),

@@ -27,7 +27,7 @@
 //!   this code instead of QEMU's sawtooth; `emu adc off` gives the sawtooth back), `emu overflow`
 //!   (recursion until the stack overflows).
 
-use core::sync::atomic::{AtomicU16, Ordering};
+use core::sync::atomic::{AtomicU16, AtomicU32, Ordering};
 
 use cortex_m::peripheral::NVIC;
 use cortex_m_semihosting::hprintln;
@@ -46,20 +46,30 @@ use rig_firmware::config::{CAPTURE_BLOCK, WATCHDOG_MS};
 pub const BOARD: Board = Board::Emulator;
 
 /// What this board gives the app.
-pub type Parts = BoardParts<ForceAdc, DacDrive, MicrosClock, ConsoleSerial, CaptureInput, Watchdog>;
+pub type Parts = BoardParts<
+    ForceAdc,
+    DacDrive,
+    MicrosClock,
+    ConsoleSerial,
+    CaptureInput,
+    Watchdog,
+    SamplingTrigger,
+>;
 
 /// QEMU's timer clock: 1 GHz whatever the RCC, and a period of `ARR` ticks as long as the
 /// prescaler and counter are never written (its model adds the tick offset of those writes to
 /// every period).
 const TIMER_CLOCK_HZ: u32 = 1_000_000_000;
-/// NVIC priority of the stand-in interrupts (logical 4: above every RTIC task, as hardware
+/// NVIC priority of the stand-in interrupts (logical 5: above every RTIC task, as hardware
 /// triggers are).
-const STANDIN_PRIORITY: u8 = (16 - 4) << 4;
+const STANDIN_PRIORITY: u8 = (16 - 5) << 4;
 
 /// Capture samples between the TIM3 stand-in and the capture task.
 const CAPTURE_QUEUE: usize = 4 * CAPTURE_BLOCK;
 static mut CAPTURE_Q: Queue<u16, CAPTURE_QUEUE> = Queue::new();
 static mut CAPTURE_TX: Option<Producer<'static, u16>> = None;
+/// Capture samples the full queue could not take (lost, as a late DMA block on the rig).
+static CAPTURE_DROPPED: AtomicU32 = AtomicU32::new(0);
 static DAC_CODE: AtomicU16 = AtomicU16::new(DAC_MID);
 /// The code `emu adc` holds the force ADC at ([`ADC_FREE`]: QEMU's sawtooth).
 static ADC_HOLD: AtomicU16 = AtomicU16::new(ADC_FREE);
@@ -70,7 +80,7 @@ const ADC_FREE: u16 = u16::MAX;
 pub fn init(
     dp: pac::Peripherals,
     nvic: &mut NVIC,
-    _bufs: [&'static mut [u16; CAPTURE_BLOCK]; 3],
+    _bufs: &'static mut [[u16; CAPTURE_BLOCK]; 2],
 ) -> Parts {
     // No clock set-up: QEMU does not model the RCC.
     let mut rcc = dp.RCC.constrain();
@@ -87,12 +97,7 @@ pub fn init(
     dp.TIM5.arr().write(|w| unsafe { w.bits(u32::MAX) });
     dp.TIM5.cr1().write(|w| w.cen().set_bit());
 
-    // TIM2: 10 kHz update interrupt. Interrupt and counter enabled before ARR, whose write
-    // arms QEMU's timer (at 1 GHz, ARR ticks per period).
-    let arr = TIMER_CLOCK_HZ / shared::control::SAMPLE_RATE_HZ;
-    dp.TIM2.dier().write(|w| w.uie().set_bit());
-    dp.TIM2.cr1().write(|w| w.cen().set_bit());
-    dp.TIM2.arr().write(|w| unsafe { w.bits(arr) });
+    // TIM2 (10 kHz) starts in `SamplingTrigger::start`, once interrupts are on.
 
     let usart = console_usart(dp.USART2, (gpioa.pa2, gpioa.pa3), &mut rcc);
     // QEMU drops what reaches USART2 before it is enabled: a desktop waits for this line
@@ -124,6 +129,24 @@ pub fn init(
         },
         capture: CaptureInput { rx },
         watchdog: Watchdog { last_feed_ms: 0 },
+        trigger: SamplingTrigger,
+    }
+}
+
+/// ADC1's trigger: the TIM2 stand-in.
+pub struct SamplingTrigger;
+
+impl SamplingTrigger {
+    /// Starts TIM2's 10 kHz update interrupt (the rig's order: once interrupts are on). The
+    /// interrupt and the counter are enabled before ARR, whose write arms QEMU's timer (at
+    /// 1 GHz, ARR ticks per period).
+    pub fn start(&mut self) {
+        // SAFETY: TIM2 is the sampling trigger, this its only set-up.
+        let t = unsafe { &*pac::TIM2::ptr() };
+        let arr = TIMER_CLOCK_HZ / shared::control::SAMPLE_RATE_HZ;
+        t.dier().write(|w| w.uie().set_bit());
+        t.cr1().write(|w| w.cen().set_bit());
+        t.arr().write(|w| unsafe { w.bits(arr) });
     }
 }
 
@@ -155,7 +178,9 @@ fn TIM3() {
     };
     // SAFETY: only this interrupt uses the producer after `init`.
     if let Some(tx) = unsafe { (*core::ptr::addr_of_mut!(CAPTURE_TX)).as_mut() } {
-        let _ = tx.enqueue(code);
+        if tx.enqueue(code).is_err() {
+            CAPTURE_DROPPED.fetch_add(1, Ordering::Relaxed);
+        }
         if tx.len() >= CAPTURE_BLOCK {
             NVIC::pend(Interrupt::DMA2_STREAM2);
         }
@@ -167,17 +192,32 @@ pub struct ForceAdc;
 
 impl ForceSource for ForceAdc {
     fn read_code(&mut self) -> Result<u16, SampleError> {
-        // SAFETY: ADC1 belongs to the sampling task (and the TIM2 stand-in's start bit).
-        let adc = unsafe { &*pac::ADC1::ptr() };
-        if adc.sr().read().ovr().bit_is_set() {
-            adc.sr().modify(|_, w| w.ovr().clear_bit());
-            return Err(SampleError::Overrun);
-        }
-        let code = (adc.dr().read().bits() & 0x0FFF) as u16;
+        // The rig's procedure (QEMU never sets OVR).
+        let code = shared::adc_status::read_conversion(&mut Adc1)?;
         match ADC_HOLD.load(Ordering::Relaxed) {
             ADC_FREE => Ok(code),
             held => Ok(held),
         }
+    }
+}
+
+/// ADC1's status and data registers.
+struct Adc1;
+
+impl shared::adc_status::AdcRegisters for Adc1 {
+    fn status(&mut self) -> u32 {
+        // SAFETY: ADC1 belongs to the sampling task (and the TIM2 stand-in's start bit).
+        unsafe { &*pac::ADC1::ptr() }.sr().read().bits()
+    }
+    fn write_status(&mut self, value: u32) {
+        // SAFETY: as above.
+        unsafe { &*pac::ADC1::ptr() }
+            .sr()
+            .write(|w| unsafe { w.bits(value) });
+    }
+    fn data(&mut self) -> u32 {
+        // SAFETY: as above.
+        unsafe { &*pac::ADC1::ptr() }.dr().read().bits()
     }
 }
 
@@ -251,11 +291,15 @@ pub struct CaptureInput {
 }
 
 impl CaptureInput {
-    /// Starts sampling (idempotent).
+    /// Starts sampling, if it is not running: samples queued from an earlier capture are
+    /// dropped first (as the rig re-arms its DMA stream). While running, it does nothing.
     pub fn start(&mut self) {
         // SAFETY: TIM3 belongs to the capture.
         let t = unsafe { &*pac::TIM3::ptr() };
         if t.cr1().read().cen().bit_is_clear() {
+            // TIM3's interrupt is off: the queue has no producer now.
+            while self.rx.dequeue().is_some() {}
+            CAPTURE_DROPPED.store(0, Ordering::Relaxed);
             t.dier().write(|w| w.uie().set_bit());
             t.cr1().write(|w| w.cen().set_bit());
             t.arr()
@@ -271,8 +315,16 @@ impl CaptureInput {
         t.cr1().write(|w| w.cen().clear_bit());
     }
 
-    /// Hands the samples queued so far (up to a block) to `f`.
-    pub fn take_block(&mut self, f: impl FnOnce(&[u16])) {
+    /// A new capture was armed: its sampling starts afresh.
+    pub fn restart(&mut self) {
+        self.stop();
+        self.start();
+    }
+
+    /// Hands the samples dropped since the last call (the queue was full) and those queued
+    /// so far (up to a block) to `f`. (The dropped samples came after some of the queued ones:
+    /// the emulator counts them but does not keep their place, as the rig's DMA does.)
+    pub fn take_block(&mut self, f: impl FnOnce(u32, &[u16])) {
         let mut block = [0u16; CAPTURE_BLOCK];
         let mut n = 0;
         while n < CAPTURE_BLOCK {
@@ -282,7 +334,8 @@ impl CaptureInput {
             }
             n += 1;
         }
-        f(block.get(..n).unwrap_or(&[]));
+        let lost = CAPTURE_DROPPED.swap(0, Ordering::Relaxed);
+        f(lost, block.get(..n).unwrap_or(&[]));
     }
 }
 

@@ -1,66 +1,147 @@
 //! The rig board: the STM32F407 (8 MHz HSE, 168 MHz core) and its peripherals, through
-//! stm32f4xx-hal where it offers them.
+//! stm32f4xx-hal where it offers them and with registers where the board needs what it does not
+//! (the timers' exact reloads, the capture's DMA stream, the ADCs' status flags). Every clock
+//! and reload comes from `rig_firmware::clock_tree`, checked there at compile time against
+//! RM0090 Rev 19; `tests/tests/register_trace.rs` runs this image's start-up in an instruction
+//! emulator and checks the registers it writes.
 //!
 //! | peripheral | use |
 //! |---|---|
-//! | TIM2 | 10 kHz update event → trigger output (TRGO) → starts each ADC1 conversion (no interrupt) |
+//! | TIM2 | 10 kHz update event → trigger output (TRGO) → starts each ADC1 conversion (no interrupt); started after `init`, with interrupts on |
 //! | ADC1, PA1 | force sensor; end-of-conversion interrupt runs the sampling task; overrun flag = a sample not read in time |
 //! | DAC1, PA4 | shaker drive |
-//! | TIM5 | free-running 32-bit µs counter (the controller's time base) |
+//! | TIM5 | free-running 32-bit µs counter (the controller's time base), full 2³² period |
 //! | USART2, PA2/PA3 | console, 115200 8N1, receive and transmit-empty interrupts |
-//! | TIM3 + ADC2 + DMA2 stream 2 | capture: 100 kHz conversions of PA1 into a double buffer of 2 × 64 samples |
-//! | IWDG | 2 s watchdog, fed by the report task's health check |
+//! | TIM3 + ADC2 + DMA2 stream 2 | capture: 100 kHz conversions of PA1 into a double buffer of 2 × 64 samples, half a period off ADC1's |
+//! | IWDG | 2 s watchdog, fed by the report task's health check; stopped while a debugger halts the core |
 //! | SysTick | the RTIC monotonic (1 kHz), independent of the sampling |
-//!
-//! Where the HAL offers nothing (ADC overrun flag, clearing the ADC's start bit), the registers
-//! are read or written directly, each marked.
 
 use cortex_m::peripheral::NVIC;
 use panic_probe as _;
+use shared::adc_status::{AdcRegisters, SR_CLEAR_OVR, discard_pending, read_conversion};
+use shared::capture_dma::{BlockTracker, CaptureStream, StreamState};
 use shared::console::{Board, RxError};
 use shared::control::config::DAC_MID;
 use shared::hal::{DriveOutput, ForceSource, SampleError};
 use stm32f4xx_hal::adc::Adc;
 use stm32f4xx_hal::adc::config::{
-    AdcConfig, Continuous, Eoc, ExternalTrigger, SampleTime, Sequence, TriggerMode,
+    AdcConfig, Clock, Continuous, Eoc, ExternalTrigger, SampleTime, Sequence, TriggerMode,
 };
 use stm32f4xx_hal::dac::{C1, DacExt, DacOut, DacPin};
-use stm32f4xx_hal::dma::config::DmaConfig;
-use stm32f4xx_hal::dma::{PeripheralToMemory, Stream2, StreamsTuple, Transfer};
-use stm32f4xx_hal::pac::{self, DMA2};
+use stm32f4xx_hal::pac::{self, Interrupt};
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::{Config, Enable};
+use stm32f4xx_hal::rcc::{Config, Enable, Reset};
 use stm32f4xx_hal::serial::{self, Serial};
-use stm32f4xx_hal::timer::{CounterHz, CounterUs, Timer};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use rig_firmware::board_common::{BoardParts, Micros64, console_usart, read_byte};
-use rig_firmware::config::{CAPTURE_BLOCK, SYSCLK_HZ, WATCHDOG_MS};
+use rig_firmware::clock_tree::{
+    ADC_PRESCALER, ADC_SAMPLE_CYCLES, HCLK_HZ, HSE_HZ, PCLK1_HZ, PCLK2_HZ, TIM2_ARR, TIM3_ARR,
+    TIM3_PERIOD, TIM3_PHASE, TIM5_ARR, TIM5_PSC,
+};
+use rig_firmware::config::{CAPTURE_BLOCK, HSE_BYPASS, SYSCLK_HZ, WATCHDOG_MS};
 
 /// Which image this is (`id`).
 pub const BOARD: Board = Board::Rig;
 
 /// What this board gives the app.
-pub type Parts = BoardParts<ForceAdc, DacDrive, MicrosClock, ConsoleSerial, CaptureInput, Watchdog>;
+pub type Parts = BoardParts<
+    ForceAdc,
+    DacDrive,
+    MicrosClock,
+    ConsoleSerial,
+    CaptureInput,
+    Watchdog,
+    SamplingTrigger,
+>;
 
-type CaptureTransfer =
-    Transfer<Stream2<DMA2>, 1, pac::ADC2, PeripheralToMemory, &'static mut [u16; CAPTURE_BLOCK]>;
+/// ADC_CCR.ADCPRE for `clock_tree::ADC_PRESCALER` (RM0090 §13.13.16).
+const ADC_CLOCK: Clock = match ADC_PRESCALER {
+    2 => Clock::Pclk2_div_2,
+    4 => Clock::Pclk2_div_4,
+    6 => Clock::Pclk2_div_6,
+    8 => Clock::Pclk2_div_8,
+    _ => panic!("ADC_PRESCALER is 2, 4, 6 or 8"),
+};
+/// ADC_SMPRx for `clock_tree::ADC_SAMPLE_CYCLES` (§13.13.4–5).
+const ADC_SAMPLE_TIME: SampleTime = match ADC_SAMPLE_CYCLES {
+    15 => SampleTime::Cycles_15,
+    _ => panic!("ADC_SAMPLE_CYCLES: only 15 is set up"),
+};
 
-/// Sets up the board.
+/// The capture's DMA stream: DMA2 stream 2, channel 1 = ADC2 (RM0090 §10.3.3, Table 43).
+const CAPTURE_STREAM: usize = 2;
+/// DMA_SxCR of the capture's stream, enable bit clear (§10.5.5): CHSEL = 1 (ADC2), PL = very
+/// high, DBM (double buffer: M0 then M1 then M0 …, §10.3.9), CT = 0 (M0 first), CIRC (forced
+/// by DBM), MSIZE = PSIZE = half-word, MINC, DIR = peripheral to memory, interrupts on a
+/// full buffer (TCIE), a transfer error (TEIE) and a direct-mode error (DMEIE).
+const CAPTURE_DMA_CR: u32 = (1 << 25) // CHSEL = 001
+    | (0b11 << 16) // PL: very high
+    | (1 << 18) // DBM
+    | (0b01 << 13) // MSIZE: 16 bits
+    | (0b01 << 11) // PSIZE: 16 bits
+    | (1 << 10) // MINC
+    | (1 << 8) // CIRC
+    | (1 << 4) // TCIE
+    | (1 << 2) // TEIE
+    | (1 << 1); // DMEIE
+/// DMA_SxCR.EN.
+const DMA_EN: u32 = 1 << 0;
+/// DMA_SxCR.CT: the buffer being filled (0: M0).
+const DMA_CT: u32 = 1 << 19;
+/// Stream 2's flags in DMA_LISR and their clear bits in DMA_LIFCR (§10.5.1, §10.5.3): FEIF2
+/// (16), DMEIF2 (18), TEIF2 (19), HTIF2 (20), TCIF2 (21).
+const STREAM2_FEIF: u32 = 1 << 16;
+const STREAM2_DMEIF: u32 = 1 << 18;
+const STREAM2_TEIF: u32 = 1 << 19;
+const STREAM2_HTIF: u32 = 1 << 20;
+const STREAM2_TCIF: u32 = 1 << 21;
+const STREAM2_ALL: u32 = STREAM2_FEIF | STREAM2_DMEIF | STREAM2_TEIF | STREAM2_HTIF | STREAM2_TCIF;
+/// Polls of EN after a disable (an ongoing transfer finishes first, §10.3.17: a few bus cycles).
+const DISABLE_POLLS: u32 = 1_000;
+
+/// The RCC set-up for the clock tree of `clock_tree` (HSE, PLL to 168 MHz, APB1 /4, APB2 /2;
+/// the HAL sets the flash wait states for SYSCLK, RM0090 §3.5.1).
+fn clock_config() -> Config {
+    let cfg = Config::hse(HSE_HZ.Hz())
+        .sysclk(SYSCLK_HZ.Hz())
+        .hclk(HCLK_HZ.Hz())
+        .pclk1(PCLK1_HZ.Hz())
+        .pclk2(PCLK2_HZ.Hz());
+    if HSE_BYPASS {
+        cfg.bypass_hse_oscillator()
+    } else {
+        cfg
+    }
+}
+
+/// Sets up the board. Nothing is triggered yet: the sampling starts with
+/// [`SamplingTrigger::start`] once interrupts are on, the capture with [`CaptureInput::start`].
 pub fn init(
     dp: pac::Peripherals,
     _nvic: &mut NVIC,
-    bufs: [&'static mut [u16; CAPTURE_BLOCK]; 3],
+    bufs: &'static mut [[u16; CAPTURE_BLOCK]; 2],
 ) -> Parts {
-    let mut rcc = dp.RCC.freeze(Config::hse(8.MHz()).sysclk(SYSCLK_HZ.Hz()));
+    // A debugger's halt stops the IWDG (DBGMCU_APB1_FZ.DBG_IWDG_STOP, RM0090 §38.16.4,
+    // §21.3.3); otherwise a breakpoint held for 2 s resets the board.
+    dp.DBGMCU
+        .apb1_fz()
+        .modify(|_, w| w.dbg_iwdg_stop().set_bit());
+
+    let mut rcc = dp.RCC.freeze(clock_config());
     let gpioa = dp.GPIOA.split(&mut rcc);
     let pa1 = gpioa.pa1.into_analog();
 
-    // ADC1: the HAL's set-up (calibration), then conversions on TIM2's trigger output with an
-    // interrupt at each end of conversion (EOCS = 1, so a result not read before the next one
-    // sets the overrun flag).
-    let mut adc = Adc::new(dp.ADC1, true, AdcConfig::default(), &mut rcc);
-    adc.configure_channel(&pa1, Sequence::One, SampleTime::Cycles_15);
+    // ADC1: the HAL's set-up (ADC clock PCLK2/4 = 21 MHz, its VREFINT calibration), then
+    // conversions on TIM2's trigger output with an interrupt at each end of conversion (EOCS =
+    // 1, so a result not read before the next one sets the overrun flag, §13.8.2).
+    let mut adc = Adc::new(
+        dp.ADC1,
+        true,
+        AdcConfig::default().clock(ADC_CLOCK),
+        &mut rcc,
+    );
+    adc.configure_channel(&pa1, Sequence::One, ADC_SAMPLE_TIME);
     adc.set_external_trigger((TriggerMode::RisingEdge, ExternalTrigger::Tim_2_trgo));
     adc.set_continuous(Continuous::Single);
     adc.set_end_of_conversion_interrupt(Eoc::Conversion);
@@ -69,7 +150,8 @@ pub fn init(
     // ADC2 on the same pin, for the capture: TIM3's trigger output, DMA. The HAL constructs
     // only ADC1 (its set-up calibrates on ADC1's internal reference), so ADC2 is set up with
     // registers: channel 1 (PA1), 15-cycle sample time, 12 bits, conversion on TIM3 TRGO's
-    // rising edge, a DMA request after each conversion.
+    // rising edge, a DMA request after each conversion (DDS = 1: for ever, as double-buffer
+    // mode needs, §13.8.1). ADC1's reset above reset it too (one reset for all ADCs).
     <pac::ADC2 as Enable>::enable(&mut rcc);
     let adc2 = dp.ADC2;
     adc2.sqr1().write(|w| w.l().set(0));
@@ -86,36 +168,49 @@ pub fn init(
 
     let dac = DacDrive::new(dp.DAC, gpioa.pa4.into_analog(), &mut rcc);
 
-    // TIM5: µs counter.
-    let mut micros: CounterUs<pac::TIM5> = dp.TIM5.counter_us(&mut rcc);
-    if micros.start(u32::MAX.micros()).is_err() {
-        defmt::panic!("TIM5 cannot count µs");
+    // TIM5: a µs counter over the full 32 bits (ARR = 0xFFFF_FFFF, §18.4.12): the prescaler
+    // is loaded by an update event (UG, with URS so that it sets no flag, §18.4.1, §18.4.6).
+    <pac::TIM5 as Enable>::enable(&mut rcc);
+    <pac::TIM5 as Reset>::reset(&mut rcc);
+    let tim5 = dp.TIM5;
+    tim5.psc().write(|w| w.psc().set(TIM5_PSC as u16));
+    tim5.arr().write(|w| unsafe { w.bits(TIM5_ARR) });
+    tim5.cr1().write(|w| w.urs().set_bit());
+    tim5.egr().write(|w| w.ug().set_bit());
+    tim5.cr1().write(|w| w.urs().set_bit().cen().set_bit());
+
+    // TIM2: 10 kHz update events on its trigger output (MMS = 010, §18.4.2), no interrupt,
+    // prescaler 1 (its reset value: no update event needed, so no trigger now). Counting
+    // starts in `SamplingTrigger::start`.
+    <pac::TIM2 as Enable>::enable(&mut rcc);
+    <pac::TIM2 as Reset>::reset(&mut rcc);
+    let tim2 = dp.TIM2;
+    tim2.arr().write(|w| unsafe { w.bits(TIM2_ARR) });
+    tim2.cr2().write(|w| w.mms().update());
+
+    // TIM3: the capture rate, the same way; counts while a capture records.
+    <pac::TIM3 as Enable>::enable(&mut rcc);
+    <pac::TIM3 as Reset>::reset(&mut rcc);
+    let tim3 = dp.TIM3;
+    tim3.arr().write(|w| unsafe { w.bits(TIM3_ARR) });
+    tim3.cr2().write(|w| w.mms().update());
+
+    // DMA2 stream 2 channel 1: ADC2's data register → M0, M1, M0 … (the two halves of
+    // `bufs`), configured disabled (§10.3.17); enabled at each capture's start.
+    <pac::DMA2 as Enable>::enable(&mut rcc);
+    <pac::DMA2 as Reset>::reset(&mut rcc);
+    let dma = dp.DMA2;
+    let bufs_addr = bufs.as_mut_ptr() as usize;
+    {
+        let st = dma.st(CAPTURE_STREAM);
+        st.par()
+            .write(|w| unsafe { w.bits(adc2.dr().as_ptr() as u32) });
+        st.m0ar().write(|w| unsafe { w.bits(bufs_addr as u32) });
+        st.m1ar()
+            .write(|w| unsafe { w.bits((bufs_addr + 2 * CAPTURE_BLOCK) as u32) });
+        st.ndtr().write(|w| unsafe { w.bits(CAPTURE_BLOCK as u32) });
+        st.cr().write(|w| unsafe { w.bits(CAPTURE_DMA_CR) });
     }
-
-    // TIM2: 10 kHz, update event on the trigger output (no interrupt: ADC1 converts on it).
-    let mut tim2 = Timer::new(dp.TIM2, &mut rcc);
-    tim2.set_master_mode(pac::tim2::cr2::MMS::Update);
-    let mut tim2: CounterHz<pac::TIM2> = tim2.counter_hz();
-    if tim2.start(shared::control::SAMPLE_RATE_HZ.Hz()).is_err() {
-        defmt::panic!("TIM2 cannot run at the sample rate");
-    }
-
-    // TIM3: the capture rate, same way; started while a capture records.
-    let mut tim3 = Timer::new(dp.TIM3, &mut rcc);
-    tim3.set_master_mode(pac::tim3::cr2::MMS::Update);
-    let tim3: CounterHz<pac::TIM3> = tim3.counter_hz();
-
-    // DMA2 stream 2 channel 1: ADC2 → two 64-sample buffers in turn (double buffer), an
-    // interrupt when one is full; the third buffer is the one being read.
-    let streams = StreamsTuple::new(dp.DMA2, &mut rcc);
-    let [a, b, spare] = bufs;
-    let dma = DmaConfig::default()
-        .transfer_complete_interrupt(true)
-        .memory_increment(true)
-        .double_buffer(true);
-    let mut transfer: CaptureTransfer =
-        Transfer::init_peripheral_to_memory(streams.2, adc2, a, Some(b), dma);
-    transfer.start(|_| {});
 
     let usart = console_usart(dp.USART2, (gpioa.pa2, gpioa.pa3), &mut rcc);
 
@@ -123,43 +218,76 @@ pub fn init(
     iwdg.start(WATCHDOG_MS.millis());
 
     BoardParts {
-        adc: ForceAdc { adc },
+        adc: ForceAdc { _adc: adc },
         dac,
         clock: MicrosClock {
-            timer: micros,
+            _tim5: tim5,
             count: Micros64::default(),
         },
         serial: ConsoleSerial { usart },
         capture: CaptureInput {
-            timer: tim3,
-            transfer,
-            spare: Some(spare),
+            tim3,
+            dma,
+            adc2,
+            bufs_addr,
+            tracker: BlockTracker::new(),
         },
         watchdog: Watchdog { iwdg },
+        trigger: SamplingTrigger { tim2 },
+    }
+}
+
+/// ADC1's status and data registers.
+struct Adc1;
+
+impl AdcRegisters for Adc1 {
+    fn status(&mut self) -> u32 {
+        // SAFETY: a read of ADC1_SR; ADC1's results belong to the sampling task.
+        unsafe { &*pac::ADC1::ptr() }.sr().read().bits()
+    }
+    fn write_status(&mut self, value: u32) {
+        // SAFETY: ADC1_SR's rc_w0 flags: the value clears exactly the flags written 0.
+        unsafe { &*pac::ADC1::ptr() }
+            .sr()
+            .write(|w| unsafe { w.bits(value) });
+    }
+    fn data(&mut self) -> u32 {
+        // SAFETY: a read of ADC1_DR (clears EOC).
+        unsafe { &*pac::ADC1::ptr() }.dr().read().bits()
+    }
+}
+
+/// ADC1's trigger, TIM2.
+pub struct SamplingTrigger {
+    tim2: pac::TIM2,
+}
+
+impl SamplingTrigger {
+    /// Starts the sampling: ADC1's flags cleared and its data register read (the set-up's
+    /// calibration conversion is not a sample; an overrun latched before the first trigger
+    /// would read as an `adc-overrun` fault), the ADC interrupt's pending bit cleared, then
+    /// TIM2 counting: its first update, 100 µs later, starts the first conversion. Called once,
+    /// with interrupts on, so that the first end of conversion is served (RM0090 §13.8.2).
+    pub fn start(&mut self) {
+        discard_pending(&mut Adc1);
+        NVIC::unpend(Interrupt::ADC);
+        self.tim2.cr1().modify(|_, w| w.cen().set_bit());
     }
 }
 
 /// The force sensor on ADC1: the conversion TIM2 started.
 pub struct ForceAdc {
-    adc: Adc<pac::ADC1>,
+    // Owned so that nothing else reconfigures ADC1; its registers are read through `Adc1`.
+    _adc: Adc<pac::ADC1>,
 }
 
 impl ForceSource for ForceAdc {
     fn read_code(&mut self) -> Result<u16, SampleError> {
-        // The HAL has no overrun accessor: ADC1's status register, read and its OVR bit
-        // cleared here (the sampling task owns ADC1's results).
-        // SAFETY: a read of ADC1_SR and a write clearing only OVR.
-        let sr = unsafe { &*pac::ADC1::ptr() }.sr();
-        if sr.read().ovr().bit_is_set() {
-            sr.modify(|_, w| w.ovr().clear_bit());
-            return Err(SampleError::Overrun);
-        }
-        // Reading the data register clears the end-of-conversion flag.
-        Ok(self.adc.current_sample() & 0x0FFF)
+        read_conversion(&mut Adc1)
     }
 }
 
-/// DAC1 on PA4, 12-bit right-aligned, feeding the power amplifier.
+/// DAC1 on PA4, 12-bit right-aligned, output buffer on, feeding the power amplifier.
 pub struct DacDrive {
     ch: C1,
 }
@@ -183,16 +311,23 @@ impl DriveOutput for DacDrive {
     }
 }
 
+/// TIM5's count, µs.
+fn tim5_now_us() -> u32 {
+    // SAFETY: a read of TIM5_CNT; TIM5 only counts after `init`.
+    unsafe { &*pac::TIM5::ptr() }.cnt().read().bits()
+}
+
 /// µs since start-up from TIM5 (32-bit, extended to 64 bits at every read).
 pub struct MicrosClock {
-    timer: CounterUs<pac::TIM5>,
+    // Owned so that nothing else reconfigures TIM5; its counter is read through `tim5_now_us`.
+    _tim5: pac::TIM5,
     count: Micros64,
 }
 
 impl MicrosClock {
     /// Now, µs.
     pub fn now_us(&mut self) -> u64 {
-        self.count.extend(self.timer.now().ticks())
+        self.count.extend(tim5_now_us())
     }
 }
 
@@ -232,41 +367,144 @@ impl ConsoleSerial {
     }
 }
 
-/// ADC2 at the capture rate: TIM3 triggers, DMA2 fills the double buffer.
+/// ADC2 at the capture rate: TIM3 triggers, DMA2 stream 2 fills the double buffer; the
+/// bookkeeping (late service, lost blocks, re-arming) is `shared::capture_dma`'s.
 pub struct CaptureInput {
-    timer: CounterHz<pac::TIM3>,
-    transfer: CaptureTransfer,
-    spare: Option<&'static mut [u16; CAPTURE_BLOCK]>,
+    tim3: pac::TIM3,
+    dma: pac::DMA2,
+    adc2: pac::ADC2,
+    /// The two buffers' address (the DMA writes them: read with volatile reads only).
+    bufs_addr: usize,
+    tracker: BlockTracker,
 }
 
 impl CaptureInput {
-    /// Starts the conversions.
+    /// Starts the conversions of a new capture, if they are not running: the stream re-armed
+    /// (no sample of an earlier capture left in a half-filled buffer reaches this one), TIM3
+    /// started half a capture period off TIM2's update (ADC1 and ADC2 never sample PA1 at
+    /// once). While running, it does nothing: the capture's sample phase stays.
     pub fn start(&mut self) {
-        let _ = self.timer.start(shared::capture::CAPTURE_RATE_HZ.Hz());
-    }
-
-    /// Stops them.
-    pub fn stop(&mut self) {
-        let _ = self.timer.cancel();
-    }
-
-    /// The buffer the DMA just filled, to `f`; the spare buffer takes its place.
-    pub fn take_block(&mut self, f: impl FnOnce(&[u16])) {
-        let Some(spare) = self.spare.take() else {
+        if self.tim3.cr1().read().cen().bit_is_set() {
             return;
+        }
+        self.stream().rearm();
+        // SAFETY: a read of TIM2's counter (TIM2 belongs to the sampling trigger).
+        let tim2_cnt = unsafe { &*pac::TIM2::ptr() }.cnt().read().bits();
+        let cnt = (tim2_cnt % TIM3_PERIOD + TIM3_PHASE) % TIM3_PERIOD;
+        self.tim3.cnt().write(|w| unsafe { w.bits(cnt) });
+        self.tracker.start(tim5_now_us());
+        self.tim3.cr1().modify(|_, w| w.cen().set_bit());
+    }
+
+    /// Stops them (the stream stays as it is: the next start re-arms it).
+    pub fn stop(&mut self) {
+        self.tim3.cr1().modify(|_, w| w.cen().clear_bit());
+        self.tracker.stop();
+    }
+
+    /// A new capture was armed: its conversions start afresh.
+    pub fn restart(&mut self) {
+        self.stop();
+        self.start();
+    }
+
+    /// Serves the stream: `f` gets the samples lost since the last call and the newest full
+    /// block (empty when there is none). Called on the stream's interrupt and once a second
+    /// (a stalled stream raises none).
+    pub fn take_block(&mut self, f: impl FnOnce(u32, &[u16])) {
+        let mut block = [0u16; CAPTURE_BLOCK];
+        let tracker = &mut self.tracker;
+        let mut stream = Stream2 {
+            dma: &self.dma,
+            adc2: &self.adc2,
+            bufs_addr: self.bufs_addr,
         };
-        match self.transfer.next_transfer(spare) {
-            Ok((full, _)) => {
-                f(&full[..]);
-                self.spare = Some(full);
+        let s = tracker.service(&mut stream, &mut block);
+        let n = if s.block { CAPTURE_BLOCK } else { 0 };
+        f(s.lost_samples, block.get(..n).unwrap_or(&[]));
+    }
+
+    fn stream(&self) -> Stream2<'_> {
+        Stream2 {
+            dma: &self.dma,
+            adc2: &self.adc2,
+            bufs_addr: self.bufs_addr,
+        }
+    }
+}
+
+/// DMA2 stream 2 and ADC2, for `shared::capture_dma`.
+struct Stream2<'a> {
+    dma: &'a pac::DMA2,
+    adc2: &'a pac::ADC2,
+    bufs_addr: usize,
+}
+
+impl CaptureStream for Stream2<'_> {
+    fn clear_complete(&mut self) {
+        self.dma.lifcr().write(|w| unsafe { w.bits(STREAM2_TCIF) });
+    }
+
+    fn state(&mut self) -> StreamState {
+        let st = self.dma.st(CAPTURE_STREAM);
+        // CT and NDTR as one pair: read CT again after NDTR; a buffer switch in between (at
+        // most one in a few cycles) shows as a changed CT.
+        let mut cr = st.cr().read().bits();
+        let mut ndtr = st.ndtr().read().bits();
+        for _ in 0..2 {
+            let again = st.cr().read().bits();
+            if (again ^ cr) & DMA_CT == 0 {
+                break;
             }
-            Err(e) => {
-                // Not ready or a transfer error: keep the buffer for the next interrupt.
-                use stm32f4xx_hal::dma::DMAError::{NotReady, Overrun, SmallBuffer};
-                let (NotReady(b) | SmallBuffer(b) | Overrun(b)) = e;
-                self.spare = Some(b);
+            cr = again;
+            ndtr = st.ndtr().read().bits();
+        }
+        let isr = self.dma.lisr().read().bits();
+        StreamState {
+            enabled: cr & DMA_EN != 0,
+            target: u8::from(cr & DMA_CT != 0),
+            remaining: ndtr as u16,
+            error: isr & (STREAM2_TEIF | STREAM2_DMEIF) != 0,
+            adc_overrun: self.adc2.sr().read().ovr().bit_is_set(),
+            now_us: tim5_now_us(),
+        }
+    }
+
+    fn copy(&mut self, target: u8, out: &mut [u16; CAPTURE_BLOCK]) {
+        let base = self.bufs_addr + usize::from(target & 1) * 2 * CAPTURE_BLOCK;
+        for (i, o) in out.iter_mut().enumerate() {
+            // SAFETY: inside the 2 × CAPTURE_BLOCK buffers of `init` ('static); the DMA writes
+            // them, hence volatile reads. A copy the DMA overtakes is caught by the tracker.
+            let code = unsafe { core::ptr::read_volatile((base + 2 * i) as *const u16) };
+            *o = code & 0x0FFF;
+        }
+    }
+
+    /// RM0090 §10.3.17 (stream configuration) and §13.8.1 (recovering ADC2 from an overrun
+    /// when the DMA is used: re-initialise the DMA, clear OVR, then the next trigger converts).
+    fn rearm(&mut self) {
+        let st = self.dma.st(CAPTURE_STREAM);
+        // No requests from ADC2 while the stream is set up.
+        self.adc2.cr2().modify(|_, w| w.dma().disabled());
+        // Disable the stream and wait until it is (an ongoing transfer ends first); its
+        // configuration bits can be written only then.
+        st.cr().modify(|r, w| unsafe { w.bits(r.bits() & !DMA_EN) });
+        for _ in 0..DISABLE_POLLS {
+            if st.cr().read().bits() & DMA_EN == 0 {
+                break;
             }
         }
+        // Its flags cleared (a set flag would keep the interrupt pending), then M0 first (CT
+        // = 0 in CAPTURE_DMA_CR) with a whole block to go.
+        self.dma.lifcr().write(|w| unsafe { w.bits(STREAM2_ALL) });
+        st.cr().write(|w| unsafe { w.bits(CAPTURE_DMA_CR) });
+        st.ndtr().write(|w| unsafe { w.bits(CAPTURE_BLOCK as u32) });
+        // ADC2's overrun cleared alone (rc_w0) and its stale result read.
+        self.adc2.sr().write(|w| unsafe { w.bits(SR_CLEAR_OVR) });
+        let _ = self.adc2.dr().read().bits();
+        st.cr()
+            .write(|w| unsafe { w.bits(CAPTURE_DMA_CR | DMA_EN) });
+        self.adc2.cr2().modify(|_, w| w.dma().enabled());
     }
 }
 

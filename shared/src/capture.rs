@@ -98,6 +98,12 @@ pub struct Capture {
     count: usize,
     /// Samples written into the segment being recorded (0: waiting for a trigger).
     fill: usize,
+    /// The first index that may trigger (a full pre-trigger history behind it).
+    trigger_from: u32,
+    /// Samples lost since arming ([`Capture::skip`]).
+    lost: u32,
+    /// Captures armed since power-up.
+    arms: u32,
 }
 
 impl Default for Capture {
@@ -123,6 +129,9 @@ impl Capture {
             starts: [0; SEGMENTS],
             count: 0,
             fill: 0,
+            trigger_from: 0,
+            lost: 0,
+            arms: 0,
         }
     }
 
@@ -141,6 +150,9 @@ impl Capture {
         self.end_index = (seconds.max(0.0) * CAPTURE_RATE_HZ as f32) as u32;
         self.count = 0;
         self.fill = 0;
+        self.trigger_from = PRE_TRIGGER as u32;
+        self.lost = 0;
+        self.arms = self.arms.wrapping_add(1);
         self.state = CaptureState::Armed;
     }
 
@@ -155,6 +167,37 @@ impl Capture {
     /// Whether the capture is recording (the drive must stay idle).
     pub fn active(&self) -> bool {
         self.state == CaptureState::Armed
+    }
+
+    /// Captures armed since power-up (wrapping): a change tells the sampling input that a new
+    /// capture starts.
+    pub fn arm_count(&self) -> u32 {
+        self.arms
+    }
+
+    /// Samples lost since arming (not delivered by the sampling input: [`Capture::skip`]).
+    pub fn lost_samples(&self) -> u32 {
+        self.lost
+    }
+
+    /// `n` samples were lost (a DMA block served too late, a re-armed stream): the index moves
+    /// on by `n`, so later segments keep their time; a segment being recorded is dropped (it
+    /// would have a hole), and the next trigger waits for a whole pre-trigger history of new
+    /// samples and for the signal to fall below the re-arm level.
+    pub fn skip(&mut self, n: u32) {
+        if self.state != CaptureState::Armed || n == 0 {
+            return;
+        }
+        self.lost = self.lost.saturating_add(n);
+        if self.fill > 0 {
+            self.fill = 0;
+            self.below = false;
+        }
+        self.index = self.index.saturating_add(n);
+        self.trigger_from = self.index.saturating_add(PRE_TRIGGER as u32);
+        if self.index >= self.end_index {
+            self.state = CaptureState::Done;
+        }
     }
 
     /// The state line.
@@ -212,7 +255,7 @@ impl Capture {
                     self.state = CaptureState::Done;
                 }
             }
-        } else if self.below && code >= self.level_code && self.index >= PRE_TRIGGER as u32 {
+        } else if self.below && code >= self.level_code && self.index >= self.trigger_from {
             if let (Some(seg), Some(start)) = (
                 self.segs.get_mut(self.count),
                 self.starts.get_mut(self.count),
@@ -319,5 +362,47 @@ mod tests {
         c.stop();
         assert_eq!(c.status().segments, 2);
         assert!(!c.active());
+    }
+
+    #[test]
+    fn lost_samples_keep_the_segments_time_and_never_splice_a_segment() {
+        let sig = signal(4_000, &[(1_000, 57, 40.0), (3_000, 57, 40.0)]);
+        let mut c = Capture::new();
+        c.arm(&SensorChain::default(), 1.0, 1.0);
+        let armed = c.arm_count();
+        // Blocks up to the first pulse's middle, then two blocks lost (the DMA served late),
+        // then the rest: the first pulse's segment would have a hole, so it is dropped; the
+        // second keeps its time.
+        c.push_block(&sig[..1_024]);
+        c.skip(128);
+        c.push_block(&sig[1_152..]);
+        assert_eq!(c.lost_samples(), 128);
+        assert_eq!(c.status().samples, 4_000);
+        assert_eq!(c.status().segments, 1);
+        let seg = c.segment(0).unwrap();
+        assert!((2_968..2_978).contains(&seg.start), "{}", seg.start);
+        assert_eq!(&seg.codes[..], &sig[seg.start as usize..][..SEGMENT_LEN]);
+
+        // A loss right before a crossing: no trigger until a whole pre-trigger history of new
+        // samples is in (the history holds samples from before the hole).
+        c.arm(&SensorChain::default(), 1.0, 1.0);
+        assert_ne!(c.arm_count(), armed);
+        assert_eq!(c.lost_samples(), 0);
+        c.push_block(&sig[..990]);
+        c.skip(20);
+        c.push_block(&sig[1_010..]);
+        for k in 0..c.status().segments {
+            let seg = c.segment(k).unwrap();
+            assert!(
+                seg.start >= 1_010,
+                "segment {k} starts at {} in the hole",
+                seg.start
+            );
+            assert_eq!(&seg.codes[..], &sig[seg.start as usize..][..SEGMENT_LEN]);
+        }
+        // A loss past the capture's end ends it.
+        c.arm(&SensorChain::default(), 1.0, 0.01);
+        c.skip(5_000);
+        assert_eq!(c.status().state, CaptureState::Done);
     }
 }

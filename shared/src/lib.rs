@@ -10,7 +10,10 @@
 //! measured regime, tracking, faults) → [`console`] (the console protocol: requests, replies
 //! and records as text, both directions, and the service that answers lines). Beside the loop:
 //! [`capture`] (the drop-test force capture) and [`health`] (the sampling health check behind
-//! the watchdog); the hardware is reached through [`hal`]. Under every layer: [`real`] (f32 or
+//! the watchdog); the hardware is reached through [`hal`], and the converters' bookkeeping that
+//! the firmware's interrupts run is here too, tested on the desktop: [`adc_status`] (the force
+//! ADC's end of conversion and overrun) and [`capture_dma`] (the capture's DMA double buffer:
+//! late service, lost blocks, re-arming). Under every layer: [`real`] (f32 or
 //! f64), [`dual`] (derivatives through the same code) and [`error`]. Every dependency points
 //! down this list.
 //!
@@ -22,8 +25,10 @@
 #[cfg(any(test, feature = "std"))]
 extern crate std;
 
+pub mod adc_status;
 pub mod analysis;
 pub mod capture;
+pub mod capture_dma;
 pub mod console;
 pub mod control;
 pub mod dual;

@@ -1,0 +1,478 @@
+#!/usr/bin/env python3
+"""The rig image's register writes, recorded: runs the rig image (`firmware`, the one QEMU cannot
+run: no RCC, DMA, DAC or triggered ADC there) in unicorn, an instruction-level emulator of the
+Cortex-M4, from its reset handler through `init` to its idle loop, then feeds it interrupts as
+the hardware would raise them, and prints every access to a peripheral register.
+
+Usage: register_trace.py ELF [--out FILE]        (pip install unicorn pyelftools)
+
+Exit status 0 when the scenario ran to its end; 2 when unicorn or pyelftools is missing (the
+message says so); 1 on any other failure (the trace so far is printed, then the error).
+
+What is modelled (the rest of the address space is plain memory: a register reads what was
+last written, from its reset value):
+- RCC: HSIRDY, HSERDY, PLLRDY, PLLI2SRDY read as set when their oscillator is on, SWS mirrors
+  SW, LSIRDY is set (RM0090 §7.3.1, §7.3.3, §7.3.21); the flash's VREFINT calibration word
+  (0x1FFF_7A2A) holds 1500.
+- ADC1, ADC2: ADC_SR's flags are rc_w0 (a written 0 clears, a 1 leaves, §13.13.1); a software
+  start (CR2.SWSTART) ends at once with EOC and a result of 1500 (the HAL's calibration), and
+  SWSTART reads 0 again (§13.13.3); a read of ADC_DR clears EOC.
+- DMA2: LISR's flags are cleared by writes of 1 to LIFCR (§10.5.1, §10.5.3).
+- USART2: TXE and TC always set; RXNE while received bytes wait; DR reads them in turn, DR
+  writes are the board's output (collected into reply lines).
+- NVIC: ISER/ICER, ISPR/ICPR and STIR as enabled and pending sets; IPR bytes as written. An
+  interrupt is delivered when it is enabled and pending (set in ISPR, or its peripheral's flag
+  and enable: ADC EOC with EOCIE, USART2 TXE with TXEIE or RXNE with RXNEIE, DMA2 stream 2's
+  TC/TE/DME flags with their enables), highest NVIC priority first; its handler runs to its end
+  (no nesting) with the interrupted registers restored after. Interrupts at the lowest priority
+  (0xF0: RTIC's priority 1, the model task's 46 M instructions) are not delivered.
+- Time: TIM5_CNT (the µs clock) is set by the scenario; nothing else counts.
+
+The trace, one line per event:
+  W <seq> <addr> <size> <value> <pc>     a write to a peripheral or system register
+  B <seq> <addr> <bit> <value> <pc>      the bit a bit-band alias write (the W before it) sets
+                                         or clears in the peripheral register at <addr>
+  R <seq> <addr> <size> <value> <pc>     a read, with the value the image got
+  M <seq> <kind> [text]                  a marker: phase <name>, interrupts-on, idle,
+                                         irq <n> <handler>, reply <text>,
+                                         stream-disabled (a DMA block not transferred), done
+Addresses and values are hexadecimal.
+
+The scenario (the phases, in order):
+  boot          reset → `init` → interrupts on → pending interrupts delivered → idle
+  sample        two ADC1 ends of conversion, 100 µs apart (the sampling task, the DAC write)
+  capture-arm   `capture arm 1 0.5` on the console (the capture's stream and TIM3 started)
+  console-armed `status` while the capture records (nothing may restart TIM3)
+  capture-block a full DMA block (TCIF2, CT switched) 650 µs after the start, then `capture`
+  capture-error a transfer error (TEIF2, the stream disabled, ADC2 overrun) 1 ms later, then
+                `capture`
+  capture-rearm `capture stop`, `capture arm 1 0.5` (the next capture's stream re-armed)
+  capture-stopped `capture stop`, a full block (the capture task stops TIM3), then another
+                (a block completed as it stopped: its flag must be cleared, or the interrupt
+                comes again for ever)
+  adc-overrun   an ADC1 end of conversion with OVR set (the sampling task's overrun path)
+"""
+import argparse
+import struct
+import sys
+
+try:
+    from elftools.elf.elffile import ELFFile
+    from unicorn import (UC_ARCH_ARM, UC_HOOK_CODE, UC_HOOK_MEM_READ, UC_HOOK_MEM_WRITE,
+                         UC_MODE_MCLASS, UC_MODE_THUMB, Uc, UcError)
+    from unicorn.arm_const import (UC_ARM_REG_LR, UC_ARM_REG_PC, UC_ARM_REG_SP,
+                                   UC_CPU_ARM_CORTEX_M4)
+except ImportError as e:  # pragma: no cover
+    print(f"register_trace.py needs python3 with unicorn and pyelftools "
+          f"(pip install unicorn pyelftools): {e}", file=sys.stderr)
+    sys.exit(2)
+
+# Memory map (RM0090 §2.3, Table 1; PM0214 §4.1 for the system control space).
+FLASH = (0x0800_0000, 0x10_0000)
+SYSMEM = (0x1FFF_0000, 0x1_0000)
+CCM = (0x1000_0000, 0x1_0000)
+SRAM = (0x2000_0000, 0x2_0000)
+PERIPH = (0x4000_0000, 0x2000_0000)
+SCS = (0xE000_0000, 0x10_0000)
+BITBAND = (0x4200_0000, 0x0200_0000)
+# Where a handler "returns" to: the last word of flash, hooked.
+RETURN_TRAP = FLASH[0] + FLASH[1] - 0x10
+
+RCC = 0x4002_3800
+RCC_CR, RCC_PLLCFGR, RCC_CFGR, RCC_CSR = RCC, RCC + 0x04, RCC + 0x08, RCC + 0x74
+ADC1, ADC2 = 0x4001_2000, 0x4001_2100
+ADC_SR, ADC_CR1, ADC_CR2, ADC_DR = 0x00, 0x04, 0x08, 0x4C
+DMA2 = 0x4002_6400
+DMA_LISR, DMA_LIFCR = DMA2 + 0x00, DMA2 + 0x08
+S2CR, S2NDTR, S2M0AR, S2M1AR = DMA2 + 0x40, DMA2 + 0x44, DMA2 + 0x4C, DMA2 + 0x50
+USART2 = 0x4000_4400
+USART_SR, USART_DR, USART_CR1 = USART2, USART2 + 0x04, USART2 + 0x0C
+TIM5_CNT = 0x4000_0C24
+GPIOA = 0x4002_0000
+IWDG_RLR = 0x4000_3008
+DMA2_S2FCR = DMA2 + 0x54
+VREFINT_CAL = 0x1FFF_7A2A
+NVIC_ISER, NVIC_ICER, NVIC_ISPR, NVIC_ICPR = 0xE000_E100, 0xE000_E180, 0xE000_E200, 0xE000_E280
+NVIC_IPR, NVIC_STIR = 0xE000_E400, 0xE000_EF00
+
+IRQ_ADC, IRQ_USART2, IRQ_DMA2_STREAM2 = 18, 38, 58
+ADC_SR_FLAGS = 0x3F
+EOC, STRT, OVR = 1 << 1, 1 << 4, 1 << 5
+TCIF2, TEIF2, DMEIF2 = 1 << 21, 1 << 19, 1 << 18
+LOWEST_PRIORITY = 0xF0
+BOOT_INSNS = 60_000_000
+HANDLER_INSNS = 5_000_000
+
+# Reset values that start-up reads back (RM0090 §7.3, §8.4, §10.5.10, §21.4).
+RESET_VALUES = {
+    RCC_CR: 0x0000_0083,
+    RCC_PLLCFGR: 0x2400_3010,
+    RCC_CSR: 0x0E00_0000,
+    GPIOA + 0x00: 0xA800_0000,
+    GPIOA + 0x08: 0x0C00_0000,
+    GPIOA + 0x0C: 0x6400_0000,
+    DMA2_S2FCR: 0x0000_0021,
+    IWDG_RLR: 0x0000_0FFF,
+    USART_SR: 0x0000_00C0,
+}
+
+
+class Failure(Exception):
+    pass
+
+
+class Rig:
+    def __init__(self, elf_path):
+        with open(elf_path, "rb") as f:
+            elf = ELFFile(f)
+            self.segments = [(s["p_paddr"], s.data()) for s in elf.iter_segments()
+                             if s["p_type"] == "PT_LOAD" and s["p_filesz"] > 0]
+            text = elf.get_section_by_name(".text")
+            self.text = (text["sh_addr"], text.data())
+            self.symbols = {}
+            symtab = elf.get_section_by_name(".symtab")
+            if symtab is not None:
+                for sym in symtab.iter_symbols():
+                    if sym["st_info"]["type"] == "STT_FUNC" and sym["st_value"]:
+                        self.symbols.setdefault(sym["st_value"] & ~1, sym.name)
+        uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
+        for base, size in (FLASH, SYSMEM, CCM, SRAM, PERIPH, SCS):
+            uc.mem_map(base, size)
+        for addr, data in self.segments:
+            uc.mem_write(addr, data)
+        uc.mem_write(RETURN_TRAP, b"\xfe\xe7" * 8)  # b .
+        uc.mem_write(VREFINT_CAL, struct.pack("<H", 1500))
+        for addr, value in RESET_VALUES.items():
+            uc.mem_write(addr, struct.pack("<I", value))
+        self.uc = uc
+        self.seq = 0
+        self.lines = []
+        self.adc_sr = {ADC1: 0, ADC2: 0}
+        self.lisr = 0
+        self.rx = []
+        self.tx = bytearray()
+        self.enabled = set()
+        self.pending = set()
+        self.stop_reason = None
+        self.interrupts_on = False
+        uc.hook_add(UC_HOOK_MEM_READ, self._on_read, begin=PERIPH[0], end=PERIPH[0] + PERIPH[1] - 1)
+        uc.hook_add(UC_HOOK_MEM_WRITE, self._on_write, begin=PERIPH[0], end=PERIPH[0] + PERIPH[1] - 1)
+        uc.hook_add(UC_HOOK_MEM_READ, self._on_read, begin=SCS[0], end=SCS[0] + SCS[1] - 1)
+        uc.hook_add(UC_HOOK_MEM_WRITE, self._on_write, begin=SCS[0], end=SCS[0] + SCS[1] - 1)
+        base, code = self.text
+        for off in range(0, len(code) - 1, 2):
+            hw = code[off] | code[off + 1] << 8
+            if hw == 0xB662:  # cpsie i
+                uc.hook_add(UC_HOOK_CODE, self._on_cpsie, begin=base + off, end=base + off)
+            elif hw == 0xBF30:  # wfi
+                uc.hook_add(UC_HOOK_CODE, self._on_wfi, begin=base + off, end=base + off)
+        uc.hook_add(UC_HOOK_CODE, self._on_return, begin=RETURN_TRAP, end=RETURN_TRAP + 1)
+
+    # -- the trace -------------------------------------------------------------------------
+    def event(self, kind, *fields):
+        self.seq += 1
+        self.lines.append(" ".join([kind, str(self.seq)] + [str(f) for f in fields]))
+
+    def mark(self, kind, text=""):
+        self.event("M", kind, text) if text else self.event("M", kind)
+
+    def pc(self):
+        return self.uc.reg_read(UC_ARM_REG_PC)
+
+    # -- memory ----------------------------------------------------------------------------
+    def read32(self, addr):
+        return struct.unpack("<I", self.uc.mem_read(addr, 4))[0]
+
+    def write32(self, addr, value):
+        self.uc.mem_write(addr, struct.pack("<I", value & 0xFFFF_FFFF))
+
+    def _load(self, addr, size):
+        return int.from_bytes(self.uc.mem_read(addr, size), "little")
+
+    def _store(self, addr, size, value):
+        self.uc.mem_write(addr, (value & ((1 << (8 * size)) - 1)).to_bytes(size, "little"))
+
+    def _modelled(self, addr):
+        """The value a read of `addr` returns, or None for plain memory."""
+        word = addr & ~3
+        if word == RCC_CR:
+            v = self.read32(RCC_CR)
+            for on, rdy in ((0, 1), (16, 17), (24, 25), (26, 27)):
+                if v >> on & 1:
+                    v |= 1 << rdy
+            return v
+        if word == RCC_CFGR:
+            v = self.read32(RCC_CFGR)
+            return (v & ~0xC) | ((v & 3) << 2)
+        if word == RCC_CSR:
+            return self.read32(RCC_CSR) | 0x2
+        for adc in (ADC1, ADC2):
+            if word == adc + ADC_SR:
+                return self.adc_sr[adc]
+            if word == adc + ADC_CR2:
+                # SWSTART and JSWSTART are cleared by the hardware once the conversion starts.
+                return self.read32(word) & ~(1 << 30 | 1 << 22)
+            if word == adc + ADC_DR:
+                self.adc_sr[adc] &= ~EOC
+                return None
+        if word == DMA_LISR:
+            return self.lisr
+        if word == USART_SR:
+            return 0xC0 | (0x20 if self.rx else 0)
+        if word == USART_DR:
+            return self.rx.pop(0) if self.rx else 0
+        if NVIC_ISER <= word < NVIC_ISER + 0x20:
+            return self._bits_of(self.enabled, word - NVIC_ISER)
+        if NVIC_ISPR <= word < NVIC_ISPR + 0x20:
+            return self._bits_of(self.pending, word - NVIC_ISPR)
+        return None
+
+    @staticmethod
+    def _bits_of(irqs, offset):
+        base = offset * 8
+        return sum(1 << (n - base) for n in irqs if base <= n < base + 32)
+
+    def _on_read(self, uc, access, addr, size, value, user):
+        v = self._modelled(addr)
+        if v is not None:
+            shift = 8 * (addr & 3)
+            self._store(addr, size, v >> shift)
+        self.event("R", hex(addr), size, hex(self._load(addr, size)), hex(self.pc()))
+
+    def _on_write(self, uc, access, addr, size, value, user):
+        value &= (1 << (8 * size)) - 1
+        self.event("W", hex(addr), size, hex(value), hex(self.pc()))
+        if BITBAND[0] <= addr < BITBAND[0] + BITBAND[1]:
+            # A bit-band alias (PM0214 §2.2.5): one bit of the peripheral word it maps.
+            off = addr - BITBAND[0]
+            byte = off // 32
+            target, bit = PERIPH[0] + (byte & ~3), (byte & 3) * 8 + off % 32 // 4
+            old = self.read32(target)
+            new = (old | 1 << bit) if value & 1 else (old & ~(1 << bit))
+            self.write32(target, new)
+            self.event("B", hex(target), bit, value & 1, hex(self.pc()))
+            return
+        word = addr & ~3
+        v32 = value << (8 * (addr & 3))
+        for adc in (ADC1, ADC2):
+            if word == adc + ADC_SR:
+                self.adc_sr[adc] &= v32 | ~ADC_SR_FLAGS
+            elif word == adc + ADC_CR2 and v32 & (1 << 30):
+                self.adc_sr[adc] |= EOC | STRT
+                self.write32(adc + ADC_DR, 1500)
+        if word == DMA_LIFCR:
+            self.lisr &= ~v32
+        elif word == USART_DR:
+            self.tx.append(value & 0xFF)
+        elif NVIC_ISER <= word < NVIC_ISER + 0x20:
+            self.enabled |= self._irqs_of(v32, word - NVIC_ISER)
+        elif NVIC_ICER <= word < NVIC_ICER + 0x20:
+            self.enabled -= self._irqs_of(v32, word - NVIC_ICER)
+        elif NVIC_ISPR <= word < NVIC_ISPR + 0x20:
+            self.pending |= self._irqs_of(v32, word - NVIC_ISPR)
+        elif NVIC_ICPR <= word < NVIC_ICPR + 0x20:
+            self.pending -= self._irqs_of(v32, word - NVIC_ICPR)
+        elif word == NVIC_STIR:
+            self.pending.add(value & 0x1FF)
+
+    @staticmethod
+    def _irqs_of(bits, offset):
+        return {offset * 8 + i for i in range(32) if bits >> i & 1}
+
+    # -- execution -------------------------------------------------------------------------
+    def _on_cpsie(self, uc, addr, size, user):
+        if not self.interrupts_on:
+            self.interrupts_on = True
+            self.stop_reason = "cpsie"
+            uc.emu_stop()
+
+    def _on_wfi(self, uc, addr, size, user):
+        if self.stop_reason is None:
+            self.stop_reason = "wfi"
+            uc.emu_stop()
+
+    def _on_return(self, uc, addr, size, user):
+        self.stop_reason = "return"
+        uc.emu_stop()
+
+    def run(self, start, count, what):
+        self.stop_reason = None
+        try:
+            self.uc.emu_start(start | 1, 0xFFFF_FFFF, count=count)
+        except UcError as e:
+            raise Failure(f"{what}: {e} at pc=0x{self.pc():08x}") from e
+        return self.stop_reason
+
+    def boot(self):
+        self.mark("phase", "boot")
+        sp, reset = struct.unpack("<II", self.uc.mem_read(FLASH[0], 8))
+        self.uc.reg_write(UC_ARM_REG_SP, sp)
+        if self.run(reset, BOOT_INSNS, "start-up") != "cpsie":
+            raise Failure(f"start-up: interrupts never came on (stopped at pc=0x{self.pc():08x})")
+        # Execute the cpsie itself, then the CPU takes what is pending.
+        cpsie = self.pc()
+        self.run(cpsie, 1, "cpsie")
+        self.mark("interrupts-on")
+        self.deliver_pending()
+        if self.run(self.pc(), BOOT_INSNS, "after init") != "wfi":
+            raise Failure(f"after init: no idle loop reached (pc=0x{self.pc():08x})")
+        self.mark("idle")
+
+    def priority(self, irq):
+        return self.uc.mem_read(NVIC_IPR + irq, 1)[0]
+
+    def level_pending(self):
+        """Interrupts raised by a peripheral's flag and enable."""
+        out = set()
+        cr1 = self.read32(ADC1 + ADC_CR1)
+        if cr1 & (1 << 5) and self.adc_sr[ADC1] & EOC:
+            out.add(IRQ_ADC)
+        if cr1 & (1 << 26) and self.adc_sr[ADC1] & OVR:
+            out.add(IRQ_ADC)
+        ucr1 = self.read32(USART_CR1)
+        if ucr1 & (1 << 7) or (ucr1 & (1 << 5) and self.rx):
+            out.add(IRQ_USART2)
+        s2cr = self.read32(S2CR)
+        if (s2cr & (1 << 4) and self.lisr & TCIF2) or (s2cr & (1 << 2) and self.lisr & TEIF2) \
+                or (s2cr & (1 << 1) and self.lisr & DMEIF2):
+            out.add(IRQ_DMA2_STREAM2)
+        return out
+
+    def ready(self):
+        return [n for n in (self.pending | self.level_pending()) & self.enabled
+                if self.priority(n) != LOWEST_PRIORITY]
+
+    def deliver_pending(self, limit=2_000):
+        for _ in range(limit):
+            ready = self.ready()
+            if not ready:
+                return
+            self.deliver(min(ready, key=lambda n: (self.priority(n), n)))
+        raise Failure(f"interrupts still pending after {limit} deliveries: {sorted(self.ready())}")
+
+    def deliver(self, irq):
+        handler = self.read32(FLASH[0] + 4 * (16 + irq)) & ~1
+        name = self.symbols.get(handler, hex(handler))
+        self.pending.discard(irq)
+        self.mark("irq", f"{irq} {name}")
+        ctx = self.uc.context_save()
+        sp = self.uc.reg_read(UC_ARM_REG_SP)
+        self.uc.reg_write(UC_ARM_REG_SP, (sp - 0x68) & ~7)  # room for an extended frame
+        self.uc.reg_write(UC_ARM_REG_LR, RETURN_TRAP | 1)
+        if self.run(handler, HANDLER_INSNS, f"irq {irq} ({name})") != "return":
+            raise Failure(f"irq {irq} ({name}) did not return within {HANDLER_INSNS} "
+                          f"instructions (pc=0x{self.pc():08x})")
+        self.uc.context_restore(ctx)
+
+    # -- the scenario's stimuli ------------------------------------------------------------
+    def set_time_us(self, us):
+        self.write32(TIM5_CNT, us)
+
+    def adc1_conversion(self, code, overrun=False):
+        self.write32(ADC1 + ADC_DR, code)
+        self.adc_sr[ADC1] |= EOC | STRT | (OVR if overrun else 0)
+        self.deliver_pending()
+
+    def console(self, line):
+        self.tx.clear()
+        self.rx.extend(line.encode() + b"\r")
+        self.deliver_pending()
+        text = self.tx.decode(errors="replace")
+        reply = text.split("\r\n")[0] if "\r\n" in text else text
+        self.mark("reply", reply)
+        return reply
+
+    def dma_block(self, codes):
+        """The stream fills the buffer it is on (CT) and switches to the other (§10.3.9)."""
+        cr = self.read32(S2CR)
+        if not cr & 1:
+            # A disabled stream transfers nothing and flags nothing.
+            self.mark("stream-disabled")
+            return
+        target = S2M1AR if cr & (1 << 19) else S2M0AR
+        buf = self.read32(target)
+        self.uc.mem_write(buf, struct.pack(f"<{len(codes)}H", *codes))
+        self.write32(S2CR, cr ^ (1 << 19))
+        self.write32(S2NDTR, len(codes))
+        self.lisr |= TCIF2
+        self.deliver_pending()
+
+    def dma_transfer_error(self):
+        """A bus error: TEIF2 set and the stream disabled by the hardware (§10.3.18); ADC2
+        then overruns (§13.8.1)."""
+        self.write32(S2CR, self.read32(S2CR) & ~1)
+        self.lisr |= TEIF2
+        self.adc_sr[ADC2] |= OVR | EOC
+        self.deliver_pending()
+
+
+def scenario(rig):
+    rig.boot()
+
+    rig.mark("phase", "sample")
+    rig.set_time_us(10_000)
+    rig.adc1_conversion(248)
+    rig.set_time_us(10_100)
+    rig.adc1_conversion(250)
+
+    rig.mark("phase", "capture-arm")
+    rig.set_time_us(20_000)
+    rig.console("capture arm 1 0.5")
+
+    rig.mark("phase", "console-armed")
+    rig.console("status")
+
+    rig.mark("phase", "capture-block")
+    rig.set_time_us(20_650)
+    rig.dma_block([248] * 64)
+    rig.console("capture")
+
+    rig.mark("phase", "capture-error")
+    rig.set_time_us(21_650)
+    rig.dma_transfer_error()
+    rig.console("capture")
+
+    rig.mark("phase", "capture-rearm")
+    rig.console("capture stop")
+    rig.set_time_us(30_000)
+    rig.console("capture arm 1 0.5")
+
+    rig.mark("phase", "capture-stopped")
+    rig.console("capture stop")
+    rig.set_time_us(30_650)
+    rig.dma_block([248] * 64)
+    rig.set_time_us(31_300)
+    rig.dma_block([248] * 64)
+
+    rig.mark("phase", "adc-overrun")
+    rig.set_time_us(40_000)
+    rig.adc1_conversion(260, overrun=True)
+    rig.mark("done")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("elf")
+    ap.add_argument("--out", help="write the trace here instead of stdout")
+    args = ap.parse_args()
+    rig = Rig(args.elf)
+    status = 0
+    try:
+        scenario(rig)
+    except Failure as e:
+        rig.mark("error", str(e))
+        status = 1
+    text = "\n".join(rig.lines) + "\n"
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(text)
+    else:
+        sys.stdout.write(text)
+    if status:
+        print(f"register_trace.py: {rig.lines[-1]}", file=sys.stderr)
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
