@@ -7,8 +7,9 @@
 //! [`analysis`] (frequency response, operating-frequency selection) → [`orbit`] (periodic
 //! orbits by shooting, Floquet multipliers, continuation and located bifurcations, Lyapunov
 //! exponents) and [`control`] (the rig controller, without text: drive, impact detection,
-//! measured regime, tracking, faults) → [`console`] (the console protocol: requests, replies
-//! and records as text, both directions, and the service that answers lines). Beside the loop:
+//! measured regime, tracking, faults, the active model and calibration) → [`store`] (those
+//! settings kept in flash) → [`console`] (the console protocol: requests, replies and records
+//! as text, both directions, and the service that answers lines). Beside the loop:
 //! [`capture`] (the drop-test force capture) and [`health`] (the sampling health check behind
 //! the watchdog); the hardware is reached through [`hal`], and the converters' bookkeeping that
 //! the firmware's interrupts run is here too, tested on the desktop: [`adc_status`] (the force
@@ -40,6 +41,7 @@ pub mod model;
 pub mod observe;
 pub mod orbit;
 pub mod real;
+pub mod store;
 
 pub use error::ParamError;
 pub use real::Real;

@@ -18,6 +18,8 @@ use shared::console::serve::{ReplyText, format_answer};
 use shared::console::{Board, BoardInfo, Direct, Link, MAX_LINE, RxError, Version, answer};
 use shared::control::{Controller, ControllerConfig, Prediction};
 use shared::model::RigId;
+use shared::store::Store;
+use shared::store::ram_flash::{PAGE_BYTES, RamFlash};
 
 const INPUTS: usize = 1_000_000;
 
@@ -36,13 +38,21 @@ const WORDS: &[&str] = &[
     "diag",
     "capture",
     "link-timeout",
+    "model",
+    "calib",
+    "draft",
+    "save",
+    "revert",
+    "store",
     "#7 status",
     "#123456789 freq",
     "#x",
 ];
 const ARGS: &[&str] = &[
     "", "wires", "beam-170", "0", "0.5", "-1", "3.66", "40", "1e3", "nan", "on", "off", "arm",
-    "get", "stop", "2", "31", "99", "0.1", "1.5", "x",
+    "get", "stop", "2", "31", "99", "0.1", "1.5", "x", "mass_kg", "law", "hunt-crossley",
+    "suspension", "beam", "stiffness", "volts_per_n", "force_limit_n", "begin", "apply",
+    "discard", "0x3fd3126e978d4fe0",
 ];
 
 /// What the generator sent as one line, for the independent check.
@@ -195,6 +205,8 @@ fn a_million_console_inputs() {
     let mut link = Link::new();
     let mut controller = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
     let mut capture = Capture::new();
+    let mut mem = vec![0xffu8; 2 * PAGE_BYTES];
+    let mut store = Store::new(RamFlash::new(&mut mem), 0..(2 * PAGE_BYTES) as u32).unwrap();
     let mut reply = ReplyText::new();
     let mut sent: Vec<Sent> = Vec::new();
     let mut tx: Vec<u8> = Vec::new();
@@ -205,7 +217,7 @@ fn a_million_console_inputs() {
             && let Some(req) = controller.take_model_request()
         {
             let p = Prediction {
-                rig: req.rig,
+                model_hash: req.model_hash,
                 gap_mm: req.gap_mm,
                 target_hz: 3.6,
                 band_hz: [2.2, 4.7],
@@ -246,6 +258,8 @@ fn a_million_console_inputs() {
                     capture: &mut capture,
                     board: board(),
                     link: &mut link,
+                    store: &mut store,
+                    reset: false,
                 };
                 answer(&mut d, line.as_line())
             };

@@ -88,7 +88,7 @@ impl Rig {
 
 fn prediction(target_hz: f32) -> Prediction {
     Prediction {
-        rig: RigId::Wires,
+        model_hash: shared::model::params_hash(&RigId::Wires.preset()),
         gap_mm: 0.0,
         target_hz,
         band_hz: [2.2, 4.7],
@@ -422,7 +422,8 @@ fn start_needs_a_target_and_rig_changes_request_the_model() {
     c.execute(Command::Rig(RigId::Beam170)).unwrap();
     c.execute(Command::Gap(3.0)).unwrap();
     let req = c.take_model_request().unwrap();
-    assert_eq!((req.rig, req.gap_mm), (RigId::Beam170, 3.0));
+    assert_eq!((req.params, req.gap_mm), (RigId::Beam170.preset(), 3.0));
+    assert_eq!(req.model_hash, shared::model::params_hash(&RigId::Beam170.preset()));
     // A manual frequency starts without the model: ramp, then dwell.
     c.execute(Command::Freq(9.0)).unwrap();
     c.execute(Command::Start).unwrap();
@@ -611,7 +612,11 @@ fn no_ok_without_its_effect_in_any_state() {
                         assert_eq!(std::format!("{:?}", rig.c), before, "{ctx}")
                     }
                     Command::Rig(r) => {
-                        assert_eq!(now.rig, r, "{ctx}");
+                        assert_eq!(
+                            now.rig.source,
+                            shared::control::ModelSource::Preset(r),
+                            "{ctx}"
+                        );
                         assert_eq!(now.model, ModelStatus::Pending, "{ctx}");
                         assert!(now.regime.is_none() && now.peak.is_none(), "{ctx}: stale");
                     }

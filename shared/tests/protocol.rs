@@ -18,8 +18,15 @@ use shared::control::{
     PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
 };
 use shared::control::{Controller, ControllerConfig};
-use shared::model::RigId;
+use shared::console::{
+    CalibView, DraftCommand, FieldProblem, ModelOf, ModelView, SettingsRefusal, StoreRefusal,
+    StoreView, Token,
+};
+use shared::control::{CalibField, Calibration, ModelId, ModelSource};
+use shared::model::{ContactLawKind, ModelEdit, ModelField, RigId, RigParams, SuspensionKind};
 use shared::observe::Regime;
+use shared::store::ram_flash::{PAGE_BYTES, RamFlash};
+use shared::store::{SaveError, Store, StoreState};
 
 /// A decimal with `d` decimals in `lo ..= hi` (at most 7 significant digits: what the wire
 /// writes and reads exactly).
@@ -68,11 +75,61 @@ fn target() -> impl Strategy<Value = Target> {
         })
 }
 
+fn model_id() -> impl Strategy<Value = ModelId> {
+    (
+        proptest::sample::select(<ModelSource as Token>::ALL.to_vec()),
+        any::<u32>(),
+    )
+        .prop_map(|(source, hash)| ModelId { source, hash })
+}
+
+fn store_state() -> impl Strategy<Value = StoreState> {
+    proptest::sample::select(StoreState::ALL.to_vec())
+}
+
+/// A valid rig model: a preset with any law and suspension, every field it has scaled by a
+/// factor in 0.7 ..= 1.3 (full-precision values: the exact form's bits as well as its decimals).
+fn rig_params() -> impl Strategy<Value = RigParams> {
+    (
+        rig(),
+        proptest::sample::select(ContactLawKind::ALL.to_vec()),
+        proptest::sample::select(SuspensionKind::ALL.to_vec()),
+        proptest::collection::vec(0.7f64..1.3, ModelField::ALL.len()),
+        any::<bool>(),
+    )
+        .prop_map(|(rig, law, suspension, factors, round)| {
+            let mut p = rig
+                .preset()
+                .edited(ModelEdit::Law(law))
+                .and_then(|p| p.edited(ModelEdit::Suspension(suspension)))
+                .unwrap();
+            for (field, k) in ModelField::ALL.into_iter().zip(factors) {
+                if let Some(v) = p.value(field) {
+                    // Half the values as an operator types them (3 significant digits).
+                    let w = if round { format!("{:.3e}", v * k).parse().unwrap() } else { v * k };
+                    p = p.edited(ModelEdit::Set(field, w)).unwrap();
+                }
+            }
+            p
+        })
+}
+
+/// A valid calibration: the default's fields scaled a little (within the limits' checks).
+fn calibration() -> impl Strategy<Value = Calibration> {
+    proptest::collection::vec(0.97f32..1.0, CalibField::ALL.len()).prop_map(|factors| {
+        let mut c = Calibration::default();
+        for (field, k) in CalibField::ALL.into_iter().zip(factors) {
+            c = c.with(field, c.value(field) * k);
+        }
+        c
+    })
+}
+
 fn status() -> impl Strategy<Value = Status> {
     (
         (
             state(),
-            rig(),
+            model_id(),
             dec(2, 0.0, 10.0),
             dec(4, 0.0, 999.9),
             dec(3, 0.0, 99.999),
@@ -116,10 +173,10 @@ fn id() -> impl Strategy<Value = IdInfo> {
     (
         (any::<u16>(), any::<u16>(), any::<u16>()),
         proptest::sample::select(vec![Board::Rig, Board::Emulator, Board::Virtual]),
-        rig(),
+        (model_id(), store_state()),
         dec(2, 0.0, 10.0),
-        (dec(6, 1e-5, 1.0), dec(4, 0.0, 1.65), dec(4, 0.5, 10.0)),
-        dec(4, 1e-3, 999.0),
+        (1e-5f32..1.0, 0.0f32..1.65, 0.5f32..10.0),
+        1e-3f32..999.0,
         (dec(2, 0.0, 999.99), dec(2, 0.0, 999.99)),
         (
             dec(3, 0.001, 999.0),
@@ -128,7 +185,7 @@ fn id() -> impl Strategy<Value = IdInfo> {
         ),
     )
         .prop_map(
-            |(v, board, rig, gap_mm, (vpn, off, fs), mass_kg, (a, b), (slew, ramp, lim))| IdInfo {
+            |(v, board, (rig, store), gap_mm, (vpn, off, fs), mass_kg, (a, b), (slew, ramp, lim))| IdInfo {
                 firmware: Version {
                     major: v.0,
                     minor: v.1,
@@ -136,6 +193,7 @@ fn id() -> impl Strategy<Value = IdInfo> {
                 },
                 board,
                 rig,
+                store,
                 gap_mm,
                 sample_rate_hz: SAMPLE_RATE_HZ,
                 capture_rate_hz: CAPTURE_RATE_HZ,
@@ -245,6 +303,49 @@ fn answer_error() -> impl Strategy<Value = AnswerError> {
                 .prop_map(|(k, recorded)| CaptureError::NoSegment { k, recorded }),
         ]
         .prop_map(AnswerError::Capture),
+        settings_refusal().prop_map(AnswerError::Settings),
+        prop_oneof![
+            proptest::sample::select(vec![SaveError::Flash, SaveError::Storage, SaveError::TooBig])
+                .prop_map(StoreRefusal::SaveFailed),
+            store_state().prop_map(StoreRefusal::NothingToRevert),
+        ]
+        .prop_map(AnswerError::Store),
+    ]
+}
+
+fn settings_refusal() -> impl Strategy<Value = SettingsRefusal> {
+    let owners: Vec<&'static str> = ContactLawKind::ALL
+        .into_iter()
+        .map(ContactLawKind::name)
+        .chain(SuspensionKind::ALL.into_iter().map(SuspensionKind::name))
+        .collect();
+    let value = || prop_oneof![any::<f64>().prop_filter("finite", |v| v.is_finite()), -1e3f64..1e3];
+    prop_oneof![
+        Just(SettingsRefusal::NoDraft),
+        (
+            proptest::sample::select(ModelField::ALL.to_vec()),
+            proptest::sample::select(owners)
+        )
+            .prop_map(|(field, model_has)| SettingsRefusal::NotOfThisModel { field, model_has }),
+        (
+            proptest::sample::select(vec![
+                "mass_kg",
+                "suspension.wires.damping_ratio",
+                "contact.hunt-crossley.lambda_s_m",
+                "volts_per_n",
+                "force_limit_n",
+                "threshold_n",
+                "gap_mm",
+            ]),
+            prop_oneof![
+                Just(FieldProblem::NotFinite),
+                (value(), value(), value())
+                    .prop_map(|(value, min, max)| FieldProblem::OutOfRange { value, min, max }),
+                (value(), value(), value())
+                    .prop_map(|(value, min, max)| FieldProblem::OutOfHalfOpen { value, min, max }),
+            ]
+        )
+            .prop_map(|(field, problem)| SettingsRefusal::Invalid { field, problem }),
     ]
 }
 
@@ -258,6 +359,18 @@ fn answer() -> impl Strategy<Value = Answer> {
         capture_status().prop_map(Answer::Capture),
         segment().prop_map(Answer::Segment),
         answer_error().prop_map(Answer::Error),
+        (
+            prop_oneof![
+                Just(ModelOf::Draft),
+                proptest::sample::select(<ModelSource as Token>::ALL.to_vec()).prop_map(ModelOf::Active)
+            ],
+            rig_params()
+        )
+            .prop_map(|(of, params)| Answer::Model(ModelView { of, params })),
+        (any::<bool>(), calibration())
+            .prop_map(|(draft, calibration)| Answer::Calib(CalibView { draft, calibration })),
+        (store_state(), any::<u32>(), proptest::option::of(any::<u32>()))
+            .prop_map(|(state, saves, hash)| Answer::Store(StoreView { state, saves, hash })),
     ]
 }
 
@@ -346,6 +459,28 @@ fn request() -> impl Strategy<Value = Request> {
             }),
         ]
         .prop_map(Request::Capture),
+        Just(Request::Model),
+        prop_oneof![
+            (
+                proptest::sample::select(ModelField::ALL.to_vec()),
+                any::<f64>().prop_filter("finite", |v| v.is_finite())
+            )
+                .prop_map(|(f, v)| ModelEdit::Set(f, v)),
+            proptest::sample::select(ContactLawKind::ALL.to_vec()).prop_map(ModelEdit::Law),
+            proptest::sample::select(SuspensionKind::ALL.to_vec()).prop_map(ModelEdit::Suspension),
+        ]
+        .prop_map(Request::EditModel),
+        Just(Request::Calib),
+        (
+            proptest::sample::select(CalibField::ALL.to_vec()),
+            any::<f32>().prop_filter("finite", |v| v.is_finite())
+        )
+            .prop_map(|(f, v)| Request::EditCalib(f, v)),
+        proptest::sample::select(DraftCommand::ALL.to_vec()).prop_map(Request::Draft),
+        Just(Request::Save),
+        Just(Request::Revert),
+        Just(Request::Store),
+        Just(Request::Reset),
     ]
 }
 
@@ -358,6 +493,12 @@ fn kind_wanted(r: &Request) -> String {
         Request::Diag => "diag".into(),
         Request::Help => "help".into(),
         Request::Capture(CaptureCommand::Get(k)) => format!("segment {k}"),
+        Request::Model | Request::EditModel(_) | Request::Draft(_) | Request::Revert => {
+            "model".into()
+        }
+        Request::Calib | Request::EditCalib(..) => "calib".into(),
+        Request::Save | Request::Store => "store".into(),
+        Request::Reset => "ok".into(),
         Request::Capture(_) => "capture".into(),
     }
 }
@@ -420,6 +561,8 @@ proptest! {
         let mut controller = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
         let mut capture = Capture::new();
         let mut link = Link::new();
+        let mut mem = vec![0u8; 2 * PAGE_BYTES];
+        let mut store = Store::new(RamFlash::erased(&mut mem), 0..(2 * PAGE_BYTES) as u32).unwrap();
         let mut rig = Direct {
             controller: &mut controller,
             capture: &mut capture,
@@ -432,6 +575,8 @@ proptest! {
                 sample_gap_max_us: 0,
             },
             link: &mut link,
+            store: &mut store,
+            reset: false,
         };
         let line = r.to_string();
         let a = console::answer(&mut rig, Line::Text(&line)).answer;
@@ -513,10 +658,10 @@ fn bad_numbers_are_refused_at_the_edge_and_named() {
         format!("{t} extra=1").parse::<AsyncRecord>(),
         Err(WireError::Trailing)
     );
-    let id = "id firmware=0.1.0 board=rig rig=wires gap_mm=0.00 sample_rate_hz=10000 \
-              capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 \
-              adc_full_scale_v=3.3000 mass_kg=0.2980 freq_window_hz=1.00..30.00 slew_hz_per_s=0.500 \
-              ramp_mm_per_s=0.500 force_limit_n=280.0";
+    let id = "id firmware=0.1.0 board=rig rig=wires rig_hash=36fccdc0 store=empty gap_mm=0.00 \
+              sample_rate_hz=10000 capture_rate_hz=100000 volts_per_n=0.01 offset_v=0.2 \
+              adc_full_scale_v=3.3 mass_kg=0.298 freq_window_hz=1..30 slew_hz_per_s=0.5 \
+              ramp_mm_per_s=0.5 force_limit_n=280";
     assert!(id.parse::<IdInfo>().is_ok());
     // Each field set to a bad value: (field, value, the error).
     let bad = |key: &'static str| WireError::Bad(key);
@@ -530,6 +675,9 @@ fn bad_numbers_are_refused_at_the_edge_and_named() {
             WireError::Mismatch("sample_rate_hz"),
         ),
         ("freq_window_hz", "30.00..1.00", bad("freq_window_hz")),
+        ("rig_hash", "36fccdc", bad("rig_hash")),
+        ("store", "lost", bad("store")),
+        ("rig", "custom", bad("rig")),
     ] {
         let to = format!("{key}={value}");
         let line: String = id

@@ -14,6 +14,7 @@
 //!   `id …`, `diag …`, `capture …`, `segment …`, or `error: …` ([`Answer`]).
 //! - [`record`]: the asynchronous lines while streaming, `!T` (a drive cycle) and `!E` (an
 //!   event) ([`crate::control::AsyncRecord`]); a reply never starts with `!`.
+//! - [`settings`]: the model, calibration and store lines, and the refusals of their changes.
 //! - [`serve`]: one line in, one [`Answer`] out, for the firmware and the virtual rig alike.
 //! - [`decimal`], [`fields`], [`token`]: decimal numbers, `key=value` fields and the names of
 //!   states, faults, rigs and boards.
@@ -28,14 +29,18 @@ pub mod record;
 pub mod reply;
 pub mod request;
 pub mod serve;
+pub mod settings;
 pub mod token;
 
-pub use decimal::{Decimal, parse_decimal};
+pub use decimal::{Decimal, Exact, parse_decimal, parse_exact};
 pub use fields::WireError;
 pub use framing::{Line, LineBuffer, MAX_LINE, RxError, is_line_end};
 pub use link::{Link, LinkStats, PendingLine};
 pub use reply::{Answer, AnswerError, Board, BoardInfo, CaptureError, DiagInfo, IdInfo, Version};
-pub use request::{Arg, HELP, ParseError, Request, parse};
+pub use request::{Arg, DraftCommand, HELP, ParseError, Request, parse};
+pub use settings::{
+    CalibView, FieldProblem, ModelOf, ModelView, SettingsRefusal, StoreRefusal, StoreView,
+};
 pub use serve::{Direct, RigAccess, answer, format_answer, format_async};
 pub use token::Token;
 

@@ -3,8 +3,8 @@
 //! `segment …`, or `error: …` ([`Answer`]). Examples (docs/operator.md has them all):
 //!
 //! ```text
-//! state=track rig=wires gap_mm=0.00 freq_hz=3.7000 amp_mm=0.890 regime=1/1 peak_n=95.4 peak_mg=32.64 model=ready target_hz=3.6404 band_hz=2.184..4.733 predicted_mg=32.76 force_vs_model_pct=-0.4 fault=none impacts=1042 lost_cycles=0
-//! id firmware=0.1.0 board=rig rig=wires gap_mm=0.00 sample_rate_hz=10000 capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 adc_full_scale_v=3.3000 mass_kg=0.2980 freq_window_hz=1.00..30.00 slew_hz_per_s=0.500 ramp_mm_per_s=0.500 force_limit_n=280.0
+//! state=track rig=wires rig_hash=0a1b2c3d gap_mm=0.00 freq_hz=3.7000 amp_mm=0.890 regime=1/1 peak_n=95.4 peak_mg=32.64 model=ready target_hz=3.6404 band_hz=2.184..4.733 predicted_mg=32.76 force_vs_model_pct=-0.4 fault=none impacts=1042 lost_cycles=0
+//! id firmware=0.1.0 board=rig rig=wires rig_hash=0a1b2c3d store=empty gap_mm=0.00 sample_rate_hz=10000 capture_rate_hz=100000 volts_per_n=0.01 offset_v=0.2 adc_full_scale_v=3.3 mass_kg=0.298 freq_window_hz=1..30 slew_hz_per_s=0.5 ramp_mm_per_s=0.5 force_limit_n=280
 //! diag samples=123456 uptime_ms=12346 sample_gap_max_us=123 rx_errors=0 lines_lost=0 async_sent=41 async_dropped=0 lost_cycles=0 stack_hwm_bytes=37990 stack_size_bytes=114220 link_timeout_ms=0
 //! capture state=done segments=3 samples=1200000 level_n=1.00 rate_hz=100000 segment_len=160 pre_trigger=32 max_segments=32
 //! segment k=0 start=99968 n=160 codes=0f80f80f8…
@@ -14,21 +14,22 @@
 use core::fmt;
 use core::str::FromStr;
 
-use super::decimal::Decimal;
+use super::decimal::{Decimal, Exact, parse_exact};
 use super::displays_as;
+use super::settings::{CalibView, ModelView, SettingsRefusal, StoreRefusal, StoreView};
 use super::fields::{Fields, WireError, decimal, range};
 use super::link::LinkStats;
-use super::request::{HELP, MAX_FREQ_HZ, ParseError, Request};
+use super::request::{DraftCommand, HELP, MAX_FREQ_HZ, ParseError, Request};
 use super::token::{Token, read_fault, read_regime, write_fault, write_regime};
 use crate::capture::{
     CAPTURE_RATE_HZ, CaptureCommand, CaptureStatus, PRE_TRIGGER, SEGMENT_LEN, SEGMENTS, SegmentView,
 };
 use crate::control::{
-    Command, CommandError, Fault, MAX_FORCE_VS_MODEL_PCT, MAX_GAP_MM, ModelStatus, PeakForce,
-    Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
+    Command, CommandError, Fault, MAX_FORCE_VS_MODEL_PCT, MAX_GAP_MM, ModelId, ModelStatus,
+    PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
 };
 use crate::hal::ADC_MAX;
-use crate::model::RigId;
+use crate::store::StoreState;
 
 /// Largest cart amplitude a line may report, mm.
 const MAX_AMPLITUDE_MM: f32 = 100.0;
@@ -139,8 +140,10 @@ pub struct IdInfo {
     pub firmware: Version,
     /// Which image.
     pub board: Board,
-    /// Rig selected now.
-    pub rig: RigId,
+    /// The active rig model: where it came from, and its hash.
+    pub rig: ModelId,
+    /// What the store held at start-up (or after the last `save` or `revert`).
+    pub store: StoreState,
     /// Gap set now, mm.
     pub gap_mm: f32,
     /// Control sample rate, Hz.
@@ -165,22 +168,28 @@ impl fmt::Display for IdInfo {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "id firmware={} board={} rig={} gap_mm={} sample_rate_hz={} capture_rate_hz={} volts_per_n={} offset_v={} adc_full_scale_v={} mass_kg={} freq_window_hz={}..{} slew_hz_per_s={} ramp_mm_per_s={} force_limit_n={}",
+            "id firmware={} board={} ",
             self.firmware,
             self.board.token(),
-            self.rig.token(),
+        )?;
+        write_model_id(f, self.rig)?;
+        // The calibration and limits exactly: the desktop converts and checks with them.
+        write!(
+            f,
+            " store={} gap_mm={} sample_rate_hz={} capture_rate_hz={} volts_per_n={} offset_v={} adc_full_scale_v={} mass_kg={} freq_window_hz={}..{} slew_hz_per_s={} ramp_mm_per_s={} force_limit_n={}",
+            self.store.token(),
             Decimal(self.gap_mm, 2),
             self.sample_rate_hz,
             self.capture_rate_hz,
-            Decimal(self.sensor.volts_per_n, 6),
-            Decimal(self.sensor.offset_v, 4),
-            Decimal(self.sensor.adc_full_scale_v, 4),
-            Decimal(self.mass_kg, 4),
-            Decimal(self.freq_window_hz[0], 2),
-            Decimal(self.freq_window_hz[1], 2),
-            Decimal(self.slew_hz_per_s, 3),
-            Decimal(self.ramp_mm_per_s, 3),
-            Decimal(self.force_limit_n, 1)
+            Exact::f32(self.sensor.volts_per_n),
+            Exact::f32(self.sensor.offset_v),
+            Exact::f32(self.sensor.adc_full_scale_v),
+            Exact::f32(self.mass_kg),
+            Exact::f32(self.freq_window_hz[0]),
+            Exact::f32(self.freq_window_hz[1]),
+            Exact::f32(self.slew_hz_per_s),
+            Exact::f32(self.ramp_mm_per_s),
+            Exact::f32(self.force_limit_n)
         )
     }
 }
@@ -195,22 +204,26 @@ impl FromStr for IdInfo {
         let id = IdInfo {
             firmware: w.with("firmware", |v| v.parse().ok())?,
             board: w.token("board")?,
-            rig: w.token("rig")?,
+            rig: read_model_id(&mut w)?,
+            store: w.token("store")?,
             gap_mm: w.decimal("gap_mm", 0.0, MAX_GAP_MM)?,
             sample_rate_hz: w.int("sample_rate_hz")?,
             capture_rate_hz: w.int("capture_rate_hz")?,
             sensor: SensorChain {
-                volts_per_n: w.decimal("volts_per_n", 0.0, f32::MAX)?,
-                offset_v: w.decimal("offset_v", 0.0, f32::MAX)?,
-                adc_full_scale_v: w.decimal("adc_full_scale_v", 0.0, f32::MAX)?,
+                volts_per_n: exact_f32(&mut w, "volts_per_n", 0.0, f32::MAX)?,
+                offset_v: exact_f32(&mut w, "offset_v", 0.0, f32::MAX)?,
+                adc_full_scale_v: exact_f32(&mut w, "adc_full_scale_v", 0.0, f32::MAX)?,
             },
-            mass_kg: w.decimal("mass_kg", 1e-3, 1e3)?,
+            mass_kg: exact_f32(&mut w, "mass_kg", 1e-6, 1e3)?,
             freq_window_hz: w.with("freq_window_hz", |v| {
-                range("freq_window_hz", v, 0.0, MAX_FREQ_HZ).ok()
+                let (a, b) = v.split_once("..")?;
+                let (a, b) = (parse_exact(a)? as f32, parse_exact(b)? as f32);
+                ((0.0..=MAX_FREQ_HZ).contains(&a) && (a..=MAX_FREQ_HZ).contains(&b))
+                    .then_some([a, b])
             })?,
-            slew_hz_per_s: w.decimal("slew_hz_per_s", 1e-3, MAX_FREQ_HZ)?,
-            ramp_mm_per_s: w.decimal("ramp_mm_per_s", 1e-3, MAX_AMPLITUDE_MM)?,
-            force_limit_n: w.decimal("force_limit_n", 0.1, MAX_FORCE_N)?,
+            slew_hz_per_s: exact_f32(&mut w, "slew_hz_per_s", 1e-3, MAX_FREQ_HZ)?,
+            ramp_mm_per_s: exact_f32(&mut w, "ramp_mm_per_s", 1e-3, MAX_AMPLITUDE_MM)?,
+            force_limit_n: exact_f32(&mut w, "force_limit_n", 0.1, MAX_FORCE_N)?,
         };
         w.end()?;
         if id.sample_rate_hz != SAMPLE_RATE_HZ {
@@ -224,6 +237,30 @@ impl FromStr for IdInfo {
             .map_err(|e| WireError::Bad(e.field()))?;
         Ok(id)
     }
+}
+
+/// The next field `key` as an exact `f32` ([`Exact::f32`]) in `lo ..= hi`.
+fn exact_f32(w: &mut Fields<'_>, key: &'static str, lo: f32, hi: f32) -> Result<f32, WireError> {
+    w.with(key, |v| {
+        parse_exact(v)
+            .map(|x| x as f32)
+            .filter(|x| (lo..=hi).contains(x))
+    })
+}
+
+/// `rig=<source> rig_hash=<8 hex digits>`.
+fn write_model_id(f: &mut fmt::Formatter<'_>, id: ModelId) -> fmt::Result {
+    write!(f, "rig={} rig_hash={:08x}", id.source.token(), id.hash)
+}
+
+/// Reads [`write_model_id`]'s fields.
+fn read_model_id(w: &mut Fields<'_>) -> Result<ModelId, WireError> {
+    Ok(ModelId {
+        source: w.token("rig")?,
+        hash: w.with("rig_hash", |v| {
+            (v.len() == 8).then(|| u32::from_str_radix(v, 16).ok())?
+        })?,
+    })
 }
 
 /// `diag`: the link's and the board's health.
@@ -401,9 +438,13 @@ impl fmt::Display for Status {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "state={} rig={} gap_mm={} freq_hz={} amp_mm={} regime=",
+            "state={} ",
             self.state.token(),
-            self.rig.token(),
+        )?;
+        write_model_id(f, self.rig)?;
+        write!(
+            f,
+            " gap_mm={} freq_hz={} amp_mm={} regime=",
             Decimal(self.gap_mm, 2),
             Decimal(self.freq_hz, 4),
             Decimal(self.amplitude_mm, 3)
@@ -451,7 +492,7 @@ impl FromStr for Status {
         }
         let mut w = Fields::new(s);
         let state = w.token("state")?;
-        let rig = w.token("rig")?;
+        let rig = read_model_id(&mut w)?;
         let gap_mm = w.decimal("gap_mm", 0.0, MAX_GAP_MM)?;
         let freq_hz = w.decimal("freq_hz", 0.0, MAX_FREQ_HZ)?;
         let amplitude_mm = w.decimal("amp_mm", 0.0, MAX_AMPLITUDE_MM)?;
@@ -685,6 +726,10 @@ pub enum AnswerError {
     Lost,
     /// The line was too long or not text.
     Bad,
+    /// A settings change refused.
+    Settings(SettingsRefusal),
+    /// A `save` or `revert` refused.
+    Store(StoreRefusal),
 }
 
 impl fmt::Display for AnswerError {
@@ -695,6 +740,8 @@ impl fmt::Display for AnswerError {
             AnswerError::Capture(e) => write!(f, "{e}"),
             AnswerError::Lost => f.write_str("line lost"),
             AnswerError::Bad => f.write_str("line too long or not text"),
+            AnswerError::Settings(e) => write!(f, "{e}"),
+            AnswerError::Store(e) => write!(f, "{e}"),
         }
     }
 }
@@ -712,6 +759,8 @@ impl FromStr for AnswerError {
             .map(AnswerError::Command)
             .or_else(|()| s.parse().map(AnswerError::Capture))
             .or_else(|()| s.parse().map(AnswerError::Parse))
+            .or_else(|()| s.parse().map(AnswerError::Settings))
+            .or_else(|()| s.parse().map(AnswerError::Store))
     }
 }
 
@@ -732,6 +781,12 @@ pub enum Answer {
     Capture(CaptureStatus),
     /// `capture get k`.
     Segment(SegmentView),
+    /// `model`, its edits and `draft`'s: the model line.
+    Model(ModelView),
+    /// `calib` and its edits: the calibration line.
+    Calib(CalibView),
+    /// `save` and `store`: the store line.
+    Store(StoreView),
     /// Refused (nothing changed), or a `start` that tripped a fault
     /// ([`CommandError::Tripped`]).
     Error(AnswerError),
@@ -769,6 +824,15 @@ impl Answer {
             Request::Capture(
                 CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. },
             ) => matches!(self, Answer::Capture(_)),
+            Request::Model
+            | Request::EditModel(_)
+            | Request::Revert
+            | Request::Draft(DraftCommand::Begin | DraftCommand::Apply | DraftCommand::Discard) => {
+                matches!(self, Answer::Model(_))
+            }
+            Request::Calib | Request::EditCalib(..) => matches!(self, Answer::Calib(_)),
+            Request::Save | Request::Store => matches!(self, Answer::Store(_)),
+            Request::Reset => matches!(self, Answer::Reply(Reply::Ok)),
         };
         own || matches!(self, Answer::Error(_))
     }
@@ -784,6 +848,9 @@ impl fmt::Display for Answer {
             Answer::Diag(d) => write!(f, "{d}"),
             Answer::Capture(c) => write!(f, "{c}"),
             Answer::Segment(s) => write!(f, "{s}"),
+            Answer::Model(m) => write!(f, "{m}"),
+            Answer::Calib(c) => write!(f, "{c}"),
+            Answer::Store(st) => write!(f, "{st}"),
             Answer::Error(e) => write!(f, "{ERROR}{e}"),
         }
     }
@@ -815,6 +882,12 @@ impl FromStr for Answer {
             s.parse().map(Answer::Capture)
         } else if s.starts_with("segment ") {
             s.parse().map(Answer::Segment)
+        } else if s.starts_with("model ") {
+            s.parse().map(Answer::Model)
+        } else if s.starts_with("calib ") {
+            s.parse().map(Answer::Calib)
+        } else if s.starts_with("store ") {
+            s.parse().map(Answer::Store)
         } else {
             Err(WireError::Kind)
         }

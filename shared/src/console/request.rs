@@ -10,10 +10,10 @@
 use core::fmt;
 use core::str::FromStr;
 
-use super::decimal::{Decimal, parse_decimal};
+use super::decimal::{Decimal, Exact, parse_decimal, parse_exact};
 use crate::capture::{CAPTURE_MAX_S, CaptureCommand, DEFAULT_LEVEL_N, DEFAULT_SECONDS, SEGMENTS};
-use crate::control::{Command, MAX_GAP_MM};
-use crate::model::RigId;
+use crate::control::{CalibField, Command, MAX_GAP_MM};
+use crate::model::{ContactLawKind, ModelEdit, ModelField, RigId, SuspensionKind};
 
 /// Largest trigger level of `capture arm`, N.
 pub const MAX_CAPTURE_LEVEL_N: f32 = 100.0;
@@ -40,6 +40,49 @@ pub enum Request {
     Help,
     /// Echo received characters back (for a terminal program; off at power-up).
     Echo(bool),
+    /// `model`: the rig model (the draft's while one is open).
+    Model,
+    /// `model <field> <value>`, `model law <name>`, `model suspension <wires|beam>`.
+    EditModel(ModelEdit),
+    /// `calib`: the calibration (the draft's while one is open).
+    Calib,
+    /// `calib <field> <value>`.
+    EditCalib(CalibField, f32),
+    /// `draft begin|apply|discard`: stage edits, apply them whole, or drop them.
+    Draft(DraftCommand),
+    /// `save`: the active model, gap and calibration to flash.
+    Save,
+    /// `revert`: the stored model, gap and calibration back.
+    Revert,
+    /// `store`: what the store holds.
+    Store,
+    /// `reset`: restart the board (idle only).
+    Reset,
+}
+
+/// `draft`'s subcommands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DraftCommand {
+    /// Open a draft (a copy of the active model and calibration).
+    Begin,
+    /// Apply it whole, or nothing.
+    Apply,
+    /// Drop it.
+    Discard,
+}
+
+impl DraftCommand {
+    /// Every subcommand.
+    pub const ALL: [DraftCommand; 3] = [DraftCommand::Begin, DraftCommand::Apply, DraftCommand::Discard];
+
+    /// Its word.
+    pub const fn name(self) -> &'static str {
+        match self {
+            DraftCommand::Begin => "begin",
+            DraftCommand::Apply => "apply",
+            DraftCommand::Discard => "discard",
+        }
+    }
 }
 
 /// An argument of a command, as named in [`ParseError`]s.
@@ -61,11 +104,15 @@ pub enum Arg {
     Segment,
     /// `link-timeout`'s time, s.
     LinkTimeoutS,
+    /// A model or calibration field's value.
+    Value,
+    /// `model`'s or `calib`'s field.
+    Field,
 }
 
 impl Arg {
     /// Every argument.
-    pub const ALL: [Arg; 8] = [
+    pub const ALL: [Arg; 10] = [
         Arg::RigName,
         Arg::GapMm,
         Arg::FreqHz,
@@ -74,6 +121,8 @@ impl Arg {
         Arg::Seconds,
         Arg::Segment,
         Arg::LinkTimeoutS,
+        Arg::Value,
+        Arg::Field,
     ];
 
     /// Whether it takes a whole number (`capture get`'s segment); the other numbers are
@@ -93,6 +142,8 @@ impl Arg {
             Arg::Seconds => "seconds",
             Arg::Segment => "segment",
             Arg::LinkTimeoutS => "link timeout (s)",
+            Arg::Value => "value",
+            Arg::Field => "field",
         }
     }
 }
@@ -120,6 +171,16 @@ pub enum ParseError {
     BadNumber(Arg),
     /// A `#` at the line's start not followed by a tag: 1 to 9 digits, then a space.
     BadTag,
+    /// `model` takes a field of the model, `law <name>` or `suspension <kind>`.
+    UnknownModelField,
+    /// `calib` takes a field of the calibration.
+    UnknownCalibField,
+    /// A contact law's name that is not one of the four.
+    UnknownLaw,
+    /// A suspension that is not `wires` or `beam`.
+    UnknownSuspension,
+    /// `draft` takes `begin`, `apply` or `discard`.
+    UnknownDraft,
     /// The number is outside its range.
     OutOfRange {
         /// The argument.
@@ -142,6 +203,14 @@ const MISSING: &str = "missing argument: ";
 const NOT_A_NUMBER: &str =
     " must be a plain decimal number such as 0.25 (no exponent, at most 9 significant digits)";
 const NOT_A_WHOLE_NUMBER: &str = " must be a whole number";
+const NOT_AN_EXACT_NUMBER: &str = " must be a plain decimal number (at most 15 significant digits and 22 decimals) or 0x and the 16 hex digits of its bits";
+const UNKNOWN_MODEL_FIELD: &str =
+    "model takes a field (`model` shows them), law <name> or suspension <wires|beam>";
+const UNKNOWN_CALIB_FIELD: &str = "calib takes a field (`calib` shows them)";
+const UNKNOWN_LAW: &str =
+    "law must be hertz, spring-dashpot, hunt-crossley or lankarani-nikravesh";
+const UNKNOWN_SUSPENSION: &str = "suspension must be wires or beam";
+const UNKNOWN_DRAFT: &str = "draft takes begin, apply or discard";
 const OUT_OF_RANGE: (&str, &str) = (" out of range: allowed ", " ..= ");
 
 impl fmt::Display for ParseError {
@@ -156,12 +225,13 @@ impl fmt::Display for ParseError {
             ParseError::OnOff => f.write_str(ON_OFF),
             ParseError::UnknownCapture => f.write_str(UNKNOWN_CAPTURE),
             ParseError::BadTag => f.write_str(BAD_TAG),
+            ParseError::UnknownModelField => f.write_str(UNKNOWN_MODEL_FIELD),
+            ParseError::UnknownCalibField => f.write_str(UNKNOWN_CALIB_FIELD),
+            ParseError::UnknownLaw => f.write_str(UNKNOWN_LAW),
+            ParseError::UnknownSuspension => f.write_str(UNKNOWN_SUSPENSION),
+            ParseError::UnknownDraft => f.write_str(UNKNOWN_DRAFT),
             ParseError::BadNumber(a) => {
-                let rule = if a.whole() {
-                    NOT_A_WHOLE_NUMBER
-                } else {
-                    NOT_A_NUMBER
-                };
+                let rule = number_rule(*a);
                 write!(f, "{}{rule}", a.name())
             }
             ParseError::OutOfRange { field, min, max } => write!(
@@ -191,6 +261,11 @@ impl FromStr for ParseError {
             ParseError::OnOff,
             ParseError::UnknownCapture,
             ParseError::BadTag,
+            ParseError::UnknownModelField,
+            ParseError::UnknownCalibField,
+            ParseError::UnknownLaw,
+            ParseError::UnknownSuspension,
+            ParseError::UnknownDraft,
         ];
         if let Some(e) = unit.into_iter().find(|e| super::displays_as(e, s)) {
             return Ok(e);
@@ -198,11 +273,11 @@ impl FromStr for ParseError {
         if let Some(name) = s.strip_prefix(MISSING) {
             return arg_named(name).map(ParseError::MissingArgument);
         }
-        for (rule, whole) in [(NOT_A_NUMBER, false), (NOT_A_WHOLE_NUMBER, true)] {
+        for rule in [NOT_A_NUMBER, NOT_A_WHOLE_NUMBER, NOT_AN_EXACT_NUMBER] {
             if let Some(name) = s.strip_suffix(rule) {
                 return arg_named(name)
                     .ok()
-                    .filter(|a| a.whole() == whole)
+                    .filter(|a| number_rule(*a) == rule)
                     .map(ParseError::BadNumber)
                     .ok_or(());
             }
@@ -217,12 +292,21 @@ impl FromStr for ParseError {
     }
 }
 
+/// What a number of `arg` must be.
+fn number_rule(arg: Arg) -> &'static str {
+    match arg {
+        Arg::Segment => NOT_A_WHOLE_NUMBER,
+        Arg::Value => NOT_AN_EXACT_NUMBER,
+        _ => NOT_A_NUMBER,
+    }
+}
+
 fn arg_named(name: &str) -> Result<Arg, ()> {
     Arg::ALL.into_iter().find(|a| a.name() == name).ok_or(())
 }
 
 /// The help text, one line.
-pub const HELP: &str = "commands: status | rig <wires|beam-170|beam-150|beam-135> | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k>] | help; a line may start with #<n>, its reply then does too";
+pub const HELP: &str = "commands: status | rig <wires|beam-170|beam-150|beam-135> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k>] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | help; a line may start with #<n>, its reply then does too";
 
 /// Parses one line.
 ///
@@ -292,6 +376,30 @@ pub fn parse(line: &str) -> Result<Request, ParseError> {
         takes(1, Request::Control(Command::LinkTimeout(s)))
     } else if eq("capture") {
         parse_capture(args, n_args)
+    } else if eq("model") {
+        parse_model(args, n_args)
+    } else if eq("calib") {
+        let Some(name) = arg else {
+            return Ok(Request::Calib);
+        };
+        let field = name.parse().map_err(|()| ParseError::UnknownCalibField)?;
+        let v = exact(args[1])?;
+        takes(2, Request::EditCalib(field, v as f32))
+    } else if eq("draft") {
+        let name = arg.ok_or(ParseError::UnknownDraft)?;
+        let d = DraftCommand::ALL
+            .into_iter()
+            .find(|d| d.name().eq_ignore_ascii_case(name))
+            .ok_or(ParseError::UnknownDraft)?;
+        takes(1, Request::Draft(d))
+    } else if eq("save") {
+        takes(0, Request::Save)
+    } else if eq("revert") {
+        takes(0, Request::Revert)
+    } else if eq("store") {
+        takes(0, Request::Store)
+    } else if eq("reset") {
+        takes(0, Request::Reset)
     } else {
         Err(ParseError::UnknownCommand)
     }
@@ -346,6 +454,40 @@ fn parse_capture(args: [Option<&str>; 3], n_args: usize) -> Result<Request, Pars
     Ok(Request::Capture(cmd))
 }
 
+fn parse_model(args: [Option<&str>; 3], n_args: usize) -> Result<Request, ParseError> {
+    let Some(word) = args[0] else {
+        return Ok(Request::Model);
+    };
+    if n_args > 2 {
+        return Err(ParseError::UnexpectedArgument);
+    }
+    let edit = if word.eq_ignore_ascii_case("law") {
+        let name = args[1].ok_or(ParseError::MissingArgument(Arg::Field))?;
+        ModelEdit::Law(
+            ContactLawKind::ALL
+                .into_iter()
+                .find(|k| k.name().eq_ignore_ascii_case(name))
+                .ok_or(ParseError::UnknownLaw)?,
+        )
+    } else if word.eq_ignore_ascii_case("suspension") {
+        let name = args[1].ok_or(ParseError::MissingArgument(Arg::Field))?;
+        ModelEdit::Suspension(
+            name.parse::<SuspensionKind>()
+                .map_err(|()| ParseError::UnknownSuspension)?,
+        )
+    } else {
+        let field: ModelField = word.parse().map_err(|()| ParseError::UnknownModelField)?;
+        ModelEdit::Set(field, exact(args[1])?)
+    };
+    Ok(Request::EditModel(edit))
+}
+
+/// A model or calibration value: [`parse_exact`]'s.
+fn exact(arg: Option<&str>) -> Result<f64, ParseError> {
+    let s = arg.ok_or(ParseError::MissingArgument(Arg::Value))?;
+    parse_exact(s).ok_or(ParseError::BadNumber(Arg::Value))
+}
+
 fn on_off(arg: Option<&str>) -> Result<bool, ParseError> {
     match arg {
         Some(a) if a.eq_ignore_ascii_case("on") => Ok(true),
@@ -393,6 +535,21 @@ impl fmt::Display for Request {
             Request::Id => f.write_str("id"),
             Request::Diag => f.write_str("diag"),
             Request::Help => f.write_str("help"),
+            Request::Model => f.write_str("model"),
+            Request::EditModel(ModelEdit::Set(field, v)) => {
+                write!(f, "model {field} {}", Exact::f64(v))
+            }
+            Request::EditModel(ModelEdit::Law(kind)) => write!(f, "model law {kind}"),
+            Request::EditModel(ModelEdit::Suspension(kind)) => {
+                write!(f, "model suspension {kind}")
+            }
+            Request::Calib => f.write_str("calib"),
+            Request::EditCalib(field, v) => write!(f, "calib {field} {}", Exact::f32(v)),
+            Request::Draft(d) => write!(f, "draft {}", d.name()),
+            Request::Save => f.write_str("save"),
+            Request::Revert => f.write_str("revert"),
+            Request::Store => f.write_str("store"),
+            Request::Reset => f.write_str("reset"),
             Request::Capture(c) => match c {
                 CaptureCommand::Status => f.write_str("capture"),
                 CaptureCommand::Arm { level_n, seconds } => {

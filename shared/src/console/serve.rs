@@ -17,9 +17,14 @@ use super::fields::WireError;
 use super::framing::Line;
 use super::link::{Link, MAX_REPLY};
 use super::reply::{Answer, AnswerError, BoardInfo, CaptureError, DiagInfo, IdInfo};
-use super::request::{ParseError, Request, parse};
+use super::request::{DraftCommand, ParseError, Request, parse};
+use super::settings::{CalibView, ModelOf, ModelView, SettingsRefusal, StoreRefusal, StoreView};
 use crate::capture::{CAPTURE_RATE_HZ, Capture, CaptureCommand};
-use crate::control::{AsyncRecord, Command, CommandError, Controller, SAMPLE_RATE_HZ, State};
+use crate::control::{
+    AsyncRecord, Command, CommandError, Controller, ModelSource, SAMPLE_RATE_HZ, SettingsError,
+    State,
+};
+use crate::store::SettingsStore;
 
 /// Access to the rig's pieces, each for the duration of one closure.
 pub trait RigAccess {
@@ -31,6 +36,11 @@ pub trait RigAccess {
     fn board(&mut self) -> BoardInfo;
     /// Runs `f` on the console's link (its counters, its echo).
     fn link<R>(&mut self, f: impl FnOnce(&mut Link) -> R) -> R;
+    /// Runs `f` on the settings store (flash: a `save` stalls the CPU on the board; the
+    /// service pauses the controller's deadline checks around it).
+    fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R;
+    /// A `reset` was accepted: restart the board once its reply has gone out.
+    fn reset_after_reply(&mut self);
 }
 
 /// The reply to one line, and the tag of the line it answers.
@@ -151,19 +161,27 @@ fn answer_request(rig: &mut impl RigAccess, request: Result<Request, ParseError>
         }
         Request::Id => {
             let board = rig.board();
-            let (rig_id, gap_mm, sensor, limits) = rig.controller(|c| {
-                let s = c.status();
-                (s.rig, s.gap_mm, c.config().sensor, c.config().limits)
+            let store = rig.store(|s| s.status().state);
+            let (rig_id, mass_kg, gap_mm, sensor, limits) = rig.controller(|c| {
+                let (params, id) = c.model();
+                (
+                    id,
+                    params.mass_kg as f32,
+                    c.gap_mm(),
+                    c.config().sensor,
+                    c.config().limits,
+                )
             });
             Answer::Id(IdInfo {
                 firmware: board.firmware,
                 board: board.board,
                 rig: rig_id,
+                store,
                 gap_mm,
                 sample_rate_hz: SAMPLE_RATE_HZ,
                 capture_rate_hz: CAPTURE_RATE_HZ,
                 sensor,
-                mass_kg: rig_id.preset().mass_kg as f32,
+                mass_kg,
                 freq_window_hz: [limits.freq_min_hz, limits.freq_max_hz],
                 slew_hz_per_s: limits.freq_slew_hz_per_s,
                 ramp_mm_per_s: limits.amp_ramp_mm_per_s,
@@ -192,6 +210,149 @@ fn answer_request(rig: &mut impl RigAccess, request: Result<Request, ParseError>
             })
         }
         Request::Capture(cmd) => capture(rig, cmd),
+        Request::Model => rig.controller(|c| model_line(c)),
+        Request::EditModel(edit) => settled(rig.controller(|c| {
+            c.edit_model(edit).map(|()| model_line(c))
+        })),
+        Request::Calib => rig.controller(|c| calib_line(c)),
+        Request::EditCalib(field, value) => settled(rig.controller(|c| {
+            c.edit_calibration(field, value).map(|()| calib_line(c))
+        })),
+        Request::Draft(d) => settled(rig.controller(|c| {
+            match d {
+                DraftCommand::Begin => c.begin_draft(),
+                DraftCommand::Apply => c.apply_draft(),
+                DraftCommand::Discard => c.discard_draft(),
+            }
+            .map(|()| model_line(c))
+        })),
+        Request::Store => Answer::Store(store_line(rig)),
+        Request::Save => save(rig),
+        Request::Revert => revert(rig),
+        Request::Reset => match idle(rig) {
+            Ok(()) => {
+                rig.reset_after_reply();
+                Answer::Reply(crate::control::Reply::Ok)
+            }
+            Err(e) => e,
+        },
+    }
+}
+
+/// The model line: the draft's while one is open, else the active model's.
+fn model_line(c: &Controller) -> Answer {
+    Answer::Model(match c.draft() {
+        Some(d) => ModelView {
+            of: ModelOf::Draft,
+            params: d.params,
+        },
+        None => {
+            let (params, id) = c.model();
+            ModelView {
+                of: ModelOf::Active(id.source),
+                params: *params,
+            }
+        }
+    })
+}
+
+/// The calibration line: the draft's while one is open, else the active one.
+fn calib_line(c: &Controller) -> Answer {
+    Answer::Calib(match c.draft() {
+        Some(d) => CalibView {
+            draft: true,
+            calibration: d.calibration,
+        },
+        None => CalibView {
+            draft: false,
+            calibration: c.calibration(),
+        },
+    })
+}
+
+/// The answer of a settings change: its line, or its refusal.
+fn settled(result: Result<Answer, SettingsError>) -> Answer {
+    match result {
+        Ok(a) => a,
+        Err(e) => Answer::Error(refusal(e)),
+    }
+}
+
+fn refusal(e: SettingsError) -> AnswerError {
+    match (e, SettingsRefusal::of(e)) {
+        (SettingsError::Command(c), _) => AnswerError::Command(c),
+        (_, Some(r)) => AnswerError::Settings(r),
+        // `of` answers every error but the command's.
+        (_, None) => AnswerError::Settings(SettingsRefusal::NoDraft),
+    }
+}
+
+fn store_line(rig: &mut impl RigAccess) -> StoreView {
+    let s = rig.store(|s| s.status());
+    StoreView {
+        state: s.state,
+        saves: s.saves,
+        hash: s.hash,
+    }
+}
+
+/// The drive idle and no capture recording (what touching the flash or resetting needs).
+fn idle(rig: &mut impl RigAccess) -> Result<(), Answer> {
+    let state = rig.controller(|c| c.state());
+    match state {
+        State::Idle => {}
+        State::Fault => return Err(Answer::Error(AnswerError::Command(CommandError::FaultLatched))),
+        s => return Err(Answer::Error(AnswerError::Command(CommandError::NotIdle(s)))),
+    }
+    if rig.capture(|c| c.active()) {
+        return Err(Answer::Error(AnswerError::Capture(CaptureError::Running)));
+    }
+    Ok(())
+}
+
+/// `save`: the active settings to the store, the controller's deadline checks paused while the
+/// flash is written (the CPU stalls on the board's flash).
+fn save(rig: &mut impl RigAccess) -> Answer {
+    if let Err(e) = idle(rig) {
+        return e;
+    }
+    let settings = rig.controller(|c| {
+        c.pause_sampling();
+        c.settings()
+    });
+    let saved = rig.store(|s| s.save(&settings));
+    rig.controller(|c| {
+        c.resume_sampling();
+        if saved.is_ok() {
+            c.mark_stored();
+        }
+    });
+    match saved {
+        Ok(_) => Answer::Store(store_line(rig)),
+        Err(e) => Answer::Error(AnswerError::Store(StoreRefusal::SaveFailed(e))),
+    }
+}
+
+/// `revert`: the stored settings back (a load may repair the store, writing flash: paused as a
+/// save).
+fn revert(rig: &mut impl RigAccess) -> Answer {
+    if let Err(e) = idle(rig) {
+        return e;
+    }
+    rig.controller(|c| c.pause_sampling());
+    let loaded = rig.store(|s| s.load());
+    rig.controller(|c| c.resume_sampling());
+    let Some(settings) = loaded.settings else {
+        return Answer::Error(AnswerError::Store(StoreRefusal::NothingToRevert(
+            loaded.state,
+        )));
+    };
+    match rig.controller(|c| c.load_settings(&settings, ModelSource::Stored)) {
+        Ok(()) => rig.controller(|c| model_line(c)),
+        Err(e) => {
+            rig.store(|s| s.note_invalid());
+            Answer::Error(refusal(e))
+        }
     }
 }
 
@@ -264,6 +425,10 @@ pub struct Direct<'a> {
     pub board: BoardInfo,
     /// The link.
     pub link: &'a mut Link,
+    /// The settings store.
+    pub store: &'a mut dyn SettingsStore,
+    /// A `reset` was accepted (the caller restarts once the reply is out).
+    pub reset: bool,
 }
 
 impl RigAccess for Direct<'_> {
@@ -279,6 +444,12 @@ impl RigAccess for Direct<'_> {
     fn link<R>(&mut self, f: impl FnOnce(&mut Link) -> R) -> R {
         f(self.link)
     }
+    fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R {
+        f(self.store)
+    }
+    fn reset_after_reply(&mut self) {
+        self.reset = true;
+    }
 }
 
 #[cfg(test)]
@@ -289,6 +460,8 @@ mod tests {
     use crate::console::reply::{Board, Version};
     use crate::control::{ControllerConfig, ModelStatus, PeakForce, Reply, Status, Target};
     use crate::model::RigId;
+    use crate::store::Store;
+    use crate::store::ram_flash::{PAGE_BYTES, RamFlash};
     use std::string::String;
 
     const BOARD: BoardInfo = BoardInfo {
@@ -304,13 +477,23 @@ mod tests {
         sample_gap_max_us: 0,
     };
 
+    /// A store in RAM for a test (two pages, erased).
+    fn ram_store(mem: &mut [u8]) -> Store<RamFlash<'_>> {
+        let len = mem.len() as u32;
+        Store::new(RamFlash::erased(mem), 0..len).unwrap()
+    }
+
     fn say(c: &mut Controller, cap: &mut Capture, line: &str) -> String {
         let mut link = Link::new();
+        let mut mem = std::vec![0u8; 2 * PAGE_BYTES];
+        let mut store = ram_store(&mut mem);
         let mut d = Direct {
             controller: c,
             capture: cap,
             board: BOARD,
             link: &mut link,
+            store: &mut store,
+            reset: false,
         };
         let a = answer(&mut d, Line::Text(line));
         let mut out = ReplyText::new();
@@ -324,10 +507,13 @@ mod tests {
         let mut cap = Capture::new();
         assert_eq!(
             say(&mut c, &mut cap, "id"),
-            "id firmware=0.0.0 board=virtual rig=wires gap_mm=0.00 sample_rate_hz=10000 \
-             capture_rate_hz=100000 volts_per_n=0.010000 offset_v=0.2000 adc_full_scale_v=3.3000 \
-             mass_kg=0.2980 freq_window_hz=1.00..30.00 slew_hz_per_s=0.500 \
-             ramp_mm_per_s=0.500 force_limit_n=280.0"
+            std::format!(
+                "id firmware=0.0.0 board=virtual rig=wires rig_hash={:08x} store=empty \
+                 gap_mm=0.00 sample_rate_hz=10000 capture_rate_hz=100000 volts_per_n=0.01 \
+                 offset_v=0.2 adc_full_scale_v=3.3 mass_kg=0.298 freq_window_hz=1..30 \
+                 slew_hz_per_s=0.5 ramp_mm_per_s=0.5 force_limit_n=280",
+                crate::model::params_hash(&RigId::Wires.preset())
+            )
         );
         assert!(say(&mut c, &mut cap, "diag").starts_with("diag samples=0 uptime_ms=1234 "));
         assert_eq!(say(&mut c, &mut cap, "stream on"), "ok");
@@ -376,11 +562,15 @@ mod tests {
         assert_eq!(say(&mut c, &mut cap, "#5"), "#5 error: empty line");
         // A receive error's line is answered, untagged (its tag is not known), and runs nothing.
         let mut link = Link::new();
+        let mut mem = std::vec![0u8; 2 * PAGE_BYTES];
+        let mut store = ram_store(&mut mem);
         let mut d = Direct {
             controller: &mut c,
             capture: &mut cap,
             board: BOARD,
             link: &mut link,
+            store: &mut store,
+            reset: false,
         };
         assert_eq!(
             answer(&mut d, Line::Lost),
@@ -433,7 +623,10 @@ mod tests {
         let big = 999_999.9;
         let status = Status {
             state: State::Stopping,
-            rig: RigId::Beam170,
+            rig: crate::control::ModelId {
+                source: crate::control::ModelSource::Preset(RigId::Beam170),
+                hash: u32::MAX,
+            },
             gap_mm: 10.0,
             freq_hz: 999.9999,
             amplitude_mm: 99.999,

@@ -4,9 +4,10 @@
 use core::fmt;
 
 use crate::capture::CaptureState;
-use crate::control::{Fault, State};
+use crate::control::{Fault, ModelSource, State};
 use crate::model::RigId;
 use crate::observe::Regime;
+use crate::store::StoreState;
 
 use super::reply::Board;
 
@@ -55,6 +56,36 @@ impl Token for Fault {
 
 impl Token for RigId {
     const ALL: &'static [RigId] = &RigId::ALL;
+    fn token(self) -> &'static str {
+        self.name()
+    }
+}
+
+/// Every model source: each preset, then the store and the console's edits.
+const MODEL_SOURCES: [ModelSource; RigId::ALL.len() + 2] = {
+    let mut all = [ModelSource::Stored; RigId::ALL.len() + 2];
+    let mut i = 0;
+    while i < RigId::ALL.len() {
+        all[i] = ModelSource::Preset(RigId::ALL[i]);
+        i += 1;
+    }
+    all[RigId::ALL.len() + 1] = ModelSource::Edited;
+    all
+};
+
+impl Token for ModelSource {
+    const ALL: &'static [ModelSource] = &MODEL_SOURCES;
+    fn token(self) -> &'static str {
+        match self {
+            ModelSource::Preset(rig) => rig.name(),
+            ModelSource::Stored => "stored",
+            ModelSource::Edited => "edited",
+        }
+    }
+}
+
+impl Token for StoreState {
+    const ALL: &'static [StoreState] = &StoreState::ALL;
     fn token(self) -> &'static str {
         self.name()
     }
@@ -139,6 +170,8 @@ mod tests {
         names_read_back::<RigId>();
         names_read_back::<CaptureState>();
         names_read_back::<Board>();
+        names_read_back::<ModelSource>();
+        names_read_back::<StoreState>();
         assert_eq!(read_regime("1/1"), Some(Some(Regime::ONE_ONE)));
         assert_eq!(read_regime("none"), Some(Some(Regime::NoImpact)));
         assert_eq!(read_regime("0/1"), None);

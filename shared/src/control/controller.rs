@@ -25,7 +25,9 @@ use super::tracker::HillClimber;
 use crate::analysis::SelectionError;
 use crate::error::ParamError;
 use crate::hal::SampleError;
-use crate::model::RigId;
+use super::calibration::{CalibField, Calibration};
+use super::settings::{Draft, ModelId, ModelSource, Settings, SettingsError};
+use crate::model::{ModelEdit, RigId, RigParams};
 use crate::observe::Regime;
 
 /// Events kept for the logger.
@@ -134,9 +136,19 @@ pub struct Controller {
     manual_hz: Option<f32>,
     generation: u32,
     request_open: bool,
-    rig: RigId,
+    /// A flash write is under way (`save`): sampling pauses while the CPU stalls on flash, and
+    /// the late samples and ADC overruns that follow are counted, not faults.
+    paused: bool,
+    /// Samples that came late or overran during flash writes, since start-up.
+    paused_samples: u32,
     gap_mm: f32,
     config: ControllerConfig,
+    /// The rig model.
+    params: RigParams,
+    /// Where it came from, and its hash.
+    model_id: ModelId,
+    /// Staged edits (`draft begin`).
+    draft: Option<Draft>,
     model: Model,
     meter: RegimeMeter,
     events: Deque<Event, EVENT_QUEUE>,
@@ -144,12 +156,28 @@ pub struct Controller {
 }
 
 impl Controller {
-    /// A controller in `Idle` for `rig` at `gap_mm`, with a model request open.
+    /// A controller in `Idle` for the preset `rig` at `gap_mm`, with a model request open.
     ///
     /// # Errors
     /// [`ParamError`] naming the bad configuration field, or `gap_mm` outside `0 ..= 10`.
     pub fn new(config: ControllerConfig, rig: RigId, gap_mm: f32) -> Result<Self, ParamError> {
+        Controller::with_model(config, rig.preset(), ModelSource::Preset(rig), gap_mm)
+    }
+
+    /// A controller in `Idle` for the model `params` (from `source`) at `gap_mm`, with a model
+    /// request open.
+    ///
+    /// # Errors
+    /// [`ParamError`] naming the bad configuration or model field, or `gap_mm` outside
+    /// `0 ..= 10`.
+    pub fn with_model(
+        config: ControllerConfig,
+        params: RigParams,
+        source: ModelSource,
+        gap_mm: f32,
+    ) -> Result<Self, ParamError> {
         config.validate()?;
+        params.validate()?;
         crate::error::check_range(
             "gap_mm",
             f64::from(gap_mm),
@@ -162,7 +190,11 @@ impl Controller {
             meter: RegimeMeter::new(),
             monitor: SensorMonitor::new(&config.faults),
             config,
-            rig,
+            model_id: ModelId::of(&params, source),
+            params,
+            draft: None,
+            paused: false,
+            paused_samples: 0,
             gap_mm,
             mode: Mode::Idle,
             manual_hz: None,
@@ -227,10 +259,10 @@ impl Controller {
 
     /// The status snapshot.
     pub fn status(&self) -> Status {
-        let weight = self.rig.preset().weight_n() as f32;
+        let weight = self.params.weight_n() as f32;
         Status {
             state: self.state(),
-            rig: self.rig,
+            rig: self.model_id,
             gap_mm: self.gap_mm,
             freq_hz: self.generator.freq_hz(),
             amplitude_mm: self.generator.amplitude_mm(),
@@ -304,7 +336,8 @@ impl Controller {
             return None;
         }
         Some(ModelRequest {
-            rig: self.rig,
+            params: self.params,
+            model_hash: self.model_id.hash,
             gap_mm: self.gap_mm,
             generation: self.generation,
         })
@@ -347,9 +380,8 @@ impl Controller {
             Command::Stream(on) => self.streaming = on,
             Command::Rig(rig) => {
                 self.require_idle()?;
-                self.rig = rig;
-                self.reset_measurement();
-                self.request_model();
+                self.draft = None;
+                self.set_model(rig.preset(), ModelSource::Preset(rig));
             }
             Command::Gap(gap_mm) => {
                 if !(0.0..=super::MAX_GAP_MM).contains(&gap_mm) {
@@ -387,7 +419,7 @@ impl Controller {
                     (None, Model::Pending) => return Err(CommandError::ModelPending),
                     (None, Model::Failed) => return Err(CommandError::NoTarget),
                 };
-                let amplitude = (self.rig.preset().amplitude_m * 1e3) as f32;
+                let amplitude = (self.params.amplitude_m * 1e3) as f32;
                 let l = self.config.limits;
                 if amplitude > l.amplitude_max_mm
                     || !(l.freq_min_hz..=l.freq_max_hz).contains(&start_hz)
@@ -450,6 +482,191 @@ impl Controller {
         Ok(Reply::Ok)
     }
 
+    /// The active rig model, and which it is.
+    pub fn model(&self) -> (&RigParams, ModelId) {
+        (&self.params, self.model_id)
+    }
+
+    /// The gap, mm.
+    pub fn gap_mm(&self) -> f32 {
+        self.gap_mm
+    }
+
+    /// The active calibration.
+    pub fn calibration(&self) -> Calibration {
+        Calibration::of(&self.config)
+    }
+
+    /// The staged edits, if a draft is open.
+    pub fn draft(&self) -> Option<&Draft> {
+        self.draft.as_ref()
+    }
+
+    /// What a `save` keeps: the active model, gap and calibration.
+    pub fn settings(&self) -> Settings {
+        Settings {
+            params: self.params,
+            gap_mm: self.gap_mm,
+            calibration: self.calibration(),
+        }
+    }
+
+    /// Makes `params` (from `source`) the active model: measurements reset, the model
+    /// recomputed.
+    fn set_model(&mut self, params: RigParams, source: ModelSource) {
+        self.params = params;
+        self.model_id = ModelId::of(&params, source);
+        self.reset_measurement();
+        self.request_model();
+    }
+
+    /// Edits the model: the draft's if one is open, else the active one (then `Edited`, and
+    /// recomputed). Idle only.
+    ///
+    /// # Errors
+    /// [`SettingsError`]: not idle, the field not of this model, the result out of range.
+    pub fn edit_model(&mut self, edit: ModelEdit) -> Result<(), SettingsError> {
+        self.require_idle().map_err(SettingsError::Command)?;
+        match &mut self.draft {
+            Some(d) => d.params = super::settings::edit_model(&d.params, edit)?,
+            None => {
+                let p = super::settings::edit_model(&self.params, edit)?;
+                self.set_model(p, ModelSource::Edited);
+            }
+        }
+        Ok(())
+    }
+
+    /// Edits one calibration field: the draft's if one is open, else the active calibration
+    /// (the model's force in `F_i/mg` is unchanged; measurements reset). Idle only.
+    ///
+    /// # Errors
+    /// [`SettingsError`]: not idle, the calibration refused as a whole (the field and range).
+    pub fn edit_calibration(&mut self, field: CalibField, value: f32) -> Result<(), SettingsError> {
+        self.require_idle().map_err(SettingsError::Command)?;
+        let cal = self.draft.map_or(self.calibration(), |d| d.calibration);
+        let cal = super::settings::edit_calibration(&cal, &self.config, field, value)?;
+        match &mut self.draft {
+            Some(d) => d.calibration = cal,
+            None => self.set_calibration(&cal)?,
+        }
+        Ok(())
+    }
+
+    /// Makes `cal` the active calibration (validated against the whole configuration).
+    fn set_calibration(&mut self, cal: &Calibration) -> Result<(), SettingsError> {
+        let config = cal
+            .applied_to(&self.config)
+            .map_err(SettingsError::Calibration)?;
+        // The drive is silent (idle): a generator of the new window and chain, at the same
+        // frequency (clamped into the new window).
+        let freq_hz = self.generator.freq_hz();
+        self.config = config;
+        self.generator = SineGenerator::new(&config.limits, &config.drive);
+        self.generator.jump_freq_hz(freq_hz);
+        self.reset_measurement();
+        Ok(())
+    }
+
+    /// Opens a draft (a copy of the active model and calibration), replacing any open one.
+    /// Idle only.
+    ///
+    /// # Errors
+    /// [`SettingsError::Command`]: not idle.
+    pub fn begin_draft(&mut self) -> Result<(), SettingsError> {
+        self.require_idle().map_err(SettingsError::Command)?;
+        self.draft = Some(Draft {
+            params: self.params,
+            calibration: self.calibration(),
+        });
+        Ok(())
+    }
+
+    /// Applies the draft whole: its calibration and its model (`Edited` if it differs from the
+    /// active one), then closes it. Idle only.
+    ///
+    /// # Errors
+    /// [`SettingsError`]: not idle, no draft, the draft invalid as a whole (nothing applied).
+    pub fn apply_draft(&mut self) -> Result<(), SettingsError> {
+        self.require_idle().map_err(SettingsError::Command)?;
+        let Some(d) = self.draft else {
+            return Err(SettingsError::NoDraft);
+        };
+        d.params.validate().map_err(SettingsError::Invalid)?;
+        d.calibration
+            .applied_to(&self.config)
+            .map_err(SettingsError::Calibration)?;
+        self.draft = None;
+        if d.calibration != self.calibration() {
+            self.set_calibration(&d.calibration)?;
+        }
+        if d.params != self.params {
+            self.set_model(d.params, ModelSource::Edited);
+        }
+        Ok(())
+    }
+
+    /// Closes the draft without applying it.
+    ///
+    /// # Errors
+    /// [`SettingsError::NoDraft`].
+    pub fn discard_draft(&mut self) -> Result<(), SettingsError> {
+        self.draft.take().map(|_| ()).ok_or(SettingsError::NoDraft)
+    }
+
+    /// Loads settings (power-up, `revert`): the model from `source`, the gap, the calibration,
+    /// all validated first (nothing changes on a refusal); closes any draft. Idle only.
+    ///
+    /// # Errors
+    /// [`SettingsError`]: not idle, a field out of range.
+    pub fn load_settings(
+        &mut self,
+        s: &Settings,
+        source: ModelSource,
+    ) -> Result<(), SettingsError> {
+        self.require_idle().map_err(SettingsError::Command)?;
+        s.params.validate().map_err(SettingsError::Invalid)?;
+        crate::error::check_range(
+            "gap_mm",
+            f64::from(s.gap_mm),
+            0.0,
+            f64::from(super::MAX_GAP_MM),
+        )
+        .map_err(SettingsError::Invalid)?;
+        s.calibration
+            .applied_to(&self.config)
+            .map_err(SettingsError::Calibration)?;
+        self.draft = None;
+        self.set_calibration(&s.calibration)?;
+        self.gap_mm = s.gap_mm;
+        self.set_model(s.params, source);
+        Ok(())
+    }
+
+    /// The active model now comes from the store (it was just saved).
+    pub fn mark_stored(&mut self) {
+        self.model_id.source = ModelSource::Stored;
+    }
+
+    /// A flash write begins (`save`): until [`Controller::resume_sampling`], a late sample or
+    /// an ADC overrun is counted ([`Controller::paused_samples`]), not a fault. Only with the
+    /// drive idle (the caller checks).
+    pub fn pause_sampling(&mut self) {
+        self.paused = true;
+    }
+
+    /// The flash write ended: late samples are faults again, after the first sample (whose gap
+    /// spans the pause).
+    pub fn resume_sampling(&mut self) {
+        self.paused = false;
+        self.last_us = None;
+    }
+
+    /// Samples that came late or overran during flash writes, since start-up.
+    pub fn paused_samples(&self) -> u32 {
+        self.paused_samples
+    }
+
     /// The sampling task: one ADC result in (`now_us` from the time base), one DAC code out.
     pub fn on_sample(&mut self, code: Result<u16, SampleError>, now_us: u64) -> u16 {
         self.sample = self.sample.wrapping_add(1);
@@ -459,10 +676,18 @@ impl Controller {
         if let Some(last) = self.last_us.replace(now_us)
             && now_us.wrapping_sub(last) > u64::from(self.config.faults.deadline_us)
         {
-            self.trip(Fault::MissedDeadline);
+            if self.paused {
+                self.paused_samples = self.paused_samples.saturating_add(1);
+            } else {
+                self.trip(Fault::MissedDeadline);
+            }
         }
         let (force_n, code) = match code {
             Ok(c) => (self.config.sensor.force_n(c), Some(c)),
+            Err(_) if self.paused => {
+                self.paused_samples = self.paused_samples.saturating_add(1);
+                (0.0, None)
+            }
             Err(_) => {
                 self.trip(Fault::AdcOverrun);
                 (0.0, None)

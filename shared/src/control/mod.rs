@@ -9,6 +9,7 @@
 //! [`RegimeMeter`] (per excitation cycle) → [`HillClimber`] (per evaluation) →
 //! [`SineGenerator`] → DAC code.
 
+pub mod calibration;
 pub mod command;
 pub mod config;
 pub mod controller;
@@ -16,10 +17,12 @@ pub mod detector;
 pub mod faults;
 pub mod meter;
 pub mod prediction;
+pub mod settings;
 pub mod sine;
 pub mod status;
 pub mod tracker;
 
+pub use calibration::{CalibField, Calibration};
 pub use command::{Command, CommandError, Reply};
 pub use config::{
     ControllerConfig, DetectorSettings, DriveChain, FaultSettings, Limits, MAX_GAP_MM,
@@ -31,6 +34,7 @@ pub use detector::{DetectedImpact, ImpactDetector};
 pub use faults::{Fault, SensorMonitor};
 pub use meter::RegimeMeter;
 pub use prediction::{Prediction, predict};
+pub use settings::{Draft, ModelId, ModelSource, Settings, SettingsError};
 pub use sine::{DriveSample, SineGenerator, sin_turn};
 pub use status::{
     AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,

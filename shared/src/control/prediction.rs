@@ -4,13 +4,13 @@
 //! task calls [`predict`], and `host-sim select --profile embedded` gives the same numbers.
 
 use crate::analysis::{SelectionError, SelectionSpec, SimSettings, select_sequential};
-use crate::model::RigId;
+use crate::model::{RigParams, params_hash};
 
 /// What the controller needs from the model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Prediction {
-    /// Rig it was computed for.
-    pub rig: RigId,
+    /// The hash of the rig model it was computed for ([`crate::model::params_hash`]).
+    pub model_hash: u32,
     /// Gap it was computed for, mm.
     pub gap_mm: f32,
     /// Target (operating) frequency, Hz.
@@ -29,22 +29,23 @@ pub struct Prediction {
     pub natural_freq_hz: f32,
 }
 
-/// Runs the on-target selection for `rig` (thesis preset) at `gap_mm`.
+/// Runs the on-target selection for the rig model `params` (a preset, the stored model, the
+/// console's edits: any valid [`RigParams`]) at `gap_mm`: what `host-sim select --profile
+/// embedded` gives for the same parameters, bit for bit.
 ///
 /// # Errors
-/// [`SelectionError`]: invalid gap, no `1/1` band, or no robust `1/1` point.
-pub fn predict(rig: RigId, gap_mm: f32) -> Result<Prediction, SelectionError> {
-    let params = rig.preset();
+/// [`SelectionError`]: invalid parameters or gap, no `1/1` band, or no robust `1/1` point.
+pub fn predict(params: &RigParams, gap_mm: f32) -> Result<Prediction, SelectionError> {
     let gap_m = f64::from(gap_mm) * 1e-3;
     let sel = select_sequential::<f32>(
-        &params,
+        params,
         gap_m,
         &SelectionSpec::embedded(),
         &SimSettings::embedded(),
     )?;
     let weight_n = params.weight_n();
     Ok(Prediction {
-        rig,
+        model_hash: params_hash(params),
         gap_mm,
         target_hz: sel.best.freq_hz as f32,
         band_hz: [sel.band_hz[0] as f32, sel.band_hz[1] as f32],

@@ -4,7 +4,8 @@
 
 use super::faults::Fault;
 use super::prediction::Prediction;
-use crate::model::RigId;
+use super::settings::ModelId;
+use crate::model::RigParams;
 use crate::observe::Regime;
 
 /// Controller states.
@@ -71,8 +72,10 @@ pub enum ModelStatus {
 /// A computation for the model task.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelRequest {
-    /// Rig.
-    pub rig: RigId,
+    /// The rig model.
+    pub params: RigParams,
+    /// Its hash ([`crate::model::params_hash`]), handed back in the prediction.
+    pub model_hash: u32,
     /// Gap, mm.
     pub gap_mm: f32,
     /// Tag to hand back with the result; stale results are dropped.
@@ -158,8 +161,8 @@ pub const MAX_FORCE_VS_MODEL_PCT: f32 = 1e6;
 pub struct Status {
     /// State.
     pub state: State,
-    /// Rig.
-    pub rig: RigId,
+    /// The active rig model: where it came from, and its hash.
+    pub rig: ModelId,
     /// Gap, mm.
     pub gap_mm: f32,
     /// Drive frequency now, Hz.

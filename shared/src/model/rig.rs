@@ -116,7 +116,7 @@ pub enum Suspension {
         /// `−2ζω θ̇` added to Eq. (3-26) (the project's addition, docs/model.md; the thesis
         /// leaves the rig's damping out). Absent from a config: 0 (the `wires` preset). The
         /// beam rigs' identified `ζ` is 0.004 (Table 3.3); `identify free` measures it.
-        #[serde(default, skip_serializing_if = "is_zero")]
+        #[serde(default)]
         damping_ratio: f64,
     },
     /// Base-excited oscillator, Eq. (3-30)–(3-34): `k = m ω²`, `c = 2 ζ m ω`, cubic term `k u³`.
@@ -126,12 +126,6 @@ pub enum Suspension {
         /// Viscous damping ratio `ζ`. Table 3.3: 0.004.
         damping_ratio: f64,
     },
-}
-
-/// Whether `x` is `+0.0` or `−0.0` (an undamped pendulum's `damping_ratio`, left out when
-/// serialised so that the undamped rig's text is the thesis model's).
-fn is_zero(x: &f64) -> bool {
-    *x == 0.0
 }
 
 /// Largest damping ratio accepted (exclusive): the suspension must be underdamped.
