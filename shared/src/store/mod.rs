@@ -219,7 +219,14 @@ impl<F: NorFlash + MultiwriteNorFlash> Store<F> {
     /// [`SaveError`]; the store then holds the last good save (or, after a power cut, the one
     /// that was being written, whole).
     pub fn save(&mut self, settings: &Settings) -> Result<u32, SaveError> {
-        let n = self.saves.wrapping_add(1).max(1);
+        // Numbered after the last save the store holds, whether or not it was loaded.
+        let mut buf = [0u8; BUFFER];
+        let stored = embassy_futures::block_on(self.map.fetch_item::<&[u8]>(&mut buf, &COUNT_KEY))
+            .ok()
+            .flatten()
+            .and_then(read_u32)
+            .unwrap_or(0);
+        let n = self.saves.max(stored).wrapping_add(1).max(1);
         let mut record = [0u8; MAX_RECORD];
         let len = encode(n, settings, &mut record)?;
         let mut buf = [0u8; BUFFER];

@@ -43,6 +43,8 @@ pub struct RamFlash<'a> {
     power_left: Option<u64>,
     /// Steps made (words written, kilobytes erased).
     steps: u64,
+    /// Pages erased whole.
+    pages_erased: u64,
 }
 
 impl<'a> RamFlash<'a> {
@@ -52,6 +54,7 @@ impl<'a> RamFlash<'a> {
             bytes,
             power_left: None,
             steps: 0,
+            pages_erased: 0,
         }
     }
 
@@ -69,6 +72,11 @@ impl<'a> RamFlash<'a> {
     /// Steps made so far (words written, kilobytes erased).
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Pages erased whole so far.
+    pub fn pages_erased(&self) -> u64 {
+        self.pages_erased
     }
 
     /// The bytes (to flip one, as a worn or disturbed cell would).
@@ -127,10 +135,12 @@ impl NorFlash for RamFlash<'_> {
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), RamFlashError> {
         let len = (to as usize).checked_sub(from as usize).ok_or(RamFlashError::OutOfBounds)?;
         let r = self.range(from, len, PAGE_BYTES)?;
+        let pages = (r.len() / PAGE_BYTES) as u64;
         for chunk in r.step_by(ERASE_STEP) {
             self.step()?;
             self.bytes[chunk..chunk + ERASE_STEP].fill(0xff);
         }
+        self.pages_erased += pages;
         Ok(())
     }
 
