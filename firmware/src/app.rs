@@ -10,7 +10,7 @@
 //! | `serve`   | woken by `console`, `sample`, `report`          | 2        | one reply per line; telemetry and event lines   |
 //! | `report`  | every second on the SysTick monotonic           | 2        | health check and watchdog; the capture's stall check; the defmt status log |
 //! | `start_sampling` | once, when interrupts come on after `init` | 2     | starts TIM2, ADC1's trigger                     |
-//! | `model`   | start-up, `rig`, `gap`, `tune`                  | 1        | `shared::control::predict` (the selection)      |
+//! | `model`   | start-up, a new model, `gap`, `tune`            | 1        | `shared::control::predict` (the selection) on the active model |
 //!
 //! The sampling task preempts everything, so nothing but a short lock delays a sample. The
 //! capture task preempts the console service and the report, which format lines for longer
@@ -21,6 +21,13 @@
 //! Nothing is formatted or sent under a lock that the sampling task needs for long: the console
 //! service copies what it needs out of the controller, formats outside every lock, and queues
 //! the text for the UART, which drains it from its interrupt.
+//!
+//! At power-up the board loads its settings (the rig model, gap and calibration) from the
+//! store in flash (`shared::store`, sectors 1–2), or, when the store holds none it can use
+//! (empty, corrupt, another version, refused by the controller's checks), runs the preset of
+//! `config::RIG` at `config::GAP_MM` with the default calibration, and says why (`id`'s
+//! `store=`, the defmt log). A `save` writes the flash from the console service: the CPU stalls
+//! on the flash meanwhile, so the controller counts the late samples instead of faulting.
 
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true, dispatchers = [EXTI0, EXTI1])]
 mod app {
@@ -37,12 +44,15 @@ mod app {
     };
     use shared::console::{BoardInfo, Token};
     use shared::control::{Controller, ControllerConfig, Event, Status, predict};
+    use shared::store::{SettingsStore, StartUp, Store, start_up};
     use shared::hal::{DriveOutput, ForceSource};
     use shared::health::{Health, HealthCheck};
     use shared::observe::Regime;
 
     use crate::board;
-    use rig_firmware::config::{CAPTURE_BLOCK, FIRMWARE_VERSION, GAP_MM, RIG, SYSCLK_HZ};
+    use rig_firmware::config::{
+        CAPTURE_BLOCK, FIRMWARE_VERSION, GAP_MM, RIG, STORE_BYTES, SYSCLK_HZ,
+    };
 
     systick_monotonic!(Mono, 1_000);
 
@@ -70,6 +80,7 @@ mod app {
         controller: Controller,
         console: Console,
         capture: CaptureRes,
+        store: Store<board::StoreFlash>,
     }
 
     #[local]
@@ -109,19 +120,25 @@ mod app {
         let mut core = cx.core;
         let parts = board::init(cx.device, &mut core.NVIC, cx.local.capture_bufs);
         Mono::start(core.SYST, SYSCLK_HZ);
-        let controller = match Controller::new(ControllerConfig::default(), RIG, GAP_MM) {
+        let mut controller = match Controller::new(ControllerConfig::default(), RIG, GAP_MM) {
             Ok(c) => c,
             Err(_) => defmt::panic!("the built-in controller configuration is invalid"),
         };
+        let mut store = match Store::new(parts.store, 0..STORE_BYTES) {
+            Ok(s) => s,
+            Err(_) => defmt::panic!("the settings store's range is not whole sectors"),
+        };
+        load_settings(&mut store, &mut controller);
         let (writer, reader) = rtic_sync::make_signal!(());
         defmt::info!(
-            "vibro-impact rig firmware {=u16}.{=u16}.{=u16} ({=str} board): rig {=str}, gap {=f32} mm, sampling at {=u32} Hz",
+            "vibro-impact rig firmware {=u16}.{=u16}.{=u16} ({=str} board): rig {=str} {=u32:08x}, gap {=f32} mm, sampling at {=u32} Hz",
             FIRMWARE_VERSION.major,
             FIRMWARE_VERSION.minor,
             FIRMWARE_VERSION.patch,
             board::BOARD.token(),
-            RIG.name(),
-            GAP_MM,
+            controller.status().rig.source.token(),
+            controller.status().rig.hash,
+            controller.gap_mm(),
             shared::control::SAMPLE_RATE_HZ
         );
         start_sampling::spawn().ok();
@@ -139,6 +156,7 @@ mod app {
                     store: cx.local.capture_store,
                     input: parts.capture,
                 },
+                store,
             },
             Local {
                 adc: parts.adc,
@@ -152,6 +170,31 @@ mod app {
                 wake: reader,
             },
         )
+    }
+
+    /// The stored settings into the controller, or the preset it was made with, saying why.
+    fn load_settings(store: &mut Store<board::StoreFlash>, controller: &mut Controller) {
+        match start_up(store, controller) {
+            StartUp::Stored { save } => defmt::info!(
+                "settings: save {=u32} loaded: model {=u32:08x}, gap {=f32} mm",
+                save,
+                controller.status().rig.hash,
+                controller.gap_mm()
+            ),
+            StartUp::Fallback {
+                state,
+                saves,
+                field,
+            } => defmt::warn!(
+                "settings: store {=str} (save {=u32}{=str}{=str}): running the {=str} preset at {=f32} mm, default calibration",
+                state.token(),
+                saves,
+                if field.is_some() { ", refused field " } else { "" },
+                field.unwrap_or(""),
+                RIG.name(),
+                GAP_MM
+            ),
+        }
     }
 
     /// Starts ADC1's trigger once interrupts are on (they come on when `init` returns): the
@@ -227,17 +270,20 @@ mod app {
 
     /// [`RigAccess`] over the console service's locks: each closure runs under its resource's
     /// lock only.
-    struct Access<'a, C, K, L> {
+    struct Access<'a, C, K, L, S> {
         controller: &'a mut C,
         capture: &'a mut K,
         console: &'a mut L,
+        store: &'a mut S,
+        reset: bool,
     }
 
-    impl<C, K, L> RigAccess for Access<'_, C, K, L>
+    impl<C, K, L, S> RigAccess for Access<'_, C, K, L, S>
     where
         C: Mutex<T = Controller>,
         K: Mutex<T = CaptureRes>,
         L: Mutex<T = Console>,
+        S: Mutex<T = Store<board::StoreFlash>>,
     {
         fn controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
             self.controller.lock(f)
@@ -251,11 +297,18 @@ mod app {
         fn link<R>(&mut self, f: impl FnOnce(&mut Link) -> R) -> R {
             self.console.lock(|c| f(&mut c.link))
         }
+        fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R {
+            // Only the console service takes the store: this lock blocks nothing else.
+            self.store.lock(|s| f(s))
+        }
+        fn reset_after_reply(&mut self) {
+            self.reset = true;
+        }
     }
 
     /// The console service: answers every waiting line (one reply each), then sends the
     /// asynchronous lines; sleeps until woken again.
-    #[task(priority = 2, shared = [controller, console, capture], local = [wake])]
+    #[task(priority = 2, shared = [controller, console, capture, store], local = [wake])]
     async fn serve(mut cx: serve::Context) {
         let mut reply = ReplyText::new();
         let mut line = AsyncText::new();
@@ -273,6 +326,7 @@ mod app {
                         .and_then(|(tag, rest)| Some((tag, board::hook(rest, uptime_ms())?))),
                     _ => None,
                 };
+                let mut reset = false;
                 match hooked {
                     Some((tag, text)) => {
                         reply.clear();
@@ -286,8 +340,11 @@ mod app {
                             controller: &mut cx.shared.controller,
                             capture: &mut cx.shared.capture,
                             console: &mut cx.shared.console,
+                            store: &mut cx.shared.store,
+                            reset: false,
                         };
                         let response = answer(&mut access, pending.as_line());
+                        reset = access.reset;
                         format_answer(&response, &mut reply);
                     }
                 }
@@ -300,6 +357,9 @@ mod app {
                     }
                 });
                 send(&mut cx.shared.console, reply.as_bytes());
+                if reset {
+                    restart(&mut cx.shared.console).await;
+                }
                 if cx.shared.controller.lock(|c| c.model_request_open()) {
                     model::spawn().ok();
                 }
@@ -312,6 +372,21 @@ mod app {
                 }
             }
         }
+    }
+
+    /// `reset`: waits for the reply to leave the UART (at most 100 ms: 640 bytes take 56 ms at
+    /// 115200 Bd), then restarts the board (AIRCR.SYSRESETREQ).
+    async fn restart(console: &mut impl Mutex<T = Console>) {
+        defmt::info!("reset: restarting at the console's request");
+        for _ in 0..100 {
+            if console.lock(|c| c.link.tx_free() == shared::console::link::TX_CAPACITY) {
+                break;
+            }
+            Mono::delay(1.millis()).await;
+        }
+        // The last byte leaves the shift register in 87 µs.
+        Mono::delay(2.millis()).await;
+        cortex_m::peripheral::SCB::sys_reset();
     }
 
     /// Bytes per lock when queueing text: the console's lock holds off the sampling task, so it
@@ -416,9 +491,10 @@ mod app {
             _ => (0, 0),
         };
         defmt::info!(
-            "status: {=str} rig {=str} gap {=f32} mm, drive {=f32} Hz {=f32} mm, regime {=u16}/{=u16}, peak {=f32} N, fault {=str}, impacts {=u32}, lost cycles {=u32}",
+            "status: {=str} rig {=str} {=u32:08x} gap {=f32} mm, drive {=f32} Hz {=f32} mm, regime {=u16}/{=u16}, peak {=f32} N, fault {=str}, impacts {=u32}, lost cycles {=u32}",
             s.state.token(),
-            s.rig.name(),
+            s.rig.source.token(),
+            s.rig.hash,
             s.gap_mm,
             s.freq_hz,
             s.amplitude_mm,
@@ -457,11 +533,11 @@ mod app {
     async fn model(mut cx: model::Context) {
         while let Some(req) = cx.shared.controller.lock(|c| c.take_model_request()) {
             defmt::info!(
-                "model: computing rig {=str} gap {=f32} mm",
-                req.rig.name(),
+                "model: computing model {=u32:08x} gap {=f32} mm",
+                req.model_hash,
                 req.gap_mm
             );
-            let result = predict(req.rig, req.gap_mm);
+            let result = predict(&req.params, req.gap_mm);
             cx.shared
                 .controller
                 .lock(|c| c.set_prediction(req.generation, result));

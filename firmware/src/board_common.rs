@@ -13,7 +13,7 @@ use crate::config::CONSOLE_BAUD;
 
 /// What the app gets from the board this image is built for, over that board's types (each
 /// board names its own: `board::Parts`).
-pub struct BoardParts<Adc, Dac, Clock, Serial, Capture, Dog, Trigger> {
+pub struct BoardParts<Adc, Dac, Clock, Serial, Capture, Dog, Trigger, Flash> {
     /// ADC1 on PA1.
     pub adc: Adc,
     /// DAC1 on PA4.
@@ -28,6 +28,8 @@ pub struct BoardParts<Adc, Dac, Clock, Serial, Capture, Dog, Trigger> {
     pub watchdog: Dog,
     /// ADC1's trigger (TIM2), started once interrupts are on.
     pub trigger: Trigger,
+    /// The settings store's flash (a NOR flash of `config::STORE_BYTES`).
+    pub store: Flash,
 }
 
 /// USART2 on PA2/PA3 (AF7), [`CONSOLE_BAUD`] 8N1, receive interrupt on.

@@ -40,7 +40,7 @@ use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::serial::Serial;
 
 use rig_firmware::board_common::{BoardParts, Micros64, console_usart, read_byte};
-use rig_firmware::config::{CAPTURE_BLOCK, WATCHDOG_MS};
+use rig_firmware::config::{CAPTURE_BLOCK, STORE_BYTES, WATCHDOG_MS};
 
 /// Which image this is (`id`).
 pub const BOARD: Board = Board::Emulator;
@@ -54,7 +54,37 @@ pub type Parts = BoardParts<
     CaptureInput,
     Watchdog,
     SamplingTrigger,
+    StoreFlash,
 >;
+
+/// The settings store's flash on the emulator: RAM, as QEMU's board emulates no flash
+/// controller. It lies in the CCM RAM (64 KiB at 0x1000_0000), which no section of the image
+/// names, so QEMU's system reset (which reloads the image's sections) leaves it as it was: a
+/// `save` survives a `reset` as on the board. A marker word after it says it was set up (at
+/// QEMU's start the RAM reads zero: erased then). The same geometry as the board's (two 16 KiB
+/// pages, 32-bit words); no stall on writes.
+pub type StoreFlash = shared::store::ram_flash::RamFlash<&'static mut [u8]>;
+
+/// Where the emulator's store lies: the CCM RAM.
+const CCM_STORE: usize = 0x1000_0000;
+/// The marker after the store: its bytes were erased once.
+const STORE_MARKER: u32 = 0x5e77_1295;
+
+/// The emulator's store, erased the first time after QEMU starts.
+fn store_flash() -> StoreFlash {
+    let len = STORE_BYTES as usize;
+    let marker = (CCM_STORE + len) as *mut u32;
+    // SAFETY: the CCM RAM is the STM32F405's (QEMU's netduinoplus2 maps it), no section of this
+    // image is placed there, and this is its only user, made once in `init`.
+    let bytes = unsafe {
+        if core::ptr::read_volatile(marker) != STORE_MARKER {
+            core::ptr::write_bytes(CCM_STORE as *mut u8, 0xff, len);
+            core::ptr::write_volatile(marker, STORE_MARKER);
+        }
+        core::slice::from_raw_parts_mut(CCM_STORE as *mut u8, len)
+    };
+    shared::store::ram_flash::RamFlash::new(bytes)
+}
 
 /// QEMU's timer clock: 1 GHz whatever the RCC, and a period of `ARR` ticks as long as the
 /// prescaler and counter are never written (its model adds the tick offset of those writes to
@@ -130,6 +160,7 @@ pub fn init(
         capture: CaptureInput { rx },
         watchdog: Watchdog { last_feed_ms: 0 },
         trigger: SamplingTrigger,
+        store: store_flash(),
     }
 }
 

@@ -39,7 +39,9 @@ use rig_firmware::clock_tree::{
     ADC_PRESCALER, ADC_SAMPLE_CYCLES, HCLK_HZ, HSE_HZ, PCLK1_HZ, PCLK2_HZ, TIM2_ARR, TIM3_ARR,
     TIM3_PERIOD, TIM3_PHASE, TIM5_ARR, TIM5_PSC,
 };
-use rig_firmware::config::{CAPTURE_BLOCK, HSE_BYPASS, SYSCLK_HZ, WATCHDOG_MS};
+use rig_firmware::config::{
+    CAPTURE_BLOCK, HSE_BYPASS, STORE_ADDRESS, STORE_BYTES, STORE_SECTORS, SYSCLK_HZ, WATCHDOG_MS,
+};
 
 /// Which image this is (`id`).
 pub const BOARD: Board = Board::Rig;
@@ -53,6 +55,7 @@ pub type Parts = BoardParts<
     CaptureInput,
     Watchdog,
     SamplingTrigger,
+    StoreFlash,
 >;
 
 /// ADC_CCR.ADCPRE for `clock_tree::ADC_PRESCALER` (RM0090 §13.13.16).
@@ -234,6 +237,7 @@ pub fn init(
         },
         watchdog: Watchdog { iwdg },
         trigger: SamplingTrigger { tim2 },
+        store: StoreFlash::new(dp.FLASH),
     }
 }
 
@@ -527,3 +531,161 @@ impl Watchdog {
 pub fn hook(_line: &str, _now_ms: u32) -> Option<heapless::String<96>> {
     None
 }
+
+/// The settings store's flash: sectors [`STORE_SECTORS`] from [`STORE_ADDRESS`], erased by
+/// sector and programmed by 32-bit word (x32 parallelism: VDD 2.7 – 3.6 V, RM0090 §3.6.2), as
+/// a NOR flash for `shared::store` (offsets from [`STORE_ADDRESS`]). Each operation unlocks the
+/// flash (FLASH_KEYR, §3.6.1), waits for BSY to clear, checks the error flags and locks it again;
+/// the data cache is reset after a change so that no stale line is read (FLASH_ACR.DCRST,
+/// §3.9.1). While it erases or programs, the CPU stalls on every flash fetch (one bank,
+/// §3.6.3–3.6.4): the console service pauses the controller's deadline checks around a save.
+pub struct StoreFlash {
+    flash: pac::FLASH,
+}
+
+/// Why a flash operation failed: FLASH_SR's error flags (PGSERR, PGPERR, PGAERR, WRPERR,
+/// OPERR), or an address outside the store.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StoreFlashError(u32);
+
+impl embedded_storage_async::nor_flash::NorFlashError for StoreFlashError {
+    fn kind(&self) -> embedded_storage_async::nor_flash::NorFlashErrorKind {
+        if self.0 == OUT_OF_STORE {
+            embedded_storage_async::nor_flash::NorFlashErrorKind::OutOfBounds
+        } else {
+            embedded_storage_async::nor_flash::NorFlashErrorKind::Other
+        }
+    }
+}
+
+/// [`StoreFlashError`]'s value for an address outside the store.
+const OUT_OF_STORE: u32 = u32::MAX;
+/// FLASH_KEYR's unlock sequence (RM0090 §3.6.1).
+const FLASH_KEYS: [u32; 2] = [0x4567_0123, 0xCDEF_89AB];
+/// FLASH_SR's error flags: PGSERR (7), PGPERR (6), PGAERR (5), WRPERR (4), OPERR (1).
+const FLASH_SR_ERRORS: u32 = 0b1111_0010;
+/// FLASH_CR.PSIZE for x32 parallelism (RM0090 §3.9.5).
+const PSIZE_X32: u8 = 0b10;
+/// Bytes of a store sector.
+const SECTOR_BYTES: u32 = STORE_BYTES / STORE_SECTORS.len() as u32;
+
+impl StoreFlash {
+    fn new(flash: pac::FLASH) -> Self {
+        StoreFlash { flash }
+    }
+
+    fn unlock(&mut self) {
+        if self.flash.cr().read().lock().bit_is_set() {
+            for key in FLASH_KEYS {
+                self.flash.keyr().write(|w| unsafe { w.key().bits(key) });
+            }
+        }
+    }
+
+    /// Waits for the operation to end; its error flags (cleared), locked again.
+    fn finish(&mut self) -> Result<(), StoreFlashError> {
+        while self.flash.sr().read().bsy().bit_is_set() {}
+        let errors = self.flash.sr().read().bits() & FLASH_SR_ERRORS;
+        // rc_w1 flags: writing 1 clears them (EOP too).
+        self.flash
+            .sr()
+            .write(|w| unsafe { w.bits(errors | 1) });
+        self.flash.cr().modify(|_, w| w.ser().clear_bit().pg().clear_bit());
+        if errors != 0 {
+            return Err(StoreFlashError(errors));
+        }
+        Ok(())
+    }
+
+    fn lock(&mut self) {
+        self.flash.cr().modify(|_, w| w.lock().set_bit());
+        // The data cache may hold lines of what was just erased or programmed.
+        self.flash.acr().modify(|_, w| w.dcen().clear_bit());
+        self.flash.acr().modify(|_, w| w.dcrst().set_bit());
+        self.flash.acr().modify(|_, w| w.dcrst().clear_bit());
+        self.flash.acr().modify(|_, w| w.dcen().set_bit());
+    }
+
+    fn check(offset: u32, len: usize, unit: u32) -> Result<(), StoreFlashError> {
+        let end = offset.checked_add(len as u32).ok_or(StoreFlashError(OUT_OF_STORE))?;
+        if end > STORE_BYTES || offset % unit != 0 || len as u32 % unit != 0 {
+            return Err(StoreFlashError(OUT_OF_STORE));
+        }
+        Ok(())
+    }
+}
+
+impl embedded_storage_async::nor_flash::ErrorType for StoreFlash {
+    type Error = StoreFlashError;
+}
+
+impl embedded_storage_async::nor_flash::ReadNorFlash for StoreFlash {
+    const READ_SIZE: usize = 1;
+
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), StoreFlashError> {
+        Self::check(offset, bytes.len(), 1)?;
+        for (i, b) in bytes.iter_mut().enumerate() {
+            let at = (STORE_ADDRESS + offset) as usize + i;
+            // SAFETY: inside the store's sectors (checked above), which no code or data uses.
+            *b = unsafe { core::ptr::read_volatile(at as *const u8) };
+        }
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        STORE_BYTES as usize
+    }
+}
+
+impl embedded_storage_async::nor_flash::NorFlash for StoreFlash {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = SECTOR_BYTES as usize;
+
+    /// Sector erase (RM0090 §3.6.3): SER, SNB, PSIZE, then STRT; BSY until done.
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), StoreFlashError> {
+        let len = to.checked_sub(from).ok_or(StoreFlashError(OUT_OF_STORE))?;
+        Self::check(from, len as usize, SECTOR_BYTES)?;
+        self.unlock();
+        let mut result = Ok(());
+        for k in (from / SECTOR_BYTES)..(to / SECTOR_BYTES) {
+            let snb = STORE_SECTORS[k as usize];
+            self.flash.cr().modify(|_, w| unsafe {
+                w.psize().bits(PSIZE_X32).ser().set_bit().snb().bits(snb)
+            });
+            self.flash.cr().modify(|_, w| w.strt().set_bit());
+            result = self.finish();
+            if result.is_err() {
+                break;
+            }
+        }
+        self.lock();
+        result
+    }
+
+    /// Word programming (RM0090 §3.6.4): PG and PSIZE x32, one 32-bit write per word; BSY
+    /// until done.
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), StoreFlashError> {
+        Self::check(offset, bytes.len(), 4)?;
+        self.unlock();
+        let mut result = Ok(());
+        for (k, word) in bytes.chunks_exact(4).enumerate() {
+            self.flash
+                .cr()
+                .modify(|_, w| unsafe { w.psize().bits(PSIZE_X32).pg().set_bit() });
+            let at = STORE_ADDRESS + offset + 4 * k as u32;
+            let value = u32::from_le_bytes([word[0], word[1], word[2], word[3]]);
+            // SAFETY: a word inside the store's sectors (checked above), programmed as RM0090
+            // §3.6.4 says, with PG set.
+            unsafe { core::ptr::write_volatile(at as *mut u32, value) };
+            result = self.finish();
+            if result.is_err() {
+                break;
+            }
+        }
+        self.lock();
+        result
+    }
+}
+
+/// The flash allows a word written again with bits cleared only (RM0090 §3.6.4).
+impl embedded_storage_async::nor_flash::MultiwriteNorFlash for StoreFlash {}

@@ -1,12 +1,26 @@
-//! Configuration of the rig this board drives at power-up (the console changes rig and gap).
+//! Configuration of the board: what it runs when its store holds no usable settings (the
+//! console changes the model, gap and calibration, and `save` keeps them in flash), its clocks,
+//! and where the store lives.
 
 use shared::console::Version;
 use shared::model::RigId;
 
-/// The rig at power-up.
+/// The rig preset at power-up when the store holds no usable settings (empty, corrupt, of
+/// another version, or refused by the controller's checks).
 pub const RIG: RigId = RigId::Wires;
-/// The gap at power-up, mm (field use: 0.0 mm).
+/// The gap at power-up in that case, mm (field use: 0.0 mm).
 pub const GAP_MM: f32 = 0.0;
+/// The settings store: flash sectors 1 and 2 of the STM32F407 (16 KiB each, RM0090 §3.3
+/// Table 5), from this address. The code starts after them (`memory.x`: `_stext`), the vector
+/// table stays in sector 0. 16 KiB sectors erase in 250 ms typical, 500 ms at most at x32
+/// parallelism (the STM32F407 datasheet, DS8626, table "Flash memory programming"): within the 2 s watchdog, unlike
+/// the 128 KiB sectors (1 s typical, 2 s at most).
+pub const STORE_ADDRESS: u32 = 0x0800_4000;
+/// The store's sectors (erase units), RM0090 Table 5.
+pub const STORE_SECTORS: [u8; 2] = [1, 2];
+/// The store's size, bytes: two 16 KiB sectors.
+pub const STORE_BYTES: u32 = shared::store::STORE_BYTES;
+const _: () = assert!(STORE_BYTES == STORE_SECTORS.len() as u32 * 16 * 1024);
 /// Core clock, Hz (also SysTick's clock, the monotonic's time base).
 pub const SYSCLK_HZ: u32 = 168_000_000;
 /// Independent watchdog timeout, ms.

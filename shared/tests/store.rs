@@ -13,7 +13,7 @@ use shared::store::{COUNT_KEY, RECORD_KEY, SaveError, Store, StoreState};
 
 const BYTES: usize = 2 * PAGE_BYTES;
 
-fn store(mem: &mut [u8]) -> Store<RamFlash<'_>> {
+fn store(mem: &mut [u8]) -> Store<RamFlash<&mut [u8]>> {
     Store::new(RamFlash::new(mem), 0..BYTES as u32).unwrap()
 }
 

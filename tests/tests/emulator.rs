@@ -182,7 +182,7 @@ fn model_ready(e: &Event) -> bool {
 
 /// The host's on-target prediction as the status line prints it.
 fn host_model_text(rig: RigId, gap_mm: f32) -> (String, u32) {
-    let p = predict(rig, gap_mm).unwrap();
+    let p = predict(&rig.preset(), gap_mm).unwrap();
     (
         format!(
             "model=ready target_hz={} band_hz={}..{} predicted_mg={}",
@@ -204,7 +204,10 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
 
     // Boot to the console.
     assert_eq!(port.id().board, Board::Emulator);
-    assert_eq!(port.id().rig, RigId::Wires);
+    assert_eq!(
+        port.id().rig.source,
+        shared::control::ModelSource::Preset(RigId::Wires)
+    );
     assert!(
         port.send_line("help")
             .unwrap()
@@ -223,7 +226,7 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
     assert_eq!(port.send_line("stream on").unwrap(), "ok");
     assert_eq!(port.send_line("gap 0.5").unwrap(), "ok");
     // Pending at once (or, on a loaded machine, already the new gap's target: never the old).
-    let gap_half = predict(RigId::Wires, 0.5).unwrap().target_hz;
+    let gap_half = predict(&RigId::Wires.preset(), 0.5).unwrap().target_hz;
     match port.status().unwrap().model {
         ModelStatus::Pending => {}
         ModelStatus::Ready(t) => assert_eq!(t.target_hz, gap_half),
@@ -265,7 +268,7 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
     // `rig` recomputes too.
     assert_eq!(port.send_line("rig beam-170").unwrap(), "ok");
     let beam = wait_event(&mut port, model_ready, &mut seq);
-    let beam_bits = predict(RigId::Beam170, 0.0).unwrap().target_hz.to_bits();
+    let beam_bits = predict(&RigId::Beam170.preset(), 0.0).unwrap().target_hz.to_bits();
     assert!(
         beam.to_string()
             .contains(&format!("target_bits={beam_bits:#010x}")),

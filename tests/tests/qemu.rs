@@ -13,7 +13,7 @@
 use std::process::Command;
 
 use shared::control::predict;
-use shared::model::RigId;
+use shared::model::{ModelEdit, ModelField, RigId, params_hash};
 
 fn field(out: &str, key: &str) -> String {
     out.split_whitespace()
@@ -53,7 +53,7 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
     );
 
     // Same inputs on the host, same f32 code: identical bits.
-    let host = predict(RigId::Wires, 0.0).unwrap();
+    let host = predict(&RigId::Wires.preset(), 0.0).unwrap();
     let hint = "(a stale image? rebuild with `cargo fw-build`)";
     assert_eq!(
         hex(&field(&out, "bits")),
@@ -76,12 +76,40 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
         "{hint}"
     );
 
+    // A model that is no preset (stored by a rig engineer): the wire rig damped, a heavier
+    // hammer, a contact of its own; the same bits on the host.
+    let stored = [
+        ModelEdit::Set(ModelField::StiffnessNM, 5_016_300.0),
+        ModelEdit::Set(ModelField::DampingNSM, 1_133.7),
+        ModelEdit::Set(ModelField::DampingRatio, 0.01),
+        ModelEdit::Set(ModelField::MassKg, 0.31),
+    ]
+    .into_iter()
+    .try_fold(RigId::Wires.preset(), |p, e| p.edited(e))
+    .unwrap();
+    let host = predict(&stored, 0.0).unwrap();
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("stored "))
+        .unwrap_or_else(|| panic!("no `stored` line in:\n{out}"));
+    assert_eq!(hex(&field(line, "model_hash")), params_hash(&stored), "{hint}");
+    for (key, bits) in [
+        ("target_bits", host.target_hz.to_bits()),
+        ("band_lo_bits", host.band_hz[0].to_bits()),
+        ("band_hi_bits", host.band_hz[1].to_bits()),
+        ("force_mg_bits", host.impact_force_mg.to_bits()),
+    ] {
+        assert_eq!(hex(&field(line, key)), bits, "stored model's {key} {hint}");
+    }
+
     let n = |k: &str| field(&out, k).parse::<u64>().unwrap();
-    assert!(
-        n("predict") <= 84_000_000,
-        "target computation: {} instructions",
-        n("predict")
-    );
+    for key in ["predict", "predict_stored"] {
+        assert!(
+            n(key) <= 84_000_000,
+            "target computation ({key}): {} instructions",
+            n(key)
+        );
+    }
     assert!(
         n("sample_max") <= 1_500,
         "sampling task: {} instructions",

@@ -78,7 +78,7 @@ fn embedded_profile_gives_the_firmware_target_bit_for_bit() {
     for rig in [RigId::Wires, RigId::Beam170] {
         let host = same_with_profile(rig, Profile::Embedded);
         // What the firmware's model task calls (and the QEMU run prints).
-        let p = shared::control::predict(rig, 0.0).unwrap();
+        let p = shared::control::predict(&rig.preset(), 0.0).unwrap();
         assert_eq!(p.target_hz, host.freq_hz as f32, "{rig}");
         assert_eq!(
             p.band_hz,

@@ -26,7 +26,7 @@ mod target {
         Command, Controller, ControllerConfig, Prediction, SensorChain, predict,
     };
     use shared::integrate::PhaseTable;
-    use shared::model::RigId;
+    use shared::model::{ModelEdit, ModelField, RigId};
     // The device crate provides the interrupt vector table.
     use stm32f4xx_hal as _;
 
@@ -87,7 +87,7 @@ mod target {
 
         // 1. The full target-frequency computation (the model task).
         let t0 = now();
-        let prediction = predict(RigId::Wires, 0.0);
+        let prediction = predict(&RigId::Wires.preset(), 0.0);
         let predict_insns = now().saturating_sub(t0 + overhead);
         let Ok(p) = prediction else {
             fail("on-target selection failed")
@@ -102,6 +102,36 @@ mod target {
         );
         let predict_insns = insns(predict_insns);
         hprintln!("insns predict={}", predict_insns);
+
+        // 1b. The same on a model that is no preset, as a rig engineer stores one: the wire
+        //     rig's pendulum damped (ζ = 0.01), a 0.31 kg hammer and a spring–dashpot contact
+        //     of its own (k_i 5.0163e6 N/m, c_i 1133.7 N s/m): tests/tests/qemu.rs compares
+        //     its bits with the host's.
+        let Ok(stored) = [
+            ModelEdit::Set(ModelField::StiffnessNM, 5_016_300.0),
+            ModelEdit::Set(ModelField::DampingNSM, 1_133.7),
+            ModelEdit::Set(ModelField::DampingRatio, 0.01),
+            ModelEdit::Set(ModelField::MassKg, 0.31),
+        ]
+        .into_iter()
+        .try_fold(RigId::Wires.preset(), |p, e| p.edited(e)) else {
+            fail("the stored model's edits were refused")
+        };
+        let t0 = now();
+        let prediction = predict(&stored, 0.0);
+        let stored_insns = insns(now().saturating_sub(t0 + overhead));
+        let Ok(q) = prediction else {
+            fail("on-target selection failed on the stored model")
+        };
+        hprintln!(
+            "stored model_hash=0x{:08x} target_bits=0x{:08x} band_lo_bits=0x{:08x} band_hi_bits=0x{:08x} force_mg_bits=0x{:08x}",
+            q.model_hash,
+            q.target_hz.to_bits(),
+            q.band_hz[0].to_bits(),
+            q.band_hz[1].to_bits(),
+            q.impact_force_mg.to_bits()
+        );
+        hprintln!("insns predict_stored={}", stored_insns);
 
         // 2. One integrator step (embedded settings, at the operating point, over 20 periods).
         let params = RigId::Wires.preset();
@@ -216,7 +246,10 @@ mod target {
             crate::stack::size_bytes()
         );
 
-        let ok = predict_insns <= PREDICT_BUDGET && worst <= SAMPLE_BUDGET && c.fault().is_none();
+        let ok = predict_insns <= PREDICT_BUDGET
+            && stored_insns <= PREDICT_BUDGET
+            && worst <= SAMPLE_BUDGET
+            && c.fault().is_none();
         hprintln!("budgets {}", if ok { "met" } else { "EXCEEDED" });
         debug::exit(if ok {
             debug::EXIT_SUCCESS

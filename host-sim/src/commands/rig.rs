@@ -360,6 +360,11 @@ fn measure_sweep(a: &RigArgs, s: &SweepArgs) -> Result<()> {
     };
     let mut port = connect(a)?;
     check(&mut port, &spec)?;
+    // The model the rig runs: the figure's Ω/ω and the sweep's deadlines are its.
+    let model = match port.model() {
+        Ok(m) => m,
+        Err(e) => return Err(port.refuse(e)),
+    };
     let n = spec.freqs_hz.len();
     let outcome = sweep(&mut port, &spec, |p| {
         println!(
@@ -369,7 +374,7 @@ fn measure_sweep(a: &RigArgs, s: &SweepArgs) -> Result<()> {
     });
     let (points, at_hz, why) = match outcome {
         SweepOutcome::Complete(points) => {
-            write_sweep(&s.out, s.plot.as_deref(), &points, &port, None)?;
+            write_sweep(&s.out, s.plot.as_deref(), &points, &port, &model, None)?;
             port.release_drive();
             return Ok(());
         }
@@ -404,7 +409,7 @@ fn measure_sweep(a: &RigArgs, s: &SweepArgs) -> Result<()> {
     let written = if points.is_empty() {
         "no point was measured: nothing written".to_string()
     } else {
-        write_sweep(&partial, None, &points, &port, Some(&note))?;
+        write_sweep(&partial, None, &points, &port, &model, Some(&note))?;
         format!("the points so far are in {}", partial.display())
     };
     Err(match error {
@@ -419,6 +424,7 @@ fn write_sweep(
     plot_path: Option<&Path>,
     points: &[SweepPoint],
     port: &RigPort,
+    model: &shared::model::RigParams,
     note: Option<&str>,
 ) -> Result<()> {
     use std::io::Write as _;
@@ -440,7 +446,7 @@ fn write_sweep(
     }
     if let Some(p) = &png {
         let id = port.id();
-        let params = id.rig.preset();
+        let params = *model;
         let pts: Vec<ResponsePoint> = points
             .iter()
             .map(|q| ResponsePoint {
@@ -453,7 +459,7 @@ fn write_sweep(
             })
             .collect();
         let title = format!(
-            "measured frequency response: {} at {:.2} mm (ω/2π = {:.3} Hz, preset)",
+            "measured frequency response: {} at {:.2} mm (ω/2π = {:.3} Hz, the rig's model)",
             id.rig,
             id.gap_mm,
             params.natural_freq_hz()

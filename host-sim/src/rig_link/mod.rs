@@ -727,6 +727,24 @@ impl RigPort {
         }
     }
 
+    /// The rig's active model (`model`).
+    ///
+    /// # Errors
+    /// As [`RigPort::request_ok`]; a draft open on the rig (its model line is the draft's:
+    /// apply or discard it first).
+    pub fn model(&mut self) -> Result<shared::model::RigParams> {
+        match self.request_ok(&Request::Model)? {
+            Answer::Model(m) => match m.of {
+                shared::console::ModelOf::Active(_) => Ok(m.params),
+                shared::console::ModelOf::Draft => bail!(
+                    "a draft is open on the rig (`rig send \"draft apply\"` or \"draft discard\" \
+                     first): its model line shows the draft"
+                ),
+            },
+            a => bail!("unexpected reply to `model`: {a}"),
+        }
+    }
+
     /// A capture command whose reply is the capture's state.
     ///
     /// # Errors
@@ -1012,7 +1030,11 @@ fn placeholder_id() -> IdInfo {
     IdInfo {
         firmware: shared::console::Version::of(""),
         board: shared::console::Board::Rig,
-        rig: shared::model::RigId::Wires,
+        rig: shared::control::ModelId::of(
+            &shared::model::RigId::Wires.preset(),
+            shared::control::ModelSource::Preset(shared::model::RigId::Wires),
+        ),
+        store: shared::store::StoreState::Empty,
         gap_mm: 0.0,
         sample_rate_hz: shared::control::SAMPLE_RATE_HZ,
         capture_rate_hz: shared::capture::CAPTURE_RATE_HZ,

@@ -200,7 +200,7 @@ fn run(
 ) -> Result<Option<Fault>> {
     let weight = port.weight_n();
     let id = *port.id();
-    let amplitude_mm = id.rig.preset().amplitude_m * 1e3;
+    let amplitude_mm = port.model()?.amplitude_m * 1e3;
     port.drain_records();
     port.command(Command::Stream(true))?;
     // The sweep's frequencies are manual: whatever ends it, closing the port hands the next

@@ -20,6 +20,7 @@ use nix::fcntl::{FcntlArg, OFlag, fcntl};
 use nix::pty::openpty;
 use nix::sys::termios::{SetArg, cfmakeraw, tcgetattr, tcsetattr};
 use shared::console::RxError;
+use shared::console::link::TX_CAPACITY;
 use shared::console::serve::{AsyncText, ReplyText, format_answer, format_async};
 use shared::control::SAMPLE_RATE_HZ;
 
@@ -246,11 +247,17 @@ pub fn serve(
                 Err(e) => session.link_mut().on_rx_error(e),
             }
         }
-        // The console service: every line it can answer now.
-        while let Some(pending) = session.link_mut().next_line() {
+        // The console service: every line it can answer now (none after an accepted `reset`:
+        // the board restarts once that reply is out).
+        while !session.restart_pending()
+            && let Some(pending) = session.link_mut().next_line()
+        {
             let a = session.answer(pending.as_line());
             format_answer(&a, &mut reply);
             session.link_mut().push_reply(&reply);
+        }
+        if session.restart_pending() && session.link_mut().tx_free() == TX_CAPACITY {
+            session.restart()?;
         }
         session.end_sample();
         while let Some(rec) = session.controller_mut().pop_async() {

@@ -16,6 +16,8 @@ use shared::control::{
 };
 use shared::hal::{DriveOutput, ForceSource, TimeBase};
 use shared::model::{RigId, RigParams};
+use shared::store::ram_flash::RamFlash;
+use shared::store::{STORE_BYTES, Store, start_up};
 
 use super::chains::{MockAdc, MockClock, MockDac, SensorChainSim, SensorState};
 use super::plant::Plant;
@@ -143,7 +145,11 @@ pub fn virtual_board(uptime_ms: u64) -> BoardInfo {
 /// [`Session::end_sample`].
 pub struct Session {
     sc: Scenario,
+    /// The rig and gap the controller falls back to at a start-up without stored settings.
+    fallback: (RigId, f32),
     controller: Controller,
+    /// The settings store: a NOR flash in RAM with the board's geometry, kept across `reset`.
+    store: Store<RamFlash<Vec<u8>>>,
     capture: Capture,
     /// The console's link (the pty server feeds it; scenario lines bypass it).
     link: Link,
@@ -160,6 +166,8 @@ pub struct Session {
     /// (start, duration, natural frequency %, contact stiffness %).
     drifts: Vec<(f64, f64, f64, f64)>,
     model_due: Option<(f64, ModelRequest, Result<Prediction, SelectionError>)>,
+    /// A `reset` was accepted: the pty server restarts the board once its reply is out.
+    restart_pending: bool,
     k: u64,
     cart_max: f64,
     true_n: u32,
@@ -198,6 +206,11 @@ impl Session {
         }
         let controller = Controller::new(sc.controller, setup.rig, setup.gap_mm)
             .map_err(|e| anyhow::anyhow!("--gap-mm / [controller]: {e}"))?;
+        let store = Store::new(
+            RamFlash::erased(vec![0u8; STORE_BYTES as usize]),
+            0..STORE_BYTES,
+        )
+        .map_err(|_| anyhow::anyhow!("the virtual rig's store range"))?;
         let base = setup
             .rig
             .preset()
@@ -221,7 +234,9 @@ impl Session {
         let status = controller.status();
         Ok(Session {
             sc,
+            fallback: (setup.rig, setup.gap_mm),
             controller,
+            store,
             capture: Capture::new(),
             link: Link::new(),
             plant,
@@ -236,6 +251,7 @@ impl Session {
             next_drop: 0,
             drifts: Vec::new(),
             model_due: None,
+            restart_pending: false,
             k: 0,
             cart_max: 0.0,
             true_n: 0,
@@ -292,15 +308,47 @@ impl Session {
         &mut self.link
     }
 
-    /// Answers a console line now (through the same service as the firmware's).
+    /// Answers a console line now (through the same service as the firmware's). A `reset`
+    /// restarts the rig's board after its reply ([`Session::restart`]).
     pub fn answer(&mut self, line: Line<'_>) -> Response {
         let mut access = Direct {
             controller: &mut self.controller,
             capture: &mut self.capture,
             board: virtual_board(self.k / 10),
             link: &mut self.link,
+            store: &mut self.store,
+            reset: false,
         };
-        answer(&mut access, line)
+        let response = answer(&mut access, line);
+        if access.reset {
+            self.restart_pending = true;
+        }
+        response
+    }
+
+    /// Whether a `reset` was accepted and waits for its reply to go out.
+    pub fn restart_pending(&self) -> bool {
+        self.restart_pending
+    }
+
+    /// The board restarts (`reset`): a new controller from the store, as the firmware starts
+    /// ([`start_up`]), or from the fallback preset; the capture and the model's work start
+    /// afresh, the link's queues are emptied. The plant and the store are the hardware's and
+    /// stay.
+    ///
+    /// # Errors
+    /// The fallback configuration refused (it was accepted at the session's start: never).
+    pub fn restart(&mut self) -> Result<()> {
+        let (rig, gap_mm) = self.fallback;
+        let mut controller = Controller::new(self.sc.controller, rig, gap_mm)
+            .map_err(|e| anyhow::anyhow!("restart: {e}"))?;
+        start_up(&mut self.store, &mut controller);
+        self.controller = controller;
+        self.capture = Capture::new();
+        self.link = Link::new();
+        self.model_due = None;
+        self.restart_pending = false;
+        Ok(())
     }
 
     /// Runs a timed console line and records the exchange.
@@ -311,6 +359,10 @@ impl Session {
             line: line.to_string(),
             reply: a.to_string(),
         });
+        if self.restart_pending {
+            // The fallback was accepted when the session was made: it is again.
+            let _ = self.restart();
+        }
     }
 
     /// The first half of a sample: the scenario's faults, drifts and drops due by now.
@@ -378,7 +430,7 @@ impl Session {
         let t = self.t_s();
         // The model task: computed at once here, delivered after the MCU's computation time.
         if let Some(req) = self.controller.take_model_request() {
-            self.model_due = Some((t + self.sc.model_delay_s, req, predict(req.rig, req.gap_mm)));
+            self.model_due = Some((t + self.sc.model_delay_s, req, predict(&req.params, req.gap_mm)));
         }
         if self.model_due.as_ref().is_some_and(|(due, _, _)| *due <= t)
             && let Some((_, req, result)) = self.model_due.take()

@@ -478,7 +478,7 @@ mod tests {
     };
 
     /// A store in RAM for a test (two pages, erased).
-    fn ram_store(mem: &mut [u8]) -> Store<RamFlash<'_>> {
+    fn ram_store(mem: &mut [u8]) -> Store<RamFlash<&mut [u8]>> {
         let len = mem.len() as u32;
         Store::new(RamFlash::erased(mem), 0..len).unwrap()
     }

@@ -114,6 +114,14 @@ impl Token for Board {
     }
 }
 
+/// A model as a log or a title names it: its source and hash (`wires 36fccdc0`,
+/// `stored 5c1d2a77`).
+impl fmt::Display for crate::control::ModelId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} {:08x}", self.source.token(), self.hash)
+    }
+}
+
 /// A fault or none: `none` or the fault's name.
 pub(crate) fn write_fault(f: &mut fmt::Formatter<'_>, fault: Option<Fault>) -> fmt::Result {
     f.write_str(fault.map_or("none", Fault::token))

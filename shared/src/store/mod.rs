@@ -25,7 +25,12 @@ use embedded_storage_async::nor_flash::{MultiwriteNorFlash, NorFlash};
 use sequential_storage::cache::{Cache, Uncached};
 use sequential_storage::map::{MapConfig, MapStorage};
 
-use crate::control::Settings;
+use crate::control::{Controller, ModelSource, Settings, SettingsError};
+use crate::model::EditError;
+
+/// The store's size on the rig board, bytes: two 16 KiB flash sectors (the emulator and the
+/// virtual rig keep the same geometry in RAM).
+pub const STORE_BYTES: u32 = 2 * ram_flash::PAGE_BYTES as u32;
 
 /// The record's layout version: a record of another version is not read.
 pub const RECORD_VERSION: u16 = 1;
@@ -261,6 +266,57 @@ impl<F: NorFlash + MultiwriteNorFlash> SettingsStore for Store<F> {
     }
     fn note_invalid(&mut self) {
         self.status.state = StoreState::Invalid;
+    }
+}
+
+/// What start-up made of the store ([`start_up`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StartUp {
+    /// The stored settings run: this save's.
+    Stored {
+        /// The save's number.
+        save: u32,
+    },
+    /// The controller's preset runs: the store held nothing usable.
+    Fallback {
+        /// What the store held ([`StoreState::Invalid`]: settings the controller refused).
+        state: StoreState,
+        /// The number of the last save seen.
+        saves: u32,
+        /// The field the controller refused, for [`StoreState::Invalid`].
+        field: Option<&'static str>,
+    },
+}
+
+/// Start-up: the stored settings into `controller` (made with the fallback preset, gap and
+/// configuration), or, when the store holds none it can use, the controller left as it is and
+/// the reason. The firmware and the virtual rig start the same way.
+pub fn start_up(store: &mut dyn SettingsStore, controller: &mut Controller) -> StartUp {
+    let loaded = store.load();
+    let Some(settings) = loaded.settings else {
+        return StartUp::Fallback {
+            state: loaded.state,
+            saves: loaded.saves,
+            field: None,
+        };
+    };
+    match controller.load_settings(&settings, ModelSource::Stored) {
+        Ok(()) => StartUp::Stored { save: loaded.saves },
+        Err(e) => {
+            store.note_invalid();
+            StartUp::Fallback {
+                state: StoreState::Invalid,
+                saves: loaded.saves,
+                field: match e {
+                    SettingsError::Calibration(p) | SettingsError::Invalid(p) => Some(p.field()),
+                    SettingsError::Model(EditError::Invalid(p)) => Some(p.field()),
+                    SettingsError::Model(EditError::NotOfThisModel { field, .. }) => {
+                        Some(field.name())
+                    }
+                    SettingsError::Command(_) | SettingsError::NoDraft => None,
+                },
+            }
+        }
     }
 }
 

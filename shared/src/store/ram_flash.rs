@@ -35,10 +35,10 @@ impl NorFlashError for RamFlashError {
     }
 }
 
-/// NOR flash over a byte slice (its length a multiple of [`PAGE_BYTES`]).
+/// NOR flash over bytes `B` (a slice, a `Vec`: its length a multiple of [`PAGE_BYTES`]).
 #[derive(Debug)]
-pub struct RamFlash<'a> {
-    bytes: &'a mut [u8],
+pub struct RamFlash<B> {
+    bytes: B,
     /// Steps left before the power cut (`None`: no cut armed).
     power_left: Option<u64>,
     /// Steps made (words written, kilobytes erased).
@@ -47,9 +47,9 @@ pub struct RamFlash<'a> {
     pages_erased: u64,
 }
 
-impl<'a> RamFlash<'a> {
+impl<B: AsRef<[u8]> + AsMut<[u8]>> RamFlash<B> {
     /// The flash over `bytes` as they are (the caller erases a new one: [`RamFlash::erased`]).
-    pub fn new(bytes: &'a mut [u8]) -> Self {
+    pub fn new(bytes: B) -> Self {
         RamFlash {
             bytes,
             power_left: None,
@@ -59,8 +59,8 @@ impl<'a> RamFlash<'a> {
     }
 
     /// The flash over `bytes`, erased.
-    pub fn erased(bytes: &'a mut [u8]) -> Self {
-        bytes.fill(0xff);
+    pub fn erased(mut bytes: B) -> Self {
+        bytes.as_mut().fill(0xff);
         RamFlash::new(bytes)
     }
 
@@ -81,7 +81,7 @@ impl<'a> RamFlash<'a> {
 
     /// The bytes (to flip one, as a worn or disturbed cell would).
     pub fn bytes_mut(&mut self) -> &mut [u8] {
-        self.bytes
+        self.bytes.as_mut()
     }
 
     /// One more step, unless the power is cut.
@@ -103,32 +103,32 @@ impl<'a> RamFlash<'a> {
     fn range(&self, offset: u32, len: usize, unit: usize) -> Result<core::ops::Range<usize>, RamFlashError> {
         let start = offset as usize;
         let end = start.checked_add(len).ok_or(RamFlashError::OutOfBounds)?;
-        if end > self.bytes.len() || start % unit != 0 || len % unit != 0 {
+        if end > self.bytes.as_ref().len() || start % unit != 0 || len % unit != 0 {
             return Err(RamFlashError::OutOfBounds);
         }
         Ok(start..end)
     }
 }
 
-impl ErrorType for RamFlash<'_> {
+impl<B> ErrorType for RamFlash<B> {
     type Error = RamFlashError;
 }
 
-impl ReadNorFlash for RamFlash<'_> {
+impl<B: AsRef<[u8]> + AsMut<[u8]>> ReadNorFlash for RamFlash<B> {
     const READ_SIZE: usize = 1;
 
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), RamFlashError> {
         let r = self.range(offset, bytes.len(), 1)?;
-        bytes.copy_from_slice(&self.bytes[r]);
+        bytes.copy_from_slice(&self.bytes.as_ref()[r]);
         Ok(())
     }
 
     fn capacity(&self) -> usize {
-        self.bytes.len()
+        self.bytes.as_ref().len()
     }
 }
 
-impl NorFlash for RamFlash<'_> {
+impl<B: AsRef<[u8]> + AsMut<[u8]>> NorFlash for RamFlash<B> {
     const WRITE_SIZE: usize = WORD_BYTES;
     const ERASE_SIZE: usize = PAGE_BYTES;
 
@@ -138,7 +138,7 @@ impl NorFlash for RamFlash<'_> {
         let pages = (r.len() / PAGE_BYTES) as u64;
         for chunk in r.step_by(ERASE_STEP) {
             self.step()?;
-            self.bytes[chunk..chunk + ERASE_STEP].fill(0xff);
+            self.bytes.as_mut()[chunk..chunk + ERASE_STEP].fill(0xff);
         }
         self.pages_erased += pages;
         Ok(())
@@ -149,7 +149,7 @@ impl NorFlash for RamFlash<'_> {
         for (k, src) in bytes.chunks_exact(WORD_BYTES).enumerate() {
             self.step()?;
             let at = r.start + k * WORD_BYTES;
-            for (d, s) in self.bytes[at..at + WORD_BYTES].iter_mut().zip(src) {
+            for (d, s) in self.bytes.as_mut()[at..at + WORD_BYTES].iter_mut().zip(src) {
                 *d &= *s;
             }
         }
@@ -159,4 +159,4 @@ impl NorFlash for RamFlash<'_> {
 
 /// NOR rules: a second write of a word ANDs it (what the rig board's flash does too, RM0090
 /// §3.6.4: bits go from 1 to 0 without an erase).
-impl MultiwriteNorFlash for RamFlash<'_> {}
+impl<B: AsRef<[u8]> + AsMut<[u8]>> MultiwriteNorFlash for RamFlash<B> {}
