@@ -58,30 +58,31 @@ pub type Parts = BoardParts<
 >;
 
 /// The settings store's flash on the emulator: RAM, as QEMU's board emulates no flash
-/// controller. It lies in the CCM RAM (64 KiB at 0x1000_0000), which no section of the image
-/// names, so QEMU's system reset (which reloads the image's sections) leaves it as it was: a
-/// `save` survives a `reset` as on the board. A marker word after it says it was set up (at
-/// QEMU's start the RAM reads zero: erased then). The same geometry as the board's (two 16 KiB
-/// pages, 32-bit words); no stall on writes.
+/// controller. It lies past the 128 KiB of SRAM the image uses (`memory.x`), at 0x2002_0000:
+/// QEMU's STM32F405 maps 192 KiB of SRAM there in one block (and no CCM RAM), and no section of
+/// the image names it, so QEMU's system reset (which reloads the image's sections) leaves it as
+/// it was: a `save` survives a `reset` as on the board. A marker word after it says it was set
+/// up (at QEMU's start the RAM reads zero: erased then). The same geometry as the board's (two
+/// 16 KiB pages, 32-bit words); no stall on writes.
 pub type StoreFlash = shared::store::ram_flash::RamFlash<&'static mut [u8]>;
 
-/// Where the emulator's store lies: the CCM RAM.
-const CCM_STORE: usize = 0x1000_0000;
+/// Where the emulator's store lies: QEMU's SRAM past the image's 128 KiB.
+const QEMU_STORE: usize = 0x2002_0000;
 /// The marker after the store: its bytes were erased once.
 const STORE_MARKER: u32 = 0x5e77_1295;
 
 /// The emulator's store, erased the first time after QEMU starts.
 fn store_flash() -> StoreFlash {
     let len = STORE_BYTES as usize;
-    let marker = (CCM_STORE + len) as *mut u32;
-    // SAFETY: the CCM RAM is the STM32F405's (QEMU's netduinoplus2 maps it), no section of this
-    // image is placed there, and this is its only user, made once in `init`.
+    let marker = (QEMU_STORE + len) as *mut u32;
+    // SAFETY: QEMU's netduinoplus2 maps SRAM up to 0x2002_FFFF, no section of this image is
+    // placed past 0x2001_FFFF (`memory.x`), and this is its only user, made once in `init`.
     let bytes = unsafe {
         if core::ptr::read_volatile(marker) != STORE_MARKER {
-            core::ptr::write_bytes(CCM_STORE as *mut u8, 0xff, len);
+            core::ptr::write_bytes(QEMU_STORE as *mut u8, 0xff, len);
             core::ptr::write_volatile(marker, STORE_MARKER);
         }
-        core::slice::from_raw_parts_mut(CCM_STORE as *mut u8, len)
+        core::slice::from_raw_parts_mut(QEMU_STORE as *mut u8, len)
     };
     shared::store::ram_flash::RamFlash::new(bytes)
 }

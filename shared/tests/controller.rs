@@ -474,7 +474,7 @@ fn status_line_names_every_field() {
         "peak_n=",
         "peak_mg=",
         "model=ready",
-        "target_hz=3.6000",
+        "target_hz=3.6 ",
         "fault=none",
         "impacts=",
         "lost_cycles=0",

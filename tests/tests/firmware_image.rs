@@ -1,5 +1,6 @@
 //! The rig image as linked (`cargo fw-build`), read with `llvm-nm` and `llvm-size`:
-//! - flash within its budget (128 KiB);
+//! - flash within its budget (192 KiB of the F407VG's 1 MiB: the code from sector 3 on, after
+//!   the vector table's sector 0 and the settings store's sectors 1–2, `memory.x`);
 //! - flip-link's layout: the stack below the static data, so an overflow runs into the
 //!   unmapped space below RAM and faults (the emulator test provokes one) instead of
 //!   overwriting statics;
@@ -94,5 +95,5 @@ fn the_rig_image_fits_its_flash_budget() {
         "rig image: flash {flash} B ({:.1} KiB)",
         flash as f64 / 1024.0
     );
-    assert!(flash <= 128 * 1024, "flash {flash} B");
+    assert!(flash <= 192 * 1024, "flash {flash} B");
 }

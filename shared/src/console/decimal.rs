@@ -85,13 +85,19 @@ pub const EXACT_DIGITS: u32 = 15;
 /// Most decimals (or trailing zeros) in such a decimal.
 const EXACT_POW10: i32 = 22;
 
-/// `10^k`, exact for `0 ≤ k ≤ 22`.
+/// `10^k` for `0 ≤ k ≤ 22`, each exact in `f64`.
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// `10^k`, exact for `0 ≤ k ≤ 22` (1 beyond: the callers stay within).
 fn pow10(k: i32) -> f64 {
-    let mut p = 1.0f64;
-    for _ in 0..k {
-        p *= 10.0;
-    }
-    p
+    usize::try_from(k)
+        .ok()
+        .and_then(|k| POW10.get(k))
+        .copied()
+        .unwrap_or(1.0)
 }
 
 /// `mantissa · 10^exp10`, correctly rounded (`mantissa < 2⁵³`, `|exp10| ≤ 22`: both factors are
@@ -143,6 +149,7 @@ impl Exact {
     }
 
     /// The digits and power of ten of the shortest round-tripping decimal of `|x|`, if any.
+    #[inline(never)] // cold (console replies), and large inlined
     fn decimal(&self) -> Option<(u64, i32)> {
         let mag = self.value.abs();
         if mag == 0.0 {
@@ -184,37 +191,51 @@ impl fmt::Display for Exact {
             m /= 10;
             e += 1;
         }
-        if x.is_sign_negative() && m != 0 {
-            f.write_str("-")?;
+        // The digits of `m`, most significant first.
+        let mut digits = [0u8; 16];
+        let mut n = 0;
+        loop {
+            digits[n] = b'0' + (m % 10) as u8;
+            m /= 10;
+            n += 1;
+            if m == 0 {
+                break;
+            }
         }
+        digits[..n].reverse();
+        // Written into one buffer: sign, integer part, point, fraction (at most 1 + 15 + 22
+        // zeros + 1 + 22 bytes).
+        let mut out = [0u8; 64];
+        let mut len = 0;
+        let mut put = |b: u8| {
+            if let Some(slot) = out.get_mut(len) {
+                *slot = b;
+                len += 1;
+            }
+        };
+        if x.is_sign_negative() && digits[..n] != [b'0'] {
+            put(b'-');
+        }
+        let n = n as i32;
         if e >= 0 {
-            write!(f, "{m}")?;
-            for _ in 0..e {
-                f.write_str("0")?;
-            }
-            return Ok(());
-        }
-        // `m · 10^e` with `-e` decimals: the integer part, then the fraction padded with zeros.
-        let decimals = e.unsigned_abs();
-        let scale = 10u64.checked_pow(decimals);
-        match scale {
-            Some(scale) => write!(
-                f,
-                "{}.{:0width$}",
-                m / scale,
-                m % scale,
-                width = decimals as usize
-            ),
-            // More decimals than a u64 holds: all of them fraction.
-            None => {
-                f.write_str("0.")?;
-                let digits = u64::ilog10(m.max(1)) + 1;
-                for _ in digits..decimals {
-                    f.write_str("0")?;
-                }
-                write!(f, "{m}")
+            digits[..n as usize].iter().for_each(|&d| put(d));
+            (0..e).for_each(|_| put(b'0'));
+        } else {
+            // `n + e` digits before the point (none: a leading `0.` and zeros).
+            let int = n + e;
+            if int <= 0 {
+                put(b'0');
+                put(b'.');
+                (0..-int).for_each(|_| put(b'0'));
+                digits[..n as usize].iter().for_each(|&d| put(d));
+            } else {
+                digits[..int as usize].iter().for_each(|&d| put(d));
+                put(b'.');
+                digits[int as usize..n as usize].iter().for_each(|&d| put(d));
             }
         }
+        // ASCII digits, sign and point only.
+        f.write_str(core::str::from_utf8(&out[..len]).map_err(|_| fmt::Error)?)
     }
 }
 

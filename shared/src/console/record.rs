@@ -17,8 +17,8 @@
 use core::fmt;
 use core::str::FromStr;
 
-use super::decimal::Decimal;
-use super::fields::{Fields, WireError, decimal, range};
+use super::decimal::{Decimal, Exact, parse_exact};
+use super::fields::{Fields, WireError, decimal};
 use super::request::MAX_FREQ_HZ;
 use super::token::{Token, read_fault, read_regime, write_fault, write_regime};
 use crate::control::{
@@ -98,9 +98,9 @@ impl fmt::Display for AsyncRecord {
                     " event=model-ready target_hz={} target_bits={:#010x} band_hz={}..{} predicted_mg={}",
                     Decimal(t.target_hz, 4),
                     t.target_hz.to_bits(),
-                    Decimal(t.band_hz[0], 3),
-                    Decimal(t.band_hz[1], 3),
-                    Decimal(t.impact_force_mg, 2)
+                    Exact::f32(t.band_hz[0]),
+                    Exact::f32(t.band_hz[1]),
+                    Exact::f32(t.impact_force_mg)
                 ),
                 Event::ModelFailed => f.write_str(" event=model-failed"),
                 Event::SamplingStalled { samples, expected } => {
@@ -189,8 +189,12 @@ fn event_fields(w: &mut Fields<'_>) -> Result<Event, WireError> {
             }
             Event::ModelReady(Target {
                 target_hz,
-                band_hz: w.with("band_hz", |v| range("band_hz", v, 0.0, MAX_FREQ_HZ).ok())?,
-                impact_force_mg: w.decimal("predicted_mg", 0.0, MAX_VALUE)?,
+                band_hz: super::reply::exact_band(w)?,
+                impact_force_mg: w.with("predicted_mg", |v| {
+                    parse_exact(v)
+                        .map(|x| x as f32)
+                        .filter(|x| (0.0..=MAX_VALUE).contains(x))
+                })?,
             })
         }
         "model-failed" => Event::ModelFailed,

@@ -17,7 +17,7 @@ use core::str::FromStr;
 use super::decimal::{Decimal, Exact, parse_exact};
 use super::displays_as;
 use super::settings::{CalibView, ModelView, SettingsRefusal, StoreRefusal, StoreView};
-use super::fields::{Fields, WireError, decimal, range};
+use super::fields::{Fields, WireError, decimal};
 use super::link::LinkStats;
 use super::request::{DraftCommand, HELP, MAX_FREQ_HZ, ParseError, Request};
 use super::token::{Token, read_fault, read_regime, write_fault, write_regime};
@@ -460,13 +460,14 @@ impl fmt::Display for Status {
             None => f.write_str(" peak_n=- peak_mg=-")?,
         }
         match self.model {
+            // The model's numbers exactly: what the desktop compares with its own selection.
             ModelStatus::Ready(t) => write!(
                 f,
                 " model=ready target_hz={} band_hz={}..{} predicted_mg={}",
-                Decimal(t.target_hz, 4),
-                Decimal(t.band_hz[0], 3),
-                Decimal(t.band_hz[1], 3),
-                Decimal(t.impact_force_mg, 2)
+                Exact::f32(t.target_hz),
+                Exact::f32(t.band_hz[0]),
+                Exact::f32(t.band_hz[1]),
+                Exact::f32(t.impact_force_mg)
             )?,
             ModelStatus::Pending => f.write_str(" model=pending")?,
             ModelStatus::Failed => f.write_str(" model=failed")?,
@@ -538,12 +539,21 @@ impl FromStr for Status {
     }
 }
 
-/// The `target_hz=… band_hz=…..… predicted_mg=…` fields of a ready model.
+/// The `target_hz=… band_hz=…..… predicted_mg=…` fields of a ready model (exact numbers).
 pub(crate) fn target(w: &mut Fields<'_>) -> Result<Target, WireError> {
     Ok(Target {
-        target_hz: w.decimal("target_hz", 0.0, MAX_FREQ_HZ)?,
-        band_hz: w.with("band_hz", |v| range("band_hz", v, 0.0, MAX_FREQ_HZ).ok())?,
-        impact_force_mg: w.decimal("predicted_mg", 0.0, MAX_FORCE_N)?,
+        target_hz: exact_f32(w, "target_hz", 0.0, MAX_FREQ_HZ)?,
+        band_hz: exact_band(w)?,
+        impact_force_mg: exact_f32(w, "predicted_mg", 0.0, MAX_FORCE_N)?,
+    })
+}
+
+/// `band_hz=a..b` as two exact numbers, `0 ≤ a ≤ b ≤` [`MAX_FREQ_HZ`].
+pub(crate) fn exact_band(w: &mut Fields<'_>) -> Result<[f32; 2], WireError> {
+    w.with("band_hz", |v| {
+        let (a, b) = v.split_once("..")?;
+        let (a, b) = (parse_exact(a)? as f32, parse_exact(b)? as f32);
+        ((0.0..=MAX_FREQ_HZ).contains(&a) && (a..=MAX_FREQ_HZ).contains(&b)).then_some([a, b])
     })
 }
 
