@@ -44,10 +44,10 @@ mod app {
     };
     use shared::console::{BoardInfo, Token};
     use shared::control::{Controller, ControllerConfig, Event, Status, predict};
-    use shared::store::{SettingsStore, StartUp, Store, start_up};
     use shared::hal::{DriveOutput, ForceSource};
     use shared::health::{Health, HealthCheck};
     use shared::observe::Regime;
+    use shared::store::{SettingsStore, StartUp, Store, start_up};
 
     use crate::board;
     use rig_firmware::config::{
@@ -189,7 +189,11 @@ mod app {
                 "settings: store {=str} (save {=u32}{=str}{=str}): running the {=str} preset at {=f32} mm, default calibration",
                 state.token(),
                 saves,
-                if field.is_some() { ", refused field " } else { "" },
+                if field.is_some() {
+                    ", refused field "
+                } else {
+                    ""
+                },
                 field.unwrap_or(""),
                 RIG.name(),
                 GAP_MM
@@ -386,6 +390,7 @@ mod app {
         }
         // The last byte leaves the shift register in 87 µs.
         Mono::delay(2.millis()).await;
+        board::before_reset();
         cortex_m::peripheral::SCB::sys_reset();
     }
 

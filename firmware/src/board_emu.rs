@@ -165,6 +165,18 @@ pub fn init(
     }
 }
 
+/// Before a `reset`: the stand-in timers stopped (QEMU's STM32 timer model keeps running
+/// through a system reset, and the restarted image's timers then run at the wrong pace).
+pub fn before_reset() {
+    // SAFETY: TIM2 and TIM3 are the stand-ins' own; the board restarts right after.
+    unsafe {
+        (*pac::TIM2::ptr()).cr1().write(|w| w.bits(0));
+        (*pac::TIM2::ptr()).dier().write(|w| w.bits(0));
+        (*pac::TIM3::ptr()).cr1().write(|w| w.bits(0));
+        (*pac::TIM3::ptr()).dier().write(|w| w.bits(0));
+    }
+}
+
 /// ADC1's trigger: the TIM2 stand-in.
 pub struct SamplingTrigger;
 

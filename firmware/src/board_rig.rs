@@ -261,6 +261,10 @@ impl AdcRegisters for Adc1 {
     }
 }
 
+/// Before a `reset`: nothing to stop (the drive is idle, the DAC at mid-scale; the reset
+/// returns every peripheral to its reset state, RM0090 §7.1.2).
+pub fn before_reset() {}
+
 /// ADC1's trigger, TIM2.
 pub struct SamplingTrigger {
     tim2: pac::TIM2,
@@ -587,10 +591,10 @@ impl StoreFlash {
         while self.flash.sr().read().bsy().bit_is_set() {}
         let errors = self.flash.sr().read().bits() & FLASH_SR_ERRORS;
         // rc_w1 flags: writing 1 clears them (EOP too).
+        self.flash.sr().write(|w| unsafe { w.bits(errors | 1) });
         self.flash
-            .sr()
-            .write(|w| unsafe { w.bits(errors | 1) });
-        self.flash.cr().modify(|_, w| w.ser().clear_bit().pg().clear_bit());
+            .cr()
+            .modify(|_, w| w.ser().clear_bit().pg().clear_bit());
         if errors != 0 {
             return Err(StoreFlashError(errors));
         }
@@ -607,7 +611,9 @@ impl StoreFlash {
     }
 
     fn check(offset: u32, len: usize, unit: u32) -> Result<(), StoreFlashError> {
-        let end = offset.checked_add(len as u32).ok_or(StoreFlashError(OUT_OF_STORE))?;
+        let end = offset
+            .checked_add(len as u32)
+            .ok_or(StoreFlashError(OUT_OF_STORE))?;
         if end > STORE_BYTES || offset % unit != 0 || len as u32 % unit != 0 {
             return Err(StoreFlashError(OUT_OF_STORE));
         }

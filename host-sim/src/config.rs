@@ -22,6 +22,10 @@
 //! [uncertainty.lack_of_fit]  # optional: the fit misses its data (`select` warns)
 //! residual_over_noise = 21.2
 //! note = "the spring-dashpot law does not fit these data: …"
+//! [calibration.sensor]       # shared::control::Calibration: the rig's wiring, for
+//! volts_per_n = 0.0098       # `rig model push` (the analyses do not use it)
+//! [calibration.limits]
+//! force_limit_n = 250.0
 //! ```
 
 use std::fmt::Write as _;
@@ -31,6 +35,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use serde::{Deserialize, Serialize};
 use shared::analysis::{SelectionSpec, SimSettings, Sweep};
+use shared::control::{Calibration, ControllerConfig};
 use shared::error::{check_half_open, check_range};
 use shared::model::{ContactLaw, ContactLawKind, RigId, RigParams};
 
@@ -136,6 +141,9 @@ pub struct Setup {
     pub precision: Precision,
     /// The identified contact law's distribution, if the config file has one.
     pub uncertainty: Option<UncertaintyTable>,
+    /// The rig's calibration, if the config file has a `[calibration]` table (over the
+    /// firmware's defaults; checked as the board checks it).
+    pub calibration: Option<Calibration>,
 }
 
 /// The `[uncertainty]` table of a config file, written by `identify contact --out` and read by
@@ -316,6 +324,7 @@ struct ConfigFile {
     settings: Option<toml::Table>,
     selection: Option<toml::Table>,
     uncertainty: Option<UncertaintyTable>,
+    calibration: Option<toml::Table>,
 }
 
 impl Setup {
@@ -353,6 +362,7 @@ impl Setup {
             params.contact = ContactLaw::preset(kind);
         }
         let mut uncertainty = None;
+        let mut calibration = None;
         let (mut settings, mut selection) = match opts.profile {
             Profile::Host => (SimSettings::default(), SelectionSpec::default()),
             Profile::Embedded => (SimSettings::embedded(), SelectionSpec::embedded()),
@@ -371,6 +381,14 @@ impl Setup {
                     .with_context(|| format!("{}", path.display()))?;
             }
             uncertainty = file.uncertainty;
+            if let Some(t) = file.calibration {
+                let c = merge(&Calibration::default(), t, "calibration")
+                    .with_context(|| format!("{}", path.display()))?;
+                c.applied_to(&ControllerConfig::default())
+                    .map_err(|e| anyhow::anyhow!("calibration: {e}"))
+                    .with_context(|| format!("{}", path.display()))?;
+                calibration = Some(c);
+            }
         }
         if let Some(zeta) = opts.damping_ratio {
             check_damping_ratio(zeta)?;
@@ -392,6 +410,7 @@ impl Setup {
             selection,
             precision: opts.precision,
             uncertainty,
+            calibration,
         })
     }
 }

@@ -1053,3 +1053,130 @@ fn a_log_killed_while_recording_leaves_no_file() {
     assert!(left.is_empty(), "left {left:?}");
     server.stop();
 }
+
+/// A model identified on the desktop, pushed to the virtual rig, saved and kept across a
+/// `reset`: the rig computes from it the target, band and `F_i/mg` of the desktop's embedded
+/// profile bit for bit; a pull gives the pushed values back bit for bit; bad values are
+/// refused naming the field, nothing changed.
+#[test]
+fn a_pushed_model_is_the_desktops_bit_for_bit_and_survives_a_reset() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start("20", "");
+    let port = server.pty.clone();
+    for (rig, config) in [
+        (
+            "wires",
+            "[rig]\nmass_kg = 0.31\n[rig.suspension.wires]\nlength_m = 0.075\ndamping_ratio = 0.01\n\
+             [rig.contact.hunt-crossley]\nstiffness = 5354900.0\nexponent = 1.0\nlambda_s_m = 68.4774\n\
+             [calibration.sensor]\nvolts_per_n = 0.0098\n",
+        ),
+        ("beam-170", "[rig]\nmass_kg = 0.35\n"),
+    ] {
+        let fit = write_file(dir.path(), "fit.toml", config);
+        let expected = Setup::from_opts(&{
+            let mut o = host_sim::config::RigOpts::preset(rig.parse().unwrap());
+            o.config = Some(fit.clone());
+            o
+        })
+        .unwrap();
+        let out = rig_ok(
+            &port,
+            &format!("model push --rig {rig} --config {} --save", fit.display()),
+        );
+        let hash = shared::model::params_hash(&expected.params);
+        assert!(out.contains(&format!("rig_hash {hash:08x}")), "{out}");
+        assert!(out.contains("; saved"), "{out}");
+        // The rig's model, as the desktop's embedded profile selects on it.
+        let host = shared::control::predict(&expected.params, 0.0).unwrap();
+        let mut p = server.port();
+        let s = wait_for(&mut p, model_ready, Duration::from_secs(30));
+        assert_eq!(s.rig.hash, hash);
+        let ModelStatus::Ready(t) = s.model else {
+            panic!("{s}")
+        };
+        assert_eq!(t.target_hz.to_bits(), host.target_hz.to_bits(), "{rig}");
+        assert_eq!(t.band_hz.map(f32::to_bits), host.band_hz.map(f32::to_bits));
+        assert_eq!(t.impact_force_mg.to_bits(), host.impact_force_mg.to_bits());
+        // `select --profile embedded` prints the same target.
+        let json = ok(&[
+            "select",
+            "--rig",
+            rig,
+            "--gap-mm",
+            "0",
+            "--profile",
+            "embedded",
+            "--config",
+            fit.to_str().unwrap(),
+            "--json",
+        ]);
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+        let target = v["freq_hz"].as_f64().unwrap_or_else(|| panic!("{json}"));
+        assert_eq!((target as f32).to_bits(), host.target_hz.to_bits());
+        drop(p);
+        // A pull gives the same values back.
+        let pulled = dir.path().join("pulled.toml");
+        rig_ok(&port, &format!("model pull --out {}", pulled.display()));
+        let again = Setup::from_opts(&{
+            let mut o = host_sim::config::RigOpts::preset(rig.parse().unwrap());
+            o.config = Some(pulled.clone());
+            o
+        })
+        .unwrap();
+        assert_eq!(again.params, expected.params);
+        // The calibration pushed with the first model (the second's file has none: the rig
+        // keeps it).
+        assert_eq!(
+            again.calibration.map(|c| c.sensor.volts_per_n.to_bits()),
+            Some(0.0098f32.to_bits())
+        );
+    }
+    // Kept across a reset: the stored model, from the store.
+    assert_eq!(rig_ok(&port, "send reset"), "ok\n");
+    let id = rig_ok(&port, "send id");
+    assert!(
+        id.contains(" rig=stored ") && id.contains(" store=ok "),
+        "{id}"
+    );
+    // Bad values: refused naming the field and range; the model unchanged.
+    let before = rig_ok(&port, "send model");
+    for (line, says) in [
+        (
+            "model mass_kg -1",
+            "`mass_kg` = -1 is out of range: allowed 0.000001 ..= 1000",
+        ),
+        (
+            "model lambda_s_m 1",
+            "`lambda_s_m` is not a field of the spring-dashpot model",
+        ),
+        (
+            "model mass_kg 0x7ff8000000000000",
+            "`mass_kg` must be a finite number",
+        ),
+        ("calib volts_per_n 0", "`volts_per_n` = 0 is out of range"),
+        ("model stiffness_n_m 1e6", "must be a plain decimal number"),
+    ] {
+        let out = Command::new(bin())
+            .args(["rig", "--port"])
+            .arg(&port)
+            .args(["send", line])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(!out.status.success(), "{line}: {stdout}");
+        assert!(stdout.contains(says), "{line}: {stdout}");
+    }
+    assert_eq!(rig_ok(&port, "send model"), before);
+    // A model without an operating point is not pushed.
+    let elastic = write_file(
+        dir.path(),
+        "elastic.toml",
+        "[rig.contact.hertz]\nstiffness = 2.1e8\nexponent = 1.6\n",
+    );
+    let out = rig_cmd(&port, &format!("model push --config {}", elastic.display()));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("finds no operating point"), "{stderr}");
+    assert_eq!(rig_ok(&port, "send model"), before);
+    server.stop();
+}

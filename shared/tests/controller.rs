@@ -423,7 +423,10 @@ fn start_needs_a_target_and_rig_changes_request_the_model() {
     c.execute(Command::Gap(3.0)).unwrap();
     let req = c.take_model_request().unwrap();
     assert_eq!((req.params, req.gap_mm), (RigId::Beam170.preset(), 3.0));
-    assert_eq!(req.model_hash, shared::model::params_hash(&RigId::Beam170.preset()));
+    assert_eq!(
+        req.model_hash,
+        shared::model::params_hash(&RigId::Beam170.preset())
+    );
     // A manual frequency starts without the model: ramp, then dwell.
     c.execute(Command::Freq(9.0)).unwrap();
     c.execute(Command::Start).unwrap();

@@ -13,16 +13,16 @@ use shared::console::{
     Answer, AnswerError, Arg, Board, CaptureError, DiagInfo, IdInfo, ParseError, Request, Version,
     WireError, parse,
 };
-use shared::control::{
-    AsyncKind, AsyncRecord, Command, CommandError, CycleTelemetry, Event, Fault, ModelStatus,
-    PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
-};
-use shared::control::{Controller, ControllerConfig};
 use shared::console::{
     CalibView, DraftCommand, FieldProblem, ModelOf, ModelView, SettingsRefusal, StoreRefusal,
     StoreView, Token,
 };
+use shared::control::{
+    AsyncKind, AsyncRecord, Command, CommandError, CycleTelemetry, Event, Fault, ModelStatus,
+    PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
+};
 use shared::control::{CalibField, Calibration, ModelId, ModelSource};
+use shared::control::{Controller, ControllerConfig};
 use shared::model::{ContactLawKind, ModelEdit, ModelField, RigId, RigParams, SuspensionKind};
 use shared::observe::Regime;
 use shared::store::ram_flash::{PAGE_BYTES, RamFlash};
@@ -106,7 +106,11 @@ fn rig_params() -> impl Strategy<Value = RigParams> {
             for (field, k) in ModelField::ALL.into_iter().zip(factors) {
                 if let Some(v) = p.value(field) {
                     // Half the values as an operator types them (3 significant digits).
-                    let w = if round { format!("{:.3e}", v * k).parse().unwrap() } else { v * k };
+                    let w = if round {
+                        format!("{:.3e}", v * k).parse().unwrap()
+                    } else {
+                        v * k
+                    };
                     p = p.edited(ModelEdit::Set(field, w)).unwrap();
                 }
             }
@@ -185,7 +189,16 @@ fn id() -> impl Strategy<Value = IdInfo> {
         ),
     )
         .prop_map(
-            |(v, board, (rig, store), gap_mm, (vpn, off, fs), mass_kg, (a, b), (slew, ramp, lim))| IdInfo {
+            |(
+                v,
+                board,
+                (rig, store),
+                gap_mm,
+                (vpn, off, fs),
+                mass_kg,
+                (a, b),
+                (slew, ramp, lim),
+            )| IdInfo {
                 firmware: Version {
                     major: v.0,
                     minor: v.1,
@@ -305,8 +318,12 @@ fn answer_error() -> impl Strategy<Value = AnswerError> {
         .prop_map(AnswerError::Capture),
         settings_refusal().prop_map(AnswerError::Settings),
         prop_oneof![
-            proptest::sample::select(vec![SaveError::Flash, SaveError::Storage, SaveError::TooBig])
-                .prop_map(StoreRefusal::SaveFailed),
+            proptest::sample::select(vec![
+                SaveError::Flash,
+                SaveError::Storage,
+                SaveError::TooBig
+            ])
+            .prop_map(StoreRefusal::SaveFailed),
             store_state().prop_map(StoreRefusal::NothingToRevert),
         ]
         .prop_map(AnswerError::Store),
@@ -319,7 +336,12 @@ fn settings_refusal() -> impl Strategy<Value = SettingsRefusal> {
         .map(ContactLawKind::name)
         .chain(SuspensionKind::ALL.into_iter().map(SuspensionKind::name))
         .collect();
-    let value = || prop_oneof![any::<f64>().prop_filter("finite", |v| v.is_finite()), -1e3f64..1e3];
+    let value = || {
+        prop_oneof![
+            any::<f64>().prop_filter("finite", |v| v.is_finite()),
+            -1e3f64..1e3
+        ]
+    };
     prop_oneof![
         Just(SettingsRefusal::NoDraft),
         (
@@ -362,15 +384,24 @@ fn answer() -> impl Strategy<Value = Answer> {
         (
             prop_oneof![
                 Just(ModelOf::Draft),
-                proptest::sample::select(<ModelSource as Token>::ALL.to_vec()).prop_map(ModelOf::Active)
+                proptest::sample::select(<ModelSource as Token>::ALL.to_vec())
+                    .prop_map(ModelOf::Active)
             ],
             rig_params()
         )
             .prop_map(|(of, params)| Answer::Model(ModelView { of, params })),
         (any::<bool>(), calibration())
             .prop_map(|(draft, calibration)| Answer::Calib(CalibView { draft, calibration })),
-        (store_state(), any::<u32>(), proptest::option::of(any::<u32>()))
-            .prop_map(|(state, saves, hash)| Answer::Store(StoreView { state, saves, hash })),
+        (
+            store_state(),
+            any::<u32>(),
+            proptest::option::of(any::<u32>())
+        )
+            .prop_map(|(state, saves, hash)| Answer::Store(StoreView {
+                state,
+                saves,
+                hash
+            })),
     ]
 }
 

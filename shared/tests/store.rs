@@ -23,13 +23,15 @@ fn settings(k: u32) -> Settings {
         .preset()
         .edited(ModelEdit::Law(ContactLawKind::HuntCrossley))
         .unwrap()
-        .edited(ModelEdit::Set(ModelField::MassKg, 0.2 + f64::from(k) * 1e-4))
+        .edited(ModelEdit::Set(
+            ModelField::MassKg,
+            0.2 + f64::from(k) * 1e-4,
+        ))
         .unwrap();
     Settings {
         params,
         gap_mm: (k % 10) as f32 * 0.1,
-        calibration: Calibration::default()
-            .with(CalibField::VoltsPerN, 0.01 + k as f32 * 1e-6),
+        calibration: Calibration::default().with(CalibField::VoltsPerN, 0.01 + k as f32 * 1e-6),
     }
 }
 
@@ -37,7 +39,10 @@ fn settings(k: u32) -> Settings {
 fn a_save_is_read_back_at_the_next_start_up() {
     let mut mem = vec![0xffu8; BYTES];
     let loaded = store(&mut mem).load();
-    assert_eq!((loaded.state, loaded.settings, loaded.saves), (StoreState::Empty, None, 0));
+    assert_eq!(
+        (loaded.state, loaded.settings, loaded.saves),
+        (StoreState::Empty, None, 0)
+    );
     let mut s = store(&mut mem);
     assert_eq!(s.save(&settings(1)), Ok(1));
     assert_eq!(s.save(&settings(2)), Ok(2));
@@ -139,7 +144,11 @@ fn a_power_cut_at_any_step_of_a_save_leaves_the_old_settings_or_the_new_whole() 
             let next = settings(before + 2);
             s.save(&next).unwrap();
             drop(s);
-            assert_eq!(store(&mut mem).load().settings, Some(next), "after cut {cut}");
+            assert_eq!(
+                store(&mut mem).load().settings,
+                Some(next),
+                "after cut {cut}"
+            );
         }
         // Early cuts keep the old settings, late ones the new.
         assert!(olds > 0 && news > 0, "{olds} old, {news} new");
@@ -193,5 +202,8 @@ fn a_record_of_another_version_is_not_read() {
         block_on(map.store_item(&mut buf, &COUNT_KEY, &&1u32.to_le_bytes()[..])).unwrap();
     }
     let loaded = store(&mut mem).load();
-    assert_eq!((loaded.state, loaded.settings), (StoreState::OtherVersion, None));
+    assert_eq!(
+        (loaded.state, loaded.settings),
+        (StoreState::OtherVersion, None)
+    );
 }

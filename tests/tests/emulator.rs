@@ -16,9 +16,10 @@ use std::time::{Duration, Instant};
 
 use host_sim::rig_link::{LinkOptions, RigPort, SeqCounter};
 use shared::capture::CaptureState;
-use shared::console::{Board, Decimal};
+use shared::console::{Board, Exact};
 use shared::control::{AsyncKind, AsyncRecord, Event, Fault, ModelStatus, State, Status, predict};
-use shared::model::RigId;
+use shared::control::{CalibField, Calibration};
+use shared::model::{ModelEdit, ModelField, RigId, params_hash};
 
 /// Emulated time per guest instruction at `-icount shift=3`, s.
 const INSN_S: f64 = 8e-9;
@@ -186,10 +187,10 @@ fn host_model_text(rig: RigId, gap_mm: f32) -> (String, u32) {
     (
         format!(
             "model=ready target_hz={} band_hz={}..{} predicted_mg={}",
-            Decimal(p.target_hz, 4),
-            Decimal(p.band_hz[0], 3),
-            Decimal(p.band_hz[1], 3),
-            Decimal(p.impact_force_mg, 2)
+            Exact::f32(p.target_hz),
+            Exact::f32(p.band_hz[0]),
+            Exact::f32(p.band_hz[1]),
+            Exact::f32(p.impact_force_mg)
         ),
         p.target_hz.to_bits(),
     )
@@ -268,7 +269,10 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
     // `rig` recomputes too.
     assert_eq!(port.send_line("rig beam-170").unwrap(), "ok");
     let beam = wait_event(&mut port, model_ready, &mut seq);
-    let beam_bits = predict(&RigId::Beam170.preset(), 0.0).unwrap().target_hz.to_bits();
+    let beam_bits = predict(&RigId::Beam170.preset(), 0.0)
+        .unwrap()
+        .target_hz
+        .to_bits();
     assert!(
         beam.to_string()
             .contains(&format!("target_bits={beam_bits:#010x}")),
@@ -501,4 +505,74 @@ fn a_silent_link_brings_the_drive_to_zero() {
     assert_eq!(port.send_line("emu dac").unwrap(), "dac_code=2048");
     let s = port.status().unwrap();
     assert_eq!((s.state, s.fault), (State::Fault, Some(Fault::LinkLost)));
+}
+
+/// A rig engineer's model pushed to the emulator image and saved: the board computes the
+/// desktop's target, band and `F_i/mg` on it bit for bit; after another model (a preset),
+/// `revert` brings the stored one back from the store, the same bits again. (The reset itself
+/// is tested on the virtual rig, `host-sim/tests/rig.rs`: under QEMU's `netduinoplus2` the image
+/// restarted by a system reset gets no more timer or UART interrupts, docs/operator.md.)
+#[test]
+fn a_pushed_model_runs_on_the_board_and_comes_back_from_its_store() {
+    let Some(qemu) = Qemu::start() else {
+        return;
+    };
+    let mut port = qemu.port();
+    // A fit: the wire rig damped, a heavier hammer, its own spring–dashpot contact (what
+    // `identify contact` writes), and a charge amplifier of its own.
+    let params = [
+        ModelEdit::Set(ModelField::StiffnessNM, 5_016_300.0),
+        ModelEdit::Set(ModelField::DampingNSM, 1_133.7),
+        ModelEdit::Set(ModelField::DampingRatio, 0.01),
+        ModelEdit::Set(ModelField::MassKg, 0.31),
+    ]
+    .into_iter()
+    .try_fold(RigId::Wires.preset(), |p, e| p.edited(e))
+    .unwrap();
+    let calibration = Calibration::default().with(CalibField::VoltsPerN, 0.0098);
+    let host = predict(&params, 0.0).unwrap();
+    let pushed =
+        host_sim::rig_link::model::push(&mut port, &params, Some(&calibration), true).unwrap();
+    assert_eq!(pushed.hash, params_hash(&params));
+    assert_eq!(
+        pushed.saved.map(|s| s.hash),
+        Some(Some(params_hash(&params)))
+    );
+    let check = |port: &mut RigPort, source: shared::control::ModelSource| {
+        let s = wait_status(port, |s| matches!(s.model, ModelStatus::Ready(_)));
+        let ModelStatus::Ready(t) = s.model else {
+            unreachable!()
+        };
+        assert_eq!(s.rig.hash, params_hash(&params), "{s}");
+        assert_eq!(s.rig.source, source, "{s}");
+        assert_eq!(t.target_hz.to_bits(), host.target_hz.to_bits(), "{s}");
+        assert_eq!(
+            t.band_hz.map(f32::to_bits),
+            host.band_hz.map(f32::to_bits),
+            "{s}"
+        );
+        assert_eq!(
+            t.impact_force_mg.to_bits(),
+            host.impact_force_mg.to_bits(),
+            "{s}"
+        );
+    };
+    check(&mut port, shared::control::ModelSource::Stored);
+    // Another model, then the stored one back.
+    assert_eq!(port.send_line("rig beam-170").unwrap(), "ok");
+    let model = port.send_line("revert").unwrap();
+    assert!(model.starts_with("model of=active rig=stored "), "{model}");
+    check(&mut port, shared::control::ModelSource::Stored);
+    let store = port.send_line("store").unwrap();
+    assert_eq!(
+        store,
+        format!(
+            "store state=ok saves=1 rig_hash={:08x}",
+            params_hash(&params)
+        )
+    );
+    assert_eq!(
+        port.send_line("calib").unwrap().split(' ').nth(2),
+        Some("volts_per_n=0.0098")
+    );
 }

@@ -92,7 +92,11 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
         .lines()
         .find(|l| l.starts_with("stored "))
         .unwrap_or_else(|| panic!("no `stored` line in:\n{out}"));
-    assert_eq!(hex(&field(line, "model_hash")), params_hash(&stored), "{hint}");
+    assert_eq!(
+        hex(&field(line, "model_hash")),
+        params_hash(&stored),
+        "{hint}"
+    );
     for (key, bits) in [
         ("target_bits", host.target_hz.to_bits()),
         ("band_lo_bits", host.band_hz[0].to_bits()),

@@ -19,9 +19,11 @@ use crate::rig_link::sweep::{SweepEnd, check};
 use crate::rig_link::sweep::{
     SweepOutcome, SweepPoint, SweepSpec, parse_range, partial_path, sweep,
 };
-use crate::rig_link::{DEFAULT_LINK_TIMEOUT_S, LinkOptions, RigPort, check_reply};
+use crate::rig_link::{DEFAULT_LINK_TIMEOUT_S, LinkOptions, RigPort, check_reply, model};
 use crate::virtual_rig::CycleRow;
 use crate::virtual_rig::scenario::Scenario;
+use shared::console::Request;
+use shared::model::params_hash;
 
 /// Arguments of `rig`.
 #[derive(Debug, Args)]
@@ -66,6 +68,51 @@ pub enum RigCommand {
     /// Measure a frequency response: dwell at each frequency, record the mean peak force
     /// (F_i/mg) and the regime; a file `compare --experiment` reads.
     Sweep(SweepArgs),
+    /// The rig's own model and calibration: show them, pull them into a TOML file, or push one
+    /// (the TOML `identify` writes and `select --config` reads) as one change, verified.
+    Model(ModelArgs),
+}
+
+/// `rig model`.
+#[derive(Debug, Args)]
+pub struct ModelArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub what: ModelCommand,
+}
+
+/// `rig model` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum ModelCommand {
+    /// The active model, calibration and store, as the rig says them.
+    Show,
+    /// The active model and calibration into a TOML file (`[rig]` with every field,
+    /// `[calibration]`): what `select --config` and `rig model push --config` read.
+    Pull {
+        /// The TOML file.
+        #[arg(long, value_parser = crate::output::out_target)]
+        out: PathBuf,
+    },
+    /// A model (a preset with `--law`, `--damping-ratio` and `--config` over it, as `select`
+    /// builds it) and the config's `[calibration]` (if it has one) to the rig, all fields or
+    /// none, refused while the drive runs; verified by reading the model back.
+    Push {
+        /// The preset the model starts from.
+        #[arg(long, value_parser = crate::config::parse_rig, default_value = "wires")]
+        rig: shared::model::RigId,
+        /// The contact law (default: the preset's).
+        #[arg(long, value_parser = crate::config::parse_law)]
+        law: Option<shared::model::ContactLawKind>,
+        /// TOML file: `[rig]` over the preset, `[calibration]` over the firmware's defaults.
+        #[arg(long, value_name = "FILE.toml")]
+        config: Option<PathBuf>,
+        /// The suspension's damping ratio ζ, 0 ≤ ζ < 1 (over the preset's and `--config`'s).
+        #[arg(long, value_name = "ZETA")]
+        damping_ratio: Option<f64>,
+        /// Then keep it in the rig's flash (`save`), so that it survives a reset.
+        #[arg(long)]
+        save: bool,
+    },
 }
 
 /// `rig send`.
@@ -161,7 +208,84 @@ pub fn run(a: &RigArgs) -> Result<()> {
         RigCommand::Log(l) => log(a, l),
         RigCommand::Capture(c) => capture_drop(a, c),
         RigCommand::Sweep(s) => measure_sweep(a, s),
+        RigCommand::Model(m) => rig_model(a, &m.what),
     }
+}
+
+/// `rig model show|pull|push`.
+fn rig_model(a: &RigArgs, what: &ModelCommand) -> Result<()> {
+    match what {
+        ModelCommand::Show => {
+            let mut port = connect(a)?;
+            for request in [Request::Model, Request::Calib, Request::Store] {
+                let answer = port.request_ok(&request)?;
+                println!("{answer}");
+            }
+            port.release_drive();
+        }
+        ModelCommand::Pull { out } => {
+            distinct_files(&[("--port", a.port.as_path())], &[("--out", out.as_path())])?;
+            let mut port = connect(a)?;
+            let (params, source, calibration, gap_mm) = model::pull(&mut port)?;
+            let comment = format!(
+                "host-sim rig model pull: the rig's {} model (rig_hash {:08x}) and calibration\n\
+                 at gap {gap_mm} mm; {}",
+                source.token(),
+                params_hash(&params),
+                port.id_line()
+            );
+            let text = model::toml_text(&comment, &params, &calibration)?;
+            write_whole(out, |tmp| {
+                std::fs::write(tmp, &text).with_context(|| format!("writing {}", out.display()))
+            })?;
+            println!(
+                "wrote {}: the rig's {} model, rig_hash {:08x}",
+                out.display(),
+                source.token(),
+                params_hash(&params)
+            );
+            port.release_drive();
+        }
+        ModelCommand::Push {
+            rig,
+            law,
+            config,
+            damping_ratio,
+            save,
+        } => {
+            let mut opts = crate::config::RigOpts::preset(*rig);
+            opts.law = *law;
+            opts.config.clone_from(config);
+            opts.damping_ratio = *damping_ratio;
+            let setup = crate::config::Setup::from_opts(&opts)?;
+            let mut port = connect(a)?;
+            // The rig would compute the same selection (the on-target profile): a model that
+            // finds no operating point is refused here, before the rig's model changes.
+            let gap_mm = port.status()?.gap_mm;
+            if let Err(e) = shared::control::predict(&setup.params, gap_mm) {
+                return Err(port.refuse(anyhow::anyhow!(
+                    "the model finds no operating point at the rig's gap of {gap_mm} mm ({e}): \
+                     not pushed, the rig's model is unchanged"
+                )));
+            }
+            let pushed = model::push(&mut port, &setup.params, setup.calibration.as_ref(), *save)?;
+            println!(
+                "pushed the model (rig_hash {:08x}){}{}",
+                pushed.hash,
+                if setup.calibration.is_some() {
+                    " and the calibration"
+                } else {
+                    ""
+                },
+                match pushed.saved {
+                    Some(s) => format!("; saved (save {})", s.saves),
+                    None => "; not saved (`rig send save` keeps it across a reset)".into(),
+                }
+            );
+            port.release_drive();
+        }
+    }
+    Ok(())
 }
 
 /// The link's flags, checked before anything else.

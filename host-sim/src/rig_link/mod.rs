@@ -34,6 +34,7 @@
 
 pub mod capture;
 pub mod log;
+pub mod model;
 pub mod sweep;
 
 use std::io::{ErrorKind, Read, Write};

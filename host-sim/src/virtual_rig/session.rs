@@ -430,7 +430,11 @@ impl Session {
         let t = self.t_s();
         // The model task: computed at once here, delivered after the MCU's computation time.
         if let Some(req) = self.controller.take_model_request() {
-            self.model_due = Some((t + self.sc.model_delay_s, req, predict(&req.params, req.gap_mm)));
+            self.model_due = Some((
+                t + self.sc.model_delay_s,
+                req,
+                predict(&req.params, req.gap_mm),
+            ));
         }
         if self.model_due.as_ref().is_some_and(|(due, _, _)| *due <= t)
             && let Some((_, req, result)) = self.model_due.take()

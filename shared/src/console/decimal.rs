@@ -166,7 +166,11 @@ impl Exact {
                 if !(-EXACT_POW10..=EXACT_POW10).contains(&e) {
                     continue;
                 }
-                let m = libm::round(if e >= 0 { mag / pow10(e) } else { mag * pow10(-e) });
+                let m = libm::round(if e >= 0 {
+                    mag / pow10(e)
+                } else {
+                    mag * pow10(-e)
+                });
                 if !(0.0..1e15).contains(&m) {
                     continue;
                 }
@@ -231,7 +235,9 @@ impl fmt::Display for Exact {
             } else {
                 digits[..int as usize].iter().for_each(|&d| put(d));
                 put(b'.');
-                digits[int as usize..n as usize].iter().for_each(|&d| put(d));
+                digits[int as usize..n as usize]
+                    .iter()
+                    .for_each(|&d| put(d));
             }
         }
         // ASCII digits, sign and point only.
@@ -376,7 +382,11 @@ mod tests {
             assert_eq!(back.to_bits(), x.to_bits(), "{x} → {text}");
             // A decimal reads as Rust reads it (and so as a TOML file's value).
             if !text.starts_with("0x") {
-                assert_eq!(text.parse::<f64>().unwrap().to_bits(), x.to_bits(), "{text}");
+                assert_eq!(
+                    text.parse::<f64>().unwrap().to_bits(),
+                    x.to_bits(),
+                    "{text}"
+                );
             }
         }
         // Short values stay short; values without a 15-digit decimal go as bits.
@@ -386,14 +396,39 @@ mod tests {
         assert_eq!(format!("{}", Exact::f64(-0.0075)), "-0.0075");
         assert_eq!(format!("{}", Exact::f64(0.1 + 0.2)), "0x3fd3333333333334");
         // What an operator types reads as Rust reads it.
-        for s in ["0.31", "12", "0.0098", "4.5", "1e3x", "0.000000000000000000001"] {
+        for s in [
+            "0.31",
+            "12",
+            "0.0098",
+            "4.5",
+            "1e3x",
+            "0.000000000000000000001",
+        ] {
             assert_eq!(parse_exact(s), s.parse::<f64>().ok(), "{s}");
         }
-        for s in ["", "-", "1e3", "nan", "inf", "0x12", "1234567890123456", "1.2.3"] {
+        for s in [
+            "",
+            "-",
+            "1e3",
+            "nan",
+            "inf",
+            "0x12",
+            "1234567890123456",
+            "1.2.3",
+        ] {
             assert_eq!(parse_exact(s), None, "{s}");
         }
         // An `f32` as short as it reads back as an `f32`: a TOML value's path.
-        for x in [0.0098f32, 0.2, 3.3, 280.0, 1.0e-5, 0.1 + 0.2, 1.0 / 3.0, f32::MAX] {
+        for x in [
+            0.0098f32,
+            0.2,
+            3.3,
+            280.0,
+            1.0e-5,
+            0.1 + 0.2,
+            1.0 / 3.0,
+            f32::MAX,
+        ] {
             let text = format!("{}", Exact::f32(x));
             let back = parse_exact(&text).unwrap() as f32;
             assert_eq!(back.to_bits(), x.to_bits(), "{x} → {text}");

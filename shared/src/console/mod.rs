@@ -38,10 +38,10 @@ pub use framing::{Line, LineBuffer, MAX_LINE, RxError, is_line_end};
 pub use link::{Link, LinkStats, PendingLine};
 pub use reply::{Answer, AnswerError, Board, BoardInfo, CaptureError, DiagInfo, IdInfo, Version};
 pub use request::{Arg, DraftCommand, HELP, ParseError, Request, parse};
+pub use serve::{Direct, RigAccess, answer, format_answer, format_async};
 pub use settings::{
     CalibView, FieldProblem, ModelOf, ModelView, SettingsRefusal, StoreRefusal, StoreView,
 };
-pub use serve::{Direct, RigAccess, answer, format_answer, format_async};
 pub use token::Token;
 
 /// Whether `value`'s text is `text` (compared as it is written, without allocating).

@@ -16,10 +16,10 @@ use core::str::FromStr;
 
 use super::decimal::{Decimal, Exact, parse_exact};
 use super::displays_as;
-use super::settings::{CalibView, ModelView, SettingsRefusal, StoreRefusal, StoreView};
 use super::fields::{Fields, WireError, decimal};
 use super::link::LinkStats;
 use super::request::{DraftCommand, HELP, MAX_FREQ_HZ, ParseError, Request};
+use super::settings::{CalibView, ModelView, SettingsRefusal, StoreRefusal, StoreView};
 use super::token::{Token, read_fault, read_regime, write_fault, write_regime};
 use crate::capture::{
     CAPTURE_RATE_HZ, CaptureCommand, CaptureStatus, PRE_TRIGGER, SEGMENT_LEN, SEGMENTS, SegmentView,
@@ -436,11 +436,7 @@ impl FromStr for SegmentView {
 
 impl fmt::Display for Status {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "state={} ",
-            self.state.token(),
-        )?;
+        write!(f, "state={} ", self.state.token(),)?;
         write_model_id(f, self.rig)?;
         write!(
             f,

@@ -73,7 +73,11 @@ pub enum DraftCommand {
 
 impl DraftCommand {
     /// Every subcommand.
-    pub const ALL: [DraftCommand; 3] = [DraftCommand::Begin, DraftCommand::Apply, DraftCommand::Discard];
+    pub const ALL: [DraftCommand; 3] = [
+        DraftCommand::Begin,
+        DraftCommand::Apply,
+        DraftCommand::Discard,
+    ];
 
     /// Its word.
     pub const fn name(self) -> &'static str {
@@ -207,8 +211,7 @@ const NOT_AN_EXACT_NUMBER: &str = " must be a plain decimal number (at most 15 s
 const UNKNOWN_MODEL_FIELD: &str =
     "model takes a field (`model` shows them), law <name> or suspension <wires|beam>";
 const UNKNOWN_CALIB_FIELD: &str = "calib takes a field (`calib` shows them)";
-const UNKNOWN_LAW: &str =
-    "law must be hertz, spring-dashpot, hunt-crossley or lankarani-nikravesh";
+const UNKNOWN_LAW: &str = "law must be hertz, spring-dashpot, hunt-crossley or lankarani-nikravesh";
 const UNKNOWN_SUSPENSION: &str = "suspension must be wires or beam";
 const UNKNOWN_DRAFT: &str = "draft takes begin, apply or discard";
 const OUT_OF_RANGE: (&str, &str) = (" out of range: allowed ", " ..= ");

@@ -211,13 +211,13 @@ fn answer_request(rig: &mut impl RigAccess, request: Result<Request, ParseError>
         }
         Request::Capture(cmd) => capture(rig, cmd),
         Request::Model => rig.controller(|c| model_line(c)),
-        Request::EditModel(edit) => settled(rig.controller(|c| {
-            c.edit_model(edit).map(|()| model_line(c))
-        })),
+        Request::EditModel(edit) => {
+            settled(rig.controller(|c| c.edit_model(edit).map(|()| model_line(c))))
+        }
         Request::Calib => rig.controller(|c| calib_line(c)),
-        Request::EditCalib(field, value) => settled(rig.controller(|c| {
-            c.edit_calibration(field, value).map(|()| calib_line(c))
-        })),
+        Request::EditCalib(field, value) => {
+            settled(rig.controller(|c| c.edit_calibration(field, value).map(|()| calib_line(c))))
+        }
         Request::Draft(d) => settled(rig.controller(|c| {
             match d {
                 DraftCommand::Begin => c.begin_draft(),
@@ -301,8 +301,16 @@ fn idle(rig: &mut impl RigAccess) -> Result<(), Answer> {
     let state = rig.controller(|c| c.state());
     match state {
         State::Idle => {}
-        State::Fault => return Err(Answer::Error(AnswerError::Command(CommandError::FaultLatched))),
-        s => return Err(Answer::Error(AnswerError::Command(CommandError::NotIdle(s)))),
+        State::Fault => {
+            return Err(Answer::Error(AnswerError::Command(
+                CommandError::FaultLatched,
+            )));
+        }
+        s => {
+            return Err(Answer::Error(AnswerError::Command(CommandError::NotIdle(
+                s,
+            ))));
+        }
     }
     if rig.capture(|c| c.active()) {
         return Err(Answer::Error(AnswerError::Capture(CaptureError::Running)));

@@ -17,9 +17,7 @@ use core::str::FromStr;
 use super::decimal::{Exact, parse_exact};
 use super::fields::{Fields, WireError};
 use super::token::Token;
-use crate::control::{
-    CalibField, Calibration, ControllerConfig, ModelSource, SettingsError,
-};
+use crate::control::{CalibField, Calibration, ControllerConfig, ModelSource, SettingsError};
 use crate::error::ParamError;
 use crate::model::{
     ContactLaw, ContactLawKind, EditError, ModelField, RigParams, Suspension, SuspensionKind,
@@ -538,7 +536,13 @@ impl fmt::Display for StoreRefusal {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             StoreRefusal::SaveFailed(e) => {
-                write!(f, "{}{}{}", SAVE_FAILED.0, save_error_name(*e), SAVE_FAILED.1)
+                write!(
+                    f,
+                    "{}{}{}",
+                    SAVE_FAILED.0,
+                    save_error_name(*e),
+                    SAVE_FAILED.1
+                )
             }
             StoreRefusal::NothingToRevert(state) => {
                 write!(f, "{}{}{}", NOTHING.0, state.token(), NOTHING.1)

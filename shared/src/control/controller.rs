@@ -10,12 +10,14 @@
 
 use heapless::Deque;
 
+use super::calibration::{CalibField, Calibration};
 use super::command::{Command, CommandError, Reply};
 use super::config::ControllerConfig;
 use super::detector::ImpactDetector;
 use super::faults::{Fault, SensorMonitor};
 use super::meter::RegimeMeter;
 use super::prediction::Prediction;
+use super::settings::{Draft, ModelId, ModelSource, Settings, SettingsError};
 use super::sine::SineGenerator;
 use super::status::{
     AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,
@@ -25,8 +27,6 @@ use super::tracker::HillClimber;
 use crate::analysis::SelectionError;
 use crate::error::ParamError;
 use crate::hal::SampleError;
-use super::calibration::{CalibField, Calibration};
-use super::settings::{Draft, ModelId, ModelSource, Settings, SettingsError};
 use crate::model::{ModelEdit, RigId, RigParams};
 use crate::observe::Regime;
 

@@ -402,7 +402,9 @@ mod tests {
         assert!((back.natural_freq_hz() - 4.50).abs() < 1e-12);
         // The wire rig's pendulum of 0.075 m: ω = sqrt(9.81 / 0.075).
         let w = RigId::Wires.preset();
-        let b = w.edited(ModelEdit::Suspension(SuspensionKind::Beam)).unwrap();
+        let b = w
+            .edited(ModelEdit::Suspension(SuspensionKind::Beam))
+            .unwrap();
         assert!(
             (b.natural_freq_hz() - (9.81f64 / 0.075).sqrt() / (2.0 * core::f64::consts::PI)).abs()
                 < 1e-12

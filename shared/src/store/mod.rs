@@ -235,12 +235,8 @@ impl<F: NorFlash + MultiwriteNorFlash> Store<F> {
         let mut record = [0u8; MAX_RECORD];
         let len = encode(n, settings, &mut record)?;
         let mut buf = [0u8; BUFFER];
-        embassy_futures::block_on(self.map.store_item(
-            &mut buf,
-            &RECORD_KEY,
-            &&record[..len],
-        ))
-        .map_err(save_error)?;
+        embassy_futures::block_on(self.map.store_item(&mut buf, &RECORD_KEY, &&record[..len]))
+            .map_err(save_error)?;
         let count = n.to_le_bytes();
         embassy_futures::block_on(self.map.store_item(&mut buf, &COUNT_KEY, &&count[..]))
             .map_err(save_error)?;

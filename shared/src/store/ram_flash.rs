@@ -100,7 +100,12 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> RamFlash<B> {
         }
     }
 
-    fn range(&self, offset: u32, len: usize, unit: usize) -> Result<core::ops::Range<usize>, RamFlashError> {
+    fn range(
+        &self,
+        offset: u32,
+        len: usize,
+        unit: usize,
+    ) -> Result<core::ops::Range<usize>, RamFlashError> {
         let start = offset as usize;
         let end = start.checked_add(len).ok_or(RamFlashError::OutOfBounds)?;
         if end > self.bytes.as_ref().len() || start % unit != 0 || len % unit != 0 {
@@ -133,7 +138,9 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> NorFlash for RamFlash<B> {
     const ERASE_SIZE: usize = PAGE_BYTES;
 
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), RamFlashError> {
-        let len = (to as usize).checked_sub(from as usize).ok_or(RamFlashError::OutOfBounds)?;
+        let len = (to as usize)
+            .checked_sub(from as usize)
+            .ok_or(RamFlashError::OutOfBounds)?;
         let r = self.range(from, len, PAGE_BYTES)?;
         let pages = (r.len() / PAGE_BYTES) as u64;
         for chunk in r.step_by(ERASE_STEP) {
