@@ -16,7 +16,9 @@ use shared::control::{
     AsyncKind, AsyncRecord, CycleTelemetry, ModelStatus, Reply, SAMPLE_RATE_HZ, SensorChain, State,
     Status, Target,
 };
+use shared::control::{ModelId, ModelSource};
 use shared::model::RigId;
+use shared::store::StoreState;
 
 mod common;
 use common::leftovers;
@@ -91,7 +93,8 @@ fn id_info(bad: Misbehaviour) -> IdInfo {
     IdInfo {
         firmware: Version::of("0.1.0"),
         board: Board::Virtual,
-        rig: RigId::Wires,
+        rig: ModelId::of(&RigId::Wires.preset(), ModelSource::Preset(RigId::Wires)),
+        store: StoreState::Empty,
         gap_mm: 0.0,
         sample_rate_hz: SAMPLE_RATE_HZ,
         capture_rate_hz: 100_000,
@@ -114,7 +117,7 @@ fn id_info(bad: Misbehaviour) -> IdInfo {
 fn status(state: State) -> Status {
     Status {
         state,
-        rig: RigId::Wires,
+        rig: ModelId::of(&RigId::Wires.preset(), ModelSource::Preset(RigId::Wires)),
         gap_mm: 0.0,
         freq_hz: 1.0,
         amplitude_mm: 0.0,

@@ -19,7 +19,7 @@ use shared::capture::CaptureState;
 use shared::console::{Board, Exact};
 use shared::control::{AsyncKind, AsyncRecord, Event, Fault, ModelStatus, State, Status, predict};
 use shared::control::{CalibField, Calibration};
-use shared::model::{ModelEdit, ModelField, RigId, params_hash};
+use shared::model::{ContactLawKind, ModelEdit, ModelField, RigId, params_hash};
 
 /// Emulated time per guest instruction at `-icount shift=3`, s.
 const INSN_S: f64 = 8e-9;
@@ -507,72 +507,85 @@ fn a_silent_link_brings_the_drive_to_zero() {
     assert_eq!((s.state, s.fault), (State::Fault, Some(Fault::LinkLost)));
 }
 
-/// A rig engineer's model pushed to the emulator image and saved: the board computes the
-/// desktop's target, band and `F_i/mg` on it bit for bit; after another model (a preset),
-/// `revert` brings the stored one back from the store, the same bits again. (The reset itself
-/// is tested on the virtual rig, `host-sim/tests/rig.rs`: under QEMU's `netduinoplus2` the image
-/// restarted by a system reset gets no more timer or UART interrupts, docs/operator.md.)
+/// Rig engineers' models pushed to the emulator image and saved — the wire rig damped with a
+/// heavier hammer and the Hunt–Crossley law `identify contact` fits to the rig's drop test, and
+/// the 170 mm beam with a hammer of its own — each with a calibration of its own: the board
+/// computes the desktop's target, band and `F_i/mg` on each bit for bit; after another model (a
+/// preset), `revert` brings the stored one back from the store, the same bits again. (The reset
+/// itself is tested on the virtual rig, `host-sim/tests/rig.rs`: under QEMU's `netduinoplus2`
+/// the image restarted by a system reset gets no more timer or UART interrupts,
+/// docs/operator.md.)
 #[test]
-fn a_pushed_model_runs_on_the_board_and_comes_back_from_its_store() {
+fn pushed_models_run_on_the_board_and_come_back_from_its_store() {
     let Some(qemu) = Qemu::start() else {
         return;
     };
     let mut port = qemu.port();
-    // A fit: the wire rig damped, a heavier hammer, its own spring–dashpot contact (what
-    // `identify contact` writes), and a charge amplifier of its own.
-    let params = [
-        ModelEdit::Set(ModelField::StiffnessNM, 5_016_300.0),
-        ModelEdit::Set(ModelField::DampingNSM, 1_133.7),
+    let hunt_crossley = [
+        ModelEdit::Law(ContactLawKind::HuntCrossley),
+        ModelEdit::Set(ModelField::Stiffness, 5_354_900.0),
+        ModelEdit::Set(ModelField::Exponent, 1.0),
+        ModelEdit::Set(ModelField::LambdaSM, 68.4774),
         ModelEdit::Set(ModelField::DampingRatio, 0.01),
         ModelEdit::Set(ModelField::MassKg, 0.31),
     ]
     .into_iter()
     .try_fold(RigId::Wires.preset(), |p, e| p.edited(e))
     .unwrap();
-    let calibration = Calibration::default().with(CalibField::VoltsPerN, 0.0098);
-    let host = predict(&params, 0.0).unwrap();
-    let pushed =
-        host_sim::rig_link::model::push(&mut port, &params, Some(&calibration), true).unwrap();
-    assert_eq!(pushed.hash, params_hash(&params));
-    assert_eq!(
-        pushed.saved.map(|s| s.hash),
-        Some(Some(params_hash(&params)))
-    );
-    let check = |port: &mut RigPort, source: shared::control::ModelSource| {
-        let s = wait_status(port, |s| matches!(s.model, ModelStatus::Ready(_)));
-        let ModelStatus::Ready(t) = s.model else {
-            unreachable!()
+    let beam = RigId::Beam170
+        .preset()
+        .edited(ModelEdit::Set(ModelField::MassKg, 0.35))
+        .unwrap();
+    for (k, (params, volts_per_n)) in [(hunt_crossley, 0.0098f32), (beam, 0.0102)]
+        .into_iter()
+        .enumerate()
+    {
+        let calibration = Calibration::default().with(CalibField::VoltsPerN, volts_per_n);
+        let host = predict(&params, 0.0).unwrap();
+        let pushed =
+            host_sim::rig_link::model::push(&mut port, &params, Some(&calibration), true).unwrap();
+        assert_eq!(pushed.hash, params_hash(&params));
+        assert_eq!(
+            pushed.saved.map(|s| s.hash),
+            Some(Some(params_hash(&params)))
+        );
+        let check = |port: &mut RigPort| {
+            let s = wait_status(port, |s| matches!(s.model, ModelStatus::Ready(_)));
+            let ModelStatus::Ready(t) = s.model else {
+                unreachable!()
+            };
+            assert_eq!(s.rig.hash, params_hash(&params), "{s}");
+            assert_eq!(s.rig.source, shared::control::ModelSource::Stored, "{s}");
+            assert_eq!(t.target_hz.to_bits(), host.target_hz.to_bits(), "{s}");
+            assert_eq!(
+                t.band_hz.map(f32::to_bits),
+                host.band_hz.map(f32::to_bits),
+                "{s}"
+            );
+            assert_eq!(
+                t.impact_force_mg.to_bits(),
+                host.impact_force_mg.to_bits(),
+                "{s}"
+            );
         };
-        assert_eq!(s.rig.hash, params_hash(&params), "{s}");
-        assert_eq!(s.rig.source, source, "{s}");
-        assert_eq!(t.target_hz.to_bits(), host.target_hz.to_bits(), "{s}");
+        check(&mut port);
+        // Another model, then the stored one back.
+        assert_eq!(port.send_line("rig wires").unwrap(), "ok");
+        let model = port.send_line("revert").unwrap();
+        assert!(model.starts_with("model of=active rig=stored "), "{model}");
+        check(&mut port);
+        let store = port.send_line("store").unwrap();
         assert_eq!(
-            t.band_hz.map(f32::to_bits),
-            host.band_hz.map(f32::to_bits),
-            "{s}"
+            store,
+            format!(
+                "store state=ok saves={} rig_hash={:08x}",
+                k + 1,
+                params_hash(&params)
+            )
         );
         assert_eq!(
-            t.impact_force_mg.to_bits(),
-            host.impact_force_mg.to_bits(),
-            "{s}"
+            port.send_line("calib").unwrap().split(' ').nth(2),
+            Some(format!("volts_per_n={volts_per_n}").as_str())
         );
-    };
-    check(&mut port, shared::control::ModelSource::Stored);
-    // Another model, then the stored one back.
-    assert_eq!(port.send_line("rig beam-170").unwrap(), "ok");
-    let model = port.send_line("revert").unwrap();
-    assert!(model.starts_with("model of=active rig=stored "), "{model}");
-    check(&mut port, shared::control::ModelSource::Stored);
-    let store = port.send_line("store").unwrap();
-    assert_eq!(
-        store,
-        format!(
-            "store state=ok saves=1 rig_hash={:08x}",
-            params_hash(&params)
-        )
-    );
-    assert_eq!(
-        port.send_line("calib").unwrap().split(' ').nth(2),
-        Some("volts_per_n=0.0098")
-    );
+    }
 }
