@@ -844,24 +844,62 @@ fn no_output_replaces_an_input_or_another_output() {
     }
 }
 
+/// A config file's values replace the preset's, those and nothing else: the setup read is the
+/// preset with `A0` and the observation window set, and `response` with the file computes what
+/// the library computes with that setup (its window of 32 periods holding 32 impacts of the
+/// `1/1` orbit, where the preset's 64 hold 64).
 #[test]
 fn config_file_overrides_parameters() {
+    use host_sim::cli::RigOpts;
+    use host_sim::config::Setup;
+    use host_sim::runner::{OperatingPoint, evaluate_all};
+    use shared::model::RigId;
+
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("c.toml");
-    // Doubling A0 doubles the cart's drive; the 1/1 force at Ω/ω = 2 must change.
     fs::write(
         &cfg,
         "[rig]\namplitude_m = 1.78e-3\n[settings.protocol]\nobserve_periods = 32\n",
     )
     .unwrap();
-    let run = |extra: &str| {
+    let preset = Setup::preset(RigId::Wires).unwrap();
+    let read = Setup::from_opts(&RigOpts {
+        config: Some(cfg.clone()),
+        ..RigOpts::preset(RigId::Wires)
+    })
+    .unwrap();
+    let mut expect = preset.clone();
+    expect.params.amplitude_m = 1.78e-3;
+    expect.settings.protocol.observe_periods = 32;
+    assert_eq!(read.params, expect.params);
+    assert_eq!(read.settings, expect.settings);
+    assert_ne!(read.params, preset.params);
+
+    // (impact_force_mg, impacts) of `response` at Ω/ω 2.0, and the library's with `setup`.
+    let command = |extra: &str| -> (f64, u32) {
+        let out = dir.path().join("r.csv");
         ok(&line(&format!(
-            "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 30 {extra}"
-        )))
+            "response --rig wires --gap-mm 0 --omega-ratio 2.0:2.0:0.1 --out {} {extra}",
+            out.display()
+        )));
+        let text = fs::read_to_string(&out).unwrap();
+        let row: Vec<&str> = text.lines().nth(1).unwrap().split(',').collect();
+        (row[2].parse().unwrap(), row[4].parse().unwrap())
     };
-    let base = run("");
-    let over = run(&format!("--config {}", cfg.display()));
-    assert_ne!(base, over);
+    let library = |setup: &Setup| -> (f64, u32) {
+        let point = OperatingPoint {
+            gap_m: 0.0,
+            omega_ratio: 2.0,
+        };
+        let r = evaluate_all(setup, &[point], "test").unwrap()[0];
+        (r.impact_force_mg, r.impacts)
+    };
+    let over = command(&format!("--config {}", cfg.display()));
+    assert_eq!(over, library(&expect));
+    assert_eq!(over.1, 32);
+    let base = command("");
+    assert_eq!(base, library(&preset));
+    assert_eq!(base.1, 64);
 }
 
 /// The run's log is one timeline: commands, state changes and faults in the order of rig
