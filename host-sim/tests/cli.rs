@@ -328,9 +328,13 @@ fn a_doubling_across_a_jump_is_told_and_bounds_the_band() {
 
 /// `VIBRO_ISA` narrows the lane kernels' vector instructions and changes no bit of a Peterka
 /// grid whose runs go through every kind of lane (free flight, contact, switching events, near
-/// searches); a value naming no variant this CPU runs is refused by name, before any output.
+/// searches): the widest variant's grid and the narrower ones' are each the points computed
+/// one at a time by the stepper, without lanes (so the check holds on a CPU with one variant
+/// too); a value naming no variant this CPU runs is refused by name, before any output.
 #[test]
 fn the_isa_variable_changes_no_bit_and_refuses_what_the_cpu_lacks() {
+    use shared::analysis::{SimSettings, evaluate_point};
+    use shared::model::RigId;
     let dir = tempfile::tempdir().unwrap();
     let grid = |name: &str, isa: Option<&str>| {
         let out = dir.path().join(name);
@@ -347,6 +351,37 @@ fn the_isa_variable_changes_no_bit_and_refuses_what_the_cpu_lacks() {
     let (o, widest) = grid("widest.csv", None);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let widest = fs::read(widest).unwrap();
+    // Each row (index, gap_mm, gap_ratio, omega_ratio, freq_hz, regime, impacts,
+    // impact_force_mg, transient_periods, settled, …) is the stepper's point, alone.
+    let text = String::from_utf8(widest.clone()).unwrap();
+    let params = RigId::Wires.preset();
+    let mut points = 0;
+    for row in text.lines().skip(1) {
+        let c: Vec<&str> = row.split(',').collect();
+        let (gap_mm, omega_ratio): (f64, f64) = (c[1].parse().unwrap(), c[3].parse().unwrap());
+        let r = evaluate_point::<f32>(&params, gap_mm * 1e-3, omega_ratio, &SimSettings::default())
+            .unwrap();
+        let force: f64 = c[7].parse().unwrap();
+        assert_eq!(
+            (
+                c[5].to_string(),
+                c[6].parse::<u32>().unwrap(),
+                force.to_bits(),
+                c[8].parse::<u32>().unwrap(),
+                c[9].parse::<bool>().unwrap()
+            ),
+            (
+                r.regime.to_string(),
+                r.impacts,
+                r.impact_force_mg.to_bits(),
+                r.transient_periods,
+                r.settled
+            ),
+            "{row}"
+        );
+        points += 1;
+    }
+    assert_eq!(points, 3 * 25);
     let mut variants = vec!["portable"];
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
