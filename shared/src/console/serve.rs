@@ -456,8 +456,9 @@ impl RigAccess for Direct<'_> {
 mod tests {
     use super::*;
     use crate::capture::{SEGMENT_LEN, SegmentView};
+    use crate::console::Board;
     use crate::console::link::LinkStats;
-    use crate::console::reply::{Board, Version};
+    use crate::console::reply::Version;
     use crate::control::{ControllerConfig, ModelStatus, PeakForce, Reply, Status, Target};
     use crate::model::RigId;
     use crate::store::Store;
