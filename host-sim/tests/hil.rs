@@ -252,7 +252,7 @@ fn console_session_gives_the_expected_lines_and_bad_commands_change_nothing() {
     let expect = [
         (
             "status",
-            "state=idle rig=wires gap_mm=0.00 freq_hz=1.0000 amp_mm=0.000 regime=- peak_n=- peak_mg=- model=pending fault=none impacts=0 lost_cycles=0",
+            "state=idle rig=wires rig_hash=36fccdc0 gap_mm=0.00 freq_hz=1.0000 amp_mm=0.000 regime=- peak_n=- peak_mg=- model=pending fault=none impacts=0 lost_cycles=0",
         ),
         (
             "start",
@@ -287,7 +287,7 @@ fn console_session_gives_the_expected_lines_and_bad_commands_change_nothing() {
     assert!(
         replies[9]
             .1
-            .starts_with("state=track rig=wires gap_mm=0.00 "),
+            .starts_with("state=track rig=wires rig_hash=36fccdc0 gap_mm=0.00 "),
         "{}",
         replies[9].1
     );

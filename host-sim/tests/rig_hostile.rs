@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use shared::capture::{CaptureState, CaptureStatus};
 use shared::console::serve::split_tag;
-use shared::console::{Answer, Board, DiagInfo, IdInfo, LinkStats, Version};
+use shared::console::{Answer, Board, DiagInfo, IdInfo, LinkStats, ModelOf, ModelView, Version};
 use shared::control::{
     AsyncKind, AsyncRecord, CycleTelemetry, ModelStatus, Reply, SAMPLE_RATE_HZ, SensorChain, State,
     Status, Target,
@@ -150,6 +150,10 @@ impl Fake {
         let word = line.split_whitespace().next().unwrap_or("");
         let answer = match word {
             "id" => Answer::Id(id_info(self.bad)),
+            "model" => Answer::Model(ModelView {
+                of: ModelOf::Active(ModelSource::Preset(RigId::Wires)),
+                params: RigId::Wires.preset(),
+            }),
             "diag" => Answer::Diag(DiagInfo {
                 samples: self.sample,
                 uptime_ms: self.sample / 10,
