@@ -614,7 +614,7 @@ impl StoreFlash {
         let end = offset
             .checked_add(len as u32)
             .ok_or(StoreFlashError(OUT_OF_STORE))?;
-        if end > STORE_BYTES || offset % unit != 0 || len as u32 % unit != 0 {
+        if end > STORE_BYTES || !offset.is_multiple_of(unit) || !(len as u32).is_multiple_of(unit) {
             return Err(StoreFlashError(OUT_OF_STORE));
         }
         Ok(())

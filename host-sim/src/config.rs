@@ -62,7 +62,7 @@ pub struct RigOpts {
     pub rig: RigId,
     /// Contact law (default: the identified spring–dashpot of Table 3.1). Lankarani–Nikravesh
     /// is valid near e = 1 only: it rebounds at 0.663 or more whatever its e (docs/model.md).
-    #[arg(long, value_parser = parse_law)]
+    #[arg(long, value_parser = law_parser())]
     pub law: Option<ContactLawKind>,
     /// TOML file overriding any parameter: tables `[rig]`, `[settings]`, `[selection]` (and
     /// `[uncertainty]`, written by `identify contact --out`, for `select --uncertainty`).
@@ -124,6 +124,63 @@ pub fn parse_rig(s: &str) -> Result<RigId, String> {
 /// An unknown name, with the known ones.
 pub fn parse_law(s: &str) -> Result<ContactLawKind, String> {
     s.parse().map_err(|e| format!("{e}"))
+}
+
+/// A command-line value read by a parser function (its error said as clap says a value
+/// parser's) whose help lists the names it takes, from the one list the parser reads: for
+/// `--law`, [`ContactLawKind::ALL`] ([`law_parser`]).
+#[derive(Clone)]
+pub struct NamedValues<T> {
+    parse: fn(&str) -> Result<T, String>,
+    names: fn() -> Vec<&'static str>,
+}
+
+impl<T: Clone + Send + Sync + 'static> clap::builder::TypedValueParser for NamedValues<T> {
+    type Value = T;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<T, clap::Error> {
+        self.parse.parse_ref(cmd, arg, value)
+    }
+
+    fn possible_values(
+        &self,
+    ) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
+        Some(Box::new(
+            (self.names)()
+                .into_iter()
+                .map(clap::builder::PossibleValue::new),
+        ))
+    }
+}
+
+/// `--law`: one of [`ContactLawKind::ALL`] by name ([`parse_law`]); the help lists them.
+#[must_use]
+pub fn law_parser() -> NamedValues<ContactLawKind> {
+    NamedValues {
+        parse: parse_law,
+        names: law_names,
+    }
+}
+
+/// The names of [`ContactLawKind::ALL`], in its order.
+#[must_use]
+pub fn law_names() -> Vec<&'static str> {
+    ContactLawKind::ALL.map(ContactLawKind::name).to_vec()
+}
+
+impl<T> NamedValues<T> {
+    /// Values read by `parse`, the help listing `names()`.
+    pub const fn new(
+        parse: fn(&str) -> Result<T, String>,
+        names: fn() -> Vec<&'static str>,
+    ) -> Self {
+        Self { parse, names }
+    }
 }
 
 /// A validated rig and numerical setup.

@@ -274,8 +274,9 @@ fn select_states_the_start_up_basin_and_flags_a_small_one() {
 /// The basin check's transient without `--basin-max-periods`: 2000 periods (the main job, the
 /// beam rig with Table 3.3's ζ = 0.004 at its answer Ω/ω 1.38: 759 would do), or as long as a
 /// lighter damping's free oscillation takes to shrink by 1e-6 at the chosen Ω/ω: ζ = 0.001,
-/// `ln(1e6) · 1.38 / (2π · 0.001)` = 3034.4 → 3035 periods, within which the one start that
-/// 2000 periods left without an attractor reaches the non-impacting orbit.
+/// `ln(1e6) · 1.38 / (2π · 0.001)` = 3034.4 → 3035 periods, within which the starts that 2000
+/// periods left without an attractor reach the non-impacting orbit (and no other start changes
+/// its attractor).
 #[test]
 fn the_basin_checks_transient_outlasts_a_light_dampings_free_oscillation() {
     let basin = |extra: &str| {
@@ -286,15 +287,40 @@ fn the_basin_checks_transient_outlasts_a_light_dampings_free_oscillation() {
         assert_eq!(v["omega_ratio"], 1.38, "{v}");
         v["basin_check"].clone()
     };
+    // The periods the free oscillation takes to shrink by 1e-6: ln(1e6) Ω/ω / (2π ζ).
+    let decay = |zeta: f64| (1e6f64.ln() * 1.38 / (2.0 * std::f64::consts::PI * zeta)).ceil();
+    assert!(decay(0.004) < 2000.0);
     assert_eq!(basin("")["max_transient_periods"], 2000);
-    let b = basin("--damping-ratio 0.001");
-    assert_eq!(b["max_transient_periods"], 3035, "{b}");
-    assert_eq!(b["competitor"]["regime"], "no impact", "{b}");
-    assert_eq!(b["fraction"], 0.999, "{b}");
-    // The old limit leaves that start without an attractor.
-    let b = basin("--damping-ratio 0.001 --basin-max-periods 2000");
-    assert!(b["competitor"].is_null(), "{b}");
-    assert_eq!(b["fraction"], 0.999, "{b}");
+    let long = basin("--damping-ratio 0.001");
+    assert_eq!(long["max_transient_periods"], decay(0.001) as u64, "{long}");
+    assert_eq!(long["competitor"]["regime"], "no impact", "{long}");
+    // Every start reaches an attractor: the chosen orbit or the competitor.
+    let no_attractor = |b: &serde_json::Value| -> f64 {
+        b["attractors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|a| a["id"] == "-")
+            .map(|a| a["fraction"].as_f64().unwrap())
+            .sum()
+    };
+    let fraction = |b: &serde_json::Value, key: &str| b[key]["fraction"].as_f64().unwrap();
+    let chosen = long["fraction"].as_f64().unwrap();
+    assert_eq!(no_attractor(&long), 0.0, "{long}");
+    assert!(
+        (chosen + fraction(&long, "competitor") - 1.0).abs() < 1e-12,
+        "{long}"
+    );
+    // 2000 periods leave some starts without an attractor: those, and only those, are the
+    // ones the longer transient takes to the non-impacting orbit.
+    let short = basin("--damping-ratio 0.001 --basin-max-periods 2000");
+    assert!(short["competitor"].is_null(), "{short}");
+    assert_eq!(short["fraction"].as_f64().unwrap(), chosen, "{short}");
+    assert!(no_attractor(&short) > 0.0, "{short}");
+    assert!(
+        (no_attractor(&short) - fraction(&long, "competitor")).abs() < 1e-12,
+        "{short}\n{long}"
+    );
 }
 
 #[test]
@@ -350,8 +376,12 @@ fn a_damped_suspensions_transient_lasts_until_its_free_oscillation_has_decayed()
     };
     let (rows, err) = run("");
     println!("{err}");
+    // ln(1e6) Ω/ω / (2π ζ) at Ω/ω 1.6 with ζ = 0.004.
+    let n = (1e6f64.ln() * 1.6 / (2.0 * std::f64::consts::PI * 0.004)).ceil();
+    assert_eq!(n, 880.0);
     assert!(
-        err.contains("transient up to 880 periods") && err.contains("in 880 periods at Ω/ω 1.6"),
+        err.contains(&format!("transient up to {n} periods"))
+            && err.contains(&format!("in {n} periods at Ω/ω 1.6")),
         "{err}"
     );
     assert_eq!(rows.len(), 2, "{rows:?}");

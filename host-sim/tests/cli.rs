@@ -328,9 +328,13 @@ fn a_doubling_across_a_jump_is_told_and_bounds_the_band() {
 
 /// `VIBRO_ISA` narrows the lane kernels' vector instructions and changes no bit of a Peterka
 /// grid whose runs go through every kind of lane (free flight, contact, switching events, near
-/// searches); a value naming no variant this CPU runs is refused by name, before any output.
+/// searches): the widest variant's grid and the narrower ones' are each the points computed
+/// one at a time by the stepper, without lanes (so the check holds on a CPU with one variant
+/// too); a value naming no variant this CPU runs is refused by name, before any output.
 #[test]
 fn the_isa_variable_changes_no_bit_and_refuses_what_the_cpu_lacks() {
+    use shared::analysis::{SimSettings, evaluate_point};
+    use shared::model::RigId;
     let dir = tempfile::tempdir().unwrap();
     let grid = |name: &str, isa: Option<&str>| {
         let out = dir.path().join(name);
@@ -347,6 +351,37 @@ fn the_isa_variable_changes_no_bit_and_refuses_what_the_cpu_lacks() {
     let (o, widest) = grid("widest.csv", None);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let widest = fs::read(widest).unwrap();
+    // Each row (index, gap_mm, gap_ratio, omega_ratio, freq_hz, regime, impacts,
+    // impact_force_mg, transient_periods, settled, …) is the stepper's point, alone.
+    let text = String::from_utf8(widest.clone()).unwrap();
+    let params = RigId::Wires.preset();
+    let mut points = 0;
+    for row in text.lines().skip(1) {
+        let c: Vec<&str> = row.split(',').collect();
+        let (gap_mm, omega_ratio): (f64, f64) = (c[1].parse().unwrap(), c[3].parse().unwrap());
+        let r = evaluate_point::<f32>(&params, gap_mm * 1e-3, omega_ratio, &SimSettings::default())
+            .unwrap();
+        let force: f64 = c[7].parse().unwrap();
+        assert_eq!(
+            (
+                c[5].to_string(),
+                c[6].parse::<u32>().unwrap(),
+                force.to_bits(),
+                c[8].parse::<u32>().unwrap(),
+                c[9].parse::<bool>().unwrap()
+            ),
+            (
+                r.regime.to_string(),
+                r.impacts,
+                r.impact_force_mg.to_bits(),
+                r.transient_periods,
+                r.settled
+            ),
+            "{row}"
+        );
+        points += 1;
+    }
+    assert_eq!(points, 3 * 25);
     let mut variants = vec!["portable"];
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
@@ -844,24 +879,62 @@ fn no_output_replaces_an_input_or_another_output() {
     }
 }
 
+/// A config file's values replace the preset's, those and nothing else: the setup read is the
+/// preset with `A0` and the observation window set, and `response` with the file computes what
+/// the library computes with that setup (its window of 32 periods holding 32 impacts of the
+/// `1/1` orbit, where the preset's 64 hold 64).
 #[test]
 fn config_file_overrides_parameters() {
+    use host_sim::cli::RigOpts;
+    use host_sim::config::Setup;
+    use host_sim::runner::{OperatingPoint, evaluate_all};
+    use shared::model::RigId;
+
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("c.toml");
-    // Doubling A0 doubles the cart's drive; the 1/1 force at Ω/ω = 2 must change.
     fs::write(
         &cfg,
         "[rig]\namplitude_m = 1.78e-3\n[settings.protocol]\nobserve_periods = 32\n",
     )
     .unwrap();
-    let run = |extra: &str| {
+    let preset = Setup::preset(RigId::Wires).unwrap();
+    let read = Setup::from_opts(&RigOpts {
+        config: Some(cfg.clone()),
+        ..RigOpts::preset(RigId::Wires)
+    })
+    .unwrap();
+    let mut expect = preset.clone();
+    expect.params.amplitude_m = 1.78e-3;
+    expect.settings.protocol.observe_periods = 32;
+    assert_eq!(read.params, expect.params);
+    assert_eq!(read.settings, expect.settings);
+    assert_ne!(read.params, preset.params);
+
+    // (impact_force_mg, impacts) of `response` at Ω/ω 2.0, and the library's with `setup`.
+    let command = |extra: &str| -> (f64, u32) {
+        let out = dir.path().join("r.csv");
         ok(&line(&format!(
-            "simulate --rig wires --gap-mm 0 --omega-ratio 2.0 --periods 30 {extra}"
-        )))
+            "response --rig wires --gap-mm 0 --omega-ratio 2.0:2.0:0.1 --out {} {extra}",
+            out.display()
+        )));
+        let text = fs::read_to_string(&out).unwrap();
+        let row: Vec<&str> = text.lines().nth(1).unwrap().split(',').collect();
+        (row[2].parse().unwrap(), row[4].parse().unwrap())
     };
-    let base = run("");
-    let over = run(&format!("--config {}", cfg.display()));
-    assert_ne!(base, over);
+    let library = |setup: &Setup| -> (f64, u32) {
+        let point = OperatingPoint {
+            gap_m: 0.0,
+            omega_ratio: 2.0,
+        };
+        let r = evaluate_all(setup, &[point], "test").unwrap()[0];
+        (r.impact_force_mg, r.impacts)
+    };
+    let over = command(&format!("--config {}", cfg.display()));
+    assert_eq!(over, library(&expect));
+    assert_eq!(over.1, 32);
+    let base = command("");
+    assert_eq!(base, library(&preset));
+    assert_eq!(base.1, 64);
 }
 
 /// The run's log is one timeline: commands, state changes and faults in the order of rig

@@ -19,6 +19,7 @@ fn setup(precision: Precision, settings: SimSettings) -> Setup {
         selection: SelectionSpec::default(),
         precision,
         uncertainty: None,
+        calibration: None,
     }
 }
 

@@ -353,9 +353,32 @@ fn bifurcation_continuation_writes_two_branches() {
     .map(|(a, b)| (a.to_string(), b.to_string()))
     .collect();
     assert_eq!(order, expect);
-    // A 1/1 state is unique here: both branches agree with each other at every frequency.
-    for r in rows.iter().filter(|r| &r[5] == "strobe") {
-        assert_eq!(&r[4], "1/1");
+    // A 1/1 state is unique here: both branches settle on the same orbit at every frequency,
+    // their 64 Poincaré points each within 1e-4 of the cart's amplitude A0 (u) and of its
+    // velocity amplitude A0 Ω (u̇) of the other branch's.
+    let a0_mm = shared::model::RigId::Wires.preset().amplitude_m * 1e3;
+    for index in ["0", "1", "2"] {
+        let points = |branch: &str| -> Vec<[f64; 3]> {
+            rows.iter()
+                .filter(|r| &r[0] == index && &r[1] == branch && &r[5] == "strobe")
+                .map(|r| {
+                    assert_eq!(&r[4], "1/1");
+                    [3, 7, 8].map(|c| r[c].parse().unwrap())
+                })
+                .collect()
+        };
+        let (up, down) = (points("up"), points("down"));
+        assert_eq!((up.len(), down.len()), (64, 64), "index {index}");
+        let omega = 2.0 * std::f64::consts::PI * up[0][0];
+        for a in &up {
+            for b in &down {
+                assert!(
+                    (a[1] - b[1]).abs() < 1e-4 * a0_mm
+                        && (a[2] - b[2]).abs() < 1e-4 * a0_mm * omega,
+                    "index {index}: up {a:?}, down {b:?}"
+                );
+            }
+        }
     }
 }
 

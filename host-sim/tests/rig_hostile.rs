@@ -16,7 +16,9 @@ use shared::control::{
     AsyncKind, AsyncRecord, CycleTelemetry, ModelStatus, Reply, SAMPLE_RATE_HZ, SensorChain, State,
     Status, Target,
 };
+use shared::control::{ModelId, ModelSource};
 use shared::model::RigId;
+use shared::store::StoreState;
 
 mod common;
 use common::leftovers;
@@ -85,13 +87,17 @@ struct Fake {
     log: Vec<String>,
     /// A `stop` came.
     stopped: bool,
+    /// Reads of the pty that found nothing (everything sent before them had been read and
+    /// answered): what [`drained`] waits on.
+    empty_reads: u64,
 }
 
 fn id_info(bad: Misbehaviour) -> IdInfo {
     IdInfo {
         firmware: Version::of("0.1.0"),
         board: Board::Virtual,
-        rig: RigId::Wires,
+        rig: ModelId::of(&RigId::Wires.preset(), ModelSource::Preset(RigId::Wires)),
+        store: StoreState::Empty,
         gap_mm: 0.0,
         sample_rate_hz: SAMPLE_RATE_HZ,
         capture_rate_hz: 100_000,
@@ -114,7 +120,7 @@ fn id_info(bad: Misbehaviour) -> IdInfo {
 fn status(state: State) -> Status {
     Status {
         state,
-        rig: RigId::Wires,
+        rig: ModelId::of(&RigId::Wires.preset(), ModelSource::Preset(RigId::Wires)),
         gap_mm: 0.0,
         freq_hz: 1.0,
         amplitude_mm: 0.0,
@@ -293,6 +299,7 @@ fn fake_rig_logged(bad: Misbehaviour) -> (PathBuf, Arc<Mutex<Fake>>) {
         lines: 0,
         log: Vec::new(),
         stopped: false,
+        empty_reads: 0,
     }));
     let state = Arc::clone(&fake);
     std::thread::spawn(move || {
@@ -316,7 +323,9 @@ fn fake_rig_logged(bad: Misbehaviour) -> (PathBuf, Arc<Mutex<Fake>>) {
             match master.read(&mut chunk) {
                 Ok(0) => return,
                 Ok(n) => buf.extend_from_slice(&chunk[..n]),
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    fake.lock().unwrap().empty_reads += 1;
+                }
                 Err(e) if e.raw_os_error() == Some(nix::libc::EIO) => {}
                 Err(_) => return,
             }
@@ -384,6 +393,23 @@ fn fake_rig_logged(bad: Misbehaviour) -> (PathBuf, Arc<Mutex<Fake>>) {
         }
     });
     (path, state)
+}
+
+/// The fake's log once it has read and answered everything sent to it before the call (a
+/// client that has exited): two reads started since found nothing more (at most 10 s).
+fn drained(fake: &Mutex<Fake>) -> Vec<String> {
+    let seen = fake.lock().unwrap().empty_reads;
+    let end = Instant::now() + Duration::from_secs(10);
+    loop {
+        {
+            let f = fake.lock().unwrap();
+            if f.empty_reads >= seen + 2 {
+                return f.log.clone();
+            }
+        }
+        assert!(Instant::now() < end, "the fake rig read nothing for 10 s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
 }
 
 /// `host-sim rig --port PORT --timeout-s 0.5 ARGS` in `dir`, run to its end; asserts it ended
@@ -586,8 +612,7 @@ fn a_lost_stop_is_retried_and_the_watchdog_stays_armed() {
     assert!(stderr.contains("`stop` failed 3 times"), "{stderr}");
     assert!(stderr.contains("the drive may still run"), "{stderr}");
     assert!(!stderr.contains("ramped to zero"), "{stderr}");
-    std::thread::sleep(Duration::from_millis(200));
-    let log = fake.lock().unwrap().log.clone();
+    let log = drained(&fake);
     let stops = log.iter().filter(|l| *l == "stop").count();
     assert_eq!(stops, 3, "{log:?}");
     let last_stop = log.iter().rposition(|l| l == "stop").unwrap();
@@ -623,8 +648,7 @@ fn the_operators_settings_are_left_as_set() {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        std::thread::sleep(Duration::from_millis(200));
-        let log = fake.lock().unwrap().log.clone();
+        let log = drained(&fake);
         let kind = last.split_whitespace().next().unwrap();
         let final_setting = log.iter().rfind(|l| l.starts_with(kind)).unwrap();
         assert_eq!(final_setting, last, "{log:?}");
@@ -674,8 +698,7 @@ fn the_guards_stop_gets_through_noise_and_is_judged_by_the_status() {
         ),
         "{stderr}"
     );
-    std::thread::sleep(Duration::from_millis(200));
-    let log = fake.lock().unwrap().log.clone();
+    let log = drained(&fake);
     assert_eq!(log.iter().filter(|l| *l == "stop").count(), 1, "{log:?}");
 
     let (port, fake) = fake_rig_logged(Misbehaviour::AcksStopButDrives);
@@ -686,8 +709,7 @@ fn the_guards_stop_gets_through_noise_and_is_judged_by_the_status() {
         "{stderr}"
     );
     assert!(stderr.contains("the drive may still run"), "{stderr}");
-    std::thread::sleep(Duration::from_millis(200));
-    let log = fake.lock().unwrap().log.clone();
+    let log = drained(&fake);
     assert_eq!(log.iter().filter(|l| *l == "stop").count(), 3, "{log:?}");
 }
 
@@ -737,12 +759,17 @@ fn send_checks_what_it_prints() {
 #[test]
 fn a_zero_wait_reads_what_has_arrived() {
     use host_sim::rig_link::{LinkOptions, RigPort};
-    let path = fake_rig(Misbehaviour::Behaves);
+    let (path, fake) = fake_rig_logged(Misbehaviour::Behaves);
     let mut port = RigPort::open(&path, LinkOptions::with_timeout(Duration::from_secs(2))).unwrap();
     port.command(shared::control::Command::Stream(true))
         .unwrap();
-    // The fake streams a line every 20 ms: a few have arrived by now.
-    std::thread::sleep(Duration::from_millis(300));
+    // The fake streams a line every 20 ms: wait (without reading) until it has sent a few.
+    let seq0 = fake.lock().unwrap().seq;
+    let end = Instant::now() + Duration::from_secs(10);
+    while fake.lock().unwrap().seq < seq0 + 3 {
+        assert!(Instant::now() < end, "the fake sent no telemetry for 10 s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
     let first = port.next_record(Duration::ZERO).unwrap();
     assert!(first.is_some(), "a zero wait missed what had arrived");
     let second = port.next_record(Duration::ZERO).unwrap().unwrap();

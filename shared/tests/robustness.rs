@@ -51,7 +51,8 @@ proptest! {
 
     #[test]
     fn valid_random_rigs_stay_finite(
-        rig in 0usize..4, law in 0usize..4, gap_mm in 0.0..3.0f64, ratio in 0.3..6.0f64,
+        rig in 0..RigId::ALL.len(), law in 0..ContactLawKind::ALL.len(), gap_mm in 0.0..3.0f64,
+        ratio in 0.3..6.0f64,
     ) {
         let mut p = RigId::ALL[rig].preset();
         p.contact = ContactLaw::preset(ContactLawKind::ALL[law]);

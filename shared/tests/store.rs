@@ -9,7 +9,7 @@ use sequential_storage::map::{MapConfig, MapStorage};
 use shared::control::{CalibField, Calibration, Settings};
 use shared::model::{ContactLawKind, ModelEdit, ModelField, RigId, params_hash};
 use shared::store::ram_flash::{PAGE_BYTES, RamFlash};
-use shared::store::{COUNT_KEY, RECORD_KEY, SaveError, Store, StoreState};
+use shared::store::{COUNT_KEY, RECORD_KEY, SaveError, SettingsStore, Store, StoreState};
 
 const BYTES: usize = 2 * PAGE_BYTES;
 
@@ -46,7 +46,6 @@ fn a_save_is_read_back_at_the_next_start_up() {
     let mut s = store(&mut mem);
     assert_eq!(s.save(&settings(1)), Ok(1));
     assert_eq!(s.save(&settings(2)), Ok(2));
-    drop(s);
     let loaded = store(&mut mem).load();
     assert_eq!(loaded.state, StoreState::Ok);
     assert_eq!(loaded.settings, Some(settings(2)));
@@ -131,7 +130,6 @@ fn a_power_cut_at_any_step_of_a_save_leaves_the_old_settings_or_the_new_whole() 
             if cut < total {
                 assert_eq!(result, Err(SaveError::Flash), "cut after {cut} of {total}");
             }
-            drop(s);
             // Start-up: the old settings or the new, whole; and the store takes the next save.
             let mut s = store(&mut mem);
             let loaded = s.load();
@@ -143,7 +141,6 @@ fn a_power_cut_at_any_step_of_a_save_leaves_the_old_settings_or_the_new_whole() 
             }
             let next = settings(before + 2);
             s.save(&next).unwrap();
-            drop(s);
             assert_eq!(
                 store(&mut mem).load().settings,
                 Some(next),
@@ -206,4 +203,49 @@ fn a_record_of_another_version_is_not_read() {
         (loaded.state, loaded.settings),
         (StoreState::OtherVersion, None)
     );
+}
+
+/// Start-up: the stored settings run; a store that holds nothing usable leaves the controller
+/// on its preset and says why, naming the field the controller refused.
+#[test]
+fn start_up_runs_the_stored_settings_or_says_why_not() {
+    use shared::control::{Controller, ControllerConfig, ModelSource};
+    use shared::store::{StartUp, start_up};
+    let mut mem = vec![0xffu8; BYTES];
+    let fresh = || Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
+    let mut c = fresh();
+    assert_eq!(
+        start_up(&mut store(&mut mem), &mut c),
+        StartUp::Fallback {
+            state: StoreState::Empty,
+            saves: 0,
+            field: None
+        }
+    );
+    assert_eq!(c.model().1.source, ModelSource::Preset(RigId::Wires));
+    store(&mut mem).save(&settings(7)).unwrap();
+    let mut c = fresh();
+    assert_eq!(
+        start_up(&mut store(&mut mem), &mut c),
+        StartUp::Stored { save: 1 }
+    );
+    assert_eq!(c.settings(), settings(7));
+    assert_eq!(c.model().1.source, ModelSource::Stored);
+    // A record that reads but fails validation (a hammer of −1 kg: the store writes what it is
+    // given) is refused by the controller, which keeps its preset.
+    let mut bad = settings(8);
+    bad.params.mass_kg = -1.0;
+    store(&mut mem).save(&bad).unwrap();
+    let mut c = fresh();
+    let mut s = store(&mut mem);
+    assert_eq!(
+        start_up(&mut s, &mut c),
+        StartUp::Fallback {
+            state: StoreState::Invalid,
+            saves: 2,
+            field: Some("mass_kg")
+        }
+    );
+    assert_eq!(s.status().state, StoreState::Invalid);
+    assert_eq!(c.model().0, &RigId::Wires.preset());
 }

@@ -166,3 +166,36 @@ fn named_pages_exist_and_nothing_points_outside_the_repository() {
     }
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// Every `--law a|b|…` the documentation writes lists the laws of `ContactLawKind::ALL`, in
+/// its order (a law added to the code is one the pages name).
+#[test]
+fn the_pages_list_every_contact_law() {
+    let all = shared::model::ContactLawKind::ALL.map(shared::model::ContactLawKind::name);
+    let mut found = 0;
+    let mut pages = Vec::new();
+    files(&root().join("docs"), &mut pages);
+    pages.push(root().join("README.md"));
+    for page in pages
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+    {
+        let text = fs::read_to_string(page).unwrap();
+        for list in text.split("--law ").skip(1) {
+            let word = list.split(|c: char| c.is_whitespace() || c == '`' || c == ',');
+            let Some(names) = word.into_iter().next().filter(|w| w.contains('|')) else {
+                continue;
+            };
+            let names: Vec<&str> = names.split('|').collect();
+            assert_eq!(
+                names,
+                all,
+                "{}: `--law {}`",
+                page.display(),
+                names.join("|")
+            );
+            found += 1;
+        }
+    }
+    assert!(found >= 1, "no `--law a|b|…` list in the pages");
+}

@@ -8,42 +8,50 @@
 //!   TIM2 has no handler (it only triggers the conversions through its TRGO), so the sampling
 //!   instant does not move with interrupt latency.
 //!
-//! Skipped with a note without the image or LLVM's tools, except under CI.
+//! Needs the images and LLVM's tools (`apt-get install llvm`): ignored unless asked for
+//! (`cargo test -p e2e-tests -- --include-ignored`; `.ci/run`), where a missing tool fails.
 
 use std::collections::HashMap;
 use std::process::Command;
 
-/// Symbol → address, or `None` (skipped) without the image or llvm-nm.
-fn symbols(name: &str) -> Option<HashMap<String, u64>> {
+/// The output of LLVM's `tool` on the image `name`.
+///
+/// # Panics
+/// Without the image or the tool, saying which.
+fn llvm(tool: &str, args: &[&str], name: &str) -> String {
     let elf = e2e_tests::firmware_image(name);
-    let out = Command::new("llvm-nm").arg(&elf).output();
+    let out = Command::new(tool).args(args).arg(&elf).output();
     let ok = elf.exists() && out.as_ref().is_ok_and(|o| o.status.success());
-    if !ok {
-        let why = format!(
-            "needs {} (cargo fw-build) and llvm-nm (apt-get install llvm)",
-            elf.display()
-        );
-        assert!(std::env::var_os("CI").is_none(), "{why}");
-        eprintln!("skipped: {why}");
-        return None;
-    }
-    let text = String::from_utf8(out.unwrap().stdout).unwrap();
-    Some(
-        text.lines()
-            .filter_map(|l| {
-                let mut w = l.split_whitespace();
-                let addr = u64::from_str_radix(w.next()?, 16).ok()?;
-                let _kind = w.next()?;
-                Some((w.next()?.to_string(), addr))
-            })
-            .collect(),
-    )
+    assert!(
+        ok,
+        "needs {} (cargo fw-build) and {tool} (apt-get install llvm): {}",
+        elf.display(),
+        match &out {
+            Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
+            Err(e) => e.to_string(),
+        }
+    );
+    String::from_utf8(out.unwrap().stdout).unwrap()
+}
+
+/// Symbol → address of the image `name`.
+fn symbols(name: &str) -> HashMap<String, u64> {
+    llvm("llvm-nm", &[], name)
+        .lines()
+        .filter_map(|l| {
+            let mut w = l.split_whitespace();
+            let addr = u64::from_str_radix(w.next()?, 16).ok()?;
+            let _kind = w.next()?;
+            Some((w.next()?.to_string(), addr))
+        })
+        .collect()
 }
 
 #[test]
+#[ignore = "needs llvm-nm (apt install llvm) and the firmware images (cargo fw-build)"]
 fn the_stack_sits_below_the_static_data_in_every_image() {
     for name in ["firmware", "firmware-qemu", "qemu-check"] {
-        let Some(s) = symbols(name) else { return };
+        let s = symbols(name);
         let (stack_top, data) = (s["_stack_start"], s["__sdata"]);
         assert!(
             stack_top <= data && s["_stack_end"] == 0x2000_0000,
@@ -53,8 +61,9 @@ fn the_stack_sits_below_the_static_data_in_every_image() {
 }
 
 #[test]
+#[ignore = "needs llvm-nm (apt install llvm) and the firmware images (cargo fw-build)"]
 fn sampling_is_triggered_by_hardware_on_the_rig() {
-    let Some(s) = symbols("firmware") else { return };
+    let s = symbols("firmware");
     let default = s["DefaultHandler"];
     assert_ne!(s["ADC"], default, "no ADC end-of-conversion handler");
     assert_eq!(
@@ -65,21 +74,9 @@ fn sampling_is_triggered_by_hardware_on_the_rig() {
 }
 
 #[test]
+#[ignore = "needs llvm-size (apt install llvm) and the firmware images (cargo fw-build)"]
 fn the_rig_image_fits_its_flash_budget() {
-    let elf = e2e_tests::firmware_image("firmware");
-    let Ok(out) = Command::new("llvm-size").args(["-A"]).arg(&elf).output() else {
-        assert!(std::env::var_os("CI").is_none(), "llvm-size missing");
-        return;
-    };
-    if !out.status.success() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        return;
-    }
-    let text = String::from_utf8(out.stdout).unwrap();
+    let text = llvm("llvm-size", &["-A"], "firmware");
     let size = |sec: &str| -> u64 {
         text.lines()
             .find(|l| l.split_whitespace().next() == Some(sec))

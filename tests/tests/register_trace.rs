@@ -7,13 +7,15 @@
 //! here from the manual's field layouts and limits, not taken from the firmware's constants.
 //!
 //! Needs the image (`cargo fw-build`) and python3 with unicorn and pyelftools (`pip install
-//! unicorn pyelftools`; `.ci/run` installs them). Without them the tests pass after one
-//! `SKIPPED register_trace: …` line on stderr (shown without `--nocapture`), except under CI
-//! (`CI` set), where they fail. `REGISTER_TRACE_ELF=path` runs them on
-//! another image (e.g. an older build, to see what they catch).
+//! unicorn pyelftools`; `.ci/run` installs them and runs these tests): ignored unless asked for
+//! (`cargo test -p e2e-tests --test register_trace -- --include-ignored`), where a missing tool
+//! fails them. The trace is run once per image and kept beside it (`register-trace-HASH.txt`),
+//! so that the tests, one process each under `cargo nextest`, read it instead of running it
+//! again. `REGISTER_TRACE_ELF=path` runs them on another image (e.g. an older build, to see what
+//! they catch).
 
 use std::collections::BTreeMap;
-use std::io::Write as _;
+use std::hash::{DefaultHasher, Hash, Hasher};
 use std::path::PathBuf;
 use std::process::Command;
 use std::sync::OnceLock;
@@ -203,53 +205,62 @@ fn rig_image() -> PathBuf {
         .unwrap_or_else(|| e2e_tests::firmware_image("firmware"))
 }
 
-/// The trace of the rig image (run once for all the tests), or `None` (skipped) without the
-/// image or python's unicorn outside CI.
-fn trace() -> Option<&'static Trace> {
-    static TRACE: OnceLock<Option<Trace>> = OnceLock::new();
-    TRACE
-        .get_or_init(|| {
-            let elf = rig_image();
-            let python = Command::new("python3")
-                .args(["-c", "import unicorn, elftools"])
-                .output();
-            let python_ok = python.as_ref().is_ok_and(|o| o.status.success());
-            if !elf.exists() || !python_ok {
-                let why = format!(
-                    "the register trace needs {} (cargo fw-build) and python3 with unicorn and \
-                     pyelftools (pip install unicorn pyelftools) (found: image {}, python modules {python_ok})",
-                    elf.display(),
-                    elf.exists()
-                );
-                assert!(std::env::var_os("CI").is_none(), "{why}");
-                // Straight to stderr, past the test harness's capture: a skip is seen without
-                // --nocapture (once, for all the tests of this file).
-                let _ = writeln!(std::io::stderr(), "SKIPPED register_trace: {why}");
-                return None;
-            }
-            let script =
-                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../firmware/tools/register_trace.py");
-            let out = Command::new("python3")
-                .arg(&script)
-                .arg(&elf)
-                .output()
-                .expect("run register_trace.py");
-            let text = String::from_utf8_lossy(&out.stdout).into_owned();
-            assert!(
-                out.status.success(),
-                "register_trace.py failed ({}): {}\n{}",
-                out.status,
-                String::from_utf8_lossy(&out.stderr),
-                text.lines().rev().take(40).collect::<Vec<_>>().join("\n")
-            );
-            Some(Trace::parse(&text))
-        })
-        .as_ref()
+/// The trace of the rig image: run once per image and script (the file `register-trace-HASH.txt`
+/// beside the image, `HASH` of both), and read from that file after.
+///
+/// # Panics
+/// Without the image or python's unicorn and pyelftools, saying which.
+fn trace() -> &'static Trace {
+    static TRACE: OnceLock<Trace> = OnceLock::new();
+    TRACE.get_or_init(|| {
+        let elf = rig_image();
+        let script =
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../firmware/tools/register_trace.py");
+        let python = Command::new("python3")
+            .args(["-c", "import unicorn, elftools"])
+            .output();
+        let python_ok = python.as_ref().is_ok_and(|o| o.status.success());
+        assert!(
+            elf.exists() && python_ok,
+            "the register trace needs {} (cargo fw-build) and python3 with unicorn and \
+             pyelftools (pip install unicorn pyelftools) (found: image {}, python modules {python_ok})",
+            elf.display(),
+            elf.exists()
+        );
+        let mut key = DefaultHasher::new();
+        std::fs::read(&elf).unwrap().hash(&mut key);
+        std::fs::read(&script).unwrap().hash(&mut key);
+        let kept = elf.with_file_name(format!("register-trace-{:016x}.txt", key.finish()));
+        if let Ok(text) = std::fs::read_to_string(&kept) {
+            return Trace::parse(&text);
+        }
+        let out = Command::new("python3")
+            .arg(&script)
+            .arg(&elf)
+            .output()
+            .expect("run register_trace.py");
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "register_trace.py failed ({}): {}\n{}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr),
+            text.lines().rev().take(40).collect::<Vec<_>>().join("\n")
+        );
+        // Whole or not at all: written aside, then renamed (another test may be writing the
+        // same trace).
+        let tmp = kept.with_extension(format!("{}.tmp", std::process::id()));
+        if std::fs::write(&tmp, &text).is_ok() {
+            let _ = std::fs::rename(&tmp, &kept);
+        }
+        Trace::parse(&text)
+    })
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn the_clock_tree_is_168_mhz_from_the_8_mhz_crystal_within_rm0090s_limits() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // RCC_PLLCFGR (§7.3.2): PLLM 5:0, PLLN 14:6, PLLP 17:16 (00 = /2, 01 = /4 …), PLLSRC 22
     // (1 = HSE), PLLQ 27:24.
     let pll = last(t, RCC_PLLCFGR);
@@ -328,8 +339,9 @@ fn the_clock_tree_is_168_mhz_from_the_8_mhz_crystal_within_rm0090s_limits() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn every_peripheral_is_clocked_before_its_registers_are_written() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     let boot = t.boot();
     // (enable register, bit, the peripheral's registers, name): §7.3.10, .13, .14; the
     // peripherals' boundary addresses, §2.3 Table 1.
@@ -361,8 +373,9 @@ fn every_peripheral_is_clocked_before_its_registers_are_written() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn both_adcs_run_on_a_21_mhz_clock_and_convert_within_their_periods() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // ADC_CCR.ADCPRE (17:16): 00 /2, 01 /4, 10 /6, 11 /8 of PCLK2 = 84 MHz; ADC1 and ADC2
     // share it. Every write, the calibration's too: no conversion ever runs above 36 MHz.
     let ccr = writes(t.boot(), ADC_CCR);
@@ -393,8 +406,9 @@ fn both_adcs_run_on_a_21_mhz_clock_and_convert_within_their_periods() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn adc1_converts_on_tim2_at_10_khz_and_adc2_on_tim3_at_100_khz() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // ADC_CR2 (§13.13.3): ADON 0, DMA 8, DDS 9, EOCS 10, EXTSEL 27:24 (0110 TIM2 TRGO, 1000
     // TIM3 TRGO), EXTEN 29:28 (01 rising edge). ADC_CR1: EOCIE 5.
     let cr2 = last(t, ADC1 + ADC_CR2);
@@ -430,8 +444,9 @@ fn adc1_converts_on_tim2_at_10_khz_and_adc2_on_tim3_at_100_khz() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn tim5_counts_microseconds_over_the_full_32_bits() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // 84 MHz / (PSC + 1) = 1 MHz; the prescaler is loaded by an update event (UG, §18.4.6)
     // before counting; ARR = 2³² − 1 so that the count wraps every 2³² µs, what the 64-bit
     // extension adds per wrap (an ARR of 0xFFFF_FFFE gains 1 µs every 71.6 min).
@@ -459,8 +474,9 @@ fn tim5_counts_microseconds_over_the_full_32_bits() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn the_capture_stream_is_dma2_stream_2_channel_1_double_buffered_from_adc2() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // DMA2 stream 2 channel 1 is ADC2 (§10.3.3, Table 43). DMA_SxCR (§10.5.5): EN 0, DMEIE 1,
     // TEIE 2, TCIE 4, DIR 7:6 (00 peripheral to memory), CIRC 8, PINC 9, MINC 10, PSIZE 12:11,
     // MSIZE 14:13 (01 half-word), PL 17:16, DBM 18, CT 19, CHSEL 27:25.
@@ -498,8 +514,9 @@ fn the_capture_stream_is_dma2_stream_2_channel_1_double_buffered_from_adc2() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn the_dac_drives_pa4_with_its_output_buffer_at_mid_scale() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // DAC_CR (§14.5.1): EN1 0, BOFF1 1 (0: buffer on, for the amplifier's input impedance).
     let cr = last(t, DAC_CR);
     assert!(bit(cr, 0) && !bit(cr, 1), "DAC_CR 0x{cr:08x}");
@@ -511,8 +528,9 @@ fn the_dac_drives_pa4_with_its_output_buffer_at_mid_scale() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn the_console_is_usart2_at_115200_baud_on_pa2_and_pa3_af7() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // USART2 on APB1 (42 MHz); OVER8 (CR1 bit 15) = 0: baud = f_CK / (16 × USARTDIV), BRR =
     // USARTDIV × 16 (mantissa 15:4, fraction 3:0, §30.3.4).
     let cr1 = last(t, USART2_CR1);
@@ -542,8 +560,9 @@ fn the_console_is_usart2_at_115200_baud_on_pa2_and_pa3_af7() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn the_watchdog_resets_after_2_s_and_stops_while_a_debugger_halts_the_core() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // IWDG (§21.4): KR 0x5555 unlocks PR and RLR; PR 6 = /256; timeout = (RLR + 1) × 256 /
     // 32 kHz (LSI, nominal; §21.3, Table 107); KR 0xCCCC starts it.
     let boot = t.boot();
@@ -569,8 +588,9 @@ fn the_watchdog_resets_after_2_s_and_stops_while_a_debugger_halts_the_core() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn the_sampling_interrupt_preempts_the_console_and_the_capture_which_preempt_the_service() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // NVIC_IPRx: one byte per interrupt, the upper 4 bits implemented (PM0214 §4.3.7); a lower
     // value is a higher priority. ISERx: the enabled interrupts.
     let boot = t.boot();
@@ -598,8 +618,9 @@ fn the_sampling_interrupt_preempts_the_console_and_the_capture_which_preempt_the
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn sampling_starts_once_interrupts_are_on_with_adc1_cleared_first() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     let ev = &t.events;
     let on = t.marker("interrupts-on", "");
     // TIM2 starts counting (CR1.CEN): its first update triggers ADC1. It must come after the
@@ -639,8 +660,9 @@ fn sampling_starts_once_interrupts_are_on_with_adc1_cleared_first() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn the_sampling_task_runs_on_an_end_of_conversion_and_writes_the_dac() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     let ph = t.phase("sample");
     assert_eq!(
         irqs(ph),
@@ -657,8 +679,9 @@ fn the_sampling_task_runs_on_an_end_of_conversion_and_writes_the_dac() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn an_adc1_overrun_clears_ovr_alone_and_reads_the_data_register() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // ADC_SR's flags are rc_w0 (§13.13.1): a written 0 clears, a 1 leaves. Clearing OVR
     // (bit 5) must write 1 to AWD, EOC, JEOC, JSTRT, STRT (bits 4:0) so that no flag set in
     // between is lost; the data register is read so that EOC does not stay set (§13.8.1).
@@ -737,8 +760,9 @@ fn tim3_writes(evs: &[Ev]) -> Vec<(u32, u32)> {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn a_capture_starts_on_a_re_armed_stream() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // Arming: the stream re-armed, then TIM3 started, so that the first block holds only this
     // capture's samples.
     let ph = t.phase("capture-arm");
@@ -768,8 +792,9 @@ fn a_capture_starts_on_a_re_armed_stream() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn a_console_line_during_a_capture_leaves_its_timer_and_stream_alone() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // `status` while the capture records: TIM3 untouched (a restart zeroes its counter and
     // forces an update: the capture's sample phase jumps), the stream too.
     let ph = t.phase("console-armed");
@@ -787,8 +812,9 @@ fn a_console_line_during_a_capture_leaves_its_timer_and_stream_alone() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn a_full_capture_block_reaches_the_store() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // TCIF2 with CT switched to M1: the capture task copies M0 into the segment store.
     let ph = t.phase("capture-block");
     assert!(irqs(ph).contains(&IRQ_DMA2_STREAM2));
@@ -797,8 +823,9 @@ fn a_full_capture_block_reaches_the_store() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn a_stopped_capture_clears_its_streams_flags() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // After `capture stop`, the next block's interrupt stops TIM3; a block that completed as
     // it stopped raises the interrupt once more, which must clear TCIF2 (DMA_LIFCR bit 21,
     // §10.5.3): a flag left set raises it again at once, for ever (the trace gives up after
@@ -833,8 +860,9 @@ fn a_stopped_capture_clears_its_streams_flags() {
 }
 
 #[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
 fn a_capture_dma_transfer_error_re_arms_the_stream_and_counts_the_lost_samples() {
-    let Some(t) = trace() else { return };
+    let t = trace();
     // The stream stopped (TEIF2, EN = 0, §10.3.18) 1.65 ms after the capture started, with one
     // block (64 samples) delivered; ADC2 overran. Its interrupt re-arms it, and the capture's
     // index goes on with time: 1.65 ms at 100 kHz = 165 samples.

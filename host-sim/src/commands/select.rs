@@ -5,9 +5,10 @@ use std::path::PathBuf;
 use anyhow::{Result, anyhow};
 use clap::Args;
 use shared::analysis::SelectionError;
+use shared::observe::PointResult;
 
 use super::omega_sweep;
-use crate::config::{RigOpts, Setup};
+use crate::config::{RigOpts, Setup, UncertaintyTable};
 use crate::figures::response::{Highlight, points, response_band};
 use crate::output::Outputs;
 use crate::propagate::{Propagation, propagate};
@@ -102,58 +103,9 @@ struct ReportWithUncertainty<'a> {
 pub fn run(a: &SelectArgs) -> Result<()> {
     a.rig
         .check_outputs(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())])?;
-    let mut setup = Setup::from_opts(&a.rig)?;
-    if let Some(s) = &a.omega_ratio {
-        setup.selection.omega_ratio = omega_sweep(s)?;
-    }
-    super::warn_coarse_steps(&setup, setup.selection.omega_ratio.lo);
-    if let Some(p) = a.freq_margin_pct {
-        setup.selection.freq_margin_pct = p;
-    }
-    if let Some(g) = a.gap_margin_mm {
-        setup.selection.gap_margin_mm = g;
-    }
-    setup
-        .selection
-        .validate()
-        .map_err(|e| anyhow!("{e} (--freq-margin-pct / --gap-margin-mm)"))?;
-    if !a.no_basin_check {
-        // Checked before the sweep, not after it.
-        anyhow::ensure!(
-            (1..=1_000_000).contains(&a.basin_samples),
-            "--basin-samples {}: out of range: allowed 1 ..= 1000000",
-            a.basin_samples
-        );
-        anyhow::ensure!(
-            (0.0..=1.0).contains(&a.basin_threshold),
-            "--basin-threshold {}: out of range: allowed 0 ..= 1",
-            a.basin_threshold
-        );
-        if let Some(n) = a.basin_max_periods {
-            anyhow::ensure!(
-                (1..=1_000_000).contains(&n),
-                "--basin-max-periods {n}: out of range: allowed 1 ..= 1000000 (a start must \
-                 have periods to reach an attractor)"
-            );
-        }
-    }
-    let table = if a.uncertainty {
-        let t = setup.uncertainty.clone().ok_or_else(|| {
-            anyhow!(
-                "--uncertainty needs a --config with an [uncertainty] table (identify contact \
-                 --out writes one)"
-            )
-        })?;
-        t.check_bounded()?;
-        anyhow::ensure!(
-            (8..=100_000).contains(&a.draws),
-            "--draws = {} is out of range: allowed 8 ..= 100000",
-            a.draws
-        );
-        Some(t)
-    } else {
-        None
-    };
+    let setup = checked_setup(a)?;
+    check_basin_args(a)?;
+    let table = uncertainty_table(a, &setup)?;
     let config = a.config_name();
     let warning = lack_of_fit_warning(&setup, &config);
     let (selection, mut responses) = compute_parts(&setup, a.gap_mm, "select")?;
@@ -183,126 +135,17 @@ pub fn run(a: &SelectArgs) -> Result<()> {
              margin are the sweep's samples"
         ));
     }
-    if let Some(c) = &rep.band_check {
-        for e in [&c.lower, &c.upper] {
-            if let Some(d) = &e.disagreement {
-                rep.warnings.push(format!("band edge: {d}"));
-            }
-            if let Some(s) = &e.smeared {
-                rep.warnings.push(format!(
-                    "band edge: the {} at Ω/ω {:.5}: {}; the margin measured to it is known to \
-                     that span",
-                    e.kind,
-                    e.omega_ratio,
-                    s.describe("Ω/ω", "")
-                ));
-            }
-        }
-        // The sweep's margin met the requirement; the located edges may not.
-        if rep.margin_freq_pct < rep.required_margin_freq_pct {
-            rep.warnings.push(format!(
-                "the margin to the nearer band edge is {:.1} %, below the required ±{} %: the \
-                 point is less robust in frequency than the sweep showed",
-                rep.margin_freq_pct, rep.required_margin_freq_pct
-            ));
-        }
-    }
+    band_warnings(&mut rep);
     let beyond = unsettled_beyond_edges(&setup, &rep, &nominal);
     rep.warnings.extend(beyond);
     if !a.no_basin_check {
-        let mut basin_setup = setup.clone();
-        let n = a.basin_max_periods.unwrap_or_else(|| {
-            crate::attractors::transient_periods(
-                &setup.params,
-                BASIN_MAX_PERIODS,
-                rep.omega_ratio,
-                crate::attractors::ATTRACTOR_STEADY_TOL,
-            )
-        });
-        basin_setup.settings.protocol.max_transient_periods = n;
-        basin_setup.settings.protocol.steady_tol = crate::attractors::ATTRACTOR_STEADY_TOL;
-        basin_setup
-            .settings
-            .protocol
-            .validate()
-            .map_err(|e| anyhow!("--basin-max-periods {n}: {e}"))?;
-        let b = check_basin(
-            &basin_setup,
-            &rep,
-            a.basin_samples,
-            a.basin_seed,
-            a.basin_threshold,
-        )?;
-        if b.flagged {
-            rep.warnings.push(format!(
-                "the chosen 1/1 orbit is reached from only {:.1} % of the start-up conditions \
-                 (95 % interval {:.1}–{:.1} %; threshold {:.0} %){}",
-                100.0 * b.fraction,
-                100.0 * b.ci95[0],
-                100.0 * b.ci95[1],
-                100.0 * b.threshold,
-                b.competitor.as_ref().map_or_else(String::new, |c| format!(
-                    "; the largest competing attractor is {} {} ({:.1} %, F_i/mg {:.2})",
-                    c.regime,
-                    c.id,
-                    100.0 * c.fraction,
-                    c.impact_force_mg
-                ))
-            ));
-        }
-        rep.basin_check = Some(b);
+        basin(a, &setup, &mut rep)?;
     }
     let spread = match &table {
         Some(t) => Some(propagate(&setup, a.gap_mm, t, &rep, a.draws, a.seed)?),
         None => None,
     };
-    let sweep = setup.selection.omega_ratio;
-    let mut outputs = Outputs::new();
-    if a.out.is_some() || a.plot.is_some() {
-        let rows = response::rows(&setup, &sweep, &nominal, None);
-        let points = points(&sweep, &nominal);
-        let p = setup.selection.freq_margin_pct / 100.0;
-        let highlight = Highlight {
-            chosen: (rep.omega_ratio, rep.impact_force_mg),
-            band: rep.band_omega_ratio,
-            window: [rep.omega_ratio * (1.0 - p), rep.omega_ratio * (1.0 + p)],
-        };
-        let title = format!(
-            "{} rig, gap {:.2} mm: operating point {:.2} Hz (Ω/ω = {:.2})",
-            setup.rig, a.gap_mm, rep.freq_hz, rep.omega_ratio
-        );
-        match &spread {
-            None => super::write_response(
-                &mut outputs,
-                a.out.as_deref(),
-                a.plot.as_deref(),
-                &title,
-                &rows,
-                &points,
-                Some(highlight),
-            )?,
-            Some(sp) => {
-                super::write_response(
-                    &mut outputs,
-                    a.out.as_deref(),
-                    None,
-                    &title,
-                    &rows,
-                    &points,
-                    Some(highlight),
-                )?;
-                if let Some(p) = &a.plot {
-                    let tmp = outputs.reserve(p)?;
-                    let title = format!(
-                        "{} rig, gap {:.2} mm: response over {} draws of the identified law",
-                        setup.rig, a.gap_mm, sp.draws
-                    );
-                    response_band(&tmp, &title, sp, &points, &rep)?;
-                }
-            }
-        }
-    }
-    outputs.commit()?;
+    write_outputs(a, &setup, &rep, &nominal, spread.as_ref())?;
     if a.json {
         match &spread {
             Some(sp) => println!(
@@ -327,6 +170,209 @@ pub fn run(a: &SelectArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The setup with `select`'s own options: the sweep, the margins, validated.
+fn checked_setup(a: &SelectArgs) -> Result<Setup> {
+    let mut setup = Setup::from_opts(&a.rig)?;
+    if let Some(s) = &a.omega_ratio {
+        setup.selection.omega_ratio = omega_sweep(s)?;
+    }
+    super::warn_coarse_steps(&setup, setup.selection.omega_ratio.lo);
+    if let Some(p) = a.freq_margin_pct {
+        setup.selection.freq_margin_pct = p;
+    }
+    if let Some(g) = a.gap_margin_mm {
+        setup.selection.gap_margin_mm = g;
+    }
+    setup
+        .selection
+        .validate()
+        .map_err(|e| anyhow!("{e} (--freq-margin-pct / --gap-margin-mm)"))?;
+    Ok(setup)
+}
+
+/// The basin check's options, checked before the sweep, not after it.
+fn check_basin_args(a: &SelectArgs) -> Result<()> {
+    if a.no_basin_check {
+        return Ok(());
+    }
+    anyhow::ensure!(
+        (1..=1_000_000).contains(&a.basin_samples),
+        "--basin-samples {}: out of range: allowed 1 ..= 1000000",
+        a.basin_samples
+    );
+    anyhow::ensure!(
+        (0.0..=1.0).contains(&a.basin_threshold),
+        "--basin-threshold {}: out of range: allowed 0 ..= 1",
+        a.basin_threshold
+    );
+    if let Some(n) = a.basin_max_periods {
+        anyhow::ensure!(
+            (1..=1_000_000).contains(&n),
+            "--basin-max-periods {n}: out of range: allowed 1 ..= 1000000 (a start must \
+             have periods to reach an attractor)"
+        );
+    }
+    Ok(())
+}
+
+/// With `--uncertainty`: the config's `[uncertainty]` table, bounded, and `--draws` checked.
+fn uncertainty_table(a: &SelectArgs, setup: &Setup) -> Result<Option<UncertaintyTable>> {
+    if !a.uncertainty {
+        return Ok(None);
+    }
+    let t = setup.uncertainty.clone().ok_or_else(|| {
+        anyhow!(
+            "--uncertainty needs a --config with an [uncertainty] table (identify contact \
+             --out writes one)"
+        )
+    })?;
+    t.check_bounded()?;
+    anyhow::ensure!(
+        (8..=100_000).contains(&a.draws),
+        "--draws = {} is out of range: allowed 8 ..= 100000",
+        a.draws
+    );
+    Ok(Some(t))
+}
+
+/// The band check's warnings: an edge the sweep disagrees with, an edge smeared over a span,
+/// a margin to the located edges below the requirement.
+fn band_warnings(rep: &mut SelectReport) {
+    let Some(c) = &rep.band_check else {
+        return;
+    };
+    let mut warnings = Vec::new();
+    for e in [&c.lower, &c.upper] {
+        if let Some(d) = &e.disagreement {
+            warnings.push(format!("band edge: {d}"));
+        }
+        if let Some(s) = &e.smeared {
+            warnings.push(format!(
+                "band edge: the {} at Ω/ω {:.5}: {}; the margin measured to it is known to \
+                 that span",
+                e.kind,
+                e.omega_ratio,
+                s.describe("Ω/ω", "")
+            ));
+        }
+    }
+    // The sweep's margin met the requirement; the located edges may not.
+    if rep.margin_freq_pct < rep.required_margin_freq_pct {
+        warnings.push(format!(
+            "the margin to the nearer band edge is {:.1} %, below the required ±{} %: the \
+             point is less robust in frequency than the sweep showed",
+            rep.margin_freq_pct, rep.required_margin_freq_pct
+        ));
+    }
+    rep.warnings.extend(warnings);
+}
+
+/// The basin check of the chosen point (its transient as `--basin-max-periods` says, or from
+/// the suspension's damping), flagged with a warning below the threshold.
+fn basin(a: &SelectArgs, setup: &Setup, rep: &mut SelectReport) -> Result<()> {
+    let mut basin_setup = setup.clone();
+    let n = a.basin_max_periods.unwrap_or_else(|| {
+        crate::attractors::transient_periods(
+            &setup.params,
+            BASIN_MAX_PERIODS,
+            rep.omega_ratio,
+            crate::attractors::ATTRACTOR_STEADY_TOL,
+        )
+    });
+    basin_setup.settings.protocol.max_transient_periods = n;
+    basin_setup.settings.protocol.steady_tol = crate::attractors::ATTRACTOR_STEADY_TOL;
+    basin_setup
+        .settings
+        .protocol
+        .validate()
+        .map_err(|e| anyhow!("--basin-max-periods {n}: {e}"))?;
+    let b = check_basin(
+        &basin_setup,
+        rep,
+        a.basin_samples,
+        a.basin_seed,
+        a.basin_threshold,
+    )?;
+    if b.flagged {
+        rep.warnings.push(format!(
+            "the chosen 1/1 orbit is reached from only {:.1} % of the start-up conditions \
+             (95 % interval {:.1}–{:.1} %; threshold {:.0} %){}",
+            100.0 * b.fraction,
+            100.0 * b.ci95[0],
+            100.0 * b.ci95[1],
+            100.0 * b.threshold,
+            b.competitor.as_ref().map_or_else(String::new, |c| format!(
+                "; the largest competing attractor is {} {} ({:.1} %, F_i/mg {:.2})",
+                c.regime,
+                c.id,
+                100.0 * c.fraction,
+                c.impact_force_mg
+            ))
+        ));
+    }
+    rep.basin_check = Some(b);
+    Ok(())
+}
+
+/// `--out` and `--plot`: the nominal gap's response with the chosen point, band and window
+/// (with `--uncertainty`, the figure of the draws' response band instead).
+fn write_outputs(
+    a: &SelectArgs,
+    setup: &Setup,
+    rep: &SelectReport,
+    nominal: &[PointResult],
+    spread: Option<&Propagation>,
+) -> Result<()> {
+    let mut outputs = Outputs::new();
+    if a.out.is_none() && a.plot.is_none() {
+        return outputs.commit();
+    }
+    let sweep = setup.selection.omega_ratio;
+    let rows = response::rows(setup, &sweep, nominal, None);
+    let points = points(&sweep, nominal);
+    let p = setup.selection.freq_margin_pct / 100.0;
+    let highlight = Highlight {
+        chosen: (rep.omega_ratio, rep.impact_force_mg),
+        band: rep.band_omega_ratio,
+        window: [rep.omega_ratio * (1.0 - p), rep.omega_ratio * (1.0 + p)],
+    };
+    let title = format!(
+        "{} rig, gap {:.2} mm: operating point {:.2} Hz (Ω/ω = {:.2})",
+        setup.rig, a.gap_mm, rep.freq_hz, rep.omega_ratio
+    );
+    match spread {
+        None => super::write_response(
+            &mut outputs,
+            a.out.as_deref(),
+            a.plot.as_deref(),
+            &title,
+            &rows,
+            &points,
+            Some(highlight),
+        )?,
+        Some(sp) => {
+            super::write_response(
+                &mut outputs,
+                a.out.as_deref(),
+                None,
+                &title,
+                &rows,
+                &points,
+                Some(highlight),
+            )?;
+            if let Some(p) = &a.plot {
+                let tmp = outputs.reserve(p)?;
+                let title = format!(
+                    "{} rig, gap {:.2} mm: response over {} draws of the identified law",
+                    setup.rig, a.gap_mm, sp.draws
+                );
+                response_band(&tmp, &title, sp, &points, rep)?;
+            }
+        }
+    }
+    outputs.commit()
 }
 
 impl SelectArgs {

@@ -5,7 +5,8 @@ use std::path::Path;
 
 use anyhow::Result;
 use plotters::prelude::*;
-use shared::control::Target;
+use shared::console::Token;
+use shared::control::{State, Target};
 
 use super::{
     Frame, LegendCover, SANS, canvas, legend_place, level_line, line_key, panel, room_for_legend,
@@ -13,8 +14,14 @@ use super::{
 };
 use crate::virtual_rig::CycleRow;
 
-/// Controller states in plotting order (y levels of the state panel).
-const STATES: [&str; 6] = ["idle", "ramp", "dwell", "track", "stopping", "fault"];
+/// The state panel's level of the controller state named `token` (its place in `State::ALL`;
+/// 0 for a name that is none).
+fn level(token: &str) -> f64 {
+    State::ALL
+        .iter()
+        .position(|s| s.token() == token)
+        .unwrap_or(0) as f64
+}
 
 /// The stacked panels (wide y labels: the state names).
 const PANEL: Frame = Frame::new(10, 35, 80, 14);
@@ -162,21 +169,21 @@ pub fn draw(
     series_legend(&mut c, Some(place), 13)?;
 
     // State.
-    let level = |s: &str| STATES.iter().position(|x| *x == s).unwrap_or(0) as f64;
+    let top = (State::ALL.len() - 1) as f64;
     let mut c = ChartBuilder::on(&panels[2])
         .margin(PANEL.margin)
         .x_label_area_size(PANEL.x_area)
         .y_label_area_size(PANEL.y_area)
-        .build_cartesian_2d(t0..t1, -0.5..5.5)?;
+        .build_cartesian_2d(t0..t1, -0.5..top + 0.5)?;
     c.configure_mesh()
         .x_desc("t (s)")
         .x_label_formatter(&tick)
         .y_desc("controller state")
-        .y_labels(6)
+        .y_labels(State::ALL.len())
         .y_label_formatter(&|y: &f64| {
             let i = y.round();
-            if (y - i).abs() < 1e-6 && (0.0..=5.0).contains(&i) {
-                STATES[i as usize].to_string()
+            if (y - i).abs() < 1e-6 && (0.0..=top).contains(&i) {
+                State::ALL[i as usize].token().to_string()
             } else {
                 String::new()
             }

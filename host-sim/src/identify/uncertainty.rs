@@ -310,7 +310,7 @@ impl Uncertainty {
         u.covariance = rows(&cov);
         let cs = coords(self.law);
         let free: Vec<bool> = (0..p).map(|i| !cov[(i, i)].is_finite()).collect();
-        u.params = params(&cs, &u.mean, &cov, self.law);
+        u.params = params(&cs, &u.mean, &cov);
         u.correlation = correlation(&cov, &free);
         u.notes = notes(&u, &cs);
         u
@@ -345,36 +345,47 @@ struct Coord {
     key: &'static str,
     symbol: &'static str,
     log: bool,
+    unit: Unit,
     /// The fit's bounds on a coordinate that has them (module [`super::cost`]).
     bounds: Option<(f64, f64)>,
 }
 
+/// A parameter's unit as the report writes it.
+#[derive(Clone, Copy)]
+enum Unit {
+    /// This text (empty: dimensionless).
+    Text(&'static str),
+    /// `N/m^n`, `n` the fitted exponent (the law's second coordinate).
+    PowerStiffness,
+}
+
+/// Each law's coordinates, with their units and bounds: a law added to [`ContactLawKind`]
+/// names its own here.
 fn coords(law: ContactLawKind) -> Vec<Coord> {
-    let c = |key, symbol, log| Coord {
+    let c = |key, symbol, log, unit, bounds| Coord {
         key,
         symbol,
         log,
-        bounds: match key {
-            "exponent" => Some((1.0, 3.0)),
-            "restitution" => Some((0.01, 1.0)),
-            _ => None,
-        },
+        unit,
+        bounds,
     };
+    let stiffness = || c("stiffness", "k_i", true, Unit::PowerStiffness, None);
+    let exponent = || c("exponent", "n", false, Unit::Text(""), Some((1.0, 3.0)));
     match law {
         ContactLawKind::SpringDashpot => vec![
-            c("stiffness_n_m", "k_i", true),
-            c("damping_n_s_m", "c_i", true),
+            c("stiffness_n_m", "k_i", true, Unit::Text("N/m"), None),
+            c("damping_n_s_m", "c_i", true, Unit::Text("N s/m"), None),
         ],
-        ContactLawKind::Hertz => vec![c("stiffness", "k_i", true), c("exponent", "n", false)],
+        ContactLawKind::Hertz => vec![stiffness(), exponent()],
         ContactLawKind::HuntCrossley => vec![
-            c("stiffness", "k_i", true),
-            c("exponent", "n", false),
-            c("lambda_s_m", "λ_i", true),
+            stiffness(),
+            exponent(),
+            c("lambda_s_m", "λ_i", true, Unit::Text("s/m"), None),
         ],
         ContactLawKind::LankaraniNikravesh => vec![
-            c("stiffness", "k_i", true),
-            c("exponent", "n", false),
-            c("restitution", "e", false),
+            stiffness(),
+            exponent(),
+            c("restitution", "e", false, Unit::Text(""), Some((0.01, 1.0))),
         ],
     }
 }
@@ -411,19 +422,11 @@ fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
 }
 
 /// The parameters with their 95 % intervals from the coordinates' `mean` and covariance.
-fn params(
-    cs: &[Coord],
-    mean: &[f64],
-    cov: &DMatrix<f64>,
-    law: ContactLawKind,
-) -> Vec<ParamEstimate> {
+fn params(cs: &[Coord], mean: &[f64], cov: &DMatrix<f64>) -> Vec<ParamEstimate> {
     let unit = |c: &Coord| -> String {
-        match (law, c.key) {
-            (ContactLawKind::SpringDashpot, "stiffness_n_m") => "N/m".into(),
-            (ContactLawKind::SpringDashpot, _) => "N s/m".into(),
-            (_, "stiffness") => format!("N/m^{:.3}", mean[1]),
-            (_, "lambda_s_m") => "s/m".into(),
-            _ => String::new(),
+        match c.unit {
+            Unit::Text(t) => t.into(),
+            Unit::PowerStiffness => format!("N/m^{:.3}", mean[1]),
         }
     };
     cs.iter()

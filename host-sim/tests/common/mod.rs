@@ -76,6 +76,15 @@ pub fn leftovers(dir: &Path) -> Vec<String> {
 /// Runs `host-sim args` and asserts it fails, its stderr contains every needle, and none of
 /// `outputs` nor a temporary file beside them exists.
 pub fn rejected<S: AsRef<OsStr> + Debug>(args: &[S], needles: &[&str], outputs: &[&Path]) {
+    rejected_stderr(args, needles, outputs);
+}
+
+/// [`rejected`], returning the stderr.
+pub fn rejected_stderr<S: AsRef<OsStr> + Debug>(
+    args: &[S],
+    needles: &[&str],
+    outputs: &[&Path],
+) -> String {
     let out = host_sim().args(args).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{args:?} succeeded");
@@ -92,6 +101,7 @@ pub fn rejected<S: AsRef<OsStr> + Debug>(args: &[S], needles: &[&str], outputs: 
         let left = leftovers(p.parent().unwrap());
         assert!(left.is_empty(), "temporary files left: {left:?}");
     }
+    stderr.into_owned()
 }
 
 /// A temporary folder and the paths of a command's CSV (`o.csv`) and figure (`o.png`) in it,

@@ -19,10 +19,11 @@ use nalgebra::Vector2;
 use super::response::{SimSettings, simulator_at};
 use crate::error::ParamError;
 
-use crate::integrate::contact_lanes::{ContactLanes, LaneContact, RunLanes};
+use crate::integrate::contact_lanes::{ContactLanes, RunLanes};
 use crate::integrate::free::FreeState;
 use crate::integrate::isa::wide_vectors;
-use crate::integrate::lanes::{LaneField, Lockstep};
+use crate::integrate::lane_field::{LaneContact, LaneField};
+use crate::integrate::lanes::Lockstep;
 use crate::integrate::near::{NearLanes, NearTrial};
 use crate::integrate::stepper::{Cursor, EventFound, LaneTrial, PendingSwitch, SubPlan};
 use crate::integrate::switch_lanes::SwitchLanes;

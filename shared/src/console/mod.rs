@@ -16,11 +16,12 @@
 //!   event) ([`crate::control::AsyncRecord`]); a reply never starts with `!`.
 //! - [`settings`]: the model, calibration and store lines, and the refusals of their changes.
 //! - [`serve`]: one line in, one [`Answer`] out, for the firmware and the virtual rig alike.
-//! - [`decimal`], [`fields`], [`token`]: decimal numbers, `key=value` fields and the names of
-//!   states, faults, rigs and boards.
+//! - [`decimal`], [`fields`], [`token`], [`board`]: decimal numbers, `key=value` fields, the
+//!   names of states, faults, rigs and stores, and which image answers.
 //!
 //! The text of every line, with an example of each, is in docs/operator.md ("The console").
 
+pub mod board;
 pub mod decimal;
 pub mod fields;
 pub mod framing;
@@ -32,11 +33,12 @@ pub mod serve;
 pub mod settings;
 pub mod token;
 
+pub use board::Board;
 pub use decimal::{Decimal, Exact, parse_decimal, parse_exact};
 pub use fields::WireError;
 pub use framing::{Line, LineBuffer, MAX_LINE, RxError, is_line_end};
 pub use link::{Link, LinkStats, PendingLine};
-pub use reply::{Answer, AnswerError, Board, BoardInfo, CaptureError, DiagInfo, IdInfo, Version};
+pub use reply::{Answer, AnswerError, BoardInfo, CaptureError, DiagInfo, IdInfo, Version};
 pub use request::{Arg, DraftCommand, HELP, ParseError, Request, parse};
 pub use serve::{Direct, RigAccess, answer, format_answer, format_async};
 pub use settings::{

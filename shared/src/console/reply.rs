@@ -14,6 +14,7 @@
 use core::fmt;
 use core::str::FromStr;
 
+use super::board::Board;
 use super::decimal::{Decimal, Exact, parse_exact};
 use super::displays_as;
 use super::fields::{Fields, WireError, decimal};
@@ -35,17 +36,6 @@ use crate::store::StoreState;
 const MAX_AMPLITUDE_MM: f32 = 100.0;
 /// Largest force a line may report, N (far above any sensor's range).
 const MAX_FORCE_N: f32 = 1e6;
-
-/// Which image answers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Board {
-    /// The STM32F407 board of the rig.
-    Rig,
-    /// The emulator image on QEMU.
-    Emulator,
-    /// host-sim's virtual rig.
-    Virtual,
-}
 
 /// A firmware version `major.minor.patch`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

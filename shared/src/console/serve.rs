@@ -234,7 +234,7 @@ fn answer_request(rig: &mut impl RigAccess, request: Result<Request, ParseError>
                 rig.reset_after_reply();
                 Answer::Reply(crate::control::Reply::Ok)
             }
-            Err(e) => e,
+            Err(e) => Answer::Error(e),
         },
     }
 }
@@ -297,23 +297,15 @@ fn store_line(rig: &mut impl RigAccess) -> StoreView {
 }
 
 /// The drive idle and no capture recording (what touching the flash or resetting needs).
-fn idle(rig: &mut impl RigAccess) -> Result<(), Answer> {
+fn idle(rig: &mut impl RigAccess) -> Result<(), AnswerError> {
     let state = rig.controller(|c| c.state());
     match state {
         State::Idle => {}
-        State::Fault => {
-            return Err(Answer::Error(AnswerError::Command(
-                CommandError::FaultLatched,
-            )));
-        }
-        s => {
-            return Err(Answer::Error(AnswerError::Command(CommandError::NotIdle(
-                s,
-            ))));
-        }
+        State::Fault => return Err(AnswerError::Command(CommandError::FaultLatched)),
+        s => return Err(AnswerError::Command(CommandError::NotIdle(s))),
     }
     if rig.capture(|c| c.active()) {
-        return Err(Answer::Error(AnswerError::Capture(CaptureError::Running)));
+        return Err(AnswerError::Capture(CaptureError::Running));
     }
     Ok(())
 }
@@ -322,7 +314,7 @@ fn idle(rig: &mut impl RigAccess) -> Result<(), Answer> {
 /// flash is written (the CPU stalls on the board's flash).
 fn save(rig: &mut impl RigAccess) -> Answer {
     if let Err(e) = idle(rig) {
-        return e;
+        return Answer::Error(e);
     }
     let settings = rig.controller(|c| {
         c.pause_sampling();
@@ -345,7 +337,7 @@ fn save(rig: &mut impl RigAccess) -> Answer {
 /// save).
 fn revert(rig: &mut impl RigAccess) -> Answer {
     if let Err(e) = idle(rig) {
-        return e;
+        return Answer::Error(e);
     }
     rig.controller(|c| c.pause_sampling());
     let loaded = rig.store(|s| s.load());

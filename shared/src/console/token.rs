@@ -9,8 +9,6 @@ use crate::model::RigId;
 use crate::observe::Regime;
 use crate::store::StoreState;
 
-use super::reply::Board;
-
 /// A value with a one-word name on the console.
 pub trait Token: Sized + Copy + 'static {
     /// Every value.
@@ -103,17 +101,6 @@ impl Token for CaptureState {
     }
 }
 
-impl Token for Board {
-    const ALL: &'static [Board] = &[Board::Rig, Board::Emulator, Board::Virtual];
-    fn token(self) -> &'static str {
-        match self {
-            Board::Rig => "rig",
-            Board::Emulator => "emulator",
-            Board::Virtual => "virtual",
-        }
-    }
-}
-
 /// A model as a log or a title names it: its source and hash (`wires 36fccdc0`,
 /// `stored 5c1d2a77`).
 impl fmt::Display for crate::control::ModelId {
@@ -161,10 +148,10 @@ pub(crate) fn read_regime(s: &str) -> Option<Option<Regime>> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn names_read_back<T: Token + PartialEq + fmt::Debug>() {
+    pub(crate) fn names_read_back<T: Token + PartialEq + fmt::Debug>() {
         for &v in T::ALL {
             assert_eq!(T::from_token(v.token()), Some(v));
         }
@@ -177,7 +164,6 @@ mod tests {
         names_read_back::<Fault>();
         names_read_back::<RigId>();
         names_read_back::<CaptureState>();
-        names_read_back::<Board>();
         names_read_back::<ModelSource>();
         names_read_back::<StoreState>();
         assert_eq!(read_regime("1/1"), Some(Some(Regime::ONE_ONE)));

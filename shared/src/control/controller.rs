@@ -16,8 +16,9 @@ use super::config::ControllerConfig;
 use super::detector::ImpactDetector;
 use super::faults::{Fault, SensorMonitor};
 use super::meter::RegimeMeter;
+use super::model_id::{ModelId, ModelSource};
 use super::prediction::Prediction;
-use super::settings::{Draft, ModelId, ModelSource, Settings, SettingsError};
+use super::settings::{Draft, Settings, SettingsError};
 use super::sine::SineGenerator;
 use super::status::{
     AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,

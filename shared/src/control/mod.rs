@@ -16,6 +16,7 @@ pub mod controller;
 pub mod detector;
 pub mod faults;
 pub mod meter;
+pub mod model_id;
 pub mod prediction;
 pub mod settings;
 pub mod sine;
@@ -33,8 +34,9 @@ pub use controller::Controller;
 pub use detector::{DetectedImpact, ImpactDetector};
 pub use faults::{Fault, SensorMonitor};
 pub use meter::RegimeMeter;
+pub use model_id::{ModelId, ModelSource};
 pub use prediction::{Prediction, predict};
-pub use settings::{Draft, ModelId, ModelSource, Settings, SettingsError};
+pub use settings::{Draft, Settings, SettingsError};
 pub use sine::{DriveSample, SineGenerator, sin_turn};
 pub use status::{
     AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,

@@ -1,8 +1,6 @@
 //! What the controller runs on besides its firmware defaults: the rig model (a full
 //! [`RigParams`], wherever it came from), the gap and the calibration — the [`Settings`] the
-//! board keeps in flash — and where the active model came from ([`ModelId`]: a preset, the
-//! store, or the console's edits, with the model's hash), so that every log says what the target
-//! frequency was computed from.
+//! board keeps in flash.
 //!
 //! Edits are made at the console one field at a time, or staged in a [`Draft`] and applied
 //! whole (`draft begin` … `draft apply`): what the desktop's `rig model push` uses, so that a
@@ -13,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use super::calibration::{CalibField, Calibration};
 use super::command::CommandError;
 use crate::error::ParamError;
-use crate::model::{EditError, ModelEdit, RigId, RigParams, params_hash};
+use crate::model::{EditError, ModelEdit, RigParams};
 
 /// What the board keeps in flash: the rig model, the gap and the calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -24,36 +22,6 @@ pub struct Settings {
     pub gap_mm: f32,
     /// The calibration.
     pub calibration: Calibration,
-}
-
-/// Where the active rig model came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ModelSource {
-    /// A preset (`rig <name>`, or the power-up fallback), unchanged.
-    Preset(RigId),
-    /// The store (loaded at power-up or by `revert`, or saved since).
-    Stored,
-    /// Changed at the console since (not saved).
-    Edited,
-}
-
-/// Which model is active: where it came from and its hash ([`params_hash`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ModelId {
-    /// Where it came from.
-    pub source: ModelSource,
-    /// The CRC-32 of its canonical bytes.
-    pub hash: u32,
-}
-
-impl ModelId {
-    /// The id of `params` from `source`.
-    pub fn of(params: &RigParams, source: ModelSource) -> ModelId {
-        ModelId {
-            source,
-            hash: params_hash(params),
-        }
-    }
 }
 
 /// Staged changes, applied whole or not at all.

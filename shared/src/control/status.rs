@@ -3,8 +3,8 @@
 //! [`crate::console`]).
 
 use super::faults::Fault;
+use super::model_id::ModelId;
 use super::prediction::Prediction;
-use super::settings::ModelId;
 use crate::model::RigParams;
 use crate::observe::Regime;
 

@@ -23,93 +23,16 @@ use core::marker::PhantomData;
 use nalgebra::Vector2;
 
 use super::Simulator;
-use super::free::{SmallTrig, Trig};
+use super::free::SmallTrig;
 use super::isa::{Isa, Kernel, Variant};
-use super::lanes::LaneField;
+use super::lane_field::LaneContact;
 use super::plan::SubstepRule;
 use super::rk4::rk4_step_compensated;
 use super::stepper::{Handback, LaneResume, LaneTrial, SubPlan, min_approach};
 use crate::model::Region;
 use crate::model::contact::LawCoeffs;
-use crate::model::hammer::{BeamFree, Body, Damped, FieldEval, Undamped, Viscous, WiresFree};
+use crate::model::hammer::{Damped, FieldEval, Undamped, Viscous};
 use crate::real::Real;
-
-/// The contact field of one suspension in a lane.
-pub(crate) trait LaneContact<T: Real>: LaneField<T> {
-    /// What the acceleration needs of the position besides `y1` (wires `(sin θ, cos θ)`,
-    /// beams `u`).
-    type Position: Copy;
-    /// `(δ, δ̇, position, exact)` at `(y0, y1)`, the sine by `G` (`exact`: within its range).
-    fn penetration<G: Trig>(&self, y0: T, y1: T) -> (T, T, Self::Position, bool);
-    /// The acceleration at `position`, `y1` with `sin Ωt = sin_phase` and the contact term
-    /// `contact` (wires `F_i/(m l)`, beams `F_i/m`), the pendulum's viscous term as `V` has it.
-    fn accel_at<V: Viscous>(&self, position: Self::Position, y1: T, sin_phase: T, contact: T) -> T;
-
-    /// The field at `(y0, y1)` with `sin Ωt = sin_phase` and the contact acceleration term
-    /// `force · inv_mass` (wires `1/(m l)`, beams `1/m`) given by `force(δ, δ̇)`:
-    /// `(acceleration, δ, δ̇, force, exact)`.
-    #[inline(always)]
-    fn contact_field<G: Trig, V: Viscous, P: FnOnce(T, T) -> T>(
-        &self,
-        inv_mass: T,
-        y0: T,
-        y1: T,
-        sin_phase: T,
-        force: P,
-    ) -> (T, T, T, T, bool) {
-        let (d, dd, position, exact) = self.penetration::<G>(y0, y1);
-        let f = force(d, dd);
-        let acc = self.accel_at::<V>(position, y1, sin_phase, f * inv_mass);
-        (acc, d, dd, f, exact)
-    }
-
-    /// The suspension's `inv_mass` from the hammer's body (`None` for the other suspension).
-    fn inv_mass(body: &Body<T>) -> Option<T>;
-}
-
-impl<T: Real> LaneContact<T> for WiresFree<T> {
-    type Position = (T, T);
-    #[inline(always)]
-    fn penetration<G: Trig>(&self, y0: T, y1: T) -> (T, T, (T, T), bool) {
-        let (st, ct, exact) = G::sin_cos(y0);
-        (
-            self.length * st - self.gap,
-            self.length * y1 * ct,
-            (st, ct),
-            exact,
-        )
-    }
-    #[inline(always)]
-    fn accel_at<V: Viscous>(&self, sin_cos: (T, T), y1: T, sin_phase: T, contact: T) -> T {
-        self.accel::<V>(sin_cos, y1, sin_phase, contact)
-    }
-    #[inline(always)]
-    fn inv_mass(body: &Body<T>) -> Option<T> {
-        match body {
-            Body::Wires { inv_ml, .. } => Some(*inv_ml),
-            Body::Beam { .. } => None,
-        }
-    }
-}
-
-impl<T: Real> LaneContact<T> for BeamFree<T> {
-    type Position = T;
-    #[inline(always)]
-    fn penetration<G: Trig>(&self, y0: T, y1: T) -> (T, T, T, bool) {
-        (y0 - self.gap, y1, y0, true)
-    }
-    #[inline(always)]
-    fn accel_at<V: Viscous>(&self, u: T, y1: T, sin_phase: T, contact: T) -> T {
-        self.accel(u, y1, sin_phase, contact)
-    }
-    #[inline(always)]
-    fn inv_mass(body: &Body<T>) -> Option<T> {
-        match body {
-            Body::Beam { inv_m, .. } => Some(*inv_m),
-            Body::Wires { .. } => None,
-        }
-    }
-}
 
 /// A run's bookkeeping of its samples (the impact tracker and the period's largest contact
 /// force, `crate::observe::ProtocolRun::sample`) as a contact lane carries it.

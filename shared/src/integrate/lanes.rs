@@ -15,80 +15,13 @@
 //! is not computed twice.
 
 use super::Simulator;
-use super::free::{FreeField, FreeState, SmallTrig, free_step_parts, peak_near};
+use super::free::{FreeState, SmallTrig, free_step_parts, peak_near};
 use super::isa::{Isa, Kernel, Variant};
+use super::lane_field::{COEFS, LaneField};
 use super::plan::PhaseTable;
-use crate::model::hammer::{BeamFree, Damped, FreeFlight, Undamped, Viscous, WiresFree};
+use crate::model::hammer::{BeamFree, Damped, Undamped, Viscous, WiresFree};
 use crate::real::Real;
 use core::marker::PhantomData;
-
-/// The free-flight coefficients of one suspension as a lockstep lane holds them: [`WiresFree`]
-/// or [`BeamFree`] (one [`Lockstep`] per suspension).
-pub(crate) trait LaneField<T: Real>: FreeField<T> + Default {
-    /// This suspension's coefficients, if `ff` is of it.
-    fn of(ff: &FreeFlight<T>) -> Option<Self>;
-    /// The coefficients as an array (the lanes keep one array of `L` per coefficient, so that
-    /// a round reads each as one vector; unused entries 0).
-    fn to_coefs(&self) -> [T; COEFS];
-    /// From [`LaneField::to_coefs`]'s array.
-    fn from_coefs(c: [T; COEFS]) -> Self;
-}
-
-/// Coefficients a lane holds at most (the pendulum's five).
-const COEFS: usize = 5;
-
-impl<T: Real> LaneField<T> for WiresFree<T> {
-    #[inline(always)]
-    fn of(ff: &FreeFlight<T>) -> Option<Self> {
-        match ff {
-            FreeFlight::Wires(w) => Some(*w),
-            FreeFlight::Beam(_) => None,
-        }
-    }
-    #[inline(always)]
-    fn to_coefs(&self) -> [T; COEFS] {
-        [
-            self.length,
-            self.g_over_l,
-            self.damping,
-            self.a0w2_over_l,
-            self.gap,
-        ]
-    }
-    #[inline(always)]
-    fn from_coefs([length, g_over_l, damping, a0w2_over_l, gap]: [T; COEFS]) -> Self {
-        WiresFree {
-            length,
-            g_over_l,
-            damping,
-            a0w2_over_l,
-            gap,
-        }
-    }
-}
-
-impl<T: Real> LaneField<T> for BeamFree<T> {
-    #[inline(always)]
-    fn of(ff: &FreeFlight<T>) -> Option<Self> {
-        match ff {
-            FreeFlight::Beam(b) => Some(*b),
-            FreeFlight::Wires(_) => None,
-        }
-    }
-    #[inline(always)]
-    fn to_coefs(&self) -> [T; COEFS] {
-        [self.k_over_m, self.c_over_m, self.a0w2, self.gap, T::zero()]
-    }
-    #[inline(always)]
-    fn from_coefs([k_over_m, c_over_m, a0w2, gap, _]: [T; COEFS]) -> Self {
-        BeamFree {
-            k_over_m,
-            c_over_m,
-            a0w2,
-            gap,
-        }
-    }
-}
 
 /// The states of `L` lanes, one array per field (so that the lanes pack into SIMD registers).
 #[derive(Clone, Copy)]

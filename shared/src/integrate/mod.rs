@@ -10,6 +10,8 @@
 //!   event location on it, minima between samples; `near`: where a free-flight trial that
 //!   came near the surface is split (on the host its points in vector lanes).
 //! - [`stepper`]: the period-locked driver ([`Simulator`]).
+//! - `lane_field`: what a suspension's coefficients are to the vector lanes (the lane traits,
+//!   below every kind of lane and the near search).
 //! - [`lanes`]: whole free-flight steps of several simulators in lockstep (host grids);
 //!   `contact_lanes`: their ordinary contact sub-steps, several at once; `switch_lanes`: the
 //!   switching events inside those sub-steps, several located at once; `isa`: the vector
@@ -21,6 +23,7 @@ pub(crate) mod contact_lanes;
 pub(crate) mod dense;
 pub(crate) mod free;
 pub(crate) mod isa;
+pub(crate) mod lane_field;
 pub mod lanes;
 pub(crate) mod near;
 pub mod plan;

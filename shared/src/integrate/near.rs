@@ -18,10 +18,10 @@
 //! to round-off instead, differentiated through its root ([`NearTrial::search_exact`]).
 
 use super::bracket::{Rule, bracket_rising};
-use super::contact_lanes::LaneContact;
 use super::dense::{DenseStep, MAX_EVENT_EVALS, hermite_weights};
 use super::free::SmallTrig;
 use super::isa::{Isa, Kernel, Variant};
+use super::lane_field::LaneContact;
 use crate::model::Hammer;
 use crate::real::Real;
 use nalgebra::Vector2;

@@ -16,10 +16,11 @@ use core::marker::PhantomData;
 use nalgebra::Vector2;
 
 use super::bracket::{illinois_step, illinois_update};
-use super::contact_lanes::{LaneContact, linear_switch_force, region_of};
+use super::contact_lanes::{linear_switch_force, region_of};
 use super::dense::{MAX_EVENT_EVALS, hermite_weights};
 use super::free::SmallTrig;
 use super::isa::{Isa, Kernel, Variant};
+use super::lane_field::LaneContact;
 use super::rk4::rk4_step_compensated;
 use super::stepper::{
     EventCase, EventFound, Handback, PendingSwitch, Simulator, SwitchSearch, min_approach,

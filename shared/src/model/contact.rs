@@ -53,37 +53,40 @@ pub enum ContactLaw {
     },
 }
 
-/// The law's name alone, for `--law`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ContactLawKind {
-    /// See [`ContactLaw::Hertz`].
-    Hertz,
-    /// See [`ContactLaw::SpringDashpot`].
-    SpringDashpot,
-    /// See [`ContactLaw::HuntCrossley`].
-    HuntCrossley,
-    /// See [`ContactLaw::LankaraniNikravesh`].
-    LankaraniNikravesh,
+/// Declares [`ContactLawKind`] from one list of its variants and their names: the enum with its
+/// serde names, [`ContactLawKind::ALL`] and [`ContactLawKind::name`] all come from the list, so
+/// a law added to it is in each of them (and every `match` on the kind, [`ContactLaw::kind`] and
+/// [`ContactLaw::preset`] among them, fails to compile until it handles the law).
+macro_rules! law_kinds {
+    ($($(#[doc = $doc:literal])* $variant:ident => $name:literal,)+) => {
+        /// The law's name alone, for `--law`.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        pub enum ContactLawKind {
+            $($(#[doc = $doc])* #[serde(rename = $name)] $variant,)+
+        }
+
+        impl ContactLawKind {
+            /// All laws.
+            pub const ALL: [ContactLawKind; [$($name),+].len()] = [$(ContactLawKind::$variant),+];
+            /// Command-line name (also the law's table in a config file: `[rig.contact.NAME]`).
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(ContactLawKind::$variant => $name,)+
+                }
+            }
+        }
+    };
 }
 
-impl ContactLawKind {
-    /// All laws.
-    pub const ALL: [ContactLawKind; 4] = [
-        ContactLawKind::Hertz,
-        ContactLawKind::SpringDashpot,
-        ContactLawKind::HuntCrossley,
-        ContactLawKind::LankaraniNikravesh,
-    ];
-    /// Command-line name.
-    pub const fn name(self) -> &'static str {
-        match self {
-            ContactLawKind::Hertz => "hertz",
-            ContactLawKind::SpringDashpot => "spring-dashpot",
-            ContactLawKind::HuntCrossley => "hunt-crossley",
-            ContactLawKind::LankaraniNikravesh => "lankarani-nikravesh",
-        }
-    }
+law_kinds! {
+    /// See [`ContactLaw::Hertz`].
+    Hertz => "hertz",
+    /// See [`ContactLaw::SpringDashpot`].
+    SpringDashpot => "spring-dashpot",
+    /// See [`ContactLaw::HuntCrossley`].
+    HuntCrossley => "hunt-crossley",
+    /// See [`ContactLaw::LankaraniNikravesh`].
+    LankaraniNikravesh => "lankarani-nikravesh",
 }
 
 impl fmt::Display for ContactLawKind {
@@ -98,9 +101,14 @@ pub struct UnknownLaw;
 
 impl fmt::Display for UnknownLaw {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(
-            "unknown contact law: expected one of hertz, spring-dashpot, hunt-crossley, lankarani-nikravesh",
-        )
+        f.write_str("unknown contact law: expected one of ")?;
+        for (i, k) in ContactLawKind::ALL.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            f.write_str(k.name())?;
+        }
+        Ok(())
     }
 }
 
@@ -560,6 +568,104 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    /// Every law's field names, in its validation errors, are under its name's table
+    /// (`contact.NAME.FIELD`, as a config file gives them), field by field: each law with one
+    /// parameter NaN at a time.
+    #[test]
+    fn each_laws_errors_name_its_table() {
+        let nan = f64::NAN;
+        for k in ContactLawKind::ALL {
+            let one_nan: Vec<ContactLaw> = match ContactLaw::preset(k) {
+                ContactLaw::Hertz {
+                    stiffness,
+                    exponent,
+                } => vec![
+                    ContactLaw::Hertz {
+                        stiffness: nan,
+                        exponent,
+                    },
+                    ContactLaw::Hertz {
+                        stiffness,
+                        exponent: nan,
+                    },
+                ],
+                ContactLaw::SpringDashpot {
+                    stiffness_n_m,
+                    damping_n_s_m,
+                } => vec![
+                    ContactLaw::SpringDashpot {
+                        stiffness_n_m: nan,
+                        damping_n_s_m,
+                    },
+                    ContactLaw::SpringDashpot {
+                        stiffness_n_m,
+                        damping_n_s_m: nan,
+                    },
+                ],
+                ContactLaw::HuntCrossley {
+                    stiffness,
+                    exponent,
+                    lambda_s_m,
+                } => vec![
+                    ContactLaw::HuntCrossley {
+                        stiffness: nan,
+                        exponent,
+                        lambda_s_m,
+                    },
+                    ContactLaw::HuntCrossley {
+                        stiffness,
+                        exponent: nan,
+                        lambda_s_m,
+                    },
+                    ContactLaw::HuntCrossley {
+                        stiffness,
+                        exponent,
+                        lambda_s_m: nan,
+                    },
+                ],
+                ContactLaw::LankaraniNikravesh {
+                    stiffness,
+                    exponent,
+                    restitution,
+                } => vec![
+                    ContactLaw::LankaraniNikravesh {
+                        stiffness: nan,
+                        exponent,
+                        restitution,
+                    },
+                    ContactLaw::LankaraniNikravesh {
+                        stiffness,
+                        exponent: nan,
+                        restitution,
+                    },
+                    ContactLaw::LankaraniNikravesh {
+                        stiffness,
+                        exponent,
+                        restitution: nan,
+                    },
+                ],
+            };
+            let mut fields = Vec::new();
+            for law in one_nan {
+                match law.validate() {
+                    Err(ParamError::NotFinite { field }) => fields.push(field),
+                    other => panic!("{law:?}: {other:?}"),
+                }
+            }
+            let table = format!("contact.{}.", k.name());
+            for f in &fields {
+                assert!(f.starts_with(&table), "{k}: {f}");
+            }
+            fields.dedup();
+            assert!(fields.len() >= 2, "{k}: {fields:?}");
+        }
+        // The unknown name's error lists every law.
+        let said = "x".parse::<ContactLawKind>().unwrap_err().to_string();
+        for k in ContactLawKind::ALL {
+            assert!(said.contains(k.name()), "{said}");
+        }
     }
 
     #[test]

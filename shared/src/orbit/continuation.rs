@@ -580,130 +580,211 @@ pub fn continue_branch<T: Real>(
     settings: &ContinuationSettings,
     direction: f64,
     initial_tangent: Option<[f64; 3]>,
-    mut on_point: impl FnMut(&BranchPoint<T>),
-    mut on_event: impl FnMut(&BifEvent<T>) -> ControlFlow<()>,
+    on_point: impl FnMut(&BranchPoint<T>),
+    on_event: impl FnMut(&BifEvent<T>) -> ControlFlow<()>,
 ) -> BranchEnd {
-    let s_lambda = match settings.param {
-        Param::OmegaRatio => 1.0,
-        Param::GapM => start.at.params.amplitude_m,
-    };
-    let fr = Frame {
-        at: start.at,
-        param: settings.param,
-        q: start.q,
-        s: start.at.scales(),
-        s_lambda,
-    };
-    let fd_step = if T::EPSILON < 1e-10 { 1e-6 } else { 1e-3 };
-    let switched = initial_tangent.is_some();
-    let value0 = start.at.get(settings.param);
-    let z0 = fr.z_of(&start.x, value0);
-    let Some(e0) = evaluate::<T>(&fr, &z0, fd_step) else {
-        return BranchEnd::StepTooSmall(value0);
-    };
-    let Some(mut t0) = initial_tangent.or_else(|| null_vector(&e0.jac)) else {
-        return BranchEnd::StepTooSmall(value0);
-    };
-    if initial_tangent.is_none() && t0[2] * direction < 0.0 {
-        t0 = t0.map(|v| -v);
+    match Branch::start(
+        start,
+        settings,
+        direction,
+        initial_tangent,
+        on_point,
+        on_event,
+    ) {
+        Ok(mut branch) => branch.run(),
+        Err(end) => end,
     }
-    let mut node = Node {
-        z: z0,
-        t: t0,
-        e: e0,
-    };
-    let mut first = *start;
-    first.at = fr.point(&z0);
-    on_point(&BranchPoint {
-        value: value0,
-        orbit: first,
-    });
-    let mut held: HeldCluster<BifEvent<T>> = HeldCluster::new(
-        settings.kink_span * s_lambda,
-        settings.fold_retreat * s_lambda,
-        value0,
-    );
-    let fold_positive = |n: &Node<T>| n.e.orbit.floquet.fold_test() > 0.0;
-    // Period doublings across jumps of the monodromy, held as folds are.
-    let mut held_doubling: HeldCluster<BifEvent<T>> = HeldCluster::new(
-        settings.kink_span * s_lambda,
-        settings.fold_retreat * s_lambda,
-        value0,
-    );
-    let doubling_positive = |n: &Node<T>| n.e.orbit.floquet.doubling_test() > 0.0;
-    // The fold test's sign where it last held for a span of the parameter (`settled`), and
-    // where it last changed (a located fold or not).
-    let mut settled = fold_positive(&node);
-    let mut last_change: Option<f64> = None;
-    // Tells the held cluster's fold (if `release` gives it) and ends the branch if the caller
-    // stops there.
-    macro_rules! tell_held {
-        ($release:expr) => {
-            if let Some((mut ev, changes)) = $release {
-                ev.changes = Some(changes);
-                if on_event(&ev).is_break() {
-                    return BranchEnd::Stopped(ev.value);
+}
+
+/// A branch being continued ([`continue_branch`]): its frame, its last point and the points
+/// before it, the held folds and doublings, the step, and where its points and events go. Each
+/// step of the walk is a method; one that ends the branch breaks with the end
+/// ([`ControlFlow::Break`]).
+struct Branch<'s, T: Real, P, E> {
+    settings: &'s ContinuationSettings,
+    fr: Frame,
+    fd_step: f64,
+    /// Started along a given tangent (a branch switch).
+    switched: bool,
+    on_point: P,
+    on_event: E,
+    /// The branch's last accepted point.
+    node: Node<T>,
+    /// The point before it (none at the start).
+    previous: Option<Node<T>>,
+    /// The branch's points before `node`, a few of them (the grazing monitors' base).
+    history: heapless::Deque<Node<T>, 8>,
+    /// Folds, held as clusters ([`HeldCluster`]).
+    held: HeldCluster<BifEvent<T>>,
+    /// Period doublings across jumps of the monodromy, held as folds are.
+    held_doubling: HeldCluster<BifEvent<T>>,
+    /// The fold test's sign where it last held for a span of the parameter.
+    settled: bool,
+    /// Where the fold test last changed sign (a located fold or not).
+    last_change: Option<f64>,
+    /// The next step's length (scaled).
+    h: f64,
+}
+
+/// Whether the fold test is positive at `n`.
+fn fold_positive<T: Real>(n: &Node<T>) -> bool {
+    n.e.orbit.floquet.fold_test() > 0.0
+}
+
+/// Whether the period-doubling test is positive at `n`.
+fn doubling_positive<T: Real>(n: &Node<T>) -> bool {
+    n.e.orbit.floquet.doubling_test() > 0.0
+}
+
+impl<'s, T: Real, P, E> Branch<'s, T, P, E>
+where
+    P: FnMut(&BranchPoint<T>),
+    E: FnMut(&BifEvent<T>) -> ControlFlow<()>,
+{
+    /// The branch at `start` (reported to `on_point`), its tangent oriented by `direction` or
+    /// given; the end where the start cannot be evaluated or has no tangent.
+    fn start(
+        start: &Orbit<T>,
+        settings: &'s ContinuationSettings,
+        direction: f64,
+        initial_tangent: Option<[f64; 3]>,
+        mut on_point: P,
+        on_event: E,
+    ) -> Result<Self, BranchEnd> {
+        let s_lambda = match settings.param {
+            Param::OmegaRatio => 1.0,
+            Param::GapM => start.at.params.amplitude_m,
+        };
+        let fr = Frame {
+            at: start.at,
+            param: settings.param,
+            q: start.q,
+            s: start.at.scales(),
+            s_lambda,
+        };
+        let fd_step = if T::EPSILON < 1e-10 { 1e-6 } else { 1e-3 };
+        let value0 = start.at.get(settings.param);
+        let z0 = fr.z_of(&start.x, value0);
+        let Some(e0) = evaluate::<T>(&fr, &z0, fd_step) else {
+            return Err(BranchEnd::StepTooSmall(value0));
+        };
+        let Some(mut t0) = initial_tangent.or_else(|| null_vector(&e0.jac)) else {
+            return Err(BranchEnd::StepTooSmall(value0));
+        };
+        if initial_tangent.is_none() && t0[2] * direction < 0.0 {
+            t0 = t0.map(|v| -v);
+        }
+        let node = Node {
+            z: z0,
+            t: t0,
+            e: e0,
+        };
+        let mut first = *start;
+        first.at = fr.point(&z0);
+        on_point(&BranchPoint {
+            value: value0,
+            orbit: first,
+        });
+        let cluster = || {
+            HeldCluster::new(
+                settings.kink_span * s_lambda,
+                settings.fold_retreat * s_lambda,
+                value0,
+            )
+        };
+        Ok(Self {
+            settings,
+            fr,
+            fd_step,
+            switched: initial_tangent.is_some(),
+            on_point,
+            on_event,
+            node,
+            previous: None,
+            history: heapless::Deque::new(),
+            held: cluster(),
+            held_doubling: cluster(),
+            settled: fold_positive(&node),
+            last_change: None,
+            h: settings.steps.first,
+        })
+    }
+
+    /// The branch's points to its end: within the point budget, each step taken, its grazing
+    /// and multiplier events told, and the point accepted.
+    fn run(&mut self) -> BranchEnd {
+        match self.walk() {
+            ControlFlow::Break(end) => end,
+            ControlFlow::Continue(()) => {
+                let value = self.node.z[2] * self.fr.s_lambda;
+                match self.release_all(self.node) {
+                    ControlFlow::Break(end) => end,
+                    ControlFlow::Continue(()) => BranchEnd::MaxPoints(value),
                 }
             }
-        };
+        }
     }
-    // Tells what both holders let go at the branch's point `$n`: everything (another event,
-    // the branch's end), or by `$method` (`release_past`, `release_at_stall`) at `$value`.
-    macro_rules! release_held {
-        ($n:expr) => {
-            tell_held!(held.release(fold_positive($n)));
-            tell_held!(held_doubling.release(doubling_positive($n)));
-        };
-        ($method:ident, $value:expr, $n:expr) => {
-            tell_held!(held.$method($value, fold_positive($n)));
-            tell_held!(held_doubling.$method($value, doubling_positive($n)));
-        };
+
+    /// [`Branch::run`]'s steps until one ends the branch, or the point budget is spent.
+    fn walk(&mut self) -> ControlFlow<BranchEnd> {
+        for _ in 0..self.settings.max_points {
+            let (b, iters, h_step) = self.step()?;
+            self.grazing_between(&b, h_step)?;
+            let fold_changed = self.multiplier_events(&b, h_step)?;
+            self.release_past(b.z[2] * self.fr.s_lambda, b)?;
+            self.accept(b, iters, fold_changed);
+        }
+        ControlFlow::Continue(())
     }
-    let mut h = settings.steps.first;
-    // (With the rounding of an edge's value scaled and back.)
-    let slack = 1e-12 * (settings.range[1] - settings.range[0]).abs();
-    let in_range = |v: f64| v >= settings.range[0] - slack && v <= settings.range[1] + slack;
-    let mut previous: Option<Node<T>> = None;
-    // The branch's points before `node`, a few of them (the grazing monitors' base).
-    let mut history: heapless::Deque<Node<T>, 8> = heapless::Deque::new();
-    for _ in 0..settings.max_points {
-        let value_a = node.z[2] * s_lambda;
-        // A step: predict, correct, check the tangent turned little and the impacts held.
-        let next = loop {
+
+    /// A step: predict, correct, check the tangent turned little and the corrected point is in
+    /// the range, halving the step until one is taken: the point, Newton's iterations and the
+    /// step's length. A step below the smallest ends the branch: at the range's end, at a
+    /// grazing (Newton cannot follow the branch where the map's derivative is singular), or
+    /// there.
+    fn step(&mut self) -> ControlFlow<BranchEnd, (Node<T>, u32, f64)> {
+        let (settings, s_lambda) = (self.settings, self.fr.s_lambda);
+        let value_a = self.node.z[2] * s_lambda;
+        // (With the rounding of an edge's value scaled and back.)
+        let slack = 1e-12 * (settings.range[1] - settings.range[0]).abs();
+        let in_range = |v: f64| v >= settings.range[0] - slack && v <= settings.range[1] + slack;
+        loop {
             // A step whose prediction would leave the range is shortened to end on its edge
             // (`edge`, scaled), where it is corrected at that value: a branch reaches the
             // range's end rather than stopping a step short.
-            let (h_step, edge) = step_to_edge(settings.range, &node, h, s_lambda);
+            let (h_step, edge) = step_to_edge(settings.range, &self.node, self.h, s_lambda);
             if settings.steps.below_min(h_step) {
                 // At the range's edge heading out of it (the step to the edge below the
                 // smallest, or gap 0 going down where it is 0): the range's end.
                 let reach = 2.0 * settings.steps.min * s_lambda;
-                if at_edge_heading_out(settings.range, value_a, node.t[2], reach) {
-                    release_held!(&node);
-                    return BranchEnd::RangeEnd(value_a);
+                if at_edge_heading_out(settings.range, value_a, self.node.t[2], reach) {
+                    self.release_all(self.node)?;
+                    return ControlFlow::Break(BranchEnd::RangeEnd(value_a));
                 }
                 // A fold within the span of where the branch stalls is the kink that stalls
                 // it: not told.
-                release_held!(release_at_stall, value_a, &node);
+                self.release_at_stall(value_a, self.node)?;
                 // Newton cannot follow the branch: at a grazing the map's derivative is
                 // singular (an impact about to appear or vanish), said as such.
                 if let Some((value, beyond, extrapolated)) =
-                    grazing_end(&fr, settings, &node, history.front())
+                    grazing_end(&self.fr, settings, &self.node, self.history.front())
                 {
-                    let _ = on_event(&BifEvent {
+                    let orbit = self.node.e.orbit;
+                    let _ = (self.on_event)(&BifEvent {
                         kind: EventKind::Grazing,
                         value,
-                        orbit: node.e.orbit,
-                        critical: critical(EventKind::Grazing, &node.e.orbit.floquet),
+                        orbit,
+                        critical: critical(EventKind::Grazing, &orbit.floquet),
                         impacts_beyond: beyond,
                         changes: None,
                         at_jump: false,
                         extrapolated,
                     });
-                    return BranchEnd::Grazing(value);
+                    return ControlFlow::Break(BranchEnd::Grazing(value));
                 }
-                return BranchEnd::StepTooSmall(value_a);
+                return ControlFlow::Break(BranchEnd::StepTooSmall(value_a));
             }
+            let node = &self.node;
             let zp = [
                 node.z[0] + h_step * node.t[0],
                 node.z[1] + h_step * node.t[1],
@@ -714,10 +795,10 @@ pub fn continue_branch<T: Real>(
             } else {
                 node.t
             };
-            match correct::<T>(&fr, zp, &across, settings, fd_step) {
+            match correct::<T>(&self.fr, zp, &across, settings, self.fd_step) {
                 Some((z, e, iters)) => {
                     let Some(mut t) = null_vector(&e.jac) else {
-                        h = h_step * 0.5;
+                        self.h = h_step * 0.5;
                         continue;
                     };
                     if dot(&t, &node.t) < 0.0 {
@@ -726,39 +807,56 @@ pub fn continue_branch<T: Real>(
                     // A corrected point outside the range (the corrector moves across the
                     // tangent) is retried shorter, as a turn too sharp is.
                     if dot(&t, &node.t) < MIN_TURN_COSINE || !in_range(z[2] * s_lambda) {
-                        h = h_step * 0.5;
+                        self.h = h_step * 0.5;
                         continue;
                     }
-                    break (Node { z, t, e }, iters, h_step);
+                    return ControlFlow::Continue((Node { z, t, e }, iters, h_step));
                 }
-                None => h = h_step * 0.5,
+                None => self.h = h_step * 0.5,
             }
-        };
-        let (b, iters, h_step) = next;
-        let value_b = b.z[2] * s_lambda;
-        // A grazing: the impact count changed between a and b.
-        if b.e.orbit.trace.impacts != node.e.orbit.trace.impacts {
-            let (ev, _) = locate(&fr, &node, h_step, settings, fd_step, |e, _| {
-                e.orbit.trace.impacts == node.e.orbit.trace.impacts
-            });
-            let value = ev.z[2] * s_lambda;
-            release_held!(&node);
-            let _ = on_event(&BifEvent {
-                kind: EventKind::Grazing,
-                value,
-                orbit: ev.e.orbit,
-                critical: critical(EventKind::Grazing, &ev.e.orbit.floquet),
-                impacts_beyond: b.e.orbit.trace.impacts,
-                changes: None,
-                at_jump: false,
-                extrapolated: false,
-            });
-            return BranchEnd::Grazing(value);
         }
-        // Multiplier events. After a branch switch the start is a pitchfork of `P^q` (a
-        // multiplier at +1 there by construction): the first step's fold test is not an event.
-        let (mut ta, tb) = (tests(&node.e.orbit), tests(&b.e.orbit));
-        if switched && previous.is_none() {
+    }
+
+    /// A grazing between the last point and `b` (the step `h_step` to it): the impact count
+    /// changed, located between them and told; it ends the branch.
+    fn grazing_between(&mut self, b: &Node<T>, h_step: f64) -> ControlFlow<BranchEnd> {
+        let impacts = self.node.e.orbit.trace.impacts;
+        if b.e.orbit.trace.impacts == impacts {
+            return ControlFlow::Continue(());
+        }
+        let (ev, _) = locate(
+            &self.fr,
+            &self.node,
+            h_step,
+            self.settings,
+            self.fd_step,
+            |e, _| e.orbit.trace.impacts == impacts,
+        );
+        let value = ev.z[2] * self.fr.s_lambda;
+        self.release_all(self.node)?;
+        let _ = (self.on_event)(&BifEvent {
+            kind: EventKind::Grazing,
+            value,
+            orbit: ev.e.orbit,
+            critical: critical(EventKind::Grazing, &ev.e.orbit.floquet),
+            impacts_beyond: b.e.orbit.trace.impacts,
+            changes: None,
+            at_jump: false,
+            extrapolated: false,
+        });
+        ControlFlow::Break(BranchEnd::Grazing(value))
+    }
+
+    /// The multiplier events between the last point and `b`: each test that changed sign
+    /// located, told in the order met (folds held as clusters, doublings at a jump of the
+    /// monodromy held likewise, a change far from its critical multiplier otherwise dropped);
+    /// whether the fold test changed sign.
+    fn multiplier_events(&mut self, b: &Node<T>, h_step: f64) -> ControlFlow<BranchEnd, bool> {
+        let value_a = self.node.z[2] * self.fr.s_lambda;
+        // After a branch switch the start is a pitchfork of `P^q` (a multiplier at +1 there by
+        // construction): the first step's fold test is not an event.
+        let (mut ta, tb) = (tests(&self.node.e.orbit), tests(&b.e.orbit));
+        if self.switched && self.previous.is_none() {
             ta[0] = f64::NAN;
         }
         let mut found: heapless::Vec<BifEvent<T>, 3> = heapless::Vec::new();
@@ -772,14 +870,21 @@ pub fn continue_branch<T: Real>(
         {
             if ta[k].is_finite() && tb[k].is_finite() && (ta[k] > 0.0) != (tb[k] > 0.0) {
                 let side_a = ta[k] > 0.0;
-                let (ev, _) = locate(&fr, &node, h_step, settings, fd_step, |e, _| {
-                    let v = tests(&e.orbit)[k];
-                    !v.is_finite() || (v > 0.0) == side_a
-                });
+                let (ev, _) = locate(
+                    &self.fr,
+                    &self.node,
+                    h_step,
+                    self.settings,
+                    self.fd_step,
+                    |e, _| {
+                        let v = tests(&e.orbit)[k];
+                        !v.is_finite() || (v > 0.0) == side_a
+                    },
+                );
                 let mu = critical(kind, &ev.e.orbit.floquet);
                 let event = BifEvent {
                     kind,
-                    value: ev.z[2] * s_lambda,
+                    value: ev.z[2] * self.fr.s_lambda,
                     orbit: ev.e.orbit,
                     critical: mu,
                     impacts_beyond: ev.e.orbit.trace.impacts,
@@ -797,7 +902,8 @@ pub fn continue_branch<T: Real>(
                             at_jump: true,
                             ..event
                         };
-                        tell_held!(held_doubling.add(event.value, side_a, at_jump));
+                        let released = self.held_doubling.add(event.value, side_a, at_jump);
+                        self.tell(released)?;
                     }
                     continue;
                 }
@@ -812,41 +918,92 @@ pub fn continue_branch<T: Real>(
         });
         for ev in found {
             if ev.kind == EventKind::Fold {
-                tell_held!(held.add(ev.value, settled, ev));
+                let released = self.held.add(ev.value, self.settled, ev);
+                self.tell(released)?;
             } else {
-                release_held!(&b);
-                if on_event(&ev).is_break() {
-                    return BranchEnd::Stopped(ev.value);
+                self.release_all(*b)?;
+                if (self.on_event)(&ev).is_break() {
+                    return ControlFlow::Break(BranchEnd::Stopped(ev.value));
                 }
             }
         }
-        release_held!(release_past, value_b, &b);
-        if ta[0].is_finite() && (ta[0] > 0.0) != (tb[0] > 0.0) {
-            last_change = Some(value_b);
-        } else if last_change.is_none_or(|c| libm::fabs(value_b - c) >= held.span) {
-            settled = fold_positive(&b);
+        ControlFlow::Continue(ta[0].is_finite() && (ta[0] > 0.0) != (tb[0] > 0.0))
+    }
+
+    /// `b` (the step to it taken in `iters` Newton iterations) as the branch's next point:
+    /// where the fold test last settled or changed (`fold_changed`), the point reported, the
+    /// history kept, and the next step's length.
+    fn accept(&mut self, b: Node<T>, iters: u32, fold_changed: bool) {
+        let value_b = b.z[2] * self.fr.s_lambda;
+        if fold_changed {
+            self.last_change = Some(value_b);
+        } else if self
+            .last_change
+            .is_none_or(|c| libm::fabs(value_b - c) >= self.held.span)
+        {
+            self.settled = fold_positive(&b);
         }
-        on_point(&BranchPoint {
+        (self.on_point)(&BranchPoint {
             value: value_b,
             orbit: b.e.orbit,
         });
-        previous = Some(node);
-        if history.is_full() {
-            let _ = history.pop_front();
+        self.previous = Some(self.node);
+        if self.history.is_full() {
+            let _ = self.history.pop_front();
         }
-        let _ = history.push_back(node);
-        node = b;
-        h = if iters <= 2 {
-            (h * 1.5).min(settings.steps.max)
+        let _ = self.history.push_back(self.node);
+        self.node = b;
+        self.h = if iters <= 2 {
+            (self.h * 1.5).min(self.settings.steps.max)
         } else if iters >= 5 {
-            h * 0.7
+            self.h * 0.7
         } else {
-            h
+            self.h
         };
     }
-    let value = node.z[2] * s_lambda;
-    release_held!(&node);
-    BranchEnd::MaxPoints(value)
+
+    /// Tells a held cluster that was let go (`released`, if it tells one); the branch ends
+    /// there if the caller stops it.
+    fn tell(&mut self, released: Option<(BifEvent<T>, SignChanges)>) -> ControlFlow<BranchEnd> {
+        if let Some((mut ev, changes)) = released {
+            ev.changes = Some(changes);
+            if (self.on_event)(&ev).is_break() {
+                return ControlFlow::Break(BranchEnd::Stopped(ev.value));
+            }
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// Tells everything both holders hold, at the branch's point `n` (another event comes, or
+    /// the branch ends).
+    fn release_all(&mut self, n: Node<T>) -> ControlFlow<BranchEnd> {
+        let released = self.held.release(fold_positive(&n));
+        self.tell(released)?;
+        let released = self.held_doubling.release(doubling_positive(&n));
+        self.tell(released)
+    }
+
+    /// Tells what both holders let go once the branch, at `n` (its value `value`), has moved
+    /// the retreat past it ([`HeldCluster::release_past`]).
+    fn release_past(&mut self, value: f64, n: Node<T>) -> ControlFlow<BranchEnd> {
+        let released = self.held.release_past(value, fold_positive(&n));
+        self.tell(released)?;
+        let released = self
+            .held_doubling
+            .release_past(value, doubling_positive(&n));
+        self.tell(released)
+    }
+
+    /// Tells what both holders let go where the branch stalls at `n` (its value `value`;
+    /// [`HeldCluster::release_at_stall`]).
+    fn release_at_stall(&mut self, value: f64, n: Node<T>) -> ControlFlow<BranchEnd> {
+        let released = self.held.release_at_stall(value, fold_positive(&n));
+        self.tell(released)?;
+        let released = self
+            .held_doubling
+            .release_at_stall(value, doubling_positive(&n));
+        self.tell(released)
+    }
 }
 
 /// The step from `node` along its tangent: `h`, or, where the prediction at `h` would leave

@@ -108,7 +108,10 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> RamFlash<B> {
     ) -> Result<core::ops::Range<usize>, RamFlashError> {
         let start = offset as usize;
         let end = start.checked_add(len).ok_or(RamFlashError::OutOfBounds)?;
-        if end > self.bytes.as_ref().len() || start % unit != 0 || len % unit != 0 {
+        if end > self.bytes.as_ref().len()
+            || !start.is_multiple_of(unit)
+            || !len.is_multiple_of(unit)
+        {
             return Err(RamFlashError::OutOfBounds);
         }
         Ok(start..end)

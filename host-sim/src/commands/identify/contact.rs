@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail, ensure};
 use serde::Serialize;
 use shared::error::check_range;
-use shared::model::{ContactLaw, ContactLawKind, Suspension};
+use shared::model::{ContactLaw, ContactLawKind, RigParams, Suspension};
 
 use super::{ContactArgs, LawChoice, describe_law, pair_releases};
 use crate::config::{Setup, config_text};
@@ -15,7 +15,7 @@ use crate::identify::cost::{DropSetup, DropTest, FIT_STEPS, FitError, Residual, 
 use crate::identify::data::{DropData, NOISE_FLOOR, analyse_drop};
 use crate::identify::fit::{Fit, best_by_aicc, by_aicc, fit_laws};
 use crate::identify::uncertainty::{
-    LACK_OF_FIT_FACTOR, STRONG_CORRELATION, Uncertainty, WIDE_REL, ratio_text,
+    FitCheck, LACK_OF_FIT_FACTOR, STRONG_CORRELATION, Uncertainty, WIDE_REL, ratio_text,
 };
 use crate::output::{Outputs, distinct_files, given};
 use crate::trace::read_trace;
@@ -144,56 +144,8 @@ impl LoadedTrace {
 }
 
 pub(super) fn run(a: &ContactArgs) -> Result<()> {
-    let mut inputs: Vec<(&str, &Path)> = a.trace.iter().map(|t| ("--trace", t.as_path())).collect();
-    inputs.extend(a.config.as_deref().map(|c| ("--config", c)));
-    let outputs = given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]);
-    distinct_files(&inputs, &outputs)?;
-    check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
-    check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
-    shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
-    let setup = Setup::from_opts(&crate::config::RigOpts {
-        config: a.config.clone(),
-        precision: crate::precision::Precision::F64,
-        ..crate::config::RigOpts::preset(a.rig)
-    })?;
-    setup.gap_m("--gap-mm", a.gap_mm)?;
-    let releases = pair_releases(&a.release_mm, a.trace.len()).context("--release-mm")?;
-    for &r in &releases {
-        check_range("release_mm", r, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
-        // Released at rest `r` from the surface, the hammer swings at most `r − gap` past its
-        // rest position: it reaches the surface only from beyond twice the gap.
-        ensure!(
-            r > 2.0 * a.gap_mm,
-            "--release-mm {r}: released at rest {r} mm from the surface, the hammer swings at \
-             most {:.3} mm past its rest position, short of the {} mm gap: allowed release > 2 × \
-             gap = {} mm",
-            r - a.gap_mm,
-            a.gap_mm,
-            2.0 * a.gap_mm
-        );
-    }
-    let mut params = setup.params;
-    params.mass_kg = a.mass_kg;
-    params.validate().context("rig parameters")?;
-    let mut loaded = Vec::with_capacity(a.trace.len());
-    for (path, &release_mm) in a.trace.iter().zip(&releases) {
-        let trace = read_trace(
-            path,
-            &a.time.format(Some(&a.force_col), a.force_unit.to_n()),
-            "force",
-        )?;
-        let data = analyse_drop(&trace, a.max_impacts as usize)
-            .and_then(|d| {
-                d.check_spacing(1.0 / params.natural_freq_hz())?;
-                Ok(d)
-            })
-            .with_context(|| format!("trace {}", path.display()))?;
-        loaded.push(LoadedTrace {
-            path: path.clone(),
-            release_mm,
-            data,
-        });
-    }
+    let (params, releases) = checked_setup(a)?;
+    let loaded = load_traces(a, &params, &releases)?;
     let tests: Vec<DropTest> = loaded
         .iter()
         .map(|l| DropTest {
@@ -243,12 +195,6 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         samples_per_contact: spc,
     };
     let best_fit = &fits.iter().find(|f| f.0 == best).context("no fit")?.1;
-    let files: Vec<String> = a.trace.iter().map(|p| p.display().to_string()).collect();
-    let releases_text: Vec<String> = releases.iter().map(|r| r.to_string()).collect();
-    let impacts: Vec<String> = loaded
-        .iter()
-        .map(|l| l.data.impacts.len().to_string())
-        .collect();
 
     // A fit whose misfit cannot be told from the sensor noise is not written as a config that
     // other commands would take on trust.
@@ -256,76 +202,12 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
     let mut outputs = Outputs::new();
     if let (Some(p), None) = (&a.out, unchecked) {
         let tmp = outputs.reserve(p)?;
-        let mut out_params = params;
-        out_params.contact = best_fit.law;
-        let mut comment = format!(
-            "host-sim identify contact: {} law fitted to {} ({} impacts, error: {}, release {} mm, \
-             gap {} mm)\nresidual: peak rms {:.2} % of the {}largest peak, time rms {:.1} us, J = {:.3e}",
-            best,
-            files.join(" + "),
-            impacts.join(" + "),
-            error,
-            releases_text.join(" + "),
-            a.gap_mm,
-            best_fit.residual.peak_rms_pct,
-            if loaded.len() > 1 { "trace's " } else { "" },
-            best_fit.residual.time_rms_us,
-            best_fit.residual.cost
-        );
-        let _ = write!(
-            comment,
-            "\n{}",
-            Restitution::of(best_fit, a.mass_kg).describe()
-        );
-        if let Ok(u) = &best_fit.uncertainty {
-            let _ = write!(comment, "\nintervals: {}", u.method);
-            for par in &u.params {
-                let _ = write!(
-                    comment,
-                    "\n{} = {:.5e} {} (95 %: {:.5e} .. {:.5e})",
-                    par.name, par.value, par.unit, par.ci95[0], par.ci95[1]
-                );
-            }
-            for n in &u.notes {
-                let _ = write!(comment, "\n{n}");
-            }
-        }
-        let mut text = config_text(
-            &comment,
-            &out_params,
-            &a.rig.preset(),
-            &["mass_kg", "contact"],
-        )?;
-        if let Ok(u) = &best_fit.uncertainty {
-            text.push('\n');
-            text.push_str(&u.table().to_toml()?);
-        }
+        let text = config_file(a, &run, &loaded, &params, best, best_fit)?;
         std::fs::write(&tmp, text).with_context(|| format!("writing {}", p.display()))?;
     }
     if let Some(p) = &a.plot {
         let tmp = outputs.reserve(p)?;
-        let name = |p: &PathBuf| {
-            p.file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-        };
-        let names: Vec<String> = a.trace.iter().map(name).collect();
-        let title = format!(
-            "Drop test {} (release {} mm, {} rig): fitted contact laws",
-            names.join(" + "),
-            releases_text.join(" + "),
-            a.rig
-        );
-        let panels: Vec<(String, &DropData)> = loaded
-            .iter()
-            .map(|l| {
-                (
-                    format!("{} (release {} mm)", name(&l.path), l.release_mm),
-                    &l.data,
-                )
-            })
-            .collect();
-        let curves: Vec<(String, &Fit)> = fits.iter().map(|(k, f)| (k.to_string(), f)).collect();
-        crate::figures::identify::drop_fit(&tmp, &title, &panels, &curves)?;
+        draw_fits(a, &tmp, &loaded, &fits)?;
     }
     outputs.commit()?;
     let release_notes: Vec<String> = loaded
@@ -356,6 +238,162 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         eprintln!("! note: {note}");
     }
     Ok(())
+}
+
+/// The options checked: the rig's parameters with `--mass-kg` (from `--rig` and `--config`),
+/// and the release of each trace (`--release-mm`, one for all or one per trace).
+fn checked_setup(a: &ContactArgs) -> Result<(RigParams, Vec<f64>)> {
+    let mut inputs: Vec<(&str, &Path)> = a.trace.iter().map(|t| ("--trace", t.as_path())).collect();
+    inputs.extend(a.config.as_deref().map(|c| ("--config", c)));
+    let outputs = given(&[("--out", a.out.as_deref()), ("--plot", a.plot.as_deref())]);
+    distinct_files(&inputs, &outputs)?;
+    check_range("mass_kg", a.mass_kg, 1e-6, 1e3).context("--mass-kg")?;
+    check_range("time_weight", a.time_weight, 0.0, 1e6).context("--time-weight")?;
+    shared::error::check_count("max_impacts", a.max_impacts, 1, 50).context("--max-impacts")?;
+    let setup = Setup::from_opts(&crate::config::RigOpts {
+        config: a.config.clone(),
+        precision: crate::precision::Precision::F64,
+        ..crate::config::RigOpts::preset(a.rig)
+    })?;
+    setup.gap_m("--gap-mm", a.gap_mm)?;
+    let releases = pair_releases(&a.release_mm, a.trace.len()).context("--release-mm")?;
+    for &r in &releases {
+        check_range("release_mm", r, a.gap_mm + 1e-3, 100.0).context("--release-mm")?;
+        // Released at rest `r` from the surface, the hammer swings at most `r − gap` past its
+        // rest position: it reaches the surface only from beyond twice the gap.
+        ensure!(
+            r > 2.0 * a.gap_mm,
+            "--release-mm {r}: released at rest {r} mm from the surface, the hammer swings at \
+             most {:.3} mm past its rest position, short of the {} mm gap: allowed release > 2 × \
+             gap = {} mm",
+            r - a.gap_mm,
+            a.gap_mm,
+            2.0 * a.gap_mm
+        );
+    }
+    let mut params = setup.params;
+    params.mass_kg = a.mass_kg;
+    params.validate().context("rig parameters")?;
+    Ok((params, releases))
+}
+
+/// Each `--trace` read and its impacts found, with its release.
+fn load_traces(a: &ContactArgs, params: &RigParams, releases: &[f64]) -> Result<Vec<LoadedTrace>> {
+    let mut loaded = Vec::with_capacity(a.trace.len());
+    for (path, &release_mm) in a.trace.iter().zip(releases) {
+        let trace = read_trace(
+            path,
+            &a.time.format(Some(&a.force_col), a.force_unit.to_n()),
+            "force",
+        )?;
+        let data = analyse_drop(&trace, a.max_impacts as usize)
+            .and_then(|d| {
+                d.check_spacing(1.0 / params.natural_freq_hz())?;
+                Ok(d)
+            })
+            .with_context(|| format!("trace {}", path.display()))?;
+        loaded.push(LoadedTrace {
+            path: path.clone(),
+            release_mm,
+            data,
+        });
+    }
+    Ok(loaded)
+}
+
+/// The `--out` config: the rig's parameters with the best law, its fit, restitution and
+/// intervals as comments, and its `[uncertainty]` table where it has one.
+fn config_file(
+    a: &ContactArgs,
+    run: &ContactRun,
+    loaded: &[LoadedTrace],
+    params: &RigParams,
+    best: ContactLawKind,
+    best_fit: &Fit,
+) -> Result<String> {
+    let files: Vec<String> = a.trace.iter().map(|p| p.display().to_string()).collect();
+    let releases: Vec<String> = loaded.iter().map(|l| l.release_mm.to_string()).collect();
+    let impacts: Vec<String> = loaded
+        .iter()
+        .map(|l| l.data.impacts.len().to_string())
+        .collect();
+    let mut out_params = *params;
+    out_params.contact = best_fit.law;
+    let mut comment = format!(
+        "host-sim identify contact: {} law fitted to {} ({} impacts, error: {}, release {} mm, \
+         gap {} mm)\nresidual: peak rms {:.2} % of the {}largest peak, time rms {:.1} us, J = {:.3e}",
+        best,
+        files.join(" + "),
+        impacts.join(" + "),
+        run.error,
+        releases.join(" + "),
+        a.gap_mm,
+        best_fit.residual.peak_rms_pct,
+        if loaded.len() > 1 { "trace's " } else { "" },
+        best_fit.residual.time_rms_us,
+        best_fit.residual.cost
+    );
+    let _ = write!(
+        comment,
+        "\n{}",
+        Restitution::of(best_fit, a.mass_kg).describe()
+    );
+    if let Ok(u) = &best_fit.uncertainty {
+        let _ = write!(comment, "\nintervals: {}", u.method);
+        for par in &u.params {
+            let _ = write!(
+                comment,
+                "\n{} = {:.5e} {} (95 %: {:.5e} .. {:.5e})",
+                par.name, par.value, par.unit, par.ci95[0], par.ci95[1]
+            );
+        }
+        for n in &u.notes {
+            let _ = write!(comment, "\n{n}");
+        }
+    }
+    let mut text = config_text(
+        &comment,
+        &out_params,
+        &a.rig.preset(),
+        &["mass_kg", "contact"],
+    )?;
+    if let Ok(u) = &best_fit.uncertainty {
+        text.push('\n');
+        text.push_str(&u.table().to_toml()?);
+    }
+    Ok(text)
+}
+
+/// The `--plot` figure into `tmp`: each trace with every law's fitted simulation.
+fn draw_fits(
+    a: &ContactArgs,
+    tmp: &Path,
+    loaded: &[LoadedTrace],
+    fits: &[(ContactLawKind, Fit)],
+) -> Result<()> {
+    let name = |p: &PathBuf| {
+        p.file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+    };
+    let names: Vec<String> = a.trace.iter().map(name).collect();
+    let releases: Vec<String> = loaded.iter().map(|l| l.release_mm.to_string()).collect();
+    let title = format!(
+        "Drop test {} (release {} mm, {} rig): fitted contact laws",
+        names.join(" + "),
+        releases.join(" + "),
+        a.rig
+    );
+    let panels: Vec<(String, &DropData)> = loaded
+        .iter()
+        .map(|l| {
+            (
+                format!("{} (release {} mm)", name(&l.path), l.release_mm),
+                &l.data,
+            )
+        })
+        .collect();
+    let curves: Vec<(String, &Fit)> = fits.iter().map(|(k, f)| (k.to_string(), f)).collect();
+    crate::figures::identify::drop_fit(tmp, &title, &panels, &curves)
 }
 
 /// How far the arrival speed implied by a trace's first impulse may lie from the model's before
@@ -473,6 +511,8 @@ fn print_uncertainty(label: &str, u: &Result<Uncertainty, String>, restitution: 
     }
 }
 
+/// The report of `identify contact`: as JSON (`--json`), or as text: each trace, the fit, the
+/// laws' table, their ranking, the lack of fit, each law's intervals, the file written.
 fn print_contact(
     a: &ContactArgs,
     run: &ContactRun,
@@ -485,87 +525,124 @@ fn print_contact(
         .map(|f| f.1.aicc())
         .fold(f64::INFINITY, f64::min);
     if a.json {
-        let traces: Vec<TraceReport> = loaded.iter().map(LoadedTrace::report).collect();
-        let report = ContactReport {
-            first: loaded.first().context("no trace")?.report(),
-            traces,
-            error: run.error,
-            error_requested: run.requested,
-            samples_per_contact: run.samples_per_contact,
-            fits: fits
-                .iter()
-                .map(|(k, f)| LawReport {
-                    law: *k,
-                    contact: f.law,
-                    residual: f.residual,
-                    trace_residuals: f.traces.iter().map(|t| t.residual).collect(),
-                    evaluations: f.evaluations,
-                    aic: f.aic(),
-                    aicc: f.aicc(),
-                    delta_aicc: f.aicc() - best_aicc,
-                    restitution: Restitution::of(f, a.mass_kg),
-                    uncertainty: f.uncertainty.as_ref().ok().cloned(),
-                })
-                .collect(),
-            best,
-        };
+        let report = contact_report(a, run, loaded, fits, best, best_aicc)?;
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
     for l in loaded {
-        let data = &l.data;
-        // The sampling interval is the smallest step; larger steps are gaps between the
-        // segments of a segmented capture (`rig capture`).
-        let dt = data
-            .t_s
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .fold(f64::INFINITY, f64::min);
-        let segments = 1 + data
-            .t_s
-            .windows(2)
-            .filter(|w| w[1] - w[0] > 1.5 * dt)
-            .count();
-        let segments = if segments > 1 {
-            format!(" in {segments} segments")
-        } else {
-            String::new()
-        };
-        let peaks: Vec<String> = data
-            .impacts
-            .iter()
-            .map(|i| format!("{:.2}", i.peak_n))
-            .collect();
-        println!(
-            "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N{}; {}, {} {} N{}{}",
-            l.path.display(),
-            data.t_s.len(),
-            segments,
-            1e-3 / dt,
-            data.offset_n,
-            data.noise_n,
-            if data.noise_floored {
-                format!(
-                    " (the floor, {} % of the largest force: the trace's own noise is below \
-                     it; at this level the sampling limits the fit, by more than the intervals \
-                     say below 100 kHz: docs/identification.md, \"A quiet sensor\")",
-                    100.0 * NOISE_FLOOR
-                )
-            } else {
-                String::new()
-            },
-            crate::output::count(data.impacts.len() as u64, "impact"),
-            if peaks.len() == 1 { "peak" } else { "peaks" },
-            peaks.join(", "),
-            data.too_weak.map_or(String::new(), |(p, thr)| format!(
-                " (the next, {p:.2} N, is below twice the detection threshold {thr:.2} N: too \
-                 weak to time, left out)"
-            )),
-            data.spike_n.map_or(String::new(), |f| format!(
-                "; a glitch of {f:.2} N (one or two samples) is not an impact"
-            ))
+        println!("{}", trace_line(l));
+    }
+    print_fit_heading(a, run, loaded);
+    let mut ranked: Vec<&(ContactLawKind, Fit)> = fits.iter().collect();
+    ranked.sort_by(|x, y| by_aicc(&x.1, &y.1));
+    print_table(a, run, loaded, &ranked, best_aicc);
+    print_ranking(fits.len(), &ranked, best, best_aicc);
+    print_lack_of_fit(fits.len(), &ranked);
+    for (k, f) in &ranked {
+        print_uncertainty(
+            &k.to_string(),
+            &f.uncertainty,
+            &Restitution::of(f, a.mass_kg),
         );
     }
+    if let Some(p) = &a.out {
+        println!("  wrote {} ({best} law; use it with --config)", p.display());
+    }
+    Ok(())
+}
+
+/// The `--json` report: the traces, the error, every law's fit.
+fn contact_report(
+    a: &ContactArgs,
+    run: &ContactRun,
+    loaded: &[LoadedTrace],
+    fits: &[(ContactLawKind, Fit)],
+    best: ContactLawKind,
+    best_aicc: f64,
+) -> Result<ContactReport> {
+    Ok(ContactReport {
+        first: loaded.first().context("no trace")?.report(),
+        traces: loaded.iter().map(LoadedTrace::report).collect(),
+        error: run.error,
+        error_requested: run.requested,
+        samples_per_contact: run.samples_per_contact,
+        fits: fits
+            .iter()
+            .map(|(k, f)| LawReport {
+                law: *k,
+                contact: f.law,
+                residual: f.residual,
+                trace_residuals: f.traces.iter().map(|t| t.residual).collect(),
+                evaluations: f.evaluations,
+                aic: f.aic(),
+                aicc: f.aicc(),
+                delta_aicc: f.aicc() - best_aicc,
+                restitution: Restitution::of(f, a.mass_kg),
+                uncertainty: f.uncertainty.as_ref().ok().cloned(),
+            })
+            .collect(),
+        best,
+    })
+}
+
+/// A trace's line: its samples (and segments), rate, offset, noise, impacts and their peaks.
+fn trace_line(l: &LoadedTrace) -> String {
+    let data = &l.data;
+    // The sampling interval is the smallest step; larger steps are gaps between the
+    // segments of a segmented capture (`rig capture`).
+    let dt = data
+        .t_s
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(f64::INFINITY, f64::min);
+    let segments = 1 + data
+        .t_s
+        .windows(2)
+        .filter(|w| w[1] - w[0] > 1.5 * dt)
+        .count();
+    let segments = if segments > 1 {
+        format!(" in {segments} segments")
+    } else {
+        String::new()
+    };
+    let peaks: Vec<String> = data
+        .impacts
+        .iter()
+        .map(|i| format!("{:.2}", i.peak_n))
+        .collect();
+    format!(
+        "Drop test {}: {} samples{} at {:.1} kHz, offset {:.3} N removed, noise {:.3} N{}; {}, {} {} N{}{}",
+        l.path.display(),
+        data.t_s.len(),
+        segments,
+        1e-3 / dt,
+        data.offset_n,
+        data.noise_n,
+        if data.noise_floored {
+            format!(
+                " (the floor, {} % of the largest force: the trace's own noise is below \
+                 it; at this level the sampling limits the fit, by more than the intervals \
+                 say below 100 kHz: docs/identification.md, \"A quiet sensor\")",
+                100.0 * NOISE_FLOOR
+            )
+        } else {
+            String::new()
+        },
+        crate::output::count(data.impacts.len() as u64, "impact"),
+        if peaks.len() == 1 { "peak" } else { "peaks" },
+        peaks.join(", "),
+        data.too_weak.map_or(String::new(), |(p, thr)| format!(
+            " (the next, {p:.2} N, is below twice the detection threshold {thr:.2} N: too \
+             weak to time, left out)"
+        )),
+        data.spike_n.map_or(String::new(), |f| format!(
+            "; a glitch of {f:.2} N (one or two samples) is not an impact"
+        ))
+    )
+}
+
+/// What was fitted: the error, the suspension, the mass, the releases and the gap.
+fn print_fit_heading(a: &ContactArgs, run: &ContactRun, loaded: &[LoadedTrace]) {
     let releases: Vec<String> = loaded.iter().map(|l| l.release_mm.to_string()).collect();
     println!(
         "{} ({} error{}{}), {}, m = {} kg, released {} mm from the surface, gap {} mm:",
@@ -609,6 +686,22 @@ fn print_contact(
             String::new()
         }
     );
+}
+
+/// The lack-of-fit check of a fit that has one.
+fn fit_check(f: &Fit) -> Option<FitCheck> {
+    f.uncertainty.as_ref().ok().map(|u| u.fit_check.clone())
+}
+
+/// The laws' table, best first: parameters, residuals, χ²/noise, restitution, ΔAICc,
+/// evaluations (and each trace's residuals in a joint fit).
+fn print_table(
+    a: &ContactArgs,
+    run: &ContactRun,
+    loaded: &[LoadedTrace],
+    ranked: &[&(ContactLawKind, Fit)],
+    best_aicc: f64,
+) {
     println!(
         "  {:<20} {:<50} {:>9} {:>10} {:>11} {:>10} {:>9} {:>6} {:>7} {:>6}",
         "law",
@@ -650,16 +743,13 @@ fn print_contact(
             w.evals
         );
     };
-    let mut ranked: Vec<&(ContactLawKind, Fit)> = fits.iter().collect();
-    ranked.sort_by(|x, y| by_aicc(&x.1, &y.1));
-    let check = |f: &Fit| f.uncertainty.as_ref().ok().map(|u| u.fit_check.clone());
-    for (k, f) in &ranked {
+    for (k, f) in ranked {
         let e = Restitution::of(f, a.mass_kg).at_first_impact;
         row(Row {
             label: k.to_string(),
             params: describe_law(&f.law),
             r: &f.residual,
-            chi2: check(f)
+            chi2: fit_check(f)
                 .and_then(|c| {
                     c.headline_ratio().map(|r| {
                         format!("{}{}", ratio_text(r, 1), if c.misses { " !" } else { "" })
@@ -688,12 +778,22 @@ fn print_contact(
             }
         }
     }
+}
+
+/// The ranking by AICc of `laws` fits (`ranked`, best first): the laws it cannot rank, and
+/// those it cannot tell from the best.
+fn print_ranking(
+    laws: usize,
+    ranked: &[&(ContactLawKind, Fit)],
+    best: ContactLawKind,
+    best_aicc: f64,
+) {
     let unranked: Vec<String> = ranked
         .iter()
         .filter(|f| !f.1.aicc().is_finite())
         .map(|f| format!("{} ({} parameters)", f.0, f.1.parameters()))
         .collect();
-    if fits.len() > 1 && !unranked.is_empty() {
+    if laws > 1 && !unranked.is_empty() {
         println!(
             "  ! not ranked by AICc: {} (AICc needs more terms than parameters + 1; the error has {}): \
              fit more impacts or a second trace, or keep the impact times or the profile in the error",
@@ -701,7 +801,7 @@ fn print_contact(
             ranked[0].1.terms
         );
     }
-    if fits.len() > 1 && ranked[0].1.aicc().is_finite() {
+    if laws > 1 && ranked[0].1.aicc().is_finite() {
         let close: Vec<String> = ranked
             .iter()
             .skip(1)
@@ -721,71 +821,65 @@ fn print_contact(
             }
         );
     }
-    // Lack of fit, said for every law: which miss the data, which fit to the noise (those
-    // whose fitted error has no degrees of freedom are neither: their own notes say so).
+}
+
+/// Lack of fit, said for every law of the `laws` fits (`ranked`): which miss the data, which
+/// fit to the noise (those whose fitted error has no degrees of freedom are neither: their own
+/// notes say so).
+fn print_lack_of_fit(laws: usize, ranked: &[&(ContactLawKind, Fit)]) {
     let (miss, fit): (Vec<_>, Vec<_>) = ranked
         .iter()
-        .filter_map(|(k, f)| check(f).map(|c| (*k, c)))
+        .filter_map(|(k, f)| fit_check(f).map(|c| (*k, c)))
         .partition(|(_, c)| c.misses);
+    if miss.is_empty() {
+        return;
+    }
     let (fit, untested): (Vec<_>, Vec<_>) = fit
         .into_iter()
         .map(|(k, c)| (k, c.headline_ratio()))
         .partition(|(_, r)| r.is_some());
-    if !miss.is_empty() {
-        let said: Vec<String> = miss
-            .iter()
-            .map(|(k, c)| {
-                format!(
-                    "{k} (residual {}× the noise{})",
-                    ratio_text(c.headline_ratio().unwrap_or(f64::NAN), 1),
-                    c.worst_part().map_or_else(String::new, |p| format!(
-                        ", its {} {}×",
-                        p.part.name(),
-                        ratio_text(p.ratio, 0)
-                    ))
-                )
-            })
-            .collect();
-        let fine: Vec<String> = fit
-            .iter()
-            .map(|(k, r)| format!("{k} ({}×)", ratio_text(r.unwrap_or(f64::NAN), 1)))
-            .collect();
-        let untested: Vec<String> = untested.iter().map(|(k, _)| k.to_string()).collect();
-        println!(
-            "  ! lack of fit (χ²/noise: the residual over what the sensor noise explains, 1 when a \
-             law fits; ! beyond {LACK_OF_FIT_FACTOR}× and the noise's reach): {} {} not fit these data{}{}",
-            said.join(", "),
-            if miss.len() == 1 { "does" } else { "do" },
-            if untested.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; {} cannot be tested (as many error terms as parameters)",
-                    untested.join(", ")
-                )
-            },
-            if fine.is_empty() && fits.len() > 1 {
-                String::from("; no law fits to the noise")
-            } else if fine.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; {} {} to the noise",
-                    fine.join(", "),
-                    if fine.len() == 1 { "fits" } else { "fit" }
-                )
-            }
-        );
-    }
-    for (k, f) in &ranked {
-        print_uncertainty(
-            &k.to_string(),
-            &f.uncertainty,
-            &Restitution::of(f, a.mass_kg),
-        );
-    }
-    if let Some(p) = &a.out {
-        println!("  wrote {} ({best} law; use it with --config)", p.display());
-    }
-    Ok(())
+    let said: Vec<String> = miss
+        .iter()
+        .map(|(k, c)| {
+            format!(
+                "{k} (residual {}× the noise{})",
+                ratio_text(c.headline_ratio().unwrap_or(f64::NAN), 1),
+                c.worst_part().map_or_else(String::new, |p| format!(
+                    ", its {} {}×",
+                    p.part.name(),
+                    ratio_text(p.ratio, 0)
+                ))
+            )
+        })
+        .collect();
+    let fine: Vec<String> = fit
+        .iter()
+        .map(|(k, r)| format!("{k} ({}×)", ratio_text(r.unwrap_or(f64::NAN), 1)))
+        .collect();
+    let untested: Vec<String> = untested.iter().map(|(k, _)| k.to_string()).collect();
+    println!(
+        "  ! lack of fit (χ²/noise: the residual over what the sensor noise explains, 1 when a \
+         law fits; ! beyond {LACK_OF_FIT_FACTOR}× and the noise's reach): {} {} not fit these data{}{}",
+        said.join(", "),
+        if miss.len() == 1 { "does" } else { "do" },
+        if untested.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; {} cannot be tested (as many error terms as parameters)",
+                untested.join(", ")
+            )
+        },
+        if fine.is_empty() && laws > 1 {
+            String::from("; no law fits to the noise")
+        } else if fine.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; {} {} to the noise",
+                fine.join(", "),
+                if fine.len() == 1 { "fits" } else { "fit" }
+            )
+        }
+    );
 }

@@ -52,6 +52,13 @@ fn parse_law_choice(s: &str) -> Result<LawChoice, String> {
         .map_err(|e| format!("{e}, or all"))
 }
 
+/// The names `--law` takes: every law's (`ContactLawKind::ALL`), then `all`.
+fn law_choices() -> Vec<&'static str> {
+    let mut names = crate::config::law_names();
+    names.push("all");
+    names
+}
+
 /// Arguments of `identify contact`.
 #[derive(Debug, Args)]
 #[command(allow_negative_numbers = true)]
@@ -64,9 +71,9 @@ pub struct ContactArgs {
     /// Hammer mass, kg (0 < m ≤ 1000).
     #[arg(long)]
     pub mass_kg: f64,
-    /// Contact law to fit: hertz, spring-dashpot, hunt-crossley, lankarani-nikravesh (valid
-    /// near e = 1 only: it rebounds at 0.663 or more whatever its e), or all.
-    #[arg(long, value_parser = parse_law_choice)]
+    /// Contact law to fit, or all (Lankarani–Nikravesh is valid near e = 1 only: it rebounds at
+    /// 0.663 or more whatever its e).
+    #[arg(long, value_parser = crate::config::NamedValues::new(parse_law_choice, law_choices))]
     pub law: LawChoice,
     /// Distance from the surface at which the hammer was released at rest, mm. One value for
     /// every trace, or one per --trace in the same order.
