@@ -58,11 +58,12 @@ import sys
 
 try:
     from elftools.elf.elffile import ELFFile
-    from unicorn import (UC_ARCH_ARM, UC_HOOK_CODE, UC_HOOK_MEM_READ, UC_HOOK_MEM_WRITE,
+    from unicorn import (UC_ARCH_ARM, UC_HOOK_BLOCK, UC_HOOK_CODE, UC_HOOK_MEM_READ, UC_HOOK_MEM_WRITE,
                          UC_HOOK_MEM_WRITE_PROT, UC_MODE_MCLASS, UC_MODE_THUMB, UC_PROT_EXEC,
                          UC_PROT_READ, Uc, UcError)
     from unicorn.arm_const import (UC_ARM_REG_BASEPRI, UC_ARM_REG_LR, UC_ARM_REG_PC,
-                                   UC_ARM_REG_PRIMASK, UC_ARM_REG_SP, UC_CPU_ARM_CORTEX_M4)
+                                   UC_ARM_REG_PRIMASK, UC_ARM_REG_SP, UC_ARM_REG_XPSR,
+                                   UC_CPU_ARM_CORTEX_M4)
 except ImportError as e:  # pragma: no cover
     print(f"register_trace.py needs python3 with unicorn and pyelftools "
           f"(pip install unicorn pyelftools): {e}", file=sys.stderr)
@@ -129,6 +130,8 @@ EOC, STRT, OVR = 1 << 1, 1 << 4, 1 << 5
 TCIF2, TEIF2, DMEIF2 = 1 << 21, 1 << 19, 1 << 18
 LOWEST_PRIORITY = 0xF0
 THREAD_PRIORITY = 0x100
+# xPSR's IT/ICI bits, 26:25 and 15:10 (ARMv7-M ARM §B1.4.2).
+XPSR_IT = 0b11 << 25 | 0x3F << 10
 BOOT_INSNS = 60_000_000
 # The force sensor's code with nothing on it (the sampling phase's).
 IDLE_CODE = 248
@@ -181,7 +184,8 @@ class Rig:
         uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
         # The flash: the store's sectors through `_store_read`/`_store_write` (programming is
         # the flash interface's, not a memory write); the others read-only (a store there
-        # comes to `_on_protected`).
+        # comes to `_on_protected`). (Not memory written from the hooks: unicorn crashes when
+        # a read-only region is written while it runs.)
         store_end = STORE[0] + STORE[1]
         uc.mem_map(FLASH[0], STORE[0] - FLASH[0], UC_PROT_READ | UC_PROT_EXEC)
         uc.mmio_map(STORE[0], STORE[1], self._store_read, None, self._store_write, None)
@@ -238,6 +242,8 @@ class Rig:
             elif hw == 0xBF30:  # wfi
                 uc.hook_add(UC_HOOK_CODE, self._on_wfi, begin=base + off, end=base + off)
         uc.hook_add(UC_HOOK_CODE, self._on_return, begin=RETURN_TRAP, end=RETURN_TRAP + 1)
+        self.stop_wanted = None
+        uc.hook_add(UC_HOOK_BLOCK, self._on_block)
 
     # -- the trace -------------------------------------------------------------------------
     def event(self, kind, *fields):
@@ -315,8 +321,10 @@ class Rig:
             shift = 8 * (addr & 3)
             self._store(addr, size, v >> shift)
         self.event("R", hex(addr), size, hex(self._load(addr, size)), hex(self.pc()))
+        self._it_state_after_hook()
 
     def _on_write(self, uc, access, addr, size, value, user):
+        self._it_state_after_hook()
         value &= (1 << (8 * size)) - 1
         self.event("W", hex(addr), size, hex(value), hex(self.pc()))
         if BITBAND[0] <= addr < BITBAND[0] + BITBAND[1]:
@@ -451,13 +459,30 @@ class Rig:
             self.write32(ADC1 + ADC_DR, IDLE_CODE)
             self.adc_sr[ADC1] |= EOC | STRT | (OVR if overrun else 0)
             if self.interrupts_on:
-                self.stop_reason = "flash-done"
-                self.uc.emu_stop()
+                # The interrupt is taken at the next block: a stop asked for from a memory hook
+                # inside an IT block is lost (unicorn 2.1.4), and the BSY loops' reads are there.
+                self.stop_wanted = "flash-done"
+
+    def _on_block(self, uc, addr, size, user):
+        if self.stop_wanted:
+            self.stop_reason, self.stop_wanted = self.stop_wanted, None
+            uc.emu_stop()
+
+    def _it_state_after_hook(self):
+        """A memory hook on an instruction inside an IT block leaves that instruction's IT
+        state in the CPU (unicorn restores the state of the instruction for the hook); no
+        later instruction outside the block clears it, and the next block looked up (after a
+        stop, or the first time a branch is taken) would run its instructions conditionally.
+        The blocks end after their IT blocks (a branch): cleared."""
+        xpsr = self.uc.reg_read(UC_ARM_REG_XPSR)
+        if xpsr & XPSR_IT:
+            self.uc.reg_write(UC_ARM_REG_XPSR, xpsr & ~XPSR_IT)
 
     def _store_read(self, uc, offset, size, user):
         return int.from_bytes(self.store[offset:offset + size], "little")
 
     def _store_write(self, uc, offset, size, value, user):
+        self._it_state_after_hook()
         addr = STORE[0] + offset
         value &= (1 << (8 * size)) - 1
         self.event("W", hex(addr), size, hex(value), hex(self.pc()))
@@ -465,6 +490,7 @@ class Rig:
 
     def _on_protected(self, uc, access, addr, size, value, user):
         """A store into the flash outside the store's sectors: refused (not written)."""
+        self._it_state_after_hook()
         if not FLASH[0] <= addr < FLASH[0] + FLASH[1]:
             return False
         value &= (1 << (8 * size)) - 1
