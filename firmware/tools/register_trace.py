@@ -167,7 +167,7 @@ class Rig:
     """One power-up of the board: the image loaded, its flash as `store` (the bytes of sectors
     1–2 of an earlier run, or erased), `out` the trace to append to."""
 
-    def __init__(self, elf_path, out=None, store=None):
+    def __init__(self, elf_path, out=None, store=None, protected=()):
         with open(elf_path, "rb") as f:
             elf = ELFFile(f)
             self.segments = [(s["p_paddr"], s.data()) for s in elf.iter_segments()
@@ -227,6 +227,8 @@ class Rig:
         self.flash_sr = 0
         self.keys_seen = 0
         self.flash_locked_out = False
+        # Sectors the option bytes write-protect (FLASH_OPTCR.nWRP bits 0, §3.7.1, §3.9.7).
+        self.protected = set(protected)
         self.busy_reads = 0
         self.stall_us = 0
         uc.hook_add(UC_HOOK_MEM_READ, self._on_read, begin=PERIPH[0], end=PERIPH[0] + PERIPH[1] - 1)
@@ -408,7 +410,7 @@ class Rig:
             self.mark("flash-error", f"STRT-WITHOUT-SER 0x{cr:08x}")
             return
         snb = cr >> 3 & 0xF
-        if snb not in STORE_SECTORS:
+        if snb not in STORE_SECTORS or snb in self.protected:
             self._flash_error(SR_WRPERR, f"erase sector {snb}")
             return
         off = SECTOR_BASES[snb] - STORE[0]
@@ -427,13 +429,17 @@ class Rig:
         elif addr % 16 + size > 16:
             # The data must fit in one 128-bit row.
             self._flash_error(SR_PGAERR, hex(addr))
-        elif not STORE[0] <= addr < STORE[0] + STORE[1]:
+        elif not STORE[0] <= addr < STORE[0] + STORE[1] or self._sector(addr) in self.protected:
             self._flash_error(SR_WRPERR, hex(addr))
         else:
             off = addr - STORE[0]
             old = int.from_bytes(self.store[off:off + size], "little")
             self.store[off:off + size] = (old & value).to_bytes(size, "little")
             self._flash_busy(PROGRAM_WORD_US)
+
+    @staticmethod
+    def _sector(addr):
+        return max(n for n, base in enumerate(SECTOR_BASES) if base <= addr)
 
     def _flash_busy(self, stall_us):
         self.busy_reads = BUSY_READS
@@ -747,6 +753,18 @@ def scenario(elf, out):
     rig.mark("phase", "cut-overrun")
     rig.set_time_us(rig.read32(TIM5_CNT) + 100)
     rig.adc1_conversion(IDLE_CODE, overrun=True)
+    rig.console("status")
+    rig.mark("done")
+
+    # A board whose option bytes write-protect the store's sectors: the save's first word is
+    # refused (WRPERR); the driver clears the flag, locks the flash and the save fails.
+    rig = Rig(elf, rig.out, bytes(rig.store), protected=STORE_SECTORS)
+    rig.boot("wrp-boot")
+    rig.mark("phase", "wrp-save")
+    rig.set_time_us(10_000)
+    rig.adc1_conversion(IDLE_CODE)
+    rig.console("gap 2")
+    rig.console("save")
     rig.console("status")
     rig.mark("done")
 
