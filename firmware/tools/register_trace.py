@@ -559,6 +559,7 @@ class Rig:
         raise Failure("interrupts still preempting after 1,000 deliveries")
 
     def boot(self, phase="boot"):
+        self.mark("power-up")
         self.mark("phase", phase)
         sp, reset = struct.unpack("<II", self.uc.mem_read(FLASH[0], 8))
         self.uc.reg_write(UC_ARM_REG_SP, sp)
