@@ -110,8 +110,8 @@ enum Ev {
     W(u32, u32),
     /// A read: address, the value read.
     R(u32, u32),
-    /// A CPU store into the flash memory (programming, §3.6.4): address, size in bytes, value.
-    F(u32, u32, u32),
+    /// A CPU store into the flash memory (programming, §3.6.4): address, size in bytes.
+    F(u32, u32),
     /// A bit set or cleared through its bit-band alias: address, bit, value.
     B(u32, u32, bool),
     /// A marker: kind, text.
@@ -136,7 +136,7 @@ impl Trace {
                     let w: Vec<&str> = line.split_whitespace().collect();
                     match w[0] {
                         "W" if FLASH_MEMORY.contains(&hex(w[2])) => {
-                            Ev::F(hex(w[2]), w[3].parse().unwrap(), hex(w[4]))
+                            Ev::F(hex(w[2]), w[3].parse().unwrap())
                         }
                         "W" => Ev::W(hex(w[2]), hex(w[4])),
                         "R" => Ev::R(hex(w[2]), hex(w[4])),
@@ -264,7 +264,7 @@ fn flash_walk(evs: &[Ev]) -> FlashWalk {
     let mut busy: Option<usize> = None;
     let mut errors = 0;
     for (i, e) in evs.iter().enumerate() {
-        let mut busy_check = |w: &mut FlashWalk, what: &str| {
+        let busy_check = |w: &mut FlashWalk, what: &str| {
             if let Some(k) = busy {
                 w.violations.push(format!(
                     "bsy: {what} at event {i} while the operation at event {} is busy",
@@ -371,7 +371,7 @@ fn flash_walk(evs: &[Ev]) -> FlashWalk {
                 }
                 cr = v;
             }
-            Ev::F(a, size, _) => {
+            Ev::F(a, size) => {
                 let a = *a;
                 if locked {
                     w.violations.push(format!(
@@ -408,10 +408,10 @@ fn flash_walk(evs: &[Ev]) -> FlashWalk {
                 });
             }
             Ev::R(a, v) if *a == FLASH_SR => {
-                if !bit(*v, SR_BSY) {
-                    if let Some(k) = busy.take() {
-                        w.ops[k].waited = true;
-                    }
+                if !bit(*v, SR_BSY)
+                    && let Some(k) = busy.take()
+                {
+                    w.ops[k].waited = true;
                 }
                 if v & SR_ERRORS != 0 {
                     w.error_reads.push((i, v & SR_ERRORS));
