@@ -24,18 +24,39 @@ last written, from its reset value):
   interrupt is delivered when it is enabled and pending (set in ISPR, or its peripheral's flag
   and enable: ADC EOC with EOCIE, USART2 TXE with TXEIE or RXNE with RXNEIE, DMA2 stream 2's
   TC/TE/DME flags with their enables), highest NVIC priority first; its handler runs to its end
-  (no nesting) with the interrupted registers restored after. Interrupts at the lowest priority
-  (0xF0: RTIC's priority 1, the model task's 46 M instructions) are not delivered.
-- Time: TIM5_CNT (the µs clock) is set by the scenario; nothing else counts.
+  with the interrupted registers restored after; it is interrupted only as a flash operation
+  ends (below), by what beats its priority (BASEPRI and PRIMASK counted). Interrupts at the
+  lowest priority (0xF0: RTIC's priority 1, the model task's 46 M instructions) are not
+  delivered; nor is SysTick (so `reset`, which waits on the monotonic, is not run).
+- Time: TIM5_CNT (the µs clock) is set by the scenario and moved on by a flash operation's
+  stall; nothing else counts.
+- The flash (RM0090 §3.3–3.9): sectors 1–2 (the settings store, 0x0800_4000, 32 KiB) hold
+  what the runs of one scenario programmed (erased: 0xFF); every other sector is
+  write-protected here. FLASH_KEYR: KEY1 then KEY2 clear FLASH_CR.LOCK; a wrong key or a key
+  while unlocked locks it until reset (a `flash-error` marker). FLASH_CR written only
+  unlocked. A CPU store into the flash programs (bits only cleared) with PG set, the access
+  size PSIZE says, inside one 128-bit row, in the store (else PGSERR, PGPERR, PGAERR, WRPERR);
+  SER + SNB + STRT erases a store sector (another sector or MER: WRPERR). An operation shows
+  BSY for 3 FLASH_SR reads; as BSY clears, the CPU (stalled on the flash meanwhile) goes on
+  100 µs (a word) or 500 ms (an erase) later: TIM5 moves on, ADC1 has converted (an overrun if
+  more than once), and the sampling interrupt preempts the code that stalled at the next
+  block. FLASH_SR's error flags are rc_w1. A board's option bytes may protect sectors
+  (`protected`: WRPERR).
+- Unicorn quirks worked around: a stop asked for from a memory hook inside an IT block is
+  lost (the stop waits for the next block), and a hook on an instruction inside an IT block
+  leaves its IT state in the CPU, which would make the next block looked up conditional (the
+  IT bits are cleared after each hook).
 
 The trace, one line per event:
-  W <seq> <addr> <size> <value> <pc>     a write to a peripheral or system register
+  W <seq> <addr> <size> <value> <pc>     a write to a peripheral or system register, or a
+                                         CPU store into the flash (0x08xx_xxxx: programming)
   B <seq> <addr> <bit> <value> <pc>      the bit a bit-band alias write (the W before it) sets
                                          or clears in the peripheral register at <addr>
   R <seq> <addr> <size> <value> <pc>     a read, with the value the image got
-  M <seq> <kind> [text]                  a marker: phase <name>, interrupts-on, idle,
-                                         irq <n> <handler>, reply <text>,
-                                         stream-disabled (a DMA block not transferred), done
+  M <seq> <kind> [text]                  a marker: power-up, phase <name>, interrupts-on,
+                                         idle, irq <n> <handler>, reply <text>,
+                                         stream-disabled (a DMA block not transferred),
+                                         flash-erase <sector>, flash-error <what>, done
 Addresses and values are hexadecimal.
 
 The scenario (the phases, in order):
@@ -50,7 +71,19 @@ The scenario (the phases, in order):
   capture-stopped `capture stop`, a full block (the capture task stops TIM3), then another
                 (a block completed as it stopped: its flag must be cleared, or the interrupt
                 comes again for ever)
+  save          `rig beam-150`, `gap 1.5`, `save` (words programmed in sector 1 while the
+                sampling goes on), `status`
+  revert        `revert` (the settings read back from the flash)
   adc-overrun   an ADC1 end of conversion with OVR set (the sampling task's overrun path)
+Then the board powered up again on the same flash:
+  reboot        start-up loads the stored settings; `id`, `store`
+And on a store cut as it moved to its other sector (sector 2 full and closed, sector 1 just
+opened):
+  cut-boot      start-up loads it; `id`
+  cut-save      `save`: both sectors erased (500 ms stalls: ADC1 overruns, no fault), `status`
+  cut-overrun   an ADC1 overrun after the save: a fault (the deadline checks are back)
+And with the store's sectors write-protected by the option bytes:
+  wrp-boot, wrp-save   `gap 2`, `save`: WRPERR on the first word, the save refused; `status`
 """
 import argparse
 import struct
