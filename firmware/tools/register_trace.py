@@ -27,7 +27,9 @@ last written, from its reset value):
   with the interrupted registers restored after; it is interrupted only as a flash operation
   ends (below), by what beats its priority (BASEPRI and PRIMASK counted). Interrupts at the
   lowest priority (0xF0: RTIC's priority 1, the model task's 46 M instructions) are not
-  delivered; nor is SysTick (so `reset`, which waits on the monotonic, is not run).
+  delivered. SysTick is taken only in `Rig.systick` (the scenario's `reset`): COUNTFLAG reads
+  1 once after each 1 ms wrap, ICSR.PENDSTSET pends it; an AIRCR write with VECTKEY and
+  SYSRESETREQ (a `system-reset` marker) ends the run, and the scenario powers up again.
 - Time: TIM5_CNT (the µs clock) is set by the scenario and moved on by a flash operation's
   stall; nothing else counts.
 - The flash (RM0090 §3.3–3.9): sectors 1–2 (the settings store, 0x0800_4000, 32 KiB) hold
@@ -77,6 +79,8 @@ The scenario (the phases, in order):
   adc-overrun   an ADC1 end of conversion with OVR set (the sampling task's overrun path)
 Then the board powered up again on the same flash:
   reboot        start-up loads the stored settings; `id`, `store`
+  reset         `reset`: its reply, SysTick ticks until the image writes AIRCR.SYSRESETREQ
+  after-reset   the board restarted on the same flash; `id`
 And on a store cut as it moved to its other sector (sector 2 full and closed, sector 1 just
 opened):
   cut-boot      start-up loads it; `id`
@@ -156,6 +160,11 @@ BUSY_READS = 3
 SAMPLE_PERIOD_US = 100
 NVIC_ISER, NVIC_ICER, NVIC_ISPR, NVIC_ICPR = 0xE000_E100, 0xE000_E180, 0xE000_E200, 0xE000_E280
 NVIC_IPR, NVIC_STIR = 0xE000_E400, 0xE000_EF00
+# SysTick and the system control block (PM0214 §4.4.3 ICSR, §4.4.4 AIRCR, §4.4.8 SHPR3, §4.5.1
+# STK_CTRL).
+SYST_CSR, SCB_ICSR, SCB_AIRCR, SCB_SHPR3 = 0xE000_E010, 0xE000_ED04, 0xE000_ED0C, 0xE000_ED20
+EXC_SYSTICK = 15
+PENDSTSET, COUNTFLAG, SYSRESETREQ, VECTKEY = 1 << 26, 1 << 16, 1 << 2, 0x05FA
 
 IRQ_ADC, IRQ_USART2, IRQ_DMA2_STREAM2 = 18, 38, 58
 ADC_SR_FLAGS = 0x3F
@@ -186,6 +195,10 @@ RESET_VALUES = {
 
 class Failure(Exception):
     pass
+
+
+class SystemReset(Exception):
+    """The image asked for a system reset (AIRCR.SYSRESETREQ)."""
 
 
 class Output:
@@ -279,6 +292,9 @@ class Rig:
         uc.hook_add(UC_HOOK_CODE, self._on_return, begin=RETURN_TRAP, end=RETURN_TRAP + 1)
         self.stop_wanted = None
         uc.hook_add(UC_HOOK_BLOCK, self._on_block)
+        # SysTick: a wrap not yet read (STK_CTRL.COUNTFLAG), the exception pended (ICSR).
+        self.systick_wrapped = False
+        self.systick_pending = False
 
     # -- the trace -------------------------------------------------------------------------
     def event(self, kind, *fields):
@@ -329,6 +345,11 @@ class Rig:
                 return None
         if word == DMA_LISR:
             return self.lisr
+        if word == SYST_CSR:
+            # COUNTFLAG reads 1 once after each wrap (PM0214 §4.5.1).
+            v = self.read32(SYST_CSR) & ~COUNTFLAG | (COUNTFLAG if self.systick_wrapped else 0)
+            self.systick_wrapped = False
+            return v
         if word == FLASH_SR:
             return self._flash_sr_read()
         if word == FLASH_CR:
@@ -399,6 +420,11 @@ class Rig:
             self.pending -= self._irqs_of(v32, word - NVIC_ICPR)
         elif word == NVIC_STIR:
             self.pending.add(value & 0x1FF)
+        elif word == SCB_ICSR and v32 & PENDSTSET:
+            self.systick_pending = True
+        elif word == SCB_AIRCR and v32 >> 16 == VECTKEY and v32 & SYSRESETREQ:
+            self.mark("system-reset")
+            self.stop_wanted = "system-reset"
 
     # -- the flash interface (RM0090 §3.5–3.9) ------------------------------------------------
     def _flash_error(self, flag, detail):
@@ -640,20 +666,42 @@ class Rig:
         raise Failure(f"interrupts still pending after {limit} deliveries: {sorted(self.ready())}")
 
     def deliver(self, irq):
-        handler = self.read32(FLASH[0] + 4 * (16 + irq)) & ~1
-        name = self.symbols.get(handler, hex(handler))
         self.pending.discard(irq)
-        self.mark("irq", f"{irq} {name}")
+        self._handle(16 + irq, self.priority(irq), "irq", irq)
+
+    def _handle(self, exception, priority, kind, n):
+        """Runs the handler of `exception` (its vector's number) to its end."""
+        handler = self.read32(FLASH[0] + 4 * exception) & ~1
+        name = self.symbols.get(handler, hex(handler))
+        self.mark(kind, f"{n} {name}")
         ctx = self.uc.context_save()
         sp = self.uc.reg_read(UC_ARM_REG_SP)
         self.uc.reg_write(UC_ARM_REG_SP, (sp - 0x68) & ~7)  # room for an extended frame
         self.uc.reg_write(UC_ARM_REG_LR, RETURN_TRAP | 1)
-        self.active.append(self.priority(irq))
-        if self.run(handler, HANDLER_INSNS, f"irq {irq} ({name})") != "return":
-            raise Failure(f"irq {irq} ({name}) did not return within {HANDLER_INSNS} "
+        self.active.append(priority)
+        stop = self.run(handler, HANDLER_INSNS, f"{kind} {n} ({name})")
+        if stop == "system-reset":
+            raise SystemReset()
+        if stop != "return":
+            raise Failure(f"{kind} {n} ({name}) did not return within {HANDLER_INSNS} "
                           f"instructions (pc=0x{self.pc():08x})")
         self.active.pop()
         self.uc.context_restore(ctx)
+
+    def systick(self, ms):
+        """`ms` SysTick periods (1 kHz, the RTIC monotonic): TIM5 moves on 1 ms each, the
+        counter wraps and its exception is taken when enabled (STK_CTRL ENABLE and TICKINT),
+        then what it made pending. A system reset ends it (`SystemReset`)."""
+        for _ in range(ms):
+            self.set_time_us(self.read32(TIM5_CNT) + 1000)
+            self.systick_wrapped = True
+            if self.read32(SYST_CSR) & 3 == 3:
+                self.systick_pending = True
+            while self.systick_pending:
+                self.systick_pending = False
+                self._handle(EXC_SYSTICK, self.uc.mem_read(SCB_SHPR3 + 3, 1)[0], "exception",
+                             EXC_SYSTICK)
+                self.deliver_pending()
 
     # -- the scenario's stimuli ------------------------------------------------------------
     def set_time_us(self, us):
@@ -761,6 +809,18 @@ def scenario(elf, out):
     rig.boot("reboot")
     rig.console("id")
     rig.console("store")
+    # `reset`: the reply sent, then SYSRESETREQ after the monotonic's delays.
+    rig.mark("phase", "reset")
+    rig.console("reset")
+    try:
+        rig.systick(200)
+    except SystemReset:
+        pass
+    else:
+        raise Failure("`reset`: no system reset within 200 ms")
+    rig = Rig(elf, rig.out, bytes(rig.store))
+    rig.boot("after-reset")
+    rig.console("id")
     rig.mark("done")
 
     # A power-up after a cut as the store moved to its other sector: sector 2 full and closed

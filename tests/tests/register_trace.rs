@@ -1415,3 +1415,41 @@ fn the_next_power_up_loads_what_was_saved() {
     let store = reply_starting(reboot, "store ");
     assert_eq!(value_of(store, "saves"), "1", "{store}");
 }
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn reset_replies_then_requests_a_system_reset_and_the_board_restarts_on_the_store() {
+    let t = trace();
+    // SCB_AIRCR (PM0214 §4.4.4): VECTKEY 0x05FA in bits 31:16, SYSRESETREQ bit 2.
+    const SCB_AIRCR: u32 = 0xE000_ED0C;
+    let r = t.phase_range("reset");
+    let ph = &t.events[r.clone()];
+    assert_eq!(replies(ph).first(), Some(&"ok"), "{:?}", replies(ph));
+    let reply = first(
+        ph,
+        "the reply",
+        |e| matches!(e, Ev::M(k, _) if k == "reply"),
+    );
+    let aircr = first(
+        ph,
+        "SYSRESETREQ",
+        |e| matches!(e, Ev::W(a, v) if *a == SCB_AIRCR && field(*v, 31, 16) == 0x05FA && bit(*v, 2)),
+    );
+    assert!(reply < aircr, "the reset before its reply");
+    // The flash locked when it resets (the walk checks it at every reply; here at the reset).
+    let w = flash();
+    let last_unlock = w.unlocks.iter().rfind(|&&i| i < r.start + aircr);
+    let last_lock = w.locks.iter().rfind(|&&i| i < r.start + aircr);
+    assert!(
+        last_unlock <= last_lock,
+        "unlocked at the reset: {last_unlock:?} {last_lock:?}"
+    );
+    // The restart loads the stored settings.
+    let stored = reply_starting(t.phase("save"), "store ");
+    let id = reply_starting(t.phase("after-reset"), "id ");
+    assert_eq!(
+        (value_of(id, "rig"), value_of(id, "rig_hash")),
+        ("stored", value_of(stored, "rig_hash")),
+        "{id}"
+    );
+}
