@@ -28,6 +28,9 @@ const RCC_AHB1ENR: u32 = 0x4002_3830; // §7.3.10
 const RCC_APB1ENR: u32 = 0x4002_3840; // §7.3.13
 const RCC_APB2ENR: u32 = 0x4002_3844; // §7.3.14
 const FLASH_ACR: u32 = 0x4002_3C00; // §3.9.1
+const FLASH_KEYR: u32 = 0x4002_3C04; // §3.9.2
+const FLASH_SR: u32 = 0x4002_3C0C; // §3.9.4
+const FLASH_CR: u32 = 0x4002_3C10; // §3.9.5
 const GPIOA_MODER: u32 = 0x4002_0000; // §8.4.1
 const GPIOA_AFRL: u32 = 0x4002_0020; // §8.4.9
 const ADC1: u32 = 0x4001_2000; // §13.13
@@ -70,6 +73,29 @@ const IRQ_ADC: u32 = 18;
 const IRQ_USART2: u32 = 38;
 const IRQ_DMA2_STREAM2: u32 = 58;
 
+/// The flash's main memory (§2.3 Table 1, §3.3 Table 5: one 1 MiB bank).
+const FLASH_MEMORY: std::ops::Range<u32> = 0x0800_0000..0x0810_0000;
+/// The settings store: 32 KiB from 0x0800_4000 (docs/operator.md; `memory.x` keeps it free of
+/// the image). Which sectors that is comes from the manual's sector table.
+const STORE: std::ops::Range<u32> = 0x0800_4000..0x0800_C000;
+/// FLASH_KEYR's unlock sequence (§3.6.1).
+const KEY1: u32 = 0x4567_0123;
+const KEY2: u32 = 0xCDEF_89AB;
+/// FLASH_CR's bits (§3.9.5): PG 0, SER 1, MER 2, SNB 6:3, PSIZE 9:8, STRT 16, LOCK 31.
+const CR_PG: u32 = 0;
+const CR_SER: u32 = 1;
+const CR_MER: u32 = 2;
+const CR_STRT: u32 = 16;
+const CR_LOCK: u32 = 31;
+/// FLASH_SR's bits (§3.9.4): EOP 0, OPERR 1, WRPERR 4, PGAERR 5, PGPERR 6, PGSERR 7 (all
+/// rc_w1), BSY 16.
+const SR_WRPERR: u32 = 4;
+const SR_BSY: u32 = 16;
+const SR_ERRORS: u32 = (1 << 1) | (1 << 4) | (1 << 5) | (1 << 6) | (1 << 7);
+/// PSIZE for VDD 2.7–3.6 V (the board's 3.3 V): x32 (§3.6.2, Table 16: 00 x8, 01 x16,
+/// 10 x32, 11 x64).
+const PSIZE_X32: u32 = 0b10;
+
 /// The clocks the manual allows at most, Hz (§7.2; DS8626 for the ADC).
 const SYSCLK_MAX: f64 = 168e6;
 const PCLK1_MAX: f64 = 42e6;
@@ -82,8 +108,10 @@ const HSE: f64 = 8e6;
 enum Ev {
     /// A write: address, value.
     W(u32, u32),
-    /// A read: address (the value read is in the trace, unused here).
-    R(u32),
+    /// A read: address, the value read.
+    R(u32, u32),
+    /// A CPU store into the flash memory (programming, §3.6.4): address, size in bytes.
+    F(u32, u32),
     /// A bit set or cleared through its bit-band alias: address, bit, value.
     B(u32, u32, bool),
     /// A marker: kind, text.
@@ -107,8 +135,11 @@ impl Trace {
                 "W" | "R" | "B" => {
                     let w: Vec<&str> = line.split_whitespace().collect();
                     match w[0] {
+                        "W" if FLASH_MEMORY.contains(&hex(w[2])) => {
+                            Ev::F(hex(w[2]), w[3].parse().unwrap())
+                        }
                         "W" => Ev::W(hex(w[2]), hex(w[4])),
-                        "R" => Ev::R(hex(w[2])),
+                        "R" => Ev::R(hex(w[2]), hex(w[4])),
                         _ => Ev::B(hex(w[2]), w[3].parse().unwrap(), w[4] == "1"),
                     }
                 }
@@ -145,6 +176,281 @@ impl Trace {
     fn boot(&self) -> &[Ev] {
         &self.events[..self.marker("idle", "")]
     }
+}
+
+impl Trace {
+    /// The event indices of phase `name` (to the next phase).
+    fn phase_range(&self, name: &str) -> std::ops::Range<usize> {
+        let ph = self.phase(name);
+        let start = self.marker("phase", name);
+        start..start + ph.len()
+    }
+}
+
+/// The flash's sectors (§3.3, Table 5): 4 × 16 KiB, 1 × 64 KiB, 7 × 128 KiB from 0x0800_0000.
+fn sector(n: u32) -> std::ops::Range<u32> {
+    let size = |k: u32| match k {
+        0..=3 => 16 * 1024,
+        4 => 64 * 1024,
+        _ => 128 * 1024,
+    };
+    let base = FLASH_MEMORY.start + (0..n).map(size).sum::<u32>();
+    base..base + size(n)
+}
+
+/// The sectors inside the store.
+fn store_sectors() -> Vec<u32> {
+    (0..12)
+        .filter(|&n| STORE.start <= sector(n).start && sector(n).end <= STORE.end)
+        .collect()
+}
+
+/// An erase or a word programmed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FlashOpKind {
+    /// A sector erase (SER, SNB, STRT; §3.6.3).
+    Erase { snb: u32 },
+    /// A CPU store into the flash with PG set (§3.6.4).
+    Program { addr: u32 },
+}
+
+#[derive(Debug, Clone)]
+struct FlashOp {
+    kind: FlashOpKind,
+    /// Its event index.
+    at: usize,
+    /// Whether FLASH_SR was read with BSY clear after it, before anything else touched the
+    /// flash interface.
+    waited: bool,
+}
+
+/// The flash interface's use over the whole trace, walked as RM0090 §3.6 describes it; each
+/// rule broken is a `violation` tagged with the rule (`unlock:`, `keys:`, `psize:`, `sector:`,
+/// `strt:`, `program:`, `bsy:`, `relock:`, `errors:`).
+#[derive(Debug, Default)]
+struct FlashWalk {
+    ops: Vec<FlashOp>,
+    /// Event indices of the KEY2 writes that unlocked FLASH_CR.
+    unlocks: Vec<usize>,
+    /// Event indices of the FLASH_CR writes that set LOCK.
+    locks: Vec<usize>,
+    /// FLASH_SR reads with error flags: index, flags.
+    error_reads: Vec<(usize, u32)>,
+    /// FLASH_SR writes that cleared error flags: index, the flags cleared.
+    error_clears: Vec<(usize, u32)>,
+    violations: Vec<String>,
+}
+
+impl FlashWalk {
+    fn broken(&self, rule: &str) -> Vec<&String> {
+        self.violations
+            .iter()
+            .filter(|v| v.starts_with(rule))
+            .collect()
+    }
+
+    fn ops_in(&self, r: &std::ops::Range<usize>) -> Vec<&FlashOp> {
+        self.ops.iter().filter(|o| r.contains(&o.at)).collect()
+    }
+}
+
+fn flash_walk(evs: &[Ev]) -> FlashWalk {
+    let mut w = FlashWalk::default();
+    let store = store_sectors();
+    // The reset state (§3.9.5: FLASH_CR = 0x8000_0000, locked).
+    let mut locked = true;
+    let mut keys = 0;
+    let mut cr = 1 << CR_LOCK;
+    let mut busy: Option<usize> = None;
+    let mut errors = 0;
+    for (i, e) in evs.iter().enumerate() {
+        let busy_check = |w: &mut FlashWalk, what: &str| {
+            if let Some(k) = busy {
+                w.violations.push(format!(
+                    "bsy: {what} at event {i} while the operation at event {} is busy",
+                    w.ops[k].at
+                ));
+            }
+        };
+        match e {
+            Ev::M(k, _) if k == "power-up" => {
+                locked = true;
+                keys = 0;
+                cr = 1 << CR_LOCK;
+                busy = None;
+                errors = 0;
+            }
+            Ev::M(k, t) if k == "reply" => {
+                if !locked {
+                    w.violations
+                        .push(format!("relock: unlocked at the reply `{t}` (event {i})"));
+                }
+                busy_check(&mut w, "a reply");
+                if errors != 0 {
+                    w.violations.push(format!(
+                        "errors: FLASH_SR error flags 0x{errors:x} left set at the reply `{t}`"
+                    ));
+                }
+            }
+            Ev::W(a, v) if *a == FLASH_KEYR => {
+                busy_check(&mut w, "a FLASH_KEYR write");
+                if !locked {
+                    w.violations.push(format!(
+                        "keys: 0x{v:08x} written at event {i} while unlocked (a bus error)"
+                    ));
+                } else {
+                    match (keys, *v) {
+                        (0, KEY1) => keys = 1,
+                        (1, KEY2) => {
+                            keys = 0;
+                            locked = false;
+                            w.unlocks.push(i);
+                        }
+                        _ => {
+                            keys = 0;
+                            w.violations.push(format!(
+                                "keys: 0x{v:08x} out of sequence at event {i} (FLASH_CR locked until reset)"
+                            ));
+                        }
+                    }
+                }
+            }
+            Ev::W(a, v) if *a == FLASH_CR => {
+                let v = *v;
+                if locked {
+                    w.violations.push(format!(
+                        "unlock: FLASH_CR 0x{v:08x} written locked at event {i}"
+                    ));
+                }
+                busy_check(&mut w, "a FLASH_CR write");
+                if errors != 0 {
+                    w.violations.push(format!(
+                        "errors: FLASH_CR written at event {i} with FLASH_SR flags 0x{errors:x} set"
+                    ));
+                }
+                let (pg, ser, strt) = (bit(v, CR_PG), bit(v, CR_SER), bit(v, CR_STRT));
+                let snb = field(v, 6, 3);
+                if (pg || ser) && field(v, 9, 8) != PSIZE_X32 {
+                    w.violations.push(format!(
+                        "psize: FLASH_CR 0x{v:08x} at event {i}: PSIZE {:02b}, not x32",
+                        field(v, 9, 8)
+                    ));
+                }
+                if bit(v, CR_MER) {
+                    w.violations
+                        .push(format!("sector: mass erase (MER) at event {i}"));
+                }
+                if pg && ser {
+                    w.violations
+                        .push(format!("program: PG and SER at once at event {i}"));
+                }
+                if ser && !store.contains(&snb) {
+                    w.violations.push(format!(
+                        "sector: SNB {snb} selected at event {i}: not a store sector {store:?}"
+                    ));
+                }
+                if strt {
+                    if !ser {
+                        w.violations
+                            .push(format!("strt: STRT without SER at event {i}"));
+                    } else if !(bit(cr, CR_SER) && field(cr, 6, 3) == snb) {
+                        w.violations.push(format!(
+                            "strt: STRT at event {i} not after SER and SNB {snb} were set"
+                        ));
+                    }
+                    busy = Some(w.ops.len());
+                    w.ops.push(FlashOp {
+                        kind: FlashOpKind::Erase { snb },
+                        at: i,
+                        waited: false,
+                    });
+                }
+                if bit(v, CR_LOCK) {
+                    locked = true;
+                    w.locks.push(i);
+                }
+                cr = v;
+            }
+            Ev::F(a, size) => {
+                let a = *a;
+                if locked {
+                    w.violations.push(format!(
+                        "unlock: flash 0x{a:08x} written locked at event {i}"
+                    ));
+                }
+                busy_check(&mut w, "a flash write");
+                if !bit(cr, CR_PG) || bit(cr, CR_SER) {
+                    w.violations.push(format!(
+                        "program: 0x{a:08x} written at event {i} with FLASH_CR 0x{cr:08x} (no PG)"
+                    ));
+                }
+                if field(cr, 9, 8) != PSIZE_X32 {
+                    w.violations.push(format!(
+                        "psize: 0x{a:08x} programmed at event {i} with PSIZE {:02b}",
+                        field(cr, 9, 8)
+                    ));
+                }
+                if *size != 4 || a % 4 != 0 {
+                    w.violations.push(format!(
+                        "program: {size} bytes at 0x{a:08x} (event {i}): not an aligned word"
+                    ));
+                }
+                if !STORE.contains(&a) {
+                    w.violations.push(format!(
+                        "program: 0x{a:08x} (event {i}) outside the store {STORE:x?}"
+                    ));
+                }
+                busy = Some(w.ops.len());
+                w.ops.push(FlashOp {
+                    kind: FlashOpKind::Program { addr: a },
+                    at: i,
+                    waited: false,
+                });
+            }
+            Ev::R(a, v) if *a == FLASH_SR => {
+                if !bit(*v, SR_BSY)
+                    && let Some(k) = busy.take()
+                {
+                    w.ops[k].waited = true;
+                }
+                if v & SR_ERRORS != 0 {
+                    w.error_reads.push((i, v & SR_ERRORS));
+                }
+                errors |= v & SR_ERRORS;
+            }
+            Ev::W(a, v) if *a == FLASH_SR => {
+                // rc_w1 (§3.9.4): a 1 clears, a 0 leaves.
+                if errors & v != 0 {
+                    w.error_clears.push((i, errors & v));
+                }
+                errors &= !v;
+            }
+            _ => {}
+        }
+    }
+    w
+}
+
+/// The flash walk of the whole trace.
+fn flash() -> &'static FlashWalk {
+    static WALK: OnceLock<FlashWalk> = OnceLock::new();
+    WALK.get_or_init(|| flash_walk(&trace().events))
+}
+
+/// The reply in `evs` that starts with `prefix`.
+fn reply_starting<'a>(evs: &'a [Ev], prefix: &str) -> &'a str {
+    replies(evs)
+        .into_iter()
+        .find(|r| r.starts_with(prefix))
+        .unwrap_or_else(|| panic!("no reply `{prefix}…` in {:?}", replies(evs)))
+}
+
+/// The value of `key=` in a reply.
+fn value_of<'a>(reply: &'a str, key: &str) -> &'a str {
+    reply
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
+        .unwrap_or_else(|| panic!("no {key}= in `{reply}`"))
 }
 
 /// Writes to `addr` in `evs`, in order.
@@ -652,7 +958,7 @@ fn sampling_starts_once_interrupts_are_on_with_adc1_cleared_first() {
         .position(|e| matches!(e, Ev::W(a, v) if *a == ADC1 + ADC_SR && !bit(*v, 5)));
     let read = ev[configured..cen]
         .iter()
-        .position(|e| matches!(e, Ev::R(a) if *a == ADC1 + ADC_DR));
+        .position(|e| matches!(e, Ev::R(a, _) if *a == ADC1 + ADC_DR));
     assert!(
         cleared.is_some() && read.is_some(),
         "ADC1 SR cleared {cleared:?}, DR read {read:?}"
@@ -671,7 +977,7 @@ fn the_sampling_task_runs_on_an_end_of_conversion_and_writes_the_dac() {
     );
     let reads = ph
         .iter()
-        .filter(|e| matches!(e, Ev::R(a) if *a == ADC1 + ADC_DR))
+        .filter(|e| matches!(e, Ev::R(a, _) if *a == ADC1 + ADC_DR))
         .count();
     assert_eq!(reads, 2);
     // The drive is off: mid-scale.
@@ -703,7 +1009,7 @@ fn an_adc1_overrun_clears_ovr_alone_and_reads_the_data_register() {
     assert!(
         ph[sr_at..]
             .iter()
-            .any(|e| matches!(e, Ev::R(a) if *a == ADC1 + ADC_DR)),
+            .any(|e| matches!(e, Ev::R(a, _) if *a == ADC1 + ADC_DR)),
         "ADC1_DR not read after the overrun"
     );
     assert_eq!(
@@ -879,4 +1185,271 @@ fn a_capture_dma_transfer_error_re_arms_the_stream_and_counts_the_lost_samples()
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("{r:?}"));
     assert!((163..=167).contains(&samples), "{r:?}");
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn the_flash_is_unlocked_with_key1_then_key2_before_it_is_programmed_or_erased() {
+    let t = trace();
+    let w = flash();
+    // §3.6.1: FLASH_CR is locked after reset; KEY1 then KEY2 in FLASH_KEYR unlock it; a wrong
+    // key, or a key while unlocked, is a bus error and locks it until the next reset.
+    assert_eq!(
+        store_sectors(),
+        [1, 2],
+        "the store is sectors 1 and 2 (Table 5)"
+    );
+    let broken: Vec<_> = [w.broken("unlock:"), w.broken("keys:")].concat();
+    assert!(broken.is_empty(), "{broken:#?}");
+    let save = t.phase_range("save");
+    assert!(
+        w.unlocks.iter().any(|i| save.contains(i)),
+        "no unlock during `save`"
+    );
+    // Every operation in its power-up comes after an unlock (the walk would have flagged a
+    // write to a locked FLASH_CR); the first one after KEY1 then KEY2 in that order.
+    let first = w.ops_in(&save)[0].at;
+    let keys: Vec<u32> = t.events[save.start..first]
+        .iter()
+        .filter_map(|e| match e {
+            Ev::W(a, v) if *a == FLASH_KEYR => Some(*v),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        keys,
+        [KEY1, KEY2],
+        "the keys before the save's first operation"
+    );
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn every_program_and_erase_runs_at_x32_parallelism() {
+    let w = flash();
+    // §3.6.2, Table 16: at 2.7–3.6 V the parallelism is x32 (PSIZE = 10) for programming and
+    // erasing; every FLASH_CR write that sets PG or SER, and every word programmed, has it.
+    assert!(w.broken("psize:").is_empty(), "{:#?}", w.broken("psize:"));
+    assert!(!w.ops.is_empty(), "no flash operation in the trace");
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn erases_select_only_the_store_sectors_then_start_with_strt() {
+    let t = trace();
+    let w = flash();
+    // §3.6.3: SER and SNB set, then STRT; SNB a store sector (never the image's sector 0 or
+    // the sectors after the store), never a mass erase.
+    let broken: Vec<_> = [w.broken("sector:"), w.broken("strt:")].concat();
+    assert!(broken.is_empty(), "{broken:#?}");
+    // The save after the cut moves the store: both sectors erased.
+    let cut = t.phase_range("cut-save");
+    let erased: Vec<u32> = w
+        .ops_in(&cut)
+        .iter()
+        .filter_map(|o| match o.kind {
+            FlashOpKind::Erase { snb } => Some(snb),
+            FlashOpKind::Program { .. } => None,
+        })
+        .collect();
+    assert_eq!(
+        erased,
+        store_sectors(),
+        "sectors erased by the save after the cut"
+    );
+    // Each STRT started an erase in the model (a STRT the flash refused would not have).
+    let started = t.events[cut]
+        .iter()
+        .filter(|e| matches!(e, Ev::M(k, _) if k == "flash-erase"))
+        .count();
+    assert_eq!(started, erased.len());
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn programming_writes_whole_words_inside_the_store_with_pg_set() {
+    let t = trace();
+    let w = flash();
+    // §3.6.4: PG set (and not SER), then one 32-bit write per word at x32, word-aligned,
+    // inside the store's sectors.
+    assert!(
+        w.broken("program:").is_empty(),
+        "{:#?}",
+        w.broken("program:")
+    );
+    let words: Vec<u32> = w
+        .ops_in(&t.phase_range("save"))
+        .iter()
+        .filter_map(|o| match o.kind {
+            FlashOpKind::Program { addr } => Some(addr),
+            FlashOpKind::Erase { .. } => None,
+        })
+        .collect();
+    assert!(words.len() > 4, "the save programmed {} words", words.len());
+    // An item's words one after another (the store's index walks: no word written twice).
+    let mut sorted = words.clone();
+    sorted.dedup();
+    assert_eq!(
+        sorted, words,
+        "a word programmed twice in a row: {words:x?}"
+    );
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn each_flash_operation_waits_for_bsy_to_clear() {
+    let w = flash();
+    // §3.6.3–3.6.4: nothing touches the flash interface (a key, FLASH_CR, another word) until
+    // FLASH_SR.BSY reads 0 after an operation.
+    assert!(w.broken("bsy:").is_empty(), "{:#?}", w.broken("bsy:"));
+    let unwaited: Vec<_> = w.ops.iter().filter(|o| !o.waited).collect();
+    assert!(unwaited.is_empty(), "{unwaited:#?}");
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn the_flash_is_locked_after_every_save_and_its_error_flags_cleared_with_ones() {
+    let t = trace();
+    let w = flash();
+    // FLASH_CR.LOCK (bit 31) set again once the operations end: at every console reply the
+    // flash is locked.
+    assert!(w.broken("relock:").is_empty(), "{:#?}", w.broken("relock:"));
+    let save = t.phase_range("save");
+    let last_op = w.ops_in(&save).last().expect("the save's operations").at;
+    assert!(
+        w.locks.iter().any(|&i| i > last_op && save.contains(&i)),
+        "no LOCK after the save's last operation"
+    );
+    // The error flags are rc_w1 (§3.9.4): cleared by writing 1s, before FLASH_CR is written
+    // again, and none left at a reply.
+    assert!(w.broken("errors:").is_empty(), "{:#?}", w.broken("errors:"));
+    // The board whose option bytes protect the store: WRPERR (bit 4) read and cleared, the
+    // flash locked, the save refused.
+    let wrp = t.phase_range("wrp-save");
+    let read = w
+        .error_reads
+        .iter()
+        .find(|(i, e)| wrp.contains(i) && bit(*e, SR_WRPERR))
+        .unwrap_or_else(|| panic!("no WRPERR read: {:?}", w.error_reads));
+    assert!(
+        w.error_clears
+            .iter()
+            .any(|(i, e)| *i > read.0 && wrp.contains(i) && bit(*e, SR_WRPERR)),
+        "WRPERR not cleared: {:?}",
+        w.error_clears
+    );
+    assert!(w.locks.iter().any(|&i| i > read.0 && wrp.contains(&i)));
+    let ph = t.phase("wrp-save");
+    reply_starting(ph, "error: save failed");
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn the_sampling_deadlines_are_paused_while_the_flash_stalls_the_cpu() {
+    let t = trace();
+    let w = flash();
+    // The CPU stalls on the flash during each operation (§3.6.3–3.6.4: one bank), so samples
+    // come late, or overrun during a 16 KiB erase; the controller counts them instead of
+    // faulting while the save runs.
+    for phase in ["save", "cut-save"] {
+        let r = t.phase_range(phase);
+        let ops = w.ops_in(&r);
+        let (start, end) = (ops[0].at, ops.last().unwrap().at);
+        let sampled = t.events[start..end]
+            .iter()
+            .filter(|e| matches!(e, Ev::M(k, txt) if k == "irq" && txt.starts_with(&format!("{IRQ_ADC} "))))
+            .count();
+        assert!(
+            sampled > 0,
+            "{phase}: no sampling task during the flash writes"
+        );
+        let status = reply_starting(&t.events[r], "state=");
+        assert_eq!(value_of(status, "fault"), "none", "{phase}: {status}");
+    }
+    // A 500 ms erase: ADC1 overran (OVR, bit 5 of ADC_SR, read by the sampling task), still
+    // no fault.
+    let cut = t.phase_range("cut-save");
+    let erase = w
+        .ops_in(&cut)
+        .into_iter()
+        .find(|o| matches!(o.kind, FlashOpKind::Erase { .. }))
+        .unwrap()
+        .at;
+    assert!(
+        t.events[erase..cut.end]
+            .iter()
+            .any(|e| matches!(e, Ev::R(a, v) if *a == ADC1 + ADC_SR && bit(*v, 5))),
+        "no overrun seen during the erase"
+    );
+    // After the save the checks are back: the same overrun is a fault.
+    let status = reply_starting(t.phase("cut-overrun"), "state=");
+    assert_eq!(value_of(status, "fault"), "adc-overrun", "{status}");
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn the_next_power_up_loads_what_was_saved() {
+    let t = trace();
+    // `rig beam-150`, `gap 1.5`, `save`: the store holds the beam model at 1.5 mm.
+    let save = t.phase("save");
+    let stored = reply_starting(save, "store ");
+    assert_eq!(value_of(stored, "state"), "ok", "{stored}");
+    let hash = value_of(stored, "rig_hash");
+    // `revert` reads it back from the flash.
+    let reverted = reply_starting(t.phase("revert"), "model ");
+    assert_eq!(value_of(reverted, "rig"), "stored", "{reverted}");
+    assert_eq!(value_of(reverted, "rig_hash"), hash, "{reverted}");
+    // The next power-up, the same flash: `init` starts from the stored settings.
+    let reboot = t.phase("reboot");
+    let id = reply_starting(reboot, "id ");
+    assert_eq!(
+        (
+            value_of(id, "rig"),
+            value_of(id, "rig_hash"),
+            value_of(id, "store"),
+            value_of(id, "gap_mm")
+        ),
+        ("stored", hash, "ok", "1.50"),
+        "{id}"
+    );
+    let store = reply_starting(reboot, "store ");
+    assert_eq!(value_of(store, "saves"), "1", "{store}");
+}
+
+#[test]
+#[ignore = "needs python3 with unicorn and pyelftools, and the rig image (cargo fw-build)"]
+fn reset_replies_then_requests_a_system_reset_and_the_board_restarts_on_the_store() {
+    let t = trace();
+    // SCB_AIRCR (PM0214 §4.4.4): VECTKEY 0x05FA in bits 31:16, SYSRESETREQ bit 2.
+    const SCB_AIRCR: u32 = 0xE000_ED0C;
+    let r = t.phase_range("reset");
+    let ph = &t.events[r.clone()];
+    assert_eq!(replies(ph).first(), Some(&"ok"), "{:?}", replies(ph));
+    let reply = first(
+        ph,
+        "the reply",
+        |e| matches!(e, Ev::M(k, _) if k == "reply"),
+    );
+    let aircr = first(
+        ph,
+        "SYSRESETREQ",
+        |e| matches!(e, Ev::W(a, v) if *a == SCB_AIRCR && field(*v, 31, 16) == 0x05FA && bit(*v, 2)),
+    );
+    assert!(reply < aircr, "the reset before its reply");
+    // The flash locked when it resets (the walk checks it at every reply; here at the reset).
+    let w = flash();
+    let last_unlock = w.unlocks.iter().rfind(|&&i| i < r.start + aircr);
+    let last_lock = w.locks.iter().rfind(|&&i| i < r.start + aircr);
+    assert!(
+        last_unlock <= last_lock,
+        "unlocked at the reset: {last_unlock:?} {last_lock:?}"
+    );
+    // The restart loads the stored settings.
+    let stored = reply_starting(t.phase("save"), "store ");
+    let id = reply_starting(t.phase("after-reset"), "id ");
+    assert_eq!(
+        (value_of(id, "rig"), value_of(id, "rig_hash")),
+        ("stored", value_of(stored, "rig_hash")),
+        "{id}"
+    );
 }
