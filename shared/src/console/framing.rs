@@ -241,16 +241,22 @@ impl LineBuffer {
         if self.tagged == Tagged::Yes {
             return;
         }
-        let n = bytes.len().min(self.echo.len());
-        self.echo[..n].copy_from_slice(&bytes[..n]);
-        self.echo_len = n as u8;
+        let mut n = 0u8;
+        for (to, &from) in self.echo.iter_mut().zip(bytes) {
+            *to = from;
+            n += 1;
+        }
+        self.echo_len = n;
     }
 
     /// What a terminal should show for the last byte pushed (empty: nothing), for a link whose
     /// echo is on: the byte itself, [`ERASE`], `\r\n` at a line's end (once for `\r\n`), or a
     /// control byte in caret notation.
     pub fn echo(&self) -> &[u8] {
-        &self.echo[..usize::from(self.echo_len)]
+        // (`get`: no index check that could panic in the console's interrupt.)
+        self.echo
+            .get(..usize::from(self.echo_len))
+            .unwrap_or_default()
     }
 
     /// Bytes of the line being received so far.

@@ -124,11 +124,13 @@ impl Link {
     /// echo is never worth a reply).
     fn echo_last(&mut self) {
         let mut echo = [0u8; 3];
-        let shown = self.rx.echo();
-        let n = shown.len().min(echo.len());
-        echo[..n].copy_from_slice(&shown[..n]);
+        let mut n = 0;
+        for (to, &from) in echo.iter_mut().zip(self.rx.echo()) {
+            *to = from;
+            n += 1;
+        }
         if n > 0 && self.tx_free() >= n + REPLY_ROOM {
-            self.push_bytes(&echo[..n]);
+            self.push_bytes(echo.get(..n).unwrap_or_default());
         }
     }
 
