@@ -922,7 +922,7 @@ impl RigPort {
     }
 
     /// The drive guard's action now rather than when the port closes: stops the drive as
-    /// [`RigPort::stop_drive`] does, prints the outcome (`stopping the drive: …`) and disarms
+    /// `RigPort::stop_drive` does, prints the outcome (`stopping the drive: …`) and disarms
     /// the guard. Returns the outcome: the state the rig reported, or why the stop failed (the
     /// rig's link-loss watchdog is then left armed when the port closes).
     pub fn stop_now(&mut self) -> std::result::Result<String, String> {
