@@ -1,6 +1,6 @@
 //! What the rig board (`board_rig.rs`) and the emulator board (`board_emu.rs`) share: the
-//! shape of the parts the app gets, the console's USART2 set-up and receive path, and the 64-bit extension
-//! of TIM5's 32-bit µs count.
+//! shape of the parts the app gets, ADC1's status and data registers, the console's USART2
+//! set-up and receive path, and the 64-bit extension of TIM5's 32-bit µs count.
 
 use shared::console::RxError;
 use stm32f4xx_hal::gpio::{PA2, PA3};
@@ -77,5 +77,26 @@ impl Micros64 {
         }
         self.last = now;
         self.high + u64::from(now)
+    }
+}
+
+/// ADC1's status and data registers (RM0090 §13.13.1, §13.13.14), for
+/// `shared::adc_status`'s end-of-conversion service.
+pub struct Adc1;
+
+impl shared::adc_status::AdcRegisters for Adc1 {
+    fn status(&mut self) -> u32 {
+        // SAFETY: a read of ADC1_SR; ADC1's results belong to the sampling task.
+        unsafe { &*pac::ADC1::ptr() }.sr().read().bits()
+    }
+    fn write_status(&mut self, value: u32) {
+        // SAFETY: ADC1_SR's rc_w0 flags: the value clears exactly the flags written 0.
+        unsafe { &*pac::ADC1::ptr() }
+            .sr()
+            .write(|w| unsafe { w.bits(value) });
+    }
+    fn data(&mut self) -> u32 {
+        // SAFETY: a read of ADC1_DR (clears EOC).
+        unsafe { &*pac::ADC1::ptr() }.dr().read().bits()
     }
 }

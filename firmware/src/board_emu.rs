@@ -39,7 +39,7 @@ use stm32f4xx_hal::pac::{self, Interrupt, interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::serial::Serial;
 
-use rig_firmware::board_common::{BoardParts, Micros64, console_usart, read_byte};
+use rig_firmware::board_common::{Adc1, BoardParts, Micros64, console_usart, read_byte};
 use rig_firmware::config::{CAPTURE_BLOCK, STORE_BYTES, WATCHDOG_MS};
 
 /// Which image this is (`id`).
@@ -242,26 +242,6 @@ impl ForceSource for ForceAdc {
             ADC_FREE => Ok(code),
             held => Ok(held),
         }
-    }
-}
-
-/// ADC1's status and data registers.
-struct Adc1;
-
-impl shared::adc_status::AdcRegisters for Adc1 {
-    fn status(&mut self) -> u32 {
-        // SAFETY: ADC1 belongs to the sampling task (and the TIM2 stand-in's start bit).
-        unsafe { &*pac::ADC1::ptr() }.sr().read().bits()
-    }
-    fn write_status(&mut self, value: u32) {
-        // SAFETY: as above.
-        unsafe { &*pac::ADC1::ptr() }
-            .sr()
-            .write(|w| unsafe { w.bits(value) });
-    }
-    fn data(&mut self) -> u32 {
-        // SAFETY: as above.
-        unsafe { &*pac::ADC1::ptr() }.dr().read().bits()
     }
 }
 

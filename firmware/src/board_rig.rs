@@ -18,7 +18,7 @@
 
 use cortex_m::peripheral::NVIC;
 use panic_probe as _;
-use shared::adc_status::{AdcRegisters, SR_CLEAR_OVR, discard_pending, read_conversion};
+use shared::adc_status::{SR_CLEAR_OVR, discard_pending, read_conversion};
 use shared::capture_dma::{BlockTracker, CaptureStream, StreamState};
 use shared::console::{Board, RxError};
 use shared::control::config::DAC_MID;
@@ -34,7 +34,7 @@ use stm32f4xx_hal::rcc::{Config, Enable, Reset};
 use stm32f4xx_hal::serial::{self, Serial};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-use rig_firmware::board_common::{BoardParts, Micros64, console_usart, read_byte};
+use rig_firmware::board_common::{Adc1, BoardParts, Micros64, console_usart, read_byte};
 use rig_firmware::clock_tree::{
     ADC_PRESCALER, ADC_SAMPLE_CYCLES, HCLK_HZ, HSE_HZ, PCLK1_HZ, PCLK2_HZ, TIM2_ARR, TIM3_ARR,
     TIM3_PERIOD, TIM3_PHASE, TIM5_ARR, TIM5_PSC,
@@ -238,26 +238,6 @@ pub fn init(
         watchdog: Watchdog { iwdg },
         trigger: SamplingTrigger { tim2 },
         store: StoreFlash::new(dp.FLASH),
-    }
-}
-
-/// ADC1's status and data registers.
-struct Adc1;
-
-impl AdcRegisters for Adc1 {
-    fn status(&mut self) -> u32 {
-        // SAFETY: a read of ADC1_SR; ADC1's results belong to the sampling task.
-        unsafe { &*pac::ADC1::ptr() }.sr().read().bits()
-    }
-    fn write_status(&mut self, value: u32) {
-        // SAFETY: ADC1_SR's rc_w0 flags: the value clears exactly the flags written 0.
-        unsafe { &*pac::ADC1::ptr() }
-            .sr()
-            .write(|w| unsafe { w.bits(value) });
-    }
-    fn data(&mut self) -> u32 {
-        // SAFETY: a read of ADC1_DR (clears EOC).
-        unsafe { &*pac::ADC1::ptr() }.dr().read().bits()
     }
 }
 
