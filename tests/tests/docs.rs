@@ -199,3 +199,31 @@ fn the_pages_list_every_contact_law() {
     }
     assert!(found >= 1, "no `--law a|b|…` list in the pages");
 }
+
+/// Every list of the rigs the documentation writes, `--rig a|b|…` and the console's
+/// `rig <a\|b\|…>`, names the rigs of `RigId::ALL`, in its order (a rig added to the code is one
+/// the pages name).
+#[test]
+fn the_pages_list_every_rig() {
+    let all = shared::model::RigId::NAMES;
+    let mut found = 0;
+    let mut pages = Vec::new();
+    files(&root().join("docs"), &mut pages);
+    pages.push(root().join("README.md"));
+    for page in pages
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+    {
+        let text = fs::read_to_string(page).unwrap().replace("\\|", "|");
+        for list in text.split("--rig ").skip(1).chain(text.split("rig <").skip(1)) {
+            let word = list.split(|c: char| c.is_whitespace() || "`,>".contains(c));
+            let Some(names) = word.into_iter().next().filter(|w| w.contains('|')) else {
+                continue;
+            };
+            let names: Vec<&str> = names.split('|').collect();
+            assert_eq!(names, all, "{}: {}", page.display(), names.join("|"));
+            found += 1;
+        }
+    }
+    assert!(found >= 3, "the pages' rig lists: {found}");
+}
