@@ -542,9 +542,9 @@ fn kind_wanted(r: &Request) -> String {
         Request::Calib | Request::EditCalib(..) => "calib".into(),
         Request::Save | Request::Store => "store".into(),
         Request::Reset => "ok".into(),
-        Request::Capture(CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. }) => {
-            "capture".into()
-        }
+        Request::Capture(
+            CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. },
+        ) => "capture".into(),
     }
 }
 

@@ -215,7 +215,11 @@ fn the_pages_list_every_rig() {
         .filter(|p| p.extension().is_some_and(|e| e == "md"))
     {
         let text = fs::read_to_string(page).unwrap().replace("\\|", "|");
-        for list in text.split("--rig ").skip(1).chain(text.split("rig <").skip(1)) {
+        for list in text
+            .split("--rig ")
+            .skip(1)
+            .chain(text.split("rig <").skip(1))
+        {
             let word = list.split(|c: char| c.is_whitespace() || "`,>".contains(c));
             let Some(names) = word.into_iter().next().filter(|w| w.contains('|')) else {
                 continue;

@@ -228,7 +228,7 @@ impl<'a> NameList<'a> {
         // Then name 0, sep, name 1, ..., last, name n-1 (2n - 1 pieces), then the tail.
         let k = i - 1;
         if k + 1 < 2 * n {
-            return Some(if k % 2 == 0 {
+            return Some(if k.is_multiple_of(2) {
                 self.names[k / 2]
             } else if k + 3 == 2 * n {
                 self.last
@@ -822,17 +822,34 @@ mod tests {
         };
         let rigs: std::vec::Vec<&str> = RigId::ALL.iter().map(|r| r.name()).collect();
         let laws: std::vec::Vec<&str> = ContactLawKind::ALL.iter().map(|k| k.name()).collect();
-        assert_eq!(ParseError::UnknownRig.to_string(), std::format!("rig must be {}", either(&rigs)));
-        assert_eq!(ParseError::UnknownLaw.to_string(), std::format!("law must be {}", either(&laws)));
-        assert!(HELP.starts_with(&std::format!("commands: status | rig <{}> (a preset) | gap <mm> |", rigs.join("|"))));
+        assert_eq!(
+            ParseError::UnknownRig.to_string(),
+            std::format!("rig must be {}", either(&rigs))
+        );
+        assert_eq!(
+            ParseError::UnknownLaw.to_string(),
+            std::format!("law must be {}", either(&laws))
+        );
+        assert!(HELP.starts_with(&std::format!(
+            "commands: status | rig <{}> (a preset) | gap <mm> |",
+            rigs.join("|")
+        )));
         for r in RigId::ALL {
-            assert_eq!(parse(&std::format!("rig {r}")), Ok(Request::Control(Command::Rig(r))));
+            assert_eq!(
+                parse(&std::format!("rig {r}")),
+                Ok(Request::Control(Command::Rig(r)))
+            );
         }
         // The builder's edges: one name, two, none.
         const ONE: &str = list_text!(NameList::either("x: ", &["a"]));
         const TWO: &str = list_text!(NameList::either("x: ", &["a", "b"]));
-        const NONE: &str = list_text!(NameList { head: "<", names: &[], sep: "|", last: "|", tail: ">" });
+        const NONE: &str = list_text!(NameList {
+            head: "<",
+            names: &[],
+            sep: "|",
+            last: "|",
+            tail: ">"
+        });
         assert_eq!((ONE, TWO, NONE), ("x: a", "x: a or b", "<>"));
     }
-
 }
