@@ -406,6 +406,10 @@ pub const HELP: &str = list_text!(NameList {
     tail: "> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k>] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | help; a line may start with #<n>, its reply then does too",
 });
 
+// The help line, tagged (`#` and 9 digits, a space), fits a reply: a rig or command added to it
+// that would not stops the build here.
+const _: () = assert!(HELP.len() + 11 <= super::link::MAX_REPLY);
+
 /// Parses one line.
 ///
 /// # Errors
