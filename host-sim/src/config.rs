@@ -58,7 +58,7 @@ pub enum Profile {
 #[derive(Debug, Clone, Args)]
 pub struct RigOpts {
     /// Rig: hammer on wires, or on beam springs with 170/150/135 mm couplings distance.
-    #[arg(long, value_parser = parse_rig, default_value = "wires")]
+    #[arg(long, value_parser = rig_parser(), default_value = "wires")]
     pub rig: RigId,
     /// Contact law (default: the identified spring–dashpot of Table 3.1). Lankarani–Nikravesh
     /// is valid near e = 1 only: it rebounds at 0.663 or more whatever its e (docs/model.md).
@@ -128,7 +128,7 @@ pub fn parse_law(s: &str) -> Result<ContactLawKind, String> {
 
 /// A command-line value read by a parser function (its error said as clap says a value
 /// parser's) whose help lists the names it takes, from the one list the parser reads: for
-/// `--law`, [`ContactLawKind::ALL`] ([`law_parser`]).
+/// `--law`, [`ContactLawKind::ALL`] ([`law_parser`]); for `--rig`, [`RigId::ALL`] ([`rig_parser`]).
 #[derive(Clone)]
 pub struct NamedValues<T> {
     parse: fn(&str) -> Result<T, String>,
@@ -165,6 +165,21 @@ pub fn law_parser() -> NamedValues<ContactLawKind> {
         parse: parse_law,
         names: law_names,
     }
+}
+
+/// `--rig`: one of [`RigId::ALL`] by name ([`parse_rig`]); the help lists them.
+#[must_use]
+pub fn rig_parser() -> NamedValues<RigId> {
+    NamedValues {
+        parse: parse_rig,
+        names: rig_names,
+    }
+}
+
+/// The names of [`RigId::ALL`], in its order.
+#[must_use]
+pub fn rig_names() -> Vec<&'static str> {
+    RigId::NAMES.to_vec()
 }
 
 /// The names of [`ContactLawKind::ALL`], in its order.

@@ -519,7 +519,19 @@ fn request() -> impl Strategy<Value = Request> {
 fn kind_wanted(r: &Request) -> String {
     match r {
         Request::Control(Command::Status) => "status".into(),
-        Request::Control(_) | Request::Echo(_) => "ok".into(),
+        // Every command and request by name, no wildcard: a new one stops the build here.
+        Request::Control(
+            Command::Start
+            | Command::Stop
+            | Command::Tune
+            | Command::Clear
+            | Command::Stream(_)
+            | Command::Rig(_)
+            | Command::Gap(_)
+            | Command::Freq(_)
+            | Command::LinkTimeout(_),
+        )
+        | Request::Echo(_) => "ok".into(),
         Request::Id => "id".into(),
         Request::Diag => "diag".into(),
         Request::Help => "help".into(),
@@ -530,7 +542,9 @@ fn kind_wanted(r: &Request) -> String {
         Request::Calib | Request::EditCalib(..) => "calib".into(),
         Request::Save | Request::Store => "store".into(),
         Request::Reset => "ok".into(),
-        Request::Capture(_) => "capture".into(),
+        Request::Capture(
+            CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. },
+        ) => "capture".into(),
     }
 }
 

@@ -199,3 +199,50 @@ fn the_pages_list_every_contact_law() {
     }
     assert!(found >= 1, "no `--law a|b|…` list in the pages");
 }
+
+/// Every list of the rigs the documentation writes, `--rig a|b|…` and the console's
+/// `rig <a\|b\|…>`, names rigs of `RigId::ALL` in its order, and the pages' full lists (the
+/// options in README.md and docs/analysis.md, the console's `rig` in docs/operator.md) name every
+/// one of them: a rig added to the code is one the pages name. A list of some rigs, an example
+/// (`--rig wires|beam-170`), is allowed.
+#[test]
+fn the_pages_list_every_rig() {
+    let all = shared::model::RigId::NAMES;
+    let mut full = 0;
+    let mut pages = Vec::new();
+    files(&root().join("docs"), &mut pages);
+    pages.push(root().join("README.md"));
+    for page in pages
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+    {
+        let text = fs::read_to_string(page).unwrap().replace("\\|", "|");
+        for list in text
+            .split("--rig ")
+            .skip(1)
+            .chain(text.split("rig <").skip(1))
+        {
+            let word = list.split(|c: char| c.is_whitespace() || "`,>".contains(c));
+            let Some(names) = word.into_iter().next().filter(|w| w.contains('|')) else {
+                continue;
+            };
+            let names: Vec<&str> = names.split('|').collect();
+            let mut rest = all.iter();
+            assert!(
+                names.iter().all(|n| rest.any(|r| r == n)),
+                "{}: {} are not rigs in the order of RigId::ALL ({})",
+                page.display(),
+                names.join("|"),
+                all.join("|")
+            );
+            if names == all {
+                full += 1;
+            }
+        }
+    }
+    assert!(
+        full >= 3,
+        "the pages' lists of every rig ({}): {full} of 3",
+        all.join("|")
+    );
+}

@@ -22,7 +22,7 @@ use crate::virtual_rig::{self, HilRun, HilSetup};
 #[command(allow_negative_numbers = true)]
 pub struct HilArgs {
     /// Rig (the controller's model and the plant start from its preset).
-    #[arg(long, value_parser = crate::config::parse_rig, default_value = "wires")]
+    #[arg(long, value_parser = crate::config::rig_parser(), default_value = "wires")]
     pub rig: RigId,
     /// Gap the controller is configured with, mm (0 ..= 10).
     #[arg(long, default_value_t = 0.0)]

@@ -98,7 +98,7 @@ pub enum ModelCommand {
     /// none, refused while the drive runs; verified by reading the model back.
     Push {
         /// The preset the model starts from.
-        #[arg(long, value_parser = crate::config::parse_rig, default_value = "wires")]
+        #[arg(long, value_parser = crate::config::rig_parser(), default_value = "wires")]
         rig: shared::model::RigId,
         /// The contact law (default: the preset's).
         #[arg(long, value_parser = crate::config::parse_law)]

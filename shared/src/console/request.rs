@@ -2,7 +2,7 @@
 //! that says what is wrong (and changes nothing). [`Request`]'s [`fmt::Display`] writes the line
 //! that parses back to it, which is how the desktop sends requests.
 //!
-//! Commands: `status`, `rig <wires|beam-170|beam-150|beam-135>`, `gap <mm>`, `start`, `stop`,
+//! Commands: `status`, `rig <name>` (a name of [`RigId::ALL`]), `gap <mm>`, `start`, `stop`,
 //! `tune`, `freq <Hz>`, `clear`, `stream <on|off>` (the controller's, [`Command`]); `id`,
 //! `diag`, `capture [arm [level_N] [seconds] | stop | get <k>]`, `help` (answered by
 //! [`super::serve`]). Case-insensitive; extra spaces and a trailing `\r` are ignored.
@@ -196,10 +196,99 @@ pub enum ParseError {
     },
 }
 
+/// A text that lists names, built at compile time so that it follows the one list of the names
+/// (e.g. [`RigId::NAMES`]): `head`, the names with `sep` between them and `last` before the last
+/// one, then `tail`. [`list_text!`] makes it a `&'static str`.
+struct NameList<'a> {
+    head: &'a str,
+    names: &'a [&'a str],
+    sep: &'a str,
+    last: &'a str,
+    tail: &'a str,
+}
+
+impl<'a> NameList<'a> {
+    /// `head` then `a, b or c`.
+    const fn either(head: &'a str, names: &'a [&'a str]) -> Self {
+        Self {
+            head,
+            names,
+            sep: ", ",
+            last: " or ",
+            tail: "",
+        }
+    }
+
+    /// The pieces of the text, in order, `i` from 0 while it returns `Some`.
+    const fn piece(&self, i: usize) -> Option<&'a str> {
+        let n = self.names.len();
+        if i == 0 {
+            return Some(self.head);
+        }
+        // Then name 0, sep, name 1, ..., last, name n-1 (2n - 1 pieces), then the tail.
+        let k = i - 1;
+        if k + 1 < 2 * n {
+            return Some(if k.is_multiple_of(2) {
+                self.names[k / 2]
+            } else if k + 3 == 2 * n {
+                self.last
+            } else {
+                self.sep
+            });
+        }
+        if k + 1 == 2 * n || (n == 0 && k == 0) {
+            return Some(self.tail);
+        }
+        None
+    }
+
+    /// The text's length in bytes.
+    const fn len(&self) -> usize {
+        let mut len = 0;
+        let mut i = 0;
+        while let Some(p) = self.piece(i) {
+            len += p.len();
+            i += 1;
+        }
+        len
+    }
+
+    /// The text's bytes; `N` is [`NameList::len`].
+    const fn bytes<const N: usize>(&self) -> [u8; N] {
+        let mut out = [0; N];
+        let mut at = 0;
+        let mut i = 0;
+        while let Some(p) = self.piece(i) {
+            let p = p.as_bytes();
+            let mut j = 0;
+            while j < p.len() {
+                out[at] = p[j];
+                at += 1;
+                j += 1;
+            }
+            i += 1;
+        }
+        assert!(at == N, "the text's length is NameList::len");
+        out
+    }
+}
+
+/// The text of a [`NameList`], as a `&'static str` built at compile time.
+macro_rules! list_text {
+    ($list:expr) => {{
+        const LIST: NameList<'static> = $list;
+        const BYTES: [u8; LIST.len()] = LIST.bytes();
+        match core::str::from_utf8(&BYTES) {
+            Ok(text) => text,
+            Err(_) => panic!("names and pieces are whole UTF-8 strings"),
+        }
+    }};
+}
+
 const EMPTY: &str = "empty line";
 const UNKNOWN_COMMAND: &str = "unknown command (try `help`)";
 const UNEXPECTED: &str = "unexpected argument";
-const UNKNOWN_RIG: &str = "rig must be wires, beam-170, beam-150 or beam-135";
+const UNKNOWN_RIG: &str = list_text!(NameList::either("rig must be ", &RigId::NAMES));
 const ON_OFF: &str = "stream and echo take on or off";
 const UNKNOWN_CAPTURE: &str = "capture takes arm [level_N] [seconds], stop or get <k>";
 const BAD_TAG: &str = "a tag is # and 1 to 9 digits, then a space";
@@ -211,7 +300,7 @@ const NOT_AN_EXACT_NUMBER: &str = " must be a plain decimal number (at most 15 s
 const UNKNOWN_MODEL_FIELD: &str =
     "model takes a field (`model` shows them), law <name> or suspension <wires|beam>";
 const UNKNOWN_CALIB_FIELD: &str = "calib takes a field (`calib` shows them)";
-const UNKNOWN_LAW: &str = "law must be hertz, spring-dashpot, hunt-crossley or lankarani-nikravesh";
+const UNKNOWN_LAW: &str = list_text!(NameList::either("law must be ", &ContactLawKind::NAMES));
 const UNKNOWN_SUSPENSION: &str = "suspension must be wires or beam";
 const UNKNOWN_DRAFT: &str = "draft takes begin, apply or discard";
 const OUT_OF_RANGE: (&str, &str) = (" out of range: allowed ", " ..= ");
@@ -309,7 +398,17 @@ fn arg_named(name: &str) -> Result<Arg, ()> {
 }
 
 /// The help text, one line.
-pub const HELP: &str = "commands: status | rig <wires|beam-170|beam-150|beam-135> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k>] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | help; a line may start with #<n>, its reply then does too";
+pub const HELP: &str = list_text!(NameList {
+    head: "commands: status | rig <",
+    names: &RigId::NAMES,
+    sep: "|",
+    last: "|",
+    tail: "> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k>] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | help; a line may start with #<n>, its reply then does too",
+});
+
+// The help line, tagged (`#` and 9 digits, a space), fits a reply: a rig or command added to it
+// that would not stops the build here.
+const _: () = assert!(HELP.len() + 11 <= super::link::MAX_REPLY);
 
 /// Parses one line.
 ///
@@ -715,5 +814,46 @@ mod tests {
                 .parse::<ParseError>()
                 .is_err()
         );
+    }
+
+    #[test]
+    fn name_lists_follow_their_lists() {
+        // The texts that list rigs and laws are built from `RigId::ALL` and
+        // `ContactLawKind::ALL`: a new rig or law is in each of them.
+        let either = |names: &[&str]| {
+            let (last, rest) = names.split_last().unwrap();
+            std::format!("{} or {last}", rest.join(", "))
+        };
+        let rigs: std::vec::Vec<&str> = RigId::ALL.iter().map(|r| r.name()).collect();
+        let laws: std::vec::Vec<&str> = ContactLawKind::ALL.iter().map(|k| k.name()).collect();
+        assert_eq!(
+            ParseError::UnknownRig.to_string(),
+            std::format!("rig must be {}", either(&rigs))
+        );
+        assert_eq!(
+            ParseError::UnknownLaw.to_string(),
+            std::format!("law must be {}", either(&laws))
+        );
+        assert!(HELP.starts_with(&std::format!(
+            "commands: status | rig <{}> (a preset) | gap <mm> |",
+            rigs.join("|")
+        )));
+        for r in RigId::ALL {
+            assert_eq!(
+                parse(&std::format!("rig {r}")),
+                Ok(Request::Control(Command::Rig(r)))
+            );
+        }
+        // The builder's edges: one name, two, none.
+        const ONE: &str = list_text!(NameList::either("x: ", &["a"]));
+        const TWO: &str = list_text!(NameList::either("x: ", &["a", "b"]));
+        const NONE: &str = list_text!(NameList {
+            head: "<",
+            names: &[],
+            sep: "|",
+            last: "|",
+            tail: ">"
+        });
+        assert_eq!((ONE, TWO, NONE), ("x: a", "x: a or b", "<>"));
     }
 }

@@ -68,6 +68,8 @@ macro_rules! law_kinds {
         impl ContactLawKind {
             /// All laws.
             pub const ALL: [ContactLawKind; [$($name),+].len()] = [$(ContactLawKind::$variant),+];
+            /// The names of [`ContactLawKind::ALL`], in its order.
+            pub const NAMES: [&'static str; [$($name),+].len()] = [$($name),+];
             /// Command-line name (also the law's table in a config file: `[rig.contact.NAME]`).
             pub const fn name(self) -> &'static str {
                 match self {

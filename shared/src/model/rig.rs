@@ -21,34 +21,50 @@ pub const GRAVITY_M_S2: f64 = 9.81;
 /// `host-sim simulate`).
 pub const IMPACT_SPEEDS_M_S: [f64; 4] = [0.01, 0.03, 0.1, 0.3];
 
-/// The four rigs of the thesis.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RigId {
+/// Declares [`RigId`] from one list of its variants and their names: the enum,
+/// [`RigId::ALL`], [`RigId::NAMES`] and [`RigId::name`] all come from the list, so a rig added to
+/// it is in each of them (and every `match` on the rig, [`RigId::preset`] among them, fails to
+/// compile until it handles the rig). The serde names stay the derive's own (kebab-case of the
+/// variant: `beam170`), as before.
+macro_rules! rig_ids {
+    ($($(#[doc = $doc:literal])* $variant:ident => $name:literal,)+) => {
+        /// The rigs of the thesis.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        #[serde(rename_all = "kebab-case")]
+        pub enum RigId {
+            $($(#[doc = $doc])* $variant,)+
+        }
+
+        impl RigId {
+            /// All rigs, in the order of the thesis.
+            pub const ALL: [RigId; [$($name),+].len()] = [$(RigId::$variant),+];
+
+            /// The names of [`RigId::ALL`], in its order: every text that lists the rigs (the
+            /// unknown rig's errors, the console's `help`, `--rig`'s help) is built from it.
+            pub const NAMES: [&'static str; [$($name),+].len()] = [$($name),+];
+
+            /// Command-line name (`wires`, `beam-170`, ...).
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(RigId::$variant => $name,)+
+                }
+            }
+        }
+    };
+}
+
+rig_ids! {
     /// Hammer on wires: an embarked pendulum, Eq. (3-15)–(3-18), Table 3.2.
-    Wires,
+    Wires => "wires",
     /// Hammer on beam springs, couplings distance 170 mm (4.50 Hz), Table 3.3.
-    Beam170,
+    Beam170 => "beam-170",
     /// Hammer on beam springs, couplings distance 150 mm (5.25 Hz), Table 3.3.
-    Beam150,
+    Beam150 => "beam-150",
     /// Hammer on beam springs, couplings distance 135 mm (6.50 Hz), Table 3.3.
-    Beam135,
+    Beam135 => "beam-135",
 }
 
 impl RigId {
-    /// All rigs, in the order of the thesis.
-    pub const ALL: [RigId; 4] = [RigId::Wires, RigId::Beam170, RigId::Beam150, RigId::Beam135];
-
-    /// Command-line name (`wires`, `beam-170`, ...).
-    pub const fn name(self) -> &'static str {
-        match self {
-            RigId::Wires => "wires",
-            RigId::Beam170 => "beam-170",
-            RigId::Beam150 => "beam-150",
-            RigId::Beam135 => "beam-135",
-        }
-    }
-
     /// The thesis' identified parameters for this rig, with the identified spring–dashpot law
     /// (Table 3.1).
     pub fn preset(self) -> RigParams {
@@ -89,7 +105,14 @@ pub struct UnknownRig;
 
 impl fmt::Display for UnknownRig {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("unknown rig: expected one of wires, beam-170, beam-150, beam-135")
+        f.write_str("unknown rig: expected one of ")?;
+        for (i, name) in RigId::NAMES.iter().enumerate() {
+            if i > 0 {
+                f.write_str(", ")?;
+            }
+            f.write_str(name)?;
+        }
+        Ok(())
     }
 }
 
@@ -409,11 +432,17 @@ mod tests {
     #[test]
     fn beam_damping_matches_table_3_3_coefficients() {
         // Table 3.3 lists c = 0.06 / 0.08 / 0.09 N s/m: 2 ζ m ω = 0.067 / 0.079 / 0.097 to two decimals.
-        for (rig, c_table) in [
-            (RigId::Beam170, 0.06),
-            (RigId::Beam150, 0.08),
-            (RigId::Beam135, 0.09),
-        ] {
+        // A match, not a list: a new rig stops the build here until its table value is given.
+        let table_c = |rig| match rig {
+            RigId::Wires => None,
+            RigId::Beam170 => Some(0.06),
+            RigId::Beam150 => Some(0.08),
+            RigId::Beam135 => Some(0.09),
+        };
+        for rig in RigId::ALL {
+            let Some(c_table) = table_c(rig) else {
+                continue;
+            };
             let p = rig.preset();
             let Suspension::Beam { damping_ratio, .. } = p.suspension else {
                 panic!("beam preset")
@@ -421,6 +450,16 @@ mod tests {
             let c = 2.0 * damping_ratio * p.mass_kg * p.omega_n();
             assert!((c - c_table).abs() < 0.01, "{rig}: c = {c}");
         }
+    }
+
+    #[test]
+    fn unknown_rig_lists_every_rig() {
+        let names: std::vec::Vec<&str> = RigId::ALL.iter().map(|r| r.name()).collect();
+        assert_eq!(RigId::NAMES.to_vec(), names);
+        assert_eq!(
+            "beam-200".parse::<RigId>().unwrap_err().to_string(),
+            std::format!("unknown rig: expected one of {}", names.join(", "))
+        );
     }
 
     #[test]

@@ -83,7 +83,7 @@ pub struct ContactArgs {
     #[arg(long, default_value_t = 0.0)]
     pub gap_mm: f64,
     /// Suspension of the hammer during the test (the free flight between impacts).
-    #[arg(long, value_parser = crate::config::parse_rig, default_value = "wires")]
+    #[arg(long, value_parser = crate::config::rig_parser(), default_value = "wires")]
     pub rig: RigId,
     /// TOML file overriding rig parameters (e.g. the output of `identify free`).
     #[arg(long, value_name = "FILE.toml")]
@@ -148,7 +148,7 @@ pub struct FreeArgs {
     /// Rig whose suspension the config file sets: a beam preset (natural frequency and
     /// damping ratio) or wires (pendulum length g/ω² and the damping ratio ζ of the project's
     /// viscous term −2ζω θ̇; the `wires` preset is the thesis' undamped model).
-    #[arg(long, value_parser = crate::config::parse_rig, default_value = "beam-170")]
+    #[arg(long, value_parser = crate::config::rig_parser(), default_value = "beam-170")]
     pub rig: RigId,
     /// Config file with the mass and the identified suspension.
     #[arg(value_parser = crate::output::out_target, long, value_name = "FILE.toml")]
