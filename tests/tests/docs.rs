@@ -167,19 +167,22 @@ fn named_pages_exist_and_nothing_points_outside_the_repository() {
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
+/// The Markdown pages: docs/ (every level) and README.md.
+fn markdown_pages() -> Vec<std::path::PathBuf> {
+    let mut pages = Vec::new();
+    files(&root().join("docs"), &mut pages);
+    pages.push(root().join("README.md"));
+    pages.retain(|p| p.extension().is_some_and(|e| e == "md"));
+    pages
+}
+
 /// Every `--law a|b|…` the documentation writes lists the laws of `ContactLawKind::ALL`, in
 /// its order (a law added to the code is one the pages name).
 #[test]
 fn the_pages_list_every_contact_law() {
     let all = shared::model::ContactLawKind::ALL.map(shared::model::ContactLawKind::name);
     let mut found = 0;
-    let mut pages = Vec::new();
-    files(&root().join("docs"), &mut pages);
-    pages.push(root().join("README.md"));
-    for page in pages
-        .iter()
-        .filter(|p| p.extension().is_some_and(|e| e == "md"))
-    {
+    for page in &markdown_pages() {
         let text = fs::read_to_string(page).unwrap();
         for list in text.split("--law ").skip(1) {
             let word = list.split(|c: char| c.is_whitespace() || c == '`' || c == ',');
@@ -209,13 +212,7 @@ fn the_pages_list_every_contact_law() {
 fn the_pages_list_every_rig() {
     let all = shared::model::RigId::NAMES;
     let mut full = 0;
-    let mut pages = Vec::new();
-    files(&root().join("docs"), &mut pages);
-    pages.push(root().join("README.md"));
-    for page in pages
-        .iter()
-        .filter(|p| p.extension().is_some_and(|e| e == "md"))
-    {
+    for page in &markdown_pages() {
         let text = fs::read_to_string(page).unwrap().replace("\\|", "|");
         for list in text
             .split("--rig ")
