@@ -36,6 +36,7 @@ pub mod dual;
 pub mod error;
 pub mod hal;
 pub mod health;
+pub mod identify;
 pub mod integrate;
 pub mod model;
 pub mod observe;
