@@ -42,6 +42,9 @@ pub enum CaptureCommand {
     Stop,
     /// `capture get <k>`: segment `k` as one line.
     Get(u16),
+    /// `capture identify`: the board's identification of the finished capture as a drop test
+    /// ([`crate::identify`]).
+    Identify,
 }
 
 /// Where a capture is.

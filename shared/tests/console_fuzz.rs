@@ -63,6 +63,7 @@ const ARGS: &[&str] = &[
     "off",
     "arm",
     "get",
+    "identify",
     "stop",
     "2",
     "31",

@@ -6,6 +6,7 @@ use proptest::prelude::*;
 use shared::capture::Capture;
 use shared::capture::{CAPTURE_RATE_HZ, CaptureCommand};
 use shared::capture::{CaptureState, CaptureStatus, SEGMENT_LEN, SEGMENTS, SegmentView};
+use shared::console::IdentifyLine;
 use shared::console::link::LinkStats;
 use shared::console::serve::Response;
 use shared::console::{self, BoardInfo, Direct, Line, Link};
@@ -23,6 +24,8 @@ use shared::control::{
 };
 use shared::control::{CalibField, Calibration, ModelId, ModelSource};
 use shared::control::{Controller, ControllerConfig};
+use shared::identify::spacing::SuspensionId;
+use shared::identify::{DropIdentification, DropRefusal};
 use shared::model::{ContactLawKind, ModelEdit, ModelField, RigId, RigParams, SuspensionKind};
 use shared::observe::Regime;
 use shared::store::ram_flash::{PAGE_BYTES, RamFlash};
@@ -274,6 +277,80 @@ fn segment() -> impl Strategy<Value = SegmentView> {
         })
 }
 
+/// Any `f32` the identification can give: finite, of any size.
+fn finite_f32() -> impl Strategy<Value = f32> {
+    any::<f32>().prop_filter("finite", |v| v.is_finite())
+}
+
+fn identify_line() -> impl Strategy<Value = IdentifyLine> {
+    let x = finite_f32;
+    let identified = (
+        (any::<u16>(), x(), x(), x(), x(), x()),
+        (x(), x(), x(), x(), x()),
+        proptest::option::of((x(), x(), x(), any::<u16>())),
+    )
+        .prop_map(
+            |(
+                (impacts, offset_n, noise_n, first_peak_n, approach_speed_m_s, restitution),
+                (stiffness_n_m, stiffness_pm_pct, damping_n_s_m, damping_pm_pct, fit_ratio),
+                s,
+            )| {
+                DropIdentification {
+                    impacts,
+                    offset_n,
+                    noise_n,
+                    first_peak_n,
+                    approach_speed_m_s,
+                    restitution,
+                    stiffness_n_m,
+                    stiffness_pm_pct,
+                    damping_n_s_m,
+                    damping_pm_pct,
+                    fit_ratio,
+                    suspension: s.map(|(natural_freq_hz, spread_pct, damping_ratio, halves)| {
+                        SuspensionId {
+                            natural_freq_hz,
+                            spread_pct,
+                            damping_ratio,
+                            halves,
+                        }
+                    }),
+                }
+            },
+        );
+    let k = any::<u16>;
+    let refused = prop_oneof![
+        Just(DropRefusal::NoImpacts),
+        k().prop_map(|found| DropRefusal::TooFewImpacts { found }),
+        any::<u32>().prop_map(|lost| DropRefusal::LostSamples { lost }),
+        k().prop_map(|impact| DropRefusal::Saturated { impact }),
+        k().prop_map(|impact| DropRefusal::Clipped { impact }),
+        (k(), k()).prop_map(|(impact, samples)| DropRefusal::ShortPulse { impact, samples }),
+        (k(), x(), x()).prop_map(
+            |(impact, noise_n, typical_n)| DropRefusal::RestlessBaseline {
+                impact,
+                noise_n,
+                typical_n
+            }
+        ),
+        (k(), x(), x()).prop_map(|(impact, spacing_ms, expected_ms)| {
+            DropRefusal::IrregularSpacing {
+                impact,
+                spacing_ms,
+                expected_ms,
+            }
+        }),
+        (k(), x()).prop_map(|(impacts, expected_n)| DropRefusal::TrainStopped {
+            impacts,
+            expected_n
+        }),
+        (k(), x()).prop_map(|(impact, peak_n)| DropRefusal::SecondTrain { impact, peak_n }),
+        Just(DropRefusal::NotIdentifiable),
+        Just(DropRefusal::BadMass),
+    ];
+    prop_oneof![identified.prop_map(Ok), refused.prop_map(Err)].prop_map(IdentifyLine)
+}
+
 fn parse_error() -> impl Strategy<Value = ParseError> {
     let arg = proptest::sample::select(Arg::ALL.to_vec());
     prop_oneof![
@@ -380,6 +457,7 @@ fn answer() -> impl Strategy<Value = Answer> {
         diag().prop_map(Answer::Diag),
         capture_status().prop_map(Answer::Capture),
         segment().prop_map(Answer::Segment),
+        identify_line().prop_map(Answer::Identify),
         answer_error().prop_map(Answer::Error),
         (
             prop_oneof![
@@ -484,6 +562,7 @@ fn request() -> impl Strategy<Value = Request> {
             Just(CaptureCommand::Status),
             Just(CaptureCommand::Stop),
             (0..SEGMENTS as u16).prop_map(CaptureCommand::Get),
+            Just(CaptureCommand::Identify),
             (100u32..=100_000, 10u32..=60_000).prop_map(|(l, s)| CaptureCommand::Arm {
                 level_n: l as f32 / 1e3,
                 seconds: s as f32 / 1e3
@@ -536,6 +615,7 @@ fn kind_wanted(r: &Request) -> String {
         Request::Diag => "diag".into(),
         Request::Help => "help".into(),
         Request::Capture(CaptureCommand::Get(k)) => format!("segment {k}"),
+        Request::Capture(CaptureCommand::Identify) => "identify".into(),
         Request::Model | Request::EditModel(_) | Request::Draft(_) | Request::Revert => {
             "model".into()
         }

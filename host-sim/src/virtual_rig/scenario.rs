@@ -6,6 +6,13 @@
 //! [plant]                        # rk4 steps per sample, refinement, bands
 //! steps_per_sample = 10
 //! contact_stiffness_factor = 1.0 # the real contact harder/softer than the model's
+//! contact_damping_factor = 1.0   # spring–dashpot c_i over the model's (after the above)
+//! natural_freq_factor = 1.0      # the suspension's ω over the model's
+//! damping_ratio = 0.01           # the suspension's ζ (absent: the model's)
+//! [plant.contact.hunt-crossley]  # the plant's own contact law (absent: the model's, scaled)
+//! stiffness = 2.1e9
+//! exponent = 1.6
+//! lambda_s_m = 0.6
 //! [drive]                        # amp_tau_s, cart_mm_per_v, dac_full_scale_v
 //! [sensor]                       # volts_per_n, offset_v, noise_v, adc_full_scale_v, seed
 //! [controller]                   # shared::control::ControllerConfig (the firmware's defaults)
@@ -41,6 +48,16 @@ pub struct PlantSection {
     pub refine: u32,
     /// The plant's contact stiffness (and damping) over the preset's (1.0).
     pub contact_stiffness_factor: f64,
+    /// The plant's spring–dashpot damping `c_i` over the preset's after the stiffness factor
+    /// (1.0).
+    pub contact_damping_factor: f64,
+    /// The plant's natural frequency over the preset's (1.0; the pendulum's length by its
+    /// square).
+    pub natural_freq_factor: f64,
+    /// The plant's suspension damping ratio (absent: the preset's).
+    pub damping_ratio: Option<f64>,
+    /// The plant's own contact law (absent: the preset's with the factors above).
+    pub contact: Option<shared::model::ContactLaw>,
 }
 
 impl Default for PlantSection {
@@ -50,11 +67,50 @@ impl Default for PlantSection {
             steps_per_sample: d.steps_per_sample,
             refine: d.refine,
             contact_stiffness_factor: 1.0,
+            contact_damping_factor: 1.0,
+            natural_freq_factor: 1.0,
+            damping_ratio: None,
+            contact: None,
         }
     }
 }
 
 impl PlantSection {
+    /// The plant's rig: `preset` changed by this section.
+    ///
+    /// # Errors
+    /// Parameters outside the model's ranges, named.
+    pub fn params(&self, preset: &shared::model::RigParams) -> Result<shared::model::RigParams> {
+        use shared::model::{ContactLaw, Suspension};
+        let mut p = preset.with_contact_scaled(self.contact_stiffness_factor);
+        if let ContactLaw::SpringDashpot { damping_n_s_m, .. } = &mut p.contact {
+            *damping_n_s_m *= self.contact_damping_factor;
+        }
+        if let Some(law) = self.contact {
+            p.contact = law;
+        }
+        let f = self.natural_freq_factor;
+        p.suspension = match p.suspension {
+            Suspension::Wires {
+                length_m,
+                damping_ratio,
+            } => Suspension::Wires {
+                length_m: length_m / (f * f),
+                damping_ratio: self.damping_ratio.unwrap_or(damping_ratio),
+            },
+            Suspension::Beam {
+                natural_freq_hz,
+                damping_ratio,
+            } => Suspension::Beam {
+                natural_freq_hz: natural_freq_hz * f,
+                damping_ratio: self.damping_ratio.unwrap_or(damping_ratio),
+            },
+        };
+        p.validate()
+            .map_err(|e| anyhow::anyhow!("[plant]: the plant's rig: {e}"))?;
+        Ok(p)
+    }
+
     /// The integration settings.
     pub fn settings(&self) -> PlantSettings {
         PlantSettings {
@@ -220,6 +276,21 @@ impl Scenario {
             0.01,
             100.0,
         )?;
+        finite_in(
+            "plant.contact_damping_factor",
+            self.plant.contact_damping_factor,
+            0.01,
+            100.0,
+        )?;
+        finite_in(
+            "plant.natural_freq_factor",
+            self.plant.natural_freq_factor,
+            0.5,
+            2.0,
+        )?;
+        if let Some(z) = self.plant.damping_ratio {
+            finite_in("plant.damping_ratio", z, 0.0, 0.99)?;
+        }
         self.controller.validate().context("[controller]")?;
         for c in &self.commands {
             finite_in("commands.at_s", c.at_s, 0.0, 1e6)?;

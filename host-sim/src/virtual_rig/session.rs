@@ -211,10 +211,7 @@ impl Session {
             0..STORE_BYTES,
         )
         .map_err(|_| anyhow::anyhow!("the virtual rig's store range"))?;
-        let base = setup
-            .rig
-            .preset()
-            .with_contact_scaled(sc.plant.contact_stiffness_factor);
+        let base = sc.plant.params(&setup.rig.preset())?;
         let plant = Plant::new(
             &base,
             setup.actual_gap_mm * 1e-3,

@@ -23,6 +23,7 @@
 
 pub mod board;
 pub mod decimal;
+pub mod drop_id;
 pub mod fields;
 pub mod framing;
 pub mod link;
@@ -35,6 +36,7 @@ pub mod token;
 
 pub use board::Board;
 pub use decimal::{Decimal, Exact, parse_decimal, parse_exact};
+pub use drop_id::IdentifyLine;
 pub use fields::WireError;
 pub use framing::{Line, LineBuffer, MAX_LINE, RxError, is_line_end};
 pub use link::{Link, LinkStats, PendingLine};

@@ -17,6 +17,7 @@ use core::str::FromStr;
 use super::board::Board;
 use super::decimal::{Decimal, Exact, parse_exact};
 use super::displays_as;
+use super::drop_id::IdentifyLine;
 use super::fields::{Fields, WireError, decimal};
 use super::link::LinkStats;
 use super::request::{DraftCommand, HELP, MAX_FREQ_HZ, ParseError, Request};
@@ -777,6 +778,8 @@ pub enum Answer {
     Capture(CaptureStatus),
     /// `capture get k`.
     Segment(SegmentView),
+    /// `capture identify`.
+    Identify(IdentifyLine),
     /// `model`, its edits and `draft`'s: the model line.
     Model(ModelView),
     /// `calib` and its edits: the calibration line.
@@ -820,6 +823,7 @@ impl Answer {
             Request::Capture(
                 CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. },
             ) => matches!(self, Answer::Capture(_)),
+            Request::Capture(CaptureCommand::Identify) => matches!(self, Answer::Identify(_)),
             Request::Model
             | Request::EditModel(_)
             | Request::Revert
@@ -844,6 +848,7 @@ impl fmt::Display for Answer {
             Answer::Diag(d) => write!(f, "{d}"),
             Answer::Capture(c) => write!(f, "{c}"),
             Answer::Segment(s) => write!(f, "{s}"),
+            Answer::Identify(l) => write!(f, "{l}"),
             Answer::Model(m) => write!(f, "{m}"),
             Answer::Calib(c) => write!(f, "{c}"),
             Answer::Store(st) => write!(f, "{st}"),
@@ -878,6 +883,8 @@ impl FromStr for Answer {
             s.parse().map(Answer::Capture)
         } else if s.starts_with("segment ") {
             s.parse().map(Answer::Segment)
+        } else if s.starts_with("identify ") {
+            s.parse().map(Answer::Identify)
         } else if s.starts_with("model ") {
             s.parse().map(Answer::Model)
         } else if s.starts_with("calib ") {

@@ -13,6 +13,7 @@
 use core::fmt;
 use core::str::FromStr;
 
+use super::drop_id::IdentifyLine;
 use super::fields::WireError;
 use super::framing::Line;
 use super::link::{Link, MAX_REPLY};
@@ -20,10 +21,12 @@ use super::reply::{Answer, AnswerError, BoardInfo, CaptureError, DiagInfo, IdInf
 use super::request::{DraftCommand, ParseError, Request, parse};
 use super::settings::{CalibView, ModelOf, ModelView, SettingsRefusal, StoreRefusal, StoreView};
 use crate::capture::{CAPTURE_RATE_HZ, Capture, CaptureCommand};
+use crate::control::SensorChain;
 use crate::control::{
     AsyncRecord, Command, CommandError, Controller, ModelSource, SAMPLE_RATE_HZ, SettingsError,
     State,
 };
+use crate::identify::{CaptureOnChain, DropRecord, SegmentForce, identify_drop};
 use crate::store::SettingsStore;
 
 /// Access to the rig's pieces, each for the duration of one closure.
@@ -382,6 +385,16 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
                 c.status()
             }))
         }
+        CaptureCommand::Identify => {
+            if rig.capture(|c| c.active()) {
+                return Answer::Error(AnswerError::Capture(CaptureError::Running));
+            }
+            let (params, gap_mm, sensor) =
+                rig.controller(|c| (*c.model().0, c.gap_mm(), c.config().sensor));
+            let mut rec = LockedCapture { rig, sensor };
+            let result = identify_drop(&mut rec, params.mass_kg as f32, gap_mm * 1e-3);
+            Answer::Identify(IdentifyLine(result))
+        }
         CaptureCommand::Get(k) => match rig.capture(|c| c.segment(k).ok_or(c.status().segments)) {
             Ok(seg) => Answer::Segment(seg),
             Err(recorded) => Answer::Error(AnswerError::Capture(CaptureError::NoSegment {
@@ -389,6 +402,46 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
                 recorded,
             })),
         },
+    }
+}
+
+/// The capture read through the board's access, one short lock per segment (the firmware's
+/// capture interrupt waits no longer than a copy).
+struct LockedCapture<'r, R: RigAccess> {
+    rig: &'r mut R,
+    sensor: SensorChain,
+}
+
+impl<R: RigAccess> DropRecord for LockedCapture<'_, R> {
+    fn segments(&mut self) -> usize {
+        usize::from(self.rig.capture(|c| c.status().segments))
+    }
+
+    fn segment(&mut self, k: usize) -> Option<SegmentForce> {
+        let sensor = self.sensor;
+        self.rig.capture(|c| {
+            CaptureOnChain {
+                capture: c,
+                sensor: &sensor,
+            }
+            .segment(k)
+        })
+    }
+
+    fn samples(&mut self) -> u32 {
+        self.rig.capture(|c| c.status().samples)
+    }
+
+    fn lost_samples(&mut self) -> u32 {
+        self.rig.capture(|c| c.lost_samples())
+    }
+
+    fn level_n(&mut self) -> f32 {
+        self.rig.capture(|c| c.status().level_n)
+    }
+
+    fn resolution_n(&mut self) -> f32 {
+        self.sensor.force_n(1) - self.sensor.force_n(0)
     }
 }
 

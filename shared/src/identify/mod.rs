@@ -110,7 +110,7 @@ pub enum DropRefusal {
         /// Its peak, N.
         peak_n: f32,
     },
-    /// The pulses do not separate stiffness from damping, or give a negative one.
+    /// The pulses do not separate stiffness from damping, or give one that is not positive.
     NotIdentifiable,
     /// The rig's mass in the model is not a positive finite number.
     BadMass,
@@ -203,7 +203,7 @@ struct PulseSummary {
 /// # Errors
 /// [`DropRefusal`]: why the capture cannot fix them.
 pub fn identify_drop(
-    rec: &impl DropRecord,
+    rec: &mut impl DropRecord,
     mass_kg: f32,
     gap_m: f32,
 ) -> Result<DropIdentification, DropRefusal> {
@@ -285,7 +285,7 @@ pub fn identify_drop(
         };
     }
     let ([kappa, gamma], inv) = normal.solve().ok_or(DropRefusal::NotIdentifiable)?;
-    if !(kappa > 0.0 && gamma >= 0.0) {
+    if !(kappa > 0.0 && gamma > 0.0) {
         return Err(DropRefusal::NotIdentifiable);
     }
     // Pass 3: the residual.
@@ -308,7 +308,10 @@ pub fn identify_drop(
         *kn = Kinematics::of(s, kappa, gamma, mass_kg);
     }
     let suspension = if gap_m <= MAX_SPACING_GAP_M {
-        Some(spacing::suspension(&kin[..n], rec, recorded == n)?)
+        Some(spacing::suspension(
+            &kin[..n],
+            (recorded == n).then(|| (rec.level_n(), rec.samples())),
+        )?)
     } else {
         None
     };
@@ -323,11 +326,7 @@ pub fn identify_drop(
         stiffness_n_m: k_i,
         stiffness_pm_pct: pm(inv[0], kappa),
         damping_n_s_m: c_i,
-        damping_pm_pct: if gamma > 0.0 {
-            pm(inv[2], gamma)
-        } else {
-            f32::INFINITY
-        },
+        damping_pm_pct: pm(inv[2], gamma),
         fit_ratio: resid_var / (sigma * sigma),
         suspension,
     })

@@ -16,20 +16,21 @@ pub struct SegmentForce {
     pub railed: bool,
 }
 
-/// A drop test's capture, read one segment at a time (no copy of the whole record is needed).
+/// A drop test's capture, read one segment at a time (no copy of the whole record is needed;
+/// `&mut`: the firmware locks its capture for each read).
 pub trait DropRecord {
     /// Segments (impacts) recorded.
-    fn segments(&self) -> usize;
+    fn segments(&mut self) -> usize;
     /// Segment `k` (`k < segments()`), `None` when it is not recorded.
-    fn segment(&self, k: usize) -> Option<SegmentForce>;
+    fn segment(&mut self, k: usize) -> Option<SegmentForce>;
     /// Samples seen since arming, at [`CAPTURE_RATE_HZ`]: the record's length.
-    fn samples(&self) -> u32;
+    fn samples(&mut self) -> u32;
     /// Samples lost since arming (a record with gaps has no trustworthy impact times).
-    fn lost_samples(&self) -> u32;
+    fn lost_samples(&mut self) -> u32;
     /// The trigger level, N: impacts weaker than this are not recorded.
-    fn level_n(&self) -> f32;
+    fn level_n(&mut self) -> f32;
     /// The force of one ADC code, N: the quantisation that bounds the noise from below.
-    fn resolution_n(&self) -> f32;
+    fn resolution_n(&mut self) -> f32;
 }
 
 /// The rig's capture read through its sensor calibration.
@@ -42,11 +43,11 @@ pub struct CaptureOnChain<'a> {
 }
 
 impl DropRecord for CaptureOnChain<'_> {
-    fn segments(&self) -> usize {
+    fn segments(&mut self) -> usize {
         usize::from(self.capture.status().segments)
     }
 
-    fn segment(&self, k: usize) -> Option<SegmentForce> {
+    fn segment(&mut self, k: usize) -> Option<SegmentForce> {
         let view = self.capture.segment(u16::try_from(k).ok()?)?;
         let mut out = SegmentForce {
             start: view.start,
@@ -60,19 +61,19 @@ impl DropRecord for CaptureOnChain<'_> {
         Some(out)
     }
 
-    fn samples(&self) -> u32 {
+    fn samples(&mut self) -> u32 {
         self.capture.status().samples
     }
 
-    fn lost_samples(&self) -> u32 {
+    fn lost_samples(&mut self) -> u32 {
         self.capture.lost_samples()
     }
 
-    fn level_n(&self) -> f32 {
+    fn level_n(&mut self) -> f32 {
         self.capture.status().level_n
     }
 
-    fn resolution_n(&self) -> f32 {
+    fn resolution_n(&mut self) -> f32 {
         self.sensor.force_n(1) - self.sensor.force_n(0)
     }
 }

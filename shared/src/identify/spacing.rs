@@ -9,7 +9,7 @@
 use crate::capture::{SEGMENT_LEN, SEGMENTS};
 
 use super::linear_fit::centred;
-use super::record::{DropRecord, SAMPLE_PERIOD_S};
+use super::record::SAMPLE_PERIOD_S;
 use super::{DropRefusal, PulseSummary};
 
 /// Largest deviation of a half period from the median, as a fraction (two drops or a rattling
@@ -92,17 +92,16 @@ fn flight(a: &Kinematics, b: &Kinematics) -> f32 {
     b.start.wrapping_sub(a.start) as f32 + (b.centre + b.arrival) - (a.centre + a.departure)
 }
 
-/// The suspension from the impacts `kin` (in order) of the record `rec`.
+/// The suspension from the impacts `kin` (in order).
 ///
 /// # Errors
 /// [`DropRefusal::IrregularSpacing`] when a flight is off the others' median by more than
 /// [`MAX_SPACING_DEVIATION`]; [`DropRefusal::TrainStopped`] when `kin` ends the record
-/// (`train_ends_here`), the capture ran on past the next impact's time and that impact should
-/// have crossed the trigger level twice over.
+/// (`train_end`: the trigger level, N, and the record's samples), the capture ran on past the
+/// next impact's time and that impact should have crossed the trigger level twice over.
 pub(super) fn suspension(
     kin: &[Kinematics],
-    rec: &impl DropRecord,
-    train_ends_here: bool,
+    train_end: Option<(f32, u32)>,
 ) -> Result<SuspensionId, DropRefusal> {
     let halves = kin.len().saturating_sub(1).min(SEGMENTS);
     let mut h = [0.0f32; SEGMENTS];
@@ -140,14 +139,13 @@ pub(super) fn suspension(
     let zeta = (-ln_r / libm::sqrtf(pi * pi + ln_r * ln_r)).max(0.0);
     let omega_d = pi / (mean * SAMPLE_PERIOD_S);
     let omega_n = omega_d / libm::sqrtf(1.0 - zeta * zeta);
-    if let Some(last) = kin.last()
-        && train_ends_here
+    if let (Some(last), Some((level_n, samples))) = (kin.last(), train_end)
         && kin.len() < SEGMENTS
     {
         let next = last.start as f32 + last.centre + last.departure + mean;
         let speed = -last.v_out * libm::expf(ln_r);
         let expected = last.peak_n * speed / last.v_arrival;
-        if expected > 2.0 * rec.level_n() && next + (SEGMENT_LEN as f32) < rec.samples() as f32 {
+        if expected > 2.0 * level_n && next + (SEGMENT_LEN as f32) < samples as f32 {
             return Err(DropRefusal::TrainStopped {
                 impacts: kin.len() as u16,
                 expected_n: expected,

@@ -1,0 +1,237 @@
+//! The `identify` line: what the board's drop identification ([`crate::identify`]) made of
+//! the last capture, or why it refused it. Every number is exact ([`Exact`]): the desktop reads
+//! the board's `f32` bits.
+//!
+//! `identify verdict=fits|misfit impacts=… offset_n=… noise_n=… peak_n=… approach_m_s=…
+//! restitution=… k_i=… k_i_pm_pct=… c_i=… c_i_pm_pct=… fit_ratio=… [f_n_hz=… f_n_spread_pct=…
+//! zeta=… halves=…]` (the suspension's fields at gap 0 only), or
+//! `identify verdict=refused reason=<word> [its fields]`.
+
+use core::fmt;
+use core::str::FromStr;
+
+use super::decimal::{Exact, parse_exact};
+use super::fields::{Fields, WireError};
+use crate::identify::spacing::SuspensionId;
+use crate::identify::{DropIdentification, DropRefusal};
+
+/// The answer to `capture identify`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdentifyLine(pub Result<DropIdentification, DropRefusal>);
+
+/// The refusals' words.
+const REASONS: [&str; 12] = [
+    "no-impacts",
+    "too-few-impacts",
+    "lost-samples",
+    "saturated",
+    "clipped",
+    "short-pulse",
+    "restless-baseline",
+    "irregular-spacing",
+    "train-stopped",
+    "second-train",
+    "not-identifiable",
+    "bad-mass",
+];
+
+fn reason(r: &DropRefusal) -> &'static str {
+    let i = match r {
+        DropRefusal::NoImpacts => 0,
+        DropRefusal::TooFewImpacts { .. } => 1,
+        DropRefusal::LostSamples { .. } => 2,
+        DropRefusal::Saturated { .. } => 3,
+        DropRefusal::Clipped { .. } => 4,
+        DropRefusal::ShortPulse { .. } => 5,
+        DropRefusal::RestlessBaseline { .. } => 6,
+        DropRefusal::IrregularSpacing { .. } => 7,
+        DropRefusal::TrainStopped { .. } => 8,
+        DropRefusal::SecondTrain { .. } => 9,
+        DropRefusal::NotIdentifiable => 10,
+        DropRefusal::BadMass => 11,
+    };
+    REASONS[i]
+}
+
+impl fmt::Display for IdentifyLine {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = Exact::f32;
+        match &self.0 {
+            Ok(id) => {
+                write!(
+                    f,
+                    "identify verdict={} impacts={} offset_n={} noise_n={} peak_n={} \
+                     approach_m_s={} restitution={} k_i={} k_i_pm_pct={} c_i={} c_i_pm_pct={} \
+                     fit_ratio={}",
+                    if id.law_fits() { "fits" } else { "misfit" },
+                    id.impacts,
+                    x(id.offset_n),
+                    x(id.noise_n),
+                    x(id.first_peak_n),
+                    x(id.approach_speed_m_s),
+                    x(id.restitution),
+                    x(id.stiffness_n_m),
+                    x(id.stiffness_pm_pct),
+                    x(id.damping_n_s_m),
+                    x(id.damping_pm_pct),
+                    x(id.fit_ratio),
+                )?;
+                if let Some(s) = id.suspension {
+                    write!(
+                        f,
+                        " f_n_hz={} f_n_spread_pct={} zeta={} halves={}",
+                        x(s.natural_freq_hz),
+                        x(s.spread_pct),
+                        x(s.damping_ratio),
+                        s.halves
+                    )?;
+                }
+                Ok(())
+            }
+            Err(r) => {
+                write!(f, "identify verdict=refused reason={}", reason(r))?;
+                match *r {
+                    DropRefusal::NoImpacts
+                    | DropRefusal::NotIdentifiable
+                    | DropRefusal::BadMass => Ok(()),
+                    DropRefusal::TooFewImpacts { found } => write!(f, " found={found}"),
+                    DropRefusal::LostSamples { lost } => write!(f, " lost={lost}"),
+                    DropRefusal::Saturated { impact } | DropRefusal::Clipped { impact } => {
+                        write!(f, " impact={impact}")
+                    }
+                    DropRefusal::ShortPulse { impact, samples } => {
+                        write!(f, " impact={impact} samples={samples}")
+                    }
+                    DropRefusal::RestlessBaseline {
+                        impact,
+                        noise_n,
+                        typical_n,
+                    } => write!(
+                        f,
+                        " impact={impact} noise_n={} typical_n={}",
+                        x(noise_n),
+                        x(typical_n)
+                    ),
+                    DropRefusal::IrregularSpacing {
+                        impact,
+                        spacing_ms,
+                        expected_ms,
+                    } => write!(
+                        f,
+                        " impact={impact} spacing_ms={} expected_ms={}",
+                        x(spacing_ms),
+                        x(expected_ms)
+                    ),
+                    DropRefusal::TrainStopped {
+                        impacts,
+                        expected_n,
+                    } => write!(f, " impacts={impacts} expected_n={}", x(expected_n)),
+                    DropRefusal::SecondTrain { impact, peak_n } => {
+                        write!(f, " impact={impact} peak_n={}", x(peak_n))
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `v` as an exact, finite `f32`.
+fn finite(v: &str) -> Option<f32> {
+    parse_exact(v).map(|x| x as f32).filter(|x| x.is_finite())
+}
+
+/// The next field `key` as an exact, finite `f32`.
+fn exact(w: &mut Fields<'_>, key: &'static str) -> Result<f32, WireError> {
+    w.with(key, finite)
+}
+
+impl FromStr for IdentifyLine {
+    type Err = WireError;
+
+    /// Reads an `identify` line; `verdict` must agree with the fit ratio.
+    fn from_str(s: &str) -> Result<Self, WireError> {
+        let mut w = Fields::after(s, "identify ")?;
+        let verdict = w.raw("verdict")?;
+        if verdict == "refused" {
+            let r = refusal(&mut w)?;
+            w.end()?;
+            return Ok(IdentifyLine(Err(r)));
+        }
+        let mut id = DropIdentification {
+            impacts: w.int("impacts")?,
+            offset_n: exact(&mut w, "offset_n")?,
+            noise_n: exact(&mut w, "noise_n")?,
+            first_peak_n: exact(&mut w, "peak_n")?,
+            approach_speed_m_s: exact(&mut w, "approach_m_s")?,
+            restitution: exact(&mut w, "restitution")?,
+            stiffness_n_m: exact(&mut w, "k_i")?,
+            stiffness_pm_pct: exact(&mut w, "k_i_pm_pct")?,
+            damping_n_s_m: exact(&mut w, "c_i")?,
+            damping_pm_pct: exact(&mut w, "c_i_pm_pct")?,
+            fit_ratio: exact(&mut w, "fit_ratio")?,
+            suspension: None,
+        };
+        if let Some(v) = w.optional("f_n_hz") {
+            let natural_freq_hz = finite(v).ok_or(WireError::Bad("f_n_hz"))?;
+            id.suspension = Some(SuspensionId {
+                natural_freq_hz,
+                spread_pct: exact(&mut w, "f_n_spread_pct")?,
+                damping_ratio: exact(&mut w, "zeta")?,
+                halves: w.int("halves")?,
+            });
+        }
+        w.end()?;
+        let want = if id.law_fits() { "fits" } else { "misfit" };
+        if verdict != want {
+            return Err(WireError::Mismatch("verdict"));
+        }
+        Ok(IdentifyLine(Ok(id)))
+    }
+}
+
+fn refusal(w: &mut Fields<'_>) -> Result<DropRefusal, WireError> {
+    let word = w.raw("reason")?;
+    let i = REASONS
+        .iter()
+        .position(|r| *r == word)
+        .ok_or(WireError::Bad("reason"))?;
+    Ok(match i {
+        0 => DropRefusal::NoImpacts,
+        1 => DropRefusal::TooFewImpacts {
+            found: w.int("found")?,
+        },
+        2 => DropRefusal::LostSamples {
+            lost: w.int("lost")?,
+        },
+        3 => DropRefusal::Saturated {
+            impact: w.int("impact")?,
+        },
+        4 => DropRefusal::Clipped {
+            impact: w.int("impact")?,
+        },
+        5 => DropRefusal::ShortPulse {
+            impact: w.int("impact")?,
+            samples: w.int("samples")?,
+        },
+        6 => DropRefusal::RestlessBaseline {
+            impact: w.int("impact")?,
+            noise_n: exact(w, "noise_n")?,
+            typical_n: exact(w, "typical_n")?,
+        },
+        7 => DropRefusal::IrregularSpacing {
+            impact: w.int("impact")?,
+            spacing_ms: exact(w, "spacing_ms")?,
+            expected_ms: exact(w, "expected_ms")?,
+        },
+        8 => DropRefusal::TrainStopped {
+            impacts: w.int("impacts")?,
+            expected_n: exact(w, "expected_n")?,
+        },
+        9 => DropRefusal::SecondTrain {
+            impact: w.int("impact")?,
+            peak_n: exact(w, "peak_n")?,
+        },
+        10 => DropRefusal::NotIdentifiable,
+        _ => DropRefusal::BadMass,
+    })
+}
