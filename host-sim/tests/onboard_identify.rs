@@ -350,7 +350,7 @@ fn capture_identify_on_the_virtual_rig_agrees_with_the_desktops_fit() {
             scenario,
         })
         .unwrap();
-        let mut say = |rig: &mut Session, line: &str| rig.answer(Line::Text(line)).answer;
+        let say = |rig: &mut Session, line: &str| rig.answer(Line::Text(line)).answer;
         assert!(matches!(
             say(&mut rig, "capture arm 1 2.5"),
             Answer::Capture(_)
