@@ -315,50 +315,17 @@ fn capture_identify_on_the_virtual_rig_agrees_with_the_desktops_fit() {
     use host_sim::identify::data::analyse_drop;
     use host_sim::identify::fit::fit_law;
     use host_sim::trace::Trace;
-    use host_sim::virtual_rig::scenario::{PlantSection, Scenario, TimedDrop};
-    use host_sim::virtual_rig::{HilSetup, Session};
+    use host_sim::virtual_rig::Session;
+    use host_sim::virtual_rig::recording::{capture_drop, reference_scenario};
     use shared::console::{Answer, IdentifyLine, Line};
     use shared::model::ContactLawKind;
 
     for seed in 1..=3 {
-        let plant = PlantSection {
-            contact_stiffness_factor: 2.0,
-            contact_damping_factor: 0.6 / 2f64.sqrt(),
-            natural_freq_factor: 1.08,
-            ..PlantSection::default()
-        };
+        let (plant, scenario) = reference_scenario(seed);
         let truth = plant.params(&RigId::Wires.preset()).unwrap();
         let (k, c) = spring_dashpot(&truth);
-        let scenario = Scenario {
-            plant,
-            sensor: SensorChainSim {
-                seed,
-                ..SensorChainSim::default()
-            },
-            commands: Vec::new(),
-            drops: vec![TimedDrop {
-                at_s: 0.2,
-                release_mm: 8.0,
-            }],
-            ..Scenario::default()
-        };
-        let mut rig = Session::new(&HilSetup {
-            rig: RigId::Wires,
-            gap_mm: 0.0,
-            actual_gap_mm: 0.0,
-            seconds: 3.0,
-            scenario,
-        })
-        .unwrap();
+        let mut rig = capture_drop(RigId::Wires, scenario, 2.5).unwrap();
         let say = |rig: &mut Session, line: &str| rig.answer(Line::Text(line)).answer;
-        assert!(matches!(
-            say(&mut rig, "capture arm 1 2.5"),
-            Answer::Capture(_)
-        ));
-        while rig.t_s() < 2.6 {
-            rig.begin_sample().unwrap();
-            rig.end_sample();
-        }
         let answer = say(&mut rig, "capture identify");
         let text = answer.to_string();
         assert_eq!(text.parse::<Answer>(), Ok(answer), "{text}");
@@ -428,4 +395,44 @@ fn capture_identify_on_the_virtual_rig_agrees_with_the_desktops_fit() {
             "{what}"
         );
     }
+}
+
+/// The recording the emulated board replays (`firmware/data/drop-wires-k2.bin`) is what the
+/// virtual rig records today (`cargo run -p host-sim --example record_drop` rewrites it), and
+/// its replay identifies to the same bits as the live capture it came from.
+#[test]
+fn the_committed_recording_is_the_virtual_rigs_and_replays_to_the_same_bits() {
+    use host_sim::virtual_rig::recording::{capture_drop, recorded_bytes, reference_scenario};
+    use shared::identify::RecordedDrop;
+
+    let (_, scenario) = reference_scenario(1);
+    let session = capture_drop(RigId::Wires, scenario, 2.5).unwrap();
+    let bytes = recorded_bytes(&session).unwrap();
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../firmware/data/drop-wires-k2.bin"
+    );
+    let committed = std::fs::read(path).unwrap();
+    assert!(
+        committed == bytes,
+        "{path} is stale: cargo run -p host-sim --example record_drop"
+    );
+    let sensor = SensorChain::default();
+    let mass = RigId::Wires.preset().mass_kg as f32;
+    let live = identify_drop(
+        &mut CaptureOnChain {
+            capture: session.capture(),
+            sensor: &sensor,
+        },
+        mass,
+        0.0,
+    );
+    let mut replay = RecordedDrop::parse(&committed, sensor).unwrap();
+    assert_eq!(identify_drop(&mut replay, mass, 0.0), live);
+    assert!(live.is_ok());
+    // A record cut short or with a wrong magic does not read.
+    assert!(RecordedDrop::parse(&committed[..committed.len() - 1], sensor).is_none());
+    let mut bad = committed.clone();
+    bad[0] = b'X';
+    assert!(RecordedDrop::parse(&bad, sensor).is_none());
 }

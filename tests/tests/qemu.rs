@@ -12,7 +12,8 @@
 
 use std::process::Command;
 
-use shared::control::predict;
+use shared::control::{SensorChain, predict};
+use shared::identify::{RecordedDrop, identify_drop};
 use shared::model::{ModelEdit, ModelField, RigId, params_hash};
 
 fn field(out: &str, key: &str) -> String {
@@ -105,7 +106,35 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
         assert_eq!(hex(&field(line, key)), bits, "stored model's {key} {hint}");
     }
 
+    // The board's drop identification of the recorded capture: the host's bits.
+    let bytes = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../firmware/data/drop-wires-k2.bin"
+    ))
+    .unwrap();
+    let mut rec = RecordedDrop::parse(&bytes, SensorChain::default()).unwrap();
+    let id = identify_drop(&mut rec, RigId::Wires.preset().mass_kg as f32, 0.0).unwrap();
+    let sus = id.suspension.unwrap();
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("identify "))
+        .unwrap_or_else(|| panic!("no `identify` line in:\n{out}"));
+    for (key, bits) in [
+        ("k_bits", id.stiffness_n_m.to_bits()),
+        ("c_bits", id.damping_n_s_m.to_bits()),
+        ("f_n_bits", sus.natural_freq_hz.to_bits()),
+        ("zeta_bits", sus.damping_ratio.to_bits()),
+        ("fit_bits", id.fit_ratio.to_bits()),
+    ] {
+        assert_eq!(hex(&field(line, key)), bits, "identify's {key} {hint}");
+    }
+
     let n = |k: &str| field(&out, k).parse::<u64>().unwrap();
+    assert!(
+        n("identify") <= 4_200_000,
+        "drop identification: {} instructions",
+        n("identify")
+    );
     for key in ["predict", "predict_stored"] {
         assert!(
             n(key) <= 84_000_000,

@@ -25,6 +25,7 @@ mod target {
     use shared::control::{
         Command, Controller, ControllerConfig, Prediction, SensorChain, predict,
     };
+    use shared::identify::{RecordedDrop, identify_drop};
     use shared::integrate::PhaseTable;
     use shared::model::{ModelEdit, ModelField, RigId};
     // The device crate provides the interrupt vector table.
@@ -34,6 +35,10 @@ mod target {
     /// the sampling task ≤ 1,500 instructions per sample.
     const PREDICT_BUDGET: u64 = 84_000_000;
     const SAMPLE_BUDGET: u64 = 1_500;
+    /// The drop identification (`capture identify`, run by the console service): ≤ 4.2 M
+    /// instructions (25 ms at 168 MHz; a full capture of 32 impacts costs about 3.6× this
+    /// recording's 9).
+    const IDENTIFY_BUDGET: u64 = 4_200_000;
 
     static WRAPS: AtomicU32 = AtomicU32::new(0);
 
@@ -132,6 +137,33 @@ mod target {
             q.impact_force_mg.to_bits()
         );
         hprintln!("insns predict_stored={}", stored_insns);
+
+        // 1c. The board's drop identification (`capture identify`) on a recorded capture: the
+        //     virtual rig's wire rig with a contact of its own, dropped from 8 mm
+        //     (firmware/data/drop-wires-k2.bin, `cargo run -p host-sim --example record_drop`);
+        //     tests/tests/qemu.rs compares its bits with the host's.
+        static DROP: &[u8] = include_bytes!("../../data/drop-wires-k2.bin");
+        let Some(mut rec) = RecordedDrop::parse(DROP, SensorChain::default()) else {
+            fail("the recorded drop does not read")
+        };
+        let t0 = now();
+        let id = identify_drop(&mut rec, RigId::Wires.preset().mass_kg as f32, 0.0);
+        let identify_insns = insns(now().saturating_sub(t0 + overhead));
+        let Ok(id) = id else {
+            fail("the recorded drop was refused")
+        };
+        let Some(sus) = id.suspension else {
+            fail("the recorded drop gave no suspension")
+        };
+        hprintln!(
+            "identify k_bits=0x{:08x} c_bits=0x{:08x} f_n_bits=0x{:08x} zeta_bits=0x{:08x} fit_bits=0x{:08x}",
+            id.stiffness_n_m.to_bits(),
+            id.damping_n_s_m.to_bits(),
+            sus.natural_freq_hz.to_bits(),
+            sus.damping_ratio.to_bits(),
+            id.fit_ratio.to_bits()
+        );
+        hprintln!("insns identify={}", identify_insns);
 
         // 2. One integrator step (embedded settings, at the operating point, over 20 periods).
         let params = RigId::Wires.preset();
@@ -248,6 +280,7 @@ mod target {
 
         let ok = predict_insns <= PREDICT_BUDGET
             && stored_insns <= PREDICT_BUDGET
+            && identify_insns <= IDENTIFY_BUDGET
             && worst <= SAMPLE_BUDGET
             && c.fault().is_none();
         hprintln!("budgets {}", if ok { "met" } else { "EXCEEDED" });

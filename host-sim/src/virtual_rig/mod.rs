@@ -7,6 +7,7 @@
 pub mod chains;
 pub mod plant;
 pub mod pty;
+pub mod recording;
 pub mod scenario;
 pub mod session;
 

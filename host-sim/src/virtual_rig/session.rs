@@ -323,6 +323,11 @@ impl Session {
         response
     }
 
+    /// The capture (its segments, for a recording).
+    pub fn capture(&self) -> &Capture {
+        &self.capture
+    }
+
     /// Whether a `reset` was accepted and waits for its reply to go out.
     pub fn restart_pending(&self) -> bool {
         self.restart_pending

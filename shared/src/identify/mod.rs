@@ -20,7 +20,7 @@ pub mod pulse;
 pub mod record;
 pub mod spacing;
 
-pub use record::{CaptureOnChain, DropRecord, SegmentForce};
+pub use record::{CaptureOnChain, DropRecord, RecordedDrop, SegmentForce};
 
 use crate::capture::SEGMENTS;
 use crate::error::ParamError;
@@ -202,6 +202,7 @@ struct PulseSummary {
 ///
 /// # Errors
 /// [`DropRefusal`]: why the capture cannot fix them.
+#[inline(never)]
 pub fn identify_drop(
     rec: &mut impl DropRecord,
     mass_kg: f32,
@@ -332,9 +333,16 @@ pub fn identify_drop(
     })
 }
 
-/// Median of `xs` (sorted in place).
+/// Median of `xs` (sorted in place; an insertion sort: at most [`SEGMENTS`] values, and a
+/// fraction of the flash of the library's sort).
 fn median(xs: &mut [f32]) -> f32 {
-    xs.sort_unstable_by(f32::total_cmp);
+    for i in 1..xs.len() {
+        let mut j = i;
+        while j > 0 && xs[j - 1].total_cmp(&xs[j]).is_gt() {
+            xs.swap(j - 1, j);
+            j -= 1;
+        }
+    }
     match xs.len() {
         0 => 0.0,
         l if l % 2 == 1 => xs[l / 2],

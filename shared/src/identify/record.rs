@@ -80,3 +80,107 @@ impl DropRecord for CaptureOnChain<'_> {
 
 /// The capture's sample period, s.
 pub const SAMPLE_PERIOD_S: f32 = 1.0 / CAPTURE_RATE_HZ as f32;
+
+/// A drop test's segments kept as bytes (a capture recorded once, replayed by the emulated
+/// board's budget check and by the desktop): little-endian, the magic `DROP`, then `u32`
+/// samples seen, `f32` trigger level (N), `u32` lost samples, `u32` segment count, and per
+/// segment its `u32` start and [`SEGMENT_LEN`] `u16` codes. [`RecordedDrop::encode`] writes it.
+#[derive(Debug, Clone, Copy)]
+pub struct RecordedDrop<'a> {
+    bytes: &'a [u8],
+    segments: usize,
+    samples: u32,
+    level_n: f32,
+    lost: u32,
+    /// The calibration that turns codes into newtons.
+    pub sensor: SensorChain,
+}
+
+/// Bytes of the header of a [`RecordedDrop`].
+const HEADER: usize = 20;
+/// Bytes of one segment of a [`RecordedDrop`].
+const SEGMENT_BYTES: usize = 4 + 2 * SEGMENT_LEN;
+
+fn u32_at(b: &[u8], at: usize) -> Option<u32> {
+    Some(u32::from_le_bytes(b.get(at..at + 4)?.try_into().ok()?))
+}
+
+impl<'a> RecordedDrop<'a> {
+    /// Reads `bytes` (read through `sensor`), or `None` when they are not a whole record.
+    pub fn parse(bytes: &'a [u8], sensor: SensorChain) -> Option<Self> {
+        if bytes.get(..4)? != b"DROP" {
+            return None;
+        }
+        let segments = usize::try_from(u32_at(bytes, 16)?).ok()?;
+        if segments > crate::capture::SEGMENTS || bytes.len() != HEADER + segments * SEGMENT_BYTES {
+            return None;
+        }
+        Some(RecordedDrop {
+            bytes,
+            segments,
+            samples: u32_at(bytes, 4)?,
+            level_n: f32::from_bits(u32_at(bytes, 8)?),
+            lost: u32_at(bytes, 12)?,
+            sensor,
+        })
+    }
+
+    /// The bytes of `capture`'s segments, appended to `out`.
+    pub fn encode(capture: &Capture, out: &mut impl Extend<u8>) {
+        let st = capture.status();
+        out.extend(*b"DROP");
+        out.extend(st.samples.to_le_bytes());
+        out.extend(st.level_n.to_bits().to_le_bytes());
+        out.extend(capture.lost_samples().to_le_bytes());
+        out.extend(u32::from(st.segments).to_le_bytes());
+        for k in 0..st.segments {
+            if let Some(seg) = capture.segment(k) {
+                out.extend(seg.start.to_le_bytes());
+                for c in seg.codes {
+                    out.extend(c.to_le_bytes());
+                }
+            }
+        }
+    }
+}
+
+impl DropRecord for RecordedDrop<'_> {
+    fn segments(&mut self) -> usize {
+        self.segments
+    }
+
+    fn segment(&mut self, k: usize) -> Option<SegmentForce> {
+        if k >= self.segments {
+            return None;
+        }
+        let at = HEADER + k * SEGMENT_BYTES;
+        let b = self.bytes.get(at..at + SEGMENT_BYTES)?;
+        let mut out = SegmentForce {
+            start: u32_at(b, 0)?,
+            force_n: [0.0; SEGMENT_LEN],
+            railed: false,
+        };
+        for (f, c) in out.force_n.iter_mut().zip(b.get(4..)?.chunks_exact(2)) {
+            let code = u16::from_le_bytes([c[0], c[1]]);
+            *f = self.sensor.force_n(code);
+            out.railed |= code == 0 || code >= ADC_MAX;
+        }
+        Some(out)
+    }
+
+    fn samples(&mut self) -> u32 {
+        self.samples
+    }
+
+    fn lost_samples(&mut self) -> u32 {
+        self.lost
+    }
+
+    fn level_n(&mut self) -> f32 {
+        self.level_n
+    }
+
+    fn resolution_n(&mut self) -> f32 {
+        self.sensor.force_n(1) - self.sensor.force_n(0)
+    }
+}
