@@ -142,7 +142,7 @@ impl Exact {
     /// Whether `v`, read back, is this number.
     fn reads_back(&self, v: f64) -> bool {
         if self.single {
-            (v as f32).to_bits() == (self.value as f32).to_bits()
+            (v as f32).to_bits() == (self.value.abs() as f32).to_bits()
         } else {
             v == self.value.abs()
         }
@@ -394,6 +394,14 @@ mod tests {
         assert_eq!(format!("{}", Exact::f64(5.5e6)), "5500000");
         assert_eq!(format!("{}", Exact::f64(0.89e-3)), "0.00089");
         assert_eq!(format!("{}", Exact::f64(-0.0075)), "-0.0075");
+        // An f32 is written as its own shortest decimal, negative ones too.
+        assert_eq!(format!("{}", Exact::f32(-0.0075)), "-0.0075");
+        assert_eq!(format!("{}", Exact::f32(0.298)), "0.298");
+        for x in [-0.0038748f32, -1.5e-7, -310.0, -1234.5678] {
+            let text = format!("{}", Exact::f32(x));
+            assert!(!text.starts_with("0x"), "{text}");
+            assert_eq!((parse_exact(&text).unwrap() as f32).to_bits(), x.to_bits(), "{text}");
+        }
         assert_eq!(format!("{}", Exact::f64(0.1 + 0.2)), "0x3fd3333333333334");
         // What an operator types reads as Rust reads it.
         for s in [

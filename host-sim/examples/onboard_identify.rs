@@ -1,0 +1,106 @@
+//! The board's drop identification (`capture identify`, `shared::identify`) on the virtual
+//! rig's plants that differ from the preset, three noise seeds each, an 8 mm drop at 0.0 mm gap:
+//! the errors against the plant's own parameters (docs/identification.md, "On the board").
+//! `cargo run --release -p host-sim --example onboard_identify` (about 10 s).
+
+use anyhow::Result;
+use host_sim::virtual_rig::recording::capture_drop;
+use host_sim::virtual_rig::scenario::{PlantSection, Scenario, TimedDrop};
+use host_sim::virtual_rig::chains::SensorChainSim;
+use shared::control::SensorChain;
+use shared::identify::{CaptureOnChain, identify_drop};
+use shared::model::{ContactLaw, RigId, Suspension};
+
+fn main() -> Result<()> {
+    let plants: [(&str, RigId, PlantSection); 5] = [
+        ("wire rig, Table 3.1", RigId::Wires, PlantSection::default()),
+        (
+            "k_i ×2, c_i ×0.6",
+            RigId::Wires,
+            PlantSection {
+                contact_stiffness_factor: 2.0,
+                contact_damping_factor: 0.6 / 2f64.sqrt(),
+                ..PlantSection::default()
+            },
+        ),
+        (
+            "ω +8 %",
+            RigId::Wires,
+            PlantSection {
+                natural_freq_factor: 1.08,
+                ..PlantSection::default()
+            },
+        ),
+        (
+            "pendulum ζ = 0.01",
+            RigId::Wires,
+            PlantSection {
+                damping_ratio: Some(0.01),
+                ..PlantSection::default()
+            },
+        ),
+        ("170 mm beam (ζ = 0.004)", RigId::Beam170, PlantSection::default()),
+    ];
+    println!("| plant | impacts | k_i error | c_i error | f_n error | ζ (truth) | fit_ratio |");
+    println!("|---|---|---|---|---|---|---|");
+    for (name, rig, plant) in plants {
+        let truth = plant.params(&rig.preset())?;
+        let ContactLaw::SpringDashpot {
+            stiffness_n_m: k,
+            damping_n_s_m: c,
+        } = truth.contact
+        else {
+            unreachable!()
+        };
+        let zeta = match truth.suspension {
+            Suspension::Wires { damping_ratio, .. } | Suspension::Beam { damping_ratio, .. } => {
+                damping_ratio
+            }
+        };
+        let mut cells: [Vec<String>; 6] = Default::default();
+        for seed in 1..=3u64 {
+            let scenario = Scenario {
+                plant,
+                sensor: SensorChainSim {
+                    seed,
+                    ..SensorChainSim::default()
+                },
+                commands: Vec::new(),
+                drops: vec![TimedDrop {
+                    at_s: 0.2,
+                    release_mm: 8.0,
+                }],
+                ..Scenario::default()
+            };
+            let session = capture_drop(rig, scenario, 2.5)?;
+            let sensor = SensorChain::default();
+            let id = identify_drop(
+                &mut CaptureOnChain {
+                    capture: session.capture(),
+                    sensor: &sensor,
+                },
+                truth.mass_kg as f32,
+                0.0,
+            )
+            .map_err(|e| anyhow::anyhow!("{name}, seed {seed}: refused: {e:?}"))?;
+            let s = id.suspension.expect("gap 0");
+            let pct = |x: f32, t: f64| format!("{:+.2}", 100.0 * (f64::from(x) / t - 1.0));
+            cells[0].push(id.impacts.to_string());
+            cells[1].push(pct(id.stiffness_n_m, k));
+            cells[2].push(pct(id.damping_n_s_m, c));
+            cells[3].push(pct(s.natural_freq_hz, truth.natural_freq_hz()));
+            cells[4].push(format!("{:.4}", s.damping_ratio));
+            cells[5].push(format!("{:.2}", id.fit_ratio));
+        }
+        println!(
+            "| {name} | {} | {} % | {} % | {} % | {} ({zeta}) | {} |",
+            cells[0].join(", "),
+            cells[1].join(", "),
+            cells[2].join(", "),
+            cells[3].join(", "),
+            cells[4].join(", "),
+            cells[5].join(", ")
+        );
+    }
+    Ok(())
+}
