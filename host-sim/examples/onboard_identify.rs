@@ -4,9 +4,9 @@
 //! `cargo run --release -p host-sim --example onboard_identify` (about 10 s).
 
 use anyhow::Result;
+use host_sim::virtual_rig::chains::SensorChainSim;
 use host_sim::virtual_rig::recording::capture_drop;
 use host_sim::virtual_rig::scenario::{PlantSection, Scenario, TimedDrop};
-use host_sim::virtual_rig::chains::SensorChainSim;
 use shared::control::SensorChain;
 use shared::identify::{CaptureOnChain, identify_drop};
 use shared::model::{ContactLaw, RigId, Suspension};
@@ -39,7 +39,11 @@ fn main() -> Result<()> {
                 ..PlantSection::default()
             },
         ),
-        ("170 mm beam (ζ = 0.004)", RigId::Beam170, PlantSection::default()),
+        (
+            "170 mm beam (ζ = 0.004)",
+            RigId::Beam170,
+            PlantSection::default(),
+        ),
     ];
     println!("| plant | impacts | k_i error | c_i error | f_n error | ζ (truth) | fit_ratio |");
     println!("|---|---|---|---|---|---|---|");

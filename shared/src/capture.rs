@@ -45,6 +45,9 @@ pub enum CaptureCommand {
     /// `capture identify`: the board's identification of the finished capture as a drop test
     /// ([`crate::identify`]).
     Identify,
+    /// `capture adopt`: the same identification, and when the law fits, a draft of the active
+    /// model with the identified contact and suspension (`draft apply` makes it active).
+    Adopt,
 }
 
 /// Where a capture is.

@@ -64,6 +64,7 @@ const ARGS: &[&str] = &[
     "arm",
     "get",
     "identify",
+    "adopt",
     "stop",
     "2",
     "31",

@@ -400,7 +400,11 @@ mod tests {
         for x in [-0.0038748f32, -1.5e-7, -310.0, -1234.5678] {
             let text = format!("{}", Exact::f32(x));
             assert!(!text.starts_with("0x"), "{text}");
-            assert_eq!((parse_exact(&text).unwrap() as f32).to_bits(), x.to_bits(), "{text}");
+            assert_eq!(
+                (parse_exact(&text).unwrap() as f32).to_bits(),
+                x.to_bits(),
+                "{text}"
+            );
         }
         assert_eq!(format!("{}", Exact::f64(0.1 + 0.2)), "0x3fd3333333333334");
         // What an operator types reads as Rust reads it.

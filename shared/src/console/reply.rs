@@ -824,6 +824,10 @@ impl Answer {
                 CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. },
             ) => matches!(self, Answer::Capture(_)),
             Request::Capture(CaptureCommand::Identify) => matches!(self, Answer::Identify(_)),
+            // The draft's model line, or the identification that was not adopted.
+            Request::Capture(CaptureCommand::Adopt) => {
+                matches!(self, Answer::Model(_) | Answer::Identify(_))
+            }
             Request::Model
             | Request::EditModel(_)
             | Request::Revert

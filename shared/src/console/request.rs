@@ -4,7 +4,7 @@
 //!
 //! Commands: `status`, `rig <name>` (a name of [`RigId::ALL`]), `gap <mm>`, `start`, `stop`,
 //! `tune`, `freq <Hz>`, `clear`, `stream <on|off>` (the controller's, [`Command`]); `id`,
-//! `diag`, `capture [arm [level_N] [seconds] | stop | get <k> | identify]`, `help` (answered by
+//! `diag`, `capture [arm [level_N] [seconds] | stop | get <k> | identify | adopt]`, `help` (answered by
 //! [`super::serve`]). Case-insensitive; extra spaces and a trailing `\r` are ignored.
 
 use core::fmt;
@@ -169,7 +169,7 @@ pub enum ParseError {
     UnknownRig,
     /// `stream` and `echo` take `on` or `off`.
     OnOff,
-    /// `capture` takes `arm`, `stop`, `get` or `identify`.
+    /// `capture` takes `arm`, `stop`, `get`, `identify` or `adopt`.
     UnknownCapture,
     /// The number is not a finite decimal number (or not a whole one where one is needed).
     BadNumber(Arg),
@@ -290,7 +290,8 @@ const UNKNOWN_COMMAND: &str = "unknown command (try `help`)";
 const UNEXPECTED: &str = "unexpected argument";
 const UNKNOWN_RIG: &str = list_text!(NameList::either("rig must be ", &RigId::NAMES));
 const ON_OFF: &str = "stream and echo take on or off";
-const UNKNOWN_CAPTURE: &str = "capture takes arm [level_N] [seconds], stop, get <k> or identify";
+const UNKNOWN_CAPTURE: &str =
+    "capture takes arm [level_N] [seconds], stop, get <k>, identify or adopt";
 const BAD_TAG: &str = "a tag is # and 1 to 9 digits, then a space";
 const MISSING: &str = "missing argument: ";
 const NOT_A_NUMBER: &str =
@@ -403,7 +404,7 @@ pub const HELP: &str = list_text!(NameList {
     names: &RigId::NAMES,
     sep: "|",
     last: "|",
-    tail: "> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k> | identify] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | help; a line may start with #<n>, its reply then does too",
+    tail: "> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k> | identify | adopt] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | help; a line may start with #<n>, its reply then does too",
 });
 
 // The help line, tagged (`#` and 9 digits, a space), fits a reply: a rig or command added to it
@@ -539,11 +540,15 @@ fn parse_capture(args: [Option<&str>; 3], n_args: usize) -> Result<Request, Pars
             return Err(ParseError::UnexpectedArgument);
         }
         CaptureCommand::Stop
-    } else if sub.eq_ignore_ascii_case("identify") {
+    } else if sub.eq_ignore_ascii_case("identify") || sub.eq_ignore_ascii_case("adopt") {
         if too_many(1) {
             return Err(ParseError::UnexpectedArgument);
         }
-        CaptureCommand::Identify
+        if sub.eq_ignore_ascii_case("adopt") {
+            CaptureCommand::Adopt
+        } else {
+            CaptureCommand::Identify
+        }
     } else if sub.eq_ignore_ascii_case("get") {
         if too_many(2) {
             return Err(ParseError::UnexpectedArgument);
@@ -665,6 +670,7 @@ impl fmt::Display for Request {
                 CaptureCommand::Stop => f.write_str("capture stop"),
                 CaptureCommand::Get(k) => write!(f, "capture get {k}"),
                 CaptureCommand::Identify => f.write_str("capture identify"),
+                CaptureCommand::Adopt => f.write_str("capture adopt"),
             },
         }
     }

@@ -26,7 +26,9 @@ use crate::control::{
     AsyncRecord, Command, CommandError, Controller, ModelSource, SAMPLE_RATE_HZ, SettingsError,
     State,
 };
-use crate::identify::{CaptureOnChain, DropRecord, SegmentForce, identify_drop};
+use crate::identify::{
+    CaptureOnChain, DropIdentification, DropRecord, DropRefusal, SegmentForce, identify_drop,
+};
 use crate::store::SettingsStore;
 
 /// Access to the rig's pieces, each for the duration of one closure.
@@ -389,11 +391,20 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
             if rig.capture(|c| c.active()) {
                 return Answer::Error(AnswerError::Capture(CaptureError::Running));
             }
-            let (params, gap_mm, sensor) =
-                rig.controller(|c| (*c.model().0, c.gap_mm(), c.config().sensor));
-            let mut rec = LockedCapture { rig, sensor };
-            let result = identify_drop(&mut rec, params.mass_kg as f32, gap_mm * 1e-3);
-            Answer::Identify(IdentifyLine(result))
+            Answer::Identify(IdentifyLine(identify(rig)))
+        }
+        CaptureCommand::Adopt => {
+            if rig.capture(|c| c.active()) {
+                return Answer::Error(AnswerError::Capture(CaptureError::Running));
+            }
+            match identify(rig) {
+                Ok(id) if id.law_fits() => settled(rig.controller(|c| {
+                    let base = c.draft().map_or(*c.model().0, |d| d.params);
+                    let params = id.applied_to(&base).map_err(SettingsError::Invalid)?;
+                    c.draft_model(params).map(|()| model_line(c))
+                })),
+                other => Answer::Identify(IdentifyLine(other)),
+            }
         }
         CaptureCommand::Get(k) => match rig.capture(|c| c.segment(k).ok_or(c.status().segments)) {
             Ok(seg) => Answer::Segment(seg),
@@ -403,6 +414,17 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
             })),
         },
     }
+}
+
+/// The board's identification of its capture, for the active model's mass and gap (the
+/// draft's mass while one is open).
+fn identify(rig: &mut impl RigAccess) -> Result<DropIdentification, DropRefusal> {
+    let (mass_kg, gap_mm, sensor) = rig.controller(|c| {
+        let mass = c.draft().map_or(c.model().0.mass_kg, |d| d.params.mass_kg);
+        (mass, c.gap_mm(), c.config().sensor)
+    });
+    let mut rec = LockedCapture { rig, sensor };
+    identify_drop(&mut rec, mass_kg as f32, gap_mm * 1e-3)
 }
 
 /// The capture read through the board's access, one short lock per segment (the firmware's

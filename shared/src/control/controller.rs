@@ -583,6 +583,21 @@ impl Controller {
         Ok(())
     }
 
+    /// Opens a draft (replacing any open one) holding the model `params` and the active
+    /// calibration: what `capture adopt` proposes. Idle only.
+    ///
+    /// # Errors
+    /// [`SettingsError`]: not idle, `params` out of range.
+    pub fn draft_model(&mut self, params: RigParams) -> Result<(), SettingsError> {
+        self.require_idle().map_err(SettingsError::Command)?;
+        params.validate().map_err(SettingsError::Invalid)?;
+        self.draft = Some(Draft {
+            params,
+            calibration: self.calibration(),
+        });
+        Ok(())
+    }
+
     /// Applies the draft whole: its calibration and its model (`Edited` if it differs from the
     /// active one), then closes it. Idle only.
     ///
