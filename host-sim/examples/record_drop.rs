@@ -1,7 +1,7 @@
 //! Writes the recorded drop that the emulated board's budget check replays
 //! (`firmware/data/drop-wires-k2.bin`): `cargo run --release -p host-sim --example record_drop
 //! [-- PATH]`. `host-sim/tests/onboard_identify.rs` checks that the committed file is what this
-//! makes. Prints the board's `capture identify` answer to it.
+//! makes. Prints the board's `capture identify` and `capture adopt` answers to it.
 
 use anyhow::Result;
 use host_sim::virtual_rig::recording::{capture_drop, recorded_bytes, reference_scenario};
@@ -19,5 +19,7 @@ fn main() -> Result<()> {
     println!("wrote {path} ({} bytes)", bytes.len());
     let answer = session.answer(Line::Text("capture identify")).answer;
     println!("> capture identify\n{answer}");
+    let answer = session.answer(Line::Text("capture adopt")).answer;
+    println!("> capture adopt\n{answer}");
     Ok(())
 }

@@ -152,26 +152,28 @@ impl DropIdentification {
     }
 
     /// `base` with the identified contact law, and the identified suspension (natural frequency
-    /// and damping ratio; the pendulum's length `l = g / ω²`) where the drop fixed it.
+    /// and damping ratio; the pendulum's length `l = g / ω²`) where the drop fixed it. Each value
+    /// is rounded to 7 significant digits (what an `f32` carries; the model reads as plain
+    /// decimals).
     ///
     /// # Errors
     /// [`ParamError`] when the result is outside the model's ranges.
     pub fn applied_to(&self, base: &RigParams) -> Result<RigParams, ParamError> {
         let mut p = *base;
         p.contact = ContactLaw::SpringDashpot {
-            stiffness_n_m: f64::from(self.stiffness_n_m),
-            damping_n_s_m: f64::from(self.damping_n_s_m),
+            stiffness_n_m: sig7(f64::from(self.stiffness_n_m)),
+            damping_n_s_m: sig7(f64::from(self.damping_n_s_m)),
         };
         if let Some(s) = self.suspension {
             let omega = 2.0 * core::f64::consts::PI * f64::from(s.natural_freq_hz);
-            let zeta = f64::from(s.damping_ratio);
+            let zeta = sig7(f64::from(s.damping_ratio));
             p.suspension = match p.suspension {
                 Suspension::Wires { .. } => Suspension::Wires {
-                    length_m: p.gravity_m_s2 / (omega * omega),
+                    length_m: sig7(p.gravity_m_s2 / (omega * omega)),
                     damping_ratio: zeta,
                 },
                 Suspension::Beam { .. } => Suspension::Beam {
-                    natural_freq_hz: f64::from(s.natural_freq_hz),
+                    natural_freq_hz: sig7(f64::from(s.natural_freq_hz)),
                     damping_ratio: zeta,
                 },
             };
@@ -333,6 +335,23 @@ pub fn identify_drop(
     })
 }
 
+/// `x` rounded to 7 significant digits: the `f64` nearest that decimal (0 and non-finite values
+/// unchanged).
+fn sig7(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let lead = libm::floor(libm::log10(libm::fabs(x))) as i32;
+    let shift = 6 - lead;
+    if shift >= 0 {
+        let scale = libm::pow(10.0, f64::from(shift));
+        libm::round(x * scale) / scale
+    } else {
+        let scale = libm::pow(10.0, f64::from(-shift));
+        libm::round(x / scale) * scale
+    }
+}
+
 /// Median of `xs` (sorted in place; an insertion sort: at most [`SEGMENTS`] values, and a
 /// fraction of the flash of the library's sort).
 fn median(xs: &mut [f32]) -> f32 {
@@ -347,5 +366,20 @@ fn median(xs: &mut [f32]) -> f32 {
         0 => 0.0,
         l if l % 2 == 1 => xs[l / 2],
         l => 0.5 * (xs[l / 2 - 1] + xs[l / 2]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sig7;
+
+    #[test]
+    fn seven_significant_digits_read_as_their_decimal() {
+        assert_eq!(sig7(f64::from(721.4777f32)), 721.4777);
+        assert_eq!(sig7(11_009_862.0), 11_009_860.0);
+        assert_eq!(sig7(0.000_031_431_628), 0.000_031_431_63);
+        assert_eq!(sig7(0.064_211_287_3), 0.064_211_29);
+        assert_eq!(sig7(-1.234_567_89), -1.234_568);
+        assert_eq!(sig7(0.0), 0.0);
     }
 }
