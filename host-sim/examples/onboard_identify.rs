@@ -4,9 +4,8 @@
 //! `cargo run --release -p host-sim --example onboard_identify` (about 10 s).
 
 use anyhow::Result;
-use host_sim::virtual_rig::chains::SensorChainSim;
-use host_sim::virtual_rig::recording::capture_drop;
-use host_sim::virtual_rig::scenario::{PlantSection, Scenario, TimedDrop};
+use host_sim::virtual_rig::recording::{capture_drop, drop_scenario};
+use host_sim::virtual_rig::scenario::PlantSection;
 use shared::control::SensorChain;
 use shared::identify::{CaptureOnChain, identify_drop};
 use shared::model::{ContactLaw, RigId, Suspension};
@@ -63,20 +62,7 @@ fn main() -> Result<()> {
         };
         let mut cells: [Vec<String>; 6] = Default::default();
         for seed in 1..=3u64 {
-            let scenario = Scenario {
-                plant,
-                sensor: SensorChainSim {
-                    seed,
-                    ..SensorChainSim::default()
-                },
-                commands: Vec::new(),
-                drops: vec![TimedDrop {
-                    at_s: 0.2,
-                    release_mm: 8.0,
-                }],
-                ..Scenario::default()
-            };
-            let session = capture_drop(rig, scenario, 2.5)?;
+            let session = capture_drop(rig, drop_scenario(plant, seed), 2.5)?;
             let sensor = SensorChain::default();
             let id = identify_drop(
                 &mut CaptureOnChain {

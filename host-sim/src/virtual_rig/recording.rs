@@ -22,7 +22,13 @@ pub fn reference_scenario(seed: u64) -> (PlantSection, Scenario) {
         natural_freq_factor: 1.08,
         ..PlantSection::default()
     };
-    let scenario = Scenario {
+    (plant, drop_scenario(plant, seed))
+}
+
+/// A scenario of the plant `plant` released from 8 mm at 0.2 s, no console lines, the default
+/// sensor chain with noise seed `seed`.
+pub fn drop_scenario(plant: PlantSection, seed: u64) -> Scenario {
+    Scenario {
         plant,
         sensor: SensorChainSim {
             seed,
@@ -34,8 +40,7 @@ pub fn reference_scenario(seed: u64) -> (PlantSection, Scenario) {
             release_mm: 8.0,
         }],
         ..Scenario::default()
-    };
-    (plant, scenario)
+    }
 }
 
 /// Runs `scenario` on `rig` at gap 0 with a capture of `seconds` armed at the start (trigger
