@@ -333,6 +333,13 @@ fn identify_contact_refuses_what_it_cannot_check() {
         ],
         &[&out],
     );
+    // Nothing on stdout says the file was written.
+    let run = common::host_sim()
+        .args(fit("--force-unit kN"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(!stdout.contains("wrote"), "stdout claims a file: {stdout}");
     let range = said
         .split("is an arrival at ")
         .nth(1)

@@ -215,7 +215,8 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         .zip(&best_fit.traces)
         .filter_map(|(l, t)| release_check(l, &t.sim, a.mass_kg, a.gap_mm))
         .collect();
-    print_contact(a, &run, &loaded, &fits, best)?;
+    let written = a.out.as_deref().filter(|_| unchecked.is_none());
+    print_contact(a, &run, &loaded, &fits, best, written)?;
     if let Some(why) = unchecked {
         bail!(
             "the {best} fit cannot be checked against the sensor noise ({why}){}: the data may \
@@ -519,6 +520,7 @@ fn print_contact(
     loaded: &[LoadedTrace],
     fits: &[(ContactLawKind, Fit)],
     best: ContactLawKind,
+    written: Option<&Path>,
 ) -> Result<()> {
     let best_aicc = fits
         .iter()
@@ -545,7 +547,7 @@ fn print_contact(
             &Restitution::of(f, a.mass_kg),
         );
     }
-    if let Some(p) = &a.out {
+    if let Some(p) = written {
         println!("  wrote {} ({best} law; use it with --config)", p.display());
     }
     Ok(())
