@@ -8,7 +8,7 @@ use host_sim::virtual_rig::recording::{capture_drop, drop_scenario};
 use host_sim::virtual_rig::scenario::PlantSection;
 use shared::control::SensorChain;
 use shared::identify::{CaptureOnChain, identify_drop};
-use shared::model::{ContactLaw, RigId, Suspension};
+use shared::model::{ContactLaw, RigId};
 
 fn main() -> Result<()> {
     let plants: [(&str, RigId, PlantSection); 5] = [
@@ -55,11 +55,7 @@ fn main() -> Result<()> {
         else {
             unreachable!()
         };
-        let zeta = match truth.suspension {
-            Suspension::Wires { damping_ratio, .. } | Suspension::Beam { damping_ratio, .. } => {
-                damping_ratio
-            }
-        };
+        let zeta = truth.damping_ratio();
         let mut cells: [Vec<String>; 6] = Default::default();
         for seed in 1..=3u64 {
             let session = capture_drop(rig, drop_scenario(plant, seed), 2.5)?;

@@ -94,14 +94,6 @@ fn spring_dashpot(p: &RigParams) -> (f64, f64) {
     }
 }
 
-fn damping_ratio(p: &RigParams) -> f64 {
-    match p.suspension {
-        Suspension::Wires { damping_ratio, .. } | Suspension::Beam { damping_ratio, .. } => {
-            damping_ratio
-        }
-    }
-}
-
 /// Relative error, %.
 fn pct(x: f32, truth: f64) -> f64 {
     100.0 * (f64::from(x) / truth - 1.0)
@@ -187,7 +179,7 @@ fn without_noise_the_fit_recovers_the_plant() {
             "{what}"
         );
         assert!(
-            (f64::from(s.damping_ratio) - damping_ratio(&p)).abs() < 0.003,
+            (f64::from(s.damping_ratio) - p.damping_ratio()).abs() < 0.003,
             "{what}"
         );
         // The linear law's restitution, closed form (force-free exit; Table 3.1: 0.317).

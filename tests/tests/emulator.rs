@@ -374,6 +374,23 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
     };
     assert_eq!(cap.segments, 32, "{cap}");
     assert_eq!(port.segment(31).unwrap().k, 31);
+    // The board's identification reads this capture through the image's capture lock: a
+    // sawtooth is no drop, refused with its reason; `capture adopt` drafts nothing.
+    let model = port.send_line("model").unwrap();
+    for line in ["capture identify", "capture adopt"] {
+        let reply = port.send_line(line).unwrap();
+        eprintln!("{line}: {reply}");
+        assert!(
+            matches!(
+                reply.parse::<shared::console::Answer>(),
+                Ok(shared::console::Answer::Identify(
+                    shared::console::IdentifyLine(Err(_))
+                ))
+            ),
+            "{line}: {reply}"
+        );
+    }
+    assert_eq!(port.send_line("model").unwrap(), model);
 
     // The stack after all of the above: the model task's depth with the interrupts on top.
     let d = port.diag().unwrap();

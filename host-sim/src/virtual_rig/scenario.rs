@@ -81,7 +81,7 @@ impl PlantSection {
     /// # Errors
     /// Parameters outside the model's ranges, named.
     pub fn params(&self, preset: &shared::model::RigParams) -> Result<shared::model::RigParams> {
-        use shared::model::{ContactLaw, Suspension};
+        use shared::model::ContactLaw;
         let mut p = preset.with_contact_scaled(self.contact_stiffness_factor);
         if let ContactLaw::SpringDashpot { damping_n_s_m, .. } = &mut p.contact {
             *damping_n_s_m *= self.contact_damping_factor;
@@ -89,23 +89,10 @@ impl PlantSection {
         if let Some(law) = self.contact {
             p.contact = law;
         }
-        let f = self.natural_freq_factor;
-        p.suspension = match p.suspension {
-            Suspension::Wires {
-                length_m,
-                damping_ratio,
-            } => Suspension::Wires {
-                length_m: length_m / (f * f),
-                damping_ratio: self.damping_ratio.unwrap_or(damping_ratio),
-            },
-            Suspension::Beam {
-                natural_freq_hz,
-                damping_ratio,
-            } => Suspension::Beam {
-                natural_freq_hz: natural_freq_hz * f,
-                damping_ratio: self.damping_ratio.unwrap_or(damping_ratio),
-            },
-        };
+        let mut p = p.with_natural_freq_scaled(self.natural_freq_factor);
+        if let Some(zeta) = self.damping_ratio {
+            p = p.with_damping_ratio(zeta);
+        }
         p.validate()
             .map_err(|e| anyhow::anyhow!("[plant]: the plant's rig: {e}"))?;
         Ok(p)

@@ -19,38 +19,22 @@ use crate::identify::{DropIdentification, DropRefusal};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IdentifyLine(pub Result<DropIdentification, DropRefusal>);
 
-/// The refusals' words.
-const REASONS: [&str; 12] = [
-    "no-impacts",
-    "too-few-impacts",
-    "lost-samples",
-    "saturated",
-    "clipped",
-    "short-pulse",
-    "restless-baseline",
-    "irregular-spacing",
-    "train-stopped",
-    "second-train",
-    "not-identifiable",
-    "bad-mass",
-];
-
+/// A refusal's word (`reason=`).
 fn reason(r: &DropRefusal) -> &'static str {
-    let i = match r {
-        DropRefusal::NoImpacts => 0,
-        DropRefusal::TooFewImpacts { .. } => 1,
-        DropRefusal::LostSamples { .. } => 2,
-        DropRefusal::Saturated { .. } => 3,
-        DropRefusal::Clipped { .. } => 4,
-        DropRefusal::ShortPulse { .. } => 5,
-        DropRefusal::RestlessBaseline { .. } => 6,
-        DropRefusal::IrregularSpacing { .. } => 7,
-        DropRefusal::TrainStopped { .. } => 8,
-        DropRefusal::SecondTrain { .. } => 9,
-        DropRefusal::NotIdentifiable => 10,
-        DropRefusal::BadMass => 11,
-    };
-    REASONS[i]
+    match r {
+        DropRefusal::NoImpacts => "no-impacts",
+        DropRefusal::TooFewImpacts { .. } => "too-few-impacts",
+        DropRefusal::LostSamples { .. } => "lost-samples",
+        DropRefusal::Saturated { .. } => "saturated",
+        DropRefusal::Clipped { .. } => "clipped",
+        DropRefusal::ShortPulse { .. } => "short-pulse",
+        DropRefusal::RestlessBaseline { .. } => "restless-baseline",
+        DropRefusal::IrregularSpacing { .. } => "irregular-spacing",
+        DropRefusal::TrainStopped { .. } => "train-stopped",
+        DropRefusal::SecondTrain { .. } => "second-train",
+        DropRefusal::NotIdentifiable => "not-identifiable",
+        DropRefusal::BadMass => "bad-mass",
+    }
 }
 
 impl fmt::Display for IdentifyLine {
@@ -190,48 +174,44 @@ impl FromStr for IdentifyLine {
 }
 
 fn refusal(w: &mut Fields<'_>) -> Result<DropRefusal, WireError> {
-    let word = w.raw("reason")?;
-    let i = REASONS
-        .iter()
-        .position(|r| *r == word)
-        .ok_or(WireError::Bad("reason"))?;
-    Ok(match i {
-        0 => DropRefusal::NoImpacts,
-        1 => DropRefusal::TooFewImpacts {
+    Ok(match w.raw("reason")? {
+        "no-impacts" => DropRefusal::NoImpacts,
+        "too-few-impacts" => DropRefusal::TooFewImpacts {
             found: w.int("found")?,
         },
-        2 => DropRefusal::LostSamples {
+        "lost-samples" => DropRefusal::LostSamples {
             lost: w.int("lost")?,
         },
-        3 => DropRefusal::Saturated {
+        "saturated" => DropRefusal::Saturated {
             impact: w.int("impact")?,
         },
-        4 => DropRefusal::Clipped {
+        "clipped" => DropRefusal::Clipped {
             impact: w.int("impact")?,
         },
-        5 => DropRefusal::ShortPulse {
+        "short-pulse" => DropRefusal::ShortPulse {
             impact: w.int("impact")?,
             samples: w.int("samples")?,
         },
-        6 => DropRefusal::RestlessBaseline {
+        "restless-baseline" => DropRefusal::RestlessBaseline {
             impact: w.int("impact")?,
             noise_n: exact(w, "noise_n")?,
             typical_n: exact(w, "typical_n")?,
         },
-        7 => DropRefusal::IrregularSpacing {
+        "irregular-spacing" => DropRefusal::IrregularSpacing {
             impact: w.int("impact")?,
             spacing_ms: exact(w, "spacing_ms")?,
             expected_ms: exact(w, "expected_ms")?,
         },
-        8 => DropRefusal::TrainStopped {
+        "train-stopped" => DropRefusal::TrainStopped {
             impacts: w.int("impacts")?,
             expected_n: exact(w, "expected_n")?,
         },
-        9 => DropRefusal::SecondTrain {
+        "second-train" => DropRefusal::SecondTrain {
             impact: w.int("impact")?,
             peak_n: exact(w, "peak_n")?,
         },
-        10 => DropRefusal::NotIdentifiable,
-        _ => DropRefusal::BadMass,
+        "not-identifiable" => DropRefusal::NotIdentifiable,
+        "bad-mass" => DropRefusal::BadMass,
+        _ => return Err(WireError::Bad("reason")),
     })
 }

@@ -387,25 +387,18 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
                 c.status()
             }))
         }
-        CaptureCommand::Identify => {
-            if rig.capture(|c| c.active()) {
-                return Answer::Error(AnswerError::Capture(CaptureError::Running));
-            }
-            Answer::Identify(IdentifyLine(identify(rig)))
+        CaptureCommand::Identify | CaptureCommand::Adopt if rig.capture(|c| c.active()) => {
+            Answer::Error(AnswerError::Capture(CaptureError::Running))
         }
-        CaptureCommand::Adopt => {
-            if rig.capture(|c| c.active()) {
-                return Answer::Error(AnswerError::Capture(CaptureError::Running));
-            }
-            match identify(rig) {
-                Ok(id) if id.law_fits() => settled(rig.controller(|c| {
-                    let base = c.draft().map_or(*c.model().0, |d| d.params);
-                    let params = id.applied_to(&base).map_err(SettingsError::Invalid)?;
-                    c.draft_model(params).map(|()| model_line(c))
-                })),
-                other => Answer::Identify(IdentifyLine(other)),
-            }
-        }
+        CaptureCommand::Identify => Answer::Identify(IdentifyLine(identify(rig))),
+        CaptureCommand::Adopt => match identify(rig) {
+            Ok(id) if id.law_fits() => settled(rig.controller(|c| {
+                let base = c.draft().map_or(*c.model().0, |d| d.params);
+                let params = id.applied_to(&base).map_err(SettingsError::Invalid)?;
+                c.draft_model(params).map(|()| model_line(c))
+            })),
+            other => Answer::Identify(IdentifyLine(other)),
+        },
         CaptureCommand::Get(k) => match rig.capture(|c| c.segment(k).ok_or(c.status().segments)) {
             Ok(seg) => Answer::Segment(seg),
             Err(recorded) => Answer::Error(AnswerError::Capture(CaptureError::NoSegment {
@@ -463,7 +456,7 @@ impl<R: RigAccess> DropRecord for LockedCapture<'_, R> {
     }
 
     fn resolution_n(&mut self) -> f32 {
-        self.sensor.force_n(1) - self.sensor.force_n(0)
+        self.sensor.code_step_n()
     }
 }
 

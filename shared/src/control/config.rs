@@ -104,6 +104,11 @@ impl SensorChain {
         f("adc_full_scale_v", self.adc_full_scale_v, 0.5, 10.0)
     }
 
+    /// The force of one ADC code, N (the quantisation step).
+    pub fn code_step_n(&self) -> f32 {
+        self.force_n(1) - self.force_n(0)
+    }
+
     /// Largest force before the ADC's upper rail, N.
     pub fn max_force_n(&self) -> f32 {
         self.force_n(crate::hal::ADC_MAX)

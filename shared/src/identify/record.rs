@@ -16,6 +16,23 @@ pub struct SegmentForce {
     pub railed: bool,
 }
 
+impl SegmentForce {
+    /// The segment starting at sample `start` whose ADC codes are `codes`, read through
+    /// `sensor`.
+    pub fn of_codes(start: u32, codes: impl Iterator<Item = u16>, sensor: &SensorChain) -> Self {
+        let mut out = SegmentForce {
+            start,
+            force_n: [0.0; SEGMENT_LEN],
+            railed: false,
+        };
+        for (f, c) in out.force_n.iter_mut().zip(codes) {
+            *f = sensor.force_n(c);
+            out.railed |= c == 0 || c >= ADC_MAX;
+        }
+        out
+    }
+}
+
 /// A drop test's capture, read one segment at a time (no copy of the whole record is needed;
 /// `&mut`: the firmware locks its capture for each read).
 pub trait DropRecord {
@@ -49,16 +66,11 @@ impl DropRecord for CaptureOnChain<'_> {
 
     fn segment(&mut self, k: usize) -> Option<SegmentForce> {
         let view = self.capture.segment(u16::try_from(k).ok()?)?;
-        let mut out = SegmentForce {
-            start: view.start,
-            force_n: [0.0; SEGMENT_LEN],
-            railed: false,
-        };
-        for (f, &c) in out.force_n.iter_mut().zip(view.codes.iter()) {
-            *f = self.sensor.force_n(c);
-            out.railed |= c == 0 || c >= ADC_MAX;
-        }
-        Some(out)
+        Some(SegmentForce::of_codes(
+            view.start,
+            view.codes.into_iter(),
+            self.sensor,
+        ))
     }
 
     fn samples(&mut self) -> u32 {
@@ -74,7 +86,7 @@ impl DropRecord for CaptureOnChain<'_> {
     }
 
     fn resolution_n(&mut self) -> f32 {
-        self.sensor.force_n(1) - self.sensor.force_n(0)
+        self.sensor.code_step_n()
     }
 }
 
@@ -155,17 +167,11 @@ impl DropRecord for RecordedDrop<'_> {
         }
         let at = HEADER + k * SEGMENT_BYTES;
         let b = self.bytes.get(at..at + SEGMENT_BYTES)?;
-        let mut out = SegmentForce {
-            start: u32_at(b, 0)?,
-            force_n: [0.0; SEGMENT_LEN],
-            railed: false,
-        };
-        for (f, c) in out.force_n.iter_mut().zip(b.get(4..)?.chunks_exact(2)) {
-            let code = u16::from_le_bytes([c[0], c[1]]);
-            *f = self.sensor.force_n(code);
-            out.railed |= code == 0 || code >= ADC_MAX;
-        }
-        Some(out)
+        let codes = b
+            .get(4..)?
+            .chunks_exact(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]));
+        Some(SegmentForce::of_codes(u32_at(b, 0)?, codes, &self.sensor))
     }
 
     fn samples(&mut self) -> u32 {
@@ -181,6 +187,6 @@ impl DropRecord for RecordedDrop<'_> {
     }
 
     fn resolution_n(&mut self) -> f32 {
-        self.sensor.force_n(1) - self.sensor.force_n(0)
+        self.sensor.code_step_n()
     }
 }
