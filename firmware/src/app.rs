@@ -38,9 +38,11 @@ mod app {
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::signal::{SignalReader, SignalWriter};
     use shared::capture::Capture;
+    use shared::commission::{Commission, RigPieces};
     use shared::console::link::Link;
     use shared::console::serve::{
-        AsyncText, ReplyText, RigAccess, answer, format_answer, format_async, split_tag,
+        AsyncText, ReplyText, RigAccess, answer, format_answer, format_async, next_commission_line,
+        poll_commission, sent_commission_line, split_tag,
     };
     use shared::console::{BoardInfo, Token};
     use shared::control::{Controller, ControllerConfig, Event, Status, predict};
@@ -279,10 +281,12 @@ mod app {
         capture: &'a mut K,
         console: &'a mut L,
         store: &'a mut S,
+        /// The service's own: no lock.
+        commission: &'a mut Commission,
         reset: bool,
     }
 
-    impl<C, K, L, S> RigAccess for Access<'_, C, K, L, S>
+    impl<C, K, L, S> RigPieces for Access<'_, C, K, L, S>
     where
         C: Mutex<T = Controller>,
         K: Mutex<T = CaptureRes>,
@@ -295,24 +299,41 @@ mod app {
         fn capture<R>(&mut self, f: impl FnOnce(&mut Capture) -> R) -> R {
             self.capture.lock(|c| f(c.store))
         }
+        fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R {
+            // Only the console service takes the store: this lock blocks nothing else.
+            self.store.lock(|s| f(s))
+        }
+    }
+
+    impl<C, K, L, S> RigAccess for Access<'_, C, K, L, S>
+    where
+        C: Mutex<T = Controller>,
+        K: Mutex<T = CaptureRes>,
+        L: Mutex<T = Console>,
+        S: Mutex<T = Store<board::StoreFlash>>,
+    {
         fn board(&mut self) -> BoardInfo {
             board_info()
         }
         fn link<R>(&mut self, f: impl FnOnce(&mut Link) -> R) -> R {
             self.console.lock(|c| f(&mut c.link))
         }
-        fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R {
-            // Only the console service takes the store: this lock blocks nothing else.
-            self.store.lock(|s| f(s))
+        fn commission<R>(&mut self, f: impl FnOnce(&mut Commission) -> R) -> R {
+            f(self.commission)
         }
         fn reset_after_reply(&mut self) {
             self.reset = true;
         }
     }
 
-    /// The console service: answers every waiting line (one reply each), then sends the
-    /// asynchronous lines; sleeps until woken again.
-    #[task(priority = 2, shared = [controller, console, capture, store], local = [wake])]
+    /// The console service: answers every waiting line (one reply each), advances the
+    /// commissioning sequence, then sends the asynchronous lines (the sequence's first); sleeps
+    /// until woken again (a line, a record, the report's second).
+    #[task(
+        priority = 2,
+        shared = [controller, console, capture, store],
+        local = [wake, commission: Commission = Commission::new()]
+    )]
     async fn serve(mut cx: serve::Context) {
         let mut reply = ReplyText::new();
         let mut line = AsyncText::new();
@@ -345,6 +366,7 @@ mod app {
                             capture: &mut cx.shared.capture,
                             console: &mut cx.shared.console,
                             store: &mut cx.shared.store,
+                            commission: cx.local.commission,
                             reset: false,
                         };
                         let response = answer(&mut access, pending.as_line());
@@ -367,6 +389,30 @@ mod app {
                 if cx.shared.controller.lock(|c| c.model_request_open()) {
                     model::spawn().ok();
                 }
+            }
+            // The commissioning sequence: its step advanced (a capture it armed starts its
+            // sampling afresh, a model it applied starts the model task), its records sent.
+            let arms = cx.shared.capture.lock(|c| c.store.arm_count());
+            let mut access = Access {
+                controller: &mut cx.shared.controller,
+                capture: &mut cx.shared.capture,
+                console: &mut cx.shared.console,
+                store: &mut cx.shared.store,
+                commission: cx.local.commission,
+                reset: false,
+            };
+            poll_commission(&mut access);
+            while next_commission_line(&mut access, &mut reply) {
+                send(access.console, reply.as_bytes());
+                sent_commission_line(&mut access);
+            }
+            cx.shared.capture.lock(|c| {
+                if c.store.active() && c.store.arm_count() != arms {
+                    c.input.restart();
+                }
+            });
+            if cx.shared.controller.lock(|c| c.model_request_open()) {
+                model::spawn().ok();
             }
             while let Some(rec) = cx.shared.controller.lock(|c| c.pop_async()) {
                 if format_async(&rec, &mut line)
@@ -484,6 +530,8 @@ mod app {
             if model_needed {
                 model::spawn().ok();
             }
+            // The console service's second: a commissioning step waits on time.
+            cx.local.wake_from_report.write(());
         }
     }
 

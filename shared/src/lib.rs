@@ -30,6 +30,7 @@ pub mod adc_status;
 pub mod analysis;
 pub mod capture;
 pub mod capture_dma;
+pub mod commission;
 pub mod console;
 pub mod control;
 pub mod dual;

@@ -236,6 +236,7 @@ fn a_million_console_inputs() {
     let mut link = Link::new();
     let mut controller = Controller::new(ControllerConfig::default(), RigId::Wires, 0.0).unwrap();
     let mut capture = Capture::new();
+    let mut commission = shared::commission::Commission::new();
     let mut mem = vec![0xffu8; 2 * PAGE_BYTES];
     let mut store = Store::new(RamFlash::new(&mut mem), 0..(2 * PAGE_BYTES) as u32).unwrap();
     let mut reply = ReplyText::new();
@@ -290,6 +291,7 @@ fn a_million_console_inputs() {
                     board: board(),
                     link: &mut link,
                     store: &mut store,
+                    commission: &mut commission,
                     reset: false,
                 };
                 answer(&mut d, line.as_line())

@@ -6,8 +6,11 @@ use proptest::prelude::*;
 use shared::capture::Capture;
 use shared::capture::{CAPTURE_RATE_HZ, CaptureCommand};
 use shared::capture::{CaptureState, CaptureStatus, SEGMENT_LEN, SEGMENTS, SegmentView};
+use shared::commission::{Commission, CommissionRefusal, Step};
 use shared::console::IdentifyLine;
+use shared::console::commission::CommissionView;
 use shared::console::link::LinkStats;
+use shared::console::request::CommissionCommand;
 use shared::console::serve::Response;
 use shared::console::{self, BoardInfo, Direct, Line, Link};
 use shared::console::{
@@ -404,6 +407,26 @@ fn answer_error() -> impl Strategy<Value = AnswerError> {
             store_state().prop_map(StoreRefusal::NothingToRevert),
         ]
         .prop_map(AnswerError::Store),
+        commission_refusal().prop_map(AnswerError::Commission),
+    ]
+}
+
+fn commission_step() -> impl Strategy<Value = Step> {
+    proptest::sample::select(Step::ALL.to_vec())
+}
+
+fn commission_refusal() -> impl Strategy<Value = CommissionRefusal> {
+    prop_oneof![
+        proptest::sample::select(vec![
+            CommissionRefusal::FaultLatched,
+            CommissionRefusal::CaptureRunning,
+            CommissionRefusal::DraftOpen,
+            CommissionRefusal::NothingToAccept,
+            CommissionRefusal::NotRunning,
+        ]),
+        commission_step().prop_map(CommissionRefusal::Running),
+        commission_step().prop_map(CommissionRefusal::Busy),
+        state().prop_map(CommissionRefusal::NotIdle),
     ]
 }
 
@@ -458,6 +481,18 @@ fn answer() -> impl Strategy<Value = Answer> {
         capture_status().prop_map(Answer::Capture),
         segment().prop_map(Answer::Segment),
         identify_line().prop_map(Answer::Identify),
+        (
+            proptest::option::of(commission_step()),
+            any::<bool>(),
+            any::<u32>()
+        )
+            .prop_map(
+                |(step, ending, records)| Answer::Commission(CommissionView {
+                    step,
+                    ending,
+                    records
+                })
+            ),
         answer_error().prop_map(Answer::Error),
         (
             prop_oneof![
@@ -592,6 +627,13 @@ fn request() -> impl Strategy<Value = Request> {
         Just(Request::Revert),
         Just(Request::Store),
         Just(Request::Reset),
+        proptest::sample::select(vec![
+            CommissionCommand::Status,
+            CommissionCommand::Start,
+            CommissionCommand::Accept,
+            CommissionCommand::Abort,
+        ])
+        .prop_map(Request::Commission),
     ]
 }
 
@@ -625,6 +667,10 @@ fn kind_wanted(r: &Request) -> String {
         Request::Calib | Request::EditCalib(..) => "calib".into(),
         Request::Save | Request::Store => "store".into(),
         Request::Reset => "ok".into(),
+        Request::Commission(CommissionCommand::Accept) => "store".into(),
+        Request::Commission(
+            CommissionCommand::Status | CommissionCommand::Start | CommissionCommand::Abort,
+        ) => "commission".into(),
         Request::Capture(
             CaptureCommand::Status | CaptureCommand::Stop | CaptureCommand::Arm { .. },
         ) => "capture".into(),
@@ -704,6 +750,7 @@ proptest! {
             },
             link: &mut link,
             store: &mut store,
+            commission: &mut Commission::new(),
             reset: false,
         };
         let line = r.to_string();

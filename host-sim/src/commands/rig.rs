@@ -71,6 +71,21 @@ pub enum RigCommand {
     /// The rig's own model and calibration: show them, pull them into a TOML file, or push one
     /// (the TOML `identify` writes and `select --config` reads) as one change, verified.
     Model(ModelArgs),
+    /// The board commissions itself: sensor check at rest, a drop test (release the hammer
+    /// when told) identified on the board, its selection on the identified model, a verification
+    /// at the target; then the model is stored if accepted. One line per step.
+    Commission(CommissionArgs),
+}
+
+/// `rig commission`.
+#[derive(Debug, Args)]
+pub struct CommissionArgs {
+    /// Store the model when its verification passes, without asking.
+    #[arg(long, conflicts_with = "decline")]
+    pub accept: bool,
+    /// Keep the model the rig ran before whatever the verification says (a dry run).
+    #[arg(long)]
+    pub decline: bool,
 }
 
 /// `rig model`.
@@ -209,6 +224,38 @@ pub fn run(a: &RigArgs) -> Result<()> {
         RigCommand::Capture(c) => capture_drop(a, c),
         RigCommand::Sweep(s) => measure_sweep(a, s),
         RigCommand::Model(m) => rig_model(a, &m.what),
+        RigCommand::Commission(c) => run_commission(a, c),
+    }
+}
+
+/// `rig commission`: the board's sequence, one line per record on stdout; without `--accept`
+/// or `--decline` the operator is asked at the accept step (no terminal, or no answer within
+/// the board's window: declined). Exits non-zero unless the model was stored or declined.
+fn run_commission(a: &RigArgs, c: &CommissionArgs) -> Result<()> {
+    use crate::rig_link::commission::{Decision, Outcome, commission, describe, summary};
+    use std::io::IsTerminal as _;
+    let decision = if c.accept {
+        Decision::Accept
+    } else if c.decline || !std::io::stdin().is_terminal() {
+        Decision::Decline
+    } else {
+        Decision::Ask {
+            wait: Duration::from_secs_f32(shared::commission::ACCEPT_WINDOW_S - 30.0),
+        }
+    };
+    let mut port = connect(a)?;
+    let outcome = commission(&mut port, decision, |n| {
+        println!("commission: {}", describe(&n.progress));
+    })?;
+    port.release_drive();
+    println!("{}", summary(&outcome));
+    match outcome {
+        Outcome::Stored { .. } => Ok(()),
+        Outcome::Kept {
+            reason: shared::commission::EndReason::Aborted,
+            at: shared::commission::Step::Accept,
+        } if !c.accept => Ok(()),
+        Outcome::Kept { .. } => bail!("{}", summary(&outcome)),
     }
 }
 

@@ -33,6 +33,7 @@
 //!   (escaped, at most [`SHOWN_GARBLED`] of them shown, all counted) and skipped.
 
 pub mod capture;
+pub mod commission;
 pub mod log;
 pub mod model;
 pub mod sweep;
@@ -47,6 +48,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use shared::capture::{CaptureCommand, CaptureStatus, SegmentView};
+use shared::commission::Numbered;
+use shared::console::commission::{CommissionLine, PREFIX as COMMISSION_PREFIX};
 use shared::console::serve::split_tag;
 use shared::console::{Answer, AnswerError, DiagInfo, IdInfo, Request, WireError};
 use shared::control::{AsyncRecord, Command, Reply, State, Status};
@@ -81,6 +84,7 @@ struct Deadline {
 enum Incoming {
     Reply { tag: Option<u32>, text: String },
     Record(AsyncRecord),
+    Commission(Numbered),
     Closed(String),
 }
 
@@ -174,6 +178,10 @@ pub struct RigPort {
     stop: Arc<AtomicBool>,
     garbled: Arc<AtomicU64>,
     records: std::collections::VecDeque<AsyncRecord>,
+    /// The commissioning's records (`!C`) received and not yet taken.
+    commission: std::collections::VecDeque<Numbered>,
+    /// Send `commission abort` when the port closes ([`RigPort::abort_commission_on_close`]).
+    abort_commission: bool,
     opts: LinkOptions,
     next_tag: u32,
     /// Tags of requests given up (interrupted, timed out): their late replies are dropped.
@@ -239,6 +247,8 @@ impl RigPort {
             stop,
             garbled,
             records: std::collections::VecDeque::new(),
+            commission: std::collections::VecDeque::new(),
+            abort_commission: false,
             opts,
             next_tag: 1,
             abandoned: std::collections::VecDeque::new(),
@@ -310,7 +320,7 @@ impl RigPort {
                         None => text,
                     }));
                 }
-                Some(Incoming::Record(_)) => {}
+                Some(Incoming::Record(_) | Incoming::Commission(_)) => {}
                 None if Instant::now() >= deadline => bail!(
                     "no reply to `id` within {:.1} s{}: is this the rig's console (115200 8N1)?",
                     self.opts.timeout.as_secs_f64(),
@@ -482,6 +492,7 @@ impl RigPort {
                 Some(Incoming::Reply { tag: Some(t), .. })
                     if t != sent && (lenient || self.abandoned.contains(&t)) => {}
                 Some(Incoming::Record(r)) => self.records.push_back(r),
+                Some(Incoming::Commission(c)) => self.commission.push_back(c),
                 // The echo of the request (a rig that echoes tagged lines): no reply is ever
                 // the text of a request (`shared`'s protocol tests).
                 Some(Incoming::Reply { tag: Some(t), text }) if t == sent && text == line => {}
@@ -633,6 +644,7 @@ impl RigPort {
         loop {
             match self.recv(deadline, false)? {
                 Some(Incoming::Record(r)) => self.records.push_back(r),
+                Some(Incoming::Commission(c)) => self.commission.push_back(c),
                 Some(Incoming::Reply { tag: t, text }) if t == Some(tag) || t.is_none() => {
                     return Ok(text);
                 }
@@ -783,6 +795,10 @@ impl RigPort {
             return match self.recv(deadline, false)? {
                 None => Ok(None),
                 Some(Incoming::Record(r)) => Ok(Some(r)),
+                Some(Incoming::Commission(c)) => {
+                    self.commission.push_back(c);
+                    continue;
+                }
                 Some(Incoming::Closed(why)) => Err(anyhow!("the rig closed the link: {why}")),
                 Some(Incoming::Reply { tag: Some(t), .. }) if self.abandoned.contains(&t) => {
                     continue;
@@ -796,6 +812,45 @@ impl RigPort {
                 ),
             };
         }
+    }
+
+    /// The next commissioning record (`!C`), waiting at most `wait` (`None` then); telemetry
+    /// that arrives meanwhile is kept for [`RigPort::next_record`].
+    ///
+    /// # Errors
+    /// The link closed, a reply while no request waited, Ctrl-C.
+    pub fn next_commission(&mut self, wait: Duration) -> Result<Option<Numbered>> {
+        if let Some(c) = self.commission.pop_front() {
+            return Ok(Some(c));
+        }
+        let deadline = self.deadline(wait);
+        loop {
+            return match self.recv(deadline, false)? {
+                None => Ok(None),
+                Some(Incoming::Commission(c)) => Ok(Some(c)),
+                Some(Incoming::Record(r)) => {
+                    self.records.push_back(r);
+                    continue;
+                }
+                Some(Incoming::Closed(why)) => Err(anyhow!("the rig closed the link: {why}")),
+                Some(Incoming::Reply { tag: Some(t), .. }) if self.abandoned.contains(&t) => {
+                    continue;
+                }
+                Some(Incoming::Reply { tag, text }) => bail!(
+                    "link error: a reply arrived while no request waited: {}",
+                    escaped(&match tag {
+                        Some(t) => format!("#{t} {text}"),
+                        None => text,
+                    })
+                ),
+            };
+        }
+    }
+
+    /// From now on, closing the port sends `commission abort` first (before the drive
+    /// guard's `stop`): a commissioning this program started never outlives it.
+    pub fn abort_commission_on_close(&mut self, on: bool) {
+        self.abort_commission = on;
     }
 
     /// Drops the records received so far.
@@ -981,6 +1036,15 @@ fn stopping(s: &Status) -> Option<String> {
 
 impl Drop for RigPort {
     fn drop(&mut self) {
+        if self.closed.is_none() && self.abort_commission {
+            match self.exchange("commission abort", true) {
+                Ok(r) => eprintln!(
+                    "aborting the commissioning: `commission abort` answered `{}`",
+                    escaped(&r)
+                ),
+                Err(e) => eprintln!("aborting the commissioning: {e:#}"),
+            }
+        }
         if self.closed.is_none() {
             let stopped = !self.stop_failed
                 && (!self.guard || {
@@ -1157,6 +1221,19 @@ fn read_lines(
                 Err(_) => {
                     garbled_line(garbled, "a line that is not text", raw);
                     continue;
+                }
+                Ok(text) if text.starts_with(COMMISSION_PREFIX) => {
+                    match text.parse::<CommissionLine>() {
+                        Ok(c) => Incoming::Commission(c.0),
+                        Err(e) => {
+                            garbled_line(
+                                garbled,
+                                &format!("a commissioning line that does not read ({e})"),
+                                raw,
+                            );
+                            continue;
+                        }
+                    }
                 }
                 Ok(text) if text.starts_with('!') => match text.parse::<AsyncRecord>() {
                     Ok(r) => Incoming::Record(r),

@@ -260,6 +260,7 @@ pub fn serve(
             session.restart()?;
         }
         session.end_sample();
+        session.send_commission_lines();
         while let Some(rec) = session.controller_mut().pop_async() {
             if format_async(&rec, &mut line) {
                 session.link_mut().push_async(&line);

@@ -210,6 +210,20 @@ pub struct Scenario {
     pub faults: Vec<TimedFault>,
     /// Drop tests.
     pub drops: Vec<TimedDrop>,
+    /// The operator's drops when the board's commissioning asks for one; default: one, from
+    /// the height the prompt gives, 0.5 s after it. Empty: the operator never drops.
+    pub prompted_drops: Vec<PromptedDrop>,
+}
+
+/// A drop the operator makes when the commissioning prompts one.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PromptedDrop {
+    /// Time after the prompt, s.
+    pub after_s: f64,
+    /// Distance from the impact surface, mm (absent: the prompt's).
+    #[serde(default)]
+    pub release_mm: Option<f64>,
 }
 
 impl Default for Scenario {
@@ -226,6 +240,10 @@ impl Default for Scenario {
             }],
             faults: Vec::new(),
             drops: Vec::new(),
+            prompted_drops: vec![PromptedDrop {
+                after_s: 0.5,
+                release_mm: None,
+            }],
         }
     }
 }
@@ -291,6 +309,12 @@ impl Scenario {
         for d in &self.drops {
             finite_in("drops.at_s", d.at_s, 0.0, 1e6)?;
             finite_in("drops.release_mm", d.release_mm, 0.001, 20.0)?;
+        }
+        for d in &self.prompted_drops {
+            finite_in("prompted_drops.after_s", d.after_s, 0.0, 1e6)?;
+            if let Some(h) = d.release_mm {
+                finite_in("prompted_drops.release_mm", h, 0.001, 50.0)?;
+            }
         }
         for f in &self.faults {
             finite_in("faults.at_s", f.at_s(), 0.0, 1e6)?;

@@ -9,7 +9,10 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use shared::analysis::SelectionError;
 use shared::capture::{CAPTURE_RATE_HZ, Capture};
-use shared::console::serve::Response;
+use shared::commission::{Commission, Numbered, Progress, WaitFor};
+use shared::console::serve::{
+    ReplyText, Response, next_commission_line, poll_commission, sent_commission_line,
+};
 use shared::console::{Board, BoardInfo, Direct, Line, Link, Token, Version, answer};
 use shared::control::{
     Controller, Event, Fault, ModelRequest, Prediction, SAMPLE_RATE_HZ, State, Status, predict,
@@ -99,6 +102,8 @@ pub struct HilRun {
     pub faults: Vec<(f64, Fault)>,
     /// The model's prediction (when it arrived).
     pub prediction: Option<Prediction>,
+    /// The commissioning's records, as the board made them.
+    pub commission: Vec<Numbered>,
     /// The controller's final status.
     pub status: Status,
     /// Samples run.
@@ -151,6 +156,13 @@ pub struct Session {
     /// The settings store: a NOR flash in RAM with the board's geometry, kept across `reset`.
     store: Store<RamFlash<Vec<u8>>>,
     capture: Capture,
+    /// The console service's commissioning sequence.
+    commission: Commission,
+    /// Its drop prompts seen, and the operator's drops they scheduled `(t_s, release_mm)`.
+    prompts_seen: u32,
+    prompted_due: Vec<(f64, f64)>,
+    /// Its records logged so far (its `records()` count).
+    commission_logged: u32,
     /// The console's link (the pty server feeds it; scenario lines bypass it).
     link: Link,
     plant: Plant,
@@ -235,6 +247,10 @@ impl Session {
             controller,
             store,
             capture: Capture::new(),
+            commission: Commission::new(),
+            prompts_seen: 0,
+            prompted_due: Vec::new(),
+            commission_logged: 0,
             link: Link::new(),
             plant,
             base,
@@ -259,6 +275,7 @@ impl Session {
                 states: vec![(0.0, State::Idle)],
                 faults: Vec::new(),
                 prediction: None,
+                commission: Vec::new(),
                 status,
                 samples: 0,
                 wall_s: 0.0,
@@ -308,19 +325,102 @@ impl Session {
     /// Answers a console line now (through the same service as the firmware's). A `reset`
     /// restarts the rig's board after its reply ([`Session::restart`]).
     pub fn answer(&mut self, line: Line<'_>) -> Response {
-        let mut access = Direct {
+        let mut access = self.access();
+        let response = answer(&mut access, line);
+        if access.reset {
+            self.restart_pending = true;
+        }
+        self.log_commission();
+        response
+    }
+
+    /// The console service's view of the rig.
+    fn access(&mut self) -> Direct<'_> {
+        Direct {
             controller: &mut self.controller,
             capture: &mut self.capture,
             board: virtual_board(self.k / 10),
             link: &mut self.link,
             store: &mut self.store,
+            commission: &mut self.commission,
             reset: false,
-        };
-        let response = answer(&mut access, line);
-        if access.reset {
-            self.restart_pending = true;
         }
-        response
+    }
+
+    /// The commissioning sequence advanced, as the console service does when it wakes.
+    fn poll_commission(&mut self) {
+        if !self.commission.busy() {
+            return;
+        }
+        poll_commission(&mut self.access());
+        self.log_commission();
+    }
+
+    /// The sequence's new records into the run's log; a new drop prompt schedules the
+    /// scenario's operator drops.
+    fn log_commission(&mut self) {
+        let made = self.commission.records();
+        let from = self.commission_logged;
+        if made != from {
+            // The outbox keeps the newest records: those not logged yet are among them.
+            let mut fresh: Vec<Numbered> = Vec::new();
+            let mut probe = self.commission.clone();
+            while let Some(n) = probe.pop() {
+                if n.seq.wrapping_sub(from) < made.wrapping_sub(from) {
+                    fresh.push(n);
+                }
+            }
+            self.out.commission.extend(fresh);
+            self.commission_logged = made;
+        }
+        if self.commission.prompts() != self.prompts_seen {
+            self.prompts_seen = self.commission.prompts();
+            let t = self.t_s();
+            let asked = self
+                .out
+                .commission
+                .iter()
+                .rev()
+                .find_map(|n| match n.progress {
+                    Progress::Wait(WaitFor::Release { release_mm, .. }) => {
+                        Some(f64::from(release_mm))
+                    }
+                    _ => None,
+                });
+            self.prompted_due.extend(
+                self.sc
+                    .prompted_drops
+                    .iter()
+                    .map(|d| (t + d.after_s, d.release_mm.or(asked).unwrap_or(8.0))),
+            );
+        }
+    }
+
+    /// The commissioning's `!C` lines into the link, as many as have room (the pty server).
+    pub fn send_commission_lines(&mut self) {
+        let mut text = ReplyText::new();
+        let mut access = self.access();
+        while next_commission_line(&mut access, &mut text) {
+            access.link.push_bytes(text.as_bytes());
+            access.link.push_bytes(b"\r\n");
+            sent_commission_line(&mut access);
+        }
+    }
+
+    /// The commissioning sequence.
+    pub fn commission(&self) -> &Commission {
+        &self.commission
+    }
+
+    /// The commissioning's records so far.
+    pub fn commission_log(&self) -> &[Numbered] {
+        &self.out.commission
+    }
+
+    /// The settings store's status (what `store` answers).
+    pub fn store_status(&self) -> shared::store::StoreStatus {
+        use shared::store::SettingsStore as _;
+        self.store.status()
     }
 
     /// The capture (its segments, for a recording).
@@ -347,6 +447,9 @@ impl Session {
         start_up(&mut self.store, &mut controller);
         self.controller = controller;
         self.capture = Capture::new();
+        self.commission = Commission::new();
+        self.commission_logged = 0;
+        self.prompts_seen = 0;
         self.link = Link::new();
         self.model_due = None;
         self.restart_pending = false;
@@ -405,6 +508,12 @@ impl Session {
                 .with_context(|| format!("drop at {} s", d.at_s))?;
             self.next_drop += 1;
         }
+        while let Some(i) = self.prompted_due.iter().position(|d| d.0 <= t) {
+            let (at, release_mm) = self.prompted_due.remove(i);
+            self.plant
+                .release(release_mm * 1e-3)
+                .with_context(|| format!("prompted drop at {at} s"))?;
+        }
         if !self.drifts.is_empty() && self.k.is_multiple_of(100) {
             // Every 10 ms: the plant's parameters on the linear drift paths.
             let (mut nat, mut stiff) = (1.0, 1.0);
@@ -430,6 +539,10 @@ impl Session {
     /// the plant over one sample interval, the capture, and the cycle log.
     pub fn end_sample(&mut self) {
         let t = self.t_s();
+        // The console service's commissioning, every millisecond.
+        if self.k.is_multiple_of(10) {
+            self.poll_commission();
+        }
         // The model task: computed at once here, delivered after the MCU's computation time.
         if let Some(req) = self.controller.take_model_request() {
             self.model_due = Some((

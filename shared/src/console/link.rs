@@ -214,6 +214,18 @@ impl Link {
         true
     }
 
+    /// Whether an asynchronous line of `len` bytes (plus `\r\n`) fits now, leaving a reply its
+    /// room; if so it counts as sent (queue it with [`Link::push_bytes`]). Unlike
+    /// [`Link::reserve_async`], a line that does not fit is not counted: its sender keeps it
+    /// and tries again (the commissioning's records, which are never dropped).
+    pub fn fits_async(&mut self, len: usize) -> bool {
+        let fits = self.tx_free() >= len + 2 + REPLY_ROOM;
+        if fits {
+            self.stats.async_sent = self.stats.async_sent.saturating_add(1);
+        }
+        fits
+    }
+
     /// Queues raw bytes (as many as fit): a piece of a reply whose room [`Link::next_line`]
     /// guaranteed, or of an asynchronous line [`Link::reserve_async`] admitted.
     pub fn push_bytes(&mut self, bytes: &[u8]) {

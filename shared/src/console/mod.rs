@@ -22,6 +22,7 @@
 //! The text of every line, with an example of each, is in docs/operator.md ("The console").
 
 pub mod board;
+pub mod commission;
 pub mod decimal;
 pub mod drop_id;
 pub mod fields;

@@ -15,17 +15,19 @@ use core::fmt;
 use core::str::FromStr;
 
 use super::board::Board;
+use super::commission::CommissionView;
 use super::decimal::{Decimal, Exact, parse_exact};
 use super::displays_as;
 use super::drop_id::IdentifyLine;
 use super::fields::{Fields, WireError, decimal};
 use super::link::LinkStats;
-use super::request::{DraftCommand, HELP, MAX_FREQ_HZ, ParseError, Request};
+use super::request::{CommissionCommand, DraftCommand, HELP, MAX_FREQ_HZ, ParseError, Request};
 use super::settings::{CalibView, ModelView, SettingsRefusal, StoreRefusal, StoreView};
 use super::token::{Token, read_fault, read_regime, write_fault, write_regime};
 use crate::capture::{
     CAPTURE_RATE_HZ, CaptureCommand, CaptureStatus, PRE_TRIGGER, SEGMENT_LEN, SEGMENTS, SegmentView,
 };
+use crate::commission::CommissionRefusal;
 use crate::control::{
     Command, CommandError, Fault, MAX_FORCE_VS_MODEL_PCT, MAX_GAP_MM, ModelId, ModelStatus,
     PeakForce, Reply, SAMPLE_RATE_HZ, SensorChain, State, Status, Target,
@@ -727,6 +729,8 @@ pub enum AnswerError {
     Settings(SettingsRefusal),
     /// A `save` or `revert` refused.
     Store(StoreRefusal),
+    /// A `commission` command refused, or another command refused while commissioning.
+    Commission(CommissionRefusal),
 }
 
 impl fmt::Display for AnswerError {
@@ -739,6 +743,7 @@ impl fmt::Display for AnswerError {
             AnswerError::Bad => f.write_str("line too long or not text"),
             AnswerError::Settings(e) => write!(f, "{e}"),
             AnswerError::Store(e) => write!(f, "{e}"),
+            AnswerError::Commission(e) => write!(f, "{e}"),
         }
     }
 }
@@ -758,6 +763,7 @@ impl FromStr for AnswerError {
             .or_else(|()| s.parse().map(AnswerError::Parse))
             .or_else(|()| s.parse().map(AnswerError::Settings))
             .or_else(|()| s.parse().map(AnswerError::Store))
+            .or_else(|()| s.parse().map(AnswerError::Commission))
     }
 }
 
@@ -786,6 +792,8 @@ pub enum Answer {
     Calib(CalibView),
     /// `save` and `store`: the store line.
     Store(StoreView),
+    /// `commission`, `commission start|abort`: where the sequence is.
+    Commission(CommissionView),
     /// Refused (nothing changed), or a `start` that tripped a fault
     /// ([`CommandError::Tripped`]).
     Error(AnswerError),
@@ -837,6 +845,8 @@ impl Answer {
             Request::Calib | Request::EditCalib(..) => matches!(self, Answer::Calib(_)),
             Request::Save | Request::Store => matches!(self, Answer::Store(_)),
             Request::Reset => matches!(self, Answer::Reply(Reply::Ok)),
+            Request::Commission(CommissionCommand::Accept) => matches!(self, Answer::Store(_)),
+            Request::Commission(_) => matches!(self, Answer::Commission(_)),
         };
         own || matches!(self, Answer::Error(_))
     }
@@ -856,6 +866,7 @@ impl fmt::Display for Answer {
             Answer::Model(m) => write!(f, "{m}"),
             Answer::Calib(c) => write!(f, "{c}"),
             Answer::Store(st) => write!(f, "{st}"),
+            Answer::Commission(c) => write!(f, "{c}"),
             Answer::Error(e) => write!(f, "{ERROR}{e}"),
         }
     }
@@ -887,6 +898,8 @@ impl FromStr for Answer {
             s.parse().map(Answer::Capture)
         } else if s.starts_with("segment ") {
             s.parse().map(Answer::Segment)
+        } else if s.starts_with("commission ") {
+            s.parse().map(Answer::Commission)
         } else if s.starts_with("identify ") {
             s.parse().map(Answer::Identify)
         } else if s.starts_with("model ") {

@@ -58,6 +58,40 @@ pub enum Request {
     Store,
     /// `reset`: restart the board (idle only).
     Reset,
+    /// `commission [start|accept|abort]`: the board's commissioning sequence.
+    Commission(CommissionCommand),
+}
+
+/// `commission`'s subcommands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CommissionCommand {
+    /// `commission`: where the sequence is.
+    Status,
+    /// Start it (drive idle).
+    Start,
+    /// Store the commissioned model (after its verification passed).
+    Accept,
+    /// End it now, keeping the model the rig ran before.
+    Abort,
+}
+
+impl CommissionCommand {
+    /// Every subcommand with a word.
+    pub const ALL: [CommissionCommand; 3] = [
+        CommissionCommand::Start,
+        CommissionCommand::Accept,
+        CommissionCommand::Abort,
+    ];
+
+    /// Its word (empty for the status).
+    pub const fn name(self) -> &'static str {
+        match self {
+            CommissionCommand::Status => "",
+            CommissionCommand::Start => "start",
+            CommissionCommand::Accept => "accept",
+            CommissionCommand::Abort => "abort",
+        }
+    }
 }
 
 /// `draft`'s subcommands.
@@ -185,6 +219,8 @@ pub enum ParseError {
     UnknownSuspension,
     /// `draft` takes `begin`, `apply` or `discard`.
     UnknownDraft,
+    /// `commission` takes nothing, `start`, `accept` or `abort`.
+    UnknownCommission,
     /// The number is outside its range.
     OutOfRange {
         /// The argument.
@@ -304,6 +340,7 @@ const UNKNOWN_CALIB_FIELD: &str = "calib takes a field (`calib` shows them)";
 const UNKNOWN_LAW: &str = list_text!(NameList::either("law must be ", &ContactLawKind::NAMES));
 const UNKNOWN_SUSPENSION: &str = "suspension must be wires or beam";
 const UNKNOWN_DRAFT: &str = "draft takes begin, apply or discard";
+const UNKNOWN_COMMISSION: &str = "commission takes start, accept or abort (or nothing)";
 const OUT_OF_RANGE: (&str, &str) = (" out of range: allowed ", " ..= ");
 
 impl fmt::Display for ParseError {
@@ -323,6 +360,7 @@ impl fmt::Display for ParseError {
             ParseError::UnknownLaw => f.write_str(UNKNOWN_LAW),
             ParseError::UnknownSuspension => f.write_str(UNKNOWN_SUSPENSION),
             ParseError::UnknownDraft => f.write_str(UNKNOWN_DRAFT),
+            ParseError::UnknownCommission => f.write_str(UNKNOWN_COMMISSION),
             ParseError::BadNumber(a) => {
                 let rule = number_rule(*a);
                 write!(f, "{}{rule}", a.name())
@@ -359,6 +397,7 @@ impl FromStr for ParseError {
             ParseError::UnknownLaw,
             ParseError::UnknownSuspension,
             ParseError::UnknownDraft,
+            ParseError::UnknownCommission,
         ];
         if let Some(e) = unit.into_iter().find(|e| super::displays_as(e, s)) {
             return Ok(e);
@@ -404,7 +443,7 @@ pub const HELP: &str = list_text!(NameList {
     names: &RigId::NAMES,
     sep: "|",
     last: "|",
-    tail: "> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k> | identify | adopt] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | help; a line may start with #<n>, its reply then does too",
+    tail: "> (a preset) | gap <mm> | start | stop | tune | freq <Hz> | clear | stream <on|off> | link-timeout <s> (0: off) | echo <on|off> | id | diag | capture [arm [level_N] [seconds] | stop | get <k> | identify | adopt] | model [<field> <value> | law <name> | suspension <wires|beam>] | calib [<field> <value>] | draft <begin|apply|discard> | save | revert | store | reset | commission [start|accept|abort] | help; a line may start with #<n>, its reply then does too",
 });
 
 // The help line, tagged (`#` and 9 digits, a space), fits a reply: a rig or command added to it
@@ -503,6 +542,15 @@ pub fn parse(line: &str) -> Result<Request, ParseError> {
         takes(0, Request::Store)
     } else if eq("reset") {
         takes(0, Request::Reset)
+    } else if eq("commission") {
+        let c = match arg {
+            None => CommissionCommand::Status,
+            Some(name) => CommissionCommand::ALL
+                .into_iter()
+                .find(|c| c.name().eq_ignore_ascii_case(name))
+                .ok_or(ParseError::UnknownCommission)?,
+        };
+        takes(1, Request::Commission(c))
     } else {
         Err(ParseError::UnknownCommand)
     }
@@ -662,6 +710,8 @@ impl fmt::Display for Request {
             Request::Revert => f.write_str("revert"),
             Request::Store => f.write_str("store"),
             Request::Reset => f.write_str("reset"),
+            Request::Commission(CommissionCommand::Status) => f.write_str("commission"),
+            Request::Commission(c) => write!(f, "commission {}", c.name()),
             Request::Capture(c) => match c {
                 CaptureCommand::Status => f.write_str("capture"),
                 CaptureCommand::Arm { level_n, seconds } => {

@@ -13,37 +13,32 @@
 use core::fmt;
 use core::str::FromStr;
 
+use super::commission::{CommissionLine, CommissionView};
 use super::drop_id::IdentifyLine;
 use super::fields::WireError;
 use super::framing::Line;
 use super::link::{Link, MAX_REPLY};
 use super::reply::{Answer, AnswerError, BoardInfo, CaptureError, DiagInfo, IdInfo};
+use super::request::CommissionCommand;
 use super::request::{DraftCommand, ParseError, Request, parse};
 use super::settings::{CalibView, ModelOf, ModelView, SettingsRefusal, StoreRefusal, StoreView};
 use crate::capture::{CAPTURE_RATE_HZ, Capture, CaptureCommand};
-use crate::control::SensorChain;
+use crate::commission::{Commission, CommissionRefusal, RigPieces, identify_capture, store_active};
 use crate::control::{
     AsyncRecord, Command, CommandError, Controller, ModelSource, SAMPLE_RATE_HZ, SettingsError,
     State,
 };
-use crate::identify::{
-    CaptureOnChain, DropIdentification, DropRecord, DropRefusal, SegmentForce, identify_drop,
-};
 use crate::store::SettingsStore;
 
-/// Access to the rig's pieces, each for the duration of one closure.
-pub trait RigAccess {
-    /// Runs `f` on the controller.
-    fn controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R;
-    /// Runs `f` on the capture.
-    fn capture<R>(&mut self, f: impl FnOnce(&mut Capture) -> R) -> R;
+/// Access to the rig's pieces ([`RigPieces`]: the controller, the capture, the store), each for
+/// the duration of one closure, and to the console's own.
+pub trait RigAccess: RigPieces {
     /// The board's identity and health figures.
     fn board(&mut self) -> BoardInfo;
     /// Runs `f` on the console's link (its counters, its echo).
     fn link<R>(&mut self, f: impl FnOnce(&mut Link) -> R) -> R;
-    /// Runs `f` on the settings store (flash: a `save` stalls the CPU on the board; the
-    /// service pauses the controller's deadline checks around it).
-    fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R;
+    /// Runs `f` on the commissioning sequence (the console service's own).
+    fn commission<R>(&mut self, f: impl FnOnce(&mut Commission) -> R) -> R;
     /// A `reset` was accepted: restart the board once its reply has gone out.
     fn reset_after_reply(&mut self);
 }
@@ -151,7 +146,13 @@ fn answer_request(rig: &mut impl RigAccess, request: Result<Request, ParseError>
         Ok(r) => r,
         Err(e) => return Answer::Error(AnswerError::Parse(e)),
     };
+    if let Some(step) = rig.commission(|c| c.phase().step())
+        && !taken_while_commissioning(&request)
+    {
+        return Answer::Error(AnswerError::Commission(CommissionRefusal::Busy(step)));
+    }
     match request {
+        Request::Commission(cmd) => commission(rig, cmd),
         Request::Control(Command::Start) if rig.capture(|c| c.active()) => {
             Answer::Error(AnswerError::Capture(CaptureError::Running))
         }
@@ -321,21 +322,108 @@ fn save(rig: &mut impl RigAccess) -> Answer {
     if let Err(e) = idle(rig) {
         return Answer::Error(e);
     }
-    let settings = rig.controller(|c| {
-        c.pause_sampling();
-        c.settings()
-    });
-    let saved = rig.store(|s| s.save(&settings));
-    rig.controller(|c| {
-        c.resume_sampling();
-        if saved.is_ok() {
-            c.mark_stored();
-        }
-    });
-    match saved {
+    match store_active(rig) {
         Ok(_) => Answer::Store(store_line(rig)),
         Err(e) => Answer::Error(AnswerError::Store(StoreRefusal::SaveFailed(e))),
     }
+}
+
+/// What may run while a commissioning sequence does: reading, the drive's `stop` and `clear`,
+/// the link's own settings, `reset` (nothing of the sequence is stored) and the sequence's
+/// commands.
+fn taken_while_commissioning(request: &Request) -> bool {
+    match request {
+        Request::Control(c) => matches!(
+            c,
+            Command::Status
+                | Command::Stop
+                | Command::Clear
+                | Command::Stream(_)
+                | Command::LinkTimeout(_)
+        ),
+        Request::Capture(c) => matches!(
+            c,
+            CaptureCommand::Status | CaptureCommand::Get(_) | CaptureCommand::Identify
+        ),
+        Request::Id
+        | Request::Diag
+        | Request::Help
+        | Request::Echo(_)
+        | Request::Model
+        | Request::Calib
+        | Request::Store
+        | Request::Reset
+        | Request::Commission(_) => true,
+        Request::EditModel(_)
+        | Request::EditCalib(..)
+        | Request::Draft(_)
+        | Request::Save
+        | Request::Revert => false,
+    }
+}
+
+/// Runs `f` on the commissioning sequence and the rig together (the sequence is taken out of
+/// its place meanwhile).
+fn with_commission<A: RigAccess, R>(
+    rig: &mut A,
+    f: impl FnOnce(&mut Commission, &mut A) -> R,
+) -> R {
+    let mut seq = rig.commission(core::mem::take);
+    let r = f(&mut seq, rig);
+    rig.commission(|c| *c = seq);
+    r
+}
+
+fn commission_view(rig: &mut impl RigAccess) -> Answer {
+    Answer::Commission(rig.commission(|c| CommissionView::of(c.phase(), c.records())))
+}
+
+fn commission(rig: &mut impl RigAccess, cmd: CommissionCommand) -> Answer {
+    let done = match cmd {
+        CommissionCommand::Status => Ok(()),
+        CommissionCommand::Start => with_commission(rig, |c, r| c.start(r)),
+        CommissionCommand::Abort => with_commission(rig, |c, r| c.abort(r)),
+        CommissionCommand::Accept => {
+            return match with_commission(rig, |c, r| c.accept(r)) {
+                Ok(Ok(_)) => Answer::Store(store_line(rig)),
+                Ok(Err(e)) => Answer::Error(AnswerError::Store(StoreRefusal::SaveFailed(e))),
+                Err(e) => Answer::Error(AnswerError::Commission(e)),
+            };
+        }
+    };
+    match done {
+        Ok(()) => commission_view(rig),
+        Err(e) => Answer::Error(AnswerError::Commission(e)),
+    }
+}
+
+/// Advances the commissioning sequence (the console service calls it whenever it wakes).
+pub fn poll_commission(rig: &mut impl RigAccess) {
+    if rig.commission(|c| c.busy()) {
+        with_commission(rig, |c, r| c.poll(r));
+    }
+}
+
+/// Formats the oldest unsent `!C` line into `out` if the link has room for it now (it then
+/// counts as sent: call [`sent_commission_line`] once it is queued); `false` when none waits
+/// or it must wait for room.
+pub fn next_commission_line(rig: &mut impl RigAccess, out: &mut ReplyText) -> bool {
+    use core::fmt::Write as _;
+    let Some(n) = rig.commission(|c| c.peek().copied()) else {
+        return false;
+    };
+    out.clear();
+    if write!(out, "{}", CommissionLine(n)).is_err() {
+        // No record is that long (tested): never sent rather than cut.
+        rig.commission(|c| c.pop());
+        return false;
+    }
+    rig.link(|l| l.fits_async(out.len()))
+}
+
+/// The line [`next_commission_line`] gave was queued.
+pub fn sent_commission_line(rig: &mut impl RigAccess) {
+    rig.commission(|c| c.pop());
 }
 
 /// `revert`: the stored settings back (a load may repair the store, writing flash: paused as a
@@ -390,8 +478,8 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
         CaptureCommand::Identify | CaptureCommand::Adopt if rig.capture(|c| c.active()) => {
             Answer::Error(AnswerError::Capture(CaptureError::Running))
         }
-        CaptureCommand::Identify => Answer::Identify(IdentifyLine(identify(rig))),
-        CaptureCommand::Adopt => match identify(rig) {
+        CaptureCommand::Identify => Answer::Identify(IdentifyLine(identify_capture(rig))),
+        CaptureCommand::Adopt => match identify_capture(rig) {
             Ok(id) if id.law_fits() => settled(rig.controller(|c| {
                 let base = c.draft().map_or(*c.model().0, |d| d.params);
                 let params = id.applied_to(&base).map_err(SettingsError::Invalid)?;
@@ -406,57 +494,6 @@ fn capture(rig: &mut impl RigAccess, cmd: CaptureCommand) -> Answer {
                 recorded,
             })),
         },
-    }
-}
-
-/// The board's identification of its capture, for the active model's mass and gap (the
-/// draft's mass while one is open).
-fn identify(rig: &mut impl RigAccess) -> Result<DropIdentification, DropRefusal> {
-    let (mass_kg, gap_mm, sensor) = rig.controller(|c| {
-        let mass = c.draft().map_or(c.model().0.mass_kg, |d| d.params.mass_kg);
-        (mass, c.gap_mm(), c.config().sensor)
-    });
-    let mut rec = LockedCapture { rig, sensor };
-    identify_drop(&mut rec, mass_kg as f32, gap_mm * 1e-3)
-}
-
-/// The capture read through the board's access, one short lock per segment (the firmware's
-/// capture interrupt waits no longer than a copy).
-struct LockedCapture<'r, R: RigAccess> {
-    rig: &'r mut R,
-    sensor: SensorChain,
-}
-
-impl<R: RigAccess> DropRecord for LockedCapture<'_, R> {
-    fn segments(&mut self) -> usize {
-        usize::from(self.rig.capture(|c| c.status().segments))
-    }
-
-    fn segment(&mut self, k: usize) -> Option<SegmentForce> {
-        let sensor = self.sensor;
-        self.rig.capture(|c| {
-            CaptureOnChain {
-                capture: c,
-                sensor: &sensor,
-            }
-            .segment(k)
-        })
-    }
-
-    fn samples(&mut self) -> u32 {
-        self.rig.capture(|c| c.status().samples)
-    }
-
-    fn lost_samples(&mut self) -> u32 {
-        self.rig.capture(|c| c.lost_samples())
-    }
-
-    fn level_n(&mut self) -> f32 {
-        self.rig.capture(|c| c.status().level_n)
-    }
-
-    fn resolution_n(&mut self) -> f32 {
-        self.sensor.code_step_n()
     }
 }
 
@@ -495,25 +532,33 @@ pub struct Direct<'a> {
     pub link: &'a mut Link,
     /// The settings store.
     pub store: &'a mut dyn SettingsStore,
+    /// The commissioning sequence.
+    pub commission: &'a mut Commission,
     /// A `reset` was accepted (the caller restarts once the reply is out).
     pub reset: bool,
 }
 
-impl RigAccess for Direct<'_> {
+impl RigPieces for Direct<'_> {
     fn controller<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> R {
         f(self.controller)
     }
     fn capture<R>(&mut self, f: impl FnOnce(&mut Capture) -> R) -> R {
         f(self.capture)
     }
+    fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R {
+        f(self.store)
+    }
+}
+
+impl RigAccess for Direct<'_> {
     fn board(&mut self) -> BoardInfo {
         self.board
     }
     fn link<R>(&mut self, f: impl FnOnce(&mut Link) -> R) -> R {
         f(self.link)
     }
-    fn store<R>(&mut self, f: impl FnOnce(&mut dyn SettingsStore) -> R) -> R {
-        f(self.store)
+    fn commission<R>(&mut self, f: impl FnOnce(&mut Commission) -> R) -> R {
+        f(self.commission)
     }
     fn reset_after_reply(&mut self) {
         self.reset = true;
@@ -562,6 +607,7 @@ mod tests {
             board: BOARD,
             link: &mut link,
             store: &mut store,
+            commission: &mut Commission::new(),
             reset: false,
         };
         let a = answer(&mut d, Line::Text(line));
@@ -639,6 +685,7 @@ mod tests {
             board: BOARD,
             link: &mut link,
             store: &mut store,
+            commission: &mut Commission::new(),
             reset: false,
         };
         assert_eq!(

@@ -18,6 +18,7 @@ use super::faults::{Fault, SensorMonitor};
 use super::meter::RegimeMeter;
 use super::model_id::{ModelId, ModelSource};
 use super::prediction::Prediction;
+use super::rest_probe::{RestProbe, RestStats};
 use super::settings::{Draft, Settings, SettingsError};
 use super::sine::SineGenerator;
 use super::status::{
@@ -142,6 +143,8 @@ pub struct Controller {
     paused: bool,
     /// Samples that came late or overran during flash writes, since start-up.
     paused_samples: u32,
+    /// The sensor at rest being measured (the commissioning's sensor check).
+    probe: Option<RestProbe>,
     gap_mm: f32,
     config: ControllerConfig,
     /// The rig model.
@@ -196,6 +199,7 @@ impl Controller {
             draft: None,
             paused: false,
             paused_samples: 0,
+            probe: None,
             gap_mm,
             mode: Mode::Idle,
             manual_hz: None,
@@ -683,6 +687,22 @@ impl Controller {
         self.paused_samples
     }
 
+    /// Starts measuring the sensor over the next `samples` samples ([`RestProbe`]), replacing
+    /// any probe under way.
+    pub fn begin_rest_probe(&mut self, samples: u32) {
+        self.probe = Some(RestProbe::new(samples));
+    }
+
+    /// The probe's statistics once it has its samples (`None` before, or without a probe).
+    pub fn rest_stats(&self) -> Option<RestStats> {
+        self.probe.as_ref().and_then(RestProbe::done)
+    }
+
+    /// Ends the probe.
+    pub fn end_rest_probe(&mut self) {
+        self.probe = None;
+    }
+
     /// The sampling task: one ADC result in (`now_us` from the time base), one DAC code out.
     pub fn on_sample(&mut self, code: Result<u16, SampleError>, now_us: u64) -> u16 {
         self.sample = self.sample.wrapping_add(1);
@@ -713,6 +733,9 @@ impl Controller {
         // or a hand on the hammer is not a fault).
         if force_n > self.config.limits.force_limit_n && !matches!(self.mode, Mode::Idle) {
             self.trip(Fault::OverForce);
+        }
+        if let Some(p) = &mut self.probe {
+            p.push(code, now_us);
         }
         let rail = code.is_some_and(|c| self.monitor.at_rail(c));
         let impact = self.detector.update(self.sample, force_n, rail);

@@ -18,6 +18,7 @@ pub mod faults;
 pub mod meter;
 pub mod model_id;
 pub mod prediction;
+pub mod rest_probe;
 pub mod settings;
 pub mod sine;
 pub mod status;
@@ -36,6 +37,7 @@ pub use faults::{Fault, SensorMonitor};
 pub use meter::RegimeMeter;
 pub use model_id::{ModelId, ModelSource};
 pub use prediction::{Prediction, predict};
+pub use rest_probe::{RestProbe, RestStats};
 pub use settings::{Draft, Settings, SettingsError};
 pub use sine::{DriveSample, SineGenerator, sin_turn};
 pub use status::{
