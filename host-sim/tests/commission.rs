@@ -131,7 +131,7 @@ fn the_board_commissions_a_rig_that_is_not_its_model_and_then_runs_within_2_pct_
     });
     let log = rig.commission_log().to_vec();
     for n in &log {
-        eprintln!("{:7.3} s {:?}", n.sample as f64 / 1e4, n.progress);
+        eprintln!("{}", shared::console::commission::CommissionLine(*n));
     }
     assert!(
         matches!(accept.progress, Progress::Wait(WaitFor::Accept { .. })),
@@ -190,10 +190,9 @@ fn the_board_commissions_a_rig_that_is_not_its_model_and_then_runs_within_2_pct_
         panic!("accept")
     };
     assert_eq!(store.hash, Some(params_hash(&model)));
-    assert!(matches!(
-        rig.commission_log().last().unwrap().progress,
-        Progress::Stored { saves: 1, .. }
-    ));
+    let stored = *rig.commission_log().last().unwrap();
+    eprintln!("{}", shared::console::commission::CommissionLine(stored));
+    assert!(matches!(stored.progress, Progress::Stored { saves: 1, .. }));
     assert_eq!(rig.controller_mut().model().1.source, ModelSource::Stored);
 
     // Accepted: tracking on the commissioned model.

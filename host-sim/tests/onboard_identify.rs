@@ -432,17 +432,15 @@ fn the_committed_recording_is_the_virtual_rigs_and_replays_to_the_same_bits() {
 /// The rig commissioned by hand on its own console, no desktop model: the virtual rig's plant
 /// (contact ×2 stiffer with 0.6 of its damping, natural frequency +8 %; the controller holds
 /// the wire preset) dropped, `capture adopt` (a draft of the identified model), `draft apply`
-/// (the board computes its target on it), `start`. The board's target is within 1 % of `host-sim
-/// select` run on the plant's true parameters, and after 30 s of tracking the plant's force is
-/// within 2 % of the best it gives at five dwell frequencies around that target. `save` keeps
-/// the model; the preset model on the same plant aims elsewhere (its target is printed).
+/// (the board computes its target on it), `save`. The board's target is within 1 % of `host-sim
+/// select` run on the plant's true parameters (the board's own sequence, `commission`, tracks
+/// on it within 2 % of the plant's best force: tests/commission.rs).
 #[test]
-fn a_rig_commissioned_on_its_console_tracks_within_2_pct_of_its_best_force() {
+fn a_rig_commissioned_by_hand_on_its_console_aims_within_1_pct_of_select() {
     use host_sim::config::Setup;
     use host_sim::selection::compute;
+    use host_sim::virtual_rig::Session;
     use host_sim::virtual_rig::recording::{capture_drop, reference_scenario};
-    use host_sim::virtual_rig::scenario::{Scenario, TimedCommand};
-    use host_sim::virtual_rig::{HilSetup, Session, run};
     use shared::console::{Answer, Line};
     use shared::control::{ModelStatus, State};
 
@@ -452,7 +450,7 @@ fn a_rig_commissioned_on_its_console_tracks_within_2_pct_of_its_best_force() {
     setup.params = truth;
     let select_hz = compute(&setup, 0.0).unwrap().0.freq_hz;
 
-    let mut rig = capture_drop(RigId::Wires, scenario.clone(), 2.5).unwrap();
+    let mut rig = capture_drop(RigId::Wires, scenario, 2.5).unwrap();
     let say = |rig: &mut Session, line: &str| rig.answer(Line::Text(line)).answer;
     let Answer::Model(draft) = say(&mut rig, "capture adopt") else {
         panic!("capture adopt: not a draft");
@@ -482,61 +480,6 @@ fn a_rig_commissioned_on_its_console_tracks_within_2_pct_of_its_best_force() {
         (board_hz / select_hz - 1.0).abs() < 0.01,
         "board {board_hz} Hz vs select on the plant {select_hz} Hz"
     );
-    let start = rig.t_s();
-    rig.say("start");
-    run_until(&mut rig, start + 30.0);
-    assert_eq!(rig.controller_mut().state(), State::Track);
-    let mean_tail = |rows: &[host_sim::virtual_rig::CycleRow]| {
-        rows.iter()
-            .rev()
-            .take(5)
-            .filter_map(|r| r.true_peak_n)
-            .sum::<f64>()
-            / 5.0
-    };
-    let end = mean_tail(rig.rows());
-    // The best the plant gives: dwelling at five frequencies around select's target.
-    let dwell = |freq_hz: f64| {
-        let sc = Scenario {
-            commands: vec![
-                TimedCommand {
-                    at_s: 0.8,
-                    line: format!("freq {freq_hz:.3}"),
-                },
-                TimedCommand {
-                    at_s: 1.0,
-                    line: "start".into(),
-                },
-            ],
-            drops: Vec::new(),
-            ..scenario.clone()
-        };
-        let r = run(&HilSetup {
-            rig: RigId::Wires,
-            gap_mm: 0.0,
-            actual_gap_mm: 0.0,
-            seconds: 15.0,
-            scenario: sc,
-        })
-        .unwrap();
-        mean_tail(&r.rows)
-    };
-    let best = [0.97, 0.985, 1.0, 1.015, 1.03]
-        .into_iter()
-        .map(|x| dwell(select_hz * x))
-        .fold(0.0, f64::max);
-    assert!(end > 0.98 * best, "{end} N tracked vs {best} N at best");
-    // Accepted: stored.
-    rig.say("stop");
-    let t = rig.t_s() + 5.0;
-    run_until(&mut rig, t);
     assert!(matches!(say(&mut rig, "save"), Answer::Store(_)));
-
-    // Uncommissioned: the preset's target on the same plant.
-    let preset = shared::control::predict(&RigId::Wires.preset(), 0.0).unwrap();
-    eprintln!(
-        "plant's select {select_hz:.4} Hz; commissioned board {board_hz:.4} Hz; preset model {:.4} Hz ({:+.1} %); tracked {end:.1} N, best dwell {best:.1} N",
-        preset.target_hz,
-        100.0 * (f64::from(preset.target_hz) / select_hz - 1.0)
-    );
+    assert_eq!(rig.controller_mut().status().state, State::Idle);
 }

@@ -1216,3 +1216,124 @@ fn a_pushed_model_is_the_desktops_bit_for_bit_and_survives_a_reset() {
     assert_eq!(rig_ok(&port, "send model"), before);
     server.stop();
 }
+
+/// The virtual rig whose plant is not its model (contact ×2 stiffer with 0.6 of the damping,
+/// natural frequency +8 %), at 20× real time.
+fn unmodelled_rig() -> Server {
+    Server::start(
+        "20",
+        "[plant]\ncontact_stiffness_factor = 2.0\ncontact_damping_factor = 0.4242640687119285\nnatural_freq_factor = 1.08\n",
+    )
+}
+
+/// `rig commission --accept` over the pty: one line per step, every step passes, and the
+/// model the board identified is stored (the rig says so, `store`'s hash is the active
+/// model's) — the board's sequence and `!C` lines through the service as the firmware runs it.
+#[test]
+fn rig_commission_stores_the_model_the_board_identified() {
+    let server = unmodelled_rig();
+    {
+        let mut port = server.port();
+        wait_for(&mut port, model_ready, Duration::from_secs(20));
+    }
+    let out = rig_ok(&server.pty, "commission --accept");
+    for step in [
+        "commission: sensor: pass",
+        "commission: drop: RELEASE THE HAMMER from 8.5 mm",
+        "commission: drop: pass",
+        "commission: select: pass: target 3.93",
+        "commission: verify: pass: 1/1",
+        "commission: done: model",
+        "commissioned: model",
+    ] {
+        assert!(out.contains(step), "no `{step}` in\n{out}");
+    }
+    let mut port = server.port();
+    let store = port.send_line("store").unwrap();
+    let s = port.status().unwrap();
+    assert_eq!(s.rig.source, shared::control::ModelSource::Stored, "{s}");
+    assert!(
+        store.contains(&format!("hash={:08x}", s.rig.hash)),
+        "{store} vs {s}"
+    );
+    drop(port);
+    server.stop();
+}
+
+/// Interrupted while the verification drives the shaker — Ctrl-C (the client aborts the
+/// sequence and stops the drive as it exits) or `kill -9` (the rig's link-loss watchdog trips
+/// and the drive ramps down by itself) — the drive ends at zero and nothing is stored.
+#[test]
+fn an_interrupted_rig_commission_leaves_the_drive_at_zero_and_nothing_stored() {
+    use std::io::{BufRead, Read};
+    for signal in [Signal::SIGINT, Signal::SIGKILL] {
+        let server = unmodelled_rig();
+        {
+            let mut port = server.port();
+            wait_for(&mut port, model_ready, Duration::from_secs(20));
+        }
+        let mut client = Command::new(bin())
+            .arg("rig")
+            .arg("--port")
+            .arg(&server.pty)
+            .args(["commission", "--accept"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdout = std::io::BufReader::new(client.stdout.take().unwrap());
+        let mut line = String::new();
+        while !line.contains("verify: the drive ramps up") {
+            line.clear();
+            assert!(stdout.read_line(&mut line).unwrap() > 0, "no verification");
+        }
+        // Into the ramp.
+        std::thread::sleep(Duration::from_millis(100));
+        kill(Pid::from_raw(client.id() as i32), signal).unwrap();
+        std::io::copy(&mut stdout, &mut std::io::sink()).unwrap();
+        let mut stderr = String::new();
+        client
+            .stderr
+            .take()
+            .unwrap()
+            .read_to_string(&mut stderr)
+            .unwrap();
+        let status = client.wait().unwrap();
+        assert!(!status.success(), "{signal}: exit 0");
+        if signal == Signal::SIGKILL {
+            // No line reaches the rig for its watchdog's 10 s (0.5 s of wall time at 20×).
+            std::thread::sleep(Duration::from_secs(2));
+        }
+        let mut port = server.port();
+        if signal == Signal::SIGINT {
+            assert!(
+                stderr.contains(
+                    "aborting the commissioning: `commission abort` answered `commission step=verify ending=yes"
+                ),
+                "{stderr}"
+            );
+            let s = wait_for(
+                &mut port,
+                |s| s.state == State::Idle && s.amplitude_mm == 0.0,
+                Duration::from_secs(20),
+            );
+            // The model it ran before is back.
+            assert_eq!(
+                s.rig.source,
+                shared::control::ModelSource::Preset(RigId::Wires),
+                "{s}"
+            );
+        } else {
+            let s = wait_for(
+                &mut port,
+                |s| s.amplitude_mm == 0.0 && s.state != State::Stopping,
+                Duration::from_secs(60),
+            );
+            assert_eq!(s.fault, Some(shared::control::Fault::LinkLost), "{s}");
+        }
+        let store = port.send_line("store").unwrap();
+        assert!(store.starts_with("store state=empty"), "{signal}: {store}");
+        drop(port);
+        server.stop();
+    }
+}

@@ -392,6 +392,41 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
     }
     assert_eq!(port.send_line("model").unwrap(), model);
 
+    // The board's commissioning through the image's console service: its sensor check reads
+    // the sawtooth (not a sensor at rest) and fails with its numbers, the sequence ends there,
+    // the model unchanged; the `!C` records come in order as the firmware sends them.
+    let reply = port.send_line("commission start").unwrap();
+    assert!(
+        reply.starts_with("commission step=sensor ending=no"),
+        "{reply}"
+    );
+    let mut records = Vec::new();
+    while !records.last().is_some_and(|n: &shared::commission::Numbered| n.progress.ends()) {
+        let n = port
+            .next_commission(Duration::from_secs(30))
+            .unwrap()
+            .unwrap_or_else(|| panic!("no commissioning record: {records:?}"));
+        eprintln!("{}", shared::console::commission::CommissionLine(n));
+        records.push(n);
+    }
+    use shared::commission::{EndReason, Progress, Step};
+    assert!(matches!(
+        records[1].progress,
+        Progress::Sensor(c) if c.failure.is_some()
+    ), "{records:?}");
+    assert_eq!(
+        records.last().unwrap().progress,
+        Progress::Kept {
+            at: Step::Sensor,
+            reason: EndReason::Failed
+        }
+    );
+    assert_eq!(
+        records.iter().map(|n| n.seq).collect::<Vec<_>>(),
+        (0..records.len() as u32).collect::<Vec<_>>()
+    );
+    assert_eq!(port.send_line("model").unwrap(), model);
+
     // The stack after all of the above: the model task's depth with the interrupts on top.
     let d = port.diag().unwrap();
     let (hwm, size) = (f64::from(d.stack_hwm_bytes), f64::from(d.stack_size_bytes));

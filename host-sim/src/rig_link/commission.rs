@@ -14,7 +14,7 @@ use shared::commission::{
 };
 use shared::console::commission::CommissionView;
 use shared::console::{Answer, IdentifyLine, Token};
-use shared::control::Target;
+use shared::control::{Command, Target};
 
 use super::{RigPort, escaped};
 
@@ -67,6 +67,9 @@ pub fn commission(
     decision: Decision,
     mut on_record: impl FnMut(&Numbered),
 ) -> Result<Outcome> {
+    // Telemetry on: the rig's own clock then keeps the link alive however fast it runs (a
+    // virtual rig at 20× real time); the port turns it off as it closes.
+    port.command(Command::Stream(true))?;
     let reply = port.send_line("commission start")?;
     match reply.parse::<Answer>() {
         Ok(Answer::Commission(CommissionView { step: Some(_), .. })) => {}

@@ -448,6 +448,11 @@ impl RigPort {
                     self.keep_alive()?;
                     return Ok(Some(Incoming::Record(r)));
                 }
+                Ok(Incoming::Commission(c)) => {
+                    self.rig_now = Some(self.rig_now.map_or(c.sample, |n| n.max(c.sample)));
+                    self.keep_alive()?;
+                    return Ok(Some(Incoming::Commission(c)));
+                }
                 Ok(i) => return Ok(Some(i)),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => {
