@@ -401,7 +401,10 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
         "{reply}"
     );
     let mut records = Vec::new();
-    while !records.last().is_some_and(|n: &shared::commission::Numbered| n.progress.ends()) {
+    while !records
+        .last()
+        .is_some_and(|n: &shared::commission::Numbered| n.progress.ends())
+    {
         let n = port
             .next_commission(Duration::from_secs(30))
             .unwrap()
@@ -410,10 +413,13 @@ fn the_whole_image_runs_its_console_model_sampling_faults_and_watchdog() {
         records.push(n);
     }
     use shared::commission::{EndReason, Progress, Step};
-    assert!(matches!(
-        records[1].progress,
-        Progress::Sensor(c) if c.failure.is_some()
-    ), "{records:?}");
+    assert!(
+        matches!(
+            records[1].progress,
+            Progress::Sensor(c) if c.failure.is_some()
+        ),
+        "{records:?}"
+    );
     assert_eq!(
         records.last().unwrap().progress,
         Progress::Kept {
