@@ -326,6 +326,20 @@ mod app {
         }
     }
 
+    /// The service's [`Access`] over its context `cx`.
+    macro_rules! access {
+        ($cx:ident) => {
+            Access {
+                controller: &mut $cx.shared.controller,
+                capture: &mut $cx.shared.capture,
+                console: &mut $cx.shared.console,
+                store: &mut $cx.shared.store,
+                commission: $cx.local.commission,
+                reset: false,
+            }
+        };
+    }
+
     /// The console service: answers every waiting line (one reply each), advances the
     /// commissioning sequence, then sends the asynchronous lines (the sequence's first); sleeps
     /// until woken again (a line, a record, the report's second).
@@ -361,14 +375,7 @@ mod app {
                         let _ = reply.push_str(&text);
                     }
                     None => {
-                        let mut access = Access {
-                            controller: &mut cx.shared.controller,
-                            capture: &mut cx.shared.capture,
-                            console: &mut cx.shared.console,
-                            store: &mut cx.shared.store,
-                            commission: cx.local.commission,
-                            reset: false,
-                        };
+                        let mut access = access!(cx);
                         let response = answer(&mut access, pending.as_line());
                         reset = access.reset;
                         format_answer(&response, &mut reply);
@@ -393,14 +400,7 @@ mod app {
             // The commissioning sequence: its step advanced (a capture it armed starts its
             // sampling afresh, a model it applied starts the model task), its records sent.
             let arms = cx.shared.capture.lock(|c| c.store.arm_count());
-            let mut access = Access {
-                controller: &mut cx.shared.controller,
-                capture: &mut cx.shared.capture,
-                console: &mut cx.shared.console,
-                store: &mut cx.shared.store,
-                commission: cx.local.commission,
-                reset: false,
-            };
+            let mut access = access!(cx);
             poll_commission(&mut access);
             while next_commission_line(&mut access, &mut reply) {
                 send(access.console, reply.as_bytes());

@@ -29,8 +29,13 @@ fn rig(plant: PlantSection, seed: u64) -> Session {
 }
 
 fn rig_of(scenario: Scenario) -> Session {
+    rig_on(RigId::Wires, scenario)
+}
+
+/// The virtual rig of `preset` at gap 0 running `scenario`.
+fn rig_on(preset: RigId, scenario: Scenario) -> Session {
     Session::new(&HilSetup {
-        rig: RigId::Wires,
+        rig: preset,
         gap_mm: 0.0,
         actual_gap_mm: 0.0,
         seconds: 1e6,
@@ -287,14 +292,7 @@ fn other_plants_commission_within_the_same_bounds() {
         scenario.plant = plant;
         scenario.drops.clear();
         scenario.commands.clear();
-        let mut rig = Session::new(&HilSetup {
-            rig: preset,
-            gap_mm: 0.0,
-            actual_gap_mm: 0.0,
-            seconds: 1e6,
-            scenario,
-        })
-        .unwrap();
+        let mut rig = rig_on(preset, scenario);
         start(&mut rig);
         let last = run_until_record(&mut rig, 120.0, |p| {
             matches!(p, Progress::Wait(WaitFor::Accept { .. })) || p.ends()
@@ -435,14 +433,7 @@ fn a_target_beyond_the_force_limit_is_refused_before_the_drive_starts() {
     let (_, mut scenario) = reference_scenario(1);
     scenario.drops.clear();
     scenario.commands.clear();
-    let mut rig = Session::new(&HilSetup {
-        rig: RigId::Beam170,
-        gap_mm: 0.0,
-        actual_gap_mm: 0.0,
-        seconds: 1e6,
-        scenario,
-    })
-    .unwrap();
+    let mut rig = rig_on(RigId::Beam170, scenario);
     start(&mut rig);
     let end = run_until_record(&mut rig, 60.0, ends);
     let sel = rig

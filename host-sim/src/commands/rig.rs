@@ -255,7 +255,7 @@ fn run_commission(a: &RigArgs, c: &CommissionArgs) -> Result<()> {
             reason: shared::commission::EndReason::Aborted,
             at: shared::commission::Step::Accept,
         } if !c.accept => Ok(()),
-        Outcome::Kept { .. } => bail!("{}", summary(&outcome)),
+        _ => bail!("{}", summary(&outcome)),
     }
 }
 

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use anyhow::{Result, bail};
 use shared::commission::{
-    EndReason, Numbered, Progress, SelectFailure, SensorCheck, Step, VerifyFailure, WaitFor,
+    EndReason, Numbered, Progress, SelectFailure, SensorCheck, VerifyFailure, WaitFor,
 };
 use shared::console::commission::CommissionView;
 use shared::console::{Answer, IdentifyLine, Token};
@@ -36,24 +36,8 @@ pub enum Decision {
     },
 }
 
-/// How a commissioning ended.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Outcome {
-    /// The model stored: the save's number and the model's hash.
-    Stored {
-        /// Save number.
-        saves: u32,
-        /// Model hash.
-        hash: u32,
-    },
-    /// The rig keeps the model it ran before: where and why.
-    Kept {
-        /// The step it ended at.
-        at: Step,
-        /// Why.
-        reason: EndReason,
-    },
-}
+/// How a commissioning ended: its last record, [`Progress::Stored`] or [`Progress::Kept`].
+pub type Outcome = Progress;
 
 /// Runs the sequence: `commission start`, each record to `on_record` as it comes, the accept
 /// step decided by `decision`.
@@ -128,9 +112,9 @@ pub fn commission(
                     );
                 }
             }
-            Progress::Stored { saves, hash } => {
+            Progress::Stored { .. } => {
                 port.abort_commission_on_close(false);
-                return Ok(Outcome::Stored { saves, hash });
+                return Ok(n.progress);
             }
             Progress::Kept { at, reason } => {
                 port.abort_commission_on_close(false);
@@ -142,7 +126,7 @@ pub fn commission(
                         at.token()
                     );
                 }
-                return Ok(Outcome::Kept { at, reason });
+                return Ok(n.progress);
             }
             _ => {}
         }
@@ -296,33 +280,33 @@ pub fn describe(p: &Progress) -> String {
         Progress::Kept { at, reason } => format!(
             "done: nothing stored; the rig runs the model it ran before (ended at {}: {})",
             at.token(),
-            match reason {
-                EndReason::Failed => "the step failed".to_string(),
-                EndReason::Aborted => "aborted".to_string(),
-                EndReason::Fault(f) => format!("fault {}", f.token()),
-                EndReason::Timeout => "the step overran its bound".to_string(),
-                EndReason::SaveFailed(e) => format!("the save failed ({})", e.token()),
-            }
+            why(*reason)
         ),
+    }
+}
+
+/// Why a sequence ended without storing, in words.
+fn why(reason: EndReason) -> String {
+    match reason {
+        EndReason::Failed => "the step failed".to_string(),
+        EndReason::Aborted => "declined or aborted".to_string(),
+        EndReason::Fault(f) => format!("fault {}", f.token()),
+        EndReason::Timeout => "the step overran its bound".to_string(),
+        EndReason::SaveFailed(e) => format!("the save failed ({})", e.token()),
     }
 }
 
 /// The outcome as the command's last line.
 pub fn summary(o: &Outcome) -> String {
     match o {
-        Outcome::Stored { saves, hash } => {
+        Progress::Stored { saves, hash } => {
             format!("commissioned: model {hash:08x} stored (save {saves})")
         }
-        Outcome::Kept { at, reason } => format!(
+        Progress::Kept { at, reason } => format!(
             "not commissioned: ended at {} ({})",
             at.token(),
-            match reason {
-                EndReason::Aborted => "declined or aborted",
-                EndReason::Failed => "a step failed",
-                EndReason::Timeout => "a step overran its bound",
-                EndReason::Fault(_) => "a fault",
-                EndReason::SaveFailed(_) => "the save failed",
-            }
+            why(*reason)
         ),
+        other => describe(other),
     }
 }

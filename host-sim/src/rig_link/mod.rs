@@ -81,6 +81,12 @@ struct Deadline {
 }
 
 /// What the reader thread hands over.
+/// An asynchronous line, of either kind.
+enum Async {
+    Record(AsyncRecord),
+    Commission(Numbered),
+}
+
 enum Incoming {
     Reply { tag: Option<u32>, text: String },
     Record(AsyncRecord),
@@ -795,28 +801,10 @@ impl RigPort {
         if let Some(r) = self.records.pop_front() {
             return Ok(Some(r));
         }
-        let deadline = self.deadline(wait);
-        loop {
-            return match self.recv(deadline, false)? {
-                None => Ok(None),
-                Some(Incoming::Record(r)) => Ok(Some(r)),
-                Some(Incoming::Commission(c)) => {
-                    self.commission.push_back(c);
-                    continue;
-                }
-                Some(Incoming::Closed(why)) => Err(anyhow!("the rig closed the link: {why}")),
-                Some(Incoming::Reply { tag: Some(t), .. }) if self.abandoned.contains(&t) => {
-                    continue;
-                }
-                Some(Incoming::Reply { tag, text }) => bail!(
-                    "link error: a reply arrived while no request waited: {}",
-                    escaped(&match tag {
-                        Some(t) => format!("#{t} {text}"),
-                        None => text,
-                    })
-                ),
-            };
-        }
+        Ok(match self.next_async(wait, false)? {
+            Some(Async::Record(r)) => Some(r),
+            _ => None,
+        })
     }
 
     /// The next commissioning record (`!C`), waiting at most `wait` (`None` then); telemetry
@@ -828,13 +816,27 @@ impl RigPort {
         if let Some(c) = self.commission.pop_front() {
             return Ok(Some(c));
         }
+        Ok(match self.next_async(wait, true)? {
+            Some(Async::Commission(c)) => Some(c),
+            _ => None,
+        })
+    }
+
+    /// The next asynchronous line of the kind asked for (`commission`: a `!C` line, else a
+    /// record), the other kind queued for its own reader meanwhile.
+    fn next_async(&mut self, wait: Duration, commission: bool) -> Result<Option<Async>> {
         let deadline = self.deadline(wait);
         loop {
             return match self.recv(deadline, false)? {
                 None => Ok(None),
-                Some(Incoming::Commission(c)) => Ok(Some(c)),
-                Some(Incoming::Record(r)) => {
+                Some(Incoming::Record(r)) if commission => {
                     self.records.push_back(r);
+                    continue;
+                }
+                Some(Incoming::Record(r)) => Ok(Some(Async::Record(r))),
+                Some(Incoming::Commission(c)) if commission => Ok(Some(Async::Commission(c))),
+                Some(Incoming::Commission(c)) => {
+                    self.commission.push_back(c);
                     continue;
                 }
                 Some(Incoming::Closed(why)) => Err(anyhow!("the rig closed the link: {why}")),
