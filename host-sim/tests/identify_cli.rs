@@ -298,6 +298,46 @@ fn identify_contact_says_when_the_first_impulse_contradicts_the_release() {
     assert!(fit("1.5").contains("! note"));
 }
 
+/// A mass given in grams (`--mass-kg 298` for the 0.298 kg hammer) makes the first impulse
+/// contradict the release by 1000×: refused, nothing written, the options named; written with
+/// the note only when asked (`--allow-contradiction`). The right mass writes without a note.
+#[test]
+fn identify_contact_refuses_a_mass_the_record_contradicts_by_far() {
+    let dir = tempfile::tempdir().unwrap();
+    let drop = recorded(dir.path(), "drop.csv", "--rig wires --release-mm 3");
+    let out = dir.path().join("k.toml");
+    let run = |mass: &str, extra: &str| {
+        let _ = fs::remove_file(&out);
+        common::host_sim()
+            .args(line(&format!(
+                "identify contact --rig wires --trace {} --mass-kg {mass} --law spring-dashpot \
+                 --release-mm 3 --out {} {extra}",
+                drop.display(),
+                out.display()
+            )))
+            .output()
+            .unwrap()
+    };
+    let grams = run("298", "");
+    let said = String::from_utf8_lossy(&grams.stderr).into_owned();
+    assert!(!grams.status.success(), "{said}");
+    assert!(
+        said.contains("the record contradicts the options by")
+            && said.contains("nothing written")
+            && said.contains("--mass-kg"),
+        "{said}"
+    );
+    assert!(!out.exists());
+    let forced = run("298", "--allow-contradiction");
+    assert!(forced.status.success(), "{forced:?}");
+    assert!(String::from_utf8_lossy(&forced.stderr).contains("! note"));
+    assert!(out.exists());
+    let right = run("0.298", "");
+    assert!(right.status.success(), "{right:?}");
+    assert!(!String::from_utf8_lossy(&right.stderr).contains("! note"));
+    assert!(out.exists());
+}
+
 #[test]
 fn identify_contact_refuses_what_it_cannot_check() {
     let dir = tempfile::tempdir().unwrap();

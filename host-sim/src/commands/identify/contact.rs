@@ -196,6 +196,27 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
     };
     let best_fit = &fits.iter().find(|f| f.0 == best).context("no fit")?.1;
 
+    let release_checks: Vec<ReleaseCheck> = loaded
+        .iter()
+        .zip(&best_fit.traces)
+        .filter_map(|(l, t)| release_check(l, &t.sim, a.mass_kg, a.gap_mm))
+        .collect();
+    // A record that contradicts its options by far (a mass in grams, a force in kN read as N)
+    // is not fitted into a config at all, unless asked.
+    if !a.allow_contradiction
+        && let Some(c) = release_checks
+            .iter()
+            .find(|c| c.factor > IMPLAUSIBLE_FACTOR)
+    {
+        bail!(
+            "{}\nthe record contradicts the options by {:.0}× (more than {IMPLAUSIBLE_FACTOR}×): \
+             nothing written; check --mass-kg (kg), --force-unit and --release-mm, or write the \
+             fit anyway with --allow-contradiction",
+            c.note,
+            c.factor
+        );
+    }
+    let release_notes: Vec<String> = release_checks.into_iter().map(|c| c.note).collect();
     // A fit whose misfit cannot be told from the sensor noise is not written as a config that
     // other commands would take on trust.
     let unchecked = best_fit.uncertainty.as_ref().err();
@@ -210,11 +231,6 @@ pub(super) fn run(a: &ContactArgs) -> Result<()> {
         draw_fits(a, &tmp, &loaded, &fits)?;
     }
     outputs.commit()?;
-    let release_notes: Vec<String> = loaded
-        .iter()
-        .zip(&best_fit.traces)
-        .filter_map(|(l, t)| release_check(l, &t.sim, a.mass_kg, a.gap_mm))
-        .collect();
     let written = a.out.as_deref().filter(|_| unchecked.is_none());
     print_contact(a, &run, &loaded, &fits, best, written)?;
     if let Some(why) = unchecked {
@@ -402,6 +418,18 @@ fn draw_fits(
 /// suspension's own impulse during the contact, damping).
 const IMPULSE_SPEED_MARGIN: f64 = 1.2;
 
+/// How far outside the impulse's speed bounds the model's arrival may be before the record is
+/// taken to contradict the options outright (a mass in grams is 1000×): refused unless
+/// `--allow-contradiction`.
+const IMPLAUSIBLE_FACTOR: f64 = 3.0;
+
+/// A trace whose first impulse disagrees with its release: the note, and by how much (the
+/// model's arrival speed over the nearest bound, ≥ 1).
+struct ReleaseCheck {
+    note: String,
+    factor: f64,
+}
+
 /// Whether the first impact's impulse `J = m v (1 + e)` (any law: `0 ≤ e ≤ 1`, so an arrival
 /// speed `v` within `[J/2m, J/m]`) agrees with the arrival speed of the model released from
 /// `--release-mm` (`sim`, the fitted simulation of this trace; its free flight to the first
@@ -409,7 +437,12 @@ const IMPULSE_SPEED_MARGIN: f64 = 1.2;
 /// to check, where it does not by more than [`IMPULSE_SPEED_MARGIN`]. A wrong release, mass or
 /// force unit leaves the law to absorb the difference, and the fit then says only that it does
 /// not fit.
-fn release_check(l: &LoadedTrace, sim: &SimDrop, mass_kg: f64, gap_mm: f64) -> Option<String> {
+fn release_check(
+    l: &LoadedTrace,
+    sim: &SimDrop,
+    mass_kg: f64,
+    gap_mm: f64,
+) -> Option<ReleaseCheck> {
     let j = l.data.impulse_n_s(0)?;
     let v = sim.impacts.first()?.approach_speed_m_s;
     let (lo, hi) = (j / (2.0 * mass_kg), j / mass_kg);
@@ -417,6 +450,7 @@ fn release_check(l: &LoadedTrace, sim: &SimDrop, mass_kg: f64, gap_mm: f64) -> O
     {
         return None;
     }
+    let factor = (lo / v).max(v / hi);
     // The release that gives speed `w`: released `A` from rest (`A = release − gap`), the
     // hammer reaches the surface `gap` past rest at `ω √(A² − gap²)`, nearly (the model's own
     // speed scaled; the pendulum's arcs and damping aside).
@@ -424,7 +458,7 @@ fn release_check(l: &LoadedTrace, sim: &SimDrop, mass_kg: f64, gap_mm: f64) -> O
     let release_at = |w: f64| {
         gap_mm + (gap_mm * gap_mm + (amp * amp - gap_mm * gap_mm) * (w / v).powi(2)).sqrt()
     };
-    Some(format!(
+    let note = format!(
         "{}: the first impact's impulse, {j:.4e} N s, is an arrival at {:.1}–{:.1} mm/s for \
          m = {mass_kg} kg (J = m v (1 + e), e from 1 to 0, whatever the law); released {} mm \
          from the surface at gap {gap_mm} mm the model arrives at {:.1} mm/s, as if from about \
@@ -436,7 +470,8 @@ fn release_check(l: &LoadedTrace, sim: &SimDrop, mass_kg: f64, gap_mm: f64) -> O
         1e3 * v,
         release_at(lo),
         release_at(hi),
-    ))
+    );
+    Some(ReleaseCheck { note, factor })
 }
 
 /// How the error was chosen, and the suspension fitted with.

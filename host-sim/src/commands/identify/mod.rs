@@ -82,6 +82,11 @@ pub struct ContactArgs {
     /// Gap between the hammer's rest position and the surface during the test, mm.
     #[arg(long, default_value_t = 0.0)]
     pub gap_mm: f64,
+    /// Write the fit even when a trace's first impulse contradicts its release, mass and force
+    /// unit by more than 3× (`--mass-kg` in grams, a force in kN read as N): otherwise refused,
+    /// nothing written.
+    #[arg(long)]
+    pub allow_contradiction: bool,
     /// Suspension of the hammer during the test (the free flight between impacts).
     #[arg(long, value_parser = crate::config::rig_parser(), default_value = "wires")]
     pub rig: RigId,
