@@ -225,9 +225,9 @@ fn identify_contact_rejects_bad_input() {
 }
 
 /// What the fit cannot stand on is refused, with no config written: data in other units than
-/// the options say (the misfit cannot be told from the noise: every noise redraw of a force
-/// in kN is below the impact threshold), a release from which the hammer cannot reach the
-/// surface, an output that is the input.
+/// the options say (a force in kN read as N: its first impulse contradicts the release by
+/// 661×), a release from which the hammer cannot reach the surface, an output that is the
+/// input.
 /// A release height (or mass, or force unit) the record contradicts: its first impact's
 /// impulse `J = m v (1 + e)` bounds the arrival speed to `[J/2m, J/m]` whatever the law, and
 /// the model released from `--release-mm` arrives outside it. Said with both, and with the
@@ -363,11 +363,12 @@ fn identify_contact_refuses_what_it_cannot_check() {
     let theta = (3.0f64 / 75.0).asin();
     let v = (2.0 * 9.81 * 0.075 * (1.0 - theta.cos())).sqrt();
     let hi = 1e3 * 1e3 * v * (1.0 + e);
+    // (The record contradicts its options by 661×: refused before the fit's own check.)
     let said = rejected_stderr(
         &fit("--force-unit kN"),
         &[
-            "cannot be checked against the sensor noise",
-            "not written",
+            "the record contradicts the options by",
+            "nothing written",
             "--force-unit",
             "is an arrival at ",
         ],
