@@ -363,14 +363,11 @@ impl Session {
         let from = self.commission_logged;
         if made != from {
             // The outbox keeps the newest records: those not logged yet are among them.
-            let mut fresh: Vec<Numbered> = Vec::new();
-            let mut probe = self.commission.clone();
-            while let Some(n) = probe.pop() {
-                if n.seq.wrapping_sub(from) < made.wrapping_sub(from) {
-                    fresh.push(n);
-                }
-            }
-            self.out.commission.extend(fresh);
+            self.out.commission.extend(
+                self.commission
+                    .unsent()
+                    .filter(|n| n.seq.wrapping_sub(from) < made.wrapping_sub(from)),
+            );
             self.commission_logged = made;
         }
         if self.commission.prompts() != self.prompts_seen {

@@ -170,7 +170,7 @@ impl<R: RigPieces> DropRecord for LockedCapture<'_, R> {
 /// [`MIN_RELEASE_MM`] ..= [`MAX_RELEASE_MM`]. Released at rest `h` above the surface at gap 0,
 /// the suspension brings the hammer to it at `v = ω_n h`; the contact's undamped peak is
 /// `m v ω_c` (`ω_c`: [`crate::model::ContactLaw::contact_omega`], at that speed). (The wire
-/// rig's preset: 8.5 mm, 124 N predicted; 104 N measured with Table 3.1's damping.)
+/// rig's preset: 8.5 mm; the 170 mm beam's: 3.5 mm.)
 pub fn release_height_mm(params: &crate::model::RigParams, max_force_n: f32) -> f32 {
     let omega_n = 2.0 * core::f64::consts::PI * params.natural_freq_hz();
     let target = f64::from(RELEASE_PEAK_SHARE * max_force_n);

@@ -169,6 +169,11 @@ impl Commission {
         self.outbox.front()
     }
 
+    /// The records not yet sent, oldest first.
+    pub fn unsent(&self) -> impl Iterator<Item = &Numbered> {
+        self.outbox.iter()
+    }
+
     /// Takes the oldest record (it was sent).
     pub fn pop(&mut self) -> Option<Numbered> {
         self.outbox.pop_front()

@@ -206,12 +206,11 @@ impl Link {
     /// sent or dropped. For a caller that queues the line in pieces ([`Link::push_bytes`], each
     /// under a short lock): the room only grows meanwhile, as only the UART takes bytes out.
     pub fn reserve_async(&mut self, len: usize) -> bool {
-        if self.tx_free() < len + 2 + REPLY_ROOM {
+        let fits = self.fits_async(len);
+        if !fits {
             self.stats.async_dropped = self.stats.async_dropped.saturating_add(1);
-            return false;
         }
-        self.stats.async_sent = self.stats.async_sent.saturating_add(1);
-        true
+        fits
     }
 
     /// Whether an asynchronous line of `len` bytes (plus `\r\n`) fits now, leaving a reply its
