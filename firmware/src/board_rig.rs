@@ -2,7 +2,7 @@
 //! stm32f4xx-hal where it offers them and with registers where the board needs what it does not
 //! (the timers' exact reloads, the capture's DMA stream, the ADCs' status flags). Every clock
 //! and reload comes from `rig_firmware::clock_tree`, checked there at compile time against
-//! RM0090 Rev 19; `tests/tests/register_trace.rs` runs this image's start-up in an instruction
+//! RM0090 Rev 19; `tests/tests/all/register_trace.rs` runs this image's start-up in an instruction
 //! emulator and checks the registers it writes.
 //!
 //! | peripheral | use |

@@ -2,7 +2,7 @@
 //! [`SYSCLK_HZ`], [`HSE_HZ`] and the sample rates, and checked at compile time against the
 //! limits of the STM32F407's reference manual (RM0090 Rev 19) and datasheet (DS8626): a value
 //! out of its range does not build. The board (`src/board_rig.rs`) writes these values or
-//! hands them to stm32f4xx-hal, and `tests/tests/register_trace.rs` reads back what the image
+//! hands them to stm32f4xx-hal, and `tests/tests/all/register_trace.rs` reads back what the image
 //! writes.
 //!
 //! | clock | value | limit |

@@ -1,6 +1,6 @@
 //! Writes the recorded drop that the emulated board's budget check replays
 //! (`firmware/data/drop-wires-k2.bin`): `cargo run --release -p host-sim --example record_drop
-//! [-- PATH]`. `host-sim/tests/onboard_identify.rs` checks that the committed file is what this
+//! [-- PATH]`. `host-sim/tests/all/onboard_identify.rs` checks that the committed file is what this
 //! makes. Prints the board's `capture identify` and `capture adopt` answers to it.
 
 use anyhow::Result;

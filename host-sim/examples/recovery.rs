@@ -70,7 +70,7 @@ fn params(law: &ContactLaw) -> Vec<(&'static str, f64)> {
 
 /// The fit of `truth` to `traces` (release mm, clean trace) with noise seed `seed` (one
 /// trace) or `10 seed + 1`, `10 seed` (two: 0.25 mm, then 3 mm: the seeds of the tests in
-/// `host-sim/tests/identify.rs`).
+/// `host-sim/tests/all/identify.rs`).
 fn fit(truth: ContactLaw, traces: &[(f64, &Trace)], seed: u64, weights: Weights) -> Fit {
     let tests: Vec<DropTest> = traces
         .iter()

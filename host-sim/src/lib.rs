@@ -2,7 +2,7 @@
 //! same code the firmware runs; this crate adds what a desktop needs around it.
 //!
 //! Data flows one way, and every dependency between these modules points down this list (a
-//! test, `tests/tests/layers.rs`, holds it):
+//! test, `tests/tests/all/layers.rs`, holds it):
 //!
 //! 1. rig parameters: [`config`] (presets, `--config` TOML, validation) → a [`config::Setup`];
 //!    [`precision`]; [`trace`] (measured traces);

@@ -50,7 +50,7 @@
 //! hold (a parameter the data barely fix), the interval says so by its width; a direction
 //! along which the error does not change at all (singular `R`) is reported as not identifiable.
 //! Coverage on synthetic drop tests with known truth, and with the wrong law:
-//! `host-sim/tests/uncertainty.rs`.
+//! `host-sim/tests/all/uncertainty.rs`.
 
 use std::collections::BTreeMap;
 

@@ -281,7 +281,7 @@ impl<T: Real> SubstepRule<T> {
 /// sub-steps per contact half-period: `R = min(8, K/2)`, so that the resting sub-step is at
 /// most a quarter of the contact period, `ω_c · R h_c ≤ π/2`, inside RK4's stability region for
 /// every `K` (`|R(λh)|` 0.55 per sub-step at the spring–dashpot law's damping ratio 0.469;
-/// test `resting_substep_is_stable` in `shared/tests/analytic.rs`), and no longer than `8 h_c`
+/// test `resting_substep_is_stable` in `shared/tests/all/analytic.rs`), and no longer than `8 h_c`
 /// for the finer convergence references. The production `K = 16` gives 8, the embedded
 /// `K = 8` gives 4.
 pub fn resting_substeps(substeps_per_contact: u32) -> u32 {

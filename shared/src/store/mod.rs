@@ -10,7 +10,7 @@
 //! from an older good one: a record older than the count is reported [`StoreState::Corrupt`]. A
 //! power cut between the two writes leaves a record newer than the count: the new settings,
 //! whole. So the next start-up finds the old settings or the new ones, never a mix
-//! (`shared/tests/store.rs` cuts the power at every step of a save).
+//! (`shared/tests/all/store.rs` cuts the power at every step of a save).
 //!
 //! The map's operations are `async` (`embedded-storage-async`); every flash here answers at
 //! once (the board's flash blocks, RAM never waits), so they are run to completion in place

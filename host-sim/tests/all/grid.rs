@@ -5,7 +5,7 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 
 use common::{BEAM_HYSTERESIS_FRACTIONS, Outputs, host_sim, leftovers, line, ok, rejected};
 

@@ -8,7 +8,7 @@
 //!
 //! Needs the image (`cargo fw-build`) and python3 with unicorn and pyelftools (`pip install
 //! unicorn pyelftools`; `.ci/run` installs them and runs these tests): ignored unless asked for
-//! (`cargo test -p e2e-tests --test register_trace -- --include-ignored`), where a missing tool
+//! (`cargo test -p e2e-tests --test all register_trace:: -- --include-ignored`), where a missing tool
 //! fails them. The trace is run once per image and kept beside it (`register-trace-HASH.txt`),
 //! so that the tests, one process each under `cargo nextest`, read it instead of running it
 //! again. `REGISTER_TRACE_ELF=path` runs them on another image (e.g. an older build, to see what
@@ -1112,7 +1112,7 @@ fn a_console_line_during_a_capture_leaves_its_timer_and_stream_alone() {
     );
     assert_eq!(
         writes(ph, DMA2_S2CR),
-        [],
+        Vec::<u32>::new(),
         "the stream written while the capture records"
     );
 }

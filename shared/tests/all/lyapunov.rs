@@ -4,7 +4,7 @@
 //! two-trajectory estimate, and where the protocol's window sees no period but the exponent is
 //! negative, the extended run finds the period.
 //!
-//! `cargo test --release -p vibro-shared --test lyapunov -- --nocapture` prints every measured
+//! `cargo test --release -p vibro-shared --test all lyapunov:: -- --nocapture` prints every measured
 //! value.
 
 use nalgebra::Vector2;

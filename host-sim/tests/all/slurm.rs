@@ -8,7 +8,7 @@
 //!   no partial shard is left, and rerunning that array index, then the merge, completes the map
 //!   (again byte-identical).
 //!
-//! Needs a SLURM node up: ignored unless asked for (`cargo test -p host-sim --test slurm --
+//! Needs a SLURM node up: ignored unless asked for (`cargo test -p host-sim --test all slurm:: --
 //! --include-ignored`; `.ci/run` starts the node and runs it), where no node up fails it.
 //! `submit.sh`'s refusals (before anything is submitted) are tested everywhere.
 
@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-mod common;
+use crate::common;
 
 use common::BEAM_HYSTERESIS_FRACTIONS;
 

@@ -5,7 +5,7 @@
 use std::fs;
 use std::path::Path;
 
-mod common;
+use crate::common;
 
 use common::{line, ok, rejected, rejected_stderr};
 use shared::model::ContactLawKind;

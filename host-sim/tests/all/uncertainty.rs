@@ -14,10 +14,7 @@
 //! - propagation to the main job: ±5 % on Table 3.1's `k_i` and `c_i` gives a 95 % range of
 //!   the operating frequency that contains `select`'s nominal answer.
 
-#[path = "common/coverage.rs"]
-mod coverage;
-
-use coverage::truth_of;
+use crate::coverage::{self, truth_of};
 use host_sim::config::{Setup, UncertaintyTable, coordinate_names};
 use host_sim::identify::cost::{DropTest, Weights};
 use host_sim::identify::fit::{Fit, fit_law, fit_law_joint};

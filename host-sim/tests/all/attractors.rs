@@ -4,7 +4,7 @@
 //! the grid basin against random sampling, the start-up basin of the main job; bad input
 //! rejected with its field and range, nothing written.
 //!
-//! `cargo test --release -p host-sim --test attractors -- --nocapture` prints the measured values.
+//! `cargo test --release -p host-sim --test all attractors:: -- --nocapture` prints the measured values.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -14,7 +14,7 @@ use shared::analysis::SimSettings;
 use shared::model::RigId;
 use shared::orbit::{MapPoint, Param, ShootSettings, iterate, orbit_from};
 
-mod common;
+use crate::common;
 
 use common::{Outputs, line, ok, rejected, said};
 

@@ -3,7 +3,7 @@
 
 use std::fs;
 
-mod common;
+use crate::common;
 
 use common::{host_sim, line, ok, rejected, rejected_files, said, spawn_first_line, write_file};
 

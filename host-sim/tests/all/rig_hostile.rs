@@ -20,7 +20,7 @@ use shared::control::{ModelId, ModelSource};
 use shared::model::RigId;
 use shared::store::StoreState;
 
-mod common;
+use crate::common;
 use common::leftovers;
 
 /// What the fake rig does besides answering like a rig.

@@ -4,7 +4,7 @@
 //! `1/1` band and the beam's fold and grazing against brute-force sweeps of the map, and the
 //! f32 edges against f64.
 //!
-//! `cargo test --release -p vibro-shared --test orbit -- --nocapture` prints every measured value.
+//! `cargo test --release -p vibro-shared --test all orbit:: -- --nocapture` prints every measured value.
 
 use std::ops::ControlFlow;
 
