@@ -34,6 +34,7 @@ pub mod interrupt;
 pub mod orbits;
 pub mod output;
 pub mod precision;
+pub mod progress;
 pub mod propagate;
 pub mod response;
 pub mod rig_link;

@@ -13,7 +13,6 @@
 //! seeded (ChaCha8: the same on every machine) and run in parallel.
 
 use anyhow::{Context, Result, bail, ensure};
-use indicatif::ProgressBar;
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -166,19 +165,7 @@ pub fn propagate(
             }
         }
     }
-    let bar = if indicatif::ProgressDrawTarget::stderr().is_hidden() {
-        ProgressBar::hidden()
-    } else {
-        let b = crate::runner::progress(draws, "uncertainty");
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{msg} [{bar:30}] {pos}/{len} draws, ETA {eta}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-        );
-        b
-    };
+    let bar = crate::progress::progress_of(draws, "uncertainty", "draws");
     let results: Vec<Result<(Option<SelectReport>, Vec<shared::observe::PointResult>)>> = laws
         .par_iter()
         .map(|law| {

@@ -1,9 +1,7 @@
 //! The batch runner every parallel computation shares: the batch size, parallel evaluation of
-//! operating points (rayon over both cores) and the progress bar on a terminal (indicatif draws
-//! nothing when stderr is not a terminal).
+//! operating points (rayon over both cores), with their progress on stderr ([`crate::progress`]).
 
 use anyhow::{Result, anyhow};
-use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::Vector2;
 use rayon::prelude::*;
 use shared::Real;
@@ -16,6 +14,7 @@ use std::collections::HashMap;
 use std::sync::{Mutex, PoisonError};
 
 use crate::config::Setup;
+pub use crate::progress::progress;
 
 /// The smallest batch of points a core takes ([`guided`]): a batch interleaves its points on
 /// one core ([`shared::analysis::run_interleaved`]), the unit of every parallel evaluation.
@@ -147,31 +146,6 @@ pub fn evaluate_keyed<K: Copy>(
     crate::with_precision!(setup.precision, T => {
         interleaved_keyed::<T, K, _>(setup, points, |_, result, _| Ok(result), emit)
     })
-}
-
-/// A progress bar for `len` items on stderr, with rate and ETA (hidden when `what` is empty,
-/// e.g. for one computation of many that have their own bar).
-pub fn progress(len: usize, what: &str) -> ProgressBar {
-    if what.is_empty() {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(len as u64);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{msg} [{bar:30}] {human_pos}/{human_len} points, {rate} points/s, ETA {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        // indicatif's own `{per_sec}` prints four decimals ("6,226.2903/s").
-        .with_key(
-            "rate",
-            |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
-                let _ = write!(w, "{:.0}", s.per_sec());
-            },
-        )
-        .progress_chars("=> "),
-    );
-    bar.set_message(what.to_string());
-    bar
 }
 
 /// Evaluates every point in parallel, in order.

@@ -90,6 +90,92 @@ struct OrbitJson<'a> {
     /// ([`Orbit::slope_mismatch`]; above [`orbits::SLOPE_MISMATCH_WARN`] the map is not smooth
     /// that close to the orbit, and a warning says so).
     slope_mismatch: f64,
+    /// In f32, at an orbit near a period doubling: what the same search finds in f64.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    near_doubling: Option<DoublingCheck>,
+}
+
+/// A real Floquet multiplier within this of −1 (or of +1 on an even period, where the doubled
+/// orbit is born) puts the orbit at a period doubling, where f32's rounding may converge onto
+/// the orbit's double instead of the orbit (or the reverse): the search is repeated in f64.
+pub const NEAR_DOUBLING: f64 = 0.01;
+
+/// The f64 search beside an f32 orbit near a period doubling.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct DoublingCheck {
+    /// The f32 orbit's multiplier near ±1.
+    pub mu: f64,
+    /// The f64 orbit's regime (`p/q`), or `None` when f64 finds none.
+    pub f64_regime: Option<String>,
+    /// The f64 orbit's max |μ|.
+    pub f64_max_abs_multiplier: Option<f64>,
+    /// The f64 orbit's multipliers, `[re, im]` each.
+    pub f64_multipliers: Option<[[f64; 2]; 2]>,
+    /// Why f64 finds no orbit.
+    pub f64_error: Option<String>,
+}
+
+/// The real multiplier of `o` near a period doubling ([`NEAR_DOUBLING`]), if any.
+pub fn near_doubling(o: &OrbitReport) -> Option<f64> {
+    o.multipliers
+        .iter()
+        .filter(|m| m[1] == 0.0)
+        .map(|m| m[0])
+        .find(|&mu| {
+            (mu + 1.0).abs() < NEAR_DOUBLING || (o.q % 2 == 0 && (mu - 1.0).abs() < NEAR_DOUBLING)
+        })
+}
+
+/// The f64 search at `at` from `start` (period `q`) beside the f32 orbit `o`, when `o` is near a
+/// period doubling.
+fn doubling_check(
+    o: &OrbitReport,
+    at: &MapPoint,
+    start: Start,
+    q: Option<u32>,
+) -> Option<DoublingCheck> {
+    let mu = near_doubling(o)?;
+    let found = orbits::find::<f64>(at, start, q).and_then(|(_, o64)| orbits::report(&o64));
+    Some(match found {
+        Ok(r) => DoublingCheck {
+            mu,
+            f64_regime: Some(r.regime.clone()),
+            f64_max_abs_multiplier: Some(r.max_abs_multiplier),
+            f64_multipliers: Some(r.multipliers),
+            f64_error: None,
+        },
+        Err(e) => DoublingCheck {
+            mu,
+            f64_regime: None,
+            f64_max_abs_multiplier: None,
+            f64_multipliers: None,
+            f64_error: Some(format!("{e:#}")),
+        },
+    })
+}
+
+/// The text of a [`DoublingCheck`] beside the f32 orbit `o`.
+pub fn describe_doubling(o: &OrbitReport, c: &DoublingCheck) -> String {
+    let head = format!(
+        "  near a period doubling (μ = {:+.4}, within {NEAR_DOUBLING} of {}1): f32 may not tell \
+         this orbit from its double;",
+        c.mu,
+        if c.mu < 0.0 { '−' } else { '+' }
+    );
+    match (&c.f64_regime, c.f64_max_abs_multiplier, c.f64_multipliers) {
+        (Some(r), Some(m), Some(mus)) if *r != o.regime => format!(
+            "{head} in f64 the same search finds the {r} orbit (max |μ| = {m:.6}, μ = {:+.4}, \
+             {:+.4}): `--precision f64`",
+            mus[0][0], mus[1][0]
+        ),
+        (Some(r), Some(m), _) => {
+            format!("{head} f64 finds the same {r} orbit (max |μ| = {m:.6})")
+        }
+        _ => format!(
+            "{head} f64 finds no orbit from this start: {}",
+            c.f64_error.as_deref().unwrap_or("")
+        ),
+    }
 }
 
 /// `x`, or `+0` where it prints as zero at `decimals` places (no `-0.000000` for a value a
@@ -171,6 +257,10 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
         }
         (r, (orbits::report(&o)?, mismatch))
     });
+    let near = match setup.precision {
+        crate::precision::Precision::F32 => doubling_check(&report, &at, start, a.point.q),
+        crate::precision::Precision::F64 => None,
+    };
     if a.json {
         let j = OrbitJson {
             rig: setup.rig.to_string(),
@@ -178,6 +268,7 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
             protocol_regime: protocol.regime.to_string(),
             orbit: &report,
             slope_mismatch,
+            near_doubling: near,
         };
         println!("{}", serde_json::to_string_pretty(&j)?);
     } else {
@@ -211,6 +302,9 @@ pub fn run(a: &OrbitArgs) -> Result<()> {
             );
         }
         println!("{}", describe(&report));
+        if let Some(c) = &near {
+            println!("{}", describe_doubling(&report, c));
+        }
     }
     if a.out.is_some() || a.plot.is_some() {
         write_orbit(&setup, &report, a)?;

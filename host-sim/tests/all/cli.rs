@@ -1138,6 +1138,36 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
         text.contains("orbit 1/1 at") && text.contains("μ1 = -0.99799"),
         "{text}"
     );
+    // In f32 the same search converges onto a 2/2 orbit whose points lie 0.016 mm apart, with
+    // μ ≈ +0.996 (the double, born at the doubling with μ = +1): the report says f32 cannot
+    // tell the two apart there and gives f64's 1/1 orbit (the run above) beside it.
+    let (text, v) = (
+        ok(&line("orbit --rig wires --gap-mm 0 --omega-ratio 2.66")),
+        serde_json::from_str::<serde_json::Value>(&ok(&line(
+            "orbit --rig wires --gap-mm 0 --omega-ratio 2.66 --json",
+        )))
+        .unwrap(),
+    );
+    assert!(text.contains("orbit 2/2 at"), "{text}");
+    assert!(
+        text.contains("near a period doubling (μ = +0.99")
+            && text.contains("in f64 the same search finds the 1/1 orbit (max |μ| = 0.99799")
+            && text.contains("`--precision f64`"),
+        "{text}"
+    );
+    let near = &v["near_doubling"];
+    assert_eq!(near["f64_regime"], "1/1", "{v}");
+    assert!((near["mu"].as_f64().unwrap() - 1.0).abs() < 0.01, "{v}");
+    assert!(
+        (near["f64_multipliers"][0][0].as_f64().unwrap() + 0.99799).abs() < 1e-5,
+        "{v}"
+    );
+    // Away from a doubling (Ω/ω 2.0, max |μ| well inside the circle) nothing is added.
+    let far: serde_json::Value = serde_json::from_str(&ok(&line(
+        "orbit --rig wires --gap-mm 0 --omega-ratio 2.0 --json",
+    )))
+    .unwrap();
+    assert!(far.get("near_doubling").is_none(), "{far}");
     // The report names a given start as typed (not its round trip through metres).
     let text = ok(&line(
         "orbit --rig wires --gap-mm 0 --omega-ratio 2.0 --u0-mm -3.2e-05 --v0-mm-s 0.1",
@@ -1890,6 +1920,54 @@ fn too_few_steps_per_natural_period_are_warned_and_more_resolve_them() {
             (l / model(ratio) - 1.0).abs() < 5e-3,
             "Ω/ω {ratio}: {l} vs {}",
             model(ratio)
+        );
+    }
+}
+
+/// A grid whose stderr is a pipe (no terminal: a script, a cluster job) reports its progress in
+/// lines once it has run 2 s — percent, counts, rate and time left, the counts true — and a run
+/// shorter than that writes none. One rayon thread, so that the run is long enough on this
+/// machine while costing one core; the test judges by the run's measured time.
+#[test]
+fn a_long_grid_without_a_terminal_writes_progress_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.csv");
+    let started = std::time::Instant::now();
+    let o = host_sim()
+        .env("RAYON_NUM_THREADS", "1")
+        .args(line("peterka --gap-mm 0:3:0.1 --freq-hz 1:7:0.015 --out"))
+        .arg(&out)
+        .output()
+        .unwrap();
+    let took = started.elapsed().as_secs_f64();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.contains(" % (")).collect();
+    // 31 gaps × 401 frequencies.
+    let len = 31 * 401;
+    for l in &lines {
+        let (pct, rest) = l
+            .strip_prefix("peterka: ")
+            .and_then(|r| r.split_once(" % ("))
+            .unwrap_or_else(|| panic!("{l}"));
+        let (done, rest) = rest.split_once(" of ").unwrap();
+        let done: u64 = done.replace(',', "").parse().unwrap();
+        assert!(rest.starts_with("12,431 points) in "), "{l}");
+        assert_eq!(pct.parse::<u64>().unwrap(), 100 * done / len, "{l}");
+        assert!(
+            l.contains(" points/s, about ") && l.ends_with(" left"),
+            "{l}"
+        );
+    }
+    if took > 2.5 {
+        assert!(
+            !lines.is_empty(),
+            "{took:.1} s and no progress line:\n{stderr}"
+        );
+    } else if took < 1.9 {
+        assert!(
+            lines.is_empty(),
+            "{took:.1} s and progress lines:\n{stderr}"
         );
     }
 }
