@@ -122,7 +122,8 @@ pub fn near_doubling(o: &OrbitReport) -> Option<f64> {
         .filter(|m| m[1] == 0.0)
         .map(|m| m[0])
         .find(|&mu| {
-            (mu + 1.0).abs() < NEAR_DOUBLING || (o.q % 2 == 0 && (mu - 1.0).abs() < NEAR_DOUBLING)
+            (mu + 1.0).abs() < NEAR_DOUBLING
+                || (o.q.is_multiple_of(2) && (mu - 1.0).abs() < NEAR_DOUBLING)
         })
 }
 
