@@ -156,11 +156,18 @@ pub fn describe(param: Param, branches: &[BranchOut]) -> String {
                 let n = e.impacts_beyond;
                 // Where Newton stalled before it, the grazing is extrapolated from the last
                 // orbit reached, whose multiplier the line gives.
-                let extrapolated = if e.extrapolated {
+                let extrapolated = if let Some(x) = e.extrapolation {
                     format!(
-                        " (extrapolated from the branch's last orbit, at {}, whose multiplier \
-                         this is)",
-                        unit(param_value(param, &e.orbit))
+                        " (extrapolated {:.4} from the branch's last orbit, at {}, whose \
+                         multiplier this is; error ≲ {:.4}{})",
+                        x.distance,
+                        unit(param_value(param, &e.orbit)),
+                        x.error_bound,
+                        if x.placed {
+                            String::new()
+                        } else {
+                            format!(": not placed to {}", orbits::PLACED_TO)
+                        }
                     )
                 } else {
                     String::new()
@@ -371,6 +378,17 @@ pub fn run(a: &ContinueArgs) -> Result<()> {
             protocol
         );
         print!("{}", describe(param, &branches));
+        let unplaced = branches
+            .iter()
+            .flat_map(|b| &b.events)
+            .any(|e| e.extrapolation.is_some_and(|x| !x.placed));
+        if unplaced && setup.precision == crate::precision::Precision::F32 {
+            println!(
+                "note: a grazing extrapolated in f32 past where Newton stalled is not placed to \
+                 {}; `--precision f64` follows the branch closer to it",
+                orbits::PLACED_TO
+            );
+        }
     }
     Ok(())
 }
