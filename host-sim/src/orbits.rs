@@ -18,7 +18,8 @@ use shared::orbit::{
 
 use crate::config::Setup;
 use crate::interrupt;
-use crate::runner::{WindowSamples, progress};
+use crate::progress::progress;
+use crate::runner::WindowSamples;
 
 /// Where an orbit search starts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -284,8 +285,7 @@ pub struct Extrapolation {
     pub distance: f64,
     /// [`EXTRAPOLATION_ERROR_FACTOR`] × `distance`.
     pub error_bound: f64,
-    /// `error_bound` ≤ [`PLACED_TO`]: else run `--precision f64` (or a finer
-    /// `--min-step`) to place the grazing.
+    /// `error_bound` ≤ [`PLACED_TO`] (else `--precision f64` follows the branch closer).
     pub placed: bool,
 }
 

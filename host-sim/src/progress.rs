@@ -6,7 +6,6 @@
 //! A line: `peterka: 35 % (7,315,000 of 20,900,000 points) in 12 minutes, 10,114 points/s,
 //! about 22 minutes left`.
 
-use std::fmt::Write as _;
 use std::time::Duration;
 
 use indicatif::{HumanCount, HumanDuration, ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -119,8 +118,8 @@ impl Lines {
         let secs = elapsed.as_secs_f64();
         let rate = pos as f64 / secs;
         let left = Duration::from_secs_f64(self.len.saturating_sub(pos) as f64 / rate);
-        let mut s = format!(
-            "{}: {} % ({} of {} {}) in {}, {} {}/s",
+        format!(
+            "{}: {} % ({} of {} {}) in {}, {} {}/s, about {} left",
             self.what,
             100 * pos.min(self.len) / self.len.max(1),
             HumanCount(pos),
@@ -128,10 +127,9 @@ impl Lines {
             self.unit,
             HumanDuration(elapsed),
             HumanCount(rate as u64),
-            self.unit
-        );
-        let _ = write!(s, ", about {} left", HumanDuration(left));
-        s
+            self.unit,
+            HumanDuration(left)
+        )
     }
 }
 

@@ -14,7 +14,7 @@ use std::collections::HashMap;
 use std::sync::{Mutex, PoisonError};
 
 use crate::config::Setup;
-pub use crate::progress::progress;
+use crate::progress::progress;
 
 /// The smallest batch of points a core takes ([`guided`]): a batch interleaves its points on
 /// one core ([`shared::analysis::run_interleaved`]), the unit of every parallel evaluation.

@@ -105,12 +105,8 @@ pub const NEAR_DOUBLING: f64 = 0.01;
 pub struct DoublingCheck {
     /// The f32 orbit's multiplier near ±1.
     pub mu: f64,
-    /// The f64 orbit's regime (`p/q`), or `None` when f64 finds none.
-    pub f64_regime: Option<String>,
-    /// The f64 orbit's max |μ|.
-    pub f64_max_abs_multiplier: Option<f64>,
-    /// The f64 orbit's multipliers, `[re, im]` each.
-    pub f64_multipliers: Option<[[f64; 2]; 2]>,
+    /// The orbit the same search finds in f64, or `None` when it finds none (`f64_error`).
+    pub f64_orbit: Option<OrbitReport>,
     /// Why f64 finds no orbit.
     pub f64_error: Option<String>,
 }
@@ -140,16 +136,12 @@ fn doubling_check(
     Some(match found {
         Ok(r) => DoublingCheck {
             mu,
-            f64_regime: Some(r.regime.clone()),
-            f64_max_abs_multiplier: Some(r.max_abs_multiplier),
-            f64_multipliers: Some(r.multipliers),
+            f64_orbit: Some(r),
             f64_error: None,
         },
         Err(e) => DoublingCheck {
             mu,
-            f64_regime: None,
-            f64_max_abs_multiplier: None,
-            f64_multipliers: None,
+            f64_orbit: None,
             f64_error: Some(format!("{e:#}")),
         },
     })
@@ -163,16 +155,17 @@ pub fn describe_doubling(o: &OrbitReport, c: &DoublingCheck) -> String {
         c.mu,
         if c.mu < 0.0 { '−' } else { '+' }
     );
-    match (&c.f64_regime, c.f64_max_abs_multiplier, c.f64_multipliers) {
-        (Some(r), Some(m), Some(mus)) if *r != o.regime => format!(
-            "{head} in f64 the same search finds the {r} orbit (max |μ| = {m:.6}, μ = {:+.4}, \
+    match &c.f64_orbit {
+        Some(r) if r.regime != o.regime => format!(
+            "{head} in f64 the same search finds the {} orbit (max |μ| = {:.6}, μ = {:+.4}, \
              {:+.4}): `--precision f64`",
-            mus[0][0], mus[1][0]
+            r.regime, r.max_abs_multiplier, r.multipliers[0][0], r.multipliers[1][0]
         ),
-        (Some(r), Some(m), _) => {
-            format!("{head} f64 finds the same {r} orbit (max |μ| = {m:.6})")
-        }
-        _ => format!(
+        Some(r) => format!(
+            "{head} f64 finds the same {} orbit (max |μ| = {:.6})",
+            r.regime, r.max_abs_multiplier
+        ),
+        None => format!(
             "{head} f64 finds no orbit from this start: {}",
             c.f64_error.as_deref().unwrap_or("")
         ),

@@ -23,7 +23,8 @@ use super::{Finish, GridKind};
 use crate::config::Setup;
 use crate::interrupt;
 use crate::output::scratch;
-use crate::runner::{WindowSamples, progress};
+use crate::progress::progress;
+use crate::runner::WindowSamples;
 use crate::shard::{Indexed, Kind, create_csv};
 
 /// How the frequencies are visited.

@@ -17,7 +17,8 @@ use std::path::Path;
 use crate::config::Setup;
 use crate::interrupt;
 use crate::output::{Outputs, scratch};
-use crate::runner::{guided, progress};
+use crate::progress::progress;
+use crate::runner::guided;
 use crate::shard::{Indexed, Kind, Meta, Shard, ShardFile, create_csv, merge_rows};
 
 pub mod basins;

@@ -20,7 +20,8 @@ use anyhow::{Context, Result, anyhow};
 
 use super::CHUNK;
 use crate::interrupt;
-use crate::runner::{WORKER_STACK_BYTES, progress};
+use crate::progress::progress;
+use crate::runner::WORKER_STACK_BYTES;
 
 /// Points the cores may take beyond the first one not yet written: the rows held in memory at
 /// most (as many as a chunk of [`super::run_chunked`]).

@@ -1161,10 +1161,10 @@ fn orbit_reports_the_orbit_its_multipliers_and_its_minimal_period() {
         "{text}"
     );
     let near = &v["near_doubling"];
-    assert_eq!(near["f64_regime"], "1/1", "{v}");
+    assert_eq!(near["f64_orbit"]["regime"], "1/1", "{v}");
     assert!((near["mu"].as_f64().unwrap() - 1.0).abs() < 0.01, "{v}");
     assert!(
-        (near["f64_multipliers"][0][0].as_f64().unwrap() + 0.99799).abs() < 1e-5,
+        (near["f64_orbit"]["multipliers"][0][0].as_f64().unwrap() + 0.99799).abs() < 1e-5,
         "{v}"
     );
     // Away from a doubling (Ω/ω 2.0, max |μ| well inside the circle) nothing is added.
