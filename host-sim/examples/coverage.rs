@@ -1,5 +1,5 @@
 //! The identified parameters' 95 % intervals over noise seeds 1–40 of synthetic records (the
-//! suite checks seeds 1–3, `host-sim/tests/all/uncertainty.rs`): the intervals hold the truth in
+//! suite checks seed 1, `host-sim/tests/all/uncertainty.rs`): the intervals hold the truth in
 //! 85–100 % of the seeds and the lack-of-fit note stays silent on 95 % of them (spring–dashpot
 //! of Table 3.1 and Hunt–Crossley of Fig. 3.3, peaks and profile errors; the free decay's `f_n`
 //! and `ζ`, analytic and the damped wire pendulum's); Hunt–Crossley drops fitted with the

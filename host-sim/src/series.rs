@@ -6,7 +6,7 @@ use serde::Serialize;
 use shared::Real;
 use shared::integrate::{PhaseTable, Simulator, StepSample};
 use shared::observe::{ImpactEvent, ImpactTracker};
-use shared::orbit::{MapPoint, largest_exponent_with, state_of};
+use shared::orbit::{MapPoint, exponent_along_with};
 
 use crate::config::Setup;
 
@@ -41,9 +41,30 @@ pub struct TsSummary {
     pub impacts: u32,
     /// Largest episode peak, `F_i/mg`.
     pub max_force_mg: f64,
-    /// The largest Lyapunov exponent over the run, per period, and its uncertainty (half the
-    /// difference of the run's halves); `None` for a run of one period.
+    /// The largest Lyapunov exponent along the written trajectory over the run, per period,
+    /// and its uncertainty (half the difference of the run's halves); `None` for a run of one
+    /// period.
     pub lyapunov: Option<(f64, f64)>,
+    /// Where the impacts stopped for the rest of the run (at least [`IMPACT_FREE_TAIL`]
+    /// periods): the motion the run ends on is another than the one its exponent averages over.
+    pub impacts_stopped: Option<ImpactsStopped>,
+}
+
+/// Fewest impact-free periods at the end of a run, after impacts, that [`TsSummary`] reports
+/// as the impacts having stopped (the response's exponent window).
+pub const IMPACT_FREE_TAIL: u32 = 64;
+
+/// A run whose impacts stopped: a transient that escaped to a non-impacting motion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImpactsStopped {
+    /// The period (1-based) in which the last impact arrived.
+    pub last_impact_period: u32,
+    /// Periods after it, to the run's end.
+    pub impact_free_periods: u32,
+    /// The largest Lyapunov exponent along the written trajectory over those periods, per
+    /// period, and its uncertainty: the non-impacting motion's (0 for the undamped wire
+    /// pendulum, `−2πζ/(Ω/ω)` for a damped linear suspension).
+    pub lyapunov: (f64, f64),
 }
 
 /// One run of a time series: `periods` excitation periods at `omega_exc` (rad/s) and gap
@@ -98,6 +119,11 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
     let mut tracker = ImpactTracker::new(T::from_f64(setup.settings.protocol.separation_m), d0);
     let mut summary = TsSummary::default();
     let (u, du) = sim.relative();
+    // The written trajectory's states on the section (t = 0 and each period's end).
+    let mut section = Vec::with_capacity(periods as usize + 1);
+    section.push(sim.state());
+    // The period (1-based) of the last arrival; 0 before any.
+    let mut last_impact_period = 0u32;
     let mut rows = vec![TsRow {
         t_s: 0.0,
         u_mm: u.to_f64() * 1e3,
@@ -112,7 +138,11 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
     for _ in 0..periods {
         sim.run_period(&mut |s: &StepSample<T>| {
             match tracker.update(s.delta, s.delta_min, s.force) {
-                Some(ImpactEvent::Arrival) => summary.impacts += 1,
+                Some(ImpactEvent::Arrival) => {
+                    summary.impacts += 1;
+                    // The periods completed before this one, counted by their section points.
+                    last_impact_period = section.len() as u32;
+                }
                 Some(ImpactEvent::End { peak_n }) => {
                     summary.max_force_mg = summary.max_force_mg.max(peak_n.to_f64() / mg);
                 }
@@ -138,13 +168,17 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
                 poincare: s.period_end,
                 lyapunov_per_period: None,
             });
+            if s.period_end {
+                section.push(s.x);
+            }
         });
     }
     if let Some(p) = tracker.current_peak() {
         summary.max_force_mg = summary.max_force_mg.max(p.to_f64() / mg);
     }
-    // The exponent along the same start (the orbit tools' map: events located to round-off),
-    // its running estimate at each Poincaré row.
+    // The exponent along the written trajectory: the tangent carried from each of its Poincaré
+    // points by the map's `DP` there (the orbit tools' map, events located to round-off), its
+    // running estimate at each Poincaré row.
     if periods >= 2 {
         let at = MapPoint {
             params: setup.params,
@@ -152,15 +186,24 @@ fn time_series<T: Real>(setup: &Setup, spec: &SeriesSpec) -> Result<(Vec<TsRow>,
             gap_m,
             omega_ratio: omega_exc / setup.params.omega_n(),
         };
-        let x0 = state_of::<T>(&at, u0_m, v0_m_s)?;
         let mut running = Vec::with_capacity(periods as usize);
-        let (e, _) = largest_exponent_with(&at, x0, periods, |_, estimate| {
+        let e = exponent_along_with(&at, &section, |_, estimate| {
             running.push(estimate);
         })?;
         for (k, r) in rows.iter_mut().skip(1).filter(|r| r.poincare).enumerate() {
             r.lyapunov_per_period = running.get(k).copied();
         }
         summary.lyapunov = Some((e.per_period, e.uncertainty()));
+        let impact_free_periods = periods - last_impact_period;
+        if summary.impacts > 0 && impact_free_periods >= IMPACT_FREE_TAIL {
+            let tail = &section[last_impact_period as usize..];
+            let e = exponent_along_with(&at, tail, |_, _| {})?;
+            summary.impacts_stopped = Some(ImpactsStopped {
+                last_impact_period,
+                impact_free_periods,
+                lyapunov: (e.per_period, e.uncertainty()),
+            });
+        }
     }
     Ok((rows, summary))
 }

@@ -132,5 +132,15 @@ pub fn run(a: &SimulateArgs) -> Result<()> {
             None => String::new(),
         }
     );
+    if let Some(stop) = summary.impacts_stopped {
+        let (l, u) = stop.lyapunov;
+        println!(
+            "the impacts stopped after period {}: over the {} after it (the motion the run ends \
+             on) the exponent is {l:.4} ± {u:.4} per period; the run's figure above averages \
+             over both motions",
+            stop.last_impact_period,
+            crate::output::count(u64::from(stop.impact_free_periods), "impact-free period"),
+        );
+    }
     Ok(())
 }

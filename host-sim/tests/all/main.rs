@@ -19,5 +19,6 @@ mod identify;
 mod identify_cli;
 mod onboard_identify;
 mod rig_hostile;
+mod series;
 mod slurm;
 mod uncertainty;

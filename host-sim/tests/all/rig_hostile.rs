@@ -217,10 +217,16 @@ impl Fake {
         Some(text)
     }
 
-    /// What the rig sends on its own every 20 ms.
+    /// What the rig sends on its own every 20 ms of wall time: 20 ms of its own time, or
+    /// 200 ms for a fake that never dwells (a sweep's dwell deadline is counted in the rig's
+    /// time: the client gives up on it after seconds instead of tens of seconds).
     fn tick(&mut self) -> Vec<u8> {
         use Misbehaviour::*;
-        self.sample += 200;
+        let never_dwells = matches!(
+            self.bad,
+            NeverDwells | LosesStop | NoisyStop | AcksStopButDrives
+        );
+        self.sample += if never_dwells { 2000 } else { 200 };
         self.capture_samples = self.capture_samples.saturating_add(2000);
         if !self.streaming {
             return Vec::new();
@@ -229,10 +235,7 @@ impl Fake {
             self.streaming = false;
             return vec![b'x'; 20 << 20];
         }
-        let state = if matches!(
-            self.bad,
-            NeverDwells | LosesStop | NoisyStop | AcksStopButDrives
-        ) {
+        let state = if never_dwells {
             State::Ramp
         } else {
             State::Dwell
@@ -464,44 +467,64 @@ fn case(bad: Misbehaviour, args: &str, expect: &[&str], wall_s: u64) {
     assert!(leftovers(dir.path()).is_empty());
 }
 
+/// A [`case`] for each entry, side by side (each with its own fake rig, client and directory:
+/// the tests' time is spent waiting out the client's timeouts, and their waits overlap).
+fn cases(list: &[(Misbehaviour, &str, &[&str], u64)]) {
+    std::thread::scope(|s| {
+        let running: Vec<_> = list
+            .iter()
+            .map(|&(bad, args, expect, wall_s)| s.spawn(move || case(bad, args, expect, wall_s)))
+            .collect();
+        for r in running {
+            if let Err(panic) = r.join() {
+                std::panic::resume_unwind(panic);
+            }
+        }
+    });
+}
+
 #[test]
 fn a_peer_that_drops_delays_or_goes_quiet_is_a_timeout_naming_the_command() {
-    case(
-        Misbehaviour::DropsStatus,
-        "send status",
-        &["no reply to `status` within 0.5 s"],
-        10,
-    );
-    // The late reply is not taken for the next command's.
-    case(
-        Misbehaviour::DelaysStatus,
-        "send status",
-        &["no reply to `status` within 0.5 s"],
-        10,
-    );
-    case(
-        Misbehaviour::GoesQuiet,
-        "send status",
-        &["no reply to `status`"],
-        10,
-    );
+    cases(&[
+        (
+            Misbehaviour::DropsStatus,
+            "send status",
+            &["no reply to `status` within 0.5 s"],
+            10,
+        ),
+        // The late reply is not taken for the next command's.
+        (
+            Misbehaviour::DelaysStatus,
+            "send status",
+            &["no reply to `status` within 0.5 s"],
+            10,
+        ),
+        (
+            Misbehaviour::GoesQuiet,
+            "send status",
+            &["no reply to `status`"],
+            10,
+        ),
+    ]);
 }
 
 #[test]
 fn replies_are_matched_to_their_commands() {
-    // A duplicated reply arrives while the next command waits: a link error naming both.
-    case(
-        Misbehaviour::Duplicates,
-        "send status diag",
-        &["link error", "waited for its reply", "diag"],
-        10,
-    );
-    case(
-        Misbehaviour::UnexpectedOk,
-        "send status",
-        &["link error: `ok` arrived while", "status"],
-        10,
-    );
+    cases(&[
+        // A duplicated reply arrives while the next command waits: a link error naming both.
+        (
+            Misbehaviour::Duplicates,
+            "send status diag",
+            &["link error", "waited for its reply", "diag"],
+            10,
+        ),
+        (
+            Misbehaviour::UnexpectedOk,
+            "send status",
+            &["link error: `ok` arrived while", "status"],
+            10,
+        ),
+    ]);
     // The tail of an over-long garbage line is discarded with it, never read as a reply: the
     // status line that follows is the reply, with a warning.
     let port = fake_rig(Misbehaviour::LongGarbageThenOk);
@@ -523,64 +546,70 @@ fn replies_are_matched_to_their_commands() {
 
 #[test]
 fn garbled_lines_are_shown_escaped_and_bounded() {
-    case(
-        Misbehaviour::Garbles,
-        "send status",
-        &["\\u{1b}[2J\\u{7}\\0", "no reply to `status`"],
-        10,
-    );
-    // 20 MB without a line end: discarded by the 64 KiB, reported a bounded number of times;
-    // the log ends for want of telemetry.
-    case(
-        Misbehaviour::FloodsAfterStream,
-        "log --seconds 5 --out log.csv",
-        &["without a line end", "no telemetry"],
-        40,
-    );
+    cases(&[
+        (
+            Misbehaviour::Garbles,
+            "send status",
+            &["\\u{1b}[2J\\u{7}\\0", "no reply to `status`"],
+            10,
+        ),
+        // 20 MB without a line end: discarded by the 64 KiB, reported a bounded number of times;
+        // the log ends for want of telemetry.
+        (
+            Misbehaviour::FloodsAfterStream,
+            "log --seconds 5 --out log.csv",
+            &["without a line end", "no telemetry"],
+            40,
+        ),
+    ]);
 }
 
 #[test]
 fn bad_numbers_and_lies_are_refused_at_the_edge() {
-    case(
-        Misbehaviour::ZeroCalibration,
-        "send status",
-        &["`id` reply does not read", "volts_per_n"],
-        10,
-    );
-    case(
-        Misbehaviour::NanTelemetry,
-        "log --seconds 2 --out log.csv",
-        &["t_s=", "no telemetry"],
-        40,
-    );
-    case(
-        Misbehaviour::CaptureTooManySegments,
-        "capture --seconds 0.5 --out drop.csv",
-        &["`capture`", "segments="],
-        20,
-    );
-    case(
-        Misbehaviour::CaptureStaysArmed,
-        "capture --seconds 0.05 --out drop.csv",
-        &["past its end"],
-        20,
-    );
+    cases(&[
+        (
+            Misbehaviour::ZeroCalibration,
+            "send status",
+            &["`id` reply does not read", "volts_per_n"],
+            10,
+        ),
+        (
+            Misbehaviour::NanTelemetry,
+            "log --seconds 2 --out log.csv",
+            &["t_s=", "no telemetry"],
+            40,
+        ),
+        (
+            Misbehaviour::CaptureTooManySegments,
+            "capture --seconds 0.5 --out drop.csv",
+            &["`capture`", "segments="],
+            20,
+        ),
+        (
+            Misbehaviour::CaptureStaysArmed,
+            "capture --seconds 0.05 --out drop.csv",
+            &["past its end"],
+            20,
+        ),
+    ]);
 }
 
 #[test]
 fn sequences_and_clocks_that_go_back_are_errors() {
-    case(
-        Misbehaviour::SequenceBack,
-        "log --seconds 60 --out log.csv",
-        &["sequence numbers went back"],
-        30,
-    );
-    case(
-        Misbehaviour::TimeBack,
-        "log --seconds 60 --out log.csv",
-        &["clock went back"],
-        30,
-    );
+    cases(&[
+        (
+            Misbehaviour::SequenceBack,
+            "log --seconds 60 --out log.csv",
+            &["sequence numbers went back"],
+            30,
+        ),
+        (
+            Misbehaviour::TimeBack,
+            "log --seconds 60 --out log.csv",
+            &["clock went back"],
+            30,
+        ),
+    ]);
 }
 
 /// A three-point sweep, one cycle to settle and two to dwell, into `fr.csv`.

@@ -103,6 +103,49 @@ pub fn largest_exponent_with<T: Real>(
     at: &MapPoint,
     x0: Vector2<T>,
     periods: u32,
+    each: impl FnMut(u32, f64),
+) -> Result<(Exponent, Vector2<T>), ParamError> {
+    exponent_core(at, x0, periods, |_, image| image, each)
+}
+
+/// The largest Lyapunov exponent along a trajectory given by its points on the section,
+/// `section[0..=n]` (states at phase 0, `n = section.len() − 1` periods, 2 ..= 100,000): the
+/// tangent vector is carried through period `k` by the map's `DP` at `section[k]` (events
+/// located to round-off, as in [`largest_exponent`]) and renormalised, while the states are the
+/// given ones, not the map's images. For a trajectory computed otherwise (the production
+/// stepper's fixed steps, whose Poincaré points `simulate` writes), this is the exponent of
+/// that trajectory: where it leaves a chaotic set for a periodic orbit or the non-impacting
+/// motion, the running estimate falls with it, where the map's own iterates would stay on the
+/// chaotic set. On the map's own iterates it is [`largest_exponent_with`]'s, bit for bit.
+/// `each(k, estimate)` and the vanishing tangent as there.
+///
+/// # Errors
+/// [`ParamError`]: an invalid point, a section of fewer than 3 or more than 100,001 points, the
+/// tangent overflowing.
+pub fn exponent_along_with<T: Real>(
+    at: &MapPoint,
+    section: &[Vector2<T>],
+    each: impl FnMut(u32, f64),
+) -> Result<Exponent, ParamError> {
+    let periods = u32::try_from(section.len().saturating_sub(1)).unwrap_or(u32::MAX);
+    check_count("periods", periods, 2, 100_000)?;
+    let (e, _) = exponent_core(
+        at,
+        section[0],
+        periods,
+        |k, image| section.get(k as usize + 1).copied().unwrap_or(image),
+        each,
+    )?;
+    Ok(e)
+}
+
+/// [`largest_exponent_with`] with the state after period `k` (0-based) given by
+/// `next(k, image)` from the map's image of the state before it.
+fn exponent_core<T: Real>(
+    at: &MapPoint,
+    x0: Vector2<T>,
+    periods: u32,
+    mut next: impl FnMut(u32, Vector2<T>) -> Vector2<T>,
     mut each: impl FnMut(u32, f64),
 ) -> Result<(Exponent, Vector2<T>), ParamError> {
     check_count("periods", periods, 2, 100_000)?;
@@ -127,7 +170,7 @@ pub fn largest_exponent_with<T: Real>(
             },
         );
         let (y, _) = run.run(seeded);
-        x = Vector2::new(y[0].v, y[1].v);
+        x = next(k, Vector2::new(y[0].v, y[1].v));
         let d = [y[0].d[0].to_f64() / s[0], y[1].d[0].to_f64() / s[1]];
         let n = libm::hypot(d[0], d[1]);
         if !n.is_finite() {

@@ -23,7 +23,9 @@ pub use curve::{CurveEnd, CurvePoint, CurveSettings, continue_curve};
 pub use edges::{Edge, band_edges};
 pub use floquet::{Floquet, Multiplier};
 pub use label::{Label, LabelSettings, label};
-pub use lyapunov::{Exponent, largest_exponent, largest_exponent_with, orbit_exponent};
+pub use lyapunov::{
+    Exponent, exponent_along_with, largest_exponent, largest_exponent_with, orbit_exponent,
+};
 pub use map::{Image, MAX_Q, MapPoint, Param, Trace, iterate, samples, tangent};
 pub use shooting::{Orbit, OrbitError, ShootSettings, Stability, shoot};
 pub use start::{minimal_period, orbit_from, relative, settle, state_of};

@@ -13,8 +13,8 @@ use shared::analysis::SimSettings;
 use shared::model::{ContactLaw, ContactLawKind, RigId};
 use shared::observe::Regime;
 use shared::orbit::{
-    LabelSettings, MapPoint, ShootSettings, iterate, label, largest_exponent, orbit_exponent,
-    orbit_from, settle, shoot,
+    LabelSettings, MapPoint, ShootSettings, exponent_along_with, iterate, label, largest_exponent,
+    largest_exponent_with, orbit_exponent, orbit_from, settle, shoot,
 };
 
 /// The wire rig's map (identified spring–dashpot law, host profile) at `gap_mm`, `omega_ratio`.
@@ -122,6 +122,43 @@ fn chaotic_exponents_are_positive_and_agree_with_two_trajectories() {
             e.per_period
         );
     }
+}
+
+/// Carried along given section points, the exponent is the map's own where those points are
+/// the map's iterates (bit for bit, running estimates too), and another where they are not: a
+/// chaotic trajectory's points replaced, after 100 periods, by a stable orbit's fixed point give
+/// that orbit's rate over the rest.
+#[test]
+fn an_exponent_along_given_points_is_the_maps_on_its_iterates() {
+    let at = wires(1.0, 2.33);
+    let (_, x0) = settle::<f64>(&at, 0.0, 0.0).unwrap();
+    let periods = 400;
+    let mut section = vec![x0];
+    for _ in 0..periods {
+        let next = iterate(&at, 1, *section.last().unwrap()).unwrap().x;
+        section.push(next);
+    }
+    let (mut own, mut along) = (Vec::new(), Vec::new());
+    let (e, _) = largest_exponent_with(&at, x0, periods, |k, r| own.push((k, r))).unwrap();
+    let a = exponent_along_with(&at, &section, |k, r| along.push((k, r))).unwrap();
+    assert_eq!(a, e);
+    assert_eq!(along, own);
+    assert!(e.clearly_positive(3.0), "{e:?}");
+
+    // The 1/1 orbit at Ω/ω 2.0, 0.0 mm: its fixed point repeated.
+    let at = wires(0.0, 2.0);
+    let (_, o) = orbit_from::<f64>(&at, 0.0, 0.0, None, &ShootSettings::for_type::<f64>()).unwrap();
+    let rate = o.floquet.max_abs().ln();
+    let fixed = vec![o.x; 4001];
+    let a = exponent_along_with(&at, &fixed, |_, _| {}).unwrap();
+    // The estimate's start-up weighs 1/n, as for the map's own run of 4000 periods.
+    assert!(
+        (a.per_period - rate).abs() < 1e-3,
+        "{} vs {rate}",
+        a.per_period
+    );
+    // Too few points to count two periods: refused.
+    assert!(exponent_along_with(&at, &fixed[..2], |_, _| {}).is_err());
 }
 
 /// The protocol's run at 1.0 mm and `ratio` from rest, refined by [`label`] (the window's

@@ -707,15 +707,24 @@ fn wire_band_edges_agree_with_a_brute_force_sweep() {
     // The sweep: from the orbit at 2.0, in steps of 1e-4 (40 periods at each value; 400 in
     // the last 0.01 before the edge, where the doubling's multiplier nears −1 and the
     // deviations decay slowly), until the orbit stops being a converging 1/1 orbit.
+    // The two directions are independent: each on its own thread.
     let at = o.at;
-    let (coarse, states) = sweep(&at, o.x, &grid(2.0, 2.65, 1e-4), 40, 1);
-    assert!(coarse.is_none(), "the sweep up left 1/1 at {coarse:?}");
-    let (v, x) = state_near(&states, 2.65);
-    let (up, _) = sweep(&at, x, &grid(v, 2.68, 1e-4), 400, 1);
-    let (coarse, states) = sweep(&at, o.x, &grid(2.0, 1.16, 1e-4), 40, 1);
-    assert!(coarse.is_none(), "the sweep down left 1/1 at {coarse:?}");
-    let (v, x) = state_near(&states, 1.16);
-    let (down, _) = sweep(&at, x, &grid(v, 1.14, 1e-4), 100, 1);
+    let (up, down) = std::thread::scope(|s| {
+        let up = s.spawn(|| {
+            let (coarse, states) = sweep(&at, o.x, &grid(2.0, 2.65, 1e-4), 40, 1);
+            assert!(coarse.is_none(), "the sweep up left 1/1 at {coarse:?}");
+            let (v, x) = state_near(&states, 2.65);
+            sweep(&at, x, &grid(v, 2.68, 1e-4), 400, 1).0
+        });
+        let (coarse, states) = sweep(&at, o.x, &grid(2.0, 1.16, 1e-4), 40, 1);
+        assert!(coarse.is_none(), "the sweep down left 1/1 at {coarse:?}");
+        let (v, x) = state_near(&states, 1.16);
+        let down = sweep(&at, x, &grid(v, 1.14, 1e-4), 100, 1).0;
+        let up = up
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (up, down)
+    });
     let (up, down) = (up.unwrap(), down.unwrap());
     println!(
         "sweep: 1/1 up to {:.4}, not at {:.4}; down to {:.4}, not at {:.4}",
