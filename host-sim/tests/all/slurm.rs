@@ -246,21 +246,29 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
     let dir = tempfile::tempdir().unwrap();
     let fractions = [BEAM_HYSTERESIS_FRACTIONS, &["--samples", "200"]].concat();
     // 1. A Peterka map with its 1/1 region's boundaries, a basin, basin fractions and a
-    // bifurcation diagram: array + merge against one process.
-    for (kind, grid) in [
+    // bifurcation diagram: array + merge against one process. The four arrays are submitted
+    // at once (the node runs their tasks as its cores free), the single runs made meanwhile.
+    let kinds = [
         ("peterka", PETERKA_BOUNDARIES),
         ("basins", BASINS),
         ("fractions", &fractions),
         ("bifurcation", BIFURCATION),
-    ] {
+    ];
+    let submitted: Vec<_> = kinds
+        .iter()
+        .map(|&(kind, grid)| {
+            let run_dir = dir.path().join(format!("{kind}-array"));
+            let jobs = submit(kind, 4, &run_dir, grid);
+            (run_dir, jobs)
+        })
+        .collect();
+    for (&(kind, grid), (run_dir, (array, merge))) in kinds.iter().zip(&submitted) {
         let one = dir.path().join(format!("{kind}-single"));
         std::fs::create_dir_all(&one).unwrap();
         single(kind, grid, &one);
-        let run_dir = dir.path().join(format!("{kind}-array"));
-        let (array, merge) = submit(kind, 4, &run_dir, grid);
-        wait_completed(&array, &run_dir);
-        wait_completed(&merge, &run_dir);
-        assert_same_files(kind, grid, &one, &run_dir);
+        wait_completed(array, run_dir);
+        wait_completed(merge, run_dir);
+        assert_same_files(kind, grid, &one, run_dir);
     }
 
     // 2. A task cancelled while it computes.
