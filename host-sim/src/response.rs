@@ -27,16 +27,23 @@ pub struct ResponseRow {
     pub transient_periods: u32,
     /// Whether a steady state was detected.
     pub settled: bool,
-    /// Largest Lyapunov exponent per excitation period over a window after the protocol
-    /// (empty with `--no-lyapunov`).
+    /// Largest Lyapunov exponent per excitation period after the protocol (empty with
+    /// `--no-lyapunov`): of the orbit the label names, or over the confirmation run's windows
+    /// (`chaotic`, `irregular`).
     pub lyapunov_per_period: Option<f64>,
-    /// Its uncertainty: half the difference of the window's halves.
+    /// Its uncertainty: the confirmation windows' standard error, or half the difference of
+    /// one window's halves.
     pub lyapunov_uncertainty: Option<f64>,
     /// The protocol window's own regime where the exponent refined it (`irregular` that
-    /// became `chaotic` or a period found by the extended run); empty otherwise.
+    /// became `chaotic` or a period found by the extended or confirmation run); empty otherwise.
     pub window_regime: Option<String>,
-    /// Periods the extended run took to find the period (0: not needed).
+    /// Periods run after the exponent's first window: the extended run's or the confirmation
+    /// run's (0: neither ran).
     pub extra_periods: Option<u32>,
+    /// Where the first window's exponent was positive and the motion then settled: the chaotic
+    /// transient's length after the protocol, periods (an upper bound within 16); empty
+    /// otherwise.
+    pub chaotic_transient_periods: Option<u32>,
 }
 
 /// Every `(gap, Ω/ω)` of `gaps_m` (m) × `sweep`, gap outer.
@@ -122,6 +129,7 @@ pub fn rows(
                 lyapunov_uncertainty,
                 window_regime,
                 extra_periods,
+                chaotic_transient_periods,
             } = LabelCells::of(labels.and_then(|l| l.get(i)));
             ResponseRow {
                 omega_ratio: ratio,
@@ -135,6 +143,7 @@ pub fn rows(
                 lyapunov_uncertainty,
                 window_regime,
                 extra_periods,
+                chaotic_transient_periods,
             }
         })
         .collect()
@@ -142,7 +151,7 @@ pub fn rows(
 
 /// The CSV cells of a Lyapunov label (`response`, `points --lyapunov`), all empty without one:
 /// the exponent per period and its uncertainty, the protocol window's regime where the label
-/// changed it, and the periods run after the window.
+/// changed it, the periods run after the window, and the chaotic transient's length.
 #[derive(Debug, Clone, Default)]
 pub struct LabelCells {
     /// Largest Lyapunov exponent, per period.
@@ -151,8 +160,11 @@ pub struct LabelCells {
     pub lyapunov_uncertainty: Option<f64>,
     /// The window's regime, where the exponent changed the label.
     pub window_regime: Option<String>,
-    /// Periods run after the window to find a period.
+    /// Periods run after the window (extended or confirmation run).
     pub extra_periods: Option<u32>,
+    /// The chaotic transient's length after the protocol, periods, where the motion settled
+    /// after a positive first window.
+    pub chaotic_transient_periods: Option<u32>,
 }
 
 impl LabelCells {
@@ -163,6 +175,47 @@ impl LabelCells {
             lyapunov_uncertainty: Some(l.exponent.uncertainty()),
             window_regime: (l.window_regime != l.regime).then(|| l.window_regime.to_string()),
             extra_periods: Some(l.extra_periods),
+            chaotic_transient_periods: l.chaotic_transient_periods,
         })
     }
+}
+
+/// One line on what the exponent's labels found over a response (`labels[i]` at
+/// `sweep.value(i)`): the chaotic and irregular points, and those that settled after a chaotic
+/// transient (the first five named: `Ω/ω: regime after N periods`, or the non-impacting motion
+/// they escaped to); `None` where there are none of the three.
+pub fn label_summary(sweep: &Sweep, labels: &[Label]) -> Option<String> {
+    let count = |r: shared::observe::Regime| labels.iter().filter(|l| l.regime == r).count();
+    let chaotic = count(shared::observe::Regime::Chaotic);
+    let irregular = count(shared::observe::Regime::Irregular);
+    let after: Vec<String> = labels
+        .iter()
+        .enumerate()
+        .filter_map(|(i, l)| {
+            l.chaotic_transient_periods.map(|n| {
+                let what = match l.regime {
+                    shared::observe::Regime::NoImpact => "escapes to no impact".to_string(),
+                    r => r.to_string(),
+                };
+                format!("Ω/ω {:.4}: {what} after {n} periods", sweep.value(i))
+            })
+        })
+        .collect();
+    if chaotic + irregular + after.len() == 0 {
+        return None;
+    }
+    let mut line = format!(
+        "labels: {chaotic} chaotic (a positive exponent over the confirmation run), {irregular} \
+         irregular, {} settled after a chaotic transient",
+        after.len()
+    );
+    if !after.is_empty() {
+        let shown = after.len().min(5);
+        line.push_str(&format!(
+            " ({}{})",
+            after[..shown].join(", "),
+            if after.len() > shown { ", …" } else { "" }
+        ));
+    }
+    Some(line)
 }

@@ -28,13 +28,15 @@ pub struct PointsArgs {
     #[arg(long)]
     pub input: PathBuf,
     /// Output CSV: gap_mm, omega_ratio, freq_hz, regime, impacts, impact_force_mg,
-    /// lyapunov_per_period, lyapunov_uncertainty, window_regime, extra_periods (the last four
-    /// empty without --lyapunov).
+    /// lyapunov_per_period, lyapunov_uncertainty, window_regime, extra_periods,
+    /// chaotic_transient_periods (the last five empty without --lyapunov).
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: PathBuf,
     /// Refine each point's label by its largest Lyapunov exponent, as `response` does by
-    /// default: `chaotic` where positive beyond its uncertainty; where negative but no period
-    /// showed, the run goes on (up to 2,000 periods) until a period q ≤ 64 shows
+    /// default (docs/analysis.md): where it is negative over 64 periods after the protocol,
+    /// the run goes on (up to 2,000 periods) until a period q ≤ 64 shows; otherwise a
+    /// confirmation run of up to 2,048 periods labels the point by what it settles on, or
+    /// `chaotic` where the exponent stays positive over its 32 windows, else `irregular`
     /// (`window_regime` then gives the protocol window's label).
     #[arg(long)]
     pub lyapunov: bool,
@@ -61,8 +63,11 @@ pub struct OutRow {
     pub lyapunov_uncertainty: Option<f64>,
     /// The protocol window's regime, where the exponent changed the label.
     pub window_regime: Option<String>,
-    /// Periods run after the window to find a period.
+    /// Periods run after the exponent's first window (extended or confirmation run).
     pub extra_periods: Option<u32>,
+    /// The chaotic transient's length after the protocol, periods, where the motion settled
+    /// after a positive first window.
+    pub chaotic_transient_periods: Option<u32>,
 }
 
 /// Reads and validates the input points (gaps within `setup`'s rig range): a lab file as
@@ -181,6 +186,7 @@ pub fn run(a: &PointsArgs) -> Result<()> {
                 lyapunov_uncertainty,
                 window_regime,
                 extra_periods,
+                chaotic_transient_periods,
             } = LabelCells::of(labels.as_ref().and_then(|l| l.get(i)));
             OutRow {
                 gap_mm: g,
@@ -193,6 +199,7 @@ pub fn run(a: &PointsArgs) -> Result<()> {
                 lyapunov_uncertainty,
                 window_regime,
                 extra_periods,
+                chaotic_transient_periods,
             }
         });
     write_whole(&a.out, |tmp| write_csv(tmp, rows))?;

@@ -26,14 +26,17 @@ pub struct ResponseArgs {
     #[arg(long, default_value = "0.5:5.0:0.02")]
     pub omega_ratio: String,
     /// CSV output: omega_ratio, freq_hz, impact_force_mg, regime, impacts, transient_periods,
-    /// settled, lyapunov_per_period, lyapunov_uncertainty, window_regime, extra_periods.
+    /// settled, lyapunov_per_period, lyapunov_uncertainty, window_regime, extra_periods,
+    /// chaotic_transient_periods.
     #[arg(long, value_parser = crate::output::out_target)]
     pub out: Option<PathBuf>,
     /// The protocol's labels alone: no Lyapunov exponent (its columns empty), `irregular`
     /// where no period `q ≤ 16` showed in the window. By default the largest exponent over 64
-    /// periods after the protocol refines them: `chaotic` where it is positive beyond its
-    /// uncertainty; where it is negative, the run goes on (up to 2,000 periods) until a period
-    /// `q ≤ 64` shows.
+    /// periods after the protocol refines them: where it is negative, the run goes on (up to
+    /// 2,000 periods) until a period `q ≤ 64` shows; otherwise a confirmation run of up to
+    /// 2,048 periods labels the point by what it settles on (the chaotic transient's length in
+    /// `chaotic_transient_periods`), or `chaotic` where the exponent stays positive beyond 3
+    /// standard errors over its 32 windows of 64 periods, else `irregular`.
     #[arg(long)]
     pub no_lyapunov: bool,
     /// PNG or SVG plot of F_i/mg vs Ω/ω coloured by regime.
@@ -89,6 +92,12 @@ pub fn run(a: &ResponseArgs) -> Result<()> {
             w.serialize(r)?;
         }
         w.flush()?;
+    }
+    if let Some(line) = labels
+        .as_deref()
+        .and_then(|l| response::label_summary(&sweep, l))
+    {
+        eprintln!("{line}");
     }
     Ok(())
 }

@@ -431,7 +431,8 @@ fn response_writes_csv_and_png() {
     assert_eq!(
         lines.next().unwrap(),
         "omega_ratio,freq_hz,impact_force_mg,regime,impacts,transient_periods,settled,\
-         lyapunov_per_period,lyapunov_uncertainty,window_regime,extra_periods"
+         lyapunov_per_period,lyapunov_uncertainty,window_regime,extra_periods,\
+         chaotic_transient_periods"
     );
     let rows: Vec<&str> = lines.collect();
     assert_eq!(rows.len(), 5);
@@ -440,6 +441,40 @@ fn response_writes_csv_and_png() {
     assert_eq!(first[0], "1.0");
     assert!((first[1].parse::<f64>().unwrap() - 5.25).abs() < 1e-12);
     assert_eq!(&fs::read(&png).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+/// A motion whose first window after the protocol has a positive exponent but which then
+/// settles (wire rig, 1.0 mm, Ω/ω 4.28: a stable 12/26 orbit, shared's
+/// `transient_chaos_is_labelled_by_the_orbit_it_settles_on`) is labelled by its orbit, the
+/// chaotic transient's length in the CSV's column and in the text.
+#[test]
+fn response_names_a_chaotic_transient_and_the_orbit_after_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("fr.csv");
+    let (_, err) = said(&line(&format!(
+        "response --rig wires --gap-mm 1.0 --omega-ratio 4.28:4.28:0.01 --out {}",
+        csv.display()
+    )));
+    let mut rdr = csv::Reader::from_path(&csv).unwrap();
+    let head = rdr.headers().unwrap().clone();
+    let rec = rdr.records().next().unwrap().unwrap();
+    let cell = |name: &str| rec[head.iter().position(|h| h == name).unwrap()].to_string();
+    assert_eq!(cell("regime"), "12/26");
+    assert_eq!(cell("window_regime"), "irregular");
+    let n: u32 = cell("chaotic_transient_periods").parse().unwrap();
+    let extra: u32 = cell("extra_periods").parse().unwrap();
+    // The transient ends before the span of 3 × 64 periods over which the orbit repeats.
+    assert!(n + 192 <= 64 + extra, "{n}, {extra}");
+    assert!(cell("lyapunov_per_period").parse::<f64>().unwrap() < 0.0);
+    assert_eq!(
+        err,
+        format!(
+            "response: 1 point → {}\nlabels: 0 chaotic (a positive exponent over the \
+             confirmation run), 0 irregular, 1 settled after a chaotic transient (Ω/ω 4.2800: \
+             12/26 after {n} periods)\n",
+            csv.display()
+        )
+    );
 }
 
 #[test]
@@ -540,7 +575,7 @@ fn points_evaluates_a_batch() {
     assert_eq!(
         lines[0],
         "gap_mm,omega_ratio,freq_hz,regime,impacts,impact_force_mg,lyapunov_per_period,\
-         lyapunov_uncertainty,window_regime,extra_periods"
+         lyapunov_uncertainty,window_regime,extra_periods,chaotic_transient_periods"
     );
     assert_eq!(lines.len(), 4);
     assert!(lines[1].starts_with("0.0,2.0,"));
@@ -548,7 +583,7 @@ fn points_evaluates_a_batch() {
     // Far below resonance with a 2.4 mm gap the pendulum never reaches the surface.
     assert!(lines[3].contains(",no impact,0,0.0"), "{}", lines[3]);
     // Without --lyapunov the exponent's columns are empty.
-    assert!(lines[1..].iter().all(|l| l.ends_with(",,,,")), "{text}");
+    assert!(lines[1..].iter().all(|l| l.ends_with(",,,,,")), "{text}");
 
     // A spreadsheet's export: a comment, `;` and spaces round the cells, the columns in
     // another order: the same points, the same rows.
@@ -559,8 +594,9 @@ fn points_evaluates_a_batch() {
     assert_eq!(export, text);
 
     // With it: the 1.0 mm response's point Ω/ω 2.33, `irregular` by the protocol's window,
-    // is chaotic (exponent positive beyond three uncertainties); the 1/1 orbit keeps its label
-    // with a negative exponent (its multipliers').
+    // is chaotic (exponent positive beyond three standard errors over the confirmation run's
+    // 2,048 periods, no period found); the 1/1 orbit keeps its label with a negative exponent
+    // (its multipliers').
     points("gap_mm,omega_ratio\n0,2.0\n1.0,2.33\n", &["--lyapunov"]);
     let mut rdr = csv::Reader::from_path(&output).unwrap();
     let rows: Vec<csv::StringRecord> = rdr.records().map(|r| r.unwrap()).collect();
@@ -572,7 +608,8 @@ fn points_evaluates_a_batch() {
     assert_eq!(&rows[1][3], "chaotic");
     assert_eq!(&rows[1][8], "irregular");
     assert!(num(&rows[1], 6) > 3.0 * num(&rows[1], 7), "{:?}", rows[1]);
-    assert_eq!(&rows[1][9], "0");
+    assert_eq!(&rows[1][9], "2048");
+    assert_eq!(&rows[1][10], "");
 }
 
 #[test]

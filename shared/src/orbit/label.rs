@@ -1,12 +1,23 @@
 //! What the Lyapunov exponent adds to a protocol's regime label. The canonical protocol calls a
 //! point `irregular` when no period `q ≤ 16` showed within its window: that may be chaos, a
-//! quasi-periodic motion, or a long transient onto a periodic orbit. With the exponent:
+//! quasi-periodic motion, or a long transient onto a periodic orbit (or onto the non-impacting
+//! motion). The exponent over a first window of [`LabelSettings::window`] periods after the
+//! protocol sorts them:
 //!
-//! - positive beyond its uncertainty ([`Exponent::clearly_positive`]): `chaotic`;
-//! - negative beyond it: the run goes on (from where the protocol stopped, up to
-//!   [`LabelSettings::max_periods`]) until a period `q ≤` [`LabelSettings::max_q`] repeats over
-//!   three cycles, which becomes the label (`p/q`); if none shows, it stays `irregular`;
-//! - otherwise (within its uncertainty of 0: quasi-periodic, or not converged): `irregular`.
+//! - negative beyond its uncertainty ([`Exponent::clearly_negative`]): the run goes on (from
+//!   where the window stopped, up to [`LabelSettings::max_periods`]) until a period
+//!   `q ≤` [`LabelSettings::max_q`] repeats over three cycles, which becomes the label (`p/q`);
+//!   if none shows, it stays `irregular`;
+//! - otherwise (positive, or within its uncertainty of 0) a **confirmation run** follows: up to
+//!   [`LabelSettings::confirm_periods`] more periods, the tangent carried all along and the
+//!   exponent measured over independent windows of `window` periods. A motion that settles
+//!   within it (a period `q ≤ max_q` repeating over three cycles, or no impact over as many
+//!   periods) is labelled by what it settles on, its exponent that attractor's, and where the
+//!   first window's exponent was positive the chaotic transient's length is kept
+//!   ([`Label::chaotic_transient_periods`]). A motion that does not settle is `chaotic` where the
+//!   windows' mean is positive beyond `sigmas` standard errors ([`Exponent::window_spread`]),
+//!   else `irregular` (the exponent and its spread reported): never `chaotic` on the first
+//!   window alone.
 //!
 //! A periodic or no-impact label is kept; the exponent is reported beside it (the orbit's,
 //! `ln max|μ| / q`, [`super::lyapunov::orbit_exponent`]).
@@ -14,8 +25,9 @@
 use heapless::Vec;
 use nalgebra::Vector2;
 
-use super::lyapunov::{Exponent, Periods, largest_exponent, orbit_exponent};
+use super::lyapunov::{Exponent, Periods, Tangent, largest_exponent, orbit_exponent};
 use super::map::MapPoint;
+use crate::dual::Dual;
 use crate::error::{ParamError, check_count};
 use crate::integrate::PhaseTable;
 use crate::observe::poincare::StroboPoint;
@@ -27,6 +39,8 @@ use crate::real::Real;
 pub const MAX_EXTENDED_Q: u32 = 64;
 /// Periods the extended run classifies over: three cycles of the largest period.
 const SPAN: usize = 3 * MAX_EXTENDED_Q as usize;
+/// Most windows a confirmation run measures.
+pub const MAX_CONFIRM_WINDOWS: usize = 256;
 
 /// How the exponent refines a label.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -42,6 +56,10 @@ pub struct LabelSettings {
     pub max_q: u32,
     /// Tolerance of the scaled Poincaré distance for a repeat (the protocol's `classify_tol`).
     pub classify_tol: f64,
+    /// Longest confirmation run of a window whose exponent is not clearly negative, periods
+    /// (2,048: 32 windows of 64); whole windows of `window` periods are run, 2 ..=
+    /// [`MAX_CONFIRM_WINDOWS`] of them.
+    pub confirm_periods: u32,
 }
 
 impl Default for LabelSettings {
@@ -52,6 +70,7 @@ impl Default for LabelSettings {
             max_periods: 2000,
             max_q: MAX_EXTENDED_Q,
             classify_tol: 1e-3,
+            confirm_periods: 2048,
         }
     }
 }
@@ -59,15 +78,24 @@ impl Default for LabelSettings {
 /// A refined label.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Label {
-    /// The regime: the protocol's, or `chaotic`, or the period found by the extended run.
+    /// The regime: the protocol's, or what the extended or confirmation run found (a period,
+    /// no impact, `chaotic`, or still `irregular`).
     pub regime: Regime,
     /// The protocol window's regime.
     pub window_regime: Regime,
-    /// The largest Lyapunov exponent, per period, over the window after the protocol.
+    /// The largest Lyapunov exponent, per period: of the orbit the label names (its
+    /// multipliers'), or over the first window after the protocol (a negative one whose
+    /// extended run found no period), or over the confirmation run's windows (`chaotic`, or
+    /// `irregular` after it).
     pub exponent: Exponent,
-    /// Periods run beyond the protocol and the exponent's window to find a period (0 if not
-    /// needed).
+    /// Periods run beyond the protocol and the exponent's first window: by the extended run
+    /// to find a period, or by the confirmation run (0 if neither ran).
     pub extra_periods: u32,
+    /// Where the first window's exponent was clearly positive and the motion then settled (on a
+    /// periodic orbit, or the non-impacting motion): the periods after the protocol before the
+    /// span over which it repeats, an upper bound on the chaotic transient's length after the
+    /// protocol (within 16 periods). `None` otherwise.
+    pub chaotic_transient_periods: Option<u32>,
 }
 
 /// Refines `result` (the protocol's, at `at`, ending at state `x_end` on the section).
@@ -92,18 +120,196 @@ pub fn label<T: Real>(
         window_regime: result.regime,
         exponent,
         extra_periods: 0,
+        chaotic_transient_periods: None,
     };
     if result.regime != Regime::Irregular {
         return Ok(out);
     }
-    if exponent.clearly_positive(s.sigmas) {
-        out.regime = Regime::Chaotic;
-    } else if exponent.clearly_negative(s.sigmas) {
+    if exponent.clearly_negative(s.sigmas) {
         let (regime, periods) = extended_period(at, x, s)?;
         out.regime = regime;
         out.extra_periods = periods;
+        return Ok(out);
+    }
+    let confirmed = confirm(at, x, s)?;
+    out.extra_periods = confirmed.periods;
+    match confirmed.settled {
+        Some((regime, x_end)) => {
+            out.regime = regime;
+            out.exponent = match regime {
+                Regime::Periodic { q, .. } => orbit_exponent(at, x_end, u32::from(q))?.0,
+                _ => largest_exponent(at, x_end, s.window)?.0,
+            };
+            if exponent.clearly_positive(s.sigmas) {
+                let span = 3 * s.max_q.min(MAX_EXTENDED_Q);
+                out.chaotic_transient_periods =
+                    Some((s.window + confirmed.periods).saturating_sub(span));
+            }
+        }
+        None => {
+            out.exponent = confirmed.exponent;
+            if confirmed.exponent.clearly_positive(s.sigmas) {
+                out.regime = Regime::Chaotic;
+            }
+        }
     }
     Ok(out)
+}
+
+/// The Poincaré points and impact counts of the last `3 max_q` periods of a run, classified as
+/// the protocol classifies its window.
+struct Recogniser<T: Real> {
+    section: Vec<StroboPoint<T>, SPAN>,
+    impacts: Vec<u16, SPAN>,
+    span: usize,
+    max_q: usize,
+    tol: T,
+    u_scale: T,
+    v_scale: T,
+}
+
+impl<T: Real> Recogniser<T> {
+    fn new(at: &MapPoint, s: &LabelSettings) -> Self {
+        Recogniser {
+            section: Vec::new(),
+            impacts: Vec::new(),
+            span: (3 * s.max_q as usize).min(SPAN),
+            max_q: s.max_q as usize,
+            tol: T::from_f64(s.classify_tol),
+            u_scale: T::from_f64(at.params.amplitude_m),
+            v_scale: T::from_f64(at.params.amplitude_m * at.omega_ratio * at.params.omega_n()),
+        }
+    }
+
+    /// Adds period `k`'s point `(u, u̇)` and impacts; every 16 periods once the span is full,
+    /// the regime it shows (`None` while `irregular`).
+    fn push(&mut self, k: u32, (u, du): (T, T), impacts: u32) -> Option<Regime> {
+        if self.section.len() == self.span {
+            self.section.remove(0);
+            self.impacts.remove(0);
+        }
+        let _ = self.section.push(StroboPoint { u, du });
+        let _ = self
+            .impacts
+            .push(u16::try_from(impacts).unwrap_or(u16::MAX));
+        if self.section.len() < self.span || k % 16 != 0 {
+            return None;
+        }
+        let r = classify(
+            &self.section,
+            &self.impacts,
+            self.max_q,
+            self.tol,
+            self.u_scale,
+            self.v_scale,
+        );
+        (r != Regime::Irregular).then_some(r)
+    }
+}
+
+/// What a confirmation run found.
+struct Confirmed<T: Real> {
+    /// The regime it settled on and the state it ended in, if it settled.
+    settled: Option<(Regime, Vector2<T>)>,
+    /// The exponent over its whole windows since the tangent last vanished (the mean, its
+    /// halves, and the windows' standard error).
+    exponent: Exponent,
+    /// Periods run.
+    periods: u32,
+}
+
+/// Runs the map from `x` with its tangent for up to `s.confirm_periods` (whole windows of
+/// `s.window`), looking for a period as [`extended_period`] does, and measures the exponent
+/// over each window: their mean and its standard error. A vanishing tangent (a rest on the
+/// surface) discards the windows before it, as [`largest_exponent`] does.
+fn confirm<T: Real>(
+    at: &MapPoint,
+    x: Vector2<T>,
+    s: &LabelSettings,
+) -> Result<Confirmed<T>, ParamError> {
+    check_count("window", s.window, 2, 100_000)?;
+    let total_windows = s.confirm_periods / s.window;
+    check_count(
+        "confirm_periods / window",
+        total_windows,
+        2,
+        MAX_CONFIRM_WINDOWS as u32,
+    )?;
+    let table = PhaseTable::<Dual<T, 1>>::new(at.settings.steps.steps_per_period)?;
+    let mut tangent = Tangent::new(at, &table)?;
+    let mut seen = Recogniser::<T>::new(at, s);
+    // Per window: the sum of the logs of the stretches; the windows completed.
+    let (mut sum, mut in_window) = (0.0, 0);
+    let mut windows: Vec<f64, MAX_CONFIRM_WINDOWS> = Vec::new();
+    let mut x = x;
+    let total = total_windows * s.window;
+    for k in 1..=total {
+        let (image, stretch, trace) = tangent.period(x)?;
+        x = image;
+        if let Some(r) = seen.push(k, tangent.relative(), trace.impacts) {
+            return Ok(Confirmed {
+                settled: Some((r, x)),
+                exponent: window_mean(&windows, s.window),
+                periods: k,
+            });
+        }
+        match stretch {
+            Some(ln) => {
+                sum += ln;
+                in_window += 1;
+                if in_window == s.window {
+                    let _ = windows.push(sum / f64::from(s.window));
+                    (sum, in_window) = (0.0, 0);
+                }
+            }
+            None => {
+                windows.clear();
+                (sum, in_window) = (0.0, 0);
+            }
+        }
+    }
+    Ok(Confirmed {
+        settled: None,
+        exponent: window_mean(&windows, s.window),
+        periods: total,
+    })
+}
+
+/// The exponent of `windows` (each the mean stretch over `window` periods): their mean, the
+/// means of their halves, and the standard error of the mean (NaN with fewer than two; −∞
+/// with none: the tangent vanished in the last window).
+fn window_mean(windows: &[f64], window: u32) -> Exponent {
+    let n = windows.len();
+    let mean = |w: &[f64]| {
+        if w.is_empty() {
+            f64::NAN
+        } else {
+            w.iter().sum::<f64>() / w.len() as f64
+        }
+    };
+    if n == 0 {
+        return Exponent {
+            per_period: f64::NEG_INFINITY,
+            first_half: f64::NEG_INFINITY,
+            second_half: f64::NEG_INFINITY,
+            periods: 0,
+            window_spread: None,
+        };
+    }
+    let m = mean(windows);
+    let spread = if n < 2 {
+        f64::NAN
+    } else {
+        let var = windows.iter().map(|w| (w - m) * (w - m)).sum::<f64>() / (n - 1) as f64;
+        libm::sqrt(var / n as f64)
+    };
+    Exponent {
+        per_period: m,
+        first_half: mean(&windows[..n / 2]),
+        second_half: mean(&windows[n / 2..]),
+        periods: u32::try_from(n).unwrap_or(u32::MAX) * window,
+        window_spread: Some(spread),
+    }
 }
 
 /// Runs the map from `x` until a period `q ≤ s.max_q` repeats over the last three of its
@@ -116,28 +322,13 @@ fn extended_period<T: Real>(
 ) -> Result<(Regime, u32), ParamError> {
     let table = PhaseTable::<T>::new(at.settings.steps.steps_per_period)?;
     let mut run = Periods::new(at, &table)?;
-    let u_scale = T::from_f64(at.params.amplitude_m);
-    let v_scale = T::from_f64(at.params.amplitude_m * at.omega_ratio * at.params.omega_n());
-    let tol = T::from_f64(s.classify_tol);
-    let span = (3 * s.max_q as usize).min(SPAN);
-    let mut section: Vec<StroboPoint<T>, SPAN> = Vec::new();
-    let mut impacts: Vec<u16, SPAN> = Vec::new();
+    let mut seen = Recogniser::<T>::new(at, s);
     let mut x = x;
     for k in 1..=s.max_periods {
         let (y, trace) = run.run(x);
         x = y;
-        if section.len() == span {
-            section.remove(0);
-            impacts.remove(0);
-        }
-        let (u, du) = run.relative();
-        let _ = section.push(StroboPoint { u, du });
-        let _ = impacts.push(u16::try_from(trace.impacts).unwrap_or(u16::MAX));
-        if section.len() == span && k % 16 == 0 {
-            let r = classify(&section, &impacts, s.max_q as usize, tol, u_scale, v_scale);
-            if r != Regime::Irregular {
-                return Ok((r, k));
-            }
+        if let Some(r) = seen.push(k, run.relative(), trace.impacts) {
+            return Ok((r, k));
         }
     }
     Ok((Regime::Irregular, s.max_periods))

@@ -26,14 +26,23 @@ pub struct Exponent {
     pub second_half: f64,
     /// Periods in the window.
     pub periods: u32,
+    /// Where the estimate is the mean over independent windows (a confirmation run,
+    /// [`super::label`]): the standard error of that mean, per period; `None` for one window
+    /// judged by its halves.
+    pub window_spread: Option<f64>,
 }
 
 impl Exponent {
-    /// Its uncertainty: half the difference of the halves' estimates (NaN with one period
-    /// counted); 0 where it is −∞ (the tangent vanished in the last period: certain).
+    /// Its uncertainty: the independent windows' standard error where there are several
+    /// ([`Exponent::window_spread`]), else half the difference of the halves' estimates (NaN
+    /// with one period counted); 0 where it is −∞ (the tangent vanished in the last period:
+    /// certain).
     pub fn uncertainty(&self) -> f64 {
         if self.per_period == f64::NEG_INFINITY {
             return 0.0;
+        }
+        if let Some(spread) = self.window_spread {
+            return spread;
         }
         0.5 * (self.first_half - self.second_half).abs()
     }
@@ -71,6 +80,71 @@ impl<'t, U: Real> Periods<'t, U> {
     /// One period from `x` (phase 0): the state after it and what it did.
     pub(crate) fn run(&mut self, x: Vector2<U>) -> (Vector2<U>, Trace) {
         run(&mut self.sim, x, 1, self.separation_m, |_| {})
+    }
+}
+
+/// A tangent vector carried through one period at a time of the map (value and tangent in one
+/// dual-number run) and renormalised, in the scaled norm of [`MapPoint::scales`]; it starts
+/// along the diagonal.
+pub(crate) struct Tangent<'t, T: Real> {
+    run: Periods<'t, Dual<T, 1>>,
+    scales: [f64; 2],
+    v: [f64; 2],
+}
+
+impl<'t, T: Real> Tangent<'t, T> {
+    pub(crate) fn new(
+        at: &MapPoint,
+        table: &'t PhaseTable<Dual<T, 1>>,
+    ) -> Result<Self, ParamError> {
+        Ok(Tangent {
+            run: Periods::new(at, table)?,
+            scales: at.scales(),
+            v: [libm::sqrt(0.5), libm::sqrt(0.5)],
+        })
+    }
+
+    /// One period from `x` (phase 0): the map's image, the log of the tangent's stretch over it
+    /// (`None` where the tangent vanished: the vector is then kept as it was), and what the
+    /// period did.
+    ///
+    /// # Errors
+    /// The tangent overflowing.
+    pub(crate) fn period(
+        &mut self,
+        x: Vector2<T>,
+    ) -> Result<(Vector2<T>, Option<f64>, Trace), ParamError> {
+        let (s, v) = (self.scales, self.v);
+        let seeded = Vector2::new(
+            Dual {
+                v: x[0],
+                d: [T::from_f64(v[0] * s[0])],
+            },
+            Dual {
+                v: x[1],
+                d: [T::from_f64(v[1] * s[1])],
+            },
+        );
+        let (y, trace) = self.run.run(seeded);
+        let image = Vector2::new(y[0].v, y[1].v);
+        let d = [y[0].d[0].to_f64() / s[0], y[1].d[0].to_f64() / s[1]];
+        let n = libm::hypot(d[0], d[1]);
+        if !n.is_finite() {
+            return Err(ParamError::NotFinite {
+                field: "tangent vector",
+            });
+        }
+        if n == 0.0 {
+            return Ok((image, None, trace));
+        }
+        self.v = [d[0] / n, d[1] / n];
+        Ok((image, Some(libm::log(n)), trace))
+    }
+
+    /// `(u, u̇)` of the current state, m and m/s.
+    pub(crate) fn relative(&self) -> (T, T) {
+        let (u, du) = self.run.relative();
+        (u.v, du.v)
     }
 }
 
@@ -149,46 +223,25 @@ fn exponent_core<T: Real>(
     mut each: impl FnMut(u32, f64),
 ) -> Result<(Exponent, Vector2<T>), ParamError> {
     check_count("periods", periods, 2, 100_000)?;
-    let s = at.scales();
     let table = PhaseTable::<Dual<T, 1>>::new(at.settings.steps.steps_per_period)?;
-    let mut run = Periods::new(at, &table)?;
-    // The tangent vector, scaled components; it starts along the diagonal.
-    let mut v = [libm::sqrt(0.5), libm::sqrt(0.5)];
+    let mut tangent = Tangent::new(at, &table)?;
     let mut x = x0;
     // The counted periods: from `start` on, `half` of them in the first half.
     let (mut start, mut half) = (0, periods / 2);
     let (mut sum1, mut sum2) = (0.0, 0.0);
     for k in 0..periods {
-        let seeded = Vector2::new(
-            Dual {
-                v: x[0],
-                d: [T::from_f64(v[0] * s[0])],
-            },
-            Dual {
-                v: x[1],
-                d: [T::from_f64(v[1] * s[1])],
-            },
-        );
-        let (y, _) = run.run(seeded);
-        x = next(k, Vector2::new(y[0].v, y[1].v));
-        let d = [y[0].d[0].to_f64() / s[0], y[1].d[0].to_f64() / s[1]];
-        let n = libm::hypot(d[0], d[1]);
-        if !n.is_finite() {
-            return Err(ParamError::NotFinite {
-                field: "tangent vector",
-            });
-        }
-        if n == 0.0 {
+        let (image, stretch, _) = tangent.period(x)?;
+        x = next(k, image);
+        let Some(ln) = stretch else {
             (start, sum1, sum2) = (k + 1, 0.0, 0.0);
             half = (periods - start) / 2;
             each(k + 1, f64::NEG_INFINITY);
             continue;
-        }
-        v = [d[0] / n, d[1] / n];
+        };
         if k - start < half {
-            sum1 += libm::log(n);
+            sum1 += ln;
         } else {
-            sum2 += libm::log(n);
+            sum2 += ln;
         }
         each(k + 1, (sum1 + sum2) / f64::from(k + 1 - start));
     }
@@ -200,6 +253,7 @@ fn exponent_core<T: Real>(
                 first_half: f64::NEG_INFINITY,
                 second_half: f64::NEG_INFINITY,
                 periods: 0,
+                window_spread: None,
             },
             x,
         ));
@@ -216,6 +270,7 @@ fn exponent_core<T: Real>(
             },
             second_half: sum2 / f64::from(second),
             periods: counted,
+            window_spread: None,
         },
         x,
     ))
@@ -244,6 +299,7 @@ pub fn orbit_exponent<T: Real>(
             first_half: first,
             second_half: second,
             periods: 2 * q,
+            window_spread: None,
         },
         b.x,
     ))

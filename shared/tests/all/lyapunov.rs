@@ -1,8 +1,10 @@
 //! Evidence for the largest Lyapunov exponent (`shared::orbit::lyapunov`) and the labels it
 //! refines (`shared::orbit::label`): on stable periodic orbits it is the largest multiplier's
 //! rate, at the wire rig's chaotic points it is positive and agrees with an independent
-//! two-trajectory estimate, and where the protocol's window sees no period but the exponent is
-//! negative, the extended run finds the period.
+//! two-trajectory estimate (and stays so over the confirmation run), where the protocol's
+//! window sees no period but the exponent is negative, the extended run finds the period, and
+//! where the exponent is positive over a first window but the motion settles, the confirmation
+//! run labels it by the orbit it settles on.
 //!
 //! `cargo test --release -p vibro-shared --test all lyapunov:: -- --nocapture` prints every measured
 //! value.
@@ -108,7 +110,7 @@ fn chaotic_exponents_are_positive_and_agree_with_two_trajectories() {
         let b = two_trajectory_exponent(&at, x, 4000);
         println!(
             "{gap_mm} mm Ω/ω {ratio}: {:.4} ± {:.4} per period (4000 periods), two \
-             trajectories {b:.4}; 64-period window {:.4} ± {:.4}",
+             trajectories {b:.4}; the label's confirmation run {:.4} ± {:.4}",
             e.per_period,
             e.uncertainty(),
             l.exponent.per_period,
@@ -116,6 +118,14 @@ fn chaotic_exponents_are_positive_and_agree_with_two_trajectories() {
         );
         // Measured: 0.3706 ± 0.0139 vs 0.3709 (1.0 mm); 0.1215 ± 0.0026 vs 0.1205 (2.4 mm).
         assert!(e.clearly_positive(3.0), "{e:?}");
+        // The label's 32 windows after the first, the 4000 periods from the first window's
+        // start: the same attractor, within a tenth.
+        assert_eq!(l.extra_periods, LabelSettings::default().confirm_periods);
+        assert!(
+            (l.exponent.per_period - e.per_period).abs() < 0.1 * e.per_period,
+            "{:?} vs {e:?}",
+            l.exponent
+        );
         assert!(
             (b - e.per_period).abs() < 0.25 * e.per_period,
             "{b} vs {}",
@@ -232,6 +242,69 @@ fn negative_exponent_lets_the_extended_run_find_the_period() {
         assert_eq!(o.p(), p);
         assert!(o.floquet.stable());
     }
+}
+
+#[test]
+fn transient_chaos_is_labelled_by_the_orbit_it_settles_on() {
+    // Wire rig, 1.0 mm, Ω/ω 4.28: the protocol's window sees no period, the exponent over the
+    // 64 periods after it is positive beyond three uncertainties (the old label: `chaotic`), yet
+    // the motion settles on a stable 12/26 orbit (max|μ| 0.761). The confirmation run finds it.
+    let settings = LabelSettings::default();
+    let at = wires(1.0, 4.28);
+    for f64_run in [false, true] {
+        let (l, first) = if f64_run {
+            let (l, x) = extended_label::<f64>(4.28);
+            (l, largest_exponent(&at, x, settings.window).unwrap().0)
+        } else {
+            let (l, x) = extended_label::<f32>(4.28);
+            (l, largest_exponent(&at, x, settings.window).unwrap().0)
+        };
+        println!(
+            "1.0 mm Ω/ω 4.28 ({}): first window {:.4} ± {:.4}; {} → {} after a chaotic \
+             transient of {} periods ({} run), exponent {:.5} ± {:.5}",
+            if f64_run { "f64" } else { "f32" },
+            first.per_period,
+            first.uncertainty(),
+            l.window_regime,
+            l.regime,
+            l.chaotic_transient_periods.unwrap_or(0),
+            l.extra_periods,
+            l.exponent.per_period,
+            l.exponent.uncertainty()
+        );
+        assert_eq!(l.window_regime, Regime::Irregular);
+        assert!(first.clearly_positive(settings.sigmas), "{first:?}");
+        assert_eq!(l.regime, Regime::Periodic { p: 12, q: 26 });
+        assert!(l.extra_periods > 0 && l.extra_periods <= settings.confirm_periods);
+        let n = l.chaotic_transient_periods.unwrap();
+        assert!(n <= settings.window + l.extra_periods, "{n}");
+        assert!(
+            l.exponent.clearly_negative(settings.sigmas),
+            "{:?}",
+            l.exponent
+        );
+    }
+    // Independently, in f64: from where the confirmation stopped (the same map), shooting with
+    // q = 26 converges to a stable orbit with 12 impacts whose largest multiplier's rate is the
+    // label's exponent.
+    let (l, x) = extended_label::<f64>(4.28);
+    let mut y = x;
+    for _ in 0..settings.window + l.extra_periods {
+        y = iterate(&at, 1, y).unwrap().x;
+    }
+    let o = shoot(&at, 26, y, &ShootSettings::for_type::<f64>()).unwrap();
+    let rate = o.floquet.max_abs().ln() / 26.0;
+    println!(
+        "  the 12/26 orbit: max|μ| {:.4} (rate {rate:.5})",
+        o.floquet.max_abs()
+    );
+    assert_eq!(o.p(), 12);
+    assert!(o.floquet.stable());
+    assert!(
+        (l.exponent.per_period - rate).abs() < 1e-4,
+        "{} vs {rate}",
+        l.exponent.per_period
+    );
 }
 
 #[test]
