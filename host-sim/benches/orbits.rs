@@ -4,8 +4,9 @@
 //!   f32 and f64 — the budget is 1 s;
 //! - `response_labelled`: the 1.0 mm response's 46 points (Ω/ω 0.5..5.0 step 0.1) by the
 //!   protocol alone, and with the largest Lyapunov exponent labelling each point (periodic:
-//!   the orbit's multipliers; otherwise a 64-period window, extended up to 2,000 periods) — the
-//!   budget is ≤ 1× more;
+//!   the orbit's multipliers; otherwise a 64-period window, then an extended run of up to 2,000
+//!   periods where it is negative or a confirmation run of up to 2,048 periods with the
+//!   tangent where it is not);
 //! - `boundaries`: the Peterka map's curves from two seeds (0.0 and 0.9 mm at Ω/ω 2.0).
 
 use std::hint::black_box;
