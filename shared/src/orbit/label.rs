@@ -192,7 +192,7 @@ impl<T: Real> Recogniser<T> {
         let _ = self
             .impacts
             .push(u16::try_from(impacts).unwrap_or(u16::MAX));
-        if self.section.len() < self.span || k % 16 != 0 {
+        if self.section.len() < self.span || !k.is_multiple_of(16) {
             return None;
         }
         let r = classify(

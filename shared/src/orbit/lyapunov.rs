@@ -27,7 +27,7 @@ pub struct Exponent {
     /// Periods in the window.
     pub periods: u32,
     /// Where the estimate is the mean over independent windows (a confirmation run,
-    /// [`super::label`]): the standard error of that mean, per period; `None` for one window
+    /// [`super::label()`]): the standard error of that mean, per period; `None` for one window
     /// judged by its halves.
     pub window_spread: Option<f64>,
 }
