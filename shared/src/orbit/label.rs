@@ -276,8 +276,8 @@ fn confirm<T: Real>(
 }
 
 /// The exponent of `windows` (each the mean stretch over `window` periods): their mean, the
-/// means of their halves, and the standard error of the mean (NaN with fewer than two; −∞
-/// with none: the tangent vanished in the last window).
+/// means of their halves, and the standard error of the mean (∞ with one window: undecided;
+/// −∞ with none: the tangent vanished in the last window).
 fn window_mean(windows: &[f64], window: u32) -> Exponent {
     let n = windows.len();
     let mean = |w: &[f64]| {
@@ -297,8 +297,9 @@ fn window_mean(windows: &[f64], window: u32) -> Exponent {
         };
     }
     let m = mean(windows);
+    // One window has no spread to judge it by: never clearly signed.
     let spread = if n < 2 {
-        f64::NAN
+        f64::INFINITY
     } else {
         let var = windows.iter().map(|w| (w - m) * (w - m)).sum::<f64>() / (n - 1) as f64;
         libm::sqrt(var / n as f64)
@@ -332,4 +333,30 @@ fn extended_period<T: Real>(
         }
     }
     Ok((Regime::Irregular, s.max_periods))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_give_their_mean_and_its_standard_error() {
+        // Four windows: mean 0.25, sample variance ((−0.15)² + (−0.05)² + 0.05² + 0.15²)/3 =
+        // 0.05/3, standard error √(0.05/3/4) = 0.0645497.
+        let e = window_mean(&[0.1, 0.2, 0.3, 0.4], 64);
+        assert!((e.per_period - 0.25).abs() < 1e-15);
+        assert!((e.uncertainty() - (0.05f64 / 12.0).sqrt()).abs() < 1e-15);
+        assert!((e.first_half - 0.15).abs() < 1e-15 && (e.second_half - 0.35).abs() < 1e-15);
+        assert_eq!(e.periods, 256);
+        assert!(e.clearly_positive(3.0));
+        // Positive, but within three standard errors of 0: undecided.
+        let e = window_mean(&[0.3, -0.1, 0.25, -0.05], 64);
+        assert!(!e.clearly_positive(3.0) && !e.clearly_negative(3.0));
+        // One window: no spread, never signed; none: the tangent vanished last.
+        let one = window_mean(&[0.5], 64);
+        assert!(!one.clearly_positive(3.0) && !one.clearly_negative(3.0));
+        let none = window_mean(&[], 64);
+        assert_eq!(none.per_period, f64::NEG_INFINITY);
+        assert!(!none.clearly_positive(3.0));
+    }
 }
