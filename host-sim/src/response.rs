@@ -28,8 +28,9 @@ pub struct ResponseRow {
     /// Whether a steady state was detected.
     pub settled: bool,
     /// Largest Lyapunov exponent per excitation period after the protocol (empty with
-    /// `--no-lyapunov`): of the orbit the label names, or over the confirmation run's windows
-    /// (`chaotic`, `irregular`).
+    /// `--no-lyapunov`): of the orbit the protocol or the confirmation run settled on, over the
+    /// confirmation run's windows (`chaotic`, `irregular` after it), or over the first 64
+    /// periods where that was negative.
     pub lyapunov_per_period: Option<f64>,
     /// Its uncertainty: the confirmation windows' standard error, or half the difference of
     /// one window's halves.

@@ -83,10 +83,10 @@ pub struct Label {
     pub regime: Regime,
     /// The protocol window's regime.
     pub window_regime: Regime,
-    /// The largest Lyapunov exponent, per period: of the orbit the label names (its
-    /// multipliers'), or over the first window after the protocol (a negative one whose
-    /// extended run found no period), or over the confirmation run's windows (`chaotic`, or
-    /// `irregular` after it).
+    /// The largest Lyapunov exponent, per period: of the orbit the protocol or the
+    /// confirmation run settled on (its multipliers'), or over the first window after the
+    /// protocol (a negative one, whatever its extended run found), or over the confirmation
+    /// run's windows (`chaotic`, or `irregular` after it).
     pub exponent: Exponent,
     /// Periods run beyond the protocol and the exponent's first window: by the extended run
     /// to find a period, or by the confirmation run (0 if neither ran).
