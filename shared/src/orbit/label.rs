@@ -131,24 +131,27 @@ pub fn label<T: Real>(
         out.extra_periods = periods;
         return Ok(out);
     }
-    let confirmed = confirm(at, x, s)?;
-    out.extra_periods = confirmed.periods;
-    match confirmed.settled {
-        Some((regime, x_end)) => {
+    match confirm(at, x, s)? {
+        Confirmed::Settled {
+            regime,
+            x_end,
+            periods,
+            repeats_from,
+        } => {
             out.regime = regime;
+            out.extra_periods = periods;
             out.exponent = match regime {
                 Regime::Periodic { q, .. } => orbit_exponent(at, x_end, u32::from(q))?.0,
                 _ => largest_exponent(at, x_end, s.window)?.0,
             };
             if exponent.clearly_positive(s.sigmas) {
-                let span = 3 * s.max_q.min(MAX_EXTENDED_Q);
-                out.chaotic_transient_periods =
-                    Some((s.window + confirmed.periods).saturating_sub(span));
+                out.chaotic_transient_periods = Some(s.window + repeats_from);
             }
         }
-        None => {
-            out.exponent = confirmed.exponent;
-            if confirmed.exponent.clearly_positive(s.sigmas) {
+        Confirmed::Unsettled { exponent, periods } => {
+            out.extra_periods = periods;
+            out.exponent = exponent;
+            if exponent.clearly_positive(s.sigmas) {
                 out.regime = Regime::Chaotic;
             }
         }
@@ -208,14 +211,18 @@ impl<T: Real> Recogniser<T> {
 }
 
 /// What a confirmation run found.
-struct Confirmed<T: Real> {
-    /// The regime it settled on and the state it ended in, if it settled.
-    settled: Option<(Regime, Vector2<T>)>,
-    /// The exponent over its whole windows since the tangent last vanished (the mean, its
-    /// halves, and the windows' standard error).
-    exponent: Exponent,
-    /// Periods run.
-    periods: u32,
+enum Confirmed<T: Real> {
+    /// It settled on `regime`, ending in `x_end` after `periods`, the regime repeating over
+    /// the periods after `repeats_from` (of the run).
+    Settled {
+        regime: Regime,
+        x_end: Vector2<T>,
+        periods: u32,
+        repeats_from: u32,
+    },
+    /// No regime showed over its `periods`: the exponent over its whole windows since the
+    /// tangent last vanished (the mean, its halves, and the windows' standard error).
+    Unsettled { exponent: Exponent, periods: u32 },
 }
 
 /// Runs the map from `x` with its tangent for up to `s.confirm_periods` (whole windows of
@@ -246,11 +253,12 @@ fn confirm<T: Real>(
     for k in 1..=total {
         let (image, stretch, trace) = tangent.period(x)?;
         x = image;
-        if let Some(r) = seen.push(k, tangent.relative(), trace.impacts) {
-            return Ok(Confirmed {
-                settled: Some((r, x)),
-                exponent: window_mean(&windows, s.window),
+        if let Some(regime) = seen.push(k, tangent.relative(), trace.impacts) {
+            return Ok(Confirmed::Settled {
+                regime,
+                x_end: x,
                 periods: k,
+                repeats_from: k.saturating_sub(seen.span as u32),
             });
         }
         match stretch {
@@ -268,8 +276,7 @@ fn confirm<T: Real>(
             }
         }
     }
-    Ok(Confirmed {
-        settled: None,
+    Ok(Confirmed::Unsettled {
         exponent: window_mean(&windows, s.window),
         periods: total,
     })

@@ -276,8 +276,7 @@ fn transient_chaos_is_labelled_by_the_orbit_it_settles_on() {
         assert!(first.clearly_positive(settings.sigmas), "{first:?}");
         assert_eq!(l.regime, Regime::Periodic { p: 12, q: 26 });
         assert!(l.extra_periods > 0 && l.extra_periods <= settings.confirm_periods);
-        let n = l.chaotic_transient_periods.unwrap();
-        assert!(n <= settings.window + l.extra_periods, "{n}");
+        assert!(l.chaotic_transient_periods.is_some());
         assert!(
             l.exponent.clearly_negative(settings.sigmas),
             "{:?}",
@@ -293,6 +292,29 @@ fn transient_chaos_is_labelled_by_the_orbit_it_settles_on() {
         y = iterate(&at, 1, y).unwrap().x;
     }
     let o = shoot(&at, 26, y, &ShootSettings::for_type::<f64>()).unwrap();
+    // The transient stated: from the protocol's end plus that many periods on, the map's
+    // iterates repeat with period 26 to 1e-3 of the scales over three cycles (checked here
+    // with the map and the scaled distance, not the label's classifier).
+    let n = l.chaotic_transient_periods.unwrap();
+    let sc = at.scales();
+    let mut z = x;
+    for _ in 0..n {
+        z = iterate(&at, 1, z).unwrap().x;
+    }
+    let mut pts = vec![z];
+    for _ in 0..3 * 26 {
+        pts.push(iterate(&at, 1, *pts.last().unwrap()).unwrap().x);
+    }
+    let worst = (0..2 * 26)
+        .map(|j| {
+            let (a, b) = (pts[j], pts[j + 26]);
+            ((a[0] - b[0]) / sc[0])
+                .abs()
+                .max(((a[1] - b[1]) / sc[1]).abs())
+        })
+        .fold(0.0f64, f64::max);
+    println!("  from {n} periods after the protocol: largest 26-period repeat error {worst:.2e}");
+    assert!(worst < 1e-3, "{worst}");
     let rate = o.floquet.max_abs().ln() / 26.0;
     println!(
         "  the 12/26 orbit: max|μ| {:.4} (rate {rate:.5})",
