@@ -202,6 +202,11 @@ impl<T: Real, const N: usize> Real for Dual<T, N> {
         self.chain(self.v.asin(), one / (one - self.v * self.v).sqrt())
     }
     #[inline(always)]
+    fn exp(self) -> Self {
+        let r = self.v.exp();
+        self.chain(r, r)
+    }
+    #[inline(always)]
     fn powf(self, e: Self) -> Self {
         // d(x^e) = e x^(e−1) dx + x^e ln x de; the exponents of the contact laws are constants.
         let value = self.v.powf(e.v);
@@ -258,7 +263,7 @@ mod tests {
     #[test]
     fn derivatives_match_central_differences() {
         let x = 0.37;
-        let cases: [Pair; 6] = [
+        let cases: [Pair; 7] = [
             (&|a: D| a * a * a - a / (a + D::from_f64(2.0)), &|a: f64| {
                 a * a * a - a / (a + 2.0)
             }),
@@ -268,6 +273,7 @@ mod tests {
             }),
             (&|a: D| a.sqrt().asin(), &|a: f64| a.sqrt().asin()),
             (&|a: D| a.powf(D::from_f64(1.6)), &|a: f64| a.powf(1.6)),
+            (&|a: D| (-a * a).exp(), &|a: f64| (-a * a).exp()),
             (&|a: D| (-a).abs() * D::from_f64(3.0), &|a: f64| {
                 a.abs() * 3.0
             }),

@@ -59,6 +59,8 @@ pub trait Real:
     fn sqrt(self) -> Self;
     /// `libm` arc sine.
     fn asin(self) -> Self;
+    /// `libm` exponential `e^self`.
+    fn exp(self) -> Self;
     /// `libm` power `self^e`.
     fn powf(self, e: Self) -> Self;
     /// Absolute value.
@@ -149,7 +151,7 @@ fn horner<T: Copy + Add<Output = T> + Mul<Output = T>, const K: usize>(
 }
 
 macro_rules! impl_real {
-    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
+    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $exp:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
         impl Real for $t {
             const NAME: &'static str = $name;
             const EPSILON: f64 = <$t>::EPSILON as f64;
@@ -218,6 +220,10 @@ macro_rules! impl_real {
                 $asin(self)
             }
             #[inline(always)]
+            fn exp(self) -> Self {
+                $exp(self)
+            }
+            #[inline(always)]
             fn powf(self, e: Self) -> Self {
                 $pow(self, e)
             }
@@ -240,6 +246,7 @@ impl_real!(
     libm::cosf,
     libm::sqrtf,
     libm::asinf,
+    libm::expf,
     libm::powf,
     libm::fabsf,
     3,
@@ -252,6 +259,7 @@ impl_real!(
     libm::cos,
     libm::sqrt,
     libm::asin,
+    libm::exp,
     libm::pow,
     libm::fabs,
     6,

@@ -131,7 +131,10 @@ fn plants() -> Vec<(&'static str, RigParams)> {
 
 /// The accuracy: contact parameters within 5 %, natural frequency within 1 %, for each
 /// plant and three noise seeds of an 8 mm drop; the law fits to the noise and every truth lies
-/// within twice its stated 95 % interval.
+/// within twice its stated 95 % interval; the damping ratio within 0.005 (its standard deviation
+/// over 20 seeds is 0.0029 on the ζ = 0.01 pendulum: `cargo run --release -p host-sim --example
+/// onboard_identify 20`; the ratio of one pulse's departure speed to the next one's arrival
+/// speed read 0.0014 on seed 2).
 #[test]
 fn an_8_mm_drop_fixes_the_contact_within_5_pct_and_the_frequency_within_1_pct() {
     for (name, p) in plants() {
@@ -156,14 +159,15 @@ fn an_8_mm_drop_fixes_the_contact_within_5_pct_and_the_frequency_within_1_pct() 
             assert!(id.impacts >= 4, "{what}");
             // The noise the baselines measure: 0.002 V / 0.01 V/N = 0.2 N with quantisation.
             assert!((0.17..0.24).contains(&id.noise_n), "{what}");
-            assert!(s.damping_ratio < 0.03, "{what}");
+            let ez = f64::from(s.damping_ratio) - p.damping_ratio();
+            assert!(ez.abs() < 0.005, "{what}: ζ off by {ez:+.4}");
         }
     }
 }
 
 /// Without sensor noise (the 12-bit quantisation alone) the linear fit is exact up to the
 /// sampling: `k_i`, `c_i` within 0.5 %, `f_n` within 0.01 %, the restitution that of the plant's
-/// law and `ζ` within 0.003.
+/// law and `ζ` within 0.0005.
 #[test]
 fn without_noise_the_fit_recovers_the_plant() {
     for (name, p) in plants() {
@@ -179,7 +183,7 @@ fn without_noise_the_fit_recovers_the_plant() {
             "{what}"
         );
         assert!(
-            (f64::from(s.damping_ratio) - p.damping_ratio()).abs() < 0.003,
+            (f64::from(s.damping_ratio) - p.damping_ratio()).abs() < 0.0005,
             "{what}"
         );
         // The linear law's restitution, closed form (force-free exit; Table 3.1: 0.317).

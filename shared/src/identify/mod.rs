@@ -8,7 +8,7 @@
 //! - **the natural frequency** from the impacts' spacing: released against the surface at its
 //!   rest position, the free hammer leaves the surface and returns to it half a damped period
 //!   `π / ω_d` later, whatever the rebound ([`spacing`]); the suspension's damping ratio from
-//!   the speed lost over that half period.
+//!   the speed lost over that half period (successive impulses over the law's restitution).
 //!
 //! Each result carries its quality: the fit's residual over the sensor noise measured before
 //! the impacts (the reduced χ², 1 when the law fits), 95 % intervals of `k_i` and `c_i` from
@@ -24,6 +24,7 @@ pub use record::{CaptureOnChain, DropRecord, RecordedDrop, SegmentForce};
 
 use crate::capture::SEGMENTS;
 use crate::error::ParamError;
+use crate::model::contact::spring_dashpot_restitution_of;
 use crate::model::{ContactLaw, RigParams, Suspension};
 
 use linear_fit::{NormalEquations, PulseMoments};
@@ -311,8 +312,13 @@ pub fn identify_drop(
         *kn = Kinematics::of(s, kappa, gamma, mass_kg);
     }
     let suspension = if gap_m <= MAX_SPACING_GAP_M {
+        // The law's restitution: a function of its damping ratio `γ / (2 √κ)` alone.
+        let zeta_c = gamma / (2.0 * libm::sqrtf(kappa));
+        let (restitution, _) =
+            spring_dashpot_restitution_of(zeta_c).ok_or(DropRefusal::NotIdentifiable)?;
         Some(spacing::suspension(
             &kin[..n],
+            restitution,
             (recorded == n).then(|| (rec.level_n(), rec.samples())),
         )?)
     } else {

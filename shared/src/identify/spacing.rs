@@ -3,6 +3,12 @@
 //! after half a damped period `π / ω_d` whatever that speed (the linear oscillator's
 //! isochronism; the pendulum's amplitude correction `θ₀²/16` is 1e-4 at 3 mm on 75 mm wires).
 //! The speed lost on the way gives the damping ratio: `v_in / v_out = exp(−π ζ / √(1 − ζ²))`.
+//! Each contact returns `e` of its arrival speed, `e` the fitted law's restitution (a function
+//! of the law's shape alone), so successive impulses `J = m (1 + e) v_in` fall by `e` times that
+//! ratio: `ln r = ln(J_{k+1} / J_k) − ln e`. The impulses are the pulses' best-measured numbers
+//! (a sum over the whole pulse), and `e` comes from all pulses at once; the ratio of one pulse's
+//! departure speed to the next one's arrival speed would carry the weaker pulse's arrival-speed
+//! error and its `J` error times `(1 + e) / e` (≈ 4 at `e = 0.317`).
 //! Arrival and departure times and speeds come from each pulse's fitted line
 //! ([`super::linear_fit`]), to a fraction of a sample.
 
@@ -92,7 +98,7 @@ fn flight(a: &Kinematics, b: &Kinematics) -> f32 {
     b.start.wrapping_sub(a.start) as f32 + (b.centre + b.arrival) - (a.centre + a.departure)
 }
 
-/// The suspension from the impacts `kin` (in order).
+/// The suspension from the impacts `kin` (in order), `restitution` the fitted law's.
 ///
 /// # Errors
 /// [`DropRefusal::IrregularSpacing`] when a flight is off the others' median by more than
@@ -101,6 +107,7 @@ fn flight(a: &Kinematics, b: &Kinematics) -> f32 {
 /// next impact's time and that impact should have crossed the trigger level twice over.
 pub(super) fn suspension(
     kin: &[Kinematics],
+    restitution: f32,
     train_end: Option<(f32, u32)>,
 ) -> Result<SuspensionId, DropRefusal> {
     let halves = kin.len().saturating_sub(1).min(SEGMENTS);
@@ -126,15 +133,16 @@ pub(super) fn suspension(
         .iter()
         .map(|&x| libm::fabsf(x - mean))
         .fold(0.0f32, f32::max);
-    // Each half's log speed ratio, weighted by the later impact's peak squared (its speeds'
-    // signal-to-noise ratio squared).
-    let (mut ln_r, mut wsum) = (0.0f32, 0.0f32);
+    // Each half's log impulse ratio, weighted by the later impact's peak squared (its
+    // impulse's signal-to-noise ratio squared), less the contact's share.
+    let impulse = |k: &Kinematics| k.v_arrival - k.v_out;
+    let (mut ln_j, mut wsum) = (0.0f32, 0.0f32);
     for w in kin.windows(2) {
         let weight = w[1].peak_n * w[1].peak_n;
-        ln_r += weight * libm::logf(w[1].v_arrival / -w[0].v_out);
+        ln_j += weight * libm::logf(impulse(&w[1]) / impulse(&w[0]));
         wsum += weight;
     }
-    ln_r /= wsum;
+    let ln_r = ln_j / wsum - libm::logf(restitution);
     let pi = core::f32::consts::PI;
     let zeta = (-ln_r / libm::sqrtf(pi * pi + ln_r * ln_r)).max(0.0);
     let omega_d = pi / (mean * SAMPLE_PERIOD_S);
