@@ -207,6 +207,16 @@ impl<T: Real, const N: usize> Real for Dual<T, N> {
         self.chain(r, r)
     }
     #[inline(always)]
+    fn atan2(self, x: Self) -> Self {
+        // d atan2(y, x) = (x dy − y dx) / (x² + y²).
+        let r2 = x.v * x.v + self.v * self.v;
+        let mut out = Dual::constant(self.v.atan2(x.v));
+        for ((o, dy), dx) in out.d.iter_mut().zip(self.d).zip(x.d) {
+            *o = (x.v * dy - self.v * dx) / r2;
+        }
+        out
+    }
+    #[inline(always)]
     fn powf(self, e: Self) -> Self {
         // d(x^e) = e x^(e−1) dx + x^e ln x de; the exponents of the contact laws are constants.
         let value = self.v.powf(e.v);
@@ -263,7 +273,7 @@ mod tests {
     #[test]
     fn derivatives_match_central_differences() {
         let x = 0.37;
-        let cases: [Pair; 7] = [
+        let cases: [Pair; 8] = [
             (&|a: D| a * a * a - a / (a + D::from_f64(2.0)), &|a: f64| {
                 a * a * a - a / (a + 2.0)
             }),
@@ -274,6 +284,9 @@ mod tests {
             (&|a: D| a.sqrt().asin(), &|a: f64| a.sqrt().asin()),
             (&|a: D| a.powf(D::from_f64(1.6)), &|a: f64| a.powf(1.6)),
             (&|a: D| (-a * a).exp(), &|a: f64| (-a * a).exp()),
+            (&|a: D| (a * a).atan2(D::from_f64(1.0) - a), &|a: f64| {
+                (a * a).atan2(1.0 - a)
+            }),
             (&|a: D| (-a).abs() * D::from_f64(3.0), &|a: f64| {
                 a.abs() * 3.0
             }),

@@ -61,6 +61,8 @@ pub trait Real:
     fn asin(self) -> Self;
     /// `libm` exponential `e^self`.
     fn exp(self) -> Self;
+    /// `libm` four-quadrant arc tangent of `self / x`.
+    fn atan2(self, x: Self) -> Self;
     /// `libm` power `self^e`.
     fn powf(self, e: Self) -> Self;
     /// Absolute value.
@@ -151,7 +153,7 @@ fn horner<T: Copy + Add<Output = T> + Mul<Output = T>, const K: usize>(
 }
 
 macro_rules! impl_real {
-    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $exp:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
+    ($t:ty, $name:literal, $sin:path, $cos:path, $sqrt:path, $asin:path, $exp:path, $atan2:path, $pow:path, $fabs:path, $short:literal, $long:literal) => {
         impl Real for $t {
             const NAME: &'static str = $name;
             const EPSILON: f64 = <$t>::EPSILON as f64;
@@ -224,6 +226,10 @@ macro_rules! impl_real {
                 $exp(self)
             }
             #[inline(always)]
+            fn atan2(self, x: Self) -> Self {
+                $atan2(self, x)
+            }
+            #[inline(always)]
             fn powf(self, e: Self) -> Self {
                 $pow(self, e)
             }
@@ -247,6 +253,7 @@ impl_real!(
     libm::sqrtf,
     libm::asinf,
     libm::expf,
+    libm::atan2f,
     libm::powf,
     libm::fabsf,
     3,
@@ -260,6 +267,7 @@ impl_real!(
     libm::sqrt,
     libm::asin,
     libm::exp,
+    libm::atan2,
     libm::pow,
     libm::fabs,
     6,

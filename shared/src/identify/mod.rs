@@ -24,7 +24,7 @@ pub use record::{CaptureOnChain, DropRecord, RecordedDrop, SegmentForce};
 
 use crate::capture::SEGMENTS;
 use crate::error::ParamError;
-use crate::model::contact::spring_dashpot_restitution_of;
+use crate::model::contact::spring_dashpot_restitution_in;
 use crate::model::{ContactLaw, RigParams, Suspension};
 
 use linear_fit::{NormalEquations, PulseMoments};
@@ -312,10 +312,10 @@ pub fn identify_drop(
         *kn = Kinematics::of(s, kappa, gamma, mass_kg);
     }
     let suspension = if gap_m <= MAX_SPACING_GAP_M {
-        // The law's restitution: a function of its damping ratio `γ / (2 √κ)` alone.
-        let zeta_c = gamma / (2.0 * libm::sqrtf(kappa));
-        let (restitution, _) =
-            spring_dashpot_restitution_of(zeta_c).ok_or(DropRefusal::NotIdentifiable)?;
+        // The fitted law's restitution (an overdamped fit has no closed form: the first
+        // impact's own then).
+        let restitution = spring_dashpot_restitution_in(k_i, c_i, mass_kg)
+            .map_or(-kin[0].v_out / kin[0].v_arrival, |(e, _)| e);
         Some(spacing::suspension(
             &kin[..n],
             restitution,

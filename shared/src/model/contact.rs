@@ -387,9 +387,9 @@ impl ContactLaw {
 /// from `δ(0) = 0`, `δ̇(0) = v`: `δ = (v/ω_d) e^{−ζω_n t} sin ω_d t`,
 /// `δ̇ = v e^{−ζω_n t} (cos ω_d t − (ζω_n/ω_d) sin ω_d t)`. The force
 /// `F = k δ + c δ̇ = v e^{−ζω_n t} [c cos ω_d t + ((k − c ζ ω_n)/ω_d) sin ω_d t]` vanishes first at
-/// `tan(ω_d t_c) = −c ω_d / (k − c ζ ω_n)`, i.e. `ω_d t_c = π − atan2(2ζ sqrt(1−ζ²), 1 − 2ζ²)
-/// = π − 2 asin ζ`. Then `e = −δ̇(t_c)/v = e^{−ζ ω_n t_c}` ([`spring_dashpot_restitution_of`]).
-/// Returns `(e, t_c)` (s), or `None` for `ζ ≥ 1` or bad input.
+/// `tan(ω_d t_c) = −c ω_d / (k − c ζ ω_n)`, i.e. `ω_d t_c = π − atan2(2ζ sqrt(1−ζ²), 1 − 2ζ²)`.
+/// Then `e = −δ̇(t_c)/v` (which is `e^{−ζ ω_n t_c}`: a function of `ζ` alone). Returns
+/// `(e, t_c)` (s), or `None` for `ζ ≥ 1` or bad input.
 ///
 /// For Table 3.1 with `m = 0.298 kg`: `ζ = 0.469`, `t_c ≈ 0.57 ms`, `e ≈ 0.317`.
 pub fn spring_dashpot_restitution(
@@ -397,28 +397,33 @@ pub fn spring_dashpot_restitution(
     damping_n_s_m: f64,
     mass_kg: f64,
 ) -> Option<(f64, f64)> {
-    if !(stiffness_n_m > 0.0 && mass_kg > 0.0 && damping_n_s_m >= 0.0) {
-        return None;
-    }
-    let wn = libm::sqrt(stiffness_n_m / mass_kg);
-    let zeta = damping_n_s_m / (2.0 * libm::sqrt(stiffness_n_m * mass_kg));
-    let (e, phase) = spring_dashpot_restitution_of(zeta)?;
-    Some((e, phase / (wn * libm::sqrt(1.0 - zeta * zeta))))
+    spring_dashpot_restitution_in(stiffness_n_m, damping_n_s_m, mass_kg)
 }
 
-/// The spring–dashpot law's coefficient of restitution (force-vanish exit) from the contact's
-/// damping ratio `ζ = c / (2 sqrt(k m))` alone, in any precision (the board's identification
-/// runs it in `f32`): `(e, ω_d t_c)` with `ω_d t_c = π − 2 asin ζ` and
-/// `e = exp(−ζ ω_d t_c / sqrt(1 − ζ²))` (derivation at [`spring_dashpot_restitution`]).
-/// `None` unless `0 ≤ ζ < 1`.
-pub fn spring_dashpot_restitution_of<T: Real>(zeta: T) -> Option<(T, T)> {
-    let one = T::from_f64(1.0);
-    if !(zeta >= T::zero() && zeta < one) {
+/// [`spring_dashpot_restitution`] in any precision (the board's identification runs it in
+/// `f32`; in `f64` it is that function, bit for bit).
+pub fn spring_dashpot_restitution_in<T: Real>(
+    stiffness_n_m: T,
+    damping_n_s_m: T,
+    mass_kg: T,
+) -> Option<(T, T)> {
+    let (zero, one, two) = (T::zero(), T::from_f64(1.0), T::from_f64(2.0));
+    if !(stiffness_n_m > zero && mass_kg > zero && damping_n_s_m >= zero) {
+        return None;
+    }
+    let wn = (stiffness_n_m / mass_kg).sqrt();
+    let zeta = damping_n_s_m / (two * (stiffness_n_m * mass_kg).sqrt());
+    if !zeta.is_finite() || zeta >= one {
         return None;
     }
     let s = (one - zeta * zeta).sqrt();
-    let phase = T::from_f64(core::f64::consts::PI) - T::from_f64(2.0) * zeta.asin();
-    Some(((-(zeta / s * phase)).exp(), phase))
+    let wd = wn * s;
+    let phase =
+        T::from_f64(core::f64::consts::PI) - (two * zeta * s).atan2(one - two * zeta * zeta);
+    let tc = phase / wd;
+    let decay = (-zeta * wn * tc).exp();
+    let rate = decay * (phase.cos() - zeta / s * phase.sin());
+    Some((-rate, tc))
 }
 
 /// One RK4 step over `h` s of a lone impact, `δ̈ = accel(δ, δ̇)`, from `(δ, δ̇)` (m, m/s)
@@ -558,35 +563,33 @@ mod tests {
         assert!(spring_dashpot_restitution(1e6, 1e4, 1.0).is_none());
     }
 
-    /// The closed form in the contact's damping ratio alone, against the RK4 impact of a unit
-    /// mass (an independent computation) over the underdamped range, and in `f32` (the board's)
-    /// against `f64`.
+    /// The closed form against the RK4 impact of a unit mass (an independent computation) over
+    /// the underdamped range, as `e^{−ζ ω_n t_c}`, and in `f32` (the board's) against `f64`.
     #[test]
-    fn restitution_from_the_damping_ratio_alone() {
+    fn restitution_in_any_precision() {
         for zeta in [0.0, 0.05, 0.2, 0.469, 0.7, 0.95] {
-            let (e, phase) = spring_dashpot_restitution_of(zeta).unwrap();
+            let (k, c, m) = (1e6, 2.0 * zeta * 1e3, 1.0);
+            let (e, tc) = spring_dashpot_restitution_in(k, c, m).unwrap();
+            assert_eq!(spring_dashpot_restitution(k, c, m), Some((e, tc)));
             let law = ContactLaw::SpringDashpot {
-                stiffness_n_m: 1e6,
-                damping_n_s_m: 2.0 * zeta * 1e3,
+                stiffness_n_m: k,
+                damping_n_s_m: c,
             };
-            let simulated = law.restitution(1.0, 0.1).unwrap();
+            let simulated = law.restitution(m, 0.1).unwrap();
             assert!(
                 (e - simulated).abs() < 1e-9,
                 "ζ = {zeta}: {e} vs {simulated}"
             );
-            // ω_d t_c in (0, π]: the force vanishes before the spring's half period (at it
-            // without damping).
-            let half = core::f64::consts::PI;
-            assert!(phase > 0.0 && phase <= half && (zeta > 0.0 || phase == half));
-            let (e32, _) = spring_dashpot_restitution_of(zeta as f32).unwrap();
+            assert!((e - (-zeta * 1e3 * tc).exp()).abs() < 1e-12, "ζ = {zeta}");
+            let (e32, _) = spring_dashpot_restitution_in(k as f32, c as f32, m as f32).unwrap();
             // A few ulps of the exponent's argument `ln e`, and of `e`.
             let rel = (f64::from(e32) / e - 1.0).abs() / f64::from(f32::EPSILON);
             let bound = 4.0 * (1.0 + e.ln().abs());
             assert!(rel < bound, "ζ = {zeta}: f32 {e32}, f64 {e}: {rel} ε");
         }
-        assert!(spring_dashpot_restitution_of(1.0f32).is_none());
-        assert!(spring_dashpot_restitution_of(-0.1f32).is_none());
-        assert!(spring_dashpot_restitution_of(f32::NAN).is_none());
+        assert!(spring_dashpot_restitution_in(1e6f32, 2e3, 1.0).is_none());
+        assert!(spring_dashpot_restitution_in(1e6f32, -1.0, 1.0).is_none());
+        assert!(spring_dashpot_restitution_in(f32::NAN, 1.0, 1.0).is_none());
     }
 
     #[test]
