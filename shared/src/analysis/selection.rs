@@ -36,6 +36,11 @@ pub struct SelectionSpec {
     pub freq_margin_pct: f64,
     /// Required robustness in gap, ± mm (default 0.1; the lower side is clipped at 0 mm).
     pub gap_margin_mm: f64,
+    /// Place the target between grid points where `F_i/mg` peaks inside the robust points: the
+    /// vertex of the parabola through the best point and its two neighbours, when both are
+    /// robust (default false: the grid point; the embedded profile's coarse sweep sets it).
+    #[serde(default)]
+    pub refine_peak: bool,
 }
 
 impl Default for SelectionSpec {
@@ -48,6 +53,7 @@ impl Default for SelectionSpec {
             },
             freq_margin_pct: 5.0,
             gap_margin_mm: 0.1,
+            refine_peak: false,
         }
     }
 }
@@ -55,7 +61,8 @@ impl Default for SelectionSpec {
 impl SelectionSpec {
     /// The on-target selection (with [`SimSettings::embedded`]): `Ω/ω` 1.0:3.6:0.1 (27
     /// frequencies; for all four rigs at 0 and 1 mm the target is the same as with 1.0:4.0, the
-    /// `1/2` band above Ω/ω ≈ 3.4 being left to the host), ±5 % and ±0.1 mm as the default.
+    /// `1/2` band above Ω/ω ≈ 3.4 being left to the host), ±5 % and ±0.1 mm as the default, the
+    /// peak placed between grid points (`refine_peak`: a step of 0.1 is 5 % at Ω/ω = 2).
     pub fn embedded() -> Self {
         SelectionSpec {
             omega_ratio: Sweep {
@@ -63,6 +70,7 @@ impl SelectionSpec {
                 hi: 3.6,
                 step: 0.1,
             },
+            refine_peak: true,
             ..SelectionSpec::default()
         }
     }
@@ -99,10 +107,10 @@ pub fn perturbed_gaps(gap_m: f64, gap_margin_mm: f64) -> Vec<f64, 2> {
     out
 }
 
-/// One point of the sweep.
+/// One point of the sweep (or, for a refined peak, between two of its points).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Candidate {
-    /// Index in the sweep.
+    /// Index in the sweep (a refined peak: the grid point it was refined from).
     pub index: usize,
     /// `Ω/ω`.
     pub omega_ratio: f64,
@@ -110,7 +118,7 @@ pub struct Candidate {
     pub freq_hz: f64,
     /// Regime at the nominal gap.
     pub regime: Regime,
-    /// Predicted maximum impact force, `F_i/mg`.
+    /// Predicted maximum impact force, `F_i/mg` (a refined peak: the parabola's vertex value).
     pub impact_force_mg: f64,
 }
 
@@ -248,6 +256,26 @@ pub fn select(
         });
     };
 
+    // The chosen point, between grid points where the peak is refined.
+    let force = |j: usize| f64::from(nominal[j].impact_force_mg);
+    let robust_point = |j: usize| {
+        one_one(j) && robustness_window(spec, j).is_some_and(|(a, b)| (a..=b).all(robust_at))
+    };
+    let mut chosen = candidate(i);
+    let (mut w_lo, mut w_hi) = (j_lo, j_hi);
+    if spec.refine_peak && i > 0 && i + 1 < n && robust_point(i - 1) && robust_point(i + 1) {
+        let (fm, f0, fp) = (force(i - 1), force(i), force(i + 1));
+        if let Some((offset, peak)) = parabola_vertex(fm, f0, fp) {
+            chosen.omega_ratio = sweep.value(i) + offset * sweep.step;
+            chosen.freq_hz = params.freq_hz_from_ratio(chosen.omega_ratio);
+            chosen.impact_force_mg = peak;
+            // Its window lies within the union of the two robust grid points' around it.
+            if let Some(w) = ratio_window(spec, chosen.omega_ratio) {
+                (w_lo, w_hi) = w;
+            }
+        }
+    }
+
     // Band at the nominal gap around the chosen point.
     let mut b_lo = i;
     while b_lo > 0 && one_one(b_lo - 1) {
@@ -257,10 +285,10 @@ pub fn select(
     while b_hi + 1 < n && one_one(b_hi + 1) {
         b_hi += 1;
     }
-    let (r, r_lo, r_hi) = (sweep.value(i), sweep.value(b_lo), sweep.value(b_hi));
+    let (r, r_lo, r_hi) = (chosen.omega_ratio, sweep.value(b_lo), sweep.value(b_hi));
     let margin_freq_pct = (r - r_lo).min(r_hi - r) / r * 100.0;
 
-    let worst = (j_lo..=j_hi)
+    let worst = (w_lo..=w_hi)
         .flat_map(|j| core::iter::once(nominal[j]).chain(perturbed.iter().map(move |resp| resp[j])))
         .map(|s| f64::from(s.impact_force_mg))
         .fold(f64::INFINITY, f64::min);
@@ -289,7 +317,7 @@ pub fn select(
 
     let gaps_checked = !perturbed.is_empty();
     Ok(Selection {
-        best: candidate(i),
+        best: chosen,
         band_ratio: [r_lo, r_hi],
         band_hz: [
             params.freq_hz_from_ratio(r_lo),
@@ -308,16 +336,32 @@ pub fn select(
     })
 }
 
+/// The vertex of the parabola through `(−1, fm)`, `(0, f0)`, `(1, fp)`: its abscissa (in grid
+/// steps, within ±1/2 when `f0` is the largest) and value; `None` unless the three make a
+/// strict maximum at the middle point.
+fn parabola_vertex(fm: f64, f0: f64, fp: f64) -> Option<(f64, f64)> {
+    let curvature = fm - 2.0 * f0 + fp;
+    if !(curvature < 0.0 && f0 >= fm && f0 >= fp) {
+        return None;
+    }
+    let offset = 0.5 * (fm - fp) / curvature;
+    Some((offset, f0 - 0.25 * (fm - fp) * offset))
+}
+
 /// The sweep indices `j_lo ..= j_hi` whose frequencies cover `±freq_margin_pct` around sweep
 /// point `i` (widened outward to the next grid points), or `None` when that window leaves the
 /// sweep (the point cannot be verified): the points [`select`] asks to be `1/1` at every gap
 /// checked for `i` to be robust.
 pub fn robustness_window(spec: &SelectionSpec, i: usize) -> Option<(usize, usize)> {
+    ratio_window(spec, spec.omega_ratio.value(i))
+}
+
+/// [`robustness_window`] around any ratio `r` of the sweep's range.
+fn ratio_window(spec: &SelectionSpec, r: f64) -> Option<(usize, usize)> {
     let sweep = spec.omega_ratio;
     let n = sweep.len();
     let p = spec.freq_margin_pct / 100.0;
     let eps = 1e-9 * sweep.step;
-    let r = sweep.value(i);
     let (lo, hi) = (r * (1.0 - p), r * (1.0 + p));
     if n == 0 || lo < sweep.lo - eps || hi > sweep.value(n - 1) + eps {
         return None;
@@ -334,15 +378,15 @@ pub const MAX_SEQUENTIAL_POINTS: usize = 512;
 /// path the firmware runs. Gives the same result as computing the responses elsewhere (in
 /// parallel on the host) and calling [`select`].
 ///
-/// The firmware's on-target selection for the wire rig at 0.0 mm gap: 3.640 Hz, inside the
-/// `1/1` band of 2.1–4.7 Hz.
+/// The firmware's on-target selection for the wire rig at 0.0 mm gap: 3.665 Hz (the peak
+/// between the grid's 2.0 and 2.1), inside the `1/1` band of 2.1–4.7 Hz.
 /// ```
 /// use shared::analysis::{SelectionSpec, SimSettings, select_sequential};
 /// use shared::model::RigId;
 /// let p = RigId::Wires.preset();
 /// let s = select_sequential::<f32>(&p, 0.0, &SelectionSpec::embedded(), &SimSettings::embedded())
 ///     .expect("a robust 1/1 point");
-/// assert!((s.best.freq_hz - 3.6404).abs() < 1e-3);
+/// assert!((s.best.freq_hz - 3.6650).abs() < 1e-3);
 /// assert!(s.band_hz[0] < 2.2 && s.band_hz[1] > 4.6);
 /// ```
 ///
@@ -428,6 +472,7 @@ mod tests {
             omega_ratio: Sweep::new("omega_ratio", 1.0, 2.99, 0.01).unwrap(),
             freq_margin_pct: 5.0,
             gap_margin_mm: 0.1,
+            refine_peak: false,
         }
     }
 
@@ -483,6 +528,74 @@ mod tests {
             "{:?}",
             sel2.best
         );
+    }
+
+    /// On a coarse sweep a parabolic peak is placed where it is (the vertex of a parabola is
+    /// exact for a parabola), its force the peak's; where a neighbour is not robust the grid
+    /// point stays, and without `refine_peak` it always does.
+    #[test]
+    fn a_refined_peak_lies_between_grid_points() {
+        let p = RigId::Wires.preset();
+        let coarse = |refine_peak| SelectionSpec {
+            omega_ratio: Sweep::new("omega_ratio", 1.0, 3.0, 0.1).unwrap(),
+            refine_peak,
+            ..spec()
+        };
+        let peak = |r: f64| 30.0 - 40.0 * (r - 2.037) * (r - 2.037);
+        let sp = coarse(true);
+        let nominal = response(&sp, |r| {
+            if (1.3 - 1e-9..=2.8 + 1e-9).contains(&r) {
+                s(Regime::ONE_ONE, peak(r) as f32)
+            } else {
+                s(Regime::NoImpact, 0.0)
+            }
+        });
+        let sel = select(&p, &sp, &nominal, &[&nominal]).unwrap();
+        // f32 samples: the vertex to their rounding.
+        assert!(
+            (sel.best.omega_ratio - 2.037).abs() < 1e-5,
+            "{:?}",
+            sel.best
+        );
+        assert!((sel.best.impact_force_mg - 30.0).abs() < 1e-5);
+        assert!((sel.best.freq_hz - p.freq_hz_from_ratio(sel.best.omega_ratio)).abs() < 1e-12);
+        assert_eq!(sel.best.index, 10);
+        let r = sel.best.omega_ratio;
+        assert!((sel.margin_freq_pct - (r - 1.3) / r * 100.0).abs() < 1e-9);
+        // Its own window, 1.935 ..= 2.139, widened to the grid: the worst over 1.9 ..= 2.2.
+        assert!((sel.worst_impact_force_mg - f64::from(peak(2.2) as f32)).abs() < 1e-9);
+        let grid = select(&p, &coarse(false), &nominal, &[&nominal]).unwrap();
+        assert!((grid.best.omega_ratio - 2.0).abs() < 1e-12);
+        assert_eq!(grid.best.impact_force_mg, f64::from(peak(2.0) as f32));
+        // A perturbed gap whose band ends at 2.2: 2.1 is not robust (its window reaches 2.3),
+        // so 2.0 is the best robust point and stays on the grid.
+        let shifted: std::vec::Vec<_> = nominal
+            .iter()
+            .enumerate()
+            .map(|(j, x)| {
+                if sp.omega_ratio.value(j) > 2.2 + 1e-9 {
+                    s(Regime::Irregular, 0.0)
+                } else {
+                    *x
+                }
+            })
+            .collect();
+        let kept = select(&p, &sp, &nominal, &[&shifted]).unwrap();
+        assert!(
+            (kept.best.omega_ratio - 2.0).abs() < 1e-12,
+            "{:?}",
+            kept.best
+        );
+    }
+
+    #[test]
+    fn parabola_vertex_only_at_a_strict_maximum() {
+        let (x, y) = parabola_vertex(1.0, 2.0, 1.5).unwrap();
+        // y = 2 + 0.25 x − 0.75 x²: vertex at x = 1/6, y = 2 + 1/48.
+        assert!((x - 1.0 / 6.0).abs() < 1e-15 && (y - (2.0 + 1.0 / 48.0)).abs() < 1e-15);
+        assert_eq!(parabola_vertex(1.0, 1.0, 1.0), None);
+        assert_eq!(parabola_vertex(1.0, 2.0, 3.0), None);
+        assert_eq!(parabola_vertex(f64::NAN, 2.0, 1.0), None);
     }
 
     #[test]

@@ -25,7 +25,7 @@ use super::status::{
     AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,
     ModelStatus, PeakForce, State, Status, Target,
 };
-use super::tracker::HillClimber;
+use super::tracker::{HillClimber, phase_spread_freq_hz};
 use crate::analysis::SelectionError;
 use crate::error::ParamError;
 use crate::hal::SampleError;
@@ -828,10 +828,10 @@ impl Controller {
         let Some(regime) = self.meter.regime(window) else {
             return;
         };
+        // The climb follows the window's mean peak force: the tracker spreads the impacts over
+        // the sampling phases (`phase_spread_freq_hz`), so the peaks' sampling error (up to
+        // 4 % on one impact) cancels in the mean.
         let peak = self.meter.peak_force_n(window).map(|(mean, _)| mean);
-        // The climb follows the mean impulse per cycle: it grows with the approach speed as the
-        // peak force does, and does not carry the peak's sampling-phase bias (up to 4 %).
-        let impulse_n_s = self.meter.impulse_n_s(window);
         self.regime = Some(regime);
         self.peak_n = peak;
         let f = self.generator.target_freq_hz();
@@ -841,7 +841,7 @@ impl Controller {
                 climber,
                 measurement,
             } => {
-                let next_hz = climber.next_freq_hz(f, regime, impulse_n_s);
+                let next_hz = climber.next_freq_hz(f, regime, peak);
                 *measurement = if next_hz != f {
                     Measurement::Settling(0)
                 } else {
@@ -897,7 +897,8 @@ impl Controller {
             p.band_hz[0].max(l.freq_min_hz),
             p.band_hz[1].min(l.freq_max_hz),
         ];
-        self.generator.set_freq_hz(p.target_hz);
+        let start_hz = phase_spread_freq_hz(p.target_hz, self.config.track.measure_cycles);
+        self.generator.set_freq_hz(start_hz);
         Mode::Track {
             climber: HillClimber::new(&self.config.track, band, p.target_hz),
             measurement: Measurement::Settling(0),

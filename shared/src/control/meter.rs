@@ -140,20 +140,6 @@ impl RegimeMeter {
         }
         (n > 0).then(|| (sum / n as f32, max))
     }
-
-    /// Mean per-cycle impulse over the last `window` cycles that impacted, N·s; `None` when none
-    /// did.
-    pub fn impulse_n_s(&self, window: usize) -> Option<f32> {
-        let mut n = 0u32;
-        let mut sum = 0.0f32;
-        for c in (0..window.min(self.filled)).filter_map(|k| self.cycle(k)) {
-            if c.impacts > 0 {
-                n += 1;
-                sum += c.impulse_n_s;
-            }
-        }
-        (n > 0).then(|| sum / n as f32)
-    }
 }
 
 fn same(a: CycleRecord, b: CycleRecord) -> bool {

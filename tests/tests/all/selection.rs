@@ -111,17 +111,33 @@ fn embedded_profile_gives_the_firmware_target_bit_for_bit() {
             "{rig}"
         );
         assert_eq!(p.impact_force_mg, host.impact_force_mg as f32, "{rig}");
-        // The cheap profile lands within 1 % of the analysis profile's target.
-        let full = same_on_target_and_host(rig);
-        assert!(
-            (host.freq_hz / full.freq_hz - 1.0).abs() < 0.01,
-            "{rig}: {} vs {}",
-            host.freq_hz,
-            full.freq_hz
-        );
-        assert!(
-            (host.impact_force_mg / full.impact_force_mg - 1.0).abs() < 0.01,
-            "{rig}"
-        );
+    }
+}
+
+/// The board's sweep steps `Ω/ω` by 0.1 (5 % at Ω/ω = 2) and places the peak between its grid
+/// points (`refine_peak`): its target lands within 0.5 % of the analysis profile's (steps of
+/// 0.01) for every rig at 0 and 1 mm, and its `F_i/mg` within 1 %. On the grid point alone it
+/// was 2.9 % low at 1 mm (Ω/ω 1.70 against 1.75).
+#[test]
+fn the_boards_coarse_sweep_lands_within_half_a_percent_of_the_analysis_target() {
+    for rig in RigId::ALL {
+        for gap_mm in [0.0, 1.0] {
+            let embedded = compute(&setup(rig, Profile::Embedded), gap_mm).unwrap().0;
+            let full = compute(&setup(rig, Profile::Host), gap_mm).unwrap().0;
+            let what = format!(
+                "{rig} at {gap_mm} mm: {} Hz (Ω/ω {}) vs {} Hz (Ω/ω {})",
+                embedded.freq_hz, embedded.omega_ratio, full.freq_hz, full.omega_ratio
+            );
+            assert!(
+                (embedded.freq_hz / full.freq_hz - 1.0).abs() < 0.005,
+                "{what}"
+            );
+            assert!(
+                (embedded.impact_force_mg / full.impact_force_mg - 1.0).abs() < 0.01,
+                "{what}: F_i/mg {} vs {}",
+                embedded.impact_force_mg,
+                full.impact_force_mg
+            );
+        }
     }
 }
