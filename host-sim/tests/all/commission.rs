@@ -116,7 +116,7 @@ fn mean_tail(rows: &[CycleRow]) -> f64 {
 /// suspension differ from its model's (the plant's contact twice as stiff with 0.6 of the
 /// damping, its natural frequency 8 % higher): the sensor check passes; the drop fixes
 /// `k_i`, `c_i` within 5 % and `f_n` within 1 % of the plant's; the board's target is within
-/// 1 % of `host-sim select` on the plant's true parameters; the verification passes (`1/1`,
+/// 0.5 % of `host-sim select` on the plant's true parameters (the issue asks 1 %); the verification passes (`1/1`,
 /// the force within 10 % of the prediction); `commission accept` stores the model, which a
 /// reset loads. Tracking on it for 30 s, the plant's force is within 2 % of the best it gives
 /// at five dwell frequencies around the target. The preset model's target on the same plant
@@ -178,7 +178,7 @@ fn the_board_commissions_a_rig_that_is_not_its_model_and_then_runs_within_2_pct_
     };
     let board_hz = f64::from(sel.target.unwrap().target_hz);
     assert!(
-        (board_hz / select_hz - 1.0).abs() < 0.01,
+        (board_hz / select_hz - 1.0).abs() < 0.005,
         "board {board_hz} Hz vs select on the plant {select_hz} Hz"
     );
     let before = sel.before.expect("the preset's target beside");
@@ -259,8 +259,8 @@ fn the_board_commissions_a_rig_that_is_not_its_model_and_then_runs_within_2_pct_
 /// The same sequence on two more plants the wire preset does not describe — natural frequency
 /// +8 % alone, and a damped pendulum (ζ = 0.01) — and on the 170 mm beam rig (its controller
 /// holding the beam's preset, the plant's natural frequency +8 %): each identified within 5 %
-/// (contact) and 1 % (natural frequency), its target within 1 % of `select` on the plant,
-/// verified.
+/// (contact) and 1 % (natural frequency), its target within 0.5 % of `select` on the plant
+/// (the issue asks 1 %), verified.
 #[test]
 fn other_plants_commission_within_the_same_bounds() {
     let cases = [
@@ -326,7 +326,7 @@ fn other_plants_commission_within_the_same_bounds() {
         assert!((cm / c - 1.0).abs() < 0.05, "c_i {cm} vs {c}");
         assert!(fn_pct.abs() < 1.0, "f_n off by {fn_pct} %");
         assert!(
-            (board_hz / select_hz - 1.0).abs() < 0.01,
+            (board_hz / select_hz - 1.0).abs() < 0.005,
             "board {board_hz} Hz vs select on the plant {select_hz} Hz"
         );
     }

@@ -177,15 +177,17 @@ impl Default for DetectorSettings {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackSettings {
-    /// First hill-climbing step, Hz (0.04).
+    /// Largest move of the tracker's centre, Hz (0.04); its probes sit half of it either side
+    /// of the centre, and its first move is half of it.
     pub step_hz: f32,
-    /// Smallest step, Hz (0.01): the step halves at each reversal down to this.
+    /// Smallest move, Hz (0.01): a move halves at each reversal down to this.
     pub min_step_hz: f32,
     /// Cycles ignored after a frequency change before measuring (6).
     pub settle_cycles: u16,
     /// Cycles measured per evaluation (8).
     pub measure_cycles: u16,
-    /// Relative change of the mean peak force treated as real, not noise (0.002).
+    /// Relative difference of the mean peak force between the tracker's two sides treated as
+    /// real, not noise (0.002).
     pub improve_rel: f32,
 }
 

@@ -9,8 +9,8 @@
 //! steady rate (a rig whose natural frequency drifts with temperature or wear) cancels from
 //! that difference, where a climber comparing each measurement with the one before would read
 //! it as slope. When one side is better by more than `improve_rel` the centre moves toward it
-//! by a step that starts at `step_hz`, halves at each reversal down to `min_step_hz` and doubles
-//! (up to `step_hz`) when a move repeats. Every frequency is spread in phase
+//! by a step that starts at `step_hz / 2`, halves at each reversal down to `min_step_hz` and
+//! doubles (up to `step_hz`) when a move repeats. Every frequency is spread in phase
 //! ([`phase_spread_freq_hz`]) so that the sampling error of the peaks cancels in each window's
 //! mean.
 
@@ -43,7 +43,7 @@ impl HillClimber {
         HillClimber {
             settings: *settings,
             centre_hz: target_hz,
-            move_hz: settings.step_hz,
+            move_hz: probe_offset_hz(settings),
             last_move: 0.0,
             side: 0.0,
             probes: [None, None],
@@ -82,7 +82,7 @@ impl HillClimber {
                 self.probes = [None, None];
                 self.side = 0.0;
                 self.last_move = 0.0;
-                self.move_hz = self.settings.step_hz;
+                self.move_hz = probe_offset_hz(&self.settings);
                 let to_target = self.target_hz - freq_hz;
                 self.centre_hz = if to_target.abs() <= self.settings.step_hz {
                     self.target_hz
@@ -252,10 +252,10 @@ mod tests {
     #[test]
     fn follows_a_drifting_maximum_whose_height_grows() {
         // The peak moves up 0.005 Hz and grows 0.3 % per evaluation (a natural frequency rising
-        // 10 % over ~70 evaluations, ~4.5 min of tracking). Moving takes one evaluation per
-        // 0.04 Hz step plus three probes to decide, so the centre keeps within the settled band
-        // (0.06 Hz) plus one step (0.04 Hz) of the peak; the probes within 0.12 Hz, at ≥ 99.4 %
-        // of the peak (40 · 0.12² / 96 = 0.6 %).
+        // 10 % over ~70 evaluations, ~4.5 min of tracking). A move takes three probes to
+        // decide and is at most 0.04 Hz, so the centre keeps within the settled band (0.06 Hz)
+        // plus one move (0.04 Hz) of the peak; the probes within 0.12 Hz, at ≥ 99.4 % of the
+        // peak (40 · 0.12² / 96 = 0.6 %).
         let peak = |k: usize| 3.70 + 0.005 * k as f32;
         let force = |f: f32, k: usize| {
             let d = f - peak(k);
