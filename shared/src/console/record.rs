@@ -6,7 +6,7 @@
 //! !T seq=41 t_s=12.3456 state=track freq_hz=3.7000 amp_mm=0.890 impacts=1 peak_n=95.4 impulse_n_s=0.02851 regime=1/1 fault=none lost_cycles=0
 //! !E seq=42 t_s=12.3457 event=state from=ramp to=track
 //! !E seq=43 t_s=15.1550 event=fault fault=sensor-open
-//! !E seq=44 t_s=0.5000 event=model-ready target_hz=3.6404 target_bits=0x4068fcfc band_hz=2.107..4.720 predicted_mg=32.76
+//! !E seq=44 t_s=0.5000 event=model-ready target_hz=3.6650 target_bits=0x406a8e8f band_hz=2.184..4.733 predicted_mg=32.79
 //! !E seq=45 t_s=0.5000 event=model-failed
 //! !E seq=46 t_s=20.0000 event=stalled samples=5000 expected=10000
 //! ```

@@ -3,7 +3,7 @@
 //! `segment …`, or `error: …` ([`Answer`]). Examples (docs/operator.md has them all):
 //!
 //! ```text
-//! state=track rig=wires rig_hash=0a1b2c3d gap_mm=0.00 freq_hz=3.7000 amp_mm=0.890 regime=1/1 peak_n=95.4 peak_mg=32.64 model=ready target_hz=3.6404 band_hz=2.184..4.733 predicted_mg=32.76 force_vs_model_pct=-0.4 fault=none impacts=1042 lost_cycles=0
+//! state=track rig=wires rig_hash=0a1b2c3d gap_mm=0.00 freq_hz=3.7000 amp_mm=0.890 regime=1/1 peak_n=95.4 peak_mg=32.64 model=ready target_hz=3.6650 band_hz=2.184..4.733 predicted_mg=32.79 force_vs_model_pct=-0.5 fault=none impacts=1042 lost_cycles=0
 //! id firmware=0.1.0 board=rig rig=wires rig_hash=0a1b2c3d store=empty gap_mm=0.00 sample_rate_hz=10000 capture_rate_hz=100000 volts_per_n=0.01 offset_v=0.2 adc_full_scale_v=3.3 mass_kg=0.298 freq_window_hz=1..30 slew_hz_per_s=0.5 ramp_mm_per_s=0.5 force_limit_n=280
 //! diag samples=123456 uptime_ms=12346 sample_gap_max_us=123 rx_errors=0 lines_lost=0 async_sent=41 async_dropped=0 lost_cycles=0 stack_hwm_bytes=37990 stack_size_bytes=114220 link_timeout_ms=0
 //! capture state=done segments=3 samples=1200000 level_n=1.00 rate_hz=100000 segment_len=160 pre_trigger=32 max_segments=32
