@@ -129,6 +129,25 @@ fn wire_rig_at_zero_gap_reaches_one_one_near_the_select_target() {
             row.t_s
         );
     }
+    // Every frequency the tracker drove (a cycle at the frequency of the cycle before: past the
+    // slew) has a period of N + k/8 samples with k odd, so that a window's 8 impacts sample the
+    // pulse at 8 evenly spread phases (the DDS rounds the period by < 0.002 sample).
+    let tracked: Vec<f64> = r
+        .rows
+        .windows(2)
+        .filter(|w| w[1].state == "track" && w[0].freq_hz == w[1].freq_hz)
+        .map(|w| w[1].freq_hz)
+        .collect();
+    assert!(tracked.len() > 80, "{}", tracked.len());
+    for f in tracked {
+        let eighths = 8.0 * 10_000.0 / f;
+        let k = eighths.round();
+        assert!(
+            (eighths - k).abs() < 0.05 && k % 2.0 == 1.0,
+            "{f} Hz: a period of {} samples",
+            eighths / 8.0
+        );
+    }
     // The true peak is the thesis-scale force (≈ 33 mg of the 0.298 kg hammer).
     let true_mg = tail[0].true_peak_n.unwrap() / (0.298 * 9.81);
     assert!((30.0..36.0).contains(&true_mg), "{true_mg}");
