@@ -10,7 +10,9 @@
 //! that difference, where a climber comparing each measurement with the one before would read
 //! it as slope. When one side is better by more than `improve_rel` the centre moves toward it
 //! by a step that starts at `step_hz / 2`, halves at each reversal down to `min_step_hz` and
-//! doubles (up to `step_hz`) when a move repeats. Every frequency is spread in phase
+//! doubles (up to `step_hz`) when a move repeats; a full step toward the side just probed lands
+//! that probe on the new centre's other side, where it counts, so a steady climb decides every
+//! two or three evaluations. Every frequency is spread in phase
 //! ([`phase_spread_freq_hz`]) so that the sampling error of the peaks cancels in each window's
 //! mean.
 
@@ -114,7 +116,10 @@ impl HillClimber {
                 };
                 self.last_move = d;
                 self.centre_hz += d * self.move_hz;
-                self.probes = [None, None];
+                // A move of two probe offsets toward the side just measured lands that probe's
+                // frequency on the new centre's other side: it counts there.
+                let reuse = side == d && (self.move_hz - 2.0 * self.probe_hz()).abs() < 1e-6;
+                self.probes = [None, if reuse { Some(strength) } else { None }];
                 self.side = d;
                 return self.at(d);
             }
@@ -267,6 +272,19 @@ mod tests {
             assert!((v - peak(k)).abs() <= 0.12, "{k}: {v} vs {}", peak(k));
         }
         assert!(visited[79] > 3.95, "{}", visited[79]);
+    }
+
+    #[test]
+    fn on_a_steady_slope_a_full_step_takes_two_or_three_probes() {
+        // Always better upward. Evaluation 1 is the centre's; 2–4 probe above, below, above and
+        // decide: half a step (0.02 Hz); 5–7 decide a full step (0.04, doubled), which lands
+        // probe 7 (above) on the new centre's lower side, where it counts: 8–9 decide the next;
+        // 9 was below, so 10–12 need three again, then 13–14 two, … Moves after 4, 7, 9, 12,
+        // 14, …, 37, 39: 0.02 + 14 · 0.04 = 0.58 Hz (without the reuse, every three
+        // evaluations after 7, 10, …, 40: 0.02 + 12 · 0.04 = 0.50 Hz).
+        let mut c = HillClimber::new(&TrackSettings::default(), [2.2, 4.7], 3.7);
+        climb(&mut c, 3.7, 40, |f, _| 96.0 + 10.0 * (f - 3.7));
+        assert!((c.centre_hz() - 4.28).abs() < 1e-4, "{}", c.centre_hz());
     }
 
     #[test]
