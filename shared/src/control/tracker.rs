@@ -121,7 +121,13 @@ impl HillClimber {
                 let reuse = side == d && (self.move_hz - 2.0 * self.probe_hz()).abs() < 1e-6;
                 self.probes = [None, if reuse { Some(strength) } else { None }];
                 self.side = d;
-                return self.at(d);
+                let moved_to = self.centre_hz;
+                let f = self.at(d);
+                if self.centre_hz != moved_to {
+                    // Held back by the band's edge: the kept probe is not where it counts.
+                    self.probes = [None, None];
+                }
+                return f;
             }
         }
         self.probes = [self.probes[1], Some(strength)];
@@ -150,16 +156,16 @@ fn probe_offset_hz(t: &TrackSettings) -> f32 {
     0.5 * t.step_hz
 }
 
-/// The frequency nearest `freq_hz` (Hz; with 8 cycles within 1.5 steps of 1/8 sample on the period, ≤ 0.0005 Hz
-/// at 5 Hz) whose period spans
-/// `N + k / cycles` samples with `k` coprime to `cycles`: the impacts of `cycles` consecutive
-/// cycles of a periodic response then fall at `cycles` evenly spread phases of the sampling
-/// grid, and the sampling error of each impact's impulse and peak (a periodic function of that
-/// phase: ±0.9 % and ±2 % for the rig's 0.57 ms pulses sampled at 10 kHz, the pulse spectrum at
-/// the sampling rate) cancels in their mean over `cycles` (every harmonic of it but the
-/// multiples of `cycles`). At a period of a whole number of samples plus a simple fraction it
-/// would not cancel, and the climber would read a ±1 % ripple in frequency as force. `freq_hz`
-/// not a positive finite number, or `cycles` 0 or 1: unchanged.
+/// The frequency nearest `freq_hz` (Hz) whose period spans `N + k / cycles` samples with `k`
+/// coprime to `cycles` (with 8 cycles: within 1.5 steps of 1/8 sample on the period, ≤ 0.0005
+/// Hz at 5 Hz): the impacts of `cycles` consecutive cycles of a periodic response then fall at
+/// `cycles` evenly spread phases of the sampling grid, and the sampling error of each impact's
+/// impulse and peak (a periodic function of that phase: ±0.9 % and ±2 % for the rig's 0.57 ms
+/// pulses sampled at 10 kHz, the pulse spectrum at the sampling rate) cancels in their mean
+/// over `cycles` (every harmonic of it but the multiples of `cycles`). At a period of a whole
+/// number of samples plus a simple fraction it would not cancel, and the climber would read a
+/// ±1 % ripple in frequency as force. `freq_hz` not a positive finite number, or `cycles` 0 or
+/// 1: unchanged.
 pub fn phase_spread_freq_hz(freq_hz: f32, cycles: u16) -> f32 {
     if !freq_hz.is_finite() || freq_hz <= 0.0 || cycles < 2 {
         return freq_hz;
