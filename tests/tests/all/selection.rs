@@ -116,8 +116,8 @@ fn embedded_profile_gives_the_firmware_target_bit_for_bit() {
 
 /// The board's sweep steps `Ω/ω` by 0.1 (5 % at Ω/ω = 2) and places the peak between its grid
 /// points (`refine_peak`): its target lands within 0.5 % of the analysis profile's (steps of
-/// 0.01) for every rig at 0 and 1 mm, and its `F_i/mg` within 1 %. On the grid point alone it
-/// was 2.9 % low at 1 mm (Ω/ω 1.70 against 1.75).
+/// 0.01) for every rig at 0 and 1 mm, and its `F_i/mg` within 1 %. The grid point alone is
+/// 2.9 % low at 1 mm (Ω/ω 1.70 against 1.75).
 #[test]
 fn the_boards_coarse_sweep_lands_within_half_a_percent_of_the_analysis_target() {
     for rig in RigId::ALL {
