@@ -177,8 +177,8 @@ impl Default for DetectorSettings {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackSettings {
-    /// Largest move of the tracker's centre, Hz (0.04); its probes sit half of it either side
-    /// of the centre, and its first move is half of it.
+    /// First and largest move of the tracker's centre, Hz (0.04); its probes sit half of it
+    /// either side of the centre.
     pub step_hz: f32,
     /// Smallest move, Hz (0.01): a move halves at each reversal down to this.
     pub min_step_hz: f32,

@@ -9,7 +9,7 @@
 //! steady rate (a rig whose natural frequency drifts with temperature or wear) cancels from
 //! that difference, where a climber comparing each measurement with the one before would read
 //! it as slope. When one side is better by more than `improve_rel` the centre moves toward it
-//! by a step that starts at `step_hz / 2`, halves at each reversal down to `min_step_hz` and
+//! by a step that starts at `step_hz`, halves at each reversal down to `min_step_hz` and
 //! doubles (up to `step_hz`) when a move repeats; a full step toward the side just probed lands
 //! that probe on the new centre's other side, where it counts, so a steady climb decides every
 //! two or three evaluations. Every frequency is spread in phase
@@ -45,7 +45,7 @@ impl HillClimber {
         HillClimber {
             settings: *settings,
             centre_hz: target_hz,
-            move_hz: probe_offset_hz(settings),
+            move_hz: settings.step_hz,
             last_move: 0.0,
             side: 0.0,
             probes: [None, None],
@@ -84,7 +84,7 @@ impl HillClimber {
                 self.probes = [None, None];
                 self.side = 0.0;
                 self.last_move = 0.0;
-                self.move_hz = probe_offset_hz(&self.settings);
+                self.move_hz = self.settings.step_hz;
                 let to_target = self.target_hz - freq_hz;
                 self.centre_hz = if to_target.abs() <= self.settings.step_hz {
                     self.target_hz
@@ -283,14 +283,13 @@ mod tests {
     #[test]
     fn on_a_steady_slope_a_full_step_takes_two_or_three_probes() {
         // Always better upward. Evaluation 1 is the centre's; 2–4 probe above, below, above and
-        // decide: half a step (0.02 Hz); 5–7 decide a full step (0.04, doubled), which lands
-        // probe 7 (above) on the new centre's lower side, where it counts: 8–9 decide the next;
-        // 9 was below, so 10–12 need three again, then 13–14 two, … Moves after 4, 7, 9, 12,
-        // 14, …, 37, 39: 0.02 + 14 · 0.04 = 0.58 Hz (without the reuse, every three
-        // evaluations after 7, 10, …, 40: 0.02 + 12 · 0.04 = 0.50 Hz).
+        // decide a full step (0.04 Hz), which lands probe 4 (above) on the new centre's lower
+        // side, where it counts: 5–6 decide the next; 6 was below, so 7–9 need three again,
+        // then 10–11 two, … Moves after 4, 6, 9, 11, …, 36, 39: 15 · 0.04 = 0.60 Hz (without
+        // the reuse, every three evaluations after 4, 7, …, 40: 13 · 0.04 = 0.52 Hz).
         let mut c = HillClimber::new(&TrackSettings::default(), [2.2, 4.7], 3.7);
         climb(&mut c, 3.7, 40, |f, _| 96.0 + 10.0 * (f - 3.7));
-        assert!((c.centre_hz() - 4.28).abs() < 1e-4, "{}", c.centre_hz());
+        assert!((c.centre_hz() - 4.30).abs() < 1e-4, "{}", c.centre_hz());
     }
 
     #[test]
