@@ -218,6 +218,10 @@ pub fn select(
     let one_one = |j: usize| nominal[j].regime == Regime::ONE_ONE;
     let robust_at =
         |j: usize| one_one(j) && perturbed.iter().all(|r| r[j].regime == Regime::ONE_ONE);
+    // Point `j`'s robustness window when every point in it is `1/1` at every gap checked (the
+    // window holds `j`, so `j` itself is `1/1`).
+    let robust_window =
+        |j: usize| robustness_window(spec, j).filter(|&(a, b)| (a..=b).all(robust_at));
     let candidate = |j: usize| {
         let r = sweep.value(j);
         Candidate {
@@ -236,15 +240,12 @@ pub fn select(
         if strongest.is_none_or(|s| nominal[i].impact_force_mg > nominal[s].impact_force_mg) {
             strongest = Some(i);
         }
-        let Some((j_lo, j_hi)) = robustness_window(spec, i) else {
+        let Some((j_lo, j_hi)) = robust_window(i) else {
             continue;
         };
-        if (j_lo..=j_hi).all(robust_at) {
-            robust_points += 1;
-            if best.is_none_or(|(b, _, _)| nominal[i].impact_force_mg > nominal[b].impact_force_mg)
-            {
-                best = Some((i, j_lo, j_hi));
-            }
+        robust_points += 1;
+        if best.is_none_or(|(b, _, _)| nominal[i].impact_force_mg > nominal[b].impact_force_mg) {
+            best = Some((i, j_lo, j_hi));
         }
     }
     let Some(strongest) = strongest else {
@@ -258,12 +259,14 @@ pub fn select(
 
     // The chosen point, between grid points where the peak is refined.
     let force = |j: usize| f64::from(nominal[j].impact_force_mg);
-    let robust_point = |j: usize| {
-        one_one(j) && robustness_window(spec, j).is_some_and(|(a, b)| (a..=b).all(robust_at))
-    };
     let mut chosen = candidate(i);
     let (mut w_lo, mut w_hi) = (j_lo, j_hi);
-    if spec.refine_peak && i > 0 && i + 1 < n && robust_point(i - 1) && robust_point(i + 1) {
+    if spec.refine_peak
+        && i > 0
+        && i + 1 < n
+        && robust_window(i - 1).is_some()
+        && robust_window(i + 1).is_some()
+    {
         let (fm, f0, fp) = (force(i - 1), force(i), force(i + 1));
         if let Some((offset, peak)) = parabola_vertex(fm, f0, fp) {
             chosen.omega_ratio = sweep.value(i) + offset * sweep.step;
@@ -486,6 +489,26 @@ mod tests {
             .collect()
     }
 
+    /// `nominal` with every point above `Ω/ω = r_max` irregular: a perturbed gap whose `1/1`
+    /// band ends at `r_max`.
+    fn irregular_above(
+        sp: &SelectionSpec,
+        nominal: &[ResponseSample],
+        r_max: f64,
+    ) -> std::vec::Vec<ResponseSample> {
+        nominal
+            .iter()
+            .enumerate()
+            .map(|(j, x)| {
+                if sp.omega_ratio.value(j) > r_max + 1e-9 {
+                    s(Regime::Irregular, 0.0)
+                } else {
+                    *x
+                }
+            })
+            .collect()
+    }
+
     #[test]
     fn picks_the_strongest_robust_point_not_the_band_edge() {
         let p = RigId::Wires.preset();
@@ -511,17 +534,7 @@ mod tests {
             Regime::Periodic { p: 1, q: 2 }
         );
         // A perturbed gap whose band ends at 1.7 moves the choice down to 1.61.
-        let shifted: std::vec::Vec<_> = nominal
-            .iter()
-            .enumerate()
-            .map(|(j, x)| {
-                if sp.omega_ratio.value(j) > 1.7 + 1e-9 {
-                    s(Regime::Irregular, 0.0)
-                } else {
-                    *x
-                }
-            })
-            .collect();
+        let shifted = irregular_above(&sp, &nominal, 1.7);
         let sel2 = select(&p, &sp, &nominal, &[&shifted]).unwrap();
         assert!(
             (sel2.best.omega_ratio - 1.61).abs() < 1e-9,
@@ -569,17 +582,7 @@ mod tests {
         assert_eq!(grid.best.impact_force_mg, f64::from(peak(2.0) as f32));
         // A perturbed gap whose band ends at 2.2: 2.1 is not robust (its window reaches 2.3),
         // so 2.0 is the best robust point and stays on the grid.
-        let shifted: std::vec::Vec<_> = nominal
-            .iter()
-            .enumerate()
-            .map(|(j, x)| {
-                if sp.omega_ratio.value(j) > 2.2 + 1e-9 {
-                    s(Regime::Irregular, 0.0)
-                } else {
-                    *x
-                }
-            })
-            .collect();
+        let shifted = irregular_above(&sp, &nominal, 2.2);
         let kept = select(&p, &sp, &nominal, &[&shifted]).unwrap();
         assert!(
             (kept.best.omega_ratio - 2.0).abs() < 1e-12,

@@ -25,7 +25,7 @@ use super::status::{
     AsyncKind, AsyncRecord, CycleTelemetry, Event, MAX_FORCE_VS_MODEL_PCT, ModelRequest,
     ModelStatus, PeakForce, State, Status, Target,
 };
-use super::tracker::{HillClimber, phase_spread_freq_hz};
+use super::tracker::HillClimber;
 use crate::analysis::SelectionError;
 use crate::error::ParamError;
 use crate::hal::SampleError;
@@ -897,10 +897,10 @@ impl Controller {
             p.band_hz[0].max(l.freq_min_hz),
             p.band_hz[1].min(l.freq_max_hz),
         ];
-        let start_hz = phase_spread_freq_hz(p.target_hz, self.config.track.measure_cycles);
-        self.generator.set_freq_hz(start_hz);
+        let mut climber = HillClimber::new(&self.config.track, band, p.target_hz);
+        self.generator.set_freq_hz(climber.start_hz());
         Mode::Track {
-            climber: HillClimber::new(&self.config.track, band, p.target_hz),
+            climber,
             measurement: Measurement::Settling(0),
         }
     }
