@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A one-node SLURM on this machine, without systemd: munge, slurmctld and slurmd on localhost,
-# one partition `debug` with this machine's cores. For trying the job-array scripts before a
+# one partition `debug` with four task slots per core of this machine. For trying the job-array scripts before a
 # real cluster, and for CI (.ci/run starts it; host-sim/tests/all/slurm.rs submits to it).
 #
 #   docs/cluster/local-slurm.sh start   # install-free: needs Debian's slurm-wlm and munge, root
@@ -64,7 +64,14 @@ SlurmdLogFile=/var/log/slurm/slurmd.log
 ReturnToService=2
 KillWait=10
 MinJobAge=600
-NodeName=$host CPUs=$cpus RealMemory=$mem_mb State=UNKNOWN
+# One node, few jobs: the scheduler's passes every second (default 60 s and 30 s), so that a
+# pending task starts and a dependency that can no longer be met is said within seconds.
+SchedulerParameters=sched_interval=1,bf_interval=1
+# Four task slots per core (config_overrides: slurmd takes the configured count, not the
+# hardware's): a test's tasks are short and spend most of their time in SLURM's own start-up and
+# completion, so on a 2-core machine eight of them side by side beat two at a time.
+SlurmdParameters=config_overrides
+NodeName=$host CPUs=$((cpus * 4)) RealMemory=$mem_mb State=UNKNOWN
 PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP
 EOF
     # A running controller rereads the file; one that does not answer (left over from a run

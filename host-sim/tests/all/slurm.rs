@@ -340,6 +340,10 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
         ))
         .arg(scripts().join("grid-array.sbatch"))
         .args(PETERKA_LONG));
+    // The single run computes while the rerun waits for its slot.
+    let one = dir.path().join("long-single");
+    std::fs::create_dir_all(&one).unwrap();
+    single("peterka", PETERKA_LONG, &one);
     wait_completed(rerun.trim(), &run_dir);
     let merge2 = run(Command::new("sbatch")
         .env("HOST_SIM", host_sim())
@@ -347,9 +351,6 @@ fn job_arrays_merge_into_a_single_runs_files_and_a_cancelled_task_holds_the_merg
         .arg(format!("--output={}/logs/merge2_%j.out", run_dir.display()))
         .arg(scripts().join("grid-merge.sbatch")));
     wait_completed(merge2.trim(), &run_dir);
-    let one = dir.path().join("long-single");
-    std::fs::create_dir_all(&one).unwrap();
-    single("peterka", PETERKA_LONG, &one);
     assert_same_files("peterka", PETERKA_LONG, &one, &run_dir);
     eprintln!(
         "SLURM test: {:.1} s (two arrays and merges, a cancelled task, its rerun)",
