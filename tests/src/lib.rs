@@ -6,7 +6,7 @@
 //! tools to run them are there. The tests that need the images and a tool (QEMU, LLVM's
 //! binary tools, python's unicorn) are `#[ignore]`d with the tool named: `cargo test
 //! --workspace` counts them as ignored where nothing says the tools are there, and
-//! `--include-ignored` (`.ci/run`: `--run-ignored all`) runs them, where a missing tool fails.
+//! `--include-ignored` (as in `.ci/run`) runs them, where a missing tool fails.
 
 use std::path::PathBuf;
 use std::process::Command;
