@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A one-node SLURM on this machine, without systemd: munge, slurmctld and slurmd on localhost,
-# one partition `debug` with four task slots per core of this machine. For trying the job-array scripts before a
-# real cluster, and for CI (.ci/run starts it; host-sim/tests/all/slurm.rs submits to it).
+# one partition `debug` with four task slots per core of this machine. For trying the job-array
+# scripts before a real cluster, and for CI (.ci/run starts it; host-sim/tests/all/slurm.rs
+# submits to it).
 #
 #   docs/cluster/local-slurm.sh start   # install-free: needs Debian's slurm-wlm and munge, root
 #   docs/cluster/local-slurm.sh status
