@@ -75,8 +75,11 @@ impl HillClimber {
         self.move_hz
     }
 
+    /// The probes' distance from the centre, Hz: half the first step (0.02 Hz by default; on
+    /// the wire rig's flat `1/1` plateau a ±0.04 Hz probe reads noise as slope and wanders off
+    /// it).
     fn probe_hz(&self) -> f32 {
-        probe_offset_hz(&self.settings)
+        0.5 * self.settings.step_hz
     }
 
     /// Next frequency (Hz) after measuring `regime` and the impact `strength` at `freq_hz`
@@ -154,12 +157,6 @@ impl HillClimber {
         let f = phase_spread_freq_hz(self.centre_hz + side * d, self.settings.measure_cycles);
         within(f, lo, hi)
     }
-}
-
-/// The probes' distance from the centre, Hz: half the first step (0.02 Hz by default; on the
-/// wire rig's flat `1/1` plateau a ±0.04 Hz probe reads noise as slope and wanders off it).
-fn probe_offset_hz(t: &TrackSettings) -> f32 {
-    0.5 * t.step_hz
 }
 
 /// The frequency nearest `freq_hz` (Hz) whose period spans `N + k / cycles` samples with `k`
