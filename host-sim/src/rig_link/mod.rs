@@ -1224,42 +1224,26 @@ fn read_lines(
             if std::mem::take(&mut skipping) || raw.is_empty() {
                 continue;
             }
-            let item = match std::str::from_utf8(raw) {
-                Err(_) => {
-                    garbled_line(garbled, "a line that is not text", raw);
-                    continue;
-                }
-                Ok(text) if text.starts_with(COMMISSION_PREFIX) => {
-                    match text.parse::<CommissionLine>() {
-                        Ok(c) => Incoming::Commission(c.0),
-                        Err(e) => {
-                            garbled_line(
-                                garbled,
-                                &format!("a commissioning line that does not read ({e})"),
-                                raw,
-                            );
-                            continue;
-                        }
-                    }
-                }
-                Ok(text) if text.starts_with('!') => match text.parse::<AsyncRecord>() {
-                    Ok(r) => Incoming::Record(r),
-                    Err(e) => {
+            let Ok(text) = std::str::from_utf8(raw) else {
+                garbled_line(garbled, "a line that is not text", raw);
+                continue;
+            };
+            let item = match read_line(text) {
+                Ok(item) => item,
+                Err(why) => match resynchronised(text) {
+                    // Bytes lost on the link (a client that did not read while the rig wrote)
+                    // glue the head of one line to the next whole line: the head is damage,
+                    // the tail is read.
+                    Some((at, item)) => {
                         garbled_line(
                             garbled,
-                            &format!("an asynchronous line that does not read ({e})"),
-                            raw,
+                            &format!("{why}: its end lost on the link, the line glued to it read;"),
+                            &raw[..at],
                         );
-                        continue;
+                        item
                     }
-                },
-                Ok(text) => match split_tag(text) {
-                    Ok((tag, rest)) => Incoming::Reply {
-                        tag,
-                        text: rest.trim_start().to_string(),
-                    },
-                    Err(_) => {
-                        garbled_line(garbled, "a reply with a malformed tag", raw);
+                    None => {
+                        garbled_line(garbled, &why, raw);
                         continue;
                     }
                 },
@@ -1281,6 +1265,46 @@ fn read_lines(
             skipping = true;
         }
     }
+}
+
+/// One line from the rig, read: a commissioning line, an asynchronous record or a reply.
+///
+/// # Errors
+/// What does not read, as the warning names it.
+fn read_line(text: &str) -> std::result::Result<Incoming, String> {
+    if text.starts_with(COMMISSION_PREFIX) {
+        text.parse::<CommissionLine>()
+            .map(|c| Incoming::Commission(c.0))
+            .map_err(|e| format!("a commissioning line that does not read ({e})"))
+    } else if text.starts_with('!') {
+        text.parse::<AsyncRecord>()
+            .map(Incoming::Record)
+            .map_err(|e| format!("an asynchronous line that does not read ({e})"))
+    } else {
+        split_tag(text)
+            .map(|(tag, rest)| Incoming::Reply {
+                tag,
+                text: rest.trim_start().to_string(),
+            })
+            .map_err(|_| "a reply with a malformed tag".to_string())
+    }
+}
+
+/// A line that does not read because bytes were lost inside it: the last whole line glued to
+/// its end, from the last line-start marker (`!` of a record or a commissioning line, `#` of a
+/// tagged reply) whose tail reads, with the marker's byte offset. Records and commissioning
+/// lines hold neither marker (`shared::console`'s formats), so a marker inside one that does
+/// not read starts another line; an untagged reply cannot be told from damage and is not
+/// looked for.
+fn resynchronised(text: &str) -> Option<(usize, Incoming)> {
+    text.char_indices()
+        .rev()
+        .filter(|&(at, c)| at > 0 && (c == '!' || c == '#'))
+        .find_map(|(at, _)| match read_line(&text[at..]) {
+            Ok(item @ (Incoming::Record(_) | Incoming::Commission(_))) => Some((at, item)),
+            Ok(item @ Incoming::Reply { tag: Some(_), .. }) => Some((at, item)),
+            _ => None,
+        })
 }
 
 /// `line` without a tag the operator typed, if it is one request: with a line break (`\n`, `\r`)
@@ -1331,6 +1355,39 @@ mod tests {
         assert_eq!(s.see(u32::MAX), Seq::Next);
         assert_eq!(s.see(0), Seq::Next);
         assert_eq!(s.lost, 0);
+    }
+
+    /// A clean-clone CI run read this line: a client stopped while the rig streamed, the pty
+    /// full, the record's end lost and the reply to the client's next request written after it.
+    #[test]
+    fn a_line_glued_to_the_head_of_a_cut_one_is_read() {
+        let cut = "!T seq=182 t_s=82.9095 state=fault freq_hz=2.2000 amp_mm=0.000";
+        let glued = format!("{cut}#10 error: fault latched: clear first");
+        assert!(read_line(&glued).is_err());
+        match resynchronised(&glued) {
+            Some((at, Incoming::Reply { tag, text })) => {
+                assert_eq!(at, cut.len());
+                assert_eq!(tag, Some(10));
+                assert_eq!(text, "error: fault latched: clear first");
+            }
+            _ => panic!("the reply was not found in {glued}"),
+        }
+        let record = "!T seq=190 t_s=83.3095 state=fault freq_hz=2.2000 amp_mm=0.000 impacts=0 \
+                      peak_n=- impulse_n_s=- regime=- fault=link-lost lost_cycles=0";
+        let Ok(Incoming::Record(whole)) = read_line(record) else {
+            panic!("{record} does not read");
+        };
+        match resynchronised(&format!("{cut}{record}")) {
+            Some((at, Incoming::Record(r))) => {
+                assert_eq!(at, cut.len());
+                assert_eq!(r, whole);
+            }
+            _ => panic!("the record was not found after the cut one"),
+        }
+        // Damage with a marker whose tail does not read, and an untagged tail: nothing read.
+        assert!(resynchronised("!T seq=18#x2 !E junk").is_none());
+        assert!(resynchronised("!T seq=18 t_s=1ok").is_none());
+        assert!(resynchronised("#1").is_none());
     }
 
     #[test]
