@@ -49,6 +49,13 @@ pub fn high_water_bytes() -> u32 {
     (top - p) as u32
 }
 
+/// The stack in use now (from its top to the stack pointer), bytes: what a call made here adds
+/// to it is [`high_water_bytes`] after the call less this.
+pub fn depth_bytes() -> u32 {
+    let (_, top) = region();
+    (top - cortex_m::register::msp::read() as usize) as u32
+}
+
 /// Size of the stack's region, bytes (RAM not taken by static data).
 pub fn size_bytes() -> u32 {
     let (bottom, top) = region();

@@ -3,9 +3,10 @@
 //! [`CAPTURE_RATE_HZ`] (the firmware: ADC2 triggered by TIM3, DMA into a ring; the virtual rig:
 //! the plant's force at every 10 µs step), and every rising crossing of the trigger level
 //! records one segment of [`SEGMENT_LEN`] samples, [`PRE_TRIGGER`] of them before the crossing,
-//! with the index of its first sample (its timestamp). A 0.57 ms contact is 57 samples.
+//! with the index of its first sample (its timestamp). A 0.57 ms contact is 57 samples; Fig.
+//! 3.3's Hunt–Crossley contact, 1.2–1.5 ms at a drop's speeds, fits with its baseline.
 //!
-//! Memory: [`SEGMENTS`] × [`SEGMENT_LEN`] codes of 2 bytes = 10 KiB, static. The capture ends
+//! Memory: [`SEGMENTS`] × [`SEGMENT_LEN`] codes of 2 bytes = 16 KiB, static. The capture ends
 //! when every segment is used, when its time is up, or on `capture stop`; the desktop then
 //! reads the segments one per `capture get <k>` line ([`SegmentView`]'s text).
 
@@ -13,8 +14,8 @@ use crate::control::{SensorChain, within};
 
 /// Capture sample rate, Hz.
 pub const CAPTURE_RATE_HZ: u32 = 100_000;
-/// Samples per segment (1.6 ms).
-pub const SEGMENT_LEN: usize = 160;
+/// Samples per segment (2.56 ms).
+pub const SEGMENT_LEN: usize = 256;
 /// Samples of a segment before the trigger crossing (0.32 ms).
 pub const PRE_TRIGGER: usize = 32;
 /// Segments (impacts) one capture holds.

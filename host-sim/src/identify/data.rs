@@ -188,15 +188,56 @@ pub(crate) fn analyse_redraw(t_s: Vec<f64>, value: &[f64], impacts: usize) -> Re
     analyse(t_s, value, impacts, false)
 }
 
+/// The samples of `value` (at times `t_s`) that show the sensor at rest, for its offset and
+/// noise: where the trace is a board capture (`rig capture`: runs of consecutive samples with
+/// gaps between them, one run per trigger), the first samples of each run, recorded before its
+/// trigger (at most a quarter of the run, at most the board's own baseline,
+/// `shared::identify::pulse::BASELINE_SAMPLES`): a power law's pulse can fill most of a
+/// segment. Else every sample (an impact is a small part of a continuous record).
+fn rest_samples(t_s: &[f64], value: &[f64]) -> Vec<f64> {
+    let spans = contiguous_spans(t_s);
+    if spans.len() < 2 {
+        return value.to_vec();
+    }
+    let mut rest = Vec::new();
+    for (from, to) in spans {
+        let take = ((to + 1 - from) / 4).min(shared::identify::pulse::BASELINE_SAMPLES);
+        rest.extend_from_slice(&value[from..from + take]);
+    }
+    if rest.is_empty() {
+        value.to_vec()
+    } else {
+        rest
+    }
+}
+
+/// The index spans `(first, last)` of `t_s` sampled without a gap (a step over 1.5 times the
+/// first one ends a span): one for a continuous record, one per segment for a board capture.
+fn contiguous_spans(t_s: &[f64]) -> Vec<(usize, usize)> {
+    let Some(step) = t_s.get(1).map(|b| b - t_s[0]) else {
+        return vec![(0, t_s.len().saturating_sub(1))];
+    };
+    let mut spans = Vec::new();
+    let mut from = 0;
+    for i in 1..t_s.len() {
+        if t_s[i] - t_s[i - 1] > 1.5 * step {
+            spans.push((from, i - 1));
+            from = i;
+        }
+    }
+    spans.push((from, t_s.len() - 1));
+    spans
+}
+
 /// [`analyse_drop`] of the samples `value` at times `t_s` (kept in the result), leaving out the
 /// impacts too weak to time where `cut_weak`.
 fn analyse(t_s: Vec<f64>, value: &[f64], max_impacts: usize, cut_weak: bool) -> Result<DropData> {
     // One scratch buffer for both medians (the bootstrap analyses hundreds of redraws).
-    let mut scratch = value.to_vec();
+    let mut scratch = rest_samples(&t_s, value);
     let offset = median(&mut scratch);
     let f: Vec<f64> = value.iter().map(|v| v - offset).collect();
-    for (d, v) in scratch.iter_mut().zip(&f) {
-        *d = v.abs();
+    for d in scratch.iter_mut() {
+        *d = (*d - offset).abs();
     }
     let mut dev = scratch;
     let sample_max = f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -281,12 +322,18 @@ fn analyse(t_s: Vec<f64>, value: &[f64], max_impacts: usize, cut_weak: bool) -> 
         .filter(|&len| len < 3);
     let (short_runs, longest_short) = (short.clone().count(), short.max().unwrap_or(0));
     merged.retain(|&(a, b)| b >= a + 2);
-    let n = f.len();
+    let spans = contiguous_spans(t);
     let mut impacts = Vec::new();
     let mut too_weak = None;
     for (a, b) in merged.into_iter().take(max_impacts) {
         let pad = (b - a).div_ceil(2).max(3);
-        let window = (a.saturating_sub(pad), (b + pad).min(n - 1));
+        // Within the pulse's own segment where the record is a board capture.
+        let (from, to) = spans
+            .iter()
+            .copied()
+            .find(|&(from, to)| from <= a && a <= to)
+            .unwrap_or((0, f.len() - 1));
+        let window = (a.saturating_sub(pad).max(from), (b + pad).min(to));
         let peak = peak_estimate(t, &f, a, b);
         if cut_weak && peak < 2.0 * threshold {
             too_weak = Some((peak, threshold));

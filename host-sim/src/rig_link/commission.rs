@@ -15,6 +15,7 @@ use shared::commission::{
 use shared::console::commission::CommissionView;
 use shared::console::{Answer, IdentifyLine, Token};
 use shared::control::{Command, Target};
+use shared::identify::DropLaw;
 
 use super::{RigPort, escaped};
 
@@ -221,18 +222,37 @@ pub fn describe(p: &Progress) -> String {
                             s.natural_freq_hz, s.spread_pct, s.damping_ratio
                         )
                     });
+                    let law = match i.law {
+                        DropLaw::SpringDashpot {
+                            stiffness_n_m,
+                            stiffness_pm_pct,
+                            damping_n_s_m,
+                            damping_pm_pct,
+                        } => format!(
+                            "spring–dashpot k_i {stiffness_n_m:.4e} N/m (±{stiffness_pm_pct:.1} %), \
+                             c_i {damping_n_s_m:.4} N·s/m (±{damping_pm_pct:.1} %)"
+                        ),
+                        DropLaw::HuntCrossley {
+                            stiffness,
+                            stiffness_pm_pct,
+                            exponent,
+                            exponent_pm,
+                            lambda_s_m,
+                            lambda_pm_pct,
+                        } => format!(
+                            "Hunt–Crossley k_i {stiffness:.4e} N/m^n (±{stiffness_pm_pct:.1} %), \
+                             n {exponent:.4} (±{exponent_pm:.4}), λ_i {lambda_s_m:.4} s/m \
+                             (±{lambda_pm_pct:.1} %)"
+                        ),
+                    };
                     format!(
-                        "drop: {}: {} impacts, k_i {:.4e} N/m (±{:.1} %), c_i {:.4} N·s/m (±{:.1} %), fit ratio {:.2}{s}",
+                        "drop: {}: {} impacts, {law}, fit ratio {:.2}{s}",
                         if i.law_fits() {
                             "pass"
                         } else {
                             "FAIL (misfit)"
                         },
                         i.impacts,
-                        i.stiffness_n_m,
-                        i.stiffness_pm_pct,
-                        i.damping_n_s_m,
-                        i.damping_pm_pct,
                         i.fit_ratio
                     )
                 }

@@ -25,6 +25,21 @@ pub fn reference_scenario(seed: u64) -> (PlantSection, Scenario) {
     (plant, drop_scenario(plant, seed))
 }
 
+/// The recorded Hunt–Crossley drop of the firmware's budget check: the 150 mm beam with Fig.
+/// 3.3's contact (`k_i` 2.1e8 N/m^1.6, `n` 1.6, `λ_i` 0.6 s/m), released from 8 mm at gap 0,
+/// the default sensor chain with noise seed `seed`, a 2.5 s capture (`RigId::Beam150`).
+pub fn hunt_crossley_scenario(seed: u64) -> (PlantSection, Scenario) {
+    let plant = PlantSection {
+        contact: Some(shared::model::ContactLaw::HuntCrossley {
+            stiffness: 2.1e8,
+            exponent: 1.6,
+            lambda_s_m: 0.6,
+        }),
+        ..PlantSection::default()
+    };
+    (plant, drop_scenario(plant, seed))
+}
+
 /// A scenario of the plant `plant` released from 8 mm at 0.2 s, no console lines, the default
 /// sensor chain with noise seed `seed`.
 pub fn drop_scenario(plant: PlantSection, seed: u64) -> Scenario {

@@ -332,6 +332,78 @@ fn other_plants_commission_within_the_same_bounds() {
     }
 }
 
+/// The 150 mm beam rig whose contact is Fig. 3.3's Hunt–Crossley law (`k_i` 2.1e8 N/m^1.6,
+/// `n` 1.6, `λ_i` 0.6 s/m), its controller holding the beam's preset (Table 3.1's
+/// spring–dashpot law): the drop's spring–dashpot fit does not fit, the board fits the
+/// Hunt–Crossley law within 5 % of each parameter and `f_n` within 1 %. Its selection then
+/// finds no target the board may run (`host-sim select` on the plant: 10.395 Hz at 172 mg,
+/// 504 N, beyond the sensor's 310 N and the 280 N force limit; the board's embedded profile
+/// finds no robust `1/1` point on so elastic a contact): the sequence ends at `select`
+/// with its reason, the drive never ran and nothing is stored.
+#[test]
+fn a_hunt_crossley_beam_is_identified_and_its_selection_refused_with_the_reason() {
+    let (plant, _) = host_sim::virtual_rig::recording::hunt_crossley_scenario(1);
+    let preset = RigId::Beam150;
+    let truth = plant.params(&preset.preset()).unwrap();
+    let (_, mut scenario) = reference_scenario(1);
+    scenario.plant = plant;
+    scenario.drops.clear();
+    scenario.commands.clear();
+    let mut rig = rig_on(preset, scenario);
+    start(&mut rig);
+    let last = run_until_record(&mut rig, 120.0, ends);
+    let log = rig.commission_log().to_vec();
+    for n in &log {
+        eprintln!("{}", shared::console::commission::CommissionLine(*n));
+    }
+    assert!(
+        matches!(
+            last.progress,
+            Progress::Kept {
+                at: Step::Select,
+                reason: EndReason::Failed
+            }
+        ),
+        "{log:#?}"
+    );
+    let id = log
+        .iter()
+        .find_map(|n| match n.progress {
+            Progress::Drop(Ok(id)) => Some(id),
+            _ => None,
+        })
+        .expect("the drop was identified");
+    let model = id.applied_to(&preset.preset()).unwrap();
+    let shared::model::ContactLaw::HuntCrossley {
+        stiffness,
+        exponent,
+        lambda_s_m,
+    } = model.contact
+    else {
+        panic!("not a Hunt–Crossley model: {model:?}")
+    };
+    assert!(id.law_fits(), "{id:?}");
+    assert!((stiffness / 2.1e8 - 1.0).abs() < 0.05, "k_i {stiffness}");
+    assert!((exponent / 1.6 - 1.0).abs() < 0.05, "n {exponent}");
+    assert!((lambda_s_m / 0.6 - 1.0).abs() < 0.05, "λ_i {lambda_s_m}");
+    let fn_pct = (model.natural_freq_hz() / truth.natural_freq_hz() - 1.0) * 100.0;
+    assert!(fn_pct.abs() < 1.0, "f_n off by {fn_pct} %");
+    assert!(log.iter().any(|n| matches!(
+        n.progress,
+        Progress::Select(s) if s.failure == Some(SelectFailure::NoTarget)
+    )));
+    // The drive never ran; the controller keeps the preset; nothing stored.
+    assert!(
+        rig.rows().iter().all(|r| r.amp_cmd_mm == 0.0),
+        "the drive ran"
+    );
+    assert_eq!(
+        rig.controller_mut().model().1.source,
+        ModelSource::Preset(preset)
+    );
+    assert_eq!(rig.store_status().state, StoreState::Empty);
+}
+
 /// Captures that cannot fix the model — no drop, a drop from too high (the sensor saturates),
 /// two drops, the sensor open mid-drop — each end the sequence at the drop step with the
 /// identification's reason; the drive never ran, the model is the preset's again, nothing is

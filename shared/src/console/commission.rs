@@ -556,7 +556,7 @@ impl FromStr for CommissionRefusal {
 mod tests {
     use super::*;
     use crate::console::serve::ReplyText;
-    use crate::identify::{DropIdentification, DropRefusal};
+    use crate::identify::{DropIdentification, DropLaw, DropRefusal};
     use crate::observe::Regime;
     use std::string::ToString;
 
@@ -568,10 +568,12 @@ mod tests {
             first_peak_n: 171.25,
             approach_speed_m_s: 0.3917,
             restitution: 0.71234,
-            stiffness_n_m: 1.2345678e7,
-            stiffness_pm_pct: 0.8123,
-            damping_n_s_m: 123.45679,
-            damping_pm_pct: 1.0712,
+            law: DropLaw::SpringDashpot {
+                stiffness_n_m: 1.2345678e7,
+                stiffness_pm_pct: 0.8123,
+                damping_n_s_m: 123.45679,
+                damping_pm_pct: 1.0712,
+            },
             fit_ratio,
             suspension: Some(crate::identify::spacing::SuspensionId {
                 natural_freq_hz: 2.2123456,
@@ -579,6 +581,21 @@ mod tests {
                 damping_ratio: -0.0012345678,
                 halves: 8,
             }),
+        }
+    }
+
+    /// [`id`] with a Hunt–Crossley law (the longest `drop` line).
+    fn id_power(fit_ratio: f32) -> DropIdentification {
+        DropIdentification {
+            law: DropLaw::HuntCrossley {
+                stiffness: -2.1234567e-18,
+                stiffness_pm_pct: 1.2345678e-12,
+                exponent: 1.6006929,
+                exponent_pm: 1.4104304e-13,
+                lambda_s_m: 0.6002734,
+                lambda_pm_pct: 4.9643776e-11,
+            },
+            ..id(fit_ratio)
         }
     }
 
@@ -616,6 +633,7 @@ mod tests {
             Progress::Sensor(check),
             Progress::Drop(Ok(id(0.9))),
             Progress::Drop(Ok(id(4.5))),
+            Progress::Drop(Ok(id_power(1.0123457e-10))),
             Progress::Drop(Err(DropRefusal::NoImpacts)),
             Progress::Drop(Err(DropRefusal::Saturated { impact: 0 })),
             Progress::Select(SelectOutcome {
@@ -691,7 +709,8 @@ mod tests {
                 progress,
             });
             let mut out = ReplyText::new();
-            core::fmt::write(&mut out, format_args!("{line}")).expect("fits 640 bytes");
+            core::fmt::write(&mut out, format_args!("{line}"))
+                .expect("fits a reply line (MAX_REPLY)");
             assert_eq!(out.parse::<CommissionLine>(), Ok(line), "{out}");
         }
         // A verdict that disagrees with its numbers does not read.

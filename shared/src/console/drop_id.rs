@@ -3,8 +3,10 @@
 //! the board's `f32` bits.
 //!
 //! `identify verdict=fits|misfit impacts=… offset_n=… noise_n=… peak_n=… approach_m_s=…
-//! restitution=… k_i=… k_i_pm_pct=… c_i=… c_i_pm_pct=… fit_ratio=… [f_n_hz=… f_n_spread_pct=…
-//! zeta=… halves=…]` (the suspension's fields at gap 0 only), or
+//! restitution=… law=spring-dashpot k_i=… k_i_pm_pct=… c_i=… c_i_pm_pct=… fit_ratio=…
+//! [f_n_hz=… f_n_spread_pct=… zeta=… halves=…]` (the suspension's fields at gap 0 only; for a
+//! Hunt–Crossley law `law=hunt-crossley k_i=… k_i_pm_pct=… n=… n_pm=… lambda_i=…
+//! lambda_i_pm_pct=…` in place of the spring–dashpot's four), or
 //! `identify verdict=refused reason=<word> [its fields]`.
 
 use core::fmt;
@@ -13,7 +15,8 @@ use core::str::FromStr;
 use super::decimal::{Exact, parse_exact};
 use super::fields::{Fields, WireError};
 use crate::identify::spacing::SuspensionId;
-use crate::identify::{DropIdentification, DropRefusal};
+use crate::identify::{DropIdentification, DropLaw, DropRefusal};
+use crate::model::ContactLawKind;
 
 /// The answer to `capture identify`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,8 +48,7 @@ impl fmt::Display for IdentifyLine {
                 write!(
                     f,
                     "identify verdict={} impacts={} offset_n={} noise_n={} peak_n={} \
-                     approach_m_s={} restitution={} k_i={} k_i_pm_pct={} c_i={} c_i_pm_pct={} \
-                     fit_ratio={}",
+                     approach_m_s={} restitution={} law={} ",
                     if id.law_fits() { "fits" } else { "misfit" },
                     id.impacts,
                     x(id.offset_n),
@@ -54,12 +56,41 @@ impl fmt::Display for IdentifyLine {
                     x(id.first_peak_n),
                     x(id.approach_speed_m_s),
                     x(id.restitution),
-                    x(id.stiffness_n_m),
-                    x(id.stiffness_pm_pct),
-                    x(id.damping_n_s_m),
-                    x(id.damping_pm_pct),
-                    x(id.fit_ratio),
+                    law_kind(&id.law).name(),
                 )?;
+                match id.law {
+                    DropLaw::SpringDashpot {
+                        stiffness_n_m,
+                        stiffness_pm_pct,
+                        damping_n_s_m,
+                        damping_pm_pct,
+                    } => write!(
+                        f,
+                        "k_i={} k_i_pm_pct={} c_i={} c_i_pm_pct={}",
+                        x(stiffness_n_m),
+                        x(stiffness_pm_pct),
+                        x(damping_n_s_m),
+                        x(damping_pm_pct),
+                    )?,
+                    DropLaw::HuntCrossley {
+                        stiffness,
+                        stiffness_pm_pct,
+                        exponent,
+                        exponent_pm,
+                        lambda_s_m,
+                        lambda_pm_pct,
+                    } => write!(
+                        f,
+                        "k_i={} k_i_pm_pct={} n={} n_pm={} lambda_i={} lambda_i_pm_pct={}",
+                        x(stiffness),
+                        x(stiffness_pm_pct),
+                        x(exponent),
+                        x(exponent_pm),
+                        x(lambda_s_m),
+                        x(lambda_pm_pct),
+                    )?,
+                }
+                write!(f, " fit_ratio={}", x(id.fit_ratio))?;
                 if let Some(s) = id.suspension {
                     write!(
                         f,
@@ -148,10 +179,7 @@ impl FromStr for IdentifyLine {
             first_peak_n: exact(&mut w, "peak_n")?,
             approach_speed_m_s: exact(&mut w, "approach_m_s")?,
             restitution: exact(&mut w, "restitution")?,
-            stiffness_n_m: exact(&mut w, "k_i")?,
-            stiffness_pm_pct: exact(&mut w, "k_i_pm_pct")?,
-            damping_n_s_m: exact(&mut w, "c_i")?,
-            damping_pm_pct: exact(&mut w, "c_i_pm_pct")?,
+            law: law(&mut w)?,
             fit_ratio: exact(&mut w, "fit_ratio")?,
             suspension: None,
         };
@@ -171,6 +199,38 @@ impl FromStr for IdentifyLine {
         }
         Ok(IdentifyLine(Ok(id)))
     }
+}
+
+/// The identified law's kind (its `law=` word).
+fn law_kind(law: &DropLaw) -> ContactLawKind {
+    match law {
+        DropLaw::SpringDashpot { .. } => ContactLawKind::SpringDashpot,
+        DropLaw::HuntCrossley { .. } => ContactLawKind::HuntCrossley,
+    }
+}
+
+/// `law=<name>` and its parameters.
+fn law(w: &mut Fields<'_>) -> Result<DropLaw, WireError> {
+    let name = w.raw("law")?;
+    Ok(if name == ContactLawKind::SpringDashpot.name() {
+        DropLaw::SpringDashpot {
+            stiffness_n_m: exact(w, "k_i")?,
+            stiffness_pm_pct: exact(w, "k_i_pm_pct")?,
+            damping_n_s_m: exact(w, "c_i")?,
+            damping_pm_pct: exact(w, "c_i_pm_pct")?,
+        }
+    } else if name == ContactLawKind::HuntCrossley.name() {
+        DropLaw::HuntCrossley {
+            stiffness: exact(w, "k_i")?,
+            stiffness_pm_pct: exact(w, "k_i_pm_pct")?,
+            exponent: exact(w, "n")?,
+            exponent_pm: exact(w, "n_pm")?,
+            lambda_s_m: exact(w, "lambda_i")?,
+            lambda_pm_pct: exact(w, "lambda_i_pm_pct")?,
+        }
+    } else {
+        return Err(WireError::Bad("law"));
+    })
 }
 
 fn refusal(w: &mut Fields<'_>) -> Result<DropRefusal, WireError> {

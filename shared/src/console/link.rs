@@ -22,8 +22,8 @@ use super::framing::{Line, LineBuffer, MAX_LINE, RxError, is_line_end};
 
 /// Transmit queue, bytes.
 pub const TX_CAPACITY: usize = 2048;
-/// Longest reply line, bytes, without the line ending (a capture segment is 540).
-pub const MAX_REPLY: usize = 640;
+/// Longest reply line, bytes, without the line ending (a capture segment is 811).
+pub const MAX_REPLY: usize = 840;
 /// Free transmit space a reply needs (the reply and `\r\n`).
 pub const REPLY_ROOM: usize = MAX_REPLY + 2;
 /// Longest asynchronous line, bytes, without the line ending (a telemetry line is about 150).

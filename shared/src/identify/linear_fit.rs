@@ -17,6 +17,7 @@
 //! model's.
 
 use super::pulse::Pulse;
+use super::record::SAMPLE_PERIOD_S;
 
 /// A pulse's columns reduced to what the fit needs: means and slopes against the centred time,
 /// and the projected cross products.
@@ -80,6 +81,18 @@ impl PulseMoments {
     pub fn line(&self, kappa: f32, gamma: f32) -> (f32, f32) {
         let comb = |v: &[f32; 3]| v[0] + kappa * v[1] + gamma * v[2];
         (comb(&self.slope), comb(&self.mean))
+    }
+
+    /// The pulse's `v₀` (the penetration rate at its first sample, m/s) and `t₀` (its arrival,
+    /// samples from the window's centre) for the fitted `(κ, γ)` and the mass `mass_kg`: from
+    /// its line, `v₀ = A / (k_i Δt)` and `t₀ = (c_i v₀ − B) / A`.
+    pub fn start(&self, kappa: f32, gamma: f32, mass_kg: f32) -> (f32, f32) {
+        let dt = SAMPLE_PERIOD_S;
+        let (a, b) = self.line(kappa, gamma);
+        let k_dt = kappa * mass_kg / dt;
+        let c = gamma * mass_kg / dt;
+        let v0 = a / k_dt;
+        (v0, (c * v0 - b) / a)
     }
 }
 

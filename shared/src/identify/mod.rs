@@ -16,6 +16,7 @@
 //! refused with the reason ([`DropRefusal`]).
 
 pub mod linear_fit;
+pub mod power_fit;
 pub mod pulse;
 pub mod record;
 pub mod spacing;
@@ -132,22 +133,78 @@ pub struct DropIdentification {
     pub approach_speed_m_s: f32,
     /// Its restitution (rebound over approach speed, at the surface).
     pub restitution: f32,
-    /// `k_i`, N/m.
-    pub stiffness_n_m: f32,
-    /// 95 % half-width of `k_i`, % of it.
-    pub stiffness_pm_pct: f32,
-    /// `c_i`, N s/m.
-    pub damping_n_s_m: f32,
-    /// 95 % half-width of `c_i`, % of it.
-    pub damping_pm_pct: f32,
-    /// Residual over what the sensor noise explains (reduced χ², about 1 when the law fits).
+    /// The contact law the pulses fixed.
+    pub law: DropLaw,
+    /// Its residual over what the sensor noise explains (reduced χ², about 1 when the law
+    /// fits).
     pub fit_ratio: f32,
     /// The suspension, when the gap lets the spacing fix it.
     pub suspension: Option<SuspensionId>,
 }
 
+/// The contact law a drop fixed, with the 95 % half-widths of its parameters (from the fit's
+/// covariance scaled by its residual).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DropLaw {
+    /// Table 3.1's law, Eq. (3-3): `F = k_i δ + c_i δ̇` ([`linear_fit`]).
+    SpringDashpot {
+        /// `k_i`, N/m.
+        stiffness_n_m: f32,
+        /// 95 % half-width of `k_i`, % of it.
+        stiffness_pm_pct: f32,
+        /// `c_i`, N s/m.
+        damping_n_s_m: f32,
+        /// 95 % half-width of `c_i`, % of it.
+        damping_pm_pct: f32,
+    },
+    /// Hunt–Crossley, Eq. (3-4): `F = k_i δ^n (1 + λ_i δ̇)` ([`power_fit`]), where the
+    /// spring–dashpot law does not fit.
+    HuntCrossley {
+        /// `k_i`, N/m^n.
+        stiffness: f32,
+        /// 95 % half-width of `k_i`, % of it (mostly `n`'s: the two move together).
+        stiffness_pm_pct: f32,
+        /// `n`.
+        exponent: f32,
+        /// 95 % half-width of `n`.
+        exponent_pm: f32,
+        /// `λ_i`, s/m.
+        lambda_s_m: f32,
+        /// 95 % half-width of `λ_i`, % of it.
+        lambda_pm_pct: f32,
+    },
+}
+
+impl DropLaw {
+    /// The model's contact law, each parameter rounded to 7 significant digits (what an `f32`
+    /// carries; the model reads as plain decimals).
+    pub fn contact(&self) -> ContactLaw {
+        let r = |x: f32| sig7(f64::from(x));
+        match *self {
+            DropLaw::SpringDashpot {
+                stiffness_n_m,
+                damping_n_s_m,
+                ..
+            } => ContactLaw::SpringDashpot {
+                stiffness_n_m: r(stiffness_n_m),
+                damping_n_s_m: r(damping_n_s_m),
+            },
+            DropLaw::HuntCrossley {
+                stiffness,
+                exponent,
+                lambda_s_m,
+                ..
+            } => ContactLaw::HuntCrossley {
+                stiffness: r(stiffness),
+                exponent: r(exponent),
+                lambda_s_m: r(lambda_s_m),
+            },
+        }
+    }
+}
+
 impl DropIdentification {
-    /// Whether the spring–dashpot law fits the pulses (`fit_ratio ≤ MAX_FIT_RATIO`).
+    /// Whether the identified law fits the pulses (`fit_ratio ≤ MAX_FIT_RATIO`).
     pub fn law_fits(&self) -> bool {
         self.fit_ratio <= MAX_FIT_RATIO
     }
@@ -161,10 +218,7 @@ impl DropIdentification {
     /// [`ParamError`] when the result is outside the model's ranges.
     pub fn applied_to(&self, base: &RigParams) -> Result<RigParams, ParamError> {
         let mut p = *base;
-        p.contact = ContactLaw::SpringDashpot {
-            stiffness_n_m: sig7(f64::from(self.stiffness_n_m)),
-            damping_n_s_m: sig7(f64::from(self.damping_n_s_m)),
-        };
+        p.contact = self.law.contact();
         if let Some(s) = self.suspension {
             let omega = 2.0 * core::f64::consts::PI * f64::from(s.natural_freq_hz);
             let zeta = sig7(f64::from(s.damping_ratio));
@@ -226,6 +280,7 @@ pub fn identify_drop(
     // Pass 1: rails, baselines and peaks.
     let mut sd = [0.0f32; SEGMENTS];
     let mut peaks = [0.0f32; SEGMENTS];
+    let mut starts = [0u32; SEGMENTS];
     let (mut offset, mut var) = (0.0f32, 0.0f32);
     for k in 0..n {
         let seg = rec.segment(k).ok_or(DropRefusal::NoImpacts)?;
@@ -237,7 +292,9 @@ pub fn identify_drop(
         var += v;
         sd[k] = libm::sqrtf(v);
         peaks[k] = seg.force_n.iter().fold(f32::MIN, |a, &f| a.max(f)) - m;
+        starts[k] = seg.start;
     }
+    let recorded = n;
     offset /= n as f32;
     // Quantisation alone: one code's force over √12.
     let sigma = libm::sqrtf(var / n as f32).max(rec.resolution_n() / libm::sqrtf(12.0));
@@ -253,11 +310,28 @@ pub fn identify_drop(
         }
     }
     // The train's strong impacts: the first ones, until one is too weak to fit. A strong one
-    // after a weak one belongs to something else.
+    // after a weak one belongs to something else, unless the weak ones between are noise that
+    // crossed the trigger level: the strong one then arrives one spacing after the last.
     let strong = |k: usize| peaks[k] >= MIN_PEAK_SIGMAS * sigma;
-    let recorded = n;
-    let n = (0..recorded).take_while(|&k| strong(k)).count();
-    if let Some(k) = (n..recorded).find(|&k| strong(k)) {
+    let mut train = [0usize; SEGMENTS];
+    let mut n = 0;
+    let mut k = 0;
+    while k < recorded && strong(k) {
+        train[n] = k;
+        n += 1;
+        k += 1;
+        let Some(next) = (k..recorded).find(|&j| strong(j)) else {
+            break;
+        };
+        if next > k && n >= 2 {
+            let spacing = starts[train[n - 1]].wrapping_sub(starts[train[n - 2]]) as f32;
+            let gap = starts[next].wrapping_sub(starts[train[n - 1]]) as f32;
+            if libm::fabsf(gap - spacing) <= spacing::MAX_SPACING_DEVIATION * spacing {
+                k = next;
+            }
+        }
+    }
+    if let Some(k) = (k..recorded).find(|&k| strong(k)) {
         return Err(DropRefusal::SecondTrain {
             impact: k as u16,
             peak_n: peaks[k],
@@ -266,12 +340,20 @@ pub fn identify_drop(
     if n < MIN_IMPACTS {
         return Err(DropRefusal::TooFewImpacts { found: n as u16 });
     }
-    // Pass 2: windows and the normal equations.
+    // Pass 2: windows and the normal equations. A weak impact late in the train lasts longer
+    // (a power law's contact time grows as the speed falls): where its pulse runs past its
+    // segment, the train ends before it.
     let mut pulses = [PulseSummary::default(); SEGMENTS];
     let mut normal = NormalEquations::default();
     for (k, ps) in pulses.iter_mut().enumerate().take(n) {
-        let seg = rec.segment(k).ok_or(DropRefusal::NoImpacts)?;
-        let p = Pulse::of(&seg, k, offset, sigma)?;
+        let seg = rec.segment(train[k]).ok_or(DropRefusal::NoImpacts)?;
+        let p = match Pulse::of(&seg, train[k], offset, sigma) {
+            Err(DropRefusal::Clipped { .. }) if k >= MIN_IMPACTS => {
+                n = k;
+                break;
+            }
+            p => p?,
+        };
         let m = PulseMoments::of(&p);
         normal.add(&p, &m);
         let last = p.len - 1;
@@ -295,8 +377,8 @@ pub fn identify_drop(
     // Pass 3: the residual.
     let mut rss = 0.0f32;
     for (k, ps) in pulses.iter().enumerate().take(n) {
-        let seg = rec.segment(k).ok_or(DropRefusal::NoImpacts)?;
-        let p = Pulse::of(&seg, k, offset, sigma)?;
+        let seg = rec.segment(train[k]).ok_or(DropRefusal::NoImpacts)?;
+        let p = Pulse::of(&seg, train[k], offset, sigma)?;
         rss += linear_fit::residual(&p, &ps.moments, kappa, gamma);
     }
     let dof = normal.dof().max(1) as f32;
@@ -306,20 +388,76 @@ pub fn identify_drop(
     let c_i = gamma * mass_kg / dt;
     // 95 %: 1.96 σ, the residual's own variance scaling the covariance.
     let pm = |var: f32, x: f32| 196.0 * libm::sqrtf(var.max(0.0) * resid_var) / x;
+    let mut law = DropLaw::SpringDashpot {
+        stiffness_n_m: k_i,
+        stiffness_pm_pct: pm(inv[0], kappa),
+        damping_n_s_m: c_i,
+        damping_pm_pct: pm(inv[2], gamma),
+    };
+    let mut fit_ratio = resid_var / (sigma * sigma);
+    let mut starts = [(0.0f32, 0.0f32); SEGMENTS];
+    for (k, s) in starts.iter_mut().enumerate().take(n) {
+        *s = pulses[k].moments.start(kappa, gamma, mass_kg);
+    }
+    // Where the spring–dashpot law does not fit: the Hunt–Crossley law, started from it, when
+    // it fits better.
+    if fit_ratio > MAX_FIT_RATIO {
+        let start = hunt_crossley_start(&pulses[..n], &starts, k_i, mass_kg);
+        let hc = power_fit::fit(&start, mass_kg, |k| {
+            let seg = rec.segment(train[k]).ok_or(DropRefusal::NoImpacts)?;
+            Pulse::of(&seg, train[k], offset, sigma)
+        });
+        if let Ok(f) = hc {
+            let ratio = f.rss / f.dof as f32 / (sigma * sigma);
+            if ratio < fit_ratio {
+                fit_ratio = ratio;
+                starts = f.kinematics;
+                law = DropLaw::HuntCrossley {
+                    stiffness: f.law.stiffness,
+                    stiffness_pm_pct: f.stiffness_pm_pct,
+                    exponent: f.law.exponent,
+                    exponent_pm: f.exponent_pm,
+                    lambda_s_m: f.law.lambda_s_m,
+                    lambda_pm_pct: f.lambda_pm_pct,
+                };
+            }
+        }
+    }
     let mut kin = [Kinematics::default(); SEGMENTS];
     for (k, kn) in kin.iter_mut().enumerate().take(n) {
-        let s = &pulses[k];
-        *kn = Kinematics::of(s, kappa, gamma, mass_kg);
+        *kn = Kinematics::of(&pulses[k], starts[k], mass_kg);
     }
     let suspension = if gap_m <= MAX_SPACING_GAP_M {
-        // The fitted law's restitution (an overdamped fit has no closed form: the first
-        // impact's own then).
-        let restitution = spring_dashpot_restitution_in(k_i, c_i, mass_kg)
-            .map_or(-kin[0].v_out / kin[0].v_arrival, |(e, _)| e);
+        // Each impact's restitution under the fitted law (the measured one where the law gives
+        // none: an overdamped spring–dashpot fit has no closed form, the first impact's then).
+        let mut restitution = [0.0f32; SEGMENTS];
+        let measured = |k: &Kinematics| -k.v_out / k.v_arrival;
+        match law {
+            DropLaw::SpringDashpot { .. } => {
+                let e = spring_dashpot_restitution_in(k_i, c_i, mass_kg)
+                    .map_or(measured(&kin[0]), |(e, _)| e);
+                restitution[..n].fill(e);
+            }
+            DropLaw::HuntCrossley {
+                stiffness,
+                exponent,
+                lambda_s_m,
+                ..
+            } => {
+                let hc = power_fit::HuntCrossley {
+                    stiffness,
+                    exponent,
+                    lambda_s_m,
+                };
+                for (e, k) in restitution.iter_mut().zip(&kin[..n]) {
+                    *e = hc.restitution(mass_kg, k.v_arrival).unwrap_or(measured(k));
+                }
+            }
+        }
         Some(spacing::suspension(
             &kin[..n],
-            restitution,
-            (recorded == n).then(|| (rec.level_n(), rec.samples())),
+            &restitution[..n],
+            (train[n - 1] + 1 == recorded).then(|| (rec.level_n(), rec.samples())),
         )?)
     } else {
         None
@@ -332,13 +470,43 @@ pub fn identify_drop(
         first_peak_n: pulses[0].peak_n,
         approach_speed_m_s: first.v_arrival,
         restitution: -first.v_out / first.v_arrival,
-        stiffness_n_m: k_i,
-        stiffness_pm_pct: pm(inv[0], kappa),
-        damping_n_s_m: c_i,
-        damping_pm_pct: pm(inv[2], gamma),
-        fit_ratio: resid_var / (sigma * sigma),
+        law,
+        fit_ratio,
         suspension,
     })
+}
+
+/// Where the Hunt–Crossley fit starts, from the spring–dashpot fit (`k_i` N/m, each pulse's
+/// `(v₀, t₀)` in `starts`): `n` = 1.5 (Hertz's), the reference penetration the first impact's
+/// deepest under the linear law (`v / ω_c`), the elastic force there the linear law's, and
+/// `λ_i` from the first impact's restitution by Hunt and Crossley's `e ≈ 1 − 2λv/3`.
+fn hunt_crossley_start(
+    pulses: &[PulseSummary],
+    starts: &[(f32, f32); SEGMENTS],
+    k_i: f32,
+    mass_kg: f32,
+) -> power_fit::Start {
+    let first = Kinematics::of(&pulses[0], starts[0], mass_kg);
+    let delta_ref_m = first.v_arrival / libm::sqrtf(k_i / mass_kg);
+    let e = (-first.v_out / first.v_arrival).clamp(0.05, 0.99);
+    let exponent = 1.5;
+    power_fit::Start {
+        law: power_fit::HuntCrossley {
+            stiffness: k_i * delta_ref_m / libm::powf(delta_ref_m, exponent),
+            exponent,
+            lambda_s_m: 1.5 * (1.0 - e) / first.v_arrival,
+        },
+        delta_ref_m,
+        kinematics: *starts,
+        pulses: pulses.len(),
+    }
+}
+
+/// `ln x` (`libm::logf`), one copy: the identification calls it from several places, each of
+/// which would otherwise inline its own.
+#[inline(never)]
+pub(crate) fn ln(x: f32) -> f32 {
+    libm::logf(x)
 }
 
 /// `x` rounded to 7 significant digits: the `f64` nearest that decimal (0 and non-finite values

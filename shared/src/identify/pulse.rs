@@ -52,6 +52,7 @@ impl Pulse {
     /// # Errors
     /// [`DropRefusal::Clipped`] when the pulse reaches the baseline or the segment's end,
     /// [`DropRefusal::ShortPulse`] when it spans fewer than [`MIN_PULSE_SAMPLES`].
+    #[inline(never)]
     pub fn of(
         seg: &SegmentForce,
         k: usize,

@@ -16,7 +16,7 @@ use crate::capture::{SEGMENT_LEN, SEGMENTS};
 
 use super::linear_fit::centred;
 use super::record::SAMPLE_PERIOD_S;
-use super::{DropRefusal, PulseSummary};
+use super::{DropRefusal, PulseSummary, ln};
 
 /// Largest deviation of a half period from the median, as a fraction (two drops or a rattling
 /// release put impacts off time by much more).
@@ -42,14 +42,12 @@ pub struct Kinematics {
 }
 
 impl Kinematics {
-    /// The kinematics of pulse `s` for the fitted `κ`, `γ` and the mass `m` (kg).
-    pub(super) fn of(s: &PulseSummary, kappa: f32, gamma: f32, m: f32) -> Kinematics {
+    /// The kinematics of pulse `s` whose fitted law gives it the rate `v0` (m/s) at its first
+    /// sample and the arrival `t0` (samples from its window's centre), for the mass `m` (kg):
+    /// the same for any law, from the force's integrals.
+    #[inline(never)]
+    pub(super) fn of(s: &PulseSummary, (v0, t0): (f32, f32), m: f32) -> Kinematics {
         let dt = SAMPLE_PERIOD_S;
-        let (a, b) = s.moments.line(kappa, gamma);
-        let k_dt = kappa * m / dt;
-        let c = gamma * m / dt;
-        let v0 = a / k_dt;
-        let t0 = (c * v0 - b) / a;
         let t_first = centred(0, s.len);
         let v_arrival = if t0 < t_first {
             v0 + dt * s.first_n * (t_first - t0) / m
@@ -98,7 +96,8 @@ fn flight(a: &Kinematics, b: &Kinematics) -> f32 {
     b.start.wrapping_sub(a.start) as f32 + (b.centre + b.arrival) - (a.centre + a.departure)
 }
 
-/// The suspension from the impacts `kin` (in order), `restitution` the fitted law's.
+/// The suspension from the impacts `kin` (in order), `restitution` the fitted law's at each
+/// impact's approach speed.
 ///
 /// # Errors
 /// [`DropRefusal::IrregularSpacing`] when a flight is off the others' median by more than
@@ -107,7 +106,7 @@ fn flight(a: &Kinematics, b: &Kinematics) -> f32 {
 /// next impact's time and that impact should have crossed the trigger level twice over.
 pub(super) fn suspension(
     kin: &[Kinematics],
-    restitution: f32,
+    restitution: &[f32],
     train_end: Option<(f32, u32)>,
 ) -> Result<SuspensionId, DropRefusal> {
     let halves = kin.len().saturating_sub(1).min(SEGMENTS);
@@ -134,15 +133,21 @@ pub(super) fn suspension(
         .map(|&x| libm::fabsf(x - mean))
         .fold(0.0f32, f32::max);
     // Each half's log impulse ratio, weighted by the later impact's peak squared (its
-    // impulse's signal-to-noise ratio squared), less the contact's share.
+    // impulse's signal-to-noise ratio squared), less the contact's share: with `J = m (1 + e)
+    // v_in`, `J_{k+1} / J_k = r e_k (1 + e_{k+1}) / (1 + e_k)`. The share is taken as `e_0`
+    // and each half's departure from it (exactly 1 where `e` does not change with speed).
     let impulse = |k: &Kinematics| k.v_arrival - k.v_out;
+    let e_ref = restitution.first().copied().unwrap_or(1.0);
     let (mut ln_j, mut wsum) = (0.0f32, 0.0f32);
-    for w in kin.windows(2) {
+    for (j, w) in kin.windows(2).enumerate() {
         let weight = w[1].peak_n * w[1].peak_n;
-        ln_j += weight * libm::logf(impulse(&w[1]) / impulse(&w[0]));
+        let e = |i: usize| restitution.get(i).copied().unwrap_or(e_ref);
+        let (e0, e1) = (e(j), e(j + 1));
+        let share = (e0 * (1.0 + e1)) / ((1.0 + e0) * e_ref);
+        ln_j += weight * (ln(impulse(&w[1]) / impulse(&w[0])) - ln(share));
         wsum += weight;
     }
-    let ln_r = ln_j / wsum - libm::logf(restitution);
+    let ln_r = ln_j / wsum - ln(e_ref);
     let pi = core::f32::consts::PI;
     let zeta = (-ln_r / libm::sqrtf(pi * pi + ln_r * ln_r)).max(0.0);
     let omega_d = pi / (mean * SAMPLE_PERIOD_S);

@@ -28,7 +28,7 @@ use shared::control::{
 use shared::control::{CalibField, Calibration, ModelId, ModelSource};
 use shared::control::{Controller, ControllerConfig};
 use shared::identify::spacing::SuspensionId;
-use shared::identify::{DropIdentification, DropRefusal};
+use shared::identify::{DropIdentification, DropLaw, DropRefusal};
 use shared::model::{ContactLawKind, ModelEdit, ModelField, RigId, RigParams, SuspensionKind};
 use shared::observe::Regime;
 use shared::store::ram_flash::{PAGE_BYTES, RamFlash};
@@ -287,15 +287,33 @@ fn finite_f32() -> impl Strategy<Value = f32> {
 
 fn identify_line() -> impl Strategy<Value = IdentifyLine> {
     let x = finite_f32;
+    let law = prop_oneof![
+        (x(), x(), x(), x()).prop_map(|(k, k_pm, c, c_pm)| DropLaw::SpringDashpot {
+            stiffness_n_m: k,
+            stiffness_pm_pct: k_pm,
+            damping_n_s_m: c,
+            damping_pm_pct: c_pm,
+        }),
+        (x(), x(), x(), x(), x(), x()).prop_map(|(k, k_pm, n, n_pm, l, l_pm)| {
+            DropLaw::HuntCrossley {
+                stiffness: k,
+                stiffness_pm_pct: k_pm,
+                exponent: n,
+                exponent_pm: n_pm,
+                lambda_s_m: l,
+                lambda_pm_pct: l_pm,
+            }
+        }),
+    ];
     let identified = (
         (any::<u16>(), x(), x(), x(), x(), x()),
-        (x(), x(), x(), x(), x()),
+        (law, x()),
         proptest::option::of((x(), x(), x(), any::<u16>())),
     )
         .prop_map(
             |(
                 (impacts, offset_n, noise_n, first_peak_n, approach_speed_m_s, restitution),
-                (stiffness_n_m, stiffness_pm_pct, damping_n_s_m, damping_pm_pct, fit_ratio),
+                (law, fit_ratio),
                 s,
             )| {
                 DropIdentification {
@@ -305,10 +323,7 @@ fn identify_line() -> impl Strategy<Value = IdentifyLine> {
                     first_peak_n,
                     approach_speed_m_s,
                     restitution,
-                    stiffness_n_m,
-                    stiffness_pm_pct,
-                    damping_n_s_m,
-                    damping_pm_pct,
+                    law,
                     fit_ratio,
                     suspension: s.map(|(natural_freq_hz, spread_pct, damping_ratio, halves)| {
                         SuspensionId {
@@ -870,8 +885,11 @@ fn bad_numbers_are_refused_at_the_edge_and_named() {
             .join(" ");
         assert_eq!(line.parse::<IdInfo>(), Err(err), "{to}");
     }
-    let cap = "capture state=done segments=3 samples=1200000 level_n=1.00 rate_hz=100000 \
-               segment_len=160 pre_trigger=32 max_segments=32";
+    let cap = format!(
+        "capture state=done segments=3 samples=1200000 level_n=1.00 rate_hz=100000 \
+         segment_len={} pre_trigger=32 max_segments=32",
+        shared::capture::SEGMENT_LEN
+    );
     assert!(cap.parse::<CaptureStatus>().is_ok());
     assert_eq!(
         cap.replace(" segments=3 ", " segments=100000 ")
@@ -899,7 +917,8 @@ fn bad_numbers_are_refused_at_the_edge_and_named() {
         Err(WireError::Mismatch("codes"))
     );
     assert_eq!(
-        seg.replace("n=160", "n=100").parse::<SegmentView>(),
+        seg.replace(&format!("n={SEGMENT_LEN}"), "n=100")
+            .parse::<SegmentView>(),
         Err(WireError::Mismatch("n"))
     );
     assert_eq!(
