@@ -279,6 +279,33 @@ fn a_hunt_crossley_contact_is_identified_where_the_linear_law_does_not_fit() {
             "{what}"
         );
     }
+    // Without noise (the 12-bit quantisation alone): `n` within 0.002, `λ_i` within 0.3 %, `k_i`
+    // within 1.5 % (measured: +0.0011, +0.1 %, +0.9 %: `k_i` moves with `n`, `δ_ref^0.0011` at
+    // these depths), the first impact's restitution the plant law's at its approach speed.
+    let id = identify(&capture(&p, 8.0, 1, 0.0, &mut |_, _, _| {}), &p).unwrap();
+    let DropLaw::HuntCrossley {
+        stiffness,
+        exponent,
+        lambda_s_m,
+        ..
+    } = id.law
+    else {
+        panic!("not a Hunt–Crossley law: {id:?}")
+    };
+    let what = format!("noise-free: {id:?}");
+    eprintln!("{what}");
+    assert!(pct(stiffness, 2.1e8).abs() < 1.5, "{what}");
+    assert!(pct(lambda_s_m, 0.6).abs() < 0.3, "{what}");
+    assert!((f64::from(exponent) - 1.6).abs() < 0.002, "{what}");
+    let e = p
+        .contact
+        .restitution(p.mass_kg, f64::from(id.approach_speed_m_s))
+        .unwrap();
+    assert!(
+        (f64::from(id.restitution) - e).abs() < 0.002,
+        "{what}: e {e}"
+    );
+
     let mut p = RigId::Wires.preset();
     p.contact = ContactLaw::SpringDashpot {
         stiffness_n_m: 4e5,
@@ -521,6 +548,69 @@ fn a_hunt_crossley_identification_on_the_virtual_rig_agrees_with_the_desktops_fi
         assert!((f64::from(exponent) - nd).abs() < 0.005, "{what}");
         assert!((f64::from(lambda_s_m) / ld - 1.0).abs() < 0.02, "{what}");
     }
+}
+
+/// A segment that noise triggered between two impacts one spacing apart (its codes the first
+/// impact's baseline, its start halfway between the second and third impacts) is passed over:
+/// the same impacts are identified, the law within 0.5 % (the noise segment's baseline joins
+/// the offset and noise). The same segment where the next impact is two spacings on (the third
+/// impact removed) ends the train there: the strong impact after it is a second train.
+#[test]
+fn a_noise_trigger_inside_the_train_is_passed_over() {
+    use shared::capture::SEGMENT_LEN;
+    use shared::identify::RecordedDrop;
+
+    let bytes = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../firmware/data/drop-wires-k2.bin"
+    ))
+    .unwrap();
+    let (header, seg_bytes) = (20, 4 + 2 * SEGMENT_LEN);
+    let count = (bytes.len() - header) / seg_bytes;
+    let segment = |k: usize| bytes[header + k * seg_bytes..header + (k + 1) * seg_bytes].to_vec();
+    let start = |seg: &[u8]| u32::from_le_bytes(seg[..4].try_into().unwrap());
+    let mut noise = segment(0);
+    let at = (start(&segment(1)) + start(&segment(2))) / 2;
+    noise[..4].copy_from_slice(&at.to_le_bytes());
+    for i in 24..SEGMENT_LEN {
+        let from = 4 + 2 * (i % 24);
+        let code = [noise[from], noise[from + 1]];
+        noise[4 + 2 * i..6 + 2 * i].copy_from_slice(&code);
+    }
+    let record = |segs: &[Vec<u8>]| {
+        let mut out = bytes[..header].to_vec();
+        out[16..20].copy_from_slice(&(segs.len() as u32).to_le_bytes());
+        for s in segs {
+            out.extend_from_slice(s);
+        }
+        out
+    };
+    let identify = |b: &[u8]| {
+        let mut rec = RecordedDrop::parse(b, SensorChain::default()).unwrap();
+        identify_drop(&mut rec, RigId::Wires.preset().mass_kg as f32, 0.0)
+    };
+    let whole: Vec<Vec<u8>> = (0..count).map(segment).collect();
+    let plain = identify(&record(&whole)).unwrap();
+    let mut with_noise = whole.clone();
+    with_noise.insert(2, noise.clone());
+    let passed = identify(&record(&with_noise)).unwrap();
+    assert_eq!(passed.impacts, plain.impacts);
+    let (a, b) = (sd_law(&plain), sd_law(&passed));
+    assert!(
+        (b.stiffness_n_m / a.stiffness_n_m - 1.0).abs() < 0.005
+            && (b.damping_n_s_m / a.damping_n_s_m - 1.0).abs() < 0.005,
+        "{plain:?}\n{passed:?}"
+    );
+    let mut missing = with_noise;
+    missing.remove(3);
+    assert!(
+        matches!(
+            identify(&record(&missing)),
+            Err(DropRefusal::SecondTrain { impact: 3, .. })
+        ),
+        "{:?}",
+        identify(&record(&missing))
+    );
 }
 
 /// The recordings the emulated board replays (`firmware/data/drop-wires-k2.bin`,
