@@ -345,15 +345,17 @@ pub fn identify_drop(
     // segment, the train ends before it.
     let mut pulses = [PulseSummary::default(); SEGMENTS];
     let mut normal = NormalEquations::default();
+    // One pulse buffer for every pass (and the power law's fit).
+    let mut p = Pulse::empty();
     for (k, ps) in pulses.iter_mut().enumerate().take(n) {
         let seg = rec.segment(train[k]).ok_or(DropRefusal::NoImpacts)?;
-        let p = match Pulse::of(&seg, train[k], offset, sigma) {
+        match p.read(&seg, train[k], offset, sigma) {
             Err(DropRefusal::Clipped { .. }) if k >= MIN_IMPACTS => {
                 n = k;
                 break;
             }
-            p => p?,
-        };
+            r => r?,
+        }
         let m = PulseMoments::of(&p);
         normal.add(&p, &m);
         let last = p.len - 1;
@@ -378,7 +380,7 @@ pub fn identify_drop(
     let mut rss = 0.0f32;
     for (k, ps) in pulses.iter().enumerate().take(n) {
         let seg = rec.segment(train[k]).ok_or(DropRefusal::NoImpacts)?;
-        let p = Pulse::of(&seg, train[k], offset, sigma)?;
+        p.read(&seg, train[k], offset, sigma)?;
         rss += linear_fit::residual(&p, &ps.moments, kappa, gamma);
     }
     let dof = normal.dof().max(1) as f32;
@@ -403,9 +405,9 @@ pub fn identify_drop(
     // it fits better.
     if fit_ratio > MAX_FIT_RATIO {
         let start = hunt_crossley_start(&pulses[..n], &starts, k_i, mass_kg);
-        let hc = power_fit::fit(&start, mass_kg, |k| {
+        let hc = power_fit::fit(&start, mass_kg, &mut p, |k, p| {
             let seg = rec.segment(train[k]).ok_or(DropRefusal::NoImpacts)?;
-            Pulse::of(&seg, train[k], offset, sigma)
+            p.read(&seg, train[k], offset, sigma)
         });
         if let Ok(f) = hc {
             let ratio = f.rss / f.dof as f32 / (sigma * sigma);

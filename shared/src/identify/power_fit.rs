@@ -26,7 +26,8 @@ use super::pulse::Pulse;
 use super::record::SAMPLE_PERIOD_S;
 use super::{DropRefusal, ln};
 
-/// Most Levenberg–Marquardt iterations (the fit converges in 5–15 on drops of the virtual rig).
+/// Most Levenberg–Marquardt iterations (a bound: the fit ends earlier, when an accepted step
+/// lowers the residual by less than [`CONVERGED`] of it).
 pub const MAX_ITERATIONS: u32 = 60;
 /// The fit has converged when an accepted step lowers the residual by less than this fraction.
 pub const CONVERGED: f32 = 1e-6;
@@ -213,8 +214,9 @@ struct Point {
     kin: [(f32, f32); SEGMENTS],
 }
 
-/// Fits the Hunt–Crossley law to the `start.pulses` pulses that `pulse(k)` gives (re-read at
-/// each pass: no pulse is kept), for a hammer of `mass_kg`.
+/// Fits the Hunt–Crossley law to the `start.pulses` pulses that `pulse(k, buffer)` reads into
+/// `buffer` (re-read at each pass into the one buffer `work`: no pulse is kept), for a hammer
+/// of `mass_kg`.
 ///
 /// # Errors
 /// What `pulse` returns; [`DropRefusal::NotIdentifiable`] when the normal equations are
@@ -223,7 +225,8 @@ struct Point {
 pub fn fit(
     start: &Start,
     mass_kg: f32,
-    mut pulse: impl FnMut(usize) -> Result<Pulse, DropRefusal>,
+    work: &mut Pulse,
+    mut pulse: impl FnMut(usize, &mut Pulse) -> Result<(), DropRefusal>,
 ) -> Result<PowerFit, DropRefusal> {
     let pulses = start.pulses.min(SEGMENTS);
     let ln_ref = ln(start.delta_ref_m);
@@ -236,29 +239,41 @@ pub fn fit(
         ],
         kin: start.kinematics,
     };
-    let mut normal = pass(&at, pulses, mass_kg, start.delta_ref_m, &mut pulse)?;
+    let mut normal = Normal::empty();
+    pass(
+        &mut normal,
+        &at,
+        pulses,
+        mass_kg,
+        start.delta_ref_m,
+        work,
+        &mut pulse,
+    )?;
+    let mut next = Normal::empty();
     let mut mu = 1e-3f32;
     let mut iterations = 0;
     while iterations < MAX_ITERATIONS {
         iterations += 1;
-        let Some(step) = solve(&normal, pulses, mu) else {
+        let Some(trial) = solve(&normal, &at, pulses, mu) else {
             mu *= 10.0;
             if mu > 1e10 {
                 break;
             }
             continue;
         };
-        let trial = Point {
-            shared: core::array::from_fn(|i| at.shared[i] + step.shared[i]),
-            kin: core::array::from_fn(|p| {
-                (at.kin[p].0 + step.kin[p].0, at.kin[p].1 + step.kin[p].1)
-            }),
-        };
-        let next = pass(&trial, pulses, mass_kg, start.delta_ref_m, &mut pulse)?;
+        pass(
+            &mut next,
+            &trial,
+            pulses,
+            mass_kg,
+            start.delta_ref_m,
+            work,
+            &mut pulse,
+        )?;
         if next.rss < normal.rss {
             let converged = normal.rss - next.rss <= CONVERGED * normal.rss;
             at = trial;
-            normal = next;
+            core::mem::swap(&mut normal, &mut next);
             mu = (mu * 0.1).max(1e-9);
             if converged {
                 break;
@@ -340,28 +355,37 @@ fn model(
     )
 }
 
-/// The normal equations and the residual at `at`.
+impl Normal {
+    fn empty() -> Normal {
+        Normal {
+            a: [0.0; 6],
+            g: [0.0; 3],
+            blocks: [PulseBlock::default(); SEGMENTS],
+            rss: 0.0,
+            samples: 0,
+        }
+    }
+}
+
+/// The normal equations and the residual at `at`, into `out` (each pulse read into `p`).
 fn pass(
+    out: &mut Normal,
     at: &Point,
     pulses: usize,
     mass_kg: f32,
     delta_ref_m: f32,
-    pulse: &mut impl FnMut(usize) -> Result<Pulse, DropRefusal>,
-) -> Result<Normal, DropRefusal> {
+    p: &mut Pulse,
+    pulse: &mut impl FnMut(usize, &mut Pulse) -> Result<(), DropRefusal>,
+) -> Result<(), DropRefusal> {
     let dt_m = SAMPLE_PERIOD_S / mass_kg;
     let ln_ref = ln(delta_ref_m);
-    let mut out = Normal {
-        a: [0.0; 6],
-        g: [0.0; 3],
-        blocks: [PulseBlock::default(); SEGMENTS],
-        rss: 0.0,
-        samples: 0,
-    };
+    *out = Normal::empty();
     for (k, block) in out.blocks.iter_mut().enumerate().take(pulses) {
-        let p = pulse(k)?;
+        pulse(k, p)?;
+        let p = &*p;
         let mut rss = 0.0f32;
         for j in 0..p.len {
-            let (f, js, jp) = model(&p, j, &at.shared, at.kin[k], dt_m, ln_ref);
+            let (f, js, jp) = model(p, j, &at.shared, at.kin[k], dt_m, ln_ref);
             let r = p.force[j] - f;
             rss += r * r;
             let mut idx = 0;
@@ -384,7 +408,7 @@ fn pass(
         out.samples += p.len as u32;
     }
     if out.rss.is_finite() {
-        Ok(out)
+        Ok(())
     } else {
         Err(DropRefusal::NotIdentifiable)
     }
@@ -427,9 +451,9 @@ fn schur(n: &Normal, pulses: usize, mu: f32) -> Option<(Sym3, [f32; 3])> {
     Some((s, rhs))
 }
 
-/// The damped Gauss–Newton step from `n`: the shared parameters' by the Schur complement,
-/// then each pulse's by back-substitution. `None` when a system is singular.
-fn solve(n: &Normal, pulses: usize, mu: f32) -> Option<Point> {
+/// `at` moved by the damped Gauss–Newton step from `n`: the shared parameters' by the Schur
+/// complement, then each pulse's by back-substitution. `None` when a system is singular.
+fn solve(n: &Normal, at: &Point, pulses: usize, mu: f32) -> Option<Point> {
     let (s, rhs) = schur(n, pulses, mu)?;
     let inv = inverse(&s)?;
     let shared: Shared = [
@@ -437,15 +461,19 @@ fn solve(n: &Normal, pulses: usize, mu: f32) -> Option<Point> {
         inv[1] * rhs[0] + inv[3] * rhs[1] + inv[4] * rhs[2],
         inv[2] * rhs[0] + inv[4] * rhs[1] + inv[5] * rhs[2],
     ];
-    let mut kin = [(0.0, 0.0); SEGMENTS];
-    for (blk, step) in n.blocks.iter().zip(kin.iter_mut()).take(pulses) {
+    let mut out = *at;
+    for (blk, kin) in n.blocks.iter().zip(out.kin.iter_mut()).take(pulses) {
         let di = damped_inverse2(&blk.d, mu)?;
         let r: [f32; 2] = core::array::from_fn(|c| {
             blk.g[c] - (0..3).map(|a| blk.b[a][c] * shared[a]).sum::<f32>()
         });
-        *step = (di[0] * r[0] + di[1] * r[1], di[1] * r[0] + di[2] * r[1]);
+        kin.0 += di[0] * r[0] + di[1] * r[1];
+        kin.1 += di[1] * r[0] + di[2] * r[1];
     }
-    Some(Point { shared, kin })
+    for (x, d) in out.shared.iter_mut().zip(shared) {
+        *x += d;
+    }
+    Some(out)
 }
 
 /// The inverse of a symmetric 3 × 3 matrix (by cofactors, scaled by its diagonal so that the

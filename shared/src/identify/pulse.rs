@@ -46,20 +46,10 @@ pub struct Pulse {
 }
 
 impl Pulse {
-    /// The pulse of segment `k` (`seg`) with the baseline `offset_n` removed: the samples around
-    /// the peak whose force exceeds `WINDOW_SIGMAS · sigma_n`.
-    ///
-    /// # Errors
-    /// [`DropRefusal::Clipped`] when the pulse reaches the baseline or the segment's end,
-    /// [`DropRefusal::ShortPulse`] when it spans fewer than [`MIN_PULSE_SAMPLES`].
-    #[inline(never)]
-    pub fn of(
-        seg: &SegmentForce,
-        k: usize,
-        offset_n: f32,
-        sigma_n: f32,
-    ) -> Result<Pulse, DropRefusal> {
-        let mut p = Pulse {
+    /// A pulse of no samples: the buffer [`Pulse::read`] fills (3 KiB: one is kept and reused,
+    /// not returned by value, so that the stack holds one).
+    pub const fn empty() -> Pulse {
+        Pulse {
             first: 0,
             len: 0,
             peak_n: f32::MIN,
@@ -67,7 +57,26 @@ impl Pulse {
             int1: [0.0; SEGMENT_LEN],
             int2: [0.0; SEGMENT_LEN],
             edges: (0.0, 0.0),
-        };
+        }
+    }
+
+    /// Reads into `self` the pulse of segment `k` (`seg`) with the baseline `offset_n` removed:
+    /// the samples around the peak whose force exceeds `WINDOW_SIGMAS · sigma`. Only the first
+    /// `len` samples of the arrays are the pulse's.
+    ///
+    /// # Errors
+    /// [`DropRefusal::Clipped`] when the pulse reaches the baseline or the segment's end,
+    /// [`DropRefusal::ShortPulse`] when it spans fewer than [`MIN_PULSE_SAMPLES`].
+    #[inline(never)]
+    pub fn read(
+        &mut self,
+        seg: &SegmentForce,
+        k: usize,
+        offset_n: f32,
+        sigma_n: f32,
+    ) -> Result<(), DropRefusal> {
+        let p = self;
+        p.peak_n = f32::MIN;
         let mut at = 0;
         for (j, f) in seg.force_n.iter().enumerate() {
             if f - offset_n > p.peak_n {
@@ -115,6 +124,6 @@ impl Pulse {
             seg.force_n[first - 1] - offset_n,
             seg.force_n[last + 1] - offset_n,
         );
-        Ok(p)
+        Ok(())
     }
 }
