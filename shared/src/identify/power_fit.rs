@@ -25,6 +25,7 @@ use super::linear_fit::centred;
 use super::pulse::Pulse;
 use super::record::SAMPLE_PERIOD_S;
 use super::{DropRefusal, ln};
+use crate::model::contact::{LawCoeffs, PowerDissipation, impact_restitution};
 
 /// Most Levenberg–Marquardt iterations (a bound: the fit ends earlier, when an accepted step
 /// lowers the residual by less than [`CONVERGED`] of it).
@@ -50,13 +51,11 @@ pub const RESTITUTION_STEPS: u32 = 200;
 
 impl HuntCrossley {
     /// The coefficient of restitution of one impact of a free mass `mass_kg` arriving at
-    /// `speed_m_s` (> 0): `m δ̈ = −F(δ, δ̇)` from `δ = 0`, `δ̇ = v` by RK4 in
-    /// [`RESTITUTION_STEPS`] steps of the elastic impact's duration (estimated as
-    /// `2.94 δ_max / v`, Hertz's for `n` = 1.5, whatever `n`: it only sets the step), until
-    /// the force vanishes on the way out (the last step refined 64-fold, the exit speed
-    /// interpolated); `e = −δ̇_exit / v`. The desktop's reference is
-    /// [`crate::model::ContactLaw::restitution`] in `f64`. Hunt–Crossley's `e` falls with `v`
-    /// (`≈ 1 − 2λv/3` for small `λv`).
+    /// `speed_m_s` (> 0): the model's own impact ([`impact_restitution`], which
+    /// [`crate::model::ContactLaw::restitution`] runs in `f64` at 4,000 steps per half period)
+    /// in `f32`, at [`RESTITUTION_STEPS`] steps of the elastic impact's duration (estimated as
+    /// `2.94 δ_max / v`, Hertz's for `n` = 1.5, whatever `n`: it only sets the step).
+    /// Hunt–Crossley's `e` falls with `v` (`≈ 1 − 2λv/3` for small `λv`).
     ///
     /// `None` for a non-positive or non-finite mass or speed, or a contact that does not end
     /// within four times the estimate.
@@ -80,68 +79,14 @@ impl HuntCrossley {
         if !(h > 0.0 && h.is_finite()) {
             return None;
         }
-        let force = |d: f32, v: f32| self.force(d, v);
-        let rk4 = |s: (f32, f32), h: f32| self.rk4_step(mass_kg, s, h);
-        let mut s = (0.0f32, speed_m_s);
-        for _ in 0..4 * RESTITUTION_STEPS {
-            let next = rk4(s, h);
-            // The contact ends where the force vanishes on the way out (the switch model's
-            // `h_β = 0`): at `δ = 0`, or earlier where `1 + λ δ̇` reaches 0.
-            if next.1 < 0.0 && force(next.0, next.1) <= 0.0 {
-                let mut a = s;
-                for _ in 0..64 {
-                    let b = rk4(a, h / 64.0);
-                    let (fa, fb) = (force(a.0, a.1), force(b.0, b.1));
-                    if fb <= 0.0 {
-                        // Linear in the force where it falls smoothly to 0 (`1 + λ δ̇`), in
-                        // the penetration where the law cuts off at the surface.
-                        let w = if b.0 <= 0.0 && a.0 > b.0 {
-                            a.0 / (a.0 - b.0)
-                        } else if fa > fb {
-                            fa / (fa - fb)
-                        } else {
-                            1.0
-                        };
-                        return Some(-(a.1 + w * (b.1 - a.1)) / speed_m_s);
-                    }
-                    a = b;
-                }
-                return Some(-next.1 / speed_m_s);
-            }
-            s = next;
-        }
-        None
-    }
-}
-
-impl HuntCrossley {
-    /// The force, N, at penetration `d` (m) and rate `v` (m/s): 0 out of contact.
-    fn force(&self, d: f32, v: f32) -> f32 {
-        if d <= 0.0 {
-            0.0
-        } else {
-            self.stiffness * libm::powf(d, self.exponent) * (1.0 + self.lambda_s_m * v)
-        }
-    }
-
-    /// One RK4 step over `h` s of a lone impact of `mass_kg` from `(δ, δ̇)`.
-    #[inline(never)]
-    fn rk4_step(&self, mass_kg: f32, (d, v): (f32, f32), h: f32) -> (f32, f32) {
-        let accel = |d: f32, v: f32| -self.force(d, v) / mass_kg;
-        let (k1x, k1v) = (v, accel(d, v));
-        let (k2x, k2v) = (
-            v + 0.5 * h * k1v,
-            accel(d + 0.5 * h * k1x, v + 0.5 * h * k1v),
-        );
-        let (k3x, k3v) = (
-            v + 0.5 * h * k2v,
-            accel(d + 0.5 * h * k2x, v + 0.5 * h * k2v),
-        );
-        let (k4x, k4v) = (v + h * k3v, accel(d + h * k3x, v + h * k3v));
-        (
-            d + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x),
-            v + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
-        )
+        let law = LawCoeffs::Power {
+            k,
+            n,
+            dissipation: PowerDissipation::HuntCrossley {
+                lambda: self.lambda_s_m,
+            },
+        };
+        impact_restitution(&law, mass_kg, speed_m_s, h, 4 * RESTITUTION_STEPS)
     }
 }
 

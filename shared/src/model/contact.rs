@@ -345,38 +345,60 @@ impl ContactLaw {
             return None;
         }
         let law = self.compile::<f64>(mass_kg);
-        let v0 = impact_speed_m_s;
-        let force = |d: f64, dd: f64| law.unswitched_force(d, dd, v0);
-        let accel = |d: f64, dd: f64| -force(d, dd) / mass_kg;
-        let rk4 = |s: (f64, f64), h: f64| impact_rk4(&accel, s, h);
-        let wc = self.contact_omega(mass_kg, v0);
+        let wc = self.contact_omega(mass_kg, impact_speed_m_s);
         if !(wc > 0.0 && wc.is_finite()) {
             return None;
         }
         let h = core::f64::consts::PI / wc / f64::from(RESTITUTION_STEPS);
-        let mut s = (0.0, v0);
-        for _ in 0..100 * RESTITUTION_STEPS {
-            let next = rk4(s, h);
-            // The force is positive from the first instant (δ̇ = v > 0); the contact ends at
-            // its first zero once the hammer moves out.
-            if next.1 < 0.0 && force(next.0, next.1) <= 0.0 {
-                let mut a = s;
-                for _ in 0..64 {
-                    let b = rk4(a, h / 64.0);
-                    let (fa, fb) = (force(a.0, a.1), force(b.0, b.1));
-                    if fb <= 0.0 {
-                        let w = if fa > fb { fa / (fa - fb) } else { 1.0 };
-                        let exit = a.1 + w * (b.1 - a.1);
-                        return Some(-exit / v0);
-                    }
-                    a = b;
-                }
-                return Some(-next.1 / v0);
-            }
-            s = next;
-        }
-        None
+        impact_restitution(&law, mass_kg, impact_speed_m_s, h, 100 * RESTITUTION_STEPS)
     }
+}
+
+/// The coefficient of restitution of one impact of a free mass `mass_kg` arriving at `v0`
+/// (m/s, positive) under the compiled law `law`, in any precision: `m δ̈ = −F(δ, δ̇)` from `δ = 0`,
+/// `δ̇ = v0` by RK4 in steps of `h` s (at most `max_steps`) until the force vanishes on the way
+/// out (the switch model's `h_β = 0`, Eq. 3-20; the last step refined 64-fold and the crossing
+/// interpolated linearly in the force); `e = −δ̇_exit / v0`. [`ContactLaw::restitution`] runs it
+/// in `f64`; the board's identification in `f32` for the law it fitted.
+///
+/// `None` when the contact does not end within `max_steps`.
+pub fn impact_restitution<T: Real>(
+    law: &LawCoeffs<T>,
+    mass_kg: T,
+    v0: T,
+    h: T,
+    max_steps: u32,
+) -> Option<T> {
+    let zero = T::zero();
+    let force = |d: T, dd: T| impact_force(law, d, dd, v0);
+    let accel = |d: T, dd: T| -force(d, dd) / mass_kg;
+    let rk4 = |s: (T, T), h: T| impact_rk4(&accel, s, h);
+    let mut s = (zero, v0);
+    for _ in 0..max_steps {
+        let next = rk4(s, h);
+        // The force is positive from the first instant (δ̇ = v > 0); the contact ends at
+        // its first zero once the hammer moves out.
+        if next.1 < zero && force(next.0, next.1) <= zero {
+            let mut a = s;
+            for _ in 0..64 {
+                let b = rk4(a, h / T::from_f64(64.0));
+                let (fa, fb) = (force(a.0, a.1), force(b.0, b.1));
+                if fb <= zero {
+                    let w = if fa > fb {
+                        fa / (fa - fb)
+                    } else {
+                        T::from_f64(1.0)
+                    };
+                    let exit = a.1 + w * (b.1 - a.1);
+                    return Some(-exit / v0);
+                }
+                a = b;
+            }
+            return Some(-next.1 / v0);
+        }
+        s = next;
+    }
+    None
 }
 
 /// Closed-form coefficient of restitution of one spring–dashpot impact of a free mass `m` on a
@@ -426,22 +448,30 @@ pub fn spring_dashpot_restitution_in<T: Real>(
     Some((-rate, tc))
 }
 
+/// The law's force in [`impact_restitution`], one copy (called from each RK4 stage).
+#[inline(never)]
+fn impact_force<T: Real>(law: &LawCoeffs<T>, d: T, dd: T, v0: T) -> T {
+    law.unswitched_force(d, dd, v0)
+}
+
 /// One RK4 step over `h` s of a lone impact, `δ̈ = accel(δ, δ̇)`, from `(δ, δ̇)` (m, m/s)
-/// ([`ContactLaw::restitution`]).
-fn impact_rk4(mut accel: impl FnMut(f64, f64) -> f64, (d, dd): (f64, f64), h: f64) -> (f64, f64) {
+/// ([`impact_restitution`]).
+#[inline(never)]
+fn impact_rk4<T: Real>(mut accel: impl FnMut(T, T) -> T, (d, dd): (T, T), h: T) -> (T, T) {
+    let (half, two, six) = (T::from_f64(0.5), T::from_f64(2.0), T::from_f64(6.0));
     let (k1x, k1v) = (dd, accel(d, dd));
     let (k2x, k2v) = (
-        dd + 0.5 * h * k1v,
-        accel(d + 0.5 * h * k1x, dd + 0.5 * h * k1v),
+        dd + half * h * k1v,
+        accel(d + half * h * k1x, dd + half * h * k1v),
     );
     let (k3x, k3v) = (
-        dd + 0.5 * h * k2v,
-        accel(d + 0.5 * h * k2x, dd + 0.5 * h * k2v),
+        dd + half * h * k2v,
+        accel(d + half * h * k2x, dd + half * h * k2v),
     );
     let (k4x, k4v) = (dd + h * k3v, accel(d + h * k3x, dd + h * k3v));
     (
-        d + h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x),
-        dd + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v),
+        d + h / six * (k1x + two * k2x + two * k3x + k4x),
+        dd + h / six * (k1v + two * k2v + two * k3v + k4v),
     )
 }
 
