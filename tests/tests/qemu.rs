@@ -13,7 +13,7 @@
 use std::process::Command;
 
 use shared::control::{SensorChain, predict};
-use shared::identify::{DropLaw, RecordedDrop, identify_drop};
+use shared::identify::{DropIdentification, DropLaw, RecordedDrop, identify_drop};
 use shared::model::{ModelEdit, ModelField, RigId, params_hash};
 
 /// Instructions the Hunt–Crossley drop identification may take on the recorded 22-impact drop
@@ -25,6 +25,15 @@ fn field(out: &str, key: &str) -> String {
         .find_map(|w| w.strip_prefix(&format!("{key}=")))
         .unwrap_or_else(|| panic!("`{key}=` missing in the QEMU output:\n{out}"))
         .to_string()
+}
+
+/// The host's identification of a recorded drop in `firmware/data/` (what `qemu-check` replays
+/// on the emulated board), with `rig`'s hammer mass.
+fn replay(file: &str, rig: RigId) -> DropIdentification {
+    let path = format!("{}/../firmware/data/{file}", env!("CARGO_MANIFEST_DIR"));
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut rec = RecordedDrop::parse(&bytes, SensorChain::default()).unwrap();
+    identify_drop(&mut rec, rig.preset().mass_kg as f32, 0.0).unwrap()
 }
 
 fn hex(s: &str) -> u32 {
@@ -111,13 +120,7 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
     }
 
     // The board's drop identification of the recorded capture: the host's bits.
-    let bytes = std::fs::read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../firmware/data/drop-wires-k2.bin"
-    ))
-    .unwrap();
-    let mut rec = RecordedDrop::parse(&bytes, SensorChain::default()).unwrap();
-    let id = identify_drop(&mut rec, RigId::Wires.preset().mass_kg as f32, 0.0).unwrap();
+    let id = replay("drop-wires-k2.bin", RigId::Wires);
     let sus = id.suspension.unwrap();
     let line = out
         .lines()
@@ -142,13 +145,7 @@ fn on_target_selection_matches_the_host_and_meets_the_budgets() {
     }
 
     // The Hunt–Crossley drop: the host's bits too.
-    let bytes = std::fs::read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../firmware/data/drop-beam150-hc.bin"
-    ))
-    .unwrap();
-    let mut rec = RecordedDrop::parse(&bytes, SensorChain::default()).unwrap();
-    let id = identify_drop(&mut rec, RigId::Beam150.preset().mass_kg as f32, 0.0).unwrap();
+    let id = replay("drop-beam150-hc.bin", RigId::Beam150);
     let sus = id.suspension.unwrap();
     let DropLaw::HuntCrossley {
         stiffness,
